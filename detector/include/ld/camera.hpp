@@ -1,0 +1,34 @@
+// Pinhole camera intrinsics in OpenCV's calibration file format
+// (cv::FileStorage YAML/XML with camera_matrix, distortion_coefficients,
+// image_width, image_height), as OpenCV's calibration sample writes them.
+#pragma once
+
+#include <string>
+
+#include <opencv2/core.hpp>
+
+namespace ld {
+
+struct CameraModel {
+  cv::Matx33d K = cv::Matx33d::eye();  // camera matrix
+  cv::Mat dist;                        // distortion coefficients (empty: none)
+  cv::Size size;                       // image size the calibration is for
+
+  /// 640x480, f = 600 px, principal point at the image centre, no distortion:
+  /// the project's default camera.
+  static CameraModel defaultVga();
+  /// A distortion-free camera of the given size and focal length in pixels.
+  static CameraModel pinhole(cv::Size size, double focal_px);
+
+  /// Reads a calibration file; throws std::runtime_error naming the file and
+  /// the missing or malformed field.
+  static CameraModel load(const std::string& path);
+  void save(const std::string& path) const;
+
+  /// The same camera for another image size (scales K; distortion is kept).
+  CameraModel scaledTo(cv::Size new_size) const;
+
+  bool hasDistortion() const;
+};
+
+}  // namespace ld

@@ -1,0 +1,66 @@
+// Conversions between ld::image_t messages and cv::Mat.
+//
+// Every decode checks that the message is self-consistent (sizes, strides,
+// pixel format) before touching its bytes, and throws ImageFormatError with
+// a one-line reason otherwise: a bad message never reads past its buffer.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "ld/image_t.hpp"
+
+namespace ld {
+
+/// Thrown when an image_t cannot be decoded; what() names the problem.
+class ImageFormatError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// The FourCC code of four characters, as V4L2 and bot_core.image_t use it.
+constexpr int32_t fourcc(char a, char b, char c, char d) {
+  return static_cast<int32_t>(static_cast<uint32_t>(static_cast<uint8_t>(a)) |
+                              (static_cast<uint32_t>(static_cast<uint8_t>(b)) << 8) |
+                              (static_cast<uint32_t>(static_cast<uint8_t>(c)) << 16) |
+                              (static_cast<uint32_t>(static_cast<uint8_t>(d)) << 24));
+}
+
+/// "GRAY", "RGB", "BGR", "RGBA", "BGRA", "YUYV", "UYVY", "MJPEG", or the
+/// FourCC text ("0x…" when it is not printable) for anything else.
+std::string pixelFormatName(int32_t pixelformat);
+
+/// Inverse of pixelFormatName for the supported formats (case-insensitive;
+/// "GREY" and "MJPG" are accepted too). Throws ImageFormatError when unknown.
+int32_t pixelFormatFromName(const std::string& name);
+
+/// True for the formats imageToBgr can decode.
+bool isSupportedPixelFormat(int32_t pixelformat);
+
+/// Decodes any supported format into 8-bit BGR. `out` is reused when it
+/// already has the right size and type, so a warmed-up caller does not
+/// allocate (MJPEG decoding allocates inside libjpeg regardless).
+void imageToBgr(const image_t& msg, cv::Mat& out);
+cv::Mat imageToBgr(const image_t& msg);
+
+/// Decodes to GRAY (CV_8UC1) for GRAY messages and BGR (CV_8UC3) otherwise.
+void imageToMat(const image_t& msg, cv::Mat& out);
+
+/// Encodes an 8-bit image (1, 3 or 4 channels; 3 and 4 are taken as BGR and
+/// BGRA) into `pixelformat`. Compressed formats use `jpeg_quality`.
+/// Throws ImageFormatError when the conversion is not possible (YUYV/UYVY need an
+/// even width).
+image_t matToImage(const cv::Mat& image, int32_t pixelformat, int64_t utime,
+                   int64_t seq = -1, int jpeg_quality = 90);
+
+/// The frame's sequence number from the "seq" metadata, if present and valid.
+std::optional<int64_t> imageSeq(const image_t& msg);
+
+/// Sets (or replaces) the "seq" metadata.
+void setImageSeq(image_t& msg, int64_t seq);
+
+}  // namespace ld

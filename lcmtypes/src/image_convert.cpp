@@ -1,0 +1,262 @@
+#include "ld/image_convert.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <vector>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace ld {
+namespace {
+
+constexpr int kMaxSide = 1 << 15;
+
+struct FormatInfo {
+  int32_t code;
+  const char* name;
+  int bytes_per_pixel;  // 0: compressed
+};
+
+const FormatInfo kFormats[] = {
+    {image_t::PIXEL_FORMAT_GRAY, "GRAY", 1},  {image_t::PIXEL_FORMAT_RGB, "RGB", 3},
+    {image_t::PIXEL_FORMAT_BGR, "BGR", 3},    {image_t::PIXEL_FORMAT_RGBA, "RGBA", 4},
+    {image_t::PIXEL_FORMAT_BGRA, "BGRA", 4},  {image_t::PIXEL_FORMAT_YUYV, "YUYV", 2},
+    {image_t::PIXEL_FORMAT_UYVY, "UYVY", 2},  {image_t::PIXEL_FORMAT_MJPEG, "MJPEG", 0},
+};
+
+const FormatInfo* findFormat(int32_t code) {
+  for (const auto& f : kFormats)
+    if (f.code == code) return &f;
+  return nullptr;
+}
+
+[[noreturn]] void fail(const std::string& what) { throw ImageFormatError("image_t: " + what); }
+
+// Checks the header of a raw (uncompressed) message and returns a Mat view of
+// its pixels with `channels` channels of bytes per pixel.
+cv::Mat rawView(const image_t& msg, const FormatInfo& f) {
+  const std::string fmt = f.name;
+  if (msg.width <= 0 || msg.height <= 0 || msg.width > kMaxSide || msg.height > kMaxSide)
+    fail(fmt + " image has invalid size " + std::to_string(msg.width) + "x" +
+         std::to_string(msg.height));
+  if (static_cast<size_t>(msg.size) != msg.data.size() || msg.size < 0)
+    fail(fmt + " size field " + std::to_string(msg.size) + " does not match " +
+         std::to_string(msg.data.size()) + " data bytes");
+  if ((f.code == image_t::PIXEL_FORMAT_YUYV || f.code == image_t::PIXEL_FORMAT_UYVY) &&
+      msg.width % 2 != 0)
+    fail(fmt + " image needs an even width, got " + std::to_string(msg.width));
+  const int64_t row_bytes = static_cast<int64_t>(msg.width) * f.bytes_per_pixel;
+  const int64_t stride = msg.row_stride == 0 ? row_bytes : msg.row_stride;
+  if (stride < row_bytes)
+    fail(fmt + " row_stride " + std::to_string(msg.row_stride) + " is less than width*" +
+         std::to_string(f.bytes_per_pixel) + " = " + std::to_string(row_bytes));
+  const int64_t needed = stride * (msg.height - 1) + row_bytes;
+  if (msg.size < needed)
+    fail(fmt + " " + std::to_string(msg.width) + "x" + std::to_string(msg.height) +
+         " with row_stride " + std::to_string(stride) + " needs " + std::to_string(needed) +
+         " bytes, message has " + std::to_string(msg.size));
+  const int type = CV_8UC(f.bytes_per_pixel);
+  return cv::Mat(msg.height, msg.width, type, const_cast<uint8_t*>(msg.data.data()),
+                 static_cast<size_t>(stride));
+}
+
+void decodeMjpeg(const image_t& msg, cv::Mat& out, int flags) {
+  if (static_cast<size_t>(msg.size) != msg.data.size() || msg.size <= 0)
+    fail("MJPEG size field " + std::to_string(msg.size) + " does not match " +
+         std::to_string(msg.data.size()) + " data bytes");
+  const cv::Mat buf(1, msg.size, CV_8UC1, const_cast<uint8_t*>(msg.data.data()));
+  cv::Mat decoded;
+  try {
+    decoded = cv::imdecode(buf, flags);
+  } catch (const cv::Exception& e) {
+    fail("MJPEG data could not be decoded (" + std::string(e.what()) + ")");
+  }
+  if (decoded.empty()) fail("MJPEG data could not be decoded");
+  if (msg.width > 0 && msg.height > 0 &&
+      (decoded.cols != msg.width || decoded.rows != msg.height))
+    fail("MJPEG data is " + std::to_string(decoded.cols) + "x" + std::to_string(decoded.rows) +
+         " but the message says " + std::to_string(msg.width) + "x" +
+         std::to_string(msg.height));
+  out = decoded;
+}
+
+// BGR (or gray) to packed 4:2:2; `yuyv` selects Y0 U Y1 V, else U Y0 V Y1.
+void encodePacked422(const cv::Mat& bgr, bool yuyv, std::vector<uint8_t>& dst) {
+  cv::Mat yuv;
+  cv::cvtColor(bgr, yuv, cv::COLOR_BGR2YUV);  // full-range BT.601, as cvtColor decodes
+  dst.resize(static_cast<size_t>(bgr.cols) * bgr.rows * 2);
+  uint8_t* o = dst.data();
+  for (int y = 0; y < yuv.rows; ++y) {
+    const cv::Vec3b* p = yuv.ptr<cv::Vec3b>(y);
+    for (int x = 0; x < yuv.cols; x += 2) {
+      const uint8_t y0 = p[x][0], y1 = p[x + 1][0];
+      const uint8_t u = static_cast<uint8_t>((p[x][1] + p[x + 1][1] + 1) / 2);
+      const uint8_t v = static_cast<uint8_t>((p[x][2] + p[x + 1][2] + 1) / 2);
+      if (yuyv) {
+        o[0] = y0; o[1] = u; o[2] = y1; o[3] = v;
+      } else {
+        o[0] = u; o[1] = y0; o[2] = v; o[3] = y1;
+      }
+      o += 4;
+    }
+  }
+}
+
+}  // namespace
+
+std::string pixelFormatName(int32_t pixelformat) {
+  if (const FormatInfo* f = findFormat(pixelformat)) return f->name;
+  std::string s;
+  for (int i = 0; i < 4; ++i) {
+    const char c = static_cast<char>((static_cast<uint32_t>(pixelformat) >> (8 * i)) & 0xff);
+    if (!std::isprint(static_cast<unsigned char>(c))) {
+      char hex[16];
+      std::snprintf(hex, sizeof hex, "0x%08x", static_cast<uint32_t>(pixelformat));
+      return hex;
+    }
+    s += c;
+  }
+  return "'" + s + "'";
+}
+
+int32_t pixelFormatFromName(const std::string& name) {
+  std::string up = name;
+  std::transform(up.begin(), up.end(), up.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+  if (up == "GREY") up = "GRAY";
+  if (up == "MJPG" || up == "JPEG") up = "MJPEG";
+  for (const auto& f : kFormats)
+    if (up == f.name) return f.code;
+  throw ImageFormatError("unknown pixel format '" + name +
+                         "' (expected GRAY, RGB, BGR, RGBA, BGRA, YUYV, UYVY or MJPEG)");
+}
+
+bool isSupportedPixelFormat(int32_t pixelformat) { return findFormat(pixelformat) != nullptr; }
+
+void imageToBgr(const image_t& msg, cv::Mat& out) {
+  const FormatInfo* f = findFormat(msg.pixelformat);
+  if (!f) fail("unsupported pixel format " + pixelFormatName(msg.pixelformat));
+  if (f->bytes_per_pixel == 0) {
+    decodeMjpeg(msg, out, cv::IMREAD_COLOR);
+    return;
+  }
+  const cv::Mat src = rawView(msg, *f);
+  switch (f->code) {
+    case image_t::PIXEL_FORMAT_GRAY: cv::cvtColor(src, out, cv::COLOR_GRAY2BGR); break;
+    case image_t::PIXEL_FORMAT_RGB: cv::cvtColor(src, out, cv::COLOR_RGB2BGR); break;
+    case image_t::PIXEL_FORMAT_BGR: src.copyTo(out); break;
+    case image_t::PIXEL_FORMAT_RGBA: cv::cvtColor(src, out, cv::COLOR_RGBA2BGR); break;
+    case image_t::PIXEL_FORMAT_BGRA: cv::cvtColor(src, out, cv::COLOR_BGRA2BGR); break;
+    case image_t::PIXEL_FORMAT_YUYV: cv::cvtColor(src, out, cv::COLOR_YUV2BGR_YUYV); break;
+    case image_t::PIXEL_FORMAT_UYVY: cv::cvtColor(src, out, cv::COLOR_YUV2BGR_UYVY); break;
+    default: fail("unsupported pixel format " + pixelFormatName(msg.pixelformat));
+  }
+}
+
+cv::Mat imageToBgr(const image_t& msg) {
+  cv::Mat out;
+  imageToBgr(msg, out);
+  return out;
+}
+
+void imageToMat(const image_t& msg, cv::Mat& out) {
+  if (msg.pixelformat == image_t::PIXEL_FORMAT_GRAY) {
+    rawView(msg, *findFormat(msg.pixelformat)).copyTo(out);
+    return;
+  }
+  imageToBgr(msg, out);
+}
+
+image_t matToImage(const cv::Mat& image, int32_t pixelformat, int64_t utime, int64_t seq,
+                   int jpeg_quality) {
+  if (image.empty()) throw ImageFormatError("matToImage: empty image");
+  if (image.depth() != CV_8U || (image.channels() != 1 && image.channels() != 3 &&
+                                 image.channels() != 4))
+    throw ImageFormatError("matToImage: need an 8-bit image with 1, 3 or 4 channels");
+  const FormatInfo* f = findFormat(pixelformat);
+  if (!f) throw ImageFormatError("matToImage: unsupported pixel format " +
+                                 pixelFormatName(pixelformat));
+
+  cv::Mat bgr;
+  if (image.channels() == 1) cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
+  else if (image.channels() == 4) cv::cvtColor(image, bgr, cv::COLOR_BGRA2BGR);
+  else bgr = image;
+
+  image_t msg;
+  msg.utime = utime;
+  msg.width = image.cols;
+  msg.height = image.rows;
+  msg.pixelformat = pixelformat;
+  msg.nmetadata = 0;
+
+  cv::Mat packed;
+  switch (pixelformat) {
+    case image_t::PIXEL_FORMAT_GRAY:
+      if (image.channels() == 1) packed = image;
+      else cv::cvtColor(bgr, packed, cv::COLOR_BGR2GRAY);
+      break;
+    case image_t::PIXEL_FORMAT_RGB: cv::cvtColor(bgr, packed, cv::COLOR_BGR2RGB); break;
+    case image_t::PIXEL_FORMAT_BGR: packed = bgr; break;
+    case image_t::PIXEL_FORMAT_RGBA: cv::cvtColor(bgr, packed, cv::COLOR_BGR2RGBA); break;
+    case image_t::PIXEL_FORMAT_BGRA: cv::cvtColor(bgr, packed, cv::COLOR_BGR2BGRA); break;
+    case image_t::PIXEL_FORMAT_YUYV:
+    case image_t::PIXEL_FORMAT_UYVY:
+      if (image.cols % 2 != 0)
+        throw ImageFormatError("matToImage: " + std::string(f->name) +
+                               " needs an even width, got " + std::to_string(image.cols));
+      encodePacked422(bgr, pixelformat == image_t::PIXEL_FORMAT_YUYV, msg.data);
+      msg.row_stride = image.cols * 2;
+      break;
+    case image_t::PIXEL_FORMAT_MJPEG: {
+      const std::vector<int> params{cv::IMWRITE_JPEG_QUALITY, jpeg_quality};
+      if (!cv::imencode(".jpg", image.channels() == 1 ? image : bgr, msg.data, params))
+        throw ImageFormatError("matToImage: JPEG encoding failed");
+      msg.row_stride = 0;
+      break;
+    }
+    default: break;
+  }
+  if (!packed.empty()) {
+    const size_t row = static_cast<size_t>(packed.cols) * packed.elemSize();
+    msg.row_stride = static_cast<int32_t>(row);
+    msg.data.resize(row * static_cast<size_t>(packed.rows));
+    for (int y = 0; y < packed.rows; ++y)
+      std::copy_n(packed.ptr<uint8_t>(y), row, msg.data.data() + row * static_cast<size_t>(y));
+  }
+  msg.size = static_cast<int32_t>(msg.data.size());
+  if (seq >= 0) setImageSeq(msg, seq);
+  return msg;
+}
+
+std::optional<int64_t> imageSeq(const image_t& msg) {
+  for (const auto& m : msg.metadata) {
+    if (m.key != "seq") continue;
+    if (m.n <= 0 || static_cast<size_t>(m.n) != m.value.size() || m.n > 20) return std::nullopt;
+    const char* b = reinterpret_cast<const char*>(m.value.data());
+    int64_t v = 0;
+    const auto r = std::from_chars(b, b + m.n, v);
+    if (r.ec != std::errc() || r.ptr != b + m.n) return std::nullopt;
+    return v;
+  }
+  return std::nullopt;
+}
+
+void setImageSeq(image_t& msg, int64_t seq) {
+  const std::string text = std::to_string(seq);
+  image_metadata_t md;
+  md.key = "seq";
+  md.n = static_cast<int32_t>(text.size());
+  md.value.assign(text.begin(), text.end());
+  for (auto& m : msg.metadata) {
+    if (m.key == "seq") {
+      m = md;
+      return;
+    }
+  }
+  msg.metadata.push_back(md);
+  msg.nmetadata = static_cast<int32_t>(msg.metadata.size());
+}
+
+}  // namespace ld

@@ -1,0 +1,71 @@
+// Printable landmark artwork exactly as docs/landmark.md defines it: raster
+// (for PNG files and for rendering synthetic scenes) and vector (SVG at exact
+// physical size), single landmarks and sheets of several.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace ld::artwork {
+
+/// Colours of the artwork, BGR. The defaults are the nominal sRGB values of
+/// the layout; ld-synth passes printed-ink colours instead.
+struct Colours {
+  cv::Vec3b blue{255, 0, 0};
+  cv::Vec3b red{0, 0, 255};
+  cv::Vec3b white{255, 255, 255};
+  cv::Vec3b black{0, 0, 0};
+};
+
+/// A QR symbol as a square grid of modules (true = dark), no quiet zone.
+struct QrCode {
+  int size = 0;                 // modules per side
+  std::vector<uint8_t> modules; // row-major, size*size
+  bool dark(int x, int y) const { return modules[static_cast<size_t>(y) * size + x] != 0; }
+};
+
+/// Encodes `payload` (bytes, UTF-8 text as is) with libqrencode, error
+/// correction level M. Throws std::invalid_argument when it does not fit.
+QrCode encodeQr(const std::string& payload);
+
+/// Geometry of the QR inside the sheet, in units u: the symbol plus one
+/// module of quiet zone fills the QR square [2.5u, 6.5u].
+struct QrPlacement {
+  double origin_u;  // sheet coordinate of the symbol's first module edge
+  double module_u;  // module side
+};
+QrPlacement qrPlacement(const QrCode& qr);
+
+/// The landmark rendered to a side_px x side_px BGR image. Each pixel takes
+/// the colour of the element under its centre, so the artwork is exact to the
+/// pixel at any size (and a pixel-perfect copy of the layout when side_px is
+/// a multiple of 18).
+cv::Mat renderLandmark(const QrCode& qr, int side_px, const Colours& colours = {});
+cv::Mat renderLandmark(const std::string& payload, int side_px, const Colours& colours = {});
+
+/// Pixel side of a sheet of `side_m` metres printed at `dpi`.
+int sidePixels(double side_m, double dpi);
+
+/// A standalone SVG of one landmark with width and height `side_mm`
+/// millimetres, so printing at 100% gives a sheet of exactly that side.
+std::string landmarkSvg(const std::string& payload, double side_mm);
+
+/// A page of several landmarks (side_mm each) laid out in a grid with the
+/// payload printed under each; page size in millimetres (A4 by default).
+/// Throws std::invalid_argument when not even one landmark fits the page.
+struct SheetLayout {
+  double page_w_mm = 210.0;
+  double page_h_mm = 297.0;
+  double margin_mm = 10.0;
+  double gap_mm = 8.0;
+};
+std::string sheetSvg(const std::vector<std::string>& payloads, double side_mm,
+                     const SheetLayout& page = {});
+/// The same page as a raster image at `dpi`.
+cv::Mat sheetImage(const std::vector<std::string>& payloads, double side_mm, double dpi,
+                   const SheetLayout& page = {});
+
+}  // namespace ld::artwork

@@ -1,0 +1,218 @@
+#include "ld/artwork.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <sstream>
+#include <stdexcept>
+
+#include <opencv2/imgproc.hpp>
+#include <qrencode.h>
+
+#include "ld/landmark_layout.hpp"
+
+namespace ld::artwork {
+namespace {
+
+// The element of the artwork under sheet point (x, y), in units u.
+enum class Element { White, Blue, Red, Black };
+
+Element elementAt(const QrCode& qr, const QrPlacement& place, double x, double y) {
+  for (int i = 0; i < 4; ++i) {
+    const auto& c = layout::kCentresU[static_cast<size_t>(i)];
+    const double h = layout::kSquareSide / 2;
+    if (x >= c[0] - h && x < c[0] + h && y >= c[1] - h && y < c[1] + h)
+      return i == layout::kAp ? Element::Red : Element::Blue;
+  }
+  const int mx = static_cast<int>(std::floor((x - place.origin_u) / place.module_u));
+  const int my = static_cast<int>(std::floor((y - place.origin_u) / place.module_u));
+  if (mx >= 0 && my >= 0 && mx < qr.size && my < qr.size && qr.dark(mx, my)) return Element::Black;
+  return Element::White;
+}
+
+std::string fmt(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.4f", v);
+  std::string s = buf;
+  while (!s.empty() && s.back() == '0') s.pop_back();
+  if (!s.empty() && s.back() == '.') s.pop_back();
+  return s;
+}
+
+std::string xmlEscape(const std::string& s) {
+  std::string out;
+  for (char c : s) {
+    switch (c) {
+      case '&': out += "&amp;"; break;
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '"': out += "&quot;"; break;
+      default: out += c;
+    }
+  }
+  return out;
+}
+
+// SVG elements of one landmark of side `side` (user units) at (x0, y0).
+void appendLandmark(std::ostringstream& os, const QrCode& qr, double x0, double y0, double side) {
+  const double u = side / layout::kUnits;
+  os << "<rect x=\"" << fmt(x0) << "\" y=\"" << fmt(y0) << "\" width=\"" << fmt(side)
+     << "\" height=\"" << fmt(side) << "\" fill=\"#ffffff\"/>\n";
+  for (int i = 0; i < 4; ++i) {
+    const auto& c = layout::kCentresU[static_cast<size_t>(i)];
+    const double h = layout::kSquareSide / 2;
+    os << "<rect x=\"" << fmt(x0 + (c[0] - h) * u) << "\" y=\"" << fmt(y0 + (c[1] - h) * u)
+       << "\" width=\"" << fmt(layout::kSquareSide * u) << "\" height=\""
+       << fmt(layout::kSquareSide * u) << "\" fill=\"" << (i == layout::kAp ? "#ff0000" : "#0000ff")
+       << "\"/>\n";
+  }
+  // QR modules as one path of horizontal runs.
+  const QrPlacement p = qrPlacement(qr);
+  const double m = p.module_u * u;
+  os << "<path fill=\"#000000\" shape-rendering=\"crispEdges\" d=\"";
+  for (int y = 0; y < qr.size; ++y) {
+    for (int x = 0; x < qr.size;) {
+      if (!qr.dark(x, y)) {
+        ++x;
+        continue;
+      }
+      int run = 1;
+      while (x + run < qr.size && qr.dark(x + run, y)) ++run;
+      os << "M" << fmt(x0 + p.origin_u * u + x * m) << " " << fmt(y0 + p.origin_u * u + y * m)
+         << "h" << fmt(run * m) << "v" << fmt(m) << "h" << fmt(-run * m) << "z";
+      x += run;
+    }
+  }
+  os << "\"/>\n";
+}
+
+struct Grid {
+  int cols, rows;
+  double cell_w, cell_h;
+};
+
+Grid sheetGrid(size_t count, double side_mm, const SheetLayout& page) {
+  const double label = std::max(4.0, side_mm * 0.06);
+  const double cell_w = side_mm + page.gap_mm, cell_h = side_mm + label + page.gap_mm;
+  const int cols = static_cast<int>((page.page_w_mm - 2 * page.margin_mm + page.gap_mm) / cell_w);
+  const int rows = static_cast<int>((page.page_h_mm - 2 * page.margin_mm + page.gap_mm) / cell_h);
+  if (cols < 1 || rows < 1)
+    throw std::invalid_argument("a " + fmt(side_mm) + " mm landmark does not fit on a " +
+                                fmt(page.page_w_mm) + "x" + fmt(page.page_h_mm) + " mm page");
+  if (count > static_cast<size_t>(cols * rows))
+    throw std::invalid_argument(std::to_string(count) + " landmarks of " + fmt(side_mm) +
+                                " mm do not fit on one page (at most " +
+                                std::to_string(cols * rows) + ")");
+  return {cols, rows, cell_w, cell_h};
+}
+
+}  // namespace
+
+QrCode encodeQr(const std::string& payload) {
+  std::unique_ptr<QRcode, decltype(&QRcode_free)> code(
+      QRcode_encodeData(static_cast<int>(payload.size()),
+                        reinterpret_cast<const unsigned char*>(payload.data()), 0, QR_ECLEVEL_M),
+      &QRcode_free);
+  if (!code) throw std::invalid_argument("QR payload of " + std::to_string(payload.size()) +
+                                         " bytes cannot be encoded");
+  QrCode qr;
+  qr.size = code->width;
+  qr.modules.resize(static_cast<size_t>(qr.size) * qr.size);
+  for (size_t i = 0; i < qr.modules.size(); ++i) qr.modules[i] = code->data[i] & 1;
+  return qr;
+}
+
+QrPlacement qrPlacement(const QrCode& qr) {
+  const double module = (layout::kQrMax - layout::kQrMin) / (qr.size + 2);
+  return {layout::kQrMin + module, module};
+}
+
+cv::Mat renderLandmark(const QrCode& qr, int side_px, const Colours& colours) {
+  if (side_px < 9) throw std::invalid_argument("landmark side must be at least 9 px");
+  const QrPlacement place = qrPlacement(qr);
+  cv::Mat img(side_px, side_px, CV_8UC3);
+  const double scale = layout::kUnits / side_px;
+  for (int y = 0; y < side_px; ++y) {
+    auto* row = img.ptr<cv::Vec3b>(y);
+    const double v = (y + 0.5) * scale;
+    for (int x = 0; x < side_px; ++x) {
+      switch (elementAt(qr, place, (x + 0.5) * scale, v)) {
+        case Element::White: row[x] = colours.white; break;
+        case Element::Blue: row[x] = colours.blue; break;
+        case Element::Red: row[x] = colours.red; break;
+        case Element::Black: row[x] = colours.black; break;
+      }
+    }
+  }
+  return img;
+}
+
+cv::Mat renderLandmark(const std::string& payload, int side_px, const Colours& colours) {
+  return renderLandmark(encodeQr(payload), side_px, colours);
+}
+
+int sidePixels(double side_m, double dpi) {
+  return static_cast<int>(std::lround(side_m / 0.0254 * dpi));
+}
+
+std::string landmarkSvg(const std::string& payload, double side_mm) {
+  const QrCode qr = encodeQr(payload);
+  std::ostringstream os;
+  os << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+     << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << fmt(side_mm) << "mm\" height=\""
+     << fmt(side_mm) << "mm\" viewBox=\"0 0 " << fmt(side_mm) << " " << fmt(side_mm) << "\">\n"
+     << "<title>landmark " << xmlEscape(payload) << "</title>\n";
+  appendLandmark(os, qr, 0, 0, side_mm);
+  os << "</svg>\n";
+  return os.str();
+}
+
+std::string sheetSvg(const std::vector<std::string>& payloads, double side_mm,
+                     const SheetLayout& page) {
+  const Grid g = sheetGrid(payloads.size(), side_mm, page);
+  std::ostringstream os;
+  os << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+     << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << fmt(page.page_w_mm)
+     << "mm\" height=\"" << fmt(page.page_h_mm) << "mm\" viewBox=\"0 0 " << fmt(page.page_w_mm)
+     << " " << fmt(page.page_h_mm) << "\">\n"
+     << "<rect width=\"100%\" height=\"100%\" fill=\"#ffffff\"/>\n";
+  for (size_t i = 0; i < payloads.size(); ++i) {
+    const double x0 = page.margin_mm + static_cast<double>(i % g.cols) * g.cell_w;
+    const double y0 = page.margin_mm + static_cast<double>(i / g.cols) * g.cell_h;
+    // A thin grey cutting outline just outside the sheet.
+    os << "<rect x=\"" << fmt(x0) << "\" y=\"" << fmt(y0) << "\" width=\"" << fmt(side_mm)
+       << "\" height=\"" << fmt(side_mm)
+       << "\" fill=\"none\" stroke=\"#c0c0c0\" stroke-width=\"0.1\"/>\n";
+    appendLandmark(os, encodeQr(payloads[i]), x0, y0, side_mm);
+    os << "<text x=\"" << fmt(x0) << "\" y=\"" << fmt(y0 + side_mm + 3.5)
+       << "\" font-family=\"sans-serif\" font-size=\"3\" fill=\"#404040\">" << xmlEscape(payloads[i])
+       << " (" << fmt(side_mm) << " mm)</text>\n";
+  }
+  os << "</svg>\n";
+  return os.str();
+}
+
+cv::Mat sheetImage(const std::vector<std::string>& payloads, double side_mm, double dpi,
+                   const SheetLayout& page) {
+  const Grid g = sheetGrid(payloads.size(), side_mm, page);
+  const double px_per_mm = dpi / 25.4;
+  cv::Mat img(static_cast<int>(std::lround(page.page_h_mm * px_per_mm)),
+              static_cast<int>(std::lround(page.page_w_mm * px_per_mm)), CV_8UC3,
+              cv::Scalar(255, 255, 255));
+  const int side_px = static_cast<int>(std::lround(side_mm * px_per_mm));
+  for (size_t i = 0; i < payloads.size(); ++i) {
+    const int x0 = static_cast<int>(
+        std::lround((page.margin_mm + static_cast<double>(i % g.cols) * g.cell_w) * px_per_mm));
+    const int y0 = static_cast<int>(
+        std::lround((page.margin_mm + static_cast<double>(i / g.cols) * g.cell_h) * px_per_mm));
+    const cv::Rect roi(x0, y0, side_px, side_px);
+    cv::rectangle(img, roi, cv::Scalar(192, 192, 192), 1);
+    renderLandmark(payloads[i], side_px).copyTo(img(roi));
+    cv::putText(img, payloads[i], {x0, y0 + side_px + static_cast<int>(3.5 * px_per_mm)},
+                cv::FONT_HERSHEY_SIMPLEX, 0.1 * px_per_mm, cv::Scalar(64, 64, 64),
+                std::max(1, static_cast<int>(0.1 * px_per_mm)), cv::LINE_AA);
+  }
+  return img;
+}
+
+}  // namespace ld::artwork
