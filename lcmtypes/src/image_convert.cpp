@@ -82,22 +82,27 @@ void decodeMjpeg(const image_t& msg, cv::Mat& out, int flags) {
   out = decoded;
 }
 
-// BGR (or gray) to packed 4:2:2; `yuyv` selects Y0 U Y1 V, else U Y0 V Y1.
+// BGR to packed 4:2:2 (BT.601, video range, as V4L2 cameras send it and as
+// cvtColor's YUV422 decoders expect); `yuyv` selects Y0 U Y1 V, else U Y0 V Y1.
 void encodePacked422(const cv::Mat& bgr, bool yuyv, std::vector<uint8_t>& dst) {
-  cv::Mat yuv;
-  cv::cvtColor(bgr, yuv, cv::COLOR_BGR2YUV);  // full-range BT.601, as cvtColor decodes
   dst.resize(static_cast<size_t>(bgr.cols) * bgr.rows * 2);
   uint8_t* o = dst.data();
-  for (int y = 0; y < yuv.rows; ++y) {
-    const cv::Vec3b* p = yuv.ptr<cv::Vec3b>(y);
-    for (int x = 0; x < yuv.cols; x += 2) {
-      const uint8_t y0 = p[x][0], y1 = p[x + 1][0];
-      const uint8_t u = static_cast<uint8_t>((p[x][1] + p[x + 1][1] + 1) / 2);
-      const uint8_t v = static_cast<uint8_t>((p[x][2] + p[x + 1][2] + 1) / 2);
+  auto clamp8 = [](double v) { return static_cast<uint8_t>(std::clamp(std::lround(v), 0L, 255L)); };
+  for (int y = 0; y < bgr.rows; ++y) {
+    const cv::Vec3b* p = bgr.ptr<cv::Vec3b>(y);
+    for (int x = 0; x < bgr.cols; x += 2) {
+      double luma[2], u = 0, v = 0;
+      for (int k = 0; k < 2; ++k) {
+        const double b = p[x + k][0], g = p[x + k][1], r = p[x + k][2];
+        luma[k] = 16 + 0.2568 * r + 0.5041 * g + 0.0979 * b;
+        u += 0.5 * (128 - 0.1482 * r - 0.2910 * g + 0.4392 * b);
+        v += 0.5 * (128 + 0.4392 * r - 0.3678 * g - 0.0714 * b);
+      }
+      const uint8_t y0 = clamp8(luma[0]), y1 = clamp8(luma[1]), cu = clamp8(u), cv = clamp8(v);
       if (yuyv) {
-        o[0] = y0; o[1] = u; o[2] = y1; o[3] = v;
+        o[0] = y0; o[1] = cu; o[2] = y1; o[3] = cv;
       } else {
-        o[0] = u; o[1] = y0; o[2] = v; o[3] = y1;
+        o[0] = cu; o[1] = y0; o[2] = cv; o[3] = y1;
       }
       o += 4;
     }

@@ -1,0 +1,183 @@
+// The generated artwork matches the layout of docs/landmark.md to the pixel,
+// and its QR decodes with zbar.
+#include <gtest/gtest.h>
+
+#include <regex>
+#include <set>
+
+#include <opencv2/imgproc.hpp>
+#include <zbar.h>
+
+#include "ld/artwork.hpp"
+
+namespace {
+
+using ld::artwork::Colours;
+
+std::vector<std::string> zbarDecode(const cv::Mat& bgr) {
+  cv::Mat gray;
+  cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+  zbar::ImageScanner scanner;
+  scanner.set_config(zbar::ZBAR_NONE, zbar::ZBAR_CFG_ENABLE, 0);
+  scanner.set_config(zbar::ZBAR_QRCODE, zbar::ZBAR_CFG_ENABLE, 1);
+  zbar::Image image(static_cast<unsigned>(gray.cols), static_cast<unsigned>(gray.rows), "Y800",
+                    gray.data, static_cast<unsigned long>(gray.total()));
+  scanner.scan(image);
+  std::vector<std::string> out;
+  for (auto s = image.symbol_begin(); s != image.symbol_end(); ++s) out.push_back(s->get_data());
+  image.set_data(nullptr, 0);
+  return out;
+}
+
+// Counts pixels of `img` inside [x0,x1)x[y0,y1) that are not `colour`.
+int wrongPixels(const cv::Mat& img, int x0, int y0, int x1, int y1, cv::Vec3b colour) {
+  int bad = 0;
+  for (int y = y0; y < y1; ++y)
+    for (int x = x0; x < x1; ++x) bad += img.at<cv::Vec3b>(y, x) != colour;
+  return bad;
+}
+
+}  // namespace
+
+// At 900 px, u = 100 px: every square, gap and border lands on whole pixels,
+// so the expected picture is written out here independently of the layout code.
+TEST(Artwork, MatchesLayoutToThePixel) {
+  const Colours c;
+  const cv::Mat img = ld::artwork::renderLandmark("room-214/door", 900);
+  ASSERT_EQ(img.size(), cv::Size(900, 900));
+  ASSERT_EQ(img.type(), CV_8UC3);
+  // Blue FIPs TL, TR, BL and the red AP, each [0.5u, 2.5u] from its corner.
+  EXPECT_EQ(wrongPixels(img, 50, 50, 250, 250, c.blue), 0);
+  EXPECT_EQ(wrongPixels(img, 650, 50, 850, 250, c.blue), 0);
+  EXPECT_EQ(wrongPixels(img, 50, 650, 250, 850, c.blue), 0);
+  EXPECT_EQ(wrongPixels(img, 650, 650, 850, 850, c.red), 0);
+  // White margins of 0.5u around the pattern square.
+  EXPECT_EQ(wrongPixels(img, 0, 0, 900, 50, c.white), 0);
+  EXPECT_EQ(wrongPixels(img, 0, 850, 900, 900, c.white), 0);
+  EXPECT_EQ(wrongPixels(img, 0, 0, 50, 900, c.white), 0);
+  EXPECT_EQ(wrongPixels(img, 850, 0, 900, 900, c.white), 0);
+  // White between the squares, outside the QR square [2.5u, 6.5u]^2.
+  EXPECT_EQ(wrongPixels(img, 250, 50, 650, 250, c.white), 0);
+  EXPECT_EQ(wrongPixels(img, 250, 650, 650, 850, c.white), 0);
+  EXPECT_EQ(wrongPixels(img, 50, 250, 250, 650, c.white), 0);
+  EXPECT_EQ(wrongPixels(img, 650, 250, 850, 650, c.white), 0);
+  // Only black and white inside the QR square, with at least one module of
+  // white quiet zone.
+  const auto qr = ld::artwork::encodeQr("room-214/door");
+  const double module_px = 400.0 / (qr.size + 2);
+  const int q = static_cast<int>(std::floor(module_px));
+  EXPECT_EQ(wrongPixels(img, 250, 250, 650, 250 + q, c.white), 0);
+  EXPECT_EQ(wrongPixels(img, 250, 650 - q, 650, 650, c.white), 0);
+  EXPECT_EQ(wrongPixels(img, 250, 250, 250 + q, 650, c.white), 0);
+  EXPECT_EQ(wrongPixels(img, 650 - q, 250, 650, 650, c.white), 0);
+  // Each module's centre pixel has the module's colour.
+  for (int my = 0; my < qr.size; ++my)
+    for (int mx = 0; mx < qr.size; ++mx) {
+      const int px = static_cast<int>(250 + (mx + 1.5) * module_px);
+      const int py = static_cast<int>(250 + (my + 1.5) * module_px);
+      ASSERT_EQ(img.at<cv::Vec3b>(py, px), qr.dark(mx, my) ? c.black : c.white)
+          << "module " << mx << "," << my;
+    }
+  int dark = 0;
+  for (int y = 250; y < 650; ++y)
+    for (int x = 250; x < 650; ++x) {
+      const cv::Vec3b p = img.at<cv::Vec3b>(y, x);
+      ASSERT_TRUE(p == c.black || p == c.white);
+      dark += p == c.black;
+    }
+  EXPECT_GT(dark, 400 * 400 / 5);
+}
+
+TEST(Artwork, SquaresScaleWithAnySide) {
+  for (int side : {18, 90, 101, 355, 1771}) {
+    const cv::Mat img = ld::artwork::renderLandmark("x", side);
+    const double u = side / 9.0;
+    // Pixel centres strictly inside each square are coloured, just outside white.
+    auto at = [&](double ux, double uy) {
+      return img.at<cv::Vec3b>(static_cast<int>(uy * u), static_cast<int>(ux * u));
+    };
+    EXPECT_EQ(at(1.5, 1.5), Colours().blue) << side;
+    EXPECT_EQ(at(7.5, 1.5), Colours().blue) << side;
+    EXPECT_EQ(at(1.5, 7.5), Colours().blue) << side;
+    EXPECT_EQ(at(7.5, 7.5), Colours().red) << side;
+    EXPECT_EQ(at(0.2, 0.2), Colours().white) << side;
+    EXPECT_EQ(at(4.5, 1.5), Colours().white) << side;
+  }
+}
+
+TEST(Artwork, QrDecodesWithZbar) {
+  const std::vector<std::string> payloads{
+      "room-214/door", "L1", "UTF-8: \xc3\xa9t\xc3\xa9 \xe2\x86\x92 \xe6\x9d\xb1\xe4\xba\xac",
+      std::string(100, 'A') };
+  for (const auto& p : payloads) {
+    const cv::Mat img = ld::artwork::renderLandmark(p, 540);
+    const auto found = zbarDecode(img);
+    ASSERT_EQ(found.size(), 1u) << p;
+    EXPECT_EQ(found[0], p);
+  }
+}
+
+TEST(Artwork, CustomColoursAreUsed) {
+  Colours ink;
+  ink.blue = {120, 50, 45};
+  ink.red = {50, 70, 215};
+  ink.white = {228, 235, 235};
+  ink.black = {40, 35, 35};
+  const cv::Mat img = ld::artwork::renderLandmark("x", 180, ink);
+  EXPECT_EQ(img.at<cv::Vec3b>(30, 30), ink.blue);
+  EXPECT_EQ(img.at<cv::Vec3b>(150, 150), ink.red);
+  EXPECT_EQ(img.at<cv::Vec3b>(2, 2), ink.white);
+}
+
+TEST(Artwork, TooLongPayloadIsRefused) {
+  EXPECT_THROW(ld::artwork::encodeQr(std::string(4000, 'x')), std::invalid_argument);
+}
+
+TEST(Artwork, SvgHasExactPhysicalSize) {
+  const std::string svg = ld::artwork::landmarkSvg("a&b<c>", 90.0);
+  EXPECT_NE(svg.find("width=\"90mm\" height=\"90mm\" viewBox=\"0 0 90 90\""), std::string::npos);
+  // u = 10 mm: FIPs at 5, 65 mm, AP at (65, 65), each 20 mm.
+  EXPECT_NE(svg.find("<rect x=\"5\" y=\"5\" width=\"20\" height=\"20\" fill=\"#0000ff\"/>"),
+            std::string::npos);
+  EXPECT_NE(svg.find("<rect x=\"65\" y=\"5\" width=\"20\" height=\"20\" fill=\"#0000ff\"/>"),
+            std::string::npos);
+  EXPECT_NE(svg.find("<rect x=\"5\" y=\"65\" width=\"20\" height=\"20\" fill=\"#0000ff\"/>"),
+            std::string::npos);
+  EXPECT_NE(svg.find("<rect x=\"65\" y=\"65\" width=\"20\" height=\"20\" fill=\"#ff0000\"/>"),
+            std::string::npos);
+  EXPECT_NE(svg.find("a&amp;b&lt;c&gt;"), std::string::npos);
+  // Every QR module run lies inside the QR square [25, 65] mm, quiet zone excluded.
+  const auto qr = ld::artwork::encodeQr("a&b<c>");
+  const double m = 40.0 / (qr.size + 2);
+  const std::regex move("M([0-9.]+) ([0-9.]+)h");
+  int runs = 0;
+  for (auto it = std::sregex_iterator(svg.begin(), svg.end(), move); it != std::sregex_iterator();
+       ++it, ++runs) {
+    const double x = std::stod((*it)[1]), y = std::stod((*it)[2]);
+    EXPECT_GE(x, 25 + m - 1e-3);
+    EXPECT_GE(y, 25 + m - 1e-3);
+    EXPECT_LE(x, 65 - 2 * m + 1e-3);
+    EXPECT_LE(y, 65 - 2 * m + 1e-3);
+  }
+  EXPECT_GT(runs, qr.size);
+}
+
+TEST(Artwork, SheetHoldsEveryLandmarkAndDecodes) {
+  const std::vector<std::string> payloads{"dock", "room-101", "room-102", "lift"};
+  const cv::Mat page = ld::artwork::sheetImage(payloads, 60.0, 150.0);
+  EXPECT_EQ(page.cols, static_cast<int>(std::lround(210 / 25.4 * 150)));
+  const auto found = zbarDecode(page);
+  EXPECT_EQ(std::set<std::string>(found.begin(), found.end()),
+            std::set<std::string>(payloads.begin(), payloads.end()));
+  const std::string svg = ld::artwork::sheetSvg(payloads, 60.0);
+  EXPECT_NE(svg.find("width=\"210mm\" height=\"297mm\""), std::string::npos);
+  for (const auto& p : payloads) EXPECT_NE(svg.find(">" + p + " (60 mm)<"), std::string::npos);
+  EXPECT_THROW(ld::artwork::sheetSvg(payloads, 300.0), std::invalid_argument);
+  EXPECT_THROW(ld::artwork::sheetSvg(std::vector<std::string>(40, "x"), 60.0),
+               std::invalid_argument);
+}
+
+TEST(Artwork, PixelsForDpi) {
+  EXPECT_EQ(ld::artwork::sidePixels(0.0254, 300), 300);
+  EXPECT_EQ(ld::artwork::sidePixels(0.15, 300), 1772);
+}

@@ -1,0 +1,349 @@
+// Message types round-trip through LCM encoding; image conversions round-trip
+// every pixel format and refuse inconsistent messages.
+#include <gtest/gtest.h>
+
+#include <lcm/lcm-cpp.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "ld/image_convert.hpp"
+#include "ld/landmark_list_t.hpp"
+#include "ld/qr_code_list_t.hpp"
+
+namespace {
+
+template <typename T>
+T roundTrip(const T& in) {
+  std::vector<uint8_t> buf(static_cast<size_t>(in.getEncodedSize()));
+  EXPECT_EQ(in.encode(buf.data(), 0, static_cast<int>(buf.size())), static_cast<int>(buf.size()));
+  T out;
+  EXPECT_EQ(out.decode(buf.data(), 0, static_cast<int>(buf.size())), static_cast<int>(buf.size()));
+  return out;
+}
+
+ld::landmark_t sampleLandmark(int k) {
+  ld::landmark_t l{};
+  for (int i = 0; i < 2; ++i) {
+    l.fip_tl[i] = 10.5f + k + i;
+    l.fip_tr[i] = 20.25f + k + i;
+    l.fip_bl[i] = 30.125f + k + i;
+    l.ap[i] = 40.0f + k + i;
+  }
+  for (int c = 0; c < 4; ++c)
+    for (int i = 0; i < 2; ++i) l.corners[c][i] = static_cast<float>(100 * c + i + k);
+  l.score = 0.75f;
+  l.has_payload = k % 2 == 0;
+  l.payload = l.has_payload ? "room-214/door \xc3\xa9" : "";
+  l.pose_valid = true;
+  l.t[0] = 0.1; l.t[1] = -0.2; l.t[2] = 1.5 + k;
+  l.rvec[0] = 0.01; l.rvec[1] = 0.5; l.rvec[2] = -3.0;
+  l.distance = 1.52;
+  l.track_id = 1000 + k;
+  l.age = 17;
+  l.frames_since_seen = 2;
+  l.time_since_seen_us = 66666;
+  l.visible = false;
+  return l;
+}
+
+void expectSame(const ld::landmark_t& a, const ld::landmark_t& b) {
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_EQ(a.fip_tl[i], b.fip_tl[i]);
+    EXPECT_EQ(a.fip_tr[i], b.fip_tr[i]);
+    EXPECT_EQ(a.fip_bl[i], b.fip_bl[i]);
+    EXPECT_EQ(a.ap[i], b.ap[i]);
+  }
+  for (int c = 0; c < 4; ++c)
+    for (int i = 0; i < 2; ++i) EXPECT_EQ(a.corners[c][i], b.corners[c][i]);
+  EXPECT_EQ(a.score, b.score);
+  EXPECT_EQ(a.has_payload, b.has_payload);
+  EXPECT_EQ(a.payload, b.payload);
+  EXPECT_EQ(a.pose_valid, b.pose_valid);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(a.t[i], b.t[i]);
+    EXPECT_EQ(a.rvec[i], b.rvec[i]);
+  }
+  EXPECT_EQ(a.distance, b.distance);
+  EXPECT_EQ(a.track_id, b.track_id);
+  EXPECT_EQ(a.age, b.age);
+  EXPECT_EQ(a.frames_since_seen, b.frames_since_seen);
+  EXPECT_EQ(a.time_since_seen_us, b.time_since_seen_us);
+  EXPECT_EQ(a.visible, b.visible);
+}
+
+ld::landmark_list_t sampleList() {
+  ld::landmark_list_t m;
+  m.utime = 1700000000123456;
+  m.seq = 42;
+  m.width = 640;
+  m.height = 480;
+  m.backend = "cpu";
+  m.frames_skipped = 3;
+  m.stage_names = {"blur", "saturation", "edges"};
+  m.stage_ms = {0.1f, 0.2f, 0.3f};
+  m.nstages = 3;
+  m.landmarks = {sampleLandmark(0), sampleLandmark(1)};
+  m.nlandmarks = 2;
+  return m;
+}
+
+// A smooth colourful test image (chroma subsampling and JPEG keep it close).
+cv::Mat testImage(int w, int h) {
+  cv::Mat img(h, w, CV_8UC3);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      img.at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<uint8_t>(255 * x / w),
+                                          static_cast<uint8_t>(255 * y / h),
+                                          static_cast<uint8_t>(128 + 100 * std::sin(x * 0.05)));
+  return img;
+}
+
+double maxAbsDiff(const cv::Mat& a, const cv::Mat& b) {
+  double m = 0;
+  cv::minMaxLoc(cv::abs(a.reshape(1) - b.reshape(1)), nullptr, &m);
+  cv::Mat d;
+  cv::absdiff(a, b, d);
+  cv::minMaxLoc(d.reshape(1), nullptr, &m);
+  return m;
+}
+
+double meanAbsDiff(const cv::Mat& a, const cv::Mat& b) {
+  cv::Mat d;
+  cv::absdiff(a, b, d);
+  return cv::mean(d.reshape(1))[0];
+}
+
+std::string errorOf(const ld::image_t& msg) {
+  try {
+    ld::imageToBgr(msg);
+  } catch (const ld::ImageFormatError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(Messages, LandmarkListRoundTrips) {
+  const auto in = sampleList();
+  const auto out = roundTrip(in);
+  EXPECT_EQ(out.utime, in.utime);
+  EXPECT_EQ(out.seq, in.seq);
+  EXPECT_EQ(out.width, in.width);
+  EXPECT_EQ(out.height, in.height);
+  EXPECT_EQ(out.backend, in.backend);
+  EXPECT_EQ(out.frames_skipped, in.frames_skipped);
+  EXPECT_EQ(out.stage_names, in.stage_names);
+  EXPECT_EQ(out.stage_ms, in.stage_ms);
+  ASSERT_EQ(out.nlandmarks, 2);
+  for (int i = 0; i < 2; ++i) expectSame(out.landmarks[static_cast<size_t>(i)], in.landmarks[static_cast<size_t>(i)]);
+}
+
+TEST(Messages, QrCodeListRoundTrips) {
+  ld::qr_code_list_t in;
+  in.utime = 5;
+  in.seq = 6;
+  ld::qr_code_t c{};
+  c.track_id = 7;
+  c.payload = std::string(100, 'x') + "\xe2\x9c\x93";
+  c.utime = 8;
+  c.seq = 9;
+  for (int k = 0; k < 4; ++k) c.corners[k][0] = c.corners[k][1] = static_cast<float>(k);
+  c.decode_ms = 1.5f;
+  in.codes = {c, c};
+  in.ncodes = 2;
+  const auto out = roundTrip(in);
+  ASSERT_EQ(out.ncodes, 2);
+  EXPECT_EQ(out.codes[1].payload, c.payload);
+  EXPECT_EQ(out.codes[1].track_id, 7);
+  EXPECT_EQ(out.codes[1].corners[3][1], 3.0f);
+  EXPECT_EQ(out.codes[0].decode_ms, 1.5f);
+}
+
+TEST(Messages, ImageRoundTripsWithMetadata) {
+  const ld::image_t in = ld::matToImage(testImage(64, 48), ld::image_t::PIXEL_FORMAT_BGR, 99, 1234);
+  const auto out = roundTrip(in);
+  EXPECT_EQ(out.utime, 99);
+  EXPECT_EQ(out.data, in.data);
+  ASSERT_TRUE(ld::imageSeq(out).has_value());
+  EXPECT_EQ(*ld::imageSeq(out), 1234);
+}
+
+TEST(Messages, TruncatedBufferIsRejectedByDecode) {
+  const auto in = sampleList();
+  std::vector<uint8_t> buf(static_cast<size_t>(in.getEncodedSize()));
+  in.encode(buf.data(), 0, static_cast<int>(buf.size()));
+  ld::landmark_list_t out;
+  EXPECT_LT(out.decode(buf.data(), 0, static_cast<int>(buf.size()) - 5), 0);
+  buf[0] ^= 0xff;  // wrong fingerprint
+  EXPECT_LT(out.decode(buf.data(), 0, static_cast<int>(buf.size())), 0);
+}
+
+// Real LCM publish/subscribe in one process over memq://.
+class Receiver {
+ public:
+  void onList(const lcm::ReceiveBuffer*, const std::string& channel, const ld::landmark_list_t* m) {
+    channel_ = channel;
+    list_ = *m;
+    ++count_;
+  }
+  std::string channel_;
+  ld::landmark_list_t list_;
+  int count_ = 0;
+};
+
+TEST(Messages, PublishSubscribeOverMemq) {
+  lcm::LCM lcm("memq://");
+  ASSERT_TRUE(lcm.good());
+  Receiver r;
+  lcm.subscribe("LANDMARKS", &Receiver::onList, &r);
+  const auto in = sampleList();
+  ASSERT_EQ(lcm.publish("LANDMARKS", &in), 0);
+  ASSERT_GE(lcm.handleTimeout(1000), 1);
+  EXPECT_EQ(r.count_, 1);
+  EXPECT_EQ(r.channel_, "LANDMARKS");
+  EXPECT_EQ(r.list_.seq, 42);
+  expectSame(r.list_.landmarks[1], in.landmarks[1]);
+}
+
+struct FormatCase {
+  int32_t format;
+  double max_err;   // largest allowed per-channel difference
+  double mean_err;  // largest allowed mean difference
+};
+
+class ImageFormats : public ::testing::TestWithParam<FormatCase> {};
+
+TEST_P(ImageFormats, RoundTrip) {
+  const FormatCase c = GetParam();
+  const cv::Mat src = testImage(160, 120);
+  const ld::image_t msg = ld::matToImage(src, c.format, 1, 2);
+  EXPECT_EQ(msg.pixelformat, c.format);
+  EXPECT_EQ(msg.width, 160);
+  EXPECT_EQ(msg.height, 120);
+  EXPECT_EQ(static_cast<size_t>(msg.size), msg.data.size());
+  const cv::Mat back = ld::imageToBgr(roundTrip(msg));
+  ASSERT_EQ(back.size(), src.size());
+  ASSERT_EQ(back.type(), CV_8UC3);
+  EXPECT_LE(maxAbsDiff(back, src), c.max_err) << ld::pixelFormatName(c.format);
+  EXPECT_LE(meanAbsDiff(back, src), c.mean_err) << ld::pixelFormatName(c.format);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    AllFormats, ImageFormats,
+    ::testing::Values(FormatCase{ld::image_t::PIXEL_FORMAT_BGR, 0, 0},
+                      FormatCase{ld::image_t::PIXEL_FORMAT_RGB, 0, 0},
+                      FormatCase{ld::image_t::PIXEL_FORMAT_BGRA, 0, 0},
+                      FormatCase{ld::image_t::PIXEL_FORMAT_RGBA, 0, 0},
+                      FormatCase{ld::image_t::PIXEL_FORMAT_YUYV, 12, 2.0},
+                      FormatCase{ld::image_t::PIXEL_FORMAT_UYVY, 12, 2.0},
+                      FormatCase{ld::image_t::PIXEL_FORMAT_MJPEG, 40, 2.5}));
+
+TEST(ImageConvert, GrayRoundTripsExactly) {
+  cv::Mat gray;
+  cv::cvtColor(testImage(100, 80), gray, cv::COLOR_BGR2GRAY);
+  const ld::image_t msg = ld::matToImage(gray, ld::image_t::PIXEL_FORMAT_GRAY, 0);
+  EXPECT_EQ(msg.size, 100 * 80);
+  cv::Mat back;
+  ld::imageToMat(msg, back);
+  ASSERT_EQ(back.type(), CV_8UC1);
+  EXPECT_EQ(maxAbsDiff(back, gray), 0);
+  const cv::Mat bgr = ld::imageToBgr(msg);
+  cv::Mat b2g;
+  cv::cvtColor(bgr, b2g, cv::COLOR_BGR2GRAY);
+  EXPECT_EQ(maxAbsDiff(b2g, gray), 0);
+}
+
+TEST(ImageConvert, HonoursRowStridePadding) {
+  const cv::Mat src = testImage(30, 20);
+  ld::image_t msg = ld::matToImage(src, ld::image_t::PIXEL_FORMAT_BGR, 0);
+  const int stride = 30 * 3 + 6;
+  std::vector<uint8_t> padded(static_cast<size_t>(stride) * 20, 0xAB);
+  for (int y = 0; y < 20; ++y)
+    std::copy_n(msg.data.begin() + y * 90, 90, padded.begin() + y * stride);
+  msg.data = padded;
+  msg.size = static_cast<int32_t>(padded.size());
+  msg.row_stride = stride;
+  EXPECT_EQ(maxAbsDiff(ld::imageToBgr(msg), src), 0);
+}
+
+TEST(ImageConvert, ReusesOutputBuffer) {
+  const ld::image_t msg = ld::matToImage(testImage(64, 48), ld::image_t::PIXEL_FORMAT_YUYV, 0);
+  cv::Mat out;
+  ld::imageToBgr(msg, out);
+  const uint8_t* data = out.data;
+  ld::imageToBgr(msg, out);
+  EXPECT_EQ(out.data, data);
+}
+
+TEST(ImageConvert, RefusesInconsistentMessages) {
+  const ld::image_t good = ld::matToImage(testImage(40, 30), ld::image_t::PIXEL_FORMAT_BGR, 0);
+  ASSERT_EQ(errorOf(good), "");
+
+  ld::image_t m = good;
+  m.data.resize(m.data.size() - 1);
+  EXPECT_NE(errorOf(m).find("does not match"), std::string::npos) << errorOf(m);
+
+  m = good;
+  m.data.resize(m.data.size() - 100);
+  m.size = static_cast<int32_t>(m.data.size());
+  EXPECT_NE(errorOf(m).find("needs 3600 bytes"), std::string::npos) << errorOf(m);
+
+  m = good;
+  m.height = 31;
+  EXPECT_NE(errorOf(m).find("needs"), std::string::npos) << errorOf(m);
+
+  m = good;
+  m.row_stride = 10;
+  EXPECT_NE(errorOf(m).find("row_stride"), std::string::npos) << errorOf(m);
+
+  m = good;
+  m.width = -5;
+  EXPECT_NE(errorOf(m).find("invalid size"), std::string::npos) << errorOf(m);
+
+  m = good;
+  m.pixelformat = ld::fourcc('N', 'V', '1', '2');
+  EXPECT_NE(errorOf(m).find("unsupported pixel format 'NV12'"), std::string::npos) << errorOf(m);
+
+  m = ld::matToImage(testImage(40, 30), ld::image_t::PIXEL_FORMAT_YUYV, 0);
+  m.width = 39;
+  EXPECT_NE(errorOf(m).find("even width"), std::string::npos) << errorOf(m);
+
+  m = ld::matToImage(testImage(40, 30), ld::image_t::PIXEL_FORMAT_MJPEG, 0);
+  for (size_t i = 2; i < m.data.size(); ++i) m.data[i] = static_cast<uint8_t>(i * 7);
+  EXPECT_NE(errorOf(m).find("MJPEG"), std::string::npos) << errorOf(m);
+
+  m = ld::matToImage(testImage(40, 30), ld::image_t::PIXEL_FORMAT_MJPEG, 0);
+  m.width = 80;
+  EXPECT_NE(errorOf(m).find("but the message says 80x30"), std::string::npos) << errorOf(m);
+
+  m = ld::matToImage(testImage(40, 30), ld::image_t::PIXEL_FORMAT_MJPEG, 0);
+  m.data.clear();
+  m.size = 0;
+  EXPECT_NE(errorOf(m).find("MJPEG"), std::string::npos) << errorOf(m);
+}
+
+TEST(ImageConvert, PixelFormatNames) {
+  EXPECT_EQ(ld::pixelFormatFromName("gray"), ld::image_t::PIXEL_FORMAT_GRAY);
+  EXPECT_EQ(ld::pixelFormatFromName("GREY"), ld::image_t::PIXEL_FORMAT_GRAY);
+  EXPECT_EQ(ld::pixelFormatFromName("mjpg"), ld::image_t::PIXEL_FORMAT_MJPEG);
+  EXPECT_EQ(ld::pixelFormatFromName("yuyv"), ld::image_t::PIXEL_FORMAT_YUYV);
+  EXPECT_THROW(ld::pixelFormatFromName("h264"), ld::ImageFormatError);
+  EXPECT_EQ(ld::pixelFormatName(ld::image_t::PIXEL_FORMAT_RGB), "RGB");
+  EXPECT_EQ(ld::fourcc('G', 'R', 'E', 'Y'), ld::image_t::PIXEL_FORMAT_GRAY);
+  EXPECT_EQ(ld::fourcc('M', 'J', 'P', 'G'), ld::image_t::PIXEL_FORMAT_MJPEG);
+  EXPECT_EQ(ld::fourcc('Y', 'U', 'Y', 'V'), ld::image_t::PIXEL_FORMAT_YUYV);
+}
+
+TEST(ImageConvert, SeqMetadata) {
+  ld::image_t m = ld::matToImage(testImage(8, 8), ld::image_t::PIXEL_FORMAT_GRAY, 0);
+  EXPECT_FALSE(ld::imageSeq(m).has_value());
+  ld::setImageSeq(m, 7);
+  ld::setImageSeq(m, 123456789012LL);
+  EXPECT_EQ(m.nmetadata, 1);
+  EXPECT_EQ(*ld::imageSeq(m), 123456789012LL);
+  m.metadata[0].value = {'1', 'x'};
+  m.metadata[0].n = 2;
+  EXPECT_FALSE(ld::imageSeq(m).has_value());
+  m.metadata[0].n = 5;  // n disagrees with the bytes present
+  EXPECT_FALSE(ld::imageSeq(m).has_value());
+}
