@@ -1,0 +1,140 @@
+// The landmark detector: section III of the paper (Fig. 2), on the landmark of
+// docs/landmark.md, with what the paper lacked (any roll, several landmarks,
+// sub-pixel corners, pose).
+//
+//   1. blur            optional small denoising
+//   2. saturation      per-pixel colour strength, thresholded to a mask
+//   3. edges           (paper front end only) Canny on the saturation image
+//   4. contours        connected regions of the mask (or Canny contours)
+//   5. colour          colour-ratio classification into FIP and AP candidates
+//                      (sum blue > a * sum red and sum blue > b * sum green)
+//   6. graph           FIP graph with the distance (1) and size-ratio (2) constraints
+//   7. cycles          its 3-cycles, the AP choice, ordering TL, TR, BL, AP,
+//                      overlapping candidates resolved to the best
+//   8. corners         the four outer corners, sub-pixel
+//   9. pose            cv::solvePnP (planar square) when intrinsics and side are set
+//
+// A Detector keeps its buffers between frames: once warmed up, detect() does
+// not allocate for frames of the same size.
+#pragma once
+
+#include <array>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "ld/camera.hpp"
+
+namespace ld {
+
+/// Every parameter of the pipeline, with the default that works across the
+/// project's synthetic scenes (one set for all of them: no per-scene tuning).
+struct DetectorParams {
+  /// Front end. "fast" (default): one pass computing a saturation mask whose
+  /// connected regions are the candidate squares; keeps 3-8 px squares whole.
+  /// "paper": the paper's blur -> saturation -> Canny -> contours.
+  std::string front_end = "fast";
+
+  // 1. blur
+  int blur_kernel = 0;        ///< Gaussian kernel (odd; 0 = no blur). Paper: 9.
+  double blur_sigma = 0.0;    ///< Gaussian sigma (0: from the kernel). Paper: 3.
+
+  // 2. saturation
+  double saturation_threshold = 0.35;  ///< HSV saturation (0..1) a square's pixels exceed
+  int value_min = 25;                  ///< darker pixels (max channel) are never saturated
+
+  // 3. edges (paper front end)
+  double canny_low = 50.0;   ///< Canny hysteresis thresholds on the saturation image
+  double canny_high = 150.0;
+
+  // 4. contours
+  int min_area_px = 3;       ///< smaller regions are noise
+  int max_area_frac_1000 = 100;  ///< larger than this per-mille of the frame: not a square
+
+  // 5. colour ratios (paper: a, b in [1.2, 1.6])
+  double color_ratio_a = 1.3;  ///< FIP: sum blue > a * sum red;  AP: sum red > a * sum blue
+  double color_ratio_b = 1.3;  ///< FIP: sum blue > b * sum green; AP: sum red > b * sum green
+
+  // 6. FIP graph: distance (1), as centre distance in units of the pair's mean
+  // size, measured per axis (so it holds under perspective foreshortening),
+  // and the size ratio (2).
+  double d_min = 1.8;  ///< Paper D_min (neighbours are 3 sizes apart, the diagonal 4.2)
+  double d_max = 5.5;  ///< Paper D_max
+  double w_min = 0.4;  ///< Paper W_min: width ratio of two FIPs
+  double w_max = 2.5;  ///< Paper W_max
+  double h_min = 0.4;  ///< Paper H_min: height ratio
+  double h_max = 2.5;  ///< Paper H_max
+
+  // 7. AP gates: the AP lies where TR + BL - TL predicts.
+  double ap_max_offset = 0.8;  ///< distance to the predicted position, in FIP sizes
+  double ap_size_min = 0.4;    ///< AP size / mean FIP size
+  double ap_size_max = 2.5;
+
+  // 8. corners
+  bool refine_corners = true;  ///< refine the outer corners on the image edges
+
+  /// Reads a YAML/XML file (cv::FileStorage) whose keys are the field names
+  /// above; absent keys keep their defaults. Throws std::runtime_error naming
+  /// the file and the bad key.
+  static DetectorParams load(const std::string& path);
+  void save(const std::string& path) const;
+  /// Throws std::invalid_argument naming the first inconsistent field.
+  void validate() const;
+};
+
+struct Pose {
+  cv::Vec3d t;     ///< sheet centre in the camera frame, metres
+  cv::Vec3d rvec;  ///< Rodrigues vector of the sheet frame (x right, y down on the sheet)
+  double distance = 0;
+};
+
+/// One detection, in LANDMARK.md's terms.
+struct Landmark {
+  cv::Point2f fip_tl, fip_tr, fip_bl, ap;
+  std::array<cv::Point2f, 4> corners;  ///< TL, TR, BR, BL outer corners of the pattern
+  float score = 0;                     ///< 0..1, higher is more certain
+  std::optional<Pose> pose;
+  std::optional<std::string> payload;  ///< filled by the QR reader, not the detector
+};
+
+struct StageTime {
+  const char* name;
+  double ms;
+};
+
+struct Detection {
+  std::vector<Landmark> landmarks;
+  std::vector<StageTime> stages;  ///< in pipeline order
+  double total_ms = 0;
+  double stageMs(const std::string& name) const;  ///< 0 when the stage did not run
+};
+
+class Detector {
+ public:
+  explicit Detector(const DetectorParams& params = {});
+  ~Detector();
+  Detector(Detector&&) noexcept;
+  Detector& operator=(Detector&&) noexcept;
+
+  /// Enables pose: intrinsics of the camera and the printed sheet side S in
+  /// metres. Frames of another size than the calibration use the scaled camera.
+  void setCamera(const CameraModel& camera, double side_m);
+
+  /// Detects landmarks in an 8-bit BGR (or gray: no landmarks) image. The
+  /// returned reference stays valid until the next call.
+  const Detection& detect(const cv::Mat& bgr);
+
+  const DetectorParams& params() const;
+
+  /// Name of the backend ("cpu").
+  const char* backend() const { return "cpu"; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace ld
