@@ -1,0 +1,130 @@
+// ld-detector: subscribes to IMAGE, publishes the landmarks of each frame on
+// LANDMARKS. Always works on the newest frame and counts the frames it skipped.
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+#include <lcm/lcm-cpp.hpp>
+
+#include "ld/detector.hpp"
+#include "ld/image_convert.hpp"
+#include "ld/landmark_msg.hpp"
+#include "ld/lcm_url.hpp"
+
+namespace {
+
+std::atomic<bool> g_stop{false};
+void onSignal(int) { g_stop = true; }
+
+// Keeps the newest raw message of the input channel; decoding waits until
+// the frame is actually processed, so skipped frames cost nothing.
+class LatestFrame {
+ public:
+  void onMessage(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    if (pending_) ++skipped_;
+    const auto* p = static_cast<const uint8_t*>(rbuf->data);
+    bytes_.assign(p, p + rbuf->data_size);  // reuses capacity
+    pending_ = true;
+  }
+  bool pending_ = false;
+  int64_t skipped_ = 0;
+  std::vector<uint8_t> bytes_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"ld-detector: IMAGE in, LANDMARKS out (see README)."};
+  std::string url = ld::defaultLcmUrl(), in_channel = "IMAGE", out_channel = "LANDMARKS";
+  std::string params_file, camera_file, backend = "cpu";
+  double side_m = 0;
+  bool verbose = false;
+  app.add_option("--lcm-url", url, "LCM URL")->capture_default_str();
+  app.add_option("--in", in_channel, "image channel")->capture_default_str();
+  app.add_option("--out", out_channel, "landmarks channel")->capture_default_str();
+  app.add_option("--params", params_file, "detector parameters (YAML)");
+  app.add_option("--camera", camera_file, "camera calibration (OpenCV YAML/XML) for pose");
+  app.add_option("--size", side_m, "printed landmark side S in metres, for pose");
+  app.add_option("--backend", backend, "detector backend")->check(CLI::IsMember({"cpu"}))
+      ->capture_default_str();
+  app.add_flag("-v,--verbose", verbose, "print a status line every 5 s");
+  CLI11_PARSE(app, argc, argv);
+
+  ld::Detector detector;
+  try {
+    ld::DetectorParams params;
+    if (!params_file.empty()) params = ld::DetectorParams::load(params_file);
+    params.validate();
+    detector = ld::Detector(params);
+    if (!camera_file.empty() || side_m > 0) {
+      if (camera_file.empty() || side_m <= 0) {
+        std::cerr << "ld-detector: pose needs both --camera and --size\n";
+        return 2;
+      }
+      detector.setCamera(ld::CameraModel::load(camera_file), side_m);
+    }
+  } catch (const std::exception& e) {
+    std::cerr << "ld-detector: " << e.what() << "\n";
+    return 2;
+  }
+
+  lcm::LCM lcm(url);
+  if (!lcm.good()) {
+    std::cerr << "ld-detector: cannot open LCM at " << url << "\n";
+    return 2;
+  }
+  LatestFrame latest;
+  lcm.subscribe(in_channel, &LatestFrame::onMessage, &latest);
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
+
+  ld::image_t image;
+  cv::Mat bgr;
+  ld::landmark_list_t out;
+  int64_t processed = 0, bad = 0, last_processed = 0;
+  auto last_status = std::chrono::steady_clock::now();
+  while (!g_stop) {
+    if (lcm.handleTimeout(200) < 0) {
+      std::cerr << "ld-detector: LCM receive failed\n";
+      return 1;
+    }
+    while (lcm.handleTimeout(0) > 0) {
+    }  // drain the queue: only the newest frame is processed
+    if (latest.pending_) {
+      latest.pending_ = false;
+      const int n = static_cast<int>(latest.bytes_.size());
+      try {
+        if (image.decode(latest.bytes_.data(), 0, n) != n)
+          throw ld::ImageFormatError("message on " + in_channel + " (" + std::to_string(n) +
+                                     " bytes) is not a valid ld.image_t");
+        ld::imageToBgr(image, bgr);
+        const ld::Detection& det = detector.detect(bgr);
+        ld::toListMessage(det, image.utime, ld::imageSeq(image).value_or(-1), bgr.cols, bgr.rows,
+                          detector.backend(), latest.skipped_, out);
+        lcm.publish(out_channel, &out);
+        ++processed;
+      } catch (const std::exception& e) {
+        ++bad;
+        if (bad <= 10 || bad % 100 == 0)
+          std::cerr << "ld-detector: dropped frame: " << e.what() << " (" << bad
+                    << " bad so far)\n";
+      }
+    }
+    const auto now = std::chrono::steady_clock::now();
+    if (verbose && now - last_status > std::chrono::seconds(5)) {
+      const double s = std::chrono::duration<double>(now - last_status).count();
+      std::fprintf(stderr, "ld-detector: %.1f frames/s, %lld processed, %lld skipped, %lld bad\n",
+                   (processed - last_processed) / s, static_cast<long long>(processed),
+                   static_cast<long long>(latest.skipped_), static_cast<long long>(bad));
+      last_processed = processed;
+      last_status = now;
+    }
+  }
+  std::fprintf(stderr, "ld-detector: stopped after %lld frames (%lld skipped, %lld bad)\n",
+               static_cast<long long>(processed), static_cast<long long>(latest.skipped_),
+               static_cast<long long>(bad));
+  return 0;
+}

@@ -1,0 +1,60 @@
+#include "ld/landmark_json.hpp"
+
+#include <cmath>
+#include <cstdio>
+
+#include <opencv2/imgproc.hpp>
+
+namespace ld {
+namespace {
+
+double round3(double v) { return std::round(v * 1000.0) / 1000.0; }
+double round6(double v) { return std::round(v * 1e6) / 1e6; }
+
+nlohmann::json point(const cv::Point2f& p) { return {round3(p.x), round3(p.y)}; }
+
+}  // namespace
+
+nlohmann::json toJson(const Landmark& lm) {
+  nlohmann::json j;
+  j["fip_tl"] = point(lm.fip_tl);
+  j["fip_tr"] = point(lm.fip_tr);
+  j["fip_bl"] = point(lm.fip_bl);
+  j["ap"] = point(lm.ap);
+  j["corners"] = nlohmann::json::array();
+  for (const auto& c : lm.corners) j["corners"].push_back(point(c));
+  j["payload"] = lm.payload ? nlohmann::json(*lm.payload) : nlohmann::json(nullptr);
+  if (lm.pose) {
+    const Pose& p = *lm.pose;
+    j["pose"] = {{"t", {round6(p.t[0]), round6(p.t[1]), round6(p.t[2])}},
+                 {"rvec", {round6(p.rvec[0]), round6(p.rvec[1]), round6(p.rvec[2])}},
+                 {"distance", round6(p.distance)}};
+  }
+  return j;
+}
+
+void drawLandmarks(cv::Mat& bgr, const std::vector<Landmark>& landmarks) {
+  const int thick = std::max(1, bgr.cols / 640);
+  for (const Landmark& lm : landmarks) {
+    std::vector<cv::Point> quad;
+    for (const auto& c : lm.corners) quad.emplace_back(cvRound(c.x), cvRound(c.y));
+    cv::polylines(bgr, quad, true, cv::Scalar(0, 255, 0), thick, cv::LINE_AA);
+    const cv::Scalar fip(255, 255, 0), ap(0, 255, 255);
+    for (const auto& c : {lm.fip_tl, lm.fip_tr, lm.fip_bl})
+      cv::drawMarker(bgr, c, fip, cv::MARKER_CROSS, 6 * thick, thick);
+    cv::drawMarker(bgr, lm.ap, ap, cv::MARKER_DIAMOND, 6 * thick, thick);
+    cv::circle(bgr, lm.corners[0], 4 * thick, cv::Scalar(0, 0, 255), thick, cv::LINE_AA);
+    std::string label = lm.payload ? *lm.payload : "";
+    if (lm.pose) {
+      char buf[32];
+      std::snprintf(buf, sizeof buf, "%s%.2f m", label.empty() ? "" : " ", lm.pose->distance);
+      label += buf;
+    }
+    if (!label.empty())
+      cv::putText(bgr, label, lm.corners[0] + cv::Point2f(0, -6.0f * thick),
+                  cv::FONT_HERSHEY_SIMPLEX, 0.45 * thick, cv::Scalar(0, 255, 0), thick,
+                  cv::LINE_AA);
+  }
+}
+
+}  // namespace ld

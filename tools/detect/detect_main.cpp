@@ -1,0 +1,125 @@
+// ld-detect: landmarks in image files, as JSON Lines (LANDMARK.md).
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "ld/detector.hpp"
+#include "ld/landmark_json.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+bool isImageFile(const fs::path& p) {
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  for (const char* e : {".png", ".jpg", ".jpeg", ".bmp", ".ppm", ".pgm", ".pnm", ".tif", ".tiff", ".webp"})
+    if (ext == e) return true;
+  return false;
+}
+
+// Files as given; folders expanded to their image files in name order.
+std::vector<std::string> expandInputs(const std::vector<std::string>& inputs) {
+  std::vector<std::string> files;
+  for (const auto& in : inputs) {
+    std::error_code ec;
+    if (fs::is_directory(in, ec)) {
+      std::vector<std::string> dir;
+      for (const auto& e : fs::directory_iterator(in, ec))
+        if (e.is_regular_file() && isImageFile(e.path())) dir.push_back(e.path().string());
+      std::sort(dir.begin(), dir.end());
+      files.insert(files.end(), dir.begin(), dir.end());
+    } else {
+      files.push_back(in);
+    }
+  }
+  return files;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"ld-detect: find landmarks in images; JSON Lines on stdout (see README)."};
+  std::vector<std::string> inputs;
+  std::string params_file, camera_file, draw_dir, out_file, backend = "cpu";
+  double side_m = 0;
+  app.add_option("inputs", inputs, "image files or folders")->required();
+  app.add_option("--params", params_file, "detector parameters (YAML)");
+  app.add_option("--camera", camera_file, "camera calibration (OpenCV YAML/XML), for pose");
+  app.add_option("--size", side_m, "printed landmark side S in metres, for pose");
+  app.add_option("--draw", draw_dir, "write overlay images into this folder");
+  app.add_option("-o,--output", out_file, "write JSON Lines here instead of stdout");
+  app.add_option("--backend", backend, "detector backend")->check(CLI::IsMember({"cpu"}))
+      ->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  ld::Detector detector;
+  try {
+    ld::DetectorParams params;
+    if (!params_file.empty()) params = ld::DetectorParams::load(params_file);
+    params.validate();
+    detector = ld::Detector(params);
+    if (!camera_file.empty() || side_m > 0) {
+      if (camera_file.empty() || side_m <= 0) {
+        std::cerr << "ld-detect: pose needs both --camera and --size\n";
+        return 2;
+      }
+      detector.setCamera(ld::CameraModel::load(camera_file), side_m);
+    }
+    if (!draw_dir.empty()) fs::create_directories(draw_dir);
+  } catch (const std::exception& e) {
+    std::cerr << "ld-detect: " << e.what() << "\n";
+    return 2;
+  }
+
+  std::ofstream file;
+  if (!out_file.empty()) {
+    file.open(out_file);
+    if (!file) {
+      std::cerr << "ld-detect: cannot write " << out_file << "\n";
+      return 2;
+    }
+  }
+  std::ostream& out = out_file.empty() ? std::cout : file;
+
+  int failed = 0;
+  const auto files = expandInputs(inputs);
+  if (files.empty()) {
+    std::cerr << "ld-detect: no image files found\n";
+    return 2;
+  }
+  for (const auto& path : files) {
+    cv::Mat img;
+    try {
+      img = cv::imread(path, cv::IMREAD_COLOR);
+    } catch (const cv::Exception&) {
+      img.release();
+    }
+    if (img.empty()) {
+      std::cerr << "ld-detect: " << path << ": cannot read as an image\n";
+      out << nlohmann::json{{"image", path}, {"error", "cannot read as an image"}}.dump() << "\n";
+      ++failed;
+      continue;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    const ld::Detection& det = detector.detect(img);
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    nlohmann::json j{{"image", path}, {"width", img.cols}, {"height", img.rows},
+                     {"detect_ms", std::round(ms * 1000.0) / 1000.0}};
+    j["landmarks"] = nlohmann::json::array();
+    for (const auto& lm : det.landmarks) j["landmarks"].push_back(ld::toJson(lm));
+    out << j.dump() << "\n";
+    if (!draw_dir.empty()) {
+      ld::drawLandmarks(img, det.landmarks);
+      const fs::path dst = fs::path(draw_dir) / (fs::path(path).stem().string() + ".png");
+      if (!cv::imwrite(dst.string(), img)) std::cerr << "ld-detect: cannot write " << dst << "\n";
+    }
+  }
+  out.flush();
+  return failed > 0 ? 1 : 0;
+}

@@ -1,0 +1,165 @@
+// ld-dump: the project's messages from log files or the live bus as JSON
+// Lines, one object per message. Image payloads are summarised.
+#include <atomic>
+#include <csignal>
+#include <cstring>
+#include <iostream>
+#include <regex>
+
+#include <CLI/CLI.hpp>
+#include <lcm/lcm-cpp.hpp>
+
+#include "ld/image_convert.hpp"
+#include "ld/landmark_json.hpp"
+#include "ld/landmark_msg.hpp"
+#include "ld/lcm_url.hpp"
+#include "ld/qr_code_list_t.hpp"
+
+namespace {
+
+std::atomic<bool> g_stop{false};
+void onSignal(int) { g_stop = true; }
+
+int64_t fingerprint(const uint8_t* data, size_t size) {
+  if (size < 8) return 0;
+  uint64_t v = 0;
+  for (int i = 0; i < 8; ++i) v = (v << 8) | data[i];
+  return static_cast<int64_t>(v);
+}
+
+template <typename T>
+bool decodeAs(const uint8_t* data, size_t size, T& msg) {
+  return fingerprint(data, size) == T::getHash() &&
+         msg.decode(data, 0, static_cast<int>(size)) == static_cast<int>(size);
+}
+
+nlohmann::json landmarkJson(const ld::landmark_t& m) {
+  nlohmann::json j = ld::toJson(ld::fromMessage(m));
+  j["score"] = std::round(m.score * 1000.0) / 1000.0;
+  if (m.track_id >= 0) {
+    j["track_id"] = m.track_id;
+    j["age"] = m.age;
+    j["frames_since_seen"] = m.frames_since_seen;
+    j["time_since_seen_us"] = m.time_since_seen_us;
+    j["visible"] = m.visible;
+  }
+  return j;
+}
+
+// The JSON object of one message, or an "error" object when it is not one
+// of the project's types or does not decode.
+nlohmann::json toJson(const std::string& channel, int64_t log_utime, const uint8_t* data,
+                      size_t size) {
+  nlohmann::json j{{"channel", channel}};
+  if (log_utime >= 0) j["log_utime"] = log_utime;
+  ld::image_t img;
+  ld::landmark_list_t list;
+  ld::qr_code_list_t codes;
+  if (decodeAs(data, size, img)) {
+    j["type"] = "image_t";
+    j["utime"] = img.utime;
+    j["seq"] = ld::imageSeq(img) ? nlohmann::json(*ld::imageSeq(img)) : nlohmann::json(nullptr);
+    j["width"] = img.width;
+    j["height"] = img.height;
+    j["pixelformat"] = ld::pixelFormatName(img.pixelformat);
+    j["row_stride"] = img.row_stride;
+    j["size"] = img.size;
+  } else if (decodeAs(data, size, list)) {
+    j["type"] = "landmark_list_t";
+    j["utime"] = list.utime;
+    j["seq"] = list.seq;
+    j["width"] = list.width;
+    j["height"] = list.height;
+    j["backend"] = list.backend;
+    j["frames_skipped"] = list.frames_skipped;
+    nlohmann::json stages = nlohmann::json::object();
+    for (size_t i = 0; i < list.stage_names.size() && i < list.stage_ms.size(); ++i)
+      stages[list.stage_names[i]] = std::round(list.stage_ms[i] * 1000.0) / 1000.0;
+    j["stage_ms"] = stages;
+    j["landmarks"] = nlohmann::json::array();
+    for (const auto& m : list.landmarks) j["landmarks"].push_back(landmarkJson(m));
+  } else if (decodeAs(data, size, codes)) {
+    j["type"] = "qr_code_list_t";
+    j["utime"] = codes.utime;
+    j["seq"] = codes.seq;
+    j["codes"] = nlohmann::json::array();
+    for (const auto& c : codes.codes)
+      j["codes"].push_back({{"track_id", c.track_id}, {"payload", c.payload}, {"utime", c.utime},
+                            {"seq", c.seq}, {"decode_ms", c.decode_ms}});
+  } else {
+    j["error"] = "not a project message (" + std::to_string(size) + " bytes)";
+  }
+  return j;
+}
+
+struct Printer {
+  std::vector<std::regex> filters;
+  bool wanted(const std::string& channel) const {
+    if (filters.empty()) return true;
+    for (const auto& f : filters)
+      if (std::regex_match(channel, f)) return true;
+    return false;
+  }
+  void onMessage(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    if (!wanted(channel)) return;
+    std::cout << toJson(channel, -1, static_cast<const uint8_t*>(rbuf->data), rbuf->data_size)
+                     .dump(-1, ' ', false, nlohmann::json::error_handler_t::replace)
+              << std::endl;
+  }
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"ld-dump: project messages from logs or the live bus as JSON Lines."};
+  std::vector<std::string> logs, channels;
+  std::string url = ld::defaultLcmUrl();
+  bool live = false;
+  app.add_option("logs", logs, "LCM log files (lcm-logger)");
+  app.add_option("-c,--channel", channels, "only channels matching this regex (repeatable)");
+  app.add_flag("--live", live, "read the live bus instead of files (Ctrl-C to stop)");
+  app.add_option("--lcm-url", url, "LCM URL for --live")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  Printer printer;
+  try {
+    for (const auto& c : channels) printer.filters.emplace_back(c);
+  } catch (const std::regex_error& e) {
+    std::cerr << "ld-dump: bad channel pattern: " << e.what() << "\n";
+    return 2;
+  }
+  if (live == !logs.empty()) {
+    std::cerr << "ld-dump: give log files or --live\n";
+    return 2;
+  }
+  if (live) {
+    lcm::LCM lcm(url);
+    if (!lcm.good()) {
+      std::cerr << "ld-dump: cannot open LCM at " << url << "\n";
+      return 2;
+    }
+    lcm.subscribe(".*", &Printer::onMessage, &printer);
+    std::signal(SIGINT, onSignal);
+    std::signal(SIGTERM, onSignal);
+    while (!g_stop && lcm.handleTimeout(200) >= 0) {
+    }
+    return 0;
+  }
+  int status = 0;
+  for (const auto& path : logs) {
+    lcm::LogFile log(path, "r");
+    if (!log.good()) {
+      std::cerr << "ld-dump: cannot read log " << path << "\n";
+      status = 1;
+      continue;
+    }
+    while (const lcm::LogEvent* ev = log.readNextEvent()) {
+      if (!printer.wanted(ev->channel)) continue;
+      std::cout << toJson(ev->channel, ev->timestamp, static_cast<const uint8_t*>(ev->data),
+                          static_cast<size_t>(ev->datalen))
+                       .dump(-1, ' ', false, nlohmann::json::error_handler_t::replace)
+                << "\n";
+    }
+  }
+  return status;
+}
