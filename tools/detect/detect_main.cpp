@@ -1,6 +1,7 @@
 // ld-detect: landmarks in image files, as JSON Lines (LANDMARK.md).
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -48,6 +49,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> inputs;
   std::string params_file, camera_file, draw_dir, out_file, backend = "cpu";
   double side_m = 0;
+  bool summary = false;
   app.add_option("inputs", inputs, "image files or folders")->required();
   app.add_option("--params", params_file, "detector parameters (YAML)");
   app.add_option("--camera", camera_file, "camera calibration (OpenCV YAML/XML), for pose");
@@ -56,6 +58,7 @@ int main(int argc, char** argv) {
   app.add_option("-o,--output", out_file, "write JSON Lines here instead of stdout");
   app.add_option("--backend", backend, "detector backend")->check(CLI::IsMember({"cpu"}))
       ->capture_default_str();
+  app.add_flag("--summary", summary, "print a summary (frames, landmarks, detect_ms) on stderr");
   CLI11_PARSE(app, argc, argv);
 
   ld::Detector detector;
@@ -87,7 +90,8 @@ int main(int argc, char** argv) {
   }
   std::ostream& out = out_file.empty() ? std::cout : file;
 
-  int failed = 0;
+  int failed = 0, with_landmarks = 0, total_landmarks = 0;
+  std::vector<double> times;
   const auto files = expandInputs(inputs);
   if (files.empty()) {
     std::cerr << "ld-detect: no image files found\n";
@@ -114,6 +118,9 @@ int main(int argc, char** argv) {
     j["landmarks"] = nlohmann::json::array();
     for (const auto& lm : det.landmarks) j["landmarks"].push_back(ld::toJson(lm));
     out << j.dump() << "\n";
+    times.push_back(ms);
+    with_landmarks += !det.landmarks.empty();
+    total_landmarks += static_cast<int>(det.landmarks.size());
     if (!draw_dir.empty()) {
       ld::drawLandmarks(img, det.landmarks);
       const fs::path dst = fs::path(draw_dir) / (fs::path(path).stem().string() + ".png");
@@ -121,5 +128,15 @@ int main(int argc, char** argv) {
     }
   }
   out.flush();
+  if (summary && !times.empty()) {
+    std::sort(times.begin(), times.end());
+    const auto pct = [&](double q) { return times[static_cast<size_t>(q * (times.size() - 1))]; };
+    std::fprintf(stderr,
+                 "ld-detect: %zu images, %d with landmarks, %d landmarks, %.2f per image; "
+                 "detect_ms median %.3f, p95 %.3f, max %.3f; %d unreadable\n",
+                 times.size(), with_landmarks, total_landmarks,
+                 static_cast<double>(total_landmarks) / static_cast<double>(times.size()),
+                 pct(0.5), pct(0.95), times.back(), failed);
+  }
   return failed > 0 ? 1 : 0;
 }

@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# Runs a command in a private network namespace whose loopback carries LCM's
+# multicast, so nothing it sends can leave this machine:
+#   scripts/netns-run.sh CMD [ARGS...]
+# Root uses `unshare -n`; other users get a user namespace too (`unshare -rn`).
+set -euo pipefail
+if [ "${LD_IN_NETNS:-}" = 1 ]; then
+  exec "$@"
+fi
+flags=-n
+[ "$(id -u)" -eq 0 ] || flags=-rn
+exec unshare $flags env LD_IN_NETNS=1 bash -c '
+  ip link set lo up
+  ip route add 224.0.0.0/4 dev lo
+  exec "$@"' netns-run "$@"
