@@ -15,7 +15,7 @@ PACKAGES=(
   default-jdk-headless libjchart2d-java
   libqrencode-dev nlohmann-json3-dev libcli11-dev
   libapriltag-dev
-  iproute2
+  iproute2 jq
 )
 
 missing=()

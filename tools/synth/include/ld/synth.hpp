@@ -28,6 +28,10 @@ struct LandmarkPlacement {
   double side_m = 0.15;       // printed sheet side S
   cv::Vec3d rvec{0, 0, 0};
   cv::Vec3d tvec{0, 0, 1};
+  /// When set: this square 8-bit BGR image is printed on the sheet instead of
+  /// the landmark artwork (benchmarks put AprilTag and ArUco markers at the
+  /// same poses this way). It covers the whole sheet of side side_m.
+  cv::Mat texture;
 };
 
 /// A pose that faces the camera at `distance` metres along the ray through

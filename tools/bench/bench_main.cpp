@@ -1,0 +1,285 @@
+// ld-bench: the paper's Tables I and II for this machine. Median ms per stage
+// of our detector at three resolutions on ld-synth scenes, and in the same
+// run, on the same scenes with markers of the same printed size at the same
+// poses, AprilTag 3 (tag36h11, one thread, default decimation) and OpenCV's
+// ArUco (DICT_4X4_50). Prints Markdown tables.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <random>
+#include <sstream>
+
+#include <CLI/CLI.hpp>
+#include <apriltag/apriltag.h>
+#include <apriltag/tag36h11.h>
+#include <opencv2/aruco.hpp>
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "ld/detector.hpp"
+#include "ld/landmark_layout.hpp"
+#include "ld/synth.hpp"
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+// A square sheet texture with `marker` (black border included) filling the
+// pattern square [0.5u, 8.5u] of a 9u white sheet, like our landmark's
+// pattern: the same printed size.
+cv::Mat sheetWithMarker(const cv::Mat& marker_gray, int side_px) {
+  cv::Mat sheet(side_px, side_px, CV_8UC3, cv::Scalar(255, 255, 255));
+  const int m0 = static_cast<int>(std::lround(side_px * ld::layout::kPatternMin / ld::layout::kUnits));
+  const int m1 = static_cast<int>(std::lround(side_px * ld::layout::kPatternMax / ld::layout::kUnits));
+  cv::Mat scaled, bgr;
+  cv::resize(marker_gray, scaled, {m1 - m0, m1 - m0}, 0, 0, cv::INTER_NEAREST);
+  cv::cvtColor(scaled, bgr, cv::COLOR_GRAY2BGR);
+  bgr.copyTo(sheet(cv::Rect(m0, m0, m1 - m0, m1 - m0)));
+  return sheet;
+}
+
+cv::Mat aprilTagImage(apriltag_family_t* family, int id) {
+  image_u8_t* im = apriltag_to_image(family, id);
+  // The family image has one white module around the black border: drop it.
+  const int b = (static_cast<int>(family->total_width) - static_cast<int>(family->width_at_border)) / 2;
+  cv::Mat full(im->height, im->width, CV_8UC1, im->buf, static_cast<size_t>(im->stride));
+  cv::Mat tag = full(cv::Rect(b, b, im->width - 2 * b, im->height - 2 * b)).clone();
+  image_u8_destroy(im);
+  return tag;
+}
+
+bool matches(const ld::Landmark& d, const ld::synth::LandmarkTruth& t) {
+  const double size = cv::norm(t.fip_tr - t.fip_tl) / 3.0;  // a FIP's size in px
+  const double tol = std::max(2.0, 0.35 * size);
+  auto near = [&](cv::Point2f a, cv::Point2d b) { return cv::norm(cv::Point2d(a) - b) < tol; };
+  return near(d.fip_tl, t.fip_tl) && near(d.fip_tr, t.fip_tr) && near(d.fip_bl, t.fip_bl) &&
+         near(d.ap, t.ap);
+}
+
+bool markerFound(const std::vector<cv::Point2f>& quad, const ld::synth::LandmarkTruth& t) {
+  cv::Point2f c(0, 0);
+  for (const auto& p : quad) c += p * 0.25f;
+  cv::Point2d tc(0, 0);
+  for (const auto& p : t.corners) tc += p * 0.25;
+  return cv::norm(cv::Point2d(c) - tc) < std::max(3.0, 0.1 * cv::norm(t.corners[1] - t.corners[0]));
+}
+
+struct Scene {
+  ld::synth::Frame ours, tag, aruco;
+};
+
+struct Row {
+  std::string name;
+  std::map<std::string, std::vector<double>> stages;
+  std::vector<double> total, apriltag, aruco;
+  int truths = 0, found = 0, found_tag = 0, found_aruco = 0;
+};
+
+std::string fmt(double v, int prec = 3) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.*f", prec, v);
+  return b;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"ld-bench: detection time per stage against AprilTag 3 and ArUco (see README)."};
+  int frames = 20, repeats = 15;
+  uint64_t seed = 1;
+  double side_m = 0.15;
+  std::string markdown;
+  std::vector<std::string> resolutions{"640x480", "1280x720", "1920x1080"};
+  bool with_paper = true;
+  app.add_option("--frames", frames, "scenes per resolution")->capture_default_str();
+  app.add_option("--repeats", repeats, "timed runs per scene (the median is kept)")->capture_default_str();
+  app.add_option("--seed", seed, "scene seed")->capture_default_str();
+  app.add_option("--size", side_m, "printed side S of landmarks and markers, metres")->capture_default_str();
+  app.add_option("--resolutions", resolutions, "WxH list")->delimiter(',')->capture_default_str();
+  app.add_option("--markdown", markdown, "also write the tables to this file");
+  app.add_flag("!--no-paper", with_paper, "skip the paper front-end row");
+  CLI11_PARSE(app, argc, argv);
+
+  cv::setNumThreads(1);
+  apriltag_family_t* family = tag36h11_create();
+  apriltag_detector_t* td = apriltag_detector_create();
+  apriltag_detector_add_family(td, family);
+  td->nthreads = 1;  // quad_decimate stays at its default (2.0)
+  const auto dict = cv::aruco::getPredefinedDictionary(cv::aruco::DICT_4X4_50);
+  const auto aruco_params = cv::aruco::DetectorParameters::create();
+
+  std::ostringstream md;
+  md << "Measured by `ld-bench --frames " << frames << " --repeats " << repeats << "`: "
+     << "median of per-scene medians, one thread, ms. Scenes: ld-synth, 1-2 landmarks of "
+     << side_m << " m at 0.8-2.5 m, yaw within +-45 deg, any roll, random lighting, noise and JPEG; "
+     << "AprilTag (tag36h11) and ArUco (4x4) markers of the same printed size at the same poses.\n\n";
+  md << "| resolution | front end | blur | saturation | edges | contours | colour | geometry | corners | total | FPS | AprilTag 3 | x ours | ArUco | x ours | found: ours / AprilTag / ArUco |\n";
+  md << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  std::vector<std::string> table2;
+
+  for (const auto& res : resolutions) {
+    int w = 0, h = 0;
+    if (std::sscanf(res.c_str(), "%dx%d", &w, &h) != 2 || w < 64 || h < 48) {
+      std::cerr << "ld-bench: bad resolution " << res << "\n";
+      return 2;
+    }
+    const ld::CameraModel camera = ld::CameraModel::pinhole({w, h}, 600.0 * w / 640.0);
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> U(0, 1);
+    std::vector<Scene> scenes;
+    for (int i = 0; i < frames; ++i) {
+      std::vector<ld::synth::LandmarkPlacement> lms;
+      const int n = 1 + static_cast<int>(U(rng) * 2);
+      for (int k = 0; k < n; ++k) {
+        const double nx = n == 1 ? (U(rng) - 0.5) : (k == 0 ? -0.45 : 0.45) + (U(rng) - 0.5) * 0.2;
+        lms.push_back(ld::synth::placeLandmark(camera, 0.8 + 1.7 * U(rng), -45 + 90 * U(rng),
+                                               -10 + 20 * U(rng), -180 + 360 * U(rng), nx,
+                                               (U(rng) - 0.5) * 0.8, side_m,
+                                               "bench-" + std::to_string(k), k));
+      }
+      ld::synth::SceneSpec spec = ld::synth::randomConditions(camera, lms, seed * 1000 + static_cast<uint64_t>(i));
+      Scene s;
+      s.ours = ld::synth::render(spec);
+      const int tex = 540;
+      for (size_t k = 0; k < spec.landmarks.size(); ++k)
+        spec.landmarks[k].texture = sheetWithMarker(aprilTagImage(family, static_cast<int>(k)), tex);
+      s.tag = ld::synth::render(spec);
+      for (size_t k = 0; k < spec.landmarks.size(); ++k) {
+        cv::Mat marker;
+        dict->drawMarker(static_cast<int>(k), 60, marker, 1);
+        spec.landmarks[k].texture = sheetWithMarker(marker, tex);
+      }
+      s.aruco = ld::synth::render(spec);
+      scenes.push_back(std::move(s));
+    }
+
+    std::vector<std::string> front_ends{"fast"};
+    if (with_paper) front_ends.push_back("paper");
+    for (const auto& fe : front_ends) {
+      ld::DetectorParams params;
+      params.front_end = fe;
+      ld::Detector detector(params);
+      Row row;
+      for (const Scene& s : scenes) {
+        std::map<std::string, std::vector<double>> per;
+        std::vector<double> tot, at, ar;
+        detector.detect(s.ours.bgr);  // warm-up
+        for (int r = 0; r < repeats; ++r) {
+          const auto t0 = Clock::now();
+          const ld::Detection& det = detector.detect(s.ours.bgr);
+          tot.push_back(msSince(t0));
+          for (const auto& st : det.stages) per[st.name].push_back(st.ms);
+        }
+        row.total.push_back(median(tot));
+        for (auto& [name, v] : per) row.stages[name].push_back(median(v));
+        const ld::Detection& det = detector.detect(s.ours.bgr);
+        for (const auto& t : s.ours.truth) {
+          if (!t.in_view) continue;
+          ++row.truths;
+          row.found += std::any_of(det.landmarks.begin(), det.landmarks.end(),
+                                   [&](const ld::Landmark& d) { return matches(d, t); });
+        }
+        if (fe != "fast") continue;
+        // AprilTag and ArUco take gray images (conversion not timed).
+        cv::Mat gray;
+        cv::cvtColor(s.tag.bgr, gray, cv::COLOR_BGR2GRAY);
+        image_u8_t im{gray.cols, gray.rows, static_cast<int32_t>(gray.step), gray.data};
+        zarray_t* dets = nullptr;
+        for (int r = 0; r <= repeats; ++r) {
+          if (dets) apriltag_detections_destroy(dets);
+          const auto t0 = Clock::now();
+          dets = apriltag_detector_detect(td, &im);
+          if (r > 0) at.push_back(msSince(t0));
+        }
+        for (const auto& t : s.tag.truth) {
+          if (!t.in_view) continue;
+          for (int k = 0; k < zarray_size(dets); ++k) {
+            apriltag_detection_t* d;
+            zarray_get(dets, k, &d);
+            std::vector<cv::Point2f> quad;
+            for (auto& p : d->p) quad.emplace_back(static_cast<float>(p[0]), static_cast<float>(p[1]));
+            if (d->id == t.id && markerFound(quad, t)) {
+              ++row.found_tag;
+              break;
+            }
+          }
+        }
+        apriltag_detections_destroy(dets);
+        cv::cvtColor(s.aruco.bgr, gray, cv::COLOR_BGR2GRAY);
+        std::vector<std::vector<cv::Point2f>> corners;
+        std::vector<int> ids;
+        for (int r = 0; r <= repeats; ++r) {
+          const auto t0 = Clock::now();
+          cv::aruco::detectMarkers(gray, dict, corners, ids, aruco_params);
+          if (r > 0) ar.push_back(msSince(t0));
+        }
+        for (const auto& t : s.aruco.truth) {
+          if (!t.in_view) continue;
+          for (size_t k = 0; k < ids.size(); ++k)
+            if (ids[k] == t.id && markerFound(corners[k], t)) {
+              ++row.found_aruco;
+              break;
+            }
+        }
+        row.apriltag.push_back(median(at));
+        row.aruco.push_back(median(ar));
+      }
+      const double total = median(row.total);
+      auto stage = [&](const char* n) {
+        auto it = row.stages.find(n);
+        return it == row.stages.end() ? std::string("-") : fmt(median(it->second));
+      };
+      md << "| " << res << " | " << fe << " | " << stage("blur") << " | " << stage("saturation")
+         << " | " << stage("edges") << " | " << stage("contours") << " | " << stage("colour")
+         << " | " << stage("geometry") << " | " << stage("corners") << " | " << fmt(total)
+         << " | " << fmt(1000.0 / total, 0) << " | ";
+      if (fe == "fast") {
+        const double at = median(row.apriltag), ar = median(row.aruco);
+        md << fmt(at) << " | " << fmt(at / total, 1) << " | " << fmt(ar) << " | "
+           << fmt(ar / total, 1) << " | " << row.found << " / " << row.found_tag << " / "
+           << row.found_aruco << " of " << row.truths << " |\n";
+      } else {
+        md << "- | - | - | - | " << row.found << " of " << row.truths << " |\n";
+      }
+      if (w == 640 && h == 480) {
+        double filter = 0, geometry = 0;
+        for (auto& [name, v] : row.stages)
+          ((name == "blur" || name == "saturation" || name == "edges" || name == "contours")
+               ? filter : geometry) += median(v);
+        table2.push_back("| " + fe + " | " + fmt(filter) + " | " + fmt(geometry) + " | " +
+                         fmt(total) + " | " + fmt(1000.0 / total, 0) + " |");
+      }
+    }
+  }
+  if (!table2.empty()) {
+    md << "\nTable II (640x480): filter = blur + saturation + edges + contours; geometry = the rest "
+          "(stage medians, so filter + geometry need not equal the total's median).\n\n"
+       << "| front end | filter | geometry | total | FPS |\n|---|---|---|---|---|\n";
+    for (const auto& r : table2) md << r << "\n";
+  }
+  apriltag_detector_destroy(td);
+  tag36h11_destroy(family);
+  std::cout << md.str();
+  if (!markdown.empty()) {
+    std::ofstream f(markdown);
+    f << md.str();
+    if (!f) {
+      std::cerr << "ld-bench: cannot write " << markdown << "\n";
+      return 1;
+    }
+  }
+  return 0;
+}
