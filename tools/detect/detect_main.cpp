@@ -106,16 +106,16 @@ int main(int argc, char** argv) {
     }
     if (img.empty()) {
       std::cerr << "ld-detect: " << path << ": cannot read as an image\n";
-      out << nlohmann::json{{"image", path}, {"error", "cannot read as an image"}}.dump() << "\n";
+      out << nlohmann::ordered_json{{"image", path}, {"error", "cannot read as an image"}}.dump() << "\n";
       ++failed;
       continue;
     }
     const auto t0 = std::chrono::steady_clock::now();
     const ld::Detection& det = detector.detect(img);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    nlohmann::json j{{"image", path}, {"width", img.cols}, {"height", img.rows},
+    nlohmann::ordered_json j{{"image", path}, {"width", img.cols}, {"height", img.rows},
                      {"detect_ms", std::round(ms * 1000.0) / 1000.0}};
-    j["landmarks"] = nlohmann::json::array();
+    j["landmarks"] = nlohmann::ordered_json::array();
     for (const auto& lm : det.landmarks) j["landmarks"].push_back(ld::toJson(lm));
     out << j.dump() << "\n";
     times.push_back(ms);

@@ -33,8 +33,8 @@ bool decodeAs(const uint8_t* data, size_t size, T& msg) {
          msg.decode(data, 0, static_cast<int>(size)) == static_cast<int>(size);
 }
 
-nlohmann::json landmarkJson(const ld::landmark_t& m) {
-  nlohmann::json j = ld::toJson(ld::fromMessage(m));
+nlohmann::ordered_json landmarkJson(const ld::landmark_t& m) {
+  nlohmann::ordered_json j = ld::toJson(ld::fromMessage(m));
   j["score"] = std::round(m.score * 1000.0) / 1000.0;
   if (m.track_id >= 0) {
     j["track_id"] = m.track_id;
@@ -48,9 +48,9 @@ nlohmann::json landmarkJson(const ld::landmark_t& m) {
 
 // The JSON object of one message, or an "error" object when it is not one
 // of the project's types or does not decode.
-nlohmann::json toJson(const std::string& channel, int64_t log_utime, const uint8_t* data,
+nlohmann::ordered_json toJson(const std::string& channel, int64_t log_utime, const uint8_t* data,
                       size_t size) {
-  nlohmann::json j{{"channel", channel}};
+  nlohmann::ordered_json j{{"channel", channel}};
   if (log_utime >= 0) j["log_utime"] = log_utime;
   ld::image_t img;
   ld::landmark_list_t list;
@@ -58,7 +58,7 @@ nlohmann::json toJson(const std::string& channel, int64_t log_utime, const uint8
   if (decodeAs(data, size, img)) {
     j["type"] = "image_t";
     j["utime"] = img.utime;
-    j["seq"] = ld::imageSeq(img) ? nlohmann::json(*ld::imageSeq(img)) : nlohmann::json(nullptr);
+    j["seq"] = ld::imageSeq(img) ? nlohmann::ordered_json(*ld::imageSeq(img)) : nlohmann::ordered_json(nullptr);
     j["width"] = img.width;
     j["height"] = img.height;
     j["pixelformat"] = ld::pixelFormatName(img.pixelformat);
@@ -72,17 +72,17 @@ nlohmann::json toJson(const std::string& channel, int64_t log_utime, const uint8
     j["height"] = list.height;
     j["backend"] = list.backend;
     j["frames_skipped"] = list.frames_skipped;
-    nlohmann::json stages = nlohmann::json::object();
+    nlohmann::ordered_json stages = nlohmann::ordered_json::object();
     for (size_t i = 0; i < list.stage_names.size() && i < list.stage_ms.size(); ++i)
       stages[list.stage_names[i]] = std::round(list.stage_ms[i] * 1000.0) / 1000.0;
     j["stage_ms"] = stages;
-    j["landmarks"] = nlohmann::json::array();
+    j["landmarks"] = nlohmann::ordered_json::array();
     for (const auto& m : list.landmarks) j["landmarks"].push_back(landmarkJson(m));
   } else if (decodeAs(data, size, codes)) {
     j["type"] = "qr_code_list_t";
     j["utime"] = codes.utime;
     j["seq"] = codes.seq;
-    j["codes"] = nlohmann::json::array();
+    j["codes"] = nlohmann::ordered_json::array();
     for (const auto& c : codes.codes)
       j["codes"].push_back({{"track_id", c.track_id}, {"payload", c.payload}, {"utime", c.utime},
                             {"seq", c.seq}, {"decode_ms", c.decode_ms}});
@@ -103,7 +103,7 @@ struct Printer {
   void onMessage(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
     if (!wanted(channel)) return;
     std::cout << toJson(channel, -1, static_cast<const uint8_t*>(rbuf->data), rbuf->data_size)
-                     .dump(-1, ' ', false, nlohmann::json::error_handler_t::replace)
+                     .dump(-1, ' ', false, nlohmann::ordered_json::error_handler_t::replace)
               << std::endl;
   }
 };
@@ -157,7 +157,7 @@ int main(int argc, char** argv) {
       if (!printer.wanted(ev->channel)) continue;
       std::cout << toJson(ev->channel, ev->timestamp, static_cast<const uint8_t*>(ev->data),
                           static_cast<size_t>(ev->datalen))
-                       .dump(-1, ' ', false, nlohmann::json::error_handler_t::replace)
+                       .dump(-1, ' ', false, nlohmann::ordered_json::error_handler_t::replace)
                 << "\n";
     }
   }

@@ -11,19 +11,19 @@ namespace {
 double round3(double v) { return std::round(v * 1000.0) / 1000.0; }
 double round6(double v) { return std::round(v * 1e6) / 1e6; }
 
-nlohmann::json point(const cv::Point2f& p) { return {round3(p.x), round3(p.y)}; }
+nlohmann::ordered_json point(const cv::Point2f& p) { return {round3(p.x), round3(p.y)}; }
 
 }  // namespace
 
-nlohmann::json toJson(const Landmark& lm) {
-  nlohmann::json j;
+nlohmann::ordered_json toJson(const Landmark& lm) {
+  nlohmann::ordered_json j;
   j["fip_tl"] = point(lm.fip_tl);
   j["fip_tr"] = point(lm.fip_tr);
   j["fip_bl"] = point(lm.fip_bl);
   j["ap"] = point(lm.ap);
-  j["corners"] = nlohmann::json::array();
+  j["corners"] = nlohmann::ordered_json::array();
   for (const auto& c : lm.corners) j["corners"].push_back(point(c));
-  j["payload"] = lm.payload ? nlohmann::json(*lm.payload) : nlohmann::json(nullptr);
+  j["payload"] = lm.payload ? nlohmann::ordered_json(*lm.payload) : nlohmann::ordered_json(nullptr);
   if (lm.pose) {
     const Pose& p = *lm.pose;
     j["pose"] = {{"t", {round6(p.t[0]), round6(p.t[1]), round6(p.t[2])}},

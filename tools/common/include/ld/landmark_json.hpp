@@ -12,7 +12,7 @@ namespace ld {
 
 /// {"fip_tl": [x, y], ..., "corners": [[x, y] x4], "payload": text|null,
 ///  "pose": {"t": [..], "rvec": [..], "distance": d}} (pose only when known).
-nlohmann::json toJson(const Landmark& lm);
+nlohmann::ordered_json toJson(const Landmark& lm);
 
 /// Draws landmarks (pattern outline, the four centres, TL marked, payload
 /// and distance as text) onto a BGR image.

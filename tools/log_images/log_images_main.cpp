@@ -1,0 +1,119 @@
+// ld-log-images: an image folder or a video file as an LCM log of ld.image_t
+// on IMAGE, with timestamps at a chosen frame rate, for lcm-logplayer.
+#include <algorithm>
+#include <filesystem>
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+#include <lcm/lcm-cpp.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "ld/image_convert.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+bool isImageFile(const fs::path& p) {
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  for (const char* e : {".png", ".jpg", ".jpeg", ".bmp", ".ppm", ".pgm", ".tif", ".tiff", ".webp"})
+    if (ext == e) return true;
+  return false;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"ld-log-images: images or a video as an LCM log of IMAGE messages."};
+  std::string input, output, channel = "IMAGE", format = "mjpeg";
+  double fps = 30.0;
+  int64_t start_utime = 0;
+  int quality = 90;
+  app.add_option("input", input, "image folder (name order) or video file")->required();
+  app.add_option("output", output, "LCM log to write")->required();
+  app.add_option("--fps", fps, "frame rate of the timestamps")->check(CLI::Range(0.1, 1000.0))
+      ->capture_default_str();
+  app.add_option("--start-utime", start_utime, "utime of the first frame (default: now)");
+  app.add_option("--format", format, "pixel format: gray, rgb, bgr, yuyv, uyvy, mjpeg")
+      ->capture_default_str();
+  app.add_option("--quality", quality, "JPEG quality for mjpeg")->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  app.add_option("--channel", channel, "channel name")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  int32_t pixelformat = 0;
+  try {
+    pixelformat = ld::pixelFormatFromName(format);
+  } catch (const std::exception& e) {
+    std::cerr << "ld-log-images: " << e.what() << "\n";
+    return 2;
+  }
+  if (start_utime == 0)
+    start_utime = std::chrono::duration_cast<std::chrono::microseconds>(
+                      std::chrono::system_clock::now().time_since_epoch()).count();
+
+  std::vector<std::string> files;
+  cv::VideoCapture video;
+  std::error_code ec;
+  if (fs::is_directory(input, ec)) {
+    for (const auto& e : fs::directory_iterator(input, ec))
+      if (e.is_regular_file() && isImageFile(e.path())) files.push_back(e.path().string());
+    std::sort(files.begin(), files.end());
+    if (files.empty()) {
+      std::cerr << "ld-log-images: no image files in " << input << "\n";
+      return 2;
+    }
+  } else if (!fs::exists(input, ec)) {
+    std::cerr << "ld-log-images: " << input << " does not exist\n";
+    return 2;
+  } else if (!video.open(input)) {
+    std::cerr << "ld-log-images: cannot open " << input << " as a video\n";
+    return 2;
+  }
+
+  lcm::LogFile log(output, "w");
+  if (!log.good()) {
+    std::cerr << "ld-log-images: cannot write " << output << "\n";
+    return 2;
+  }
+  std::vector<uint8_t> buf;
+  int64_t seq = 0, skipped = 0;
+  for (size_t i = 0;; ++i) {
+    cv::Mat frame;
+    if (!files.empty()) {
+      if (i >= files.size()) break;
+      frame = cv::imread(files[i], cv::IMREAD_COLOR);
+      if (frame.empty()) {
+        std::cerr << "ld-log-images: " << files[i] << ": cannot read as an image, skipped\n";
+        ++skipped;
+        continue;
+      }
+    } else if (!video.read(frame) || frame.empty()) {
+      break;
+    }
+    if ((pixelformat == ld::image_t::PIXEL_FORMAT_YUYV || pixelformat == ld::image_t::PIXEL_FORMAT_UYVY) &&
+        frame.cols % 2)
+      frame = frame.colRange(0, frame.cols - 1).clone();
+    const int64_t utime = start_utime + static_cast<int64_t>(std::llround(seq * 1e6 / fps));
+    const ld::image_t msg = ld::matToImage(frame, pixelformat, utime, seq, quality);
+    buf.resize(static_cast<size_t>(msg.getEncodedSize()));
+    msg.encode(buf.data(), 0, static_cast<int>(buf.size()));
+    lcm::LogEvent ev;
+    ev.eventnum = seq;
+    ev.timestamp = utime;
+    ev.channel = channel;
+    ev.datalen = static_cast<int32_t>(buf.size());
+    ev.data = buf.data();
+    if (log.writeEvent(&ev) != 0) {
+      std::cerr << "ld-log-images: write to " << output << " failed\n";
+      return 1;
+    }
+    ++seq;
+  }
+  std::cout << "wrote " << seq << " frames to " << output << " (" << format << ", " << fps
+            << " fps)" << (skipped ? ", " + std::to_string(skipped) + " unreadable skipped" : "")
+            << "\n";
+  return seq > 0 ? 0 : 1;
+}
