@@ -20,6 +20,7 @@ std::vector<std::string> zbarDecode(const cv::Mat& bgr) {
   zbar::ImageScanner scanner;
   scanner.set_config(zbar::ZBAR_NONE, zbar::ZBAR_CFG_ENABLE, 0);
   scanner.set_config(zbar::ZBAR_QRCODE, zbar::ZBAR_CFG_ENABLE, 1);
+  scanner.set_config(zbar::ZBAR_QRCODE, zbar::ZBAR_CFG_BINARY, 1);  // bytes as encoded
   zbar::Image image(static_cast<unsigned>(gray.cols), static_cast<unsigned>(gray.rows), "Y800",
                     gray.data, static_cast<unsigned long>(gray.total()));
   scanner.scan(image);
@@ -107,7 +108,7 @@ TEST(Artwork, SquaresScaleWithAnySide) {
 
 TEST(Artwork, QrDecodesWithZbar) {
   const std::vector<std::string> payloads{
-      "room-214/door", "L1", "UTF-8: \xc3\xa9t\xc3\xa9 \xe2\x86\x92 \xe6\x9d\xb1\xe4\xba\xac",
+      "room-214/door", "L1", "UTF-8: \xc3\xa9t\xc3\xa9 \xe2\x86\x92 \xe6\x9d\xb1\xe4\xba\xac", "\xc3\xa9t\xc3\xa9 \xe6\x9d\xb1",
       std::string(100, 'A') };
   for (const auto& p : payloads) {
     const cv::Mat img = ld::artwork::renderLandmark(p, 540);

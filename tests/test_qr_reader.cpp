@@ -1,0 +1,90 @@
+// The QR reader rectifies a landmark from its corners and decodes its payload
+// with zbar; damaged, missing or degenerate input gives no payload.
+#include <gtest/gtest.h>
+
+#include <opencv2/imgproc.hpp>
+
+#include "ld/artwork.hpp"
+#include "ld/landmark_layout.hpp"
+#include "ld/qr_reader.hpp"
+
+namespace {
+
+struct Scene {
+  cv::Mat image;
+  std::array<cv::Point2f, 4> corners;
+};
+
+// The artwork warped by a homography onto a grey wall; corners exact.
+Scene warped(const cv::Mat& sheet, const std::array<cv::Point2f, 4>& sheet_corners_in_image) {
+  const float s = static_cast<float>(sheet.cols);
+  const std::vector<cv::Point2f> src{{0, 0}, {s, 0}, {s, s}, {0, s}};
+  std::vector<cv::Point2f> dst(sheet_corners_in_image.begin(), sheet_corners_in_image.end());
+  // sheet pixel coordinates are [0, s) with centres at +0.5: shift to OpenCV's convention
+  const cv::Matx33d to_centres(1, 0, -0.5, 0, 1, -0.5, 0, 0, 1);
+  const cv::Matx33d H = to_centres * cv::Matx33d(cv::getPerspectiveTransform(src, dst));
+  Scene sc;
+  sc.image = cv::Mat(480, 640, CV_8UC3, cv::Scalar(120, 130, 140));
+  cv::warpPerspective(sheet, sc.image, H, sc.image.size(), cv::INTER_AREA, cv::BORDER_TRANSPARENT);
+  for (size_t i = 0; i < 4; ++i) {
+    const auto& c = ld::layout::kCornersU[i];
+    const cv::Vec3d p = H * cv::Vec3d(c[0] * s / 9.0, c[1] * s / 9.0, 1.0);
+    sc.corners[i] = {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
+  }
+  return sc;
+}
+
+}  // namespace
+
+TEST(QrReader, DecodesFrontalAndObliqueViews) {
+  ld::QrReader reader;
+  const std::vector<std::string> payloads{"room-214/door", "\xc3\xa9t\xc3\xa9 \xe6\x9d\xb1",
+                                          std::string(100, 'Z')};
+  for (const auto& p : payloads) {
+    const cv::Mat sheet = ld::artwork::renderLandmark(p, 900);
+    const Scene front = warped(sheet, {{{170, 90}, {470, 90}, {470, 390}, {170, 390}}});
+    auto r = reader.decode(front.image, front.corners);
+    ASSERT_TRUE(r.has_value()) << p;
+    EXPECT_EQ(r->payload, p);
+    const Scene oblique = warped(sheet, {{{200, 120}, {400, 80}, {410, 420}, {190, 360}}});
+    r = reader.decode(oblique.image, oblique.corners);
+    ASSERT_TRUE(r.has_value()) << p;
+    EXPECT_EQ(r->payload, p);
+    EXPECT_EQ(reader.lastView().rows, reader.lastView().cols);
+  }
+}
+
+TEST(QrReader, UpsideDownUsesTheCornerOrder) {
+  ld::QrReader reader;
+  const cv::Mat sheet = ld::artwork::renderLandmark("upside-down", 900);
+  // TL of the sheet at the bottom right of the image.
+  const Scene sc = warped(sheet, {{{470, 390}, {170, 390}, {170, 90}, {470, 90}}});
+  const auto r = reader.decode(sc.image, sc.corners);
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(r->payload, "upside-down");
+}
+
+TEST(QrReader, DamagedOrMissingQrGivesNothing) {
+  ld::QrReader reader;
+  cv::Mat sheet = ld::artwork::renderLandmark("damaged", 900);
+  cv::rectangle(sheet, cv::Rect(250, 250, 400, 200), cv::Scalar(255, 255, 255), cv::FILLED);
+  Scene sc = warped(sheet, {{{170, 90}, {470, 90}, {470, 390}, {170, 390}}});
+  EXPECT_FALSE(reader.decode(sc.image, sc.corners).has_value());
+
+  cv::Mat blank = ld::artwork::renderLandmark("x", 900);
+  cv::rectangle(blank, cv::Rect(250, 250, 400, 400), cv::Scalar(255, 255, 255), cv::FILLED);
+  sc = warped(blank, {{{170, 90}, {470, 90}, {470, 390}, {170, 390}}});
+  EXPECT_FALSE(reader.decode(sc.image, sc.corners).has_value());
+}
+
+TEST(QrReader, DegenerateInputDoesNotCrash) {
+  ld::QrReader reader;
+  const cv::Mat img(480, 640, CV_8UC3, cv::Scalar(200, 200, 200));
+  EXPECT_FALSE(reader.decode(img, {{{10, 10}, {10, 10}, {10, 10}, {10, 10}}}).has_value());
+  EXPECT_FALSE(reader.decode(img, {{{-1e6f, 0}, {1e6f, 0}, {1e6f, 1e6f}, {0, 1e6f}}}).has_value());
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_FALSE(reader.decode(img, {{{nan, 0}, {1, 0}, {1, 1}, {0, 1}}}).has_value());
+  EXPECT_FALSE(reader.decode(cv::Mat(), {{{0, 0}, {100, 0}, {100, 100}, {0, 100}}}).has_value());
+  const cv::Mat gray(1, 1, CV_8UC1, cv::Scalar(0));
+  EXPECT_FALSE(reader.decode(gray, {{{0, 0}, {100, 0}, {100, 100}, {0, 100}}}).has_value());
+}
