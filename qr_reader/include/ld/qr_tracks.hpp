@@ -1,0 +1,101 @@
+// What ld-qr-reader needs besides decoding: joining tracked landmark lists to
+// their images (lost and reordered messages tolerated), and remembering each
+// track's payload with a bounded decode schedule so the reader never falls
+// behind the camera.
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+namespace ld {
+
+/// Holds the newest images (raw encoded bytes, keyed by utime and seq) and
+/// the landmark lists waiting for their image, and pairs them up whichever
+/// arrives first.
+class FrameMatcher {
+ public:
+  struct Key {
+    int64_t utime = 0;
+    int64_t seq = -1;  ///< -1: unknown, match by utime alone
+    bool operator==(const Key& o) const {
+      return utime == o.utime && (seq < 0 || o.seq < 0 || seq == o.seq);
+    }
+  };
+  struct Pair {
+    std::vector<uint8_t> image;  ///< encoded image_t
+    std::vector<uint8_t> list;   ///< encoded landmark_list_t
+    Key key;
+  };
+
+  /// Keeps at most `max_images` images and `max_lists` unmatched lists.
+  explicit FrameMatcher(size_t max_images = 30, size_t max_lists = 30)
+      : max_images_(max_images), max_lists_(max_lists) {}
+
+  void addImage(const Key& key, const uint8_t* data, size_t size);
+  void addList(const Key& key, const uint8_t* data, size_t size);
+
+  /// The newest matched pair not yet taken, dropping older matched pairs
+  /// (counted in skipped()). False when nothing is matched.
+  bool takeNewest(Pair& out);
+
+  int64_t skipped() const { return skipped_; }
+  int64_t unmatchedDropped() const { return unmatched_dropped_; }
+
+ private:
+  struct Entry {
+    Key key;
+    std::vector<uint8_t> bytes;
+  };
+  void match();
+  size_t max_images_, max_lists_;
+  std::deque<Entry> images_, lists_;
+  std::deque<Pair> ready_;
+  std::vector<std::vector<uint8_t>> spare_;  // recycled buffers
+  int64_t skipped_ = 0, unmatched_dropped_ = 0;
+};
+
+struct QrScheduleParams {
+  double retry_interval_s = 0.1;  ///< an undecoded track is tried at most this often
+  double recheck_interval_s = 5.0;///< a decoded track is re-read this often
+  int max_decodes_per_frame = 3;  ///< decode attempts per processed frame, all tracks
+  double forget_after_s = 10.0;   ///< a track unseen this long is forgotten
+};
+
+/// Per-track payload memory and the decode schedule.
+class QrTrackBook {
+ public:
+  explicit QrTrackBook(const QrScheduleParams& params = {}) : params_(params) {}
+
+  /// Track ids present in a frame at `utime`, in the order given: returns
+  /// those to decode now (undecoded first, least recently tried first),
+  /// at most max_decodes_per_frame.
+  std::vector<int64_t> schedule(const std::vector<int64_t>& track_ids, int64_t utime);
+
+  /// Records the outcome of a decode attempt of `track_id` on the frame
+  /// (utime, seq).
+  void record(int64_t track_id, int64_t utime, int64_t seq, const std::optional<std::string>& payload);
+
+  struct Known {
+    std::string payload;
+    int64_t utime = 0, seq = -1;  ///< the frame it was read from
+  };
+  /// The payload known for a track, if any.
+  const Known* payload(int64_t track_id) const;
+
+  size_t size() const { return tracks_.size(); }
+
+ private:
+  struct Track {
+    std::optional<Known> known;
+    int64_t last_try = INT64_MIN;
+    int64_t last_seen = 0;
+  };
+  QrScheduleParams params_;
+  std::unordered_map<int64_t, Track> tracks_;
+};
+
+}  // namespace ld

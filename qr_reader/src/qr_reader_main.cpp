@@ -1,0 +1,162 @@
+// ld-qr-reader: joins IMAGE and LANDMARKS_TRACKED by frame, decodes each
+// track's QR code (once, then re-checked rarely; undecoded tracks retried at
+// a bounded rate) and publishes the known payloads on LANDMARK_CODES.
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+#include <lcm/lcm-cpp.hpp>
+
+#include "ld/image_convert.hpp"
+#include "ld/landmark_list_t.hpp"
+#include "ld/lcm_url.hpp"
+#include "ld/qr_code_list_t.hpp"
+#include "ld/qr_reader.hpp"
+#include "ld/qr_tracks.hpp"
+
+namespace {
+
+std::atomic<bool> g_stop{false};
+void onSignal(int) { g_stop = true; }
+
+// Reads the (utime, seq) of a message without decoding it whole: decoding
+// the list is cheap, the image's header is read by a full decode only later.
+struct Inputs {
+  ld::FrameMatcher matcher;
+  ld::image_t header_probe;
+  ld::landmark_list_t list_probe;
+  int64_t bad = 0;
+
+  void onImage(const lcm::ReceiveBuffer* rb, const std::string& ch) {
+    const auto* p = static_cast<const uint8_t*>(rb->data);
+    const int n = static_cast<int>(rb->data_size);
+    if (header_probe.decode(p, 0, n) != n) return reportBad(ch, n, "ld.image_t");
+    matcher.addImage({header_probe.utime, ld::imageSeq(header_probe).value_or(-1)}, p, rb->data_size);
+  }
+  void onList(const lcm::ReceiveBuffer* rb, const std::string& ch) {
+    const auto* p = static_cast<const uint8_t*>(rb->data);
+    const int n = static_cast<int>(rb->data_size);
+    if (list_probe.decode(p, 0, n) != n) return reportBad(ch, n, "ld.landmark_list_t");
+    matcher.addList({list_probe.utime, list_probe.seq}, p, rb->data_size);
+  }
+  void reportBad(const std::string& ch, int n, const char* type) {
+    ++bad;
+    if (bad <= 10 || bad % 100 == 0)
+      std::cerr << "ld-qr-reader: dropped message on " << ch << " (" << n << " bytes): not a valid "
+                << type << " (" << bad << " bad so far)\n";
+  }
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"ld-qr-reader: IMAGE + LANDMARKS_TRACKED in, LANDMARK_CODES out (see README)."};
+  std::string url = ld::defaultLcmUrl(), image_ch = "IMAGE", tracks_ch = "LANDMARKS_TRACKED",
+              out_ch = "LANDMARK_CODES";
+  ld::QrScheduleParams sched;
+  bool verbose = false;
+  app.add_option("--lcm-url", url, "LCM URL")->capture_default_str();
+  app.add_option("--image", image_ch, "image channel")->capture_default_str();
+  app.add_option("--tracks", tracks_ch, "tracked landmarks channel")->capture_default_str();
+  app.add_option("--out", out_ch, "codes channel")->capture_default_str();
+  app.add_option("--retry-interval", sched.retry_interval_s, "seconds between tries of an undecoded track")
+      ->capture_default_str();
+  app.add_option("--recheck-interval", sched.recheck_interval_s, "seconds between re-reads of a decoded track")
+      ->capture_default_str();
+  app.add_option("--max-decodes", sched.max_decodes_per_frame, "decode attempts per frame")
+      ->capture_default_str();
+  app.add_flag("-v,--verbose", verbose, "print each newly read payload");
+  CLI11_PARSE(app, argc, argv);
+
+  lcm::LCM lcm(url);
+  if (!lcm.good()) {
+    std::cerr << "ld-qr-reader: cannot open LCM at " << url << "\n";
+    return 2;
+  }
+  Inputs in;
+  lcm.subscribe(image_ch, &Inputs::onImage, &in);
+  lcm.subscribe(tracks_ch, &Inputs::onList, &in);
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
+
+  ld::QrReader reader;
+  ld::QrTrackBook book(sched);
+  ld::FrameMatcher::Pair pair;
+  ld::image_t image;
+  ld::landmark_list_t list;
+  ld::qr_code_list_t out;
+  cv::Mat bgr;
+  std::vector<int64_t> ids;
+  int64_t frames = 0, decoded = 0;
+  while (!g_stop) {
+    if (lcm.handleTimeout(200) < 0) {
+      std::cerr << "ld-qr-reader: LCM receive failed\n";
+      return 1;
+    }
+    while (lcm.handleTimeout(0) > 0) {
+    }
+    if (!in.matcher.takeNewest(pair)) continue;
+    const int ni = static_cast<int>(pair.image.size()), nl = static_cast<int>(pair.list.size());
+    if (image.decode(pair.image.data(), 0, ni) != ni || list.decode(pair.list.data(), 0, nl) != nl)
+      continue;  // checked on arrival already
+    ++frames;
+    ids.clear();
+    for (const auto& lm : list.landmarks)
+      if (lm.visible && lm.track_id >= 0) ids.push_back(lm.track_id);
+    const std::vector<int64_t> todo = book.schedule(ids, list.utime);
+    if (!todo.empty()) {
+      try {
+        ld::imageToBgr(image, bgr);
+      } catch (const ld::ImageFormatError& e) {
+        std::cerr << "ld-qr-reader: " << e.what() << "\n";
+        continue;
+      }
+    }
+    out.codes.clear();
+    for (const auto& lm : list.landmarks) {
+      if (lm.track_id < 0) continue;
+      const bool try_now = std::find(todo.begin(), todo.end(), lm.track_id) != todo.end();
+      float ms = 0;
+      if (try_now) {
+        std::array<cv::Point2f, 4> corners;
+        for (size_t i = 0; i < 4; ++i) corners[i] = {lm.corners[i][0], lm.corners[i][1]};
+        const auto t0 = std::chrono::steady_clock::now();
+        const auto r = reader.decode(bgr, corners);
+        ms = std::chrono::duration<float, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        const bool is_new = r && !book.payload(lm.track_id);
+        book.record(lm.track_id, list.utime, list.seq,
+                    r ? std::optional<std::string>(r->payload) : std::nullopt);
+        if (is_new) {
+          ++decoded;
+          if (verbose)
+            std::cerr << "ld-qr-reader: track " << lm.track_id << " reads \"" << r->payload << "\"\n";
+        }
+      }
+      if (const auto* k = book.payload(lm.track_id)) {
+        ld::qr_code_t c{};
+        c.track_id = lm.track_id;
+        c.payload = k->payload;
+        c.utime = k->utime;
+        c.seq = k->seq;
+        for (int i = 0; i < 4; ++i)
+          for (int j = 0; j < 2; ++j) c.corners[i][j] = lm.corners[i][j];
+        c.decode_ms = ms;
+        out.codes.push_back(std::move(c));
+      }
+    }
+    out.utime = list.utime;
+    out.seq = list.seq;
+    out.ncodes = static_cast<int32_t>(out.codes.size());
+    lcm.publish(out_ch, &out);
+  }
+  std::fprintf(stderr,
+               "ld-qr-reader: stopped after %lld frames, %lld tracks read, %lld skipped, %lld "
+               "unmatched, %lld bad\n",
+               static_cast<long long>(frames), static_cast<long long>(decoded),
+               static_cast<long long>(in.matcher.skipped()),
+               static_cast<long long>(in.matcher.unmatchedDropped()), static_cast<long long>(in.bad));
+  return 0;
+}

@@ -1,0 +1,130 @@
+#include "ld/qr_tracks.hpp"
+
+#include <algorithm>
+
+namespace ld {
+
+void FrameMatcher::addImage(const Key& key, const uint8_t* data, size_t size) {
+  Entry e{key, {}};
+  if (!spare_.empty()) {
+    e.bytes = std::move(spare_.back());
+    spare_.pop_back();
+  }
+  e.bytes.assign(data, data + size);
+  images_.push_back(std::move(e));
+  while (images_.size() > max_images_) {
+    spare_.push_back(std::move(images_.front().bytes));
+    images_.pop_front();
+  }
+  match();
+}
+
+void FrameMatcher::addList(const Key& key, const uint8_t* data, size_t size) {
+  Entry e{key, {}};
+  if (!spare_.empty()) {
+    e.bytes = std::move(spare_.back());
+    spare_.pop_back();
+  }
+  e.bytes.assign(data, data + size);
+  lists_.push_back(std::move(e));
+  while (lists_.size() > max_lists_) {
+    spare_.push_back(std::move(lists_.front().bytes));
+    lists_.pop_front();
+    ++unmatched_dropped_;
+  }
+  match();
+}
+
+void FrameMatcher::match() {
+  for (auto l = lists_.begin(); l != lists_.end();) {
+    auto im = std::find_if(images_.rbegin(), images_.rend(),
+                           [&](const Entry& e) { return e.key == l->key; });
+    if (im == images_.rend()) {
+      ++l;
+      continue;
+    }
+    Pair p;
+    p.key = l->key;
+    p.list = std::move(l->bytes);
+    if (!spare_.empty()) {
+      p.image = std::move(spare_.back());
+      spare_.pop_back();
+    }
+    p.image.assign(im->bytes.begin(), im->bytes.end());  // the image may serve another list
+    ready_.push_back(std::move(p));
+    l = lists_.erase(l);
+  }
+  // Lists much older than the oldest image held can never be matched.
+  if (!images_.empty()) {
+    const int64_t oldest = images_.front().key.utime;
+    while (!lists_.empty() && lists_.front().key.utime < oldest &&
+           images_.size() == max_images_) {
+      spare_.push_back(std::move(lists_.front().bytes));
+      lists_.pop_front();
+      ++unmatched_dropped_;
+    }
+  }
+}
+
+bool FrameMatcher::takeNewest(Pair& out) {
+  if (ready_.empty()) return false;
+  auto newest = std::max_element(ready_.begin(), ready_.end(), [](const Pair& a, const Pair& b) {
+    return a.key.utime < b.key.utime;
+  });
+  if (!out.image.empty()) spare_.push_back(std::move(out.image));
+  if (!out.list.empty()) spare_.push_back(std::move(out.list));
+  out = std::move(*newest);
+  skipped_ += static_cast<int64_t>(ready_.size()) - 1;
+  for (auto& p : ready_) {
+    if (!p.image.empty()) spare_.push_back(std::move(p.image));
+    if (!p.list.empty()) spare_.push_back(std::move(p.list));
+  }
+  ready_.clear();
+  if (spare_.size() > max_images_ + max_lists_) spare_.resize(max_images_ + max_lists_);
+  return true;
+}
+
+std::vector<int64_t> QrTrackBook::schedule(const std::vector<int64_t>& track_ids, int64_t utime) {
+  const auto us = [](double s) { return static_cast<int64_t>(s * 1e6); };
+  std::vector<std::pair<int64_t, int64_t>> due;  // (priority, id): lower first
+  for (int64_t id : track_ids) {
+    Track& t = tracks_[id];
+    t.last_seen = utime;
+    const int64_t since = t.last_try == INT64_MIN ? INT64_MAX : utime - t.last_try;
+    if (!t.known) {
+      if (since >= us(params_.retry_interval_s)) due.emplace_back(t.last_try, id);
+    } else if (since >= us(params_.recheck_interval_s)) {
+      // Re-checks come after every undecoded track.
+      due.emplace_back(INT64_MAX / 2 + std::min<int64_t>(t.last_try / 2, INT64_MAX / 4), id);
+    }
+  }
+  std::stable_sort(due.begin(), due.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<int64_t> out;
+  for (const auto& d : due) {
+    if (static_cast<int>(out.size()) >= params_.max_decodes_per_frame) break;
+    out.push_back(d.second);
+  }
+  // Forget tracks unseen for long.
+  for (auto it = tracks_.begin(); it != tracks_.end();) {
+    if (utime - it->second.last_seen > us(params_.forget_after_s)) it = tracks_.erase(it);
+    else ++it;
+  }
+  return out;
+}
+
+void QrTrackBook::record(int64_t track_id, int64_t utime, int64_t seq,
+                         const std::optional<std::string>& payload) {
+  Track& t = tracks_[track_id];
+  t.last_try = utime;
+  t.last_seen = std::max(t.last_seen, utime);
+  // A failed re-check keeps what was read before: the QR may just be blurred now.
+  if (payload) t.known = Known{*payload, utime, seq};
+}
+
+const QrTrackBook::Known* QrTrackBook::payload(int64_t track_id) const {
+  const auto it = tracks_.find(track_id);
+  return it == tracks_.end() || !it->second.known ? nullptr : &*it->second.known;
+}
+
+}  // namespace ld

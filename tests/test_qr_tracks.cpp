@@ -1,0 +1,111 @@
+// Joining landmark lists to images with lost and reordered messages, and the
+// per-track decode schedule of ld-qr-reader.
+#include <gtest/gtest.h>
+
+#include "ld/qr_tracks.hpp"
+
+namespace {
+
+std::vector<uint8_t> bytes(int tag) { return std::vector<uint8_t>(10, static_cast<uint8_t>(tag)); }
+
+void addImage(ld::FrameMatcher& m, int64_t utime, int64_t seq) {
+  const auto b = bytes(static_cast<int>(seq));
+  m.addImage({utime, seq}, b.data(), b.size());
+}
+void addList(ld::FrameMatcher& m, int64_t utime, int64_t seq) {
+  const auto b = bytes(static_cast<int>(100 + seq));
+  m.addList({utime, seq}, b.data(), b.size());
+}
+
+}  // namespace
+
+TEST(FrameMatcher, PairsWhicheverArrivesFirst) {
+  ld::FrameMatcher m;
+  ld::FrameMatcher::Pair p;
+  addImage(m, 1000, 1);
+  EXPECT_FALSE(m.takeNewest(p));
+  addList(m, 1000, 1);
+  ASSERT_TRUE(m.takeNewest(p));
+  EXPECT_EQ(p.key.seq, 1);
+  EXPECT_EQ(p.image, bytes(1));
+  EXPECT_EQ(p.list, bytes(101));
+  addList(m, 2000, 2);  // list before its image (reordered)
+  EXPECT_FALSE(m.takeNewest(p));
+  addImage(m, 2000, 2);
+  ASSERT_TRUE(m.takeNewest(p));
+  EXPECT_EQ(p.image, bytes(2));
+  EXPECT_FALSE(m.takeNewest(p));
+}
+
+TEST(FrameMatcher, LostMessagesAndNewestWins) {
+  ld::FrameMatcher m(5, 5);
+  ld::FrameMatcher::Pair p;
+  for (int i = 0; i < 10; ++i) addImage(m, 1000 * i, i);
+  addList(m, 3000, 3);  // image 3 already evicted (only 5 kept): never matched
+  addList(m, 7000, 7);
+  addList(m, 9000, 9);
+  addList(m, 8000, 8);  // out of order
+  addList(m, 12000, 12);  // its image is lost
+  ASSERT_TRUE(m.takeNewest(p));
+  EXPECT_EQ(p.key.seq, 9);
+  EXPECT_EQ(m.skipped(), 2);  // 7 and 8 were matched but superseded
+  EXPECT_FALSE(m.takeNewest(p));
+  EXPECT_GE(m.unmatchedDropped(), 1);
+}
+
+TEST(FrameMatcher, SeqDisambiguatesEqualUtimes) {
+  ld::FrameMatcher m;
+  ld::FrameMatcher::Pair p;
+  addImage(m, 1000, 1);
+  addImage(m, 1000, 2);
+  addList(m, 1000, 1);
+  ASSERT_TRUE(m.takeNewest(p));
+  EXPECT_EQ(p.image, bytes(1));
+}
+
+TEST(QrTrackBook, DecodesOnceThenRechecksRarely) {
+  ld::QrScheduleParams params;
+  params.retry_interval_s = 0.1;
+  params.recheck_interval_s = 5.0;
+  params.max_decodes_per_frame = 2;
+  ld::QrTrackBook book(params);
+  const int64_t s = 1000000;
+  EXPECT_EQ(book.schedule({7}, 0), std::vector<int64_t>{7});
+  book.record(7, 0, 0, std::nullopt);
+  EXPECT_TRUE(book.schedule({7}, s / 20).empty());  // retried no sooner than 0.1 s
+  EXPECT_EQ(book.schedule({7}, s / 10), std::vector<int64_t>{7});
+  book.record(7, s / 10, 3, std::string("dock"));
+  ASSERT_NE(book.payload(7), nullptr);
+  EXPECT_EQ(book.payload(7)->payload, "dock");
+  EXPECT_EQ(book.payload(7)->seq, 3);
+  EXPECT_TRUE(book.schedule({7}, 2 * s).empty());  // decoded: not before 5 s
+  EXPECT_EQ(book.schedule({7}, 6 * s), std::vector<int64_t>{7});
+  book.record(7, 6 * s, 9, std::nullopt);  // a failed re-check keeps the payload
+  EXPECT_EQ(book.payload(7)->payload, "dock");
+}
+
+TEST(QrTrackBook, BoundedWorkPerFrameUndecodedFirst) {
+  ld::QrScheduleParams params;
+  params.max_decodes_per_frame = 2;
+  ld::QrTrackBook book(params);
+  book.schedule({1}, 0);
+  book.record(1, 0, 0, std::string("a"));
+  const int64_t t = 10000000;  // 10 s later: track 1 is due for a re-check
+  const auto todo = book.schedule({1, 2, 3, 4}, t);
+  ASSERT_EQ(todo.size(), 2u);
+  EXPECT_EQ(todo[0], 2);
+  EXPECT_EQ(todo[1], 3);
+  for (int64_t id : todo) book.record(id, t, 1, std::nullopt);
+  const auto next = book.schedule({1, 2, 3, 4}, t + 200000);
+  ASSERT_EQ(next.size(), 2u);
+  EXPECT_EQ(next[0], 4);  // never tried comes before tried
+}
+
+TEST(QrTrackBook, ForgetsTracksUnseenForLong) {
+  ld::QrTrackBook book;
+  book.schedule({5}, 0);
+  book.record(5, 0, 0, std::string("x"));
+  book.schedule({6}, 20000000);
+  EXPECT_EQ(book.payload(5), nullptr);
+  EXPECT_EQ(book.size(), 1u);
+}
