@@ -11,6 +11,7 @@
 
 #include "ld/detector.hpp"
 #include "ld/landmark_json.hpp"
+#include "ld/qr_reader.hpp"
 
 namespace fs = std::filesystem;
 
@@ -49,7 +50,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> inputs;
   std::string params_file, camera_file, draw_dir, out_file, backend = "cpu";
   double side_m = 0;
-  bool summary = false;
+  bool summary = false, decode = false;
   app.add_option("inputs", inputs, "image files or folders")->required();
   app.add_option("--params", params_file, "detector parameters (YAML)");
   app.add_option("--camera", camera_file, "camera calibration (OpenCV YAML/XML), for pose");
@@ -58,6 +59,7 @@ int main(int argc, char** argv) {
   app.add_option("-o,--output", out_file, "write JSON Lines here instead of stdout");
   app.add_option("--backend", backend, "detector backend")->check(CLI::IsMember({"cpu"}))
       ->capture_default_str();
+  app.add_flag("--decode", decode, "read each landmark's QR payload too (zbar)");
   app.add_flag("--summary", summary, "print a summary (frames, landmarks, detect_ms) on stderr");
   CLI11_PARSE(app, argc, argv);
 
@@ -90,6 +92,8 @@ int main(int argc, char** argv) {
   }
   std::ostream& out = out_file.empty() ? std::cout : file;
 
+  ld::QrReader qr;
+  std::vector<ld::Landmark> found;
   int failed = 0, with_landmarks = 0, total_landmarks = 0;
   std::vector<double> times;
   const auto files = expandInputs(inputs);
@@ -113,16 +117,20 @@ int main(int argc, char** argv) {
     const auto t0 = std::chrono::steady_clock::now();
     const ld::Detection& det = detector.detect(img);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    found.assign(det.landmarks.begin(), det.landmarks.end());
+    if (decode)
+      for (auto& lm : found)
+        if (const auto r = qr.decode(img, lm.corners)) lm.payload = r->payload;
     nlohmann::ordered_json j{{"image", path}, {"width", img.cols}, {"height", img.rows},
                      {"detect_ms", std::round(ms * 1000.0) / 1000.0}};
     j["landmarks"] = nlohmann::ordered_json::array();
-    for (const auto& lm : det.landmarks) j["landmarks"].push_back(ld::toJson(lm));
+    for (const auto& lm : found) j["landmarks"].push_back(ld::toJson(lm));
     out << j.dump() << "\n";
     times.push_back(ms);
-    with_landmarks += !det.landmarks.empty();
-    total_landmarks += static_cast<int>(det.landmarks.size());
+    with_landmarks += !found.empty();
+    total_landmarks += static_cast<int>(found.size());
     if (!draw_dir.empty()) {
-      ld::drawLandmarks(img, det.landmarks);
+      ld::drawLandmarks(img, found);
       const fs::path dst = fs::path(draw_dir) / (fs::path(path).stem().string() + ".png");
       if (!cv::imwrite(dst.string(), img)) std::cerr << "ld-detect: cannot write " << dst << "\n";
     }
