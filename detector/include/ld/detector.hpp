@@ -39,29 +39,36 @@ struct DetectorParams {
   std::string front_end = "fast";
 
   // 1. blur
-  int blur_kernel = 0;        ///< Gaussian kernel (odd; 0 = no blur). Paper: 9.
-  double blur_sigma = 0.0;    ///< Gaussian sigma (0: from the kernel). Paper: 3.
+  /// Gaussian kernel (odd; 0 = no blur; -1 = the front end's own: none for
+  /// "fast", the paper's 9 for "paper"). Blur costs time and erases small squares.
+  int blur_kernel = -1;
+  double blur_sigma = 0.0;    ///< Gaussian sigma (0: from the kernel; the paper's 3 with -1)
 
   // 2. saturation
-  double saturation_threshold = 0.35;  ///< HSV saturation (0..1) a square's pixels exceed
-  int value_min = 25;                  ///< darker pixels (max channel) are never saturated
+  /// HSV saturation (0..1) a square's pixels exceed. Lower finds fainter,
+  /// smaller and more distant squares, and more background.
+  double saturation_threshold = 0.35;
+  int value_min = 25;  ///< darker pixels (max channel, 0..255) are never saturated: noise
 
   // 3. edges (paper front end)
   double canny_low = 50.0;   ///< Canny hysteresis thresholds on the saturation image
   double canny_high = 150.0;
 
   // 4. contours
-  int min_area_px = 3;       ///< smaller regions are noise
+  int min_area_px = 3;           ///< smaller regions are noise
   int max_area_frac_1000 = 100;  ///< larger than this per-mille of the frame: not a square
 
-  // 5. colour ratios (paper: a, b in [1.2, 1.6])
+  // 5. colour ratios (paper: a, b in [1.2, 1.6]). The fast front end takes
+  // the sums over a region's own pixels, the paper front end over its
+  // bounding rectangle. Higher rejects more faint or greyish regions.
   double color_ratio_a = 1.3;  ///< FIP: sum blue > a * sum red;  AP: sum red > a * sum blue
   double color_ratio_b = 1.3;  ///< FIP: sum blue > b * sum green; AP: sum red > b * sum green
 
   // 6. FIP graph: distance (1), as centre distance in units of the pair's mean
-  // size, measured per axis (so it holds under perspective foreshortening),
-  // and the size ratio (2).
-  double d_min = 1.8;  ///< Paper D_min (neighbours are 3 sizes apart, the diagonal 4.2)
+  // square side, measured in the frame of the pair's second moments (so it
+  // holds under any roll and foreshortening: 3 for neighbours, 4.24 across
+  // the diagonal), and the size ratio (2) per image axis.
+  double d_min = 1.6;  ///< Paper D_min
   double d_max = 5.5;  ///< Paper D_max
   double w_min = 0.4;  ///< Paper W_min: width ratio of two FIPs
   double w_max = 2.5;  ///< Paper W_max
@@ -69,12 +76,29 @@ struct DetectorParams {
   double h_max = 2.5;  ///< Paper H_max
 
   // 7. AP gates: the AP lies where TR + BL - TL predicts.
-  double ap_max_offset = 0.8;  ///< distance to the predicted position, in FIP sizes
-  double ap_size_min = 0.4;    ///< AP size / mean FIP size
+  double ap_max_offset = 0.8;  ///< distance to the predicted position, in FIP sides
+  double ap_size_min = 0.4;    ///< AP side / mean FIP side
   double ap_size_max = 2.5;
 
+  // 7b. verification against look-alikes
+  /// Allowed deviation of the layout from a square of side 3 FIP sides with
+  /// right angles, in the frame of the squares' moments (0.5 = 50 %). Lower
+  /// rejects more look-alikes and more steep, blurred views.
+  double shape_tolerance = 0.5;
+  /// The sheet between the squares and at the centre must be less saturated
+  /// than this (0..1)...
+  double sheet_max_saturation = 0.45;
+  /// ... and at least this bright relative to the FIPs' brightest channel.
+  double sheet_min_value = 0.7;
+  int max_candidates = 400;  ///< FIP candidates kept (largest first); bounds the graph's cost
+
   // 8. corners
-  bool refine_corners = true;  ///< refine the outer corners on the image edges
+  /// Perspective correction of the square centres before the corners are
+  /// extrapolated (iterations; 0 = take the centroids as the centres).
+  int centre_iterations = 2;
+
+  /// The paper's own settings: "paper" front end with its 9x9 blur.
+  static DetectorParams paper();
 
   /// Reads a YAML/XML file (cv::FileStorage) whose keys are the field names
   /// above; absent keys keep their defaults. Throws std::runtime_error naming
@@ -136,5 +160,13 @@ class Detector {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+/// Evaluation helper (tests, benchmarks, report tools): whether a detection
+/// is the landmark whose true square centres are `truth` (TL, TR, BL, AP):
+/// each of its four centres within max(min_tol_px, tol_frac * FIP side) of
+/// the truth, the FIP side taken as |TR - TL| / 3. Wrongly ordered
+/// detections do not match.
+bool matchesTruth(const Landmark& detection, const std::array<cv::Point2d, 4>& truth,
+                  double min_tol_px = 2.0, double tol_frac = 0.3);
 
 }  // namespace ld

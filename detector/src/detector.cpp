@@ -1,0 +1,344 @@
+// The landmark detector, CPU backend: the orchestration of the stages of
+// stages.cpp, in the order of the paper's Fig. 2, and the parameter file.
+#include "ld/detector.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <functional>
+#include <stdexcept>
+
+#include <opencv2/imgproc.hpp>
+
+#include "stages.hpp"
+
+namespace ld {
+
+// ====================================================================== parameters
+
+namespace {
+
+// Every field once: name, member. Drives load, save and the unknown-key check.
+template <typename F>
+void forEachField(DetectorParams& p, F&& f) {
+  f("front_end", p.front_end);
+  f("blur_kernel", p.blur_kernel);
+  f("blur_sigma", p.blur_sigma);
+  f("saturation_threshold", p.saturation_threshold);
+  f("value_min", p.value_min);
+  f("canny_low", p.canny_low);
+  f("canny_high", p.canny_high);
+  f("min_area_px", p.min_area_px);
+  f("max_area_frac_1000", p.max_area_frac_1000);
+  f("color_ratio_a", p.color_ratio_a);
+  f("color_ratio_b", p.color_ratio_b);
+  f("d_min", p.d_min);
+  f("d_max", p.d_max);
+  f("w_min", p.w_min);
+  f("w_max", p.w_max);
+  f("h_min", p.h_min);
+  f("h_max", p.h_max);
+  f("ap_max_offset", p.ap_max_offset);
+  f("ap_size_min", p.ap_size_min);
+  f("ap_size_max", p.ap_size_max);
+  f("shape_tolerance", p.shape_tolerance);
+  f("sheet_max_saturation", p.sheet_max_saturation);
+  f("sheet_min_value", p.sheet_min_value);
+  f("max_candidates", p.max_candidates);
+  f("centre_iterations", p.centre_iterations);
+}
+
+[[noreturn]] void badFile(const std::string& path, const std::string& what) {
+  throw std::runtime_error("detector params " + path + ": " + what);
+}
+
+void readField(const std::string& path, const cv::FileNode& n, const char* key, std::string& v) {
+  if (!n.isString()) badFile(path, std::string("key '") + key + "' must be a string");
+  v = static_cast<std::string>(n);
+}
+void readField(const std::string& path, const cv::FileNode& n, const char* key, int& v) {
+  if (!n.isInt()) badFile(path, std::string("key '") + key + "' must be an integer");
+  v = static_cast<int>(n);
+}
+void readField(const std::string& path, const cv::FileNode& n, const char* key, double& v) {
+  if (!n.isInt() && !n.isReal()) badFile(path, std::string("key '") + key + "' must be a number");
+  v = static_cast<double>(n);
+}
+
+}  // namespace
+
+DetectorParams DetectorParams::paper() {
+  DetectorParams p;
+  p.front_end = "paper";
+  p.blur_kernel = 9;
+  p.blur_sigma = 3.0;
+  return p;
+}
+
+DetectorParams DetectorParams::load(const std::string& path) {
+  cv::FileStorage fs;
+  try {
+    if (!fs.open(path, cv::FileStorage::READ)) badFile(path, "cannot open or parse");
+  } catch (const cv::Exception& e) {
+    badFile(path, "cannot parse (" + e.err + ")");
+  }
+  const cv::FileNode root = fs.root();
+  if (!root.isMap()) badFile(path, "not a map of parameter names to values");
+  DetectorParams p;
+  for (const cv::FileNode& n : root) {
+    const std::string key = n.name();
+    bool known = false;
+    forEachField(p, [&](const char* name, auto& field) {
+      if (key != name) return;
+      known = true;
+      readField(path, n, name, field);
+    });
+    if (!known) badFile(path, "unknown key '" + key + "'");
+  }
+  return p;
+}
+
+void DetectorParams::save(const std::string& path) const {
+  cv::FileStorage fs;
+  try {
+    fs.open(path, cv::FileStorage::WRITE);
+  } catch (const cv::Exception& e) {
+    badFile(path, "cannot write (" + e.err + ")");
+  }
+  if (!fs.isOpened()) badFile(path, "cannot write");
+  DetectorParams copy = *this;
+  forEachField(copy, [&](const char* name, const auto& field) { fs << name << field; });
+}
+
+void DetectorParams::validate() const {
+  auto bad = [](const char* field, const std::string& why) {
+    throw std::invalid_argument(std::string("detector params: ") + field + " " + why);
+  };
+  if (front_end != "fast" && front_end != "paper") bad("front_end", "must be \"fast\" or \"paper\"");
+  if (blur_kernel != -1 && blur_kernel != 0 && (blur_kernel < 1 || blur_kernel % 2 == 0 || blur_kernel > 31))
+    bad("blur_kernel", "must be -1, 0 or an odd number from 1 to 31");
+  if (!(blur_sigma >= 0 && blur_sigma <= 20)) bad("blur_sigma", "must be in [0, 20]");
+  if (!(saturation_threshold > 0 && saturation_threshold < 1)) bad("saturation_threshold", "must be in (0, 1)");
+  if (value_min < 0 || value_min > 255) bad("value_min", "must be in [0, 255]");
+  if (!(canny_low >= 0)) bad("canny_low", "must be >= 0");
+  if (!(canny_high >= canny_low)) bad("canny_high", "must be >= canny_low");
+  if (min_area_px < 1) bad("min_area_px", "must be >= 1");
+  if (max_area_frac_1000 < 1 || max_area_frac_1000 > 1000) bad("max_area_frac_1000", "must be in [1, 1000]");
+  if (!(color_ratio_a > 0)) bad("color_ratio_a", "must be > 0");
+  if (!(color_ratio_b > 0)) bad("color_ratio_b", "must be > 0");
+  if (!(d_min > 0)) bad("d_min", "must be > 0");
+  if (!(d_max > d_min)) bad("d_max", "must be > d_min");
+  if (!(w_min > 0 && w_min <= 1)) bad("w_min", "must be in (0, 1]");
+  if (!(w_max >= 1)) bad("w_max", "must be >= 1");
+  if (!(h_min > 0 && h_min <= 1)) bad("h_min", "must be in (0, 1]");
+  if (!(h_max >= 1)) bad("h_max", "must be >= 1");
+  if (!(ap_max_offset > 0)) bad("ap_max_offset", "must be > 0");
+  if (!(ap_size_min > 0 && ap_size_min <= 1)) bad("ap_size_min", "must be in (0, 1]");
+  if (!(ap_size_max >= 1)) bad("ap_size_max", "must be >= 1");
+  if (!(shape_tolerance > 0 && shape_tolerance <= 1)) bad("shape_tolerance", "must be in (0, 1]");
+  if (!(sheet_max_saturation > 0 && sheet_max_saturation <= 1)) bad("sheet_max_saturation", "must be in (0, 1]");
+  if (!(sheet_min_value >= 0 && sheet_min_value <= 2)) bad("sheet_min_value", "must be in [0, 2]");
+  if (max_candidates < 3 || max_candidates > 4096) bad("max_candidates", "must be in [3, 4096]");
+  if (centre_iterations < 0 || centre_iterations > 10) bad("centre_iterations", "must be in [0, 10]");
+}
+
+// ====================================================================== results
+
+double Detection::stageMs(const std::string& name) const {
+  for (const auto& s : stages)
+    if (name == s.name) return s.ms;
+  return 0.0;
+}
+
+bool matchesTruth(const Landmark& d, const std::array<cv::Point2d, 4>& truth, double min_tol_px,
+                  double tol_frac) {
+  const double size = cv::norm(truth[1] - truth[0]) / 3.0;
+  const double tol = std::max(min_tol_px, tol_frac * size);
+  const cv::Point2f got[4] = {d.fip_tl, d.fip_tr, d.fip_bl, d.ap};
+  for (int i = 0; i < 4; ++i)
+    if (!(cv::norm(cv::Point2d(got[i]) - truth[i]) < tol)) return false;
+  return true;
+}
+
+// ====================================================================== detector
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// A tiny named-stage timer: stamp(name) records the time since the previous stamp.
+class StageTimer {
+ public:
+  explicit StageTimer(std::vector<StageTime>& out) : out_(out), start_(Clock::now()), last_(start_) {}
+  void stamp(const char* name) {
+    const auto now = Clock::now();
+    out_.push_back({name, std::chrono::duration<double, std::milli>(now - last_).count()});
+    last_ = now;
+  }
+  double totalMs() const { return std::chrono::duration<double, std::milli>(Clock::now() - start_).count(); }
+
+ private:
+  std::vector<StageTime>& out_;
+  Clock::time_point start_, last_;
+};
+
+}  // namespace
+
+struct Detector::Impl {
+  DetectorParams params;
+  bool paper = false;
+  int blur_kernel = 0;
+  double blur_sigma = 0;
+
+  std::optional<CameraModel> camera;  // as given
+  CameraModel scaled;                 // for the current frame size
+  double side_m = 0;
+
+  // Buffers kept between frames.
+  cv::Mat converted, blurred, labels, sat, edges;
+  std::vector<std::vector<cv::Point>> contours;
+  detail::RunScratch runs;
+  std::vector<detail::Region> regions, fips, aps;
+  std::vector<uint8_t> adjacency, used;
+  std::vector<std::array<int, 3>> cycles;
+  std::vector<detail::Candidate> candidates;
+  Detection det;
+
+  explicit Impl(const DetectorParams& p) : params(p) {
+    params.validate();
+    paper = params.front_end == "paper";
+    blur_kernel = params.blur_kernel >= 0 ? params.blur_kernel : (paper ? 9 : 0);
+    blur_sigma = params.blur_kernel >= 0 ? params.blur_sigma : (paper ? 3.0 : 0.0);
+  }
+
+  void run(const cv::Mat& input);
+};
+
+void Detector::Impl::run(const cv::Mat& input) {
+  det.landmarks.clear();
+  det.stages.clear();
+  det.total_ms = 0;
+  StageTimer timer(det.stages);
+  // Gray images have no colour: no landmarks. Other types are not images we know.
+  if (input.empty() || input.depth() != CV_8U || input.cols < 3 || input.rows < 3) return;
+  const cv::Mat* img = &input;
+  if (input.channels() == 4) {
+    cv::cvtColor(input, converted, cv::COLOR_BGRA2BGR);
+    img = &converted;
+  } else if (input.channels() != 3) {
+    return;
+  }
+  const DetectorParams& p = params;
+  const int max_area = static_cast<int>(
+      std::min<int64_t>(INT32_MAX, static_cast<int64_t>(img->total()) * p.max_area_frac_1000 / 1000));
+
+  // 1. BLUR
+  const cv::Mat* src = img;
+  if (blur_kernel > 1) {
+    cv::GaussianBlur(*img, blurred, {blur_kernel, blur_kernel}, blur_sigma);
+    src = &blurred;
+    timer.stamp("blur");
+  }
+
+  // 2-4. SATURATION, (EDGES), CONTOURS: candidate regions
+  if (!paper) {
+    detail::saturationMask(*src, p.saturation_threshold, p.value_min, labels);
+    timer.stamp("saturation");
+    detail::extractRegions(labels, *src, p.saturation_threshold, p.min_area_px, max_area, runs, regions);
+    timer.stamp("contours");
+  } else {
+    detail::saturationImage(*src, sat);
+    cv::threshold(sat, sat, p.saturation_threshold * 255.0, 0, cv::THRESH_TOZERO);
+    timer.stamp("saturation");
+    cv::Canny(sat, edges, p.canny_low, p.canny_high);
+    timer.stamp("edges");
+    detail::contourRegions(edges, *img, p.min_area_px, max_area, contours, regions);
+    timer.stamp("contours");
+  }
+
+  // 5. COLOUR: FIP and AP candidates by the colour ratios
+  fips.clear();
+  aps.clear();
+  for (const auto& r : regions) {
+    if (r.colour == detail::kBlue && detail::isFip(r, p.color_ratio_a, p.color_ratio_b)) fips.push_back(r);
+    else if (r.colour == detail::kRed && detail::isAp(r, p.color_ratio_a, p.color_ratio_b)) aps.push_back(r);
+  }
+  auto keepLargest = [&](std::vector<detail::Region>& v) {
+    if (static_cast<int>(v.size()) <= p.max_candidates) return;
+    std::nth_element(v.begin(), v.begin() + p.max_candidates, v.end(),
+                     [](const detail::Region& a, const detail::Region& b) { return a.area > b.area; });
+    v.resize(static_cast<size_t>(p.max_candidates));
+  };
+  keepLargest(fips);
+  keepLargest(aps);
+  timer.stamp("colour");
+
+  // 6-7. GEOMETRY: FIP graph, its 3-cycles, the AP, verification, overlaps
+  const int n = static_cast<int>(fips.size());
+  candidates.clear();
+  if (n >= 3 && !aps.empty()) {
+    adjacency.assign(static_cast<size_t>(n) * n, 0);
+    for (int i = 0; i < n; ++i)
+      for (int j = i + 1; j < n; ++j)
+        if (detail::fipEdge(fips[i], fips[j], p))
+          adjacency[static_cast<size_t>(i) * n + j] = adjacency[static_cast<size_t>(j) * n + i] = 1;
+    detail::threeCycles(adjacency, n, cycles);
+    for (const auto& cyc : cycles) {
+      detail::Candidate c;
+      if (detail::chooseAp(cyc, fips, aps, p, c) && detail::verify(c, fips, aps, *img, p))
+        candidates.push_back(c);
+    }
+    detail::resolveOverlaps(candidates, n, static_cast<int>(aps.size()), used);
+  }
+  timer.stamp("geometry");
+
+  // 8. CORNERS
+  for (const auto& c : candidates) {
+    const std::array<cv::Point2d, 4> centres{
+        cv::Point2d(fips[c.tl].cx, fips[c.tl].cy), cv::Point2d(fips[c.tr].cx, fips[c.tr].cy),
+        cv::Point2d(fips[c.bl].cx, fips[c.bl].cy), cv::Point2d(aps[c.ap].cx, aps[c.ap].cy)};
+    std::array<cv::Point2d, 4> corrected, corners;
+    if (!detail::fitCorners(centres, p.centre_iterations, corrected, corners)) continue;
+    Landmark lm;
+    lm.fip_tl = corrected[0];
+    lm.fip_tr = corrected[1];
+    lm.fip_bl = corrected[2];
+    lm.ap = corrected[3];
+    for (int i = 0; i < 4; ++i) lm.corners[i] = corners[i];
+    lm.score = c.score;
+    det.landmarks.push_back(lm);
+  }
+  timer.stamp("corners");
+
+  // 9. POSE
+  if (camera && side_m > 0) {
+    if (scaled.size != img->size()) scaled = camera->scaledTo(img->size());
+    for (auto& lm : det.landmarks) {
+      Pose pose;
+      if (detail::estimatePose(lm.corners, scaled, side_m, pose)) lm.pose = pose;
+    }
+    timer.stamp("pose");
+  }
+  det.total_ms = timer.totalMs();
+}
+
+Detector::Detector(const DetectorParams& params) : impl_(std::make_unique<Impl>(params)) {}
+Detector::~Detector() = default;
+Detector::Detector(Detector&&) noexcept = default;
+Detector& Detector::operator=(Detector&&) noexcept = default;
+
+void Detector::setCamera(const CameraModel& camera, double side_m) {
+  if (!(side_m > 0)) throw std::invalid_argument("Detector::setCamera: side_m must be > 0");
+  impl_->camera = camera;
+  impl_->scaled = camera;
+  impl_->side_m = side_m;
+}
+
+const Detection& Detector::detect(const cv::Mat& bgr) {
+  impl_->run(bgr);
+  return impl_->det;
+}
+
+const DetectorParams& Detector::params() const { return impl_->params; }
+
+}  // namespace ld

@@ -1,0 +1,574 @@
+// The detector's stages (see stages.hpp and include/ld/detector.hpp).
+#include "stages.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/hal/intrin.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "ld/landmark_layout.hpp"
+
+namespace ld::detail {
+namespace {
+
+int thresholdQ8(double saturation_threshold) {
+  return std::clamp(static_cast<int>(std::lround(saturation_threshold * 256.0)), 0, 256);
+}
+
+// Symmetric 2x2 matrix helpers for the moments.
+struct Sym2 {
+  double xx = 0, xy = 0, yy = 0;
+  double det() const { return xx * yy - xy * xy; }
+};
+
+Sym2 moments(const Region& r) { return {r.sxx, r.sxy, r.syy}; }
+
+Sym2 mean(const Sym2& a, const Sym2& b) { return {(a.xx + b.xx) / 2, (a.xy + b.xy) / 2, (a.yy + b.yy) / 2}; }
+
+// The metric M = inverse(S) / 12: v' M v is the squared length of v in units
+// of the side of the square whose moments S are. False when degenerate.
+bool metric(const Sym2& s, Sym2& m) {
+  const double d = s.det();
+  if (!(d > 1e-12)) return false;
+  m = {s.yy / (12 * d), -s.xy / (12 * d), s.xx / (12 * d)};
+  return true;
+}
+
+double quad(const Sym2& m, double x, double y) { return m.xx * x * x + 2 * m.xy * x * y + m.yy * y * y; }
+double bilin(const Sym2& m, double ax, double ay, double bx, double by) {
+  return m.xx * ax * bx + m.xy * (ax * by + ay * bx) + m.yy * ay * by;
+}
+
+double cross(const cv::Point2d& a, const cv::Point2d& b) { return a.x * b.y - a.y * b.x; }
+
+cv::Point2d centre(const Region& r) { return {r.cx, r.cy}; }
+
+// Saturation (0..1) and value (0..255) of the image at a sub-pixel position,
+// bilinearly interpolated; false outside the image.
+bool sampleSV(const cv::Mat& bgr, const cv::Point2d& p, double& s, double& v) {
+  const int x0 = static_cast<int>(std::floor(p.x)), y0 = static_cast<int>(std::floor(p.y));
+  if (x0 < 0 || y0 < 0 || x0 + 1 >= bgr.cols || y0 + 1 >= bgr.rows) return false;
+  const double fx = p.x - x0, fy = p.y - y0;
+  double c[3] = {0, 0, 0};
+  const double w[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
+  for (int k = 0; k < 4; ++k) {
+    const uint8_t* px = bgr.ptr<uint8_t>(y0 + (k >> 1)) + 3 * (x0 + (k & 1));
+    for (int ch = 0; ch < 3; ++ch) c[ch] += w[k] * px[ch];
+  }
+  const double mx = std::max({c[0], c[1], c[2]}), mn = std::min({c[0], c[1], c[2]});
+  v = mx;
+  s = mx > 0 ? (mx - mn) / mx : 0.0;
+  return true;
+}
+
+}  // namespace
+
+double Region::side() const {
+  const double d = sxx * syy - sxy * sxy;
+  return d > 0 ? std::sqrt(12.0) * std::pow(d, 0.25) : 0.0;
+}
+
+// ====================================================================== front ends
+
+void saturationMask(const cv::Mat& bgr, double saturation_threshold, int value_min, cv::Mat& labels) {
+  CV_Assert(bgr.type() == CV_8UC3);
+  labels.create(bgr.size(), CV_8UC1);
+  const int thr = thresholdQ8(saturation_threshold);
+  const int vmin = std::clamp(value_min, 0, 255);
+  const int w = bgr.cols;
+  for (int y = 0; y < bgr.rows; ++y) {
+    const uint8_t* src = bgr.ptr<uint8_t>(y);
+    uint8_t* dst = labels.ptr<uint8_t>(y);
+    int x = 0;
+#if CV_SIMD
+    {
+      const int n = cv::v_uint8::nlanes;
+      const cv::v_uint16 vthr = cv::vx_setall_u16(static_cast<uint16_t>(thr));
+      const cv::v_uint8 vvmin = cv::vx_setall_u8(static_cast<uint8_t>(vmin));
+      const cv::v_uint8 one = cv::vx_setall_u8(kBlue), two = cv::vx_setall_u8(kRed);
+      for (; x <= w - n; x += n) {
+        cv::v_uint8 b, g, r;
+        cv::v_load_deinterleave(src + 3 * x, b, g, r);
+        const cv::v_uint8 mx = cv::v_max(cv::v_max(b, g), r);
+        const cv::v_uint8 mn = cv::v_min(cv::v_min(b, g), r);
+        const cv::v_uint8 c = mx - mn;
+        cv::v_uint16 m0, m1;
+        cv::v_expand(mx, m0, m1);
+        // threshold * max in 8.8 fixed point, back to 8 bits
+        const cv::v_uint8 t = cv::v_pack(cv::v_shr<8>(cv::v_mul_wrap(m0, vthr)),
+                                         cv::v_shr<8>(cv::v_mul_wrap(m1, vthr)));
+        const cv::v_uint8 sat = (c > t) & (mx >= vvmin);
+        const cv::v_uint8 isb = (b == mx);
+        const cv::v_uint8 isr = (r == mx) & ~isb;
+        cv::v_store(dst + x, sat & ((isb & one) | (isr & two)));
+      }
+    }
+#endif
+    for (; x < w; ++x) {
+      const int b = src[3 * x], g = src[3 * x + 1], r = src[3 * x + 2];
+      const int mx = std::max({b, g, r}), mn = std::min({b, g, r});
+      const bool sat = (mx - mn) > ((mx * thr) >> 8) && mx >= vmin;
+      dst[x] = !sat ? kNone : (b == mx ? kBlue : (r == mx ? kRed : kNone));
+    }
+  }
+}
+
+namespace {
+
+int findRoot(std::vector<RunScratch::Run>& runs, int i) {
+  while (runs[i].parent != i) {
+    runs[i].parent = runs[runs[i].parent].parent;
+    i = runs[i].parent;
+  }
+  return i;
+}
+
+void unite(std::vector<RunScratch::Run>& runs, int a, int b) {
+  a = findRoot(runs, a);
+  b = findRoot(runs, b);
+  if (a == b) return;
+  if (a < b) runs[b].parent = a;
+  else runs[a].parent = b;
+}
+
+// Sum of x^2 for x in [0, n].
+inline int64_t sumSq(int64_t n) { return n * (n + 1) * (2 * n + 1) / 6; }
+
+}  // namespace
+
+void extractRegions(const cv::Mat& labels, const cv::Mat& bgr, double saturation_threshold,
+                    int min_area, int max_area, RunScratch& scratch, std::vector<Region>& out) {
+  CV_Assert(labels.type() == CV_8UC1 && bgr.type() == CV_8UC3 && labels.size() == bgr.size());
+  out.clear();
+  auto& runs = scratch.runs;
+  runs.clear();
+  const int w = labels.cols, h = labels.rows;
+  const int thr = thresholdQ8(saturation_threshold);
+  int prev_begin = 0, prev_end = 0;
+  for (int y = 0; y < h; ++y) {
+    const uint8_t* L = labels.ptr<uint8_t>(y);
+    const uint8_t* src = bgr.ptr<uint8_t>(y);
+    const int cur_begin = static_cast<int>(runs.size());
+    int x = 0;
+    while (x < w) {
+      // Skip background eight pixels at a time.
+      while (x + 8 <= w) {
+        uint64_t word;
+        std::memcpy(&word, L + x, 8);
+        if (word) break;
+        x += 8;
+      }
+      while (x < w && L[x] == kNone) ++x;
+      if (x >= w) break;
+      const uint8_t c = L[x];
+      RunScratch::Run run{y, x, x, c, static_cast<int>(runs.size()), 0, 0, 0, 0, 0, 0};
+      for (; x < w && L[x] == c; ++x) {
+        const int b = src[3 * x], g = src[3 * x + 1], r = src[3 * x + 2];
+        const int mx = std::max({b, g, r}), mn = std::min({b, g, r});
+        const int wt = std::max(1, (mx - mn) - ((mx * thr) >> 8));
+        run.w += wt;
+        run.wx += static_cast<int64_t>(wt) * x;
+        run.b += b;
+        run.g += g;
+        run.r += r;
+      }
+      run.x1 = x - 1;
+      run.wy = run.w * y;
+      runs.push_back(run);
+    }
+    const int cur_end = static_cast<int>(runs.size());
+    // 8-connected union with the previous row's runs of the same colour.
+    int j = prev_begin;
+    for (int i = cur_begin; i < cur_end; ++i) {
+      const int x0 = runs[i].x0, x1 = runs[i].x1;
+      while (j < prev_end && runs[j].x1 < x0 - 1) ++j;
+      for (int k = j; k < prev_end && runs[k].x0 <= x1 + 1; ++k)
+        if (runs[k].colour == runs[i].colour) unite(runs, i, k);
+    }
+    prev_begin = cur_begin;
+    prev_end = cur_end;
+  }
+
+  // Accumulate the runs into their regions.
+  using Acc = RunScratch::Acc;
+  auto& acc = scratch.acc;
+  acc.clear();
+  auto& region_of = scratch.region_of;
+  region_of.assign(runs.size(), -1);
+  for (int i = 0; i < static_cast<int>(runs.size()); ++i) {
+    const auto& run = runs[i];
+    const int root = findRoot(runs, i);
+    int& ri = region_of[root];
+    if (ri < 0) {
+      ri = static_cast<int>(acc.size());
+      Acc a;
+      a.x0 = run.x0, a.x1 = run.x1, a.y0 = run.y, a.y1 = run.y, a.colour = run.colour;
+      acc.push_back(a);
+    }
+    Acc& a = acc[ri];
+    const int64_t n = run.x1 - run.x0 + 1;
+    const int64_t sx = n * (run.x0 + run.x1) / 2;  // n*(x0+x1) is always even
+    a.n += n;
+    a.sx += sx;
+    a.sy += n * run.y;
+    a.sxx += sumSq(run.x1) - (run.x0 > 0 ? sumSq(run.x0 - 1) : 0);
+    a.syy += n * run.y * run.y;
+    a.sxy += sx * run.y;
+    a.w += run.w;
+    a.wx += run.wx;
+    a.wy += run.wy;
+    a.b += run.b;
+    a.g += run.g;
+    a.r += run.r;
+    a.x0 = std::min(a.x0, run.x0);
+    a.x1 = std::max(a.x1, run.x1);
+    a.y1 = std::max(a.y1, run.y);
+  }
+  for (const Acc& a : acc) {
+    if (a.n < min_area || a.n > max_area) continue;
+    Region r;
+    r.colour = a.colour;
+    r.x0 = a.x0, r.y0 = a.y0, r.x1 = a.x1, r.y1 = a.y1;
+    r.area = static_cast<int>(a.n);
+    const double n = static_cast<double>(a.n);
+    r.cx = static_cast<double>(a.wx) / static_cast<double>(a.w);
+    r.cy = static_cast<double>(a.wy) / static_cast<double>(a.w);
+    const double mx = a.sx / n, my = a.sy / n;
+    // + 1/12: a pixel's own extent, so a filled n x n block has the moments of an n x n square.
+    r.sxx = a.sxx / n - mx * mx + 1.0 / 12;
+    r.syy = a.syy / n - my * my + 1.0 / 12;
+    r.sxy = a.sxy / n - mx * my;
+    r.sum_b = static_cast<double>(a.b);
+    r.sum_g = static_cast<double>(a.g);
+    r.sum_r = static_cast<double>(a.r);
+    r.n_sum = n;
+    out.push_back(r);
+  }
+}
+
+void saturationImage(const cv::Mat& bgr, cv::Mat& sat) {
+  CV_Assert(bgr.type() == CV_8UC3);
+  sat.create(bgr.size(), CV_8UC1);
+  for (int y = 0; y < bgr.rows; ++y) {
+    const uint8_t* src = bgr.ptr<uint8_t>(y);
+    uint8_t* dst = sat.ptr<uint8_t>(y);
+    for (int x = 0; x < bgr.cols; ++x) {
+      const int b = src[3 * x], g = src[3 * x + 1], r = src[3 * x + 2];
+      const int mx = std::max({b, g, r}), mn = std::min({b, g, r});
+      dst[x] = mx ? static_cast<uint8_t>((255 * (mx - mn) + mx / 2) / mx) : 0;
+    }
+  }
+}
+
+void contourRegions(const cv::Mat& edges, const cv::Mat& bgr, int min_area, int max_area,
+                    std::vector<std::vector<cv::Point>>& contours, std::vector<Region>& out) {
+  out.clear();
+  contours.clear();
+  cv::findContours(edges, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+  for (const auto& c : contours) {
+    const cv::Rect rect = cv::boundingRect(c);
+    const int area = rect.area();
+    if (area < min_area || area > max_area) continue;
+    Region r;
+    r.x0 = rect.x, r.y0 = rect.y, r.x1 = rect.x + rect.width - 1, r.y1 = rect.y + rect.height - 1;
+    r.area = area;
+    r.cx = rect.x + (rect.width - 1) / 2.0;
+    r.cy = rect.y + (rect.height - 1) / 2.0;
+    // The rectangle's own moments: the paper's per-axis size constraints.
+    r.sxx = rect.width * rect.width / 12.0;
+    r.syy = rect.height * rect.height / 12.0;
+    r.sxy = 0;
+    const cv::Scalar s = cv::sum(bgr(rect));
+    r.sum_b = s[0], r.sum_g = s[1], r.sum_r = s[2];
+    r.n_sum = area;
+    r.colour = r.sum_b >= r.sum_r ? kBlue : kRed;
+    out.push_back(r);
+  }
+}
+
+// ====================================================================== colour
+
+bool isFip(const Region& r, double a, double b) {
+  return r.sum_b > a * r.sum_r && r.sum_b > b * r.sum_g;
+}
+
+bool isAp(const Region& r, double a, double b) {
+  return r.sum_r > a * r.sum_b && r.sum_r > b * r.sum_g;
+}
+
+// ====================================================================== geometry
+
+double normalisedDistance(const Region& a, const Region& b) {
+  Sym2 m;
+  if (!metric(mean(moments(a), moments(b)), m)) return -1.0;
+  return std::sqrt(quad(m, a.cx - b.cx, a.cy - b.cy));
+}
+
+bool fipEdge(const Region& a, const Region& b, const DetectorParams& p) {
+  const double wr2 = a.sxx / b.sxx, hr2 = a.syy / b.syy;
+  if (wr2 < p.w_min * p.w_min || wr2 > p.w_max * p.w_max) return false;
+  if (hr2 < p.h_min * p.h_min || hr2 > p.h_max * p.h_max) return false;
+  const double d = normalisedDistance(a, b);
+  return d >= p.d_min && d <= p.d_max;
+}
+
+void threeCycles(const std::vector<uint8_t>& adj, int n, std::vector<std::array<int, 3>>& out) {
+  out.clear();
+  for (int i = 0; i < n; ++i) {
+    const uint8_t* ai = &adj[static_cast<size_t>(i) * n];
+    for (int j = i + 1; j < n; ++j) {
+      if (!ai[j]) continue;
+      const uint8_t* aj = &adj[static_cast<size_t>(j) * n];
+      for (int k = j + 1; k < n; ++k)
+        if (ai[k] && aj[k]) out.push_back({i, j, k});
+    }
+  }
+}
+
+bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
+              const std::vector<Region>& aps, const DetectorParams& p, Candidate& out) {
+  const Region& f0 = fips[cycle[0]];
+  const Region& f1 = fips[cycle[1]];
+  const Region& f2 = fips[cycle[2]];
+  Sym2 s{(f0.sxx + f1.sxx + f2.sxx) / 3, (f0.sxy + f1.sxy + f2.sxy) / 3, (f0.syy + f1.syy + f2.syy) / 3};
+  Sym2 m;
+  if (!metric(s, m)) return false;
+  const double fip_side = std::sqrt(12.0) * std::pow(s.det(), 0.25);
+  double best = p.ap_max_offset;
+  bool found = false;
+  for (int corner = 0; corner < 3; ++corner) {
+    const Region& c = fips[cycle[corner]];
+    const Region& a = fips[cycle[(corner + 1) % 3]];
+    const Region& b = fips[cycle[(corner + 2) % 3]];
+    const double px = a.cx + b.cx - c.cx, py = a.cy + b.cy - c.cy;
+    for (int k = 0; k < static_cast<int>(aps.size()); ++k) {
+      const Region& ap = aps[k];
+      const double e = std::sqrt(quad(m, ap.cx - px, ap.cy - py));
+      if (e >= best) continue;
+      const double ratio = ap.side() / fip_side;
+      if (ratio < p.ap_size_min || ratio > p.ap_size_max) continue;
+      best = e;
+      found = true;
+      out.tl = cycle[corner];
+      const bool clockwise = cross(centre(a) - centre(c), centre(b) - centre(c)) > 0;
+      out.tr = clockwise ? cycle[(corner + 1) % 3] : cycle[(corner + 2) % 3];
+      out.bl = clockwise ? cycle[(corner + 2) % 3] : cycle[(corner + 1) % 3];
+      out.ap = k;
+      out.error = e / p.ap_max_offset;
+    }
+  }
+  return found;
+}
+
+bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Region>& aps,
+            const cv::Mat& bgr, const DetectorParams& p) {
+  const Region* sq[4] = {&fips[c.tl], &fips[c.tr], &aps[c.ap], &fips[c.bl]};  // clockwise
+  const cv::Point2d P[4] = {centre(*sq[0]), centre(*sq[1]), centre(*sq[2]), centre(*sq[3])};
+  // Convex, clockwise in the image.
+  for (int i = 0; i < 4; ++i)
+    if (!(cross(P[(i + 1) % 4] - P[i], P[(i + 2) % 4] - P[(i + 1) % 4]) > 0)) return false;
+
+  // Layout in the frame of the squares' moments: a square of side 3.
+  Sym2 s;
+  for (const Region* r : sq) {
+    s.xx += r->sxx / 4;
+    s.xy += r->sxy / 4;
+    s.yy += r->syy / 4;
+  }
+  Sym2 m;
+  if (!metric(s, m)) return false;
+  const cv::Point2d e1 = P[1] - P[0], e2 = P[3] - P[0];
+  const cv::Point2d e3 = P[2] - P[1], e4 = P[2] - P[3];
+  const double l1 = std::sqrt(quad(m, e1.x, e1.y)), l2 = std::sqrt(quad(m, e2.x, e2.y));
+  const double l3 = std::sqrt(quad(m, e3.x, e3.y)), l4 = std::sqrt(quad(m, e4.x, e4.y));
+  const double cosang = bilin(m, e1.x, e1.y, e2.x, e2.y) / (l1 * l2);
+  const double tol = p.shape_tolerance;
+  for (double l : {l1, l2, l3, l4})
+    if (std::abs(l / 3.0 - 1.0) > tol) return false;
+  if (std::abs(cosang) > tol) return false;
+  if (l1 > l2 * (1 + tol) || l2 > l1 * (1 + tol)) return false;
+
+  // Sizes: every square within the AP size gates of the FIPs' mean side.
+  const double side = std::sqrt(12.0) * std::pow(s.det(), 0.25);
+  for (const Region* r : sq) {
+    const double ratio = r->side() / side;
+    if (ratio < p.ap_size_min || ratio > p.ap_size_max) return false;
+  }
+
+  // White, unsaturated sheet between the squares, and no colour at the centre.
+  double fip_value = 0;
+  for (int i : {0, 1, 3}) {
+    const Region& r = *sq[i];
+    fip_value += std::max({r.sum_b, r.sum_g, r.sum_r}) / std::max(1.0, r.n_sum) / 3;
+  }
+  const cv::Point2d mid[4] = {(P[0] + P[1]) * 0.5, (P[1] + P[2]) * 0.5, (P[2] + P[3]) * 0.5,
+                              (P[3] + P[0]) * 0.5};
+  for (const auto& q : mid) {
+    double sv, vv;
+    if (!sampleSV(bgr, q, sv, vv)) return false;
+    if (sv > p.sheet_max_saturation || vv < p.sheet_min_value * fip_value) return false;
+  }
+  const cv::Point2d ctr = (P[0] + P[1] + P[2] + P[3]) * 0.25;
+  {
+    double sv, vv;
+    if (!sampleSV(bgr, ctr, sv, vv)) return false;
+    if (vv >= p.value_min && sv > p.sheet_max_saturation) return false;
+  }
+  // No coloured square inside the QR square (within one FIP side of the centre).
+  auto inCentre = [&](const Region& r) {
+    return std::sqrt(quad(m, r.cx - ctr.x, r.cy - ctr.y)) < 1.0 && r.side() > 0.5 * side;
+  };
+  for (const Region& r : fips)
+    if (inCentre(r)) return false;
+  for (const Region& r : aps)
+    if (inCentre(r)) return false;
+
+  const double shape_err = (std::abs(l1 / 3 - 1) + std::abs(l2 / 3 - 1) + std::abs(l3 / 3 - 1) +
+                            std::abs(l4 / 3 - 1)) / 4 + std::abs(cosang);
+  c.error += shape_err / tol;
+  c.score = static_cast<float>(std::exp(-c.error));
+  return true;
+}
+
+void resolveOverlaps(std::vector<Candidate>& cands, int n_fips, int n_aps, std::vector<uint8_t>& used) {
+  std::stable_sort(cands.begin(), cands.end(),
+                   [](const Candidate& a, const Candidate& b) { return a.error < b.error; });
+  used.assign(static_cast<size_t>(n_fips + n_aps), 0);
+  size_t kept = 0;
+  for (size_t i = 0; i < cands.size(); ++i) {
+    const Candidate& c = cands[i];
+    const int ids[4] = {c.tl, c.tr, c.bl, n_fips + c.ap};
+    bool clash = false;
+    for (int id : ids) clash |= used[id] != 0;
+    if (clash) continue;
+    for (int id : ids) used[id] = 1;
+    cands[kept++] = c;
+  }
+  cands.resize(kept);
+}
+
+// ====================================================================== corners, pose
+
+bool homography4(const std::array<cv::Point2d, 4>& src, const std::array<cv::Point2d, 4>& dst,
+                 cv::Matx33d& H) {
+  // Normalise both point sets (centre, scale) for conditioning.
+  auto norm = [](const std::array<cv::Point2d, 4>& p, cv::Point2d& c, double& s) {
+    c = (p[0] + p[1] + p[2] + p[3]) * 0.25;
+    s = 0;
+    for (const auto& q : p) s += cv::norm(q - c) / 4;
+    s = s > 0 ? 1.0 / s : 0.0;
+  };
+  cv::Point2d cs, cd;
+  double ss, sd;
+  norm(src, cs, ss);
+  norm(dst, cd, sd);
+  if (ss == 0 || sd == 0) return false;
+  double A[8][9];
+  for (int i = 0; i < 4; ++i) {
+    const double x = (src[i].x - cs.x) * ss, y = (src[i].y - cs.y) * ss;
+    const double u = (dst[i].x - cd.x) * sd, v = (dst[i].y - cd.y) * sd;
+    double* r0 = A[2 * i];
+    double* r1 = A[2 * i + 1];
+    const double a0[9] = {x, y, 1, 0, 0, 0, -u * x, -u * y, u};
+    const double a1[9] = {0, 0, 0, x, y, 1, -v * x, -v * y, v};
+    std::copy(a0, a0 + 9, r0);
+    std::copy(a1, a1 + 9, r1);
+  }
+  for (int c = 0; c < 8; ++c) {
+    int piv = c;
+    for (int r = c + 1; r < 8; ++r)
+      if (std::abs(A[r][c]) > std::abs(A[piv][c])) piv = r;
+    if (std::abs(A[piv][c]) < 1e-12) return false;
+    if (piv != c)
+      for (int k = 0; k < 9; ++k) std::swap(A[c][k], A[piv][k]);
+    for (int r = 0; r < 8; ++r) {
+      if (r == c) continue;
+      const double f = A[r][c] / A[c][c];
+      if (f == 0) continue;
+      for (int k = c; k < 9; ++k) A[r][k] -= f * A[c][k];
+    }
+  }
+  double h[8];
+  for (int i = 0; i < 8; ++i) h[i] = A[i][8] / A[i][i];
+  const cv::Matx33d Hn(h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], 1.0);
+  const cv::Matx33d Ts(ss, 0, -ss * cs.x, 0, ss, -ss * cs.y, 0, 0, 1);
+  const cv::Matx33d Td_inv(1 / sd, 0, cd.x, 0, 1 / sd, cd.y, 0, 0, 1);
+  H = Td_inv * Hn * Ts;
+  return true;
+}
+
+cv::Point2d applyH(const cv::Matx33d& H, const cv::Point2d& p) {
+  const double w = H(2, 0) * p.x + H(2, 1) * p.y + H(2, 2);
+  return {(H(0, 0) * p.x + H(0, 1) * p.y + H(0, 2)) / w, (H(1, 0) * p.x + H(1, 1) * p.y + H(1, 2)) / w};
+}
+
+bool fitCorners(const std::array<cv::Point2d, 4>& centres, int iterations,
+                std::array<cv::Point2d, 4>& corrected, std::array<cv::Point2d, 4>& corners,
+                cv::Matx33d* H_out) {
+  std::array<cv::Point2d, 4> src;
+  for (int i = 0; i < 4; ++i) src[i] = {layout::kCentresU[i][0], layout::kCentresU[i][1]};
+  corrected = centres;
+  cv::Matx33d H;
+  if (!homography4(src, corrected, H)) return false;
+  const double half = layout::kSquareSide / 2;
+  for (int it = 0; it < iterations; ++it) {
+    for (int i = 0; i < 4; ++i) {
+      // Centroid of the projected square (a quadrilateral) vs the projected centre.
+      cv::Point2d q[4];
+      const double dx[4] = {-half, half, half, -half}, dy[4] = {-half, -half, half, half};
+      for (int k = 0; k < 4; ++k) q[k] = applyH(H, {src[i].x + dx[k], src[i].y + dy[k]});
+      double a2 = 0;
+      cv::Point2d c(0, 0);
+      for (int k = 0; k < 4; ++k) {
+        const cv::Point2d& p0 = q[k];
+        const cv::Point2d& p1 = q[(k + 1) % 4];
+        const double cr = cross(p0, p1);
+        a2 += cr;
+        c += (p0 + p1) * cr;
+      }
+      if (std::abs(a2) < 1e-12) return false;
+      c *= 1.0 / (3.0 * a2);
+      corrected[i] = centres[i] + (applyH(H, src[i]) - c);
+    }
+    if (!homography4(src, corrected, H)) return false;
+  }
+  for (int i = 0; i < 4; ++i) corners[i] = applyH(H, {layout::kCornersU[i][0], layout::kCornersU[i][1]});
+  if (H_out) *H_out = H;
+  return true;
+}
+
+bool estimatePose(const std::array<cv::Point2f, 4>& corners, const CameraModel& camera,
+                  double side_m, Pose& out) {
+  // IPPE_SQUARE's object frame has y up and the points in the order
+  // (-h, h), (h, h), (h, -h), (-h, -h): our TL, TR, BR, BL seen in a frame
+  // turned 180 degrees about x from ours (y down, z into the wall).
+  const double h = side_m * (layout::kPatternMax - layout::kPatternMin) / layout::kUnits / 2;
+  const cv::Point3f obj[4] = {{static_cast<float>(-h), static_cast<float>(h), 0},
+                              {static_cast<float>(h), static_cast<float>(h), 0},
+                              {static_cast<float>(h), static_cast<float>(-h), 0},
+                              {static_cast<float>(-h), static_cast<float>(-h), 0}};
+  const cv::Mat obj_m(4, 1, CV_32FC3, const_cast<cv::Point3f*>(obj));
+  const cv::Mat img_m(4, 1, CV_32FC2, const_cast<cv::Point2f*>(corners.data()));
+  cv::Vec3d rvec, tvec;
+  bool ok = false;
+  try {
+    ok = cv::solvePnP(obj_m, img_m, cv::Mat(camera.K), camera.dist, rvec, tvec, false,
+                      cv::SOLVEPNP_IPPE_SQUARE);
+  } catch (const cv::Exception&) {
+    return false;
+  }
+  if (!ok || !std::isfinite(tvec[2]) || tvec[2] <= 0) return false;
+  cv::Matx33d R;
+  cv::Rodrigues(rvec, R);
+  const cv::Matx33d flip(1, 0, 0, 0, -1, 0, 0, 0, -1);
+  cv::Rodrigues(R * flip, rvec);
+  out.rvec = rvec;
+  out.t = tvec;
+  out.distance = cv::norm(tvec);
+  return true;
+}
+
+}  // namespace ld::detail

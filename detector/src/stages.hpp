@@ -1,0 +1,151 @@
+// The detector's stages as free functions, so tests can drive each one alone.
+// Not a public interface: the names follow the paper's Fig. 2 and
+// include/ld/detector.hpp's stage list.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "ld/detector.hpp"
+
+namespace ld::detail {
+
+/// Label values of the colour mask.
+enum Colour : uint8_t { kNone = 0, kBlue = 1, kRed = 2 };
+
+/// One candidate square: a connected region of one colour (fast front end)
+/// or a contour's bounding rectangle (paper front end).
+struct Region {
+  uint8_t colour = kNone;            ///< kBlue or kRed: the dominant hue of the mask
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  ///< bounding box, inclusive
+  int area = 0;                      ///< pixels
+  double cx = 0, cy = 0;             ///< centre: saturation-weighted centroid (or bbox centre)
+  double sxx = 0, sxy = 0, syy = 0;  ///< second central moments of the area (px^2)
+  double sum_b = 0, sum_g = 0, sum_r = 0;  ///< channel sums the colour ratio is taken on
+  double n_sum = 0;                  ///< pixels those sums are over
+  int width() const { return x1 - x0 + 1; }
+  int height() const { return y1 - y0 + 1; }
+  /// Side of the square this region would be (from the moments: sqrt(12) *
+  /// det^(1/4)), pixels.
+  double side() const;
+};
+
+// ---------------------------------------------------------------- front ends
+
+/// 2. saturation (fast front end): one pass over an 8-bit BGR image writing a
+/// CV_8U label image: kBlue where the pixel is saturated ((max - min) >
+/// threshold * max, max >= value_min) and blue is its largest channel, kRed
+/// where red is, kNone elsewhere.
+void saturationMask(const cv::Mat& bgr, double saturation_threshold, int value_min, cv::Mat& labels);
+
+/// Scratch memory of the run-based labelling, kept between frames.
+struct RunScratch {
+  struct Run {
+    int y, x0, x1;
+    uint8_t colour;
+    int parent;
+    int64_t w, wx, wy;  // weight sums (saturation excess)
+    int64_t b, g, r;    // channel sums
+  };
+  struct Acc {
+    int64_t n = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, w = 0, wx = 0, wy = 0, b = 0, g = 0, r = 0;
+    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+    uint8_t colour = 0;
+  };
+  std::vector<Run> runs;
+  std::vector<int> region_of;  // root run -> region index
+  std::vector<Acc> acc;        // per region
+};
+
+/// 4. contours (fast front end): 8-connected regions of each colour of the
+/// label image, with their area, bbox, weighted centroid, moments and the
+/// channel sums of their pixels. Regions outside [min_area, max_area] are
+/// dropped.
+void extractRegions(const cv::Mat& labels, const cv::Mat& bgr, double saturation_threshold,
+                    int min_area, int max_area, RunScratch& scratch, std::vector<Region>& out);
+
+/// HSV saturation of an 8-bit BGR image (0..255), as the paper's front end uses.
+void saturationImage(const cv::Mat& bgr, cv::Mat& sat);
+
+/// 4. contours (paper front end): the bounding rectangles of the contours of
+/// an edge image, with bbox centres, moments of the rectangle, and channel
+/// sums over the rectangle in `bgr` (the paper's rule). The colour field is
+/// the largest of the sums.
+void contourRegions(const cv::Mat& edges, const cv::Mat& bgr, int min_area, int max_area,
+                    std::vector<std::vector<cv::Point>>& contours, std::vector<Region>& out);
+
+// ---------------------------------------------------------------- colour
+
+/// 5. colour: FIP when sum blue > a * sum red and sum blue > b * sum green, AP
+/// when the same holds for red.
+bool isFip(const Region& r, double a, double b);
+bool isAp(const Region& r, double a, double b);
+
+// ---------------------------------------------------------------- geometry
+
+/// The distance of two regions' centres in units of their mean square side,
+/// measured in the frame their mean moments define (affine invariant: 3 for
+/// two FIPs of one landmark side by side, 4.24 across the diagonal, whatever
+/// the view), or a negative value when the moments are degenerate.
+double normalisedDistance(const Region& a, const Region& b);
+
+/// 6. graph: the paper's constraints (1) and (2): normalised centre distance
+/// in [d_min, d_max], width and height ratios (from the moments' per-axis
+/// spread) in [w_min, w_max] and [h_min, h_max].
+bool fipEdge(const Region& a, const Region& b, const DetectorParams& p);
+
+/// The 3-cycles of a graph given by its adjacency matrix (n x n, row major,
+/// nonzero = edge), as index triples i < j < k.
+void threeCycles(const std::vector<uint8_t>& adjacency, int n, std::vector<std::array<int, 3>>& out);
+
+/// A landmark candidate: indices into the FIP and AP lists.
+struct Candidate {
+  int tl = -1, tr = -1, bl = -1, ap = -1;
+  double error = 0;  ///< combined geometric error (lower is better)
+  float score = 0;
+};
+
+/// 7. AP choice and ordering for a 3-cycle: for each choice of corner FIP the
+/// AP is predicted at TR + BL - TL; the AP candidate nearest its prediction
+/// (within ap_max_offset FIP sides, of a compatible size) decides the corner.
+/// TR and BL are then ordered so TL, TR, AP, BL run clockwise in the image.
+/// Returns false when no AP fits.
+bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
+              const std::vector<Region>& aps, const DetectorParams& p, Candidate& out);
+
+/// Verification against look-alikes: convex quadrilateral, consistent sizes,
+/// a square layout in the frame of the squares' moments, white unsaturated
+/// sheet between the squares and at the centre, no coloured region at the
+/// centre. Sets the candidate's score.
+bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Region>& aps,
+            const cv::Mat& bgr, const DetectorParams& p);
+
+/// Candidates sharing a region: the best score wins, greedily.
+void resolveOverlaps(std::vector<Candidate>& candidates, int n_fips, int n_aps,
+                     std::vector<uint8_t>& used_scratch);
+
+// ---------------------------------------------------------------- corners, pose
+
+/// 3x3 homography mapping src[i] to dst[i] (4 points, exact). False when degenerate.
+bool homography4(const std::array<cv::Point2d, 4>& src, const std::array<cv::Point2d, 4>& dst,
+                 cv::Matx33d& H);
+cv::Point2d applyH(const cv::Matx33d& H, const cv::Point2d& p);
+
+/// 8. corners: the homography from the sheet (units u) to the image fitted to
+/// the four measured square centres (TL, TR, BL, AP), each corrected for the
+/// perspective shift of a projected square's centroid (`iterations` times),
+/// then the pattern corners TL, TR, BR, BL. Returns false when degenerate.
+bool fitCorners(const std::array<cv::Point2d, 4>& centres, int iterations,
+                std::array<cv::Point2d, 4>& corrected_centres, std::array<cv::Point2d, 4>& corners,
+                cv::Matx33d* H_out = nullptr);
+
+/// 9. pose: cv::solvePnP (IPPE square) on the pattern corners; the result is
+/// in the sheet's object frame of LANDMARK.md (x right, y down on the sheet,
+/// origin at its centre).
+bool estimatePose(const std::array<cv::Point2f, 4>& corners, const CameraModel& camera,
+                  double side_m, Pose& out);
+
+}  // namespace ld::detail

@@ -1,0 +1,763 @@
+// Unit tests of the detector's stages and of the Detector on landmarks
+// rendered here from the artwork at known poses (exact ground truth).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <numeric>
+#include <random>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+#include <unistd.h>
+
+#include "../detector/src/stages.hpp"
+#include "ld/artwork.hpp"
+#include "ld/detector.hpp"
+#include "ld/landmark_layout.hpp"
+
+namespace {
+
+using ld::detail::Region;
+namespace layout = ld::layout;
+
+// ------------------------------------------------------------------ rendering
+
+// Printed-ink looking colours (BGR).
+ld::artwork::Colours inkColours() {
+  ld::artwork::Colours c;
+  c.blue = {150, 60, 40};
+  c.red = {45, 60, 215};
+  c.white = {225, 228, 230};
+  c.black = {30, 30, 30};
+  return c;
+}
+
+cv::Matx33d rotation(double yaw_deg, double pitch_deg, double roll_deg) {
+  const double y = yaw_deg * CV_PI / 180, p = pitch_deg * CV_PI / 180, r = roll_deg * CV_PI / 180;
+  const cv::Matx33d Ry(std::cos(y), 0, std::sin(y), 0, 1, 0, -std::sin(y), 0, std::cos(y));
+  const cv::Matx33d Rx(1, 0, 0, 0, std::cos(p), -std::sin(p), 0, std::sin(p), std::cos(p));
+  const cv::Matx33d Rz(std::cos(r), -std::sin(r), 0, std::sin(r), std::cos(r), 0, 0, 0, 1);
+  return Ry * Rx * Rz;
+}
+
+struct Placed {
+  cv::Matx33d R = cv::Matx33d::eye();
+  cv::Vec3d t{0, 0, 1};
+  double side_m = 0.15;
+  cv::Mat artwork;  // sheet texture (square BGR)
+};
+
+struct Truth {
+  std::array<cv::Point2d, 4> centres;  // TL, TR, BL, AP
+  std::array<cv::Point2d, 4> corners;  // TL, TR, BR, BL
+};
+
+cv::Point2d project(const ld::CameraModel& cam, const Placed& p, const cv::Point3d& X) {
+  const cv::Vec3d c = p.R * cv::Vec3d(X.x, X.y, X.z) + p.t;
+  return {cam.K(0, 0) * c[0] / c[2] + cam.K(0, 2), cam.K(1, 1) * c[1] / c[2] + cam.K(1, 2)};
+}
+
+Truth truthOf(const ld::CameraModel& cam, const Placed& p) {
+  Truth t;
+  const auto cs = layout::objectCentres(p.side_m);
+  const auto cn = layout::objectCorners(p.side_m);
+  for (int i = 0; i < 4; ++i) {
+    t.centres[i] = project(cam, p, cs[i]);
+    t.corners[i] = project(cam, p, cn[i]);
+  }
+  return t;
+}
+
+// Draws the sheet into `img` (supersampled 4x, then area-averaged).
+void drawSheet(cv::Mat& img, const ld::CameraModel& cam, const Placed& p) {
+  const int ss = 4;
+  const cv::Mat& art = p.artwork;
+  const double n = art.cols, s = p.side_m;
+  // texture pixel (i, j) -> object point (x, y, 1) -> camera -> supersampled image
+  const cv::Matx33d A(s / n, 0, s / (2 * n) - s / 2, 0, s / n, s / (2 * n) - s / 2, 0, 0, 1);
+  const cv::Matx33d Rt(p.R(0, 0), p.R(0, 1), p.t[0], p.R(1, 0), p.R(1, 1), p.t[1], p.R(2, 0),
+                       p.R(2, 1), p.t[2]);
+  const cv::Matx33d S(ss, 0, (ss - 1) / 2.0, 0, ss, (ss - 1) / 2.0, 0, 0, 1);
+  const cv::Matx33d H = S * cam.K * Rt * A;
+  const cv::Size big(img.cols * ss, img.rows * ss);
+  cv::Mat warped, mask;
+  cv::warpPerspective(art, warped, H, big, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+  cv::warpPerspective(cv::Mat(art.size(), CV_8UC1, cv::Scalar(255)), mask, H, big, cv::INTER_LINEAR,
+                      cv::BORDER_CONSTANT);
+  cv::Mat small, small_mask;
+  cv::resize(warped, small, img.size(), 0, 0, cv::INTER_AREA);
+  cv::resize(mask, small_mask, img.size(), 0, 0, cv::INTER_AREA);
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x) {
+      const double a = small_mask.at<uint8_t>(y, x) / 255.0;
+      if (a <= 0) continue;
+      auto& d = img.at<cv::Vec3b>(y, x);
+      const auto& sv = small.at<cv::Vec3b>(y, x);
+      for (int c = 0; c < 3; ++c) d[c] = cv::saturate_cast<uint8_t>(sv[c] + (1 - a) * d[c]);  // premultiplied
+    }
+}
+
+cv::Mat background(cv::Size size, uint64_t seed, bool plain = false) {
+  cv::Mat bg(size, CV_8UC3, cv::Scalar(120, 125, 130));
+  if (plain) return bg;
+  cv::RNG rng(seed);
+  cv::Mat noise(size / 16 + cv::Size(1, 1), CV_8UC3);
+  rng.fill(noise, cv::RNG::UNIFORM, 60, 200);
+  cv::Mat gray;
+  cv::cvtColor(noise, gray, cv::COLOR_BGR2GRAY);  // grey texture: no saturation
+  cv::cvtColor(gray, noise, cv::COLOR_GRAY2BGR);
+  cv::resize(noise, bg, size, 0, 0, cv::INTER_CUBIC);
+  return bg;
+}
+
+const cv::Mat& artworkImage() {
+  static const cv::Mat art = ld::artwork::renderLandmark("room-214/door", 720, inkColours());
+  return art;
+}
+
+Placed place(double distance, double yaw, double roll, double side_m = 0.15, double x = 0, double y = 0) {
+  Placed p;
+  p.R = rotation(yaw, 0, roll);
+  p.t = {x, y, distance};
+  p.side_m = side_m;
+  p.artwork = artworkImage();
+  return p;
+}
+
+void addNoise(cv::Mat& img, double sigma, uint64_t seed) {
+  cv::Mat n(img.size(), CV_16SC3);
+  cv::RNG rng(seed);
+  rng.fill(n, cv::RNG::NORMAL, 0, sigma);
+  cv::Mat f;
+  img.convertTo(f, CV_16SC3);
+  f += n;
+  f.convertTo(img, CV_8UC3);
+}
+
+const ld::CameraModel kCam = ld::CameraModel::defaultVga();
+
+bool found(const ld::Detection& det, const Truth& t) {
+  for (const auto& lm : det.landmarks)
+    if (ld::matchesTruth(lm, t.centres)) return true;
+  return false;
+}
+
+// Regions of a layout: TL, TR, BL, AP squares of `side` px, rotated by `roll`
+// degrees about `c`.
+std::array<Region, 4> layoutRegions(double side, double roll_deg, cv::Point2d c) {
+  const double r = roll_deg * CV_PI / 180, co = std::cos(r), si = std::sin(r);
+  std::array<Region, 4> out;
+  const double s2 = side * side / 12.0;
+  for (int i = 0; i < 4; ++i) {
+    const double ux = (layout::kCentresU[i][0] - 4.5) * side / 2, uy = (layout::kCentresU[i][1] - 4.5) * side / 2;
+    Region& g = out[i];
+    g.cx = c.x + co * ux - si * uy;
+    g.cy = c.y + si * ux + co * uy;
+    g.sxx = s2, g.syy = s2, g.sxy = 0;  // a square's moments are rotation invariant
+    g.area = static_cast<int>(side * side);
+    g.colour = i == 3 ? ld::detail::kRed : ld::detail::kBlue;
+  }
+  return out;
+}
+
+}  // namespace
+
+// ====================================================================== saturation
+
+TEST(Saturation, LabelsBlueRedAndNothingElse) {
+  cv::Mat img(8, 40, CV_8UC3, cv::Scalar(128, 128, 128));
+  img.at<cv::Vec3b>(1, 1) = {200, 40, 30};   // blue
+  img.at<cv::Vec3b>(1, 2) = {60, 80, 210};   // red (orange-ish)
+  img.at<cv::Vec3b>(1, 3) = {160, 60, 120};  // purplish blue
+  img.at<cv::Vec3b>(1, 4) = {250, 250, 250};  // white
+  img.at<cv::Vec3b>(1, 5) = {20, 5, 5};      // saturated but too dark
+  img.at<cv::Vec3b>(1, 6) = {200, 170, 160};  // pale blue: S = 0.2
+  img.at<cv::Vec3b>(1, 7) = {40, 200, 50};   // green
+  img.at<cv::Vec3b>(1, 35) = {200, 40, 30};  // in the scalar tail / second vector
+  cv::Mat labels;
+  ld::detail::saturationMask(img, 0.35, 25, labels);
+  ASSERT_EQ(labels.size(), img.size());
+  EXPECT_EQ(labels.at<uint8_t>(1, 1), ld::detail::kBlue);
+  EXPECT_EQ(labels.at<uint8_t>(1, 2), ld::detail::kRed);
+  EXPECT_EQ(labels.at<uint8_t>(1, 3), ld::detail::kBlue);
+  EXPECT_EQ(labels.at<uint8_t>(1, 4), ld::detail::kNone);
+  EXPECT_EQ(labels.at<uint8_t>(1, 5), ld::detail::kNone);
+  EXPECT_EQ(labels.at<uint8_t>(1, 6), ld::detail::kNone);
+  EXPECT_EQ(labels.at<uint8_t>(1, 7), ld::detail::kNone);
+  EXPECT_EQ(labels.at<uint8_t>(1, 35), ld::detail::kBlue);
+  EXPECT_EQ(cv::countNonZero(labels), 4);
+}
+
+// The vectorised loop and the scalar rule agree on every pixel.
+TEST(Saturation, VectorAndScalarAgree) {
+  cv::Mat img(37, 101, CV_8UC3);
+  cv::RNG(7).fill(img, cv::RNG::UNIFORM, 0, 256);
+  cv::Mat labels;
+  const double thr = 0.35;
+  ld::detail::saturationMask(img, thr, 25, labels);
+  const int q = static_cast<int>(std::lround(thr * 256));
+  int mismatches = 0;
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x) {
+      const auto p = img.at<cv::Vec3b>(y, x);
+      const int mx = std::max({p[0], p[1], p[2]}), mn = std::min({p[0], p[1], p[2]});
+      const bool sat = (mx - mn) > ((mx * q) >> 8) && mx >= 25;
+      const int want = !sat ? 0 : (p[0] == mx ? 1 : (p[2] == mx ? 2 : 0));
+      mismatches += labels.at<uint8_t>(y, x) != want;
+    }
+  EXPECT_EQ(mismatches, 0);
+}
+
+// ====================================================================== regions
+
+TEST(Regions, SmallSquaresStayWhole) {
+  cv::Mat img(30, 40, CV_8UC3, cv::Scalar(220, 220, 220));
+  img(cv::Rect(5, 5, 4, 4)).setTo(cv::Scalar(160, 50, 40));    // 4x4 blue
+  img(cv::Rect(20, 10, 3, 8)).setTo(cv::Scalar(40, 60, 200));  // 3x8 red
+  img(cv::Rect(30, 20, 1, 1)).setTo(cv::Scalar(160, 50, 40));  // one pixel of noise
+  cv::Mat labels;
+  ld::detail::saturationMask(img, 0.35, 25, labels);
+  ld::detail::RunScratch scratch;
+  std::vector<Region> regions;
+  ld::detail::extractRegions(labels, img, 0.35, 3, 1000, scratch, regions);
+  ASSERT_EQ(regions.size(), 2u);
+  const Region& b = regions[0].colour == ld::detail::kBlue ? regions[0] : regions[1];
+  const Region& r = regions[0].colour == ld::detail::kBlue ? regions[1] : regions[0];
+  EXPECT_EQ(b.area, 16);
+  EXPECT_EQ(b.width(), 4);
+  EXPECT_EQ(b.height(), 4);
+  EXPECT_NEAR(b.cx, 6.5, 1e-9);
+  EXPECT_NEAR(b.cy, 6.5, 1e-9);
+  EXPECT_NEAR(b.side(), 4.0, 1e-9);
+  EXPECT_EQ(r.area, 24);
+  EXPECT_EQ(r.width(), 3);
+  EXPECT_EQ(r.height(), 8);
+  EXPECT_NEAR(r.cx, 21.0, 1e-9);
+  EXPECT_NEAR(r.cy, 13.5, 1e-9);
+  EXPECT_NEAR(r.sxx, 9.0 / 12, 1e-9);
+  EXPECT_NEAR(r.syy, 64.0 / 12, 1e-9);
+  EXPECT_GT(b.sum_b, 1.3 * b.sum_r);
+}
+
+// A thin diagonal line of pixels is one region (8-connectivity); the two
+// colours touching are two regions.
+TEST(Regions, EightConnectedAndPerColour) {
+  cv::Mat img(20, 20, CV_8UC3, cv::Scalar(220, 220, 220));
+  for (int i = 2; i < 12; ++i) img.at<cv::Vec3b>(i, i) = {160, 50, 40};
+  img(cv::Rect(14, 2, 3, 3)).setTo(cv::Scalar(160, 50, 40));
+  img(cv::Rect(14, 5, 3, 3)).setTo(cv::Scalar(40, 60, 200));
+  cv::Mat labels;
+  ld::detail::saturationMask(img, 0.35, 25, labels);
+  ld::detail::RunScratch scratch;
+  std::vector<Region> regions;
+  ld::detail::extractRegions(labels, img, 0.35, 1, 1000, scratch, regions);
+  ASSERT_EQ(regions.size(), 3u);
+  int diag = 0;
+  for (const auto& r : regions) diag += r.area == 10;
+  EXPECT_EQ(diag, 1);
+}
+
+// U shapes and spirals merge through later rows (union-find).
+TEST(Regions, MergesThroughLaterRows) {
+  cv::Mat img(20, 20, CV_8UC3, cv::Scalar(220, 220, 220));
+  img(cv::Rect(2, 2, 2, 10)).setTo(cv::Scalar(160, 50, 40));
+  img(cv::Rect(8, 2, 2, 10)).setTo(cv::Scalar(160, 50, 40));
+  img(cv::Rect(14, 2, 2, 10)).setTo(cv::Scalar(160, 50, 40));
+  img(cv::Rect(2, 12, 14, 2)).setTo(cv::Scalar(160, 50, 40));
+  cv::Mat labels;
+  ld::detail::saturationMask(img, 0.35, 25, labels);
+  ld::detail::RunScratch scratch;
+  std::vector<Region> regions;
+  ld::detail::extractRegions(labels, img, 0.35, 1, 1000, scratch, regions);
+  ASSERT_EQ(regions.size(), 1u);
+  EXPECT_EQ(regions[0].area, 3 * 20 + 28);
+}
+
+// ====================================================================== colour
+
+TEST(Colour, PaperRatioRule) {
+  Region r;
+  r.sum_b = 150, r.sum_g = 60, r.sum_r = 40;
+  EXPECT_TRUE(ld::detail::isFip(r, 1.3, 1.3));
+  EXPECT_FALSE(ld::detail::isAp(r, 1.3, 1.3));
+  r.sum_b = 150, r.sum_g = 120, r.sum_r = 40;  // cyan-ish: blue not 1.3x green
+  EXPECT_FALSE(ld::detail::isFip(r, 1.3, 1.3));
+  EXPECT_TRUE(ld::detail::isFip(r, 1.2, 1.2));
+  r.sum_b = 40, r.sum_g = 70, r.sum_r = 210;
+  EXPECT_TRUE(ld::detail::isAp(r, 1.3, 1.3));
+  EXPECT_FALSE(ld::detail::isFip(r, 1.3, 1.3));
+  r.sum_b = 120, r.sum_g = 110, r.sum_r = 130;  // greyish
+  EXPECT_FALSE(ld::detail::isAp(r, 1.3, 1.3));
+  EXPECT_FALSE(ld::detail::isFip(r, 1.3, 1.3));
+}
+
+// ====================================================================== graph
+
+TEST(Graph, EdgesByDistanceAndSize) {
+  const ld::DetectorParams p;
+  auto sq = [](double x, double y, double w, double h) {
+    Region r;
+    r.cx = x, r.cy = y, r.sxx = w * w / 12, r.syy = h * h / 12;
+    return r;
+  };
+  const Region a = sq(100, 100, 8, 8);
+  EXPECT_TRUE(ld::detail::fipEdge(a, sq(124, 100, 8, 8), p));      // neighbour: 3 sides
+  EXPECT_TRUE(ld::detail::fipEdge(a, sq(124, 124, 8, 8), p));      // diagonal: 4.24
+  EXPECT_NEAR(ld::detail::normalisedDistance(a, sq(124, 124, 8, 8)), 3 * std::sqrt(2.0), 1e-9);
+  EXPECT_FALSE(ld::detail::fipEdge(a, sq(108, 100, 8, 8), p));     // touching: 1 side
+  EXPECT_FALSE(ld::detail::fipEdge(a, sq(160, 100, 8, 8), p));     // 7.5 sides
+  EXPECT_FALSE(ld::detail::fipEdge(a, sq(124, 100, 24, 24), p));   // three times larger
+  EXPECT_FALSE(ld::detail::fipEdge(a, sq(124, 100, 8, 24), p));    // three times taller
+  // Foreshortened 3x (yaw): widths and x distances shrink together.
+  EXPECT_TRUE(ld::detail::fipEdge(sq(100, 100, 2.7, 8), sq(108, 100, 2.7, 8), p));
+  // Rolled 45 degrees: the moments of a square do not change, the distance neither.
+  EXPECT_NEAR(ld::detail::normalisedDistance(a, sq(100 + 24 / std::sqrt(2.0), 100 + 24 / std::sqrt(2.0), 8, 8)),
+              3.0, 1e-9);
+}
+
+TEST(Graph, ThreeCycles) {
+  // 0-1-2 triangle, 2-3-4 triangle, 4-5 edge, 1-3 edge (no extra triangle).
+  const int n = 6;
+  std::vector<uint8_t> adj(n * n, 0);
+  auto edge = [&](int a, int b) { adj[a * n + b] = adj[b * n + a] = 1; };
+  edge(0, 1), edge(1, 2), edge(0, 2), edge(2, 3), edge(3, 4), edge(2, 4), edge(4, 5), edge(1, 3);
+  std::vector<std::array<int, 3>> cycles;
+  ld::detail::threeCycles(adj, n, cycles);
+  std::vector<std::array<int, 3>> want{{0, 1, 2}, {1, 2, 3}, {2, 3, 4}};
+  EXPECT_EQ(cycles, want);
+}
+
+// ====================================================================== AP choice and ordering
+
+class ApChoice : public ::testing::TestWithParam<double> {};
+
+TEST_P(ApChoice, FindsTlAtAnyRoll) {
+  const double roll = GetParam();
+  const auto sq = layoutRegions(10, roll, {200, 150});
+  const ld::DetectorParams p;
+  // FIPs in a scrambled order, with a decoy FIP and a decoy AP elsewhere.
+  std::vector<Region> fips{sq[2], sq[0], sq[1]};
+  Region decoy = sq[0];
+  decoy.cx += 300;
+  fips.push_back(decoy);
+  Region decoy_ap = sq[3];
+  decoy_ap.cx -= 150;
+  std::vector<Region> aps{decoy_ap, sq[3]};
+  for (const auto& cyc : std::vector<std::array<int, 3>>{{0, 1, 2}, {2, 0, 1}, {1, 2, 0}}) {
+    ld::detail::Candidate c;
+    ASSERT_TRUE(ld::detail::chooseAp(cyc, fips, aps, p, c)) << roll;
+    EXPECT_EQ(c.tl, 1) << roll;
+    EXPECT_EQ(c.tr, 2) << roll;
+    EXPECT_EQ(c.bl, 0) << roll;
+    EXPECT_EQ(c.ap, 1) << roll;
+    EXPECT_LT(c.error, 1e-6);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Rolls, ApChoice, ::testing::Values(0.0, 45.0, 90.0, 135.0, 180.0, -120.0, 11.0, -30.0));
+
+TEST(ApChoiceRule, NoApNoCandidate) {
+  const auto sq = layoutRegions(10, 0, {200, 150});
+  std::vector<Region> fips{sq[0], sq[1], sq[2]};
+  Region far = sq[3];
+  far.cx += 40;  // 4 sides off the prediction
+  std::vector<Region> aps{far};
+  ld::detail::Candidate c;
+  EXPECT_FALSE(ld::detail::chooseAp({0, 1, 2}, fips, aps, ld::DetectorParams{}, c));
+  // An AP in the middle of the landmark (a look-alike card) is no AP either.
+  Region mid = sq[3];
+  mid.cx = 200, mid.cy = 150;
+  aps = {mid};
+  EXPECT_FALSE(ld::detail::chooseAp({0, 1, 2}, fips, aps, ld::DetectorParams{}, c));
+  // Nor is one of three times the size.
+  Region big = sq[3];
+  big.sxx *= 9, big.syy *= 9;
+  aps = {big};
+  EXPECT_FALSE(ld::detail::chooseAp({0, 1, 2}, fips, aps, ld::DetectorParams{}, c));
+}
+
+TEST(Overlaps, BestScoreWinsGreedily) {
+  std::vector<ld::detail::Candidate> c(3);
+  c[0] = {0, 1, 2, 0, 0.5, 0};
+  c[1] = {0, 3, 4, 1, 0.1, 0};  // shares FIP 0 with c[0], better
+  c[2] = {5, 6, 7, 0, 0.2, 0};  // shares the AP with c[0]
+  std::vector<uint8_t> used;
+  ld::detail::resolveOverlaps(c, 8, 2, used);
+  ASSERT_EQ(c.size(), 2u);
+  EXPECT_EQ(c[0].tr, 3);
+  EXPECT_EQ(c[1].tl, 5);
+}
+
+// ====================================================================== corners
+
+TEST(Corners, HomographyExact) {
+  const std::array<cv::Point2d, 4> src{{{0, 0}, {1, 0}, {1, 1}, {0, 1}}};
+  const std::array<cv::Point2d, 4> dst{{{10, 20}, {110, 25}, {105, 140}, {5, 118}}};
+  cv::Matx33d H;
+  ASSERT_TRUE(ld::detail::homography4(src, dst, H));
+  for (int i = 0; i < 4; ++i) EXPECT_LT(cv::norm(ld::detail::applyH(H, src[i]) - dst[i]), 1e-9);
+  const std::array<cv::Point2d, 4> line{{{0, 0}, {1, 1}, {2, 2}, {3, 3}}};
+  EXPECT_FALSE(ld::detail::homography4(line, dst, H));
+}
+
+// Centroids of projected squares, corrected, give the exact projected centres
+// and corners under strong perspective.
+TEST(Corners, PerspectiveCentroidCorrection) {
+  const Placed p = place(0.5, 55, 20, 0.3);
+  const Truth t = truthOf(kCam, p);
+  // Measured centres: the centroids of the projected squares.
+  std::array<cv::Point2d, 4> centroids;
+  const double u = p.side_m / 9;
+  for (int i = 0; i < 4; ++i) {
+    std::vector<cv::Point2f> poly;
+    for (auto [dx, dy] : {std::pair{-1, -1}, {1, -1}, {1, 1}, {-1, 1}}) {
+      const double x = (layout::kCentresU[i][0] + dx - 4.5) * u, y = (layout::kCentresU[i][1] + dy - 4.5) * u;
+      poly.emplace_back(project(kCam, p, {x, y, 0}));
+    }
+    const cv::Moments m = cv::moments(poly);
+    centroids[i] = {m.m10 / m.m00, m.m01 / m.m00};
+  }
+  double before = 0;
+  for (int i = 0; i < 4; ++i) before = std::max(before, cv::norm(centroids[i] - t.centres[i]));
+  EXPECT_GT(before, 0.1);  // the centroid is not the projected centre
+  std::array<cv::Point2d, 4> corrected, corners;
+  ASSERT_TRUE(ld::detail::fitCorners(centroids, 3, corrected, corners));
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_LT(cv::norm(corrected[i] - t.centres[i]), 0.01) << i;
+    EXPECT_LT(cv::norm(corners[i] - t.corners[i]), 0.02) << i;
+  }
+}
+
+// ====================================================================== detector on rendered frames
+
+class Roll : public ::testing::TestWithParam<double> {};
+
+TEST_P(Roll, FindsLandmarkWithRightOrientation) {
+  const double roll = GetParam();
+  cv::Mat img = background(kCam.size, 3);
+  const Placed p = place(1.0, 0, roll, 0.15, 0.05, -0.03);
+  drawSheet(img, kCam, p);
+  const Truth t = truthOf(kCam, p);
+  ld::Detector det;
+  const auto& d = det.detect(img);
+  ASSERT_EQ(d.landmarks.size(), 1u) << roll;
+  EXPECT_TRUE(ld::matchesTruth(d.landmarks[0], t.centres)) << roll;
+  for (int i = 0; i < 4; ++i) EXPECT_LT(cv::norm(cv::Point2d(d.landmarks[0].corners[i]) - t.corners[i]), 1.0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Rolls, Roll, ::testing::Values(0.0, 11.0, 30.0, 45.0, 90.0, 135.0, 180.0, -120.0, -60.0));
+
+TEST(Detector, SmallAndSteep) {
+  // 9 cm at 1.5 m: FIPs of 8 px; at 60 degrees of yaw, 4 px wide.
+  for (double yaw : {0.0, 40.0, -60.0}) {
+    cv::Mat img = background(kCam.size, 4);
+    const Placed p = place(1.5, yaw, 25, 0.09);
+    drawSheet(img, kCam, p);
+    addNoise(img, 3, 5);
+    ld::Detector det;
+    EXPECT_TRUE(found(det.detect(img), truthOf(kCam, p))) << yaw;
+  }
+}
+
+TEST(Detector, TwoLandmarksSideBySide) {
+  cv::Mat img = background(kCam.size, 5);
+  const Placed a = place(1.0, 0, 0, 0.15, -0.085, 0);
+  const Placed b = place(1.0, 0, 0, 0.15, 0.085, 0);  // 2 cm gap between the sheets
+  drawSheet(img, kCam, a);
+  drawSheet(img, kCam, b);
+  ld::Detector det;
+  const auto& d = det.detect(img);
+  ASSERT_EQ(d.landmarks.size(), 2u);
+  EXPECT_TRUE(found(d, truthOf(kCam, a)));
+  EXPECT_TRUE(found(d, truthOf(kCam, b)));
+}
+
+TEST(Detector, OneUprightOneUpsideDownTouching) {
+  cv::Mat img = background(kCam.size, 6);
+  const Placed a = place(1.2, 0, 0, 0.15, -0.076, 0);
+  const Placed b = place(1.2, 0, 180, 0.15, 0.076, 0);
+  drawSheet(img, kCam, a);
+  drawSheet(img, kCam, b);
+  ld::Detector det;
+  const auto& d = det.detect(img);
+  EXPECT_EQ(d.landmarks.size(), 2u);
+  EXPECT_TRUE(found(d, truthOf(kCam, a)));
+  EXPECT_TRUE(found(d, truthOf(kCam, b)));
+}
+
+namespace {
+
+// Landmark-like cards: the three FIPs with the red square in the middle or
+// next to TL instead of at BR.
+cv::Mat lookAlike(int kind) {
+  cv::Mat art = artworkImage().clone();
+  const int u = art.cols / 9;
+  const cv::Scalar white(225, 228, 230), red(45, 60, 215);
+  art(cv::Rect(13 * u / 2, 13 * u / 2, 2 * u, 2 * u)).setTo(white);  // no AP at BR
+  if (kind == 0) art(cv::Rect(7 * u / 2, 7 * u / 2, 2 * u, 2 * u)).setTo(red);  // red in the middle
+  if (kind == 1) art(cv::Rect(7 * u / 2, u / 2, 2 * u, 2 * u)).setTo(red);      // red next to TL
+  if (kind == 2) art(cv::Rect(u / 2, 7 * u / 2, 2 * u, 2 * u)).setTo(red);      // red under TL
+  return art;
+}
+
+}  // namespace
+
+TEST(Detector, RejectsLookAlikeCards) {
+  ld::Detector det;
+  for (int kind = 0; kind < 3; ++kind)
+    for (double roll : {0.0, 90.0, 200.0}) {
+      cv::Mat img = background(kCam.size, 7);
+      Placed p = place(0.8, 20, roll, 0.15);
+      p.artwork = lookAlike(kind);
+      drawSheet(img, kCam, p);
+      EXPECT_TRUE(det.detect(img).landmarks.empty()) << kind << " " << roll;
+    }
+}
+
+// The real landmark next to a look-alike card: only the real one.
+TEST(Detector, RealLandmarkBesideLookAlike) {
+  cv::Mat img = background(kCam.size, 8);
+  Placed card = place(1.0, 0, 0, 0.15, -0.09, 0);
+  card.artwork = lookAlike(1);
+  const Placed real = place(1.0, 0, 0, 0.15, 0.09, 0);
+  drawSheet(img, kCam, card);
+  drawSheet(img, kCam, real);
+  ld::Detector det;
+  const auto& d = det.detect(img);
+  ASSERT_EQ(d.landmarks.size(), 1u);
+  EXPECT_TRUE(found(d, truthOf(kCam, real)));
+}
+
+TEST(Detector, GrayAndDegenerateImagesGiveNothing) {
+  ld::Detector det;
+  EXPECT_TRUE(det.detect(cv::Mat()).landmarks.empty());
+  EXPECT_TRUE(det.detect(cv::Mat(1, 1, CV_8UC3, cv::Scalar(255, 0, 0))).landmarks.empty());
+  EXPECT_TRUE(det.detect(cv::Mat(2, 5, CV_8UC3, cv::Scalar(255, 0, 0))).landmarks.empty());
+  EXPECT_TRUE(det.detect(cv::Mat(7, 3, CV_8UC3, cv::Scalar(255, 0, 0))).landmarks.empty());
+  EXPECT_TRUE(det.detect(cv::Mat(480, 640, CV_8UC3, cv::Scalar(255, 0, 0))).landmarks.empty());
+  EXPECT_TRUE(det.detect(cv::Mat(480, 640, CV_32FC3, cv::Scalar(1, 0, 0))).landmarks.empty());
+  // A frame with a landmark, in gray: no colour, no landmark.
+  cv::Mat img = background(kCam.size, 9);
+  drawSheet(img, kCam, place(1.0, 0, 0));
+  cv::Mat gray;
+  cv::cvtColor(img, gray, cv::COLOR_BGR2GRAY);
+  EXPECT_TRUE(det.detect(gray).landmarks.empty());
+  cv::Mat gray3;
+  cv::cvtColor(gray, gray3, cv::COLOR_GRAY2BGR);
+  EXPECT_TRUE(det.detect(gray3).landmarks.empty());
+  // Random noise.
+  cv::Mat noise(480, 640, CV_8UC3);
+  cv::RNG(3).fill(noise, cv::RNG::UNIFORM, 0, 256);
+  EXPECT_TRUE(det.detect(noise).landmarks.empty());
+  // BGRA works like BGR.
+  cv::Mat bgra;
+  cv::cvtColor(img, bgra, cv::COLOR_BGR2BGRA);
+  EXPECT_EQ(det.detect(bgra).landmarks.size(), 1u);
+  // A sub-image (non-continuous) works too.
+  EXPECT_EQ(det.detect(img(cv::Rect(100, 50, 440, 380))).landmarks.size(), 1u);
+}
+
+TEST(Detector, StagesAreNamedAndTimed) {
+  cv::Mat img = background(kCam.size, 10);
+  drawSheet(img, kCam, place(1.0, 0, 0));
+  ld::Detector fast;
+  fast.setCamera(kCam, 0.15);
+  const auto& d = fast.detect(img);
+  std::vector<std::string> names;
+  for (const auto& s : d.stages) names.push_back(s.name);
+  EXPECT_EQ(names, (std::vector<std::string>{"saturation", "contours", "colour", "geometry", "corners", "pose"}));
+  EXPECT_GT(d.total_ms, 0);
+  EXPECT_GE(d.total_ms, d.stageMs("saturation"));
+  EXPECT_EQ(d.stageMs("edges"), 0);
+
+  ld::Detector paper(ld::DetectorParams::paper());
+  const auto& dp = paper.detect(img);
+  names.clear();
+  for (const auto& s : dp.stages) names.push_back(s.name);
+  EXPECT_EQ(names, (std::vector<std::string>{"blur", "saturation", "edges", "contours", "colour", "geometry", "corners"}));
+}
+
+// The paper's front end finds a large, frontal landmark.
+TEST(Detector, PaperFrontEndFindsFrontalLandmark) {
+  for (const auto& p : {ld::DetectorParams::paper(), [] {
+                          ld::DetectorParams q;
+                          q.front_end = "paper";
+                          return q;
+                        }()}) {
+    cv::Mat img = background(kCam.size, 11);
+    const Placed pl = place(0.6, 10, 0);
+    drawSheet(img, kCam, pl);
+    ld::Detector det(p);
+    const auto& d = det.detect(img);
+    EXPECT_TRUE(found(d, truthOf(kCam, pl)));
+  }
+}
+
+TEST(Detector, CornersSubPixelOnFrontalViews) {
+  ld::Detector det;
+  double sq = 0;
+  int n = 0;
+  for (int k = 0; k < 6; ++k) {
+    cv::Mat img = background(kCam.size, 20 + k, true);
+    const Placed p = place(1.0, 0, k * 37.0, 0.15, 0.03 * k - 0.08, 0.011 * k - 0.03);
+    drawSheet(img, kCam, p);
+    const Truth t = truthOf(kCam, p);
+    const auto& d = det.detect(img);
+    ASSERT_EQ(d.landmarks.size(), 1u);
+    for (int i = 0; i < 4; ++i) {
+      sq += std::pow(cv::norm(cv::Point2d(d.landmarks[0].corners[i]) - t.corners[i]), 2);
+      ++n;
+    }
+  }
+  const double rms = std::sqrt(sq / n);
+  std::cout << "corner RMS on rendered frontal views at 1 m: " << rms << " px\n";
+  EXPECT_LT(rms, 0.5);
+}
+
+// ====================================================================== pose
+
+TEST(Pose, FrontalSheetHasZeroRotation) {
+  cv::Mat img = background(kCam.size, 12);
+  const Placed p = place(1.2, 0, 0, 0.15, 0.02, 0.01);
+  drawSheet(img, kCam, p);
+  ld::Detector det;
+  det.setCamera(kCam, 0.15);
+  const auto& d = det.detect(img);
+  ASSERT_EQ(d.landmarks.size(), 1u);
+  ASSERT_TRUE(d.landmarks[0].pose.has_value());
+  const ld::Pose& pose = *d.landmarks[0].pose;
+  EXPECT_LT(cv::norm(pose.rvec), 0.03);
+  EXPECT_NEAR(pose.distance, cv::norm(p.t), 0.01 * cv::norm(p.t));
+  EXPECT_NEAR(pose.t[0], 0.02, 0.005);
+  EXPECT_NEAR(pose.t[1], 0.01, 0.005);
+}
+
+TEST(Pose, TurnedSheet) {
+  cv::Mat img = background(kCam.size, 13);
+  const Placed p = place(1.5, 35, 120, 0.15);
+  drawSheet(img, kCam, p);
+  ld::Detector det;
+  det.setCamera(kCam, 0.15);
+  const auto& d = det.detect(img);
+  ASSERT_EQ(d.landmarks.size(), 1u);
+  ASSERT_TRUE(d.landmarks[0].pose.has_value());
+  cv::Matx33d R;
+  cv::Rodrigues(d.landmarks[0].pose->rvec, R);
+  const cv::Matx33d dR = R.t() * p.R;
+  const double angle = std::acos(std::clamp((cv::trace(dR) - 1) / 2, -1.0, 1.0)) * 180 / CV_PI;
+  EXPECT_LT(angle, 3.0);
+  EXPECT_NEAR(d.landmarks[0].pose->distance, 1.5, 0.03);
+}
+
+// A camera for another frame size is scaled to the frame.
+TEST(Pose, ScaledCamera) {
+  const ld::CameraModel big = ld::CameraModel::pinhole({1280, 960}, 1200);
+  cv::Mat img = background(kCam.size, 14);
+  const Placed p = place(1.0, 0, 0);
+  drawSheet(img, kCam, p);
+  ld::Detector det;
+  det.setCamera(big, 0.15);
+  const auto& d = det.detect(img);
+  ASSERT_EQ(d.landmarks.size(), 1u);
+  ASSERT_TRUE(d.landmarks[0].pose.has_value());
+  EXPECT_NEAR(d.landmarks[0].pose->distance, 1.0, 0.01);
+}
+
+// ====================================================================== parameters
+
+namespace {
+
+std::string tempPath(const std::string& name) {
+  return (std::filesystem::temp_directory_path() / ("ld_test_detector_" + std::to_string(::getpid()) + "_" + name))
+      .string();
+}
+
+}  // namespace
+
+TEST(Params, SaveLoadRoundTrip) {
+  ld::DetectorParams p;
+  p.front_end = "paper";
+  p.blur_kernel = 5;
+  p.saturation_threshold = 0.41;
+  p.value_min = 33;
+  p.d_max = 6.25;
+  p.max_candidates = 99;
+  p.centre_iterations = 1;
+  const std::string path = tempPath("params.yaml");
+  p.save(path);
+  const ld::DetectorParams q = ld::DetectorParams::load(path);
+  EXPECT_EQ(q.front_end, "paper");
+  EXPECT_EQ(q.blur_kernel, 5);
+  EXPECT_DOUBLE_EQ(q.saturation_threshold, 0.41);
+  EXPECT_EQ(q.value_min, 33);
+  EXPECT_DOUBLE_EQ(q.d_max, 6.25);
+  EXPECT_EQ(q.max_candidates, 99);
+  EXPECT_EQ(q.centre_iterations, 1);
+  EXPECT_DOUBLE_EQ(q.color_ratio_a, p.color_ratio_a);
+  EXPECT_DOUBLE_EQ(q.sheet_min_value, p.sheet_min_value);
+  std::remove(path.c_str());
+}
+
+TEST(Params, PartialFileKeepsDefaults) {
+  const std::string path = tempPath("partial.yaml");
+  std::ofstream(path) << "%YAML:1.0\n---\nsaturation_threshold: 0.3\nd_min: 2\n";
+  const ld::DetectorParams q = ld::DetectorParams::load(path);
+  EXPECT_DOUBLE_EQ(q.saturation_threshold, 0.3);
+  EXPECT_DOUBLE_EQ(q.d_min, 2.0);
+  EXPECT_EQ(q.front_end, ld::DetectorParams{}.front_end);
+  std::remove(path.c_str());
+}
+
+namespace {
+
+std::string loadError(const std::string& content) {
+  const std::string path = tempPath("bad.yaml");
+  std::ofstream(path) << content;
+  std::string msg;
+  try {
+    ld::DetectorParams::load(path);
+  } catch (const std::runtime_error& e) {
+    msg = e.what();
+  }
+  std::remove(path.c_str());
+  return msg;
+}
+
+}  // namespace
+
+TEST(Params, BadFilesGiveClearErrors) {
+  EXPECT_NE(loadError("%YAML:1.0\n---\nsaturation_treshold: 0.3\n").find("unknown key 'saturation_treshold'"),
+            std::string::npos);
+  EXPECT_NE(loadError("%YAML:1.0\n---\nvalue_min: 2.5\n").find("'value_min' must be an integer"),
+            std::string::npos);
+  EXPECT_NE(loadError("%YAML:1.0\n---\nd_min: fast\n").find("'d_min' must be a number"), std::string::npos);
+  EXPECT_NE(loadError("%YAML:1.0\n---\nfront_end: 3\n").find("'front_end' must be a string"), std::string::npos);
+  EXPECT_NE(loadError("%YAML:1.0\n---\n{ [ unbalanced").find("detector params"), std::string::npos);
+  EXPECT_THROW(ld::DetectorParams::load("/nonexistent/dir/params.yaml"), std::runtime_error);
+}
+
+TEST(Params, ValidateNamesTheField) {
+  auto err = [](auto&& mutate) {
+    ld::DetectorParams p;
+    mutate(p);
+    try {
+      p.validate();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_EQ(err([](auto&) {}), "");
+  EXPECT_NE(err([](auto& p) { p.front_end = "gpu"; }).find("front_end"), std::string::npos);
+  EXPECT_NE(err([](auto& p) { p.blur_kernel = 4; }).find("blur_kernel"), std::string::npos);
+  EXPECT_NE(err([](auto& p) { p.saturation_threshold = 1.5; }).find("saturation_threshold"), std::string::npos);
+  EXPECT_NE(err([](auto& p) { p.d_max = p.d_min; }).find("d_max"), std::string::npos);
+  EXPECT_NE(err([](auto& p) { p.canny_high = 1; }).find("canny_high"), std::string::npos);
+  EXPECT_NE(err([](auto& p) { p.ap_size_min = 0; }).find("ap_size_min"), std::string::npos);
+  ld::DetectorParams bad;
+  bad.front_end = "x";
+  EXPECT_THROW(ld::Detector{bad}, std::invalid_argument);
+}
