@@ -1,0 +1,188 @@
+// The landmark tracker: section IV of the paper, made robust for a moving
+// robot. Stable ids for the detections of a video stream.
+//
+//   1. expire     drop pool landmarks unseen for max_lifetime_s (frame
+//                 timestamps, not frame counts: independent of the frame rate)
+//   2. predict    move each pool landmark to the new frame's time with its
+//                 constant velocity (position and size); a landmark that was
+//                 not detected in the previous frame may also be matched
+//                 where it was last seen (the robot stopped or turned back:
+//                 a landmark that left the image comes back where it left)
+//   3. assign     the paper's three cases: empty pool (all new), no detections
+//                 (all age), both non-empty: optimal assignment (Hungarian)
+//                 with cost = distance between the predicted pool landmark and
+//                 the new one; pairs beyond the maximum distance or the size
+//                 ratio are prohibitive, so they never displace a valid match
+//   4. update     matched tracks take the detection (corners, pose; the track's
+//                 payload is kept when the detection has none) and refresh
+//                 their velocity; unmatched tracks coast; unmatched detections
+//                 become new tracks with new ids (an id is never reused),
+//                 starting with the image motion common to the other tracks
+//   5. report     visible and coasting tracks, in creation order
+//
+// A Tracker keeps its buffers between frames: once warmed up (pool and
+// detection counts seen before), update() does not allocate, except to copy a
+// payload longer than the string's small buffer.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "ld/detector.hpp"
+#include "ld/hungarian.hpp"
+
+namespace ld {
+
+/// The tracker's parameters: the paper's three (lifetime, distance, size
+/// ratio) and the prediction that lets ids survive fast robot motion.
+struct TrackerParams {
+  /// Paper 1: a landmark stays in the pool while it was seen less than this
+  /// long ago (seconds, from the frames' utime). Longer keeps ids through
+  /// longer occlusions but lets a vanished landmark's id be taken by another
+  /// that appears near its predicted position.
+  double max_lifetime_s = 1.0;
+  /// Paper 2: largest distance between a pool landmark (predicted) and a new
+  /// one that may be the same landmark, in landmark sizes (mean side of the
+  /// pattern square, averaged over the pair), so it holds near and far.
+  /// Larger tolerates faster unpredicted motion; smaller separates close
+  /// landmarks. Two landmarks' centres are at least about 1.1 sizes apart.
+  double max_distance = 2.0;
+  /// Extra distance allowed per second a landmark has been unseen (landmark
+  /// sizes per second): the prediction of a coasting landmark gets less
+  /// certain with time. 0 keeps the gate fixed.
+  double coast_distance_growth = 1.0;
+  /// Paper 3: largest ratio between the larger and the smaller size of a pair
+  /// (predicted pool landmark, new landmark). Smaller rejects matches with a
+  /// near and a far landmark; larger tolerates fast approach.
+  double max_size_ratio = 1.5;
+  /// Constant-velocity prediction of position and size (beyond the paper).
+  /// A new track starts with the image motion common to the tracks already
+  /// followed (on a robot, mostly its own motion). Off: a pool landmark is
+  /// compared where it was last seen.
+  bool predict = true;
+  /// Weight of the newest measured velocity (0..1] against the previous
+  /// estimate: 1 follows the motion at once, smaller smooths detector noise.
+  double velocity_smoothing = 0.5;
+  /// A track is reported once it has been detected this many times: 1 reports
+  /// every detection, 2 or 3 hide one-frame false positives.
+  int min_hits = 1;
+  /// Report coasting tracks (not detected in this frame, within lifetime) at
+  /// their predicted position with visible = false.
+  bool report_coasting = true;
+
+  /// Reads a YAML/XML file (cv::FileStorage) whose keys are the field names
+  /// above; absent keys keep their defaults. Throws std::runtime_error naming
+  /// the file and the unknown or malformed key, and validates the result.
+  static TrackerParams load(const std::string& path);
+  /// Writes every field (a file load() reads back).
+  void save(const std::string& path) const;
+  /// The same as YAML text.
+  std::string toYaml() const;
+  /// Throws std::invalid_argument naming the first inconsistent field.
+  void validate() const;
+};
+
+/// One track as reported for a frame.
+struct Track {
+  int64_t id = -1;                 ///< stable id, from 1, never reused
+  int32_t age = 0;                 ///< frames since the track was created (0: new)
+  int32_t hits = 0;                ///< frames in which it was detected
+  int32_t frames_since_seen = 0;   ///< 0 when detected in this frame
+  int64_t time_since_seen_us = 0;  ///< utime of this frame - utime of the last detection
+  bool visible = false;            ///< detected in this frame (false: coasting)
+  int detection_index = -1;        ///< index in update()'s detections; -1 when coasting
+  /// Visible: the detection (with the track's payload when it has none).
+  /// Coasting: the last detection moved to its predicted position and size;
+  /// pose, payload and score are the last detection's.
+  Landmark landmark;
+  cv::Point2f velocity;            ///< image velocity of the centre, px/s
+};
+
+struct TrackerStats {
+  int64_t frames = 0;               ///< update() calls
+  int64_t tracks_created = 0;
+  int64_t tracks_dropped = 0;       ///< expired after max_lifetime_s
+  int64_t matches = 0;              ///< detections assigned to an existing track
+  int64_t rejected_detections = 0;  ///< non-finite or degenerate detections, ignored
+  int64_t resets = 0;               ///< pool cleared because time went backwards
+};
+
+/// Centre of a landmark: the mean of its four square centres.
+cv::Point2f landmarkCentre(const Landmark& lm);
+/// Size of a landmark in pixels: the mean side of its corners quadrilateral.
+double landmarkSize(const Landmark& lm);
+
+class Tracker {
+ public:
+  /// Throws std::invalid_argument when params do not validate.
+  explicit Tracker(const TrackerParams& params = {});
+
+  /// Tracks the detections of one frame captured at `utime` (microseconds).
+  /// Frames must come in time order; a frame older than the previous one (a
+  /// log replayed from its start, a restarted camera) clears the pool first,
+  /// ids still never reused. Detections with non-finite coordinates or a size
+  /// under one pixel are ignored. The returned reference stays valid until
+  /// the next call.
+  const std::vector<Track>& update(const std::vector<Landmark>& detections, int64_t utime);
+
+  /// The tracks reported by the last update().
+  const std::vector<Track>& tracks() const { return out_; }
+  /// Empties the pool (ids continue from where they were).
+  void reset();
+  /// Landmarks in the pool, reported or not (min_hits).
+  size_t poolSize() const { return pool_.size(); }
+  const TrackerParams& params() const { return params_; }
+  const TrackerStats& stats() const { return stats_; }
+
+ private:
+  enum class Motion : uint8_t {
+    None,      // no velocity: predicted where last seen
+    Borrowed,  // the common image motion, until the track's own is measured
+    Measured,  // from the track's own detections
+  };
+  struct PoolEntry {
+    int64_t id = 0;
+    Landmark lm;                     // last detection
+    cv::Point2d centre;              // of the last detection
+    double size = 0;                 //   "
+    cv::Point2d velocity;            // px/s
+    double size_rate = 0;            // px/s
+    Motion motion = Motion::None;
+    bool restart_motion = false;     // this frame: velocity from the common motion
+    int64_t last_seen_utime = 0;
+    int32_t age = 0, hits = 0, frames_since_seen = 0;
+    cv::Point2d pred_centre;         // at the current frame's utime
+    double pred_size = 0;
+    int detection = -1;              // matched detection this frame
+  };
+
+  void predict(int64_t utime);
+  void assign(int64_t utime);
+  // Distance from a pool landmark at (centre, size) to valid detection j, or
+  // Hungarian::kForbidden when the pair fails the distance or size ratio gate.
+  double gatedDistance(const cv::Point2d& centre, double size, size_t j, double max_dist) const;
+  void updateMatched(PoolEntry& e, const Landmark& det, int d, int64_t utime);
+  void report(int64_t utime);
+
+  TrackerParams params_;
+  TrackerStats stats_;
+  int64_t next_id_ = 1;
+  bool has_time_ = false;
+  int64_t last_utime_ = 0;
+  std::vector<PoolEntry> pool_;
+  std::vector<Track> out_;
+  // per-frame scratch, kept between frames
+  std::vector<cv::Point2d> det_centre_;
+  std::vector<double> det_size_;
+  std::vector<int> det_index_;      // valid detections' indices into the input
+  std::vector<char> det_matched_;
+  std::vector<double> common_vx_, common_vy_;
+  std::vector<double> cost_;
+  std::vector<int> row_to_col_;
+  Hungarian hungarian_;
+};
+
+}  // namespace ld

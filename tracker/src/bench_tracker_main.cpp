@@ -1,0 +1,26 @@
+// ld-bench-tracker: the tracker's cost per frame, as a Markdown table.
+#include <cstdio>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "ld/tracker_bench.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"ld-bench-tracker: assignment and tracker update time by landmark count."};
+  std::vector<int> counts{10, 50, 200};
+  int repeats = 200;
+  app.add_option("--landmarks", counts, "landmark counts")->capture_default_str();
+  app.add_option("--repeats", repeats, "timed runs per count (median reported)")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  std::printf("| landmarks | assignment ms (Hungarian, dense n x n) | tracker update ms |\n");
+  std::printf("|---:|---:|---:|\n");
+  for (int n : counts) {
+    if (n < 1) continue;
+    const ld::TrackerTiming t = ld::timeTracker(n, repeats);
+    std::printf("| %d | %.4f | %.4f |\n", t.landmarks, t.assignment_ms, t.update_ms);
+  }
+  return 0;
+}

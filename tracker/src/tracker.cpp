@@ -1,0 +1,291 @@
+#include "ld/tracker.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace ld {
+namespace {
+
+bool finite(const cv::Point2f& p) { return std::isfinite(p.x) && std::isfinite(p.y); }
+
+bool finiteLandmark(const Landmark& lm) {
+  if (!finite(lm.fip_tl) || !finite(lm.fip_tr) || !finite(lm.fip_bl) || !finite(lm.ap))
+    return false;
+  for (const auto& c : lm.corners)
+    if (!finite(c)) return false;
+  return true;
+}
+
+double dist(const cv::Point2d& a, const cv::Point2d& b) { return std::hypot(a.x - b.x, a.y - b.y); }
+
+// The landmark moved so that its centre goes from `from` to `to` and scaled
+// about its centre by `scale`.
+cv::Point2f movePoint(const cv::Point2f& p, const cv::Point2d& from, const cv::Point2d& to,
+                      double scale) {
+  return {static_cast<float>(to.x + (p.x - from.x) * scale),
+          static_cast<float>(to.y + (p.y - from.y) * scale)};
+}
+
+void moveLandmark(Landmark& lm, const cv::Point2d& from, const cv::Point2d& to, double scale) {
+  lm.fip_tl = movePoint(lm.fip_tl, from, to, scale);
+  lm.fip_tr = movePoint(lm.fip_tr, from, to, scale);
+  lm.fip_bl = movePoint(lm.fip_bl, from, to, scale);
+  lm.ap = movePoint(lm.ap, from, to, scale);
+  for (auto& c : lm.corners) c = movePoint(c, from, to, scale);
+}
+
+}  // namespace
+
+cv::Point2f landmarkCentre(const Landmark& lm) {
+  return (lm.fip_tl + lm.fip_tr + lm.fip_bl + lm.ap) * 0.25f;
+}
+
+double landmarkSize(const Landmark& lm) {
+  double sum = 0;
+  for (size_t i = 0; i < 4; ++i) {
+    const cv::Point2f d = lm.corners[(i + 1) % 4] - lm.corners[i];
+    sum += std::hypot(static_cast<double>(d.x), static_cast<double>(d.y));
+  }
+  return sum / 4.0;
+}
+
+Tracker::Tracker(const TrackerParams& params) : params_(params) {
+  params_.validate();
+  pool_.reserve(64);
+  out_.reserve(64);
+}
+
+void Tracker::reset() {
+  stats_.tracks_dropped += static_cast<int64_t>(pool_.size());
+  pool_.clear();
+  out_.clear();
+  has_time_ = false;
+}
+
+const std::vector<Track>& Tracker::update(const std::vector<Landmark>& detections, int64_t utime) {
+  if (has_time_ && utime < last_utime_) {
+    reset();
+    ++stats_.resets;
+  }
+  has_time_ = true;
+  last_utime_ = utime;
+  ++stats_.frames;
+
+  // 0. VALID DETECTIONS, with their centres and sizes.
+  det_index_.clear();
+  det_centre_.clear();
+  det_size_.clear();
+  for (size_t k = 0; k < detections.size(); ++k) {
+    const Landmark& d = detections[k];
+    const double size = finiteLandmark(d) ? landmarkSize(d) : 0.0;
+    if (!(size >= 1.0) || !std::isfinite(size)) {
+      ++stats_.rejected_detections;
+      continue;
+    }
+    det_index_.push_back(static_cast<int>(k));
+    det_centre_.push_back(landmarkCentre(d));
+    det_size_.push_back(size);
+  }
+
+  // 1. EXPIRE: a landmark stays in the pool while unseen for less than its lifetime.
+  const auto lifetime_us = static_cast<int64_t>(std::llround(params_.max_lifetime_s * 1e6));
+  const auto expired = std::remove_if(pool_.begin(), pool_.end(), [&](const PoolEntry& e) {
+    return utime - e.last_seen_utime >= lifetime_us;
+  });
+  stats_.tracks_dropped += pool_.end() - expired;
+  pool_.erase(expired, pool_.end());
+
+  // 2. PREDICT every pool landmark to this frame's time.
+  predict(utime);
+
+  // 3. ASSIGN new landmarks to pool landmarks.
+  assign(utime);
+
+  // 4. UPDATE the pool: matched, coasting, new.
+  common_vx_.clear();
+  common_vy_.clear();
+  const size_t n_old = pool_.size();
+  for (size_t i = 0; i < n_old; ++i) {
+    PoolEntry& e = pool_[i];
+    ++e.age;
+    e.restart_motion = false;
+    if (e.detection >= 0) {
+      const bool continuous = e.frames_since_seen == 0;
+      updateMatched(e, detections[static_cast<size_t>(det_index_[static_cast<size_t>(e.detection)])],
+                    e.detection, utime);
+      if (continuous && e.motion == Motion::Measured) {
+        common_vx_.push_back(e.velocity.x);
+        common_vy_.push_back(e.velocity.y);
+      }
+    } else {
+      ++e.frames_since_seen;
+    }
+  }
+  // A tentative track (fewer than min_hits detections) ends at its first miss.
+  if (params_.min_hits > 1) {
+    const auto gone = std::remove_if(pool_.begin(), pool_.end(), [&](const PoolEntry& e) {
+      return e.detection < 0 && e.hits < params_.min_hits;
+    });
+    stats_.tracks_dropped += pool_.end() - gone;
+    pool_.erase(gone, pool_.end());
+  }
+  for (size_t j = 0; j < det_index_.size(); ++j) {
+    if (det_matched_[j]) continue;
+    pool_.emplace_back();
+    PoolEntry& e = pool_.back();
+    e.id = next_id_++;
+    e.lm = detections[static_cast<size_t>(det_index_[j])];
+    e.centre = det_centre_[j];
+    e.size = det_size_[j];
+    e.pred_centre = e.centre;
+    e.pred_size = e.size;
+    e.last_seen_utime = utime;
+    e.hits = 1;
+    e.detection = static_cast<int>(j);
+    e.restart_motion = true;
+    ++stats_.tracks_created;
+  }
+  // New tracks, tracks found again where they were last seen and tracks
+  // still without a velocity of their own take the image motion common to
+  // the tracks followed without a gap (on a robot, mostly its own motion):
+  // the median of their velocities.
+  if (params_.predict) {
+    const bool has_common = !common_vx_.empty();
+    cv::Point2d common;
+    if (has_common) {
+      const auto mid = static_cast<long>(common_vx_.size() / 2);
+      std::nth_element(common_vx_.begin(), common_vx_.begin() + mid, common_vx_.end());
+      std::nth_element(common_vy_.begin(), common_vy_.begin() + mid, common_vy_.end());
+      common = {common_vx_[static_cast<size_t>(mid)], common_vy_[static_cast<size_t>(mid)]};
+    }
+    for (PoolEntry& e : pool_) {
+      if (e.restart_motion) {
+        e.velocity = common;
+        e.size_rate = 0;
+        e.motion = has_common ? Motion::Borrowed : Motion::None;
+      } else if (e.motion == Motion::None && has_common) {  // still without its own
+        e.velocity = common;
+        e.motion = Motion::Borrowed;
+      }
+    }
+  }
+
+  // 5. REPORT.
+  report(utime);
+  return out_;
+}
+
+void Tracker::predict(int64_t utime) {
+  for (PoolEntry& e : pool_) {
+    e.detection = -1;
+    e.pred_centre = e.centre;
+    e.pred_size = e.size;
+    if (!params_.predict || e.motion == Motion::None) continue;
+    const double dt = static_cast<double>(utime - e.last_seen_utime) * 1e-6;
+    e.pred_centre = e.centre + e.velocity * dt;
+    e.pred_size = std::clamp(e.size + e.size_rate * dt, 0.5 * e.size, 2.0 * e.size);
+  }
+}
+
+void Tracker::assign(int64_t utime) {
+  const size_t n_pool = pool_.size(), n_det = det_index_.size();
+  det_matched_.assign(n_det, 0);
+  // a) Empty pool: every new landmark starts a track (step 4).
+  // b) No new landmarks: every pool landmark ages (step 4).
+  if (n_pool == 0 || n_det == 0) return;
+
+  // c) Both non-empty: the assignment problem, pool landmarks as agents and
+  // new landmarks as tasks, cost = distance. Gated pairs are prohibitive.
+  cost_.resize(n_pool * n_det);
+  for (size_t i = 0; i < n_pool; ++i) {
+    const PoolEntry& e = pool_[i];
+    const double unseen_s = static_cast<double>(utime - e.last_seen_utime) * 1e-6;
+    const double max_dist = params_.max_distance + params_.coast_distance_growth * unseen_s;
+    // A coasting landmark may also be where it was last seen: the robot
+    // stopped or turned back (a landmark that left the image comes back
+    // where it left).
+    const bool two_places = e.frames_since_seen > 0 && e.pred_centre != e.centre;
+    for (size_t j = 0; j < n_det; ++j) {
+      double c = gatedDistance(e.pred_centre, e.pred_size, j, max_dist);
+      if (two_places) c = std::min(c, gatedDistance(e.centre, e.size, j, max_dist));
+      cost_[i * n_det + j] = c;
+    }
+  }
+  hungarian_.solve(cost_.data(), static_cast<int>(n_pool), static_cast<int>(n_det), row_to_col_);
+  for (size_t i = 0; i < n_pool; ++i) {
+    const int j = row_to_col_[i];
+    if (j < 0) continue;
+    pool_[i].detection = j;
+    det_matched_[static_cast<size_t>(j)] = 1;
+    ++stats_.matches;
+  }
+}
+
+double Tracker::gatedDistance(const cv::Point2d& centre, double size, size_t j,
+                              double max_dist) const {
+  const double s1 = det_size_[j];
+  const double d = dist(centre, det_centre_[j]);
+  const bool ok = d <= max_dist * 0.5 * (size + s1) &&
+                  std::max(size, s1) <= params_.max_size_ratio * std::min(size, s1);
+  return ok ? d : Hungarian::kForbidden;
+}
+
+void Tracker::updateMatched(PoolEntry& e, const Landmark& det, int d, int64_t utime) {
+  const cv::Point2d centre = det_centre_[static_cast<size_t>(d)];
+  const double size = det_size_[static_cast<size_t>(d)];
+  const double dt = static_cast<double>(utime - e.last_seen_utime) * 1e-6;
+  if (e.frames_since_seen > 0 && dist(e.centre, centre) < dist(e.pred_centre, centre)) {
+    // Found where it was last seen, not where its motion led: that motion
+    // has ended (the robot stopped or turned back).
+    e.restart_motion = true;
+  } else if (dt > 0) {
+    const cv::Point2d v = (centre - e.centre) / dt;
+    const double sr = (size - e.size) / dt;
+    const double a = e.motion == Motion::Measured ? params_.velocity_smoothing : 1.0;
+    e.velocity = a * v + (1.0 - a) * e.velocity;
+    e.size_rate = a * sr + (1.0 - a) * e.size_rate;
+    e.motion = Motion::Measured;
+  }
+  // The detection replaces the track's landmark; a payload read once stays.
+  if (det.payload || !e.lm.payload) {
+    e.lm = det;
+  } else {
+    e.lm.fip_tl = det.fip_tl;
+    e.lm.fip_tr = det.fip_tr;
+    e.lm.fip_bl = det.fip_bl;
+    e.lm.ap = det.ap;
+    e.lm.corners = det.corners;
+    e.lm.score = det.score;
+    e.lm.pose = det.pose;
+  }
+  e.centre = centre;
+  e.size = size;
+  e.last_seen_utime = utime;
+  e.frames_since_seen = 0;
+  ++e.hits;
+}
+
+void Tracker::report(int64_t utime) {
+  size_t n = 0;
+  for (const PoolEntry& e : pool_) {
+    const bool visible = e.detection >= 0;
+    if (e.hits < params_.min_hits || (!visible && !params_.report_coasting)) continue;
+    if (n == out_.size()) out_.emplace_back();
+    Track& t = out_[n++];
+    t.id = e.id;
+    t.age = e.age;
+    t.hits = e.hits;
+    t.frames_since_seen = e.frames_since_seen;
+    t.time_since_seen_us = utime - e.last_seen_utime;
+    t.visible = visible;
+    t.detection_index = visible ? det_index_[static_cast<size_t>(e.detection)] : -1;
+    t.landmark = e.lm;
+    if (!visible) moveLandmark(t.landmark, e.centre, e.pred_centre, e.pred_size / e.size);
+    t.velocity = cv::Point2f(e.velocity);
+  }
+  // The vector keeps its capacity.
+  out_.erase(out_.begin() + static_cast<long>(n), out_.end());
+}
+
+}  // namespace ld

@@ -1,0 +1,149 @@
+// ld-tracker: subscribes to LANDMARKS, publishes LANDMARKS_TRACKED: the same
+// frames (utime, seq) with a stable track id per landmark, and the landmarks
+// that are briefly not detected (coasting, visible = false) at their
+// predicted position. Always works on the newest message and counts the ones
+// it skipped.
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+#include <lcm/lcm-cpp.hpp>
+
+#include "ld/lcm_url.hpp"
+#include "ld/tracker.hpp"
+#include "ld/tracker_msg.hpp"
+
+namespace {
+
+std::atomic<bool> g_stop{false};
+void onSignal(int) { g_stop = true; }
+
+// Keeps the newest raw message of the input channel; decoding waits until it
+// is actually processed.
+class LatestMessage {
+ public:
+  void onMessage(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    if (pending_) ++skipped_;
+    const auto* p = static_cast<const uint8_t*>(rbuf->data);
+    bytes_.assign(p, p + rbuf->data_size);  // reuses capacity
+    pending_ = true;
+  }
+  bool pending_ = false;
+  int64_t skipped_ = 0;
+  std::vector<uint8_t> bytes_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"ld-tracker: LANDMARKS in, LANDMARKS_TRACKED out (see README)."};
+  std::string url = ld::defaultLcmUrl(), in_channel = "LANDMARKS", out_channel = "LANDMARKS_TRACKED";
+  std::string params_file;
+  ld::TrackerParams cli;  // values of the parameter options (only those given are used)
+  bool no_predict = false, no_coasting = false, print_params = false, verbose = false;
+  app.add_option("--lcm-url", url, "LCM URL")->capture_default_str();
+  app.add_option("--in", in_channel, "landmarks channel (from ld-detector)")->capture_default_str();
+  app.add_option("--out", out_channel, "tracked landmarks channel")->capture_default_str();
+  app.add_option("--params", params_file, "tracker parameters (YAML); the options below override it");
+  auto* o_life = app.add_option("--max-lifetime", cli.max_lifetime_s,
+                                "seconds a landmark is kept while not detected (default 1)");
+  auto* o_dist = app.add_option("--max-distance", cli.max_distance,
+                                "largest match distance, in landmark sizes (default 2)");
+  auto* o_ratio = app.add_option("--max-size-ratio", cli.max_size_ratio,
+                                 "largest size ratio of a match (default 1.5)");
+  auto* o_hits = app.add_option("--min-hits", cli.min_hits,
+                                "detections before a track is published (default 1)");
+  app.add_flag("--no-predict", no_predict, "no constant-velocity prediction (the paper's tracker)");
+  app.add_flag("--no-coasting", no_coasting, "publish only the landmarks detected in each frame");
+  app.add_flag("--print-params", print_params, "print the effective parameters as YAML and exit");
+  app.add_flag("-v,--verbose", verbose, "print a status line every 5 s");
+  CLI11_PARSE(app, argc, argv);
+
+  ld::TrackerParams params;
+  try {
+    if (!params_file.empty()) params = ld::TrackerParams::load(params_file);
+    if (o_life->count()) params.max_lifetime_s = cli.max_lifetime_s;
+    if (o_dist->count()) params.max_distance = cli.max_distance;
+    if (o_ratio->count()) params.max_size_ratio = cli.max_size_ratio;
+    if (o_hits->count()) params.min_hits = cli.min_hits;
+    if (no_predict) params.predict = false;
+    if (no_coasting) params.report_coasting = false;
+    params.validate();
+  } catch (const std::exception& e) {
+    std::cerr << "ld-tracker: " << e.what() << "\n";
+    return 2;
+  }
+  if (print_params) {
+    std::cout << params.toYaml();
+    return 0;
+  }
+  ld::Tracker tracker(params);
+
+  lcm::LCM lcm(url);
+  if (!lcm.good()) {
+    std::cerr << "ld-tracker: cannot open LCM at " << url << "\n";
+    return 2;
+  }
+  LatestMessage latest;
+  lcm.subscribe(in_channel, &LatestMessage::onMessage, &latest);
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
+
+  ld::landmark_list_t in, out;
+  std::vector<ld::Landmark> detections;
+  int64_t processed = 0, bad = 0, last_processed = 0, resets = 0;
+  auto last_status = std::chrono::steady_clock::now();
+  while (!g_stop) {
+    if (lcm.handleTimeout(200) < 0) {
+      std::cerr << "ld-tracker: LCM receive failed\n";
+      return 1;
+    }
+    while (lcm.handleTimeout(0) > 0) {
+    }  // drain the queue: only the newest message is processed
+    if (latest.pending_) {
+      latest.pending_ = false;
+      const int n = static_cast<int>(latest.bytes_.size());
+      if (in.decode(latest.bytes_.data(), 0, n) != n) {
+        ++bad;
+        if (bad <= 10 || bad % 100 == 0)
+          std::cerr << "ld-tracker: dropped message: message on " << in_channel << " (" << n
+                    << " bytes) is not a valid ld.landmark_list_t (" << bad << " bad so far)\n";
+      } else {
+        const auto t0 = std::chrono::steady_clock::now();
+        ld::landmarksFromList(in, detections);
+        const auto& tracks = tracker.update(detections, in.utime);
+        const double ms =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        if (tracker.stats().resets > resets) {
+          resets = tracker.stats().resets;
+          std::cerr << "ld-tracker: utime " << in.utime
+                    << " is older than the previous frame's (log replayed again?): tracks restarted\n";
+        }
+        ld::toTrackedListMessage(tracks, in, ms, latest.skipped_, out);
+        lcm.publish(out_channel, &out);
+        ++processed;
+      }
+    }
+    const auto now = std::chrono::steady_clock::now();
+    if (verbose && now - last_status > std::chrono::seconds(5)) {
+      const double s = std::chrono::duration<double>(now - last_status).count();
+      const auto& st = tracker.stats();
+      std::fprintf(stderr,
+                   "ld-tracker: %.1f frames/s, %lld processed, %lld skipped, %lld bad, "
+                   "%zu in pool, %lld tracks so far\n",
+                   (processed - last_processed) / s, static_cast<long long>(processed),
+                   static_cast<long long>(latest.skipped_), static_cast<long long>(bad),
+                   tracker.poolSize(), static_cast<long long>(st.tracks_created));
+      last_processed = processed;
+      last_status = now;
+    }
+  }
+  std::fprintf(stderr,
+               "ld-tracker: stopped after %lld frames (%lld skipped, %lld bad), %lld tracks\n",
+               static_cast<long long>(processed), static_cast<long long>(latest.skipped_),
+               static_cast<long long>(bad), static_cast<long long>(tracker.stats().tracks_created));
+  return 0;
+}
