@@ -4,9 +4,11 @@
 // predicted position. Always works on the newest message and counts the ones
 // it skipped.
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <iostream>
 
 #include <CLI/CLI.hpp>
@@ -98,7 +100,8 @@ int main(int argc, char** argv) {
   auto last_status = std::chrono::steady_clock::now();
   while (!g_stop) {
     if (lcm.handleTimeout(200) < 0) {
-      std::cerr << "ld-tracker: LCM receive failed\n";
+      if (g_stop || errno == EINTR) continue;  // a signal, not a failure
+      std::cerr << "ld-tracker: LCM receive failed: " << std::strerror(errno) << "\n";
       return 1;
     }
     while (lcm.handleTimeout(0) > 0) {
