@@ -23,6 +23,8 @@ namespace {
 using ld::detail::Region;
 namespace layout = ld::layout;
 
+const ld::detail::MaskThresholds kMt{0.35, 0.35, 25};
+
 // ------------------------------------------------------------------ rendering
 
 // Printed-ink looking colours (BGR).
@@ -171,14 +173,17 @@ TEST(Saturation, LabelsBlueRedAndNothingElse) {
   cv::Mat img(8, 40, CV_8UC3, cv::Scalar(128, 128, 128));
   img.at<cv::Vec3b>(1, 1) = {200, 40, 30};   // blue
   img.at<cv::Vec3b>(1, 2) = {60, 80, 210};   // red (orange-ish)
-  img.at<cv::Vec3b>(1, 3) = {160, 60, 120};  // purplish blue
+  img.at<cv::Vec3b>(1, 3) = {160, 60, 90};   // purplish blue
+  img.at<cv::Vec3b>(1, 11) = {160, 60, 140};  // violet: not blue
+  img.at<cv::Vec3b>(1, 12) = {200, 170, 40};  // teal: not blue
   img.at<cv::Vec3b>(1, 4) = {250, 250, 250};  // white
   img.at<cv::Vec3b>(1, 5) = {20, 5, 5};      // saturated but too dark
   img.at<cv::Vec3b>(1, 6) = {200, 170, 160};  // pale blue: S = 0.2
   img.at<cv::Vec3b>(1, 7) = {40, 200, 50};   // green
+  img.at<cv::Vec3b>(1, 10) = {40, 180, 210};  // yellow: not red
   img.at<cv::Vec3b>(1, 35) = {200, 40, 30};  // in the scalar tail / second vector
   cv::Mat labels;
-  ld::detail::saturationMask(img, 0.35, 25, labels);
+  ld::detail::saturationMask(img, kMt, labels);
   ASSERT_EQ(labels.size(), img.size());
   EXPECT_EQ(labels.at<uint8_t>(1, 1), ld::detail::kBlue);
   EXPECT_EQ(labels.at<uint8_t>(1, 2), ld::detail::kRed);
@@ -187,8 +192,17 @@ TEST(Saturation, LabelsBlueRedAndNothingElse) {
   EXPECT_EQ(labels.at<uint8_t>(1, 5), ld::detail::kNone);
   EXPECT_EQ(labels.at<uint8_t>(1, 6), ld::detail::kNone);
   EXPECT_EQ(labels.at<uint8_t>(1, 7), ld::detail::kNone);
+  EXPECT_EQ(labels.at<uint8_t>(1, 10), ld::detail::kNone);
+  EXPECT_EQ(labels.at<uint8_t>(1, 11), ld::detail::kNone);
+  EXPECT_EQ(labels.at<uint8_t>(1, 12), ld::detail::kNone);
   EXPECT_EQ(labels.at<uint8_t>(1, 35), ld::detail::kBlue);
   EXPECT_EQ(cv::countNonZero(labels), 4);
+  // Default thresholds: blue lower than red. Warm-lit white paper stays unlabelled.
+  img.at<cv::Vec3b>(1, 8) = {180, 225, 255};  // white paper under 4000 K light: S = 0.29
+  img.at<cv::Vec3b>(1, 9) = {150, 120, 110};  // faint blue: S = 0.27
+  ld::detail::saturationMask(img, ld::detail::MaskThresholds{}, labels);
+  EXPECT_EQ(labels.at<uint8_t>(1, 8), ld::detail::kNone);
+  EXPECT_EQ(labels.at<uint8_t>(1, 9), ld::detail::kBlue);
 }
 
 // The vectorised loop and the scalar rule agree on every pixel.
@@ -196,19 +210,28 @@ TEST(Saturation, VectorAndScalarAgree) {
   cv::Mat img(37, 101, CV_8UC3);
   cv::RNG(7).fill(img, cv::RNG::UNIFORM, 0, 256);
   cv::Mat labels;
-  const double thr = 0.35;
-  ld::detail::saturationMask(img, thr, 25, labels);
-  const int q = static_cast<int>(std::lround(thr * 256));
-  int mismatches = 0;
+  const ld::detail::MaskThresholds t{0.2, 0.35, 25};
+  ld::detail::saturationMask(img, t, labels);
+  const int qb = static_cast<int>(std::lround(t.blue * 256)), qr = static_cast<int>(std::lround(t.red * 256));
+  int mismatches = 0, blue = 0, red = 0;
   for (int y = 0; y < img.rows; ++y)
     for (int x = 0; x < img.cols; ++x) {
       const auto p = img.at<cv::Vec3b>(y, x);
       const int mx = std::max({p[0], p[1], p[2]}), mn = std::min({p[0], p[1], p[2]});
-      const bool sat = (mx - mn) > ((mx * q) >> 8) && mx >= 25;
-      const int want = !sat ? 0 : (p[0] == mx ? 1 : (p[2] == mx ? 2 : 0));
+      int want = 0;
+      const int b = p[0], g = p[1], r = p[2];
+      // blue: hue 210..270 degrees; red: hue -60..30 degrees
+      if (mx >= 25 && b == mx)
+        want = (mx - mn) > ((mx * qb) >> 8) && b - g > std::max(0, g - r) && b - r > std::max(0, r - g) ? 1 : 0;
+      else if (mx >= 25 && r == mx)
+        want = (mx - mn) > ((mx * qr) >> 8) && r - g > std::max(0, g - b) ? 2 : 0;
       mismatches += labels.at<uint8_t>(y, x) != want;
+      blue += want == 1;
+      red += want == 2;
     }
   EXPECT_EQ(mismatches, 0);
+  EXPECT_GT(blue, 100);
+  EXPECT_GT(red, 100);
 }
 
 // ====================================================================== regions
@@ -219,10 +242,10 @@ TEST(Regions, SmallSquaresStayWhole) {
   img(cv::Rect(20, 10, 3, 8)).setTo(cv::Scalar(40, 60, 200));  // 3x8 red
   img(cv::Rect(30, 20, 1, 1)).setTo(cv::Scalar(160, 50, 40));  // one pixel of noise
   cv::Mat labels;
-  ld::detail::saturationMask(img, 0.35, 25, labels);
+  ld::detail::saturationMask(img, kMt, labels);
   ld::detail::RunScratch scratch;
   std::vector<Region> regions;
-  ld::detail::extractRegions(labels, img, 0.35, 3, 1000, scratch, regions);
+  ld::detail::extractRegions(labels, img, kMt, 3, 1000, scratch, regions);
   ASSERT_EQ(regions.size(), 2u);
   const Region& b = regions[0].colour == ld::detail::kBlue ? regions[0] : regions[1];
   const Region& r = regions[0].colour == ld::detail::kBlue ? regions[1] : regions[0];
@@ -250,10 +273,10 @@ TEST(Regions, EightConnectedAndPerColour) {
   img(cv::Rect(14, 2, 3, 3)).setTo(cv::Scalar(160, 50, 40));
   img(cv::Rect(14, 5, 3, 3)).setTo(cv::Scalar(40, 60, 200));
   cv::Mat labels;
-  ld::detail::saturationMask(img, 0.35, 25, labels);
+  ld::detail::saturationMask(img, kMt, labels);
   ld::detail::RunScratch scratch;
   std::vector<Region> regions;
-  ld::detail::extractRegions(labels, img, 0.35, 1, 1000, scratch, regions);
+  ld::detail::extractRegions(labels, img, kMt, 1, 1000, scratch, regions);
   ASSERT_EQ(regions.size(), 3u);
   int diag = 0;
   for (const auto& r : regions) diag += r.area == 10;
@@ -268,10 +291,10 @@ TEST(Regions, MergesThroughLaterRows) {
   img(cv::Rect(14, 2, 2, 10)).setTo(cv::Scalar(160, 50, 40));
   img(cv::Rect(2, 12, 14, 2)).setTo(cv::Scalar(160, 50, 40));
   cv::Mat labels;
-  ld::detail::saturationMask(img, 0.35, 25, labels);
+  ld::detail::saturationMask(img, kMt, labels);
   ld::detail::RunScratch scratch;
   std::vector<Region> regions;
-  ld::detail::extractRegions(labels, img, 0.35, 1, 1000, scratch, regions);
+  ld::detail::extractRegions(labels, img, kMt, 1, 1000, scratch, regions);
   ASSERT_EQ(regions.size(), 1u);
   EXPECT_EQ(regions[0].area, 3 * 20 + 28);
 }
@@ -308,9 +331,9 @@ TEST(Graph, EdgesByDistanceAndSize) {
   EXPECT_TRUE(ld::detail::fipEdge(a, sq(124, 124, 8, 8), p));      // diagonal: 4.24
   EXPECT_NEAR(ld::detail::normalisedDistance(a, sq(124, 124, 8, 8)), 3 * std::sqrt(2.0), 1e-9);
   EXPECT_FALSE(ld::detail::fipEdge(a, sq(108, 100, 8, 8), p));     // touching: 1 side
-  EXPECT_FALSE(ld::detail::fipEdge(a, sq(160, 100, 8, 8), p));     // 7.5 sides
-  EXPECT_FALSE(ld::detail::fipEdge(a, sq(124, 100, 24, 24), p));   // three times larger
-  EXPECT_FALSE(ld::detail::fipEdge(a, sq(124, 100, 8, 24), p));    // three times taller
+  EXPECT_FALSE(ld::detail::fipEdge(a, sq(200, 100, 8, 8), p));     // 12.5 sides
+  EXPECT_FALSE(ld::detail::fipEdge(a, sq(124, 100, 28, 28), p));   // 3.5 times larger
+  EXPECT_FALSE(ld::detail::fipEdge(a, sq(124, 100, 8, 28), p));    // 3.5 times taller
   // Foreshortened 3x (yaw): widths and x distances shrink together.
   EXPECT_TRUE(ld::detail::fipEdge(sq(100, 100, 2.7, 8), sq(108, 100, 2.7, 8), p));
   // Rolled 45 degrees: the moments of a square do not change, the distance neither.

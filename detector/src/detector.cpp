@@ -25,6 +25,7 @@ void forEachField(DetectorParams& p, F&& f) {
   f("blur_kernel", p.blur_kernel);
   f("blur_sigma", p.blur_sigma);
   f("saturation_threshold", p.saturation_threshold);
+  f("saturation_threshold_blue", p.saturation_threshold_blue);
   f("value_min", p.value_min);
   f("canny_low", p.canny_low);
   f("canny_high", p.canny_high);
@@ -32,6 +33,7 @@ void forEachField(DetectorParams& p, F&& f) {
   f("max_area_frac_1000", p.max_area_frac_1000);
   f("color_ratio_a", p.color_ratio_a);
   f("color_ratio_b", p.color_ratio_b);
+  f("min_fill", p.min_fill);
   f("d_min", p.d_min);
   f("d_max", p.d_max);
   f("w_min", p.w_min);
@@ -44,6 +46,9 @@ void forEachField(DetectorParams& p, F&& f) {
   f("shape_tolerance", p.shape_tolerance);
   f("sheet_max_saturation", p.sheet_max_saturation);
   f("sheet_min_value", p.sheet_min_value);
+  f("qr_max_brightness", p.qr_max_brightness);
+  f("cover_min", p.cover_min);
+  f("cover_max", p.cover_max);
   f("max_candidates", p.max_candidates);
   f("centre_iterations", p.centre_iterations);
 }
@@ -119,6 +124,8 @@ void DetectorParams::validate() const {
     bad("blur_kernel", "must be -1, 0 or an odd number from 1 to 31");
   if (!(blur_sigma >= 0 && blur_sigma <= 20)) bad("blur_sigma", "must be in [0, 20]");
   if (!(saturation_threshold > 0 && saturation_threshold < 1)) bad("saturation_threshold", "must be in (0, 1)");
+  if (!(saturation_threshold_blue > 0 && saturation_threshold_blue < 1))
+    bad("saturation_threshold_blue", "must be in (0, 1)");
   if (value_min < 0 || value_min > 255) bad("value_min", "must be in [0, 255]");
   if (!(canny_low >= 0)) bad("canny_low", "must be >= 0");
   if (!(canny_high >= canny_low)) bad("canny_high", "must be >= canny_low");
@@ -126,6 +133,7 @@ void DetectorParams::validate() const {
   if (max_area_frac_1000 < 1 || max_area_frac_1000 > 1000) bad("max_area_frac_1000", "must be in [1, 1000]");
   if (!(color_ratio_a > 0)) bad("color_ratio_a", "must be > 0");
   if (!(color_ratio_b > 0)) bad("color_ratio_b", "must be > 0");
+  if (!(min_fill >= 0 && min_fill <= 1)) bad("min_fill", "must be in [0, 1]");
   if (!(d_min > 0)) bad("d_min", "must be > 0");
   if (!(d_max > d_min)) bad("d_max", "must be > d_min");
   if (!(w_min > 0 && w_min <= 1)) bad("w_min", "must be in (0, 1]");
@@ -138,6 +146,9 @@ void DetectorParams::validate() const {
   if (!(shape_tolerance > 0 && shape_tolerance <= 1)) bad("shape_tolerance", "must be in (0, 1]");
   if (!(sheet_max_saturation > 0 && sheet_max_saturation <= 1)) bad("sheet_max_saturation", "must be in (0, 1]");
   if (!(sheet_min_value >= 0 && sheet_min_value <= 2)) bad("sheet_min_value", "must be in [0, 2]");
+  if (!(cover_min >= 0 && cover_min < 1)) bad("cover_min", "must be in [0, 1)");
+  if (!(cover_max > cover_min && cover_max <= 1)) bad("cover_max", "must be in (cover_min, 1]");
+  if (!(qr_max_brightness > 0 && qr_max_brightness <= 2)) bad("qr_max_brightness", "must be in (0, 2]");
   if (max_candidates < 3 || max_candidates > 4096) bad("max_candidates", "must be in [3, 4096]");
   if (centre_iterations < 0 || centre_iterations > 10) bad("centre_iterations", "must be in [0, 10]");
 }
@@ -242,9 +253,10 @@ void Detector::Impl::run(const cv::Mat& input) {
 
   // 2-4. SATURATION, (EDGES), CONTOURS: candidate regions
   if (!paper) {
-    detail::saturationMask(*src, p.saturation_threshold, p.value_min, labels);
+    const detail::MaskThresholds mt{p.saturation_threshold_blue, p.saturation_threshold, p.value_min};
+    detail::saturationMask(*src, mt, labels);
     timer.stamp("saturation");
-    detail::extractRegions(labels, *src, p.saturation_threshold, p.min_area_px, max_area, runs, regions);
+    detail::extractRegions(labels, *src, mt, p.min_area_px, max_area, runs, regions);
     timer.stamp("contours");
   } else {
     detail::saturationImage(*src, sat);
@@ -260,6 +272,7 @@ void Detector::Impl::run(const cv::Mat& input) {
   fips.clear();
   aps.clear();
   for (const auto& r : regions) {
+    if (!paper && detail::fill(r) < p.min_fill) continue;
     if (r.colour == detail::kBlue && detail::isFip(r, p.color_ratio_a, p.color_ratio_b)) fips.push_back(r);
     else if (r.colour == detail::kRed && detail::isAp(r, p.color_ratio_a, p.color_ratio_b)) aps.push_back(r);
   }

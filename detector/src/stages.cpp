@@ -46,22 +46,37 @@ double cross(const cv::Point2d& a, const cv::Point2d& b) { return a.x * b.y - a.
 
 cv::Point2d centre(const Region& r) { return {r.cx, r.cy}; }
 
-// Saturation (0..1) and value (0..255) of the image at a sub-pixel position,
-// bilinearly interpolated; false outside the image.
-bool sampleSV(const cv::Mat& bgr, const cv::Point2d& p, double& s, double& v) {
+// The image at a sub-pixel position, bilinearly interpolated; false outside.
+bool sampleBgr(const cv::Mat& bgr, const cv::Point2d& p, double c[3]) {
   const int x0 = static_cast<int>(std::floor(p.x)), y0 = static_cast<int>(std::floor(p.y));
   if (x0 < 0 || y0 < 0 || x0 + 1 >= bgr.cols || y0 + 1 >= bgr.rows) return false;
   const double fx = p.x - x0, fy = p.y - y0;
-  double c[3] = {0, 0, 0};
+  c[0] = c[1] = c[2] = 0;
   const double w[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
   for (int k = 0; k < 4; ++k) {
     const uint8_t* px = bgr.ptr<uint8_t>(y0 + (k >> 1)) + 3 * (x0 + (k & 1));
     for (int ch = 0; ch < 3; ++ch) c[ch] += w[k] * px[ch];
   }
+  return true;
+}
+
+// Saturation (0..1), value (0..255) and mean of the channels at a sub-pixel
+// position; false outside the image.
+bool sampleSV(const cv::Mat& bgr, const cv::Point2d& p, double& s, double& v, double* mean = nullptr) {
+  double c[3];
+  if (!sampleBgr(bgr, p, c)) return false;
   const double mx = std::max({c[0], c[1], c[2]}), mn = std::min({c[0], c[1], c[2]});
   v = mx;
   s = mx > 0 ? (mx - mn) / mx : 0.0;
+  if (mean) *mean = (c[0] + c[1] + c[2]) / 3;
   return true;
+}
+
+// Colour excess of a hue at a sub-pixel position (bilinear), or 0 outside.
+double excessAt(const cv::Mat& bgr, const cv::Point2d& p, uint8_t colour) {
+  double c[3];
+  if (!sampleBgr(bgr, p, c)) return 0;
+  return colour == kBlue ? c[0] - std::max(c[1], c[2]) : c[2] - std::max(c[0], c[1]);
 }
 
 }  // namespace
@@ -73,11 +88,11 @@ double Region::side() const {
 
 // ====================================================================== front ends
 
-void saturationMask(const cv::Mat& bgr, double saturation_threshold, int value_min, cv::Mat& labels) {
+void saturationMask(const cv::Mat& bgr, const MaskThresholds& mt, cv::Mat& labels) {
   CV_Assert(bgr.type() == CV_8UC3);
   labels.create(bgr.size(), CV_8UC1);
-  const int thr = thresholdQ8(saturation_threshold);
-  const int vmin = std::clamp(value_min, 0, 255);
+  const int thr_b = thresholdQ8(mt.blue), thr_r = thresholdQ8(mt.red);
+  const int vmin = std::clamp(mt.value_min, 0, 255);
   const int w = bgr.cols;
   for (int y = 0; y < bgr.rows; ++y) {
     const uint8_t* src = bgr.ptr<uint8_t>(y);
@@ -86,7 +101,8 @@ void saturationMask(const cv::Mat& bgr, double saturation_threshold, int value_m
 #if CV_SIMD
     {
       const int n = cv::v_uint8::nlanes;
-      const cv::v_uint16 vthr = cv::vx_setall_u16(static_cast<uint16_t>(thr));
+      const cv::v_uint16 vthr_b = cv::vx_setall_u16(static_cast<uint16_t>(thr_b));
+      const cv::v_uint16 vthr_r = cv::vx_setall_u16(static_cast<uint16_t>(thr_r));
       const cv::v_uint8 vvmin = cv::vx_setall_u8(static_cast<uint8_t>(vmin));
       const cv::v_uint8 one = cv::vx_setall_u8(kBlue), two = cv::vx_setall_u8(kRed);
       for (; x <= w - n; x += n) {
@@ -97,21 +113,29 @@ void saturationMask(const cv::Mat& bgr, double saturation_threshold, int value_m
         const cv::v_uint8 c = mx - mn;
         cv::v_uint16 m0, m1;
         cv::v_expand(mx, m0, m1);
-        // threshold * max in 8.8 fixed point, back to 8 bits
-        const cv::v_uint8 t = cv::v_pack(cv::v_shr<8>(cv::v_mul_wrap(m0, vthr)),
-                                         cv::v_shr<8>(cv::v_mul_wrap(m1, vthr)));
-        const cv::v_uint8 sat = (c > t) & (mx >= vvmin);
-        const cv::v_uint8 isb = (b == mx);
-        const cv::v_uint8 isr = (r == mx) & ~isb;
-        cv::v_store(dst + x, sat & ((isb & one) | (isr & two)));
+        // threshold * max in 8.8 fixed point, back to 8 bits, for either hue
+        const cv::v_uint8 tb = cv::v_pack(cv::v_shr<8>(cv::v_mul_wrap(m0, vthr_b)),
+                                          cv::v_shr<8>(cv::v_mul_wrap(m1, vthr_b)));
+        const cv::v_uint8 tr = cv::v_pack(cv::v_shr<8>(cv::v_mul_wrap(m0, vthr_r)),
+                                          cv::v_shr<8>(cv::v_mul_wrap(m1, vthr_r)));
+        const cv::v_uint8 bright = mx >= vvmin;
+        // blue: hue within 210..270 degrees, so cyan, teal and violet are not blue
+        const cv::v_uint8 isb = (b == mx) & (c > tb) & bright & ((b - g) > (g - r)) & ((b - r) > (r - g));
+        // red: hue below 30 degrees (r - g > g - b), so yellow and warm-lit white are not red
+        const cv::v_uint8 isr = (r == mx) & ~(b == mx) & (c > tr) & bright & ((r - g) > (g - b));
+        cv::v_store(dst + x, (isb & one) | (isr & two));
       }
     }
 #endif
     for (; x < w; ++x) {
       const int b = src[3 * x], g = src[3 * x + 1], r = src[3 * x + 2];
       const int mx = std::max({b, g, r}), mn = std::min({b, g, r});
-      const bool sat = (mx - mn) > ((mx * thr) >> 8) && mx >= vmin;
-      dst[x] = !sat ? kNone : (b == mx ? kBlue : (r == mx ? kRed : kNone));
+      const int c = mx - mn;
+      dst[x] = mx < vmin                                 ? kNone
+               : b == mx ? (c > ((mx * thr_b) >> 8) && b - g > std::max(0, g - r) && b - r > std::max(0, r - g)
+                                ? kBlue : kNone)
+               : r == mx ? (c > ((mx * thr_r) >> 8) && r - g > std::max(0, g - b) ? kRed : kNone)
+                         : kNone;
     }
   }
 }
@@ -139,14 +163,14 @@ inline int64_t sumSq(int64_t n) { return n * (n + 1) * (2 * n + 1) / 6; }
 
 }  // namespace
 
-void extractRegions(const cv::Mat& labels, const cv::Mat& bgr, double saturation_threshold,
+void extractRegions(const cv::Mat& labels, const cv::Mat& bgr, const MaskThresholds& mt,
                     int min_area, int max_area, RunScratch& scratch, std::vector<Region>& out) {
   CV_Assert(labels.type() == CV_8UC1 && bgr.type() == CV_8UC3 && labels.size() == bgr.size());
   out.clear();
   auto& runs = scratch.runs;
   runs.clear();
   const int w = labels.cols, h = labels.rows;
-  const int thr = thresholdQ8(saturation_threshold);
+  const int thr_b = thresholdQ8(mt.blue), thr_r = thresholdQ8(mt.red);
   int prev_begin = 0, prev_end = 0;
   for (int y = 0; y < h; ++y) {
     const uint8_t* L = labels.ptr<uint8_t>(y);
@@ -164,6 +188,7 @@ void extractRegions(const cv::Mat& labels, const cv::Mat& bgr, double saturation
       while (x < w && L[x] == kNone) ++x;
       if (x >= w) break;
       const uint8_t c = L[x];
+      const int thr = c == kBlue ? thr_b : thr_r;
       RunScratch::Run run{y, x, x, c, static_cast<int>(runs.size()), 0, 0, 0, 0, 0, 0};
       for (; x < w && L[x] == c; ++x) {
         const int b = src[3 * x], g = src[3 * x + 1], r = src[3 * x + 2];
@@ -249,6 +274,64 @@ void extractRegions(const cv::Mat& labels, const cv::Mat& bgr, double saturation
   }
 }
 
+namespace {
+
+inline int hueExcess(const uint8_t* px, uint8_t colour) {
+  const int b = px[0], g = px[1], r = px[2];
+  return colour == kBlue ? b - std::max(g, r) : r - std::max(g, b);
+}
+
+}  // namespace
+
+bool refineMoments(const cv::Mat& bgr, Region& reg, std::vector<int>& border) {
+  const int m = 1 + std::max(reg.width(), reg.height()) / 2;
+  const int x0 = std::max(0, reg.x0 - m), y0 = std::max(0, reg.y0 - m);
+  const int x1 = std::min(bgr.cols - 1, reg.x1 + m), y1 = std::min(bgr.rows - 1, reg.y1 + m);
+  if (x1 - x0 < 2 || y1 - y0 < 2) return false;
+  // Background: the median excess on the window's border.
+  border.clear();
+  for (int x = x0; x <= x1; ++x) {
+    border.push_back(hueExcess(bgr.ptr<uint8_t>(y0) + 3 * x, reg.colour));
+    border.push_back(hueExcess(bgr.ptr<uint8_t>(y1) + 3 * x, reg.colour));
+  }
+  for (int y = y0 + 1; y < y1; ++y) {
+    border.push_back(hueExcess(bgr.ptr<uint8_t>(y) + 3 * x0, reg.colour));
+    border.push_back(hueExcess(bgr.ptr<uint8_t>(y) + 3 * x1, reg.colour));
+  }
+  std::nth_element(border.begin(), border.begin() + static_cast<long>(border.size() / 2), border.end());
+  const int bg = std::max(0, border[border.size() / 2]);
+  // Peak: the largest excess inside the region's box.
+  int peak = 0;
+  for (int y = reg.y0; y <= reg.y1; ++y) {
+    const uint8_t* row = bgr.ptr<uint8_t>(y);
+    for (int x = reg.x0; x <= reg.x1; ++x) peak = std::max(peak, hueExcess(row + 3 * x, reg.colour));
+  }
+  if (peak - bg < 8) return false;
+  const int floor = bg + (peak - bg) / 10;
+  double sw = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+  for (int y = y0; y <= y1; ++y) {
+    const uint8_t* row = bgr.ptr<uint8_t>(y);
+    for (int x = x0; x <= x1; ++x) {
+      const int w = std::min(hueExcess(row + 3 * x, reg.colour), peak) - floor;
+      if (w <= 0) continue;
+      sw += w;
+      sx += w * x;
+      sy += w * y;
+      sxx += static_cast<double>(w) * x * x;
+      syy += static_cast<double>(w) * y * y;
+      sxy += static_cast<double>(w) * x * y;
+    }
+  }
+  if (sw <= 0) return false;
+  const double cx = sx / sw, cy = sy / sw;
+  reg.cx = cx;
+  reg.cy = cy;
+  reg.sxx = sxx / sw - cx * cx + 1.0 / 12;
+  reg.syy = syy / sw - cy * cy + 1.0 / 12;
+  reg.sxy = sxy / sw - cx * cy;
+  return true;
+}
+
 void saturationImage(const cv::Mat& bgr, cv::Mat& sat) {
   CV_Assert(bgr.type() == CV_8UC3);
   sat.create(bgr.size(), CV_8UC1);
@@ -293,6 +376,11 @@ void contourRegions(const cv::Mat& edges, const cv::Mat& bgr, int min_area, int 
 
 bool isFip(const Region& r, double a, double b) {
   return r.sum_b > a * r.sum_r && r.sum_b > b * r.sum_g;
+}
+
+double fill(const Region& r) {
+  const double s = r.side();
+  return s > 0 ? r.area / (s * s) : 0.0;
 }
 
 bool isAp(const Region& r, double a, double b) {
@@ -364,12 +452,16 @@ bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
 }
 
 bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Region>& aps,
-            const cv::Mat& bgr, const DetectorParams& p) {
+            const cv::Mat& bgr, const DetectorParams& p, const char** why) {
+  auto fail = [&](const char* reason) {
+    if (why) *why = reason;
+    return false;
+  };
   const Region* sq[4] = {&fips[c.tl], &fips[c.tr], &aps[c.ap], &fips[c.bl]};  // clockwise
   const cv::Point2d P[4] = {centre(*sq[0]), centre(*sq[1]), centre(*sq[2]), centre(*sq[3])};
   // Convex, clockwise in the image.
   for (int i = 0; i < 4; ++i)
-    if (!(cross(P[(i + 1) % 4] - P[i], P[(i + 2) % 4] - P[(i + 1) % 4]) > 0)) return false;
+    if (!(cross(P[(i + 1) % 4] - P[i], P[(i + 2) % 4] - P[(i + 1) % 4]) > 0)) return fail("not convex");
 
   // Layout in the frame of the squares' moments: a square of side 3.
   Sym2 s;
@@ -379,23 +471,23 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
     s.yy += r->syy / 4;
   }
   Sym2 m;
-  if (!metric(s, m)) return false;
+  if (!metric(s, m)) return fail("degenerate moments");
   const cv::Point2d e1 = P[1] - P[0], e2 = P[3] - P[0];
   const cv::Point2d e3 = P[2] - P[1], e4 = P[2] - P[3];
   const double l1 = std::sqrt(quad(m, e1.x, e1.y)), l2 = std::sqrt(quad(m, e2.x, e2.y));
   const double l3 = std::sqrt(quad(m, e3.x, e3.y)), l4 = std::sqrt(quad(m, e4.x, e4.y));
   const double cosang = bilin(m, e1.x, e1.y, e2.x, e2.y) / (l1 * l2);
   const double tol = p.shape_tolerance;
-  for (double l : {l1, l2, l3, l4})
-    if (std::abs(l / 3.0 - 1.0) > tol) return false;
-  if (std::abs(cosang) > tol) return false;
-  if (l1 > l2 * (1 + tol) || l2 > l1 * (1 + tol)) return false;
+  const double lmin = std::min({l1, l2, l3, l4}), lmax = std::max({l1, l2, l3, l4});
+  if (lmin < p.d_min || lmax > p.d_max) return fail("side length");
+  if (lmax > lmin * (1 + tol)) return fail("side ratio");
+  if (std::abs(cosang) > tol) return fail("angle");
 
   // Sizes: every square within the AP size gates of the FIPs' mean side.
   const double side = std::sqrt(12.0) * std::pow(s.det(), 0.25);
   for (const Region* r : sq) {
     const double ratio = r->side() / side;
-    if (ratio < p.ap_size_min || ratio > p.ap_size_max) return false;
+    if (ratio < p.ap_size_min || ratio > p.ap_size_max) return fail("square size");
   }
 
   // White, unsaturated sheet between the squares, and no colour at the centre.
@@ -406,31 +498,94 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   }
   const cv::Point2d mid[4] = {(P[0] + P[1]) * 0.5, (P[1] + P[2]) * 0.5, (P[2] + P[3]) * 0.5,
                               (P[3] + P[0]) * 0.5};
+  double sheet_mean = 0;
   for (const auto& q : mid) {
-    double sv, vv;
-    if (!sampleSV(bgr, q, sv, vv)) return false;
-    if (sv > p.sheet_max_saturation || vv < p.sheet_min_value * fip_value) return false;
+    double sv, vv, mean;
+    if (!sampleSV(bgr, q, sv, vv, &mean)) return fail("outside the image");
+    if (sv > p.sheet_max_saturation) return fail("sheet saturated");
+    if (vv < p.sheet_min_value * fip_value) return fail("sheet dark");
+    sheet_mean += mean / 4;
+  }
+  // The QR: its square is darker than the sheet (black modules, or grey when
+  // they are too small to resolve). A 5 x 5 grid over its middle, placed by
+  // the affine frame of TL, TR, BL.
+  {
+    const cv::Point2d ex = (P[1] - P[0]) * (1.0 / 6), ey = (P[3] - P[0]) * (1.0 / 6);
+    double qr_mean = 0;
+    for (int j = 0; j < 5; ++j)
+      for (int i = 0; i < 5; ++i) {
+        const double u = 3.1 + 0.7 * i - 1.5, v = 3.1 + 0.7 * j - 1.5;
+        double c[3];
+        if (!sampleBgr(bgr, P[0] + ex * u + ey * v, c)) return fail("outside the image");
+        qr_mean += (c[0] + c[1] + c[2]) / 75;
+      }
+    if (qr_mean > p.qr_max_brightness * sheet_mean) return fail("no QR");
   }
   const cv::Point2d ctr = (P[0] + P[1] + P[2] + P[3]) * 0.25;
   {
     double sv, vv;
-    if (!sampleSV(bgr, ctr, sv, vv)) return false;
-    if (vv >= p.value_min && sv > p.sheet_max_saturation) return false;
+    if (!sampleSV(bgr, ctr, sv, vv)) return fail("outside the image");
+    if (vv >= p.value_min && sv > p.sheet_max_saturation) return fail("centre saturated");
+  }
+  // Each side: the squares cover a third of it.
+  const uint8_t colours[4] = {kBlue, kBlue, kRed, kBlue};
+  double cover_err = 0;
+  for (int i = 0; i < 4; ++i) {
+    const double f = coverFraction(bgr, P[i], colours[i], P[(i + 1) % 4], colours[(i + 1) % 4]);
+    if (f < p.cover_min || f > p.cover_max) return fail("cover");
+    cover_err += std::abs(f - 1.0 / 3) / 4;
   }
   // No coloured square inside the QR square (within one FIP side of the centre).
   auto inCentre = [&](const Region& r) {
     return std::sqrt(quad(m, r.cx - ctr.x, r.cy - ctr.y)) < 1.0 && r.side() > 0.5 * side;
   };
   for (const Region& r : fips)
-    if (inCentre(r)) return false;
+    if (inCentre(r)) return fail("square at the centre");
   for (const Region& r : aps)
-    if (inCentre(r)) return false;
+    if (inCentre(r)) return fail("square at the centre");
 
-  const double shape_err = (std::abs(l1 / 3 - 1) + std::abs(l2 / 3 - 1) + std::abs(l3 / 3 - 1) +
-                            std::abs(l4 / 3 - 1)) / 4 + std::abs(cosang);
-  c.error += shape_err / tol;
+  const double shape_err = (lmax / lmin - 1) + std::abs(cosang);
+  c.error += shape_err / tol + cover_err / 0.15;
   c.score = static_cast<float>(std::exp(-c.error));
   return true;
+}
+
+double coverFraction(const cv::Mat& bgr, cv::Point2d a, uint8_t ca, cv::Point2d b, uint8_t cb) {
+  constexpr int kMax = 64;
+  const double len = cv::norm(b - a);
+  if (!(len > 1)) return -1;
+  const int n = std::clamp(static_cast<int>(2 * len), 8, kMax);
+  double ea[kMax + 1], eb[kMax + 1];
+  double lo = 1e9;
+  for (int i = 0; i <= n; ++i) {
+    const cv::Point2d q = a + (b - a) * (static_cast<double>(i) / n);
+    ea[i] = excessAt(bgr, q, ca);
+    eb[i] = ca == cb ? ea[i] : excessAt(bgr, q, cb);
+  }
+  // The gap: the lowest point of the middle of the profile, in both hues.
+  for (int i = n / 4; i <= 3 * n / 4; ++i) lo = std::min(lo, std::max(ea[i], eb[i]));
+  // Each end's peak near its centre.
+  int ia = 0, ib = n;
+  for (int i = 1; i <= n / 8; ++i) {
+    if (ea[i] > ea[ia]) ia = i;
+    if (eb[n - i] > eb[ib]) ib = n - i;
+  }
+  const double pa = ea[ia], pb = eb[ib];
+  if (!(pa - lo > 4 && pb - lo > 4)) return -1;
+  const double ha = (pa + lo) / 2, hb = (pb + lo) / 2;
+  // Walk out of each square to its half level (linear interpolation).
+  double ta = 0.5, tb = 0.5;
+  for (int i = ia + 1; i <= n; ++i)
+    if (ea[i] < ha) {
+      ta = (i - 1 + (ea[i - 1] - ha) / (ea[i - 1] - ea[i])) / n;
+      break;
+    }
+  for (int i = ib - 1; i >= 0; --i)
+    if (eb[i] < hb) {
+      tb = (n - i - 1 + (eb[i + 1] - hb) / (eb[i + 1] - eb[i])) / n;
+      break;
+    }
+  return ta + tb;
 }
 
 void resolveOverlaps(std::vector<Candidate>& cands, int n_fips, int n_aps, std::vector<uint8_t>& used) {

@@ -35,11 +35,19 @@ struct Region {
 
 // ---------------------------------------------------------------- front ends
 
+/// Thresholds of the fast front end's per-pixel rule.
+struct MaskThresholds {
+  double blue = 0.25;  ///< saturation a blue pixel exceeds
+  double red = 0.45;   ///< saturation a red pixel exceeds
+  int value_min = 25; ///< darker pixels are never saturated
+};
+
 /// 2. saturation (fast front end): one pass over an 8-bit BGR image writing a
-/// CV_8U label image: kBlue where the pixel is saturated ((max - min) >
-/// threshold * max, max >= value_min) and blue is its largest channel, kRed
-/// where red is, kNone elsewhere.
-void saturationMask(const cv::Mat& bgr, double saturation_threshold, int value_min, cv::Mat& labels);
+/// CV_8U label image: kBlue where blue is the pixel's largest channel and it
+/// is saturated ((max - min) > threshold * max, max >= value_min), kRed where
+/// red is and its hue is below 30 degrees (r - g > g - b: red and red-orange,
+/// not yellow), kNone elsewhere.
+void saturationMask(const cv::Mat& bgr, const MaskThresholds& t, cv::Mat& labels);
 
 /// Scratch memory of the run-based labelling, kept between frames.
 struct RunScratch {
@@ -64,7 +72,7 @@ struct RunScratch {
 /// label image, with their area, bbox, weighted centroid, moments and the
 /// channel sums of their pixels. Regions outside [min_area, max_area] are
 /// dropped.
-void extractRegions(const cv::Mat& labels, const cv::Mat& bgr, double saturation_threshold,
+void extractRegions(const cv::Mat& labels, const cv::Mat& bgr, const MaskThresholds& t,
                     int min_area, int max_area, RunScratch& scratch, std::vector<Region>& out);
 
 /// HSV saturation of an 8-bit BGR image (0..255), as the paper's front end uses.
@@ -77,11 +85,22 @@ void saturationImage(const cv::Mat& bgr, cv::Mat& sat);
 void contourRegions(const cv::Mat& edges, const cv::Mat& bgr, int min_area, int max_area,
                     std::vector<std::vector<cv::Point>>& contours, std::vector<Region>& out);
 
+/// Refines a fast-front-end region's centre and moments from the colour
+/// excess of its hue (blue: b - max(g, r); red: r - max(g, b)) over its
+/// bounding box grown by a margin, above the local background (the median
+/// excess on the window's border): the excess is linear in how much of a
+/// pixel the square covers, so these moments are the printed square's (plus
+/// the blur's), where the thresholded region's are smaller. False when the
+/// square is too faint to refine (the region is left as it was).
+bool refineMoments(const cv::Mat& bgr, Region& r, std::vector<int>& scratch);
+
 // ---------------------------------------------------------------- colour
 
 /// 5. colour: FIP when sum blue > a * sum red and sum blue > b * sum green, AP
 /// when the same holds for red.
 bool isFip(const Region& r, double a, double b);
+/// Area over the area of the square the moments describe (side()^2).
+double fill(const Region& r);
 bool isAp(const Region& r, double a, double b);
 
 // ---------------------------------------------------------------- geometry
@@ -119,9 +138,19 @@ bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
 /// Verification against look-alikes: convex quadrilateral, consistent sizes,
 /// a square layout in the frame of the squares' moments, white unsaturated
 /// sheet between the squares and at the centre, no coloured region at the
-/// centre. Sets the candidate's score.
+/// centre. Sets the candidate's score. `why`, when given, names the failed check.
 bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Region>& aps,
-            const cv::Mat& bgr, const DetectorParams& p);
+            const cv::Mat& bgr, const DetectorParams& p, const char** why = nullptr);
+
+/// The fraction of the segment between two square centres a and b that the
+/// two squares cover, from the colour-excess profile along it (each end's
+/// hue: blue b - max(g, r), red r - max(g, b)) cut at half way between each
+/// end's peak and the white gap between them. 1/3 between any two squares of
+/// a landmark (a square's half extent along any line through its centre over
+/// the distance of two centres), whatever the view, blur or threshold; 2/3
+/// between a corner square and one in the middle of a card. Negative when
+/// the profile shows no gap.
+double coverFraction(const cv::Mat& bgr, cv::Point2d a, uint8_t colour_a, cv::Point2d b, uint8_t colour_b);
 
 /// Candidates sharing a region: the best score wins, greedily.
 void resolveOverlaps(std::vector<Candidate>& candidates, int n_fips, int n_aps,

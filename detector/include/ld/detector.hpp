@@ -45,9 +45,15 @@ struct DetectorParams {
   double blur_sigma = 0.0;    ///< Gaussian sigma (0: from the kernel; the paper's 3 with -1)
 
   // 2. saturation
-  /// HSV saturation (0..1) a square's pixels exceed. Lower finds fainter,
-  /// smaller and more distant squares, and more background.
-  double saturation_threshold = 0.35;
+  /// HSV saturation (0..1) the AP's (red) pixels exceed, and every pixel in
+  /// the paper front end. Lower finds fainter, smaller and more distant
+  /// squares, and more background; warm light makes white paper orange
+  /// (S ~ 0.25 at 4000 K), which this must stay above.
+  double saturation_threshold = 0.45;
+  /// The same for the FIPs' (blue) pixels in the fast front end: printed blue
+  /// is dark and only moderately saturated, while no usual light makes white
+  /// paper blue, so blue can go lower and keep small FIPs whole.
+  double saturation_threshold_blue = 0.25;
   int value_min = 25;  ///< darker pixels (max channel, 0..255) are never saturated: noise
 
   // 3. edges (paper front end)
@@ -61,19 +67,23 @@ struct DetectorParams {
   // 5. colour ratios (paper: a, b in [1.2, 1.6]). The fast front end takes
   // the sums over a region's own pixels, the paper front end over its
   // bounding rectangle. Higher rejects more faint or greyish regions.
-  double color_ratio_a = 1.3;  ///< FIP: sum blue > a * sum red;  AP: sum red > a * sum blue
-  double color_ratio_b = 1.3;  ///< FIP: sum blue > b * sum green; AP: sum red > b * sum green
+  double color_ratio_a = 1.1;  ///< FIP: sum blue > a * sum red;  AP: sum red > a * sum blue
+  double color_ratio_b = 1.1;  ///< FIP: sum blue > b * sum green; AP: sum red > b * sum green
+  /// A candidate square must fill at least this fraction of the square its
+  /// moments describe (1 for a solid square or parallelogram; rings, strokes,
+  /// scattered noise fill less). Fast front end only.
+  double min_fill = 0.5;
 
   // 6. FIP graph: distance (1), as centre distance in units of the pair's mean
   // square side, measured in the frame of the pair's second moments (so it
   // holds under any roll and foreshortening: 3 for neighbours, 4.24 across
   // the diagonal), and the size ratio (2) per image axis.
   double d_min = 1.6;  ///< Paper D_min
-  double d_max = 5.5;  ///< Paper D_max
-  double w_min = 0.4;  ///< Paper W_min: width ratio of two FIPs
-  double w_max = 2.5;  ///< Paper W_max
-  double h_min = 0.4;  ///< Paper H_min: height ratio
-  double h_max = 2.5;  ///< Paper H_max
+  double d_max = 11.0;  ///< Paper D_max (thresholded small squares come out much smaller than printed)
+  double w_min = 0.33;  ///< Paper W_min: width ratio of two FIPs
+  double w_max = 3.0;  ///< Paper W_max
+  double h_min = 0.33;  ///< Paper H_min: height ratio
+  double h_max = 3.0;  ///< Paper H_max
 
   // 7. AP gates: the AP lies where TR + BL - TL predicts.
   double ap_max_offset = 0.8;  ///< distance to the predicted position, in FIP sides
@@ -81,15 +91,28 @@ struct DetectorParams {
   double ap_size_max = 2.5;
 
   // 7b. verification against look-alikes
-  /// Allowed deviation of the layout from a square of side 3 FIP sides with
-  /// right angles, in the frame of the squares' moments (0.5 = 50 %). Lower
-  /// rejects more look-alikes and more steep, blurred views.
+  /// Allowed deviation of the layout from a square with right angles, in the
+  /// frame of the squares' moments: the ratio of its longest to its shortest
+  /// side may reach 1 + this, the cosine of its angle this (its sides must
+  /// also lie in [d_min, d_max]). Lower rejects more look-alikes and more
+  /// steep, blurred views.
   double shape_tolerance = 0.5;
   /// The sheet between the squares and at the centre must be less saturated
   /// than this (0..1)...
   double sheet_max_saturation = 0.45;
   /// ... and at least this bright relative to the FIPs' brightest channel.
   double sheet_min_value = 0.7;
+  /// The QR square's mean brightness over the sheet's: at most this. The
+  /// black modules (grey when too small to resolve) tell a landmark from
+  /// squares of other things that happen to lie like one.
+  double qr_max_brightness = 0.85;
+  /// Along each side of the quadrilateral (TL-TR, TR-AP, AP-BL, BL-TL) the
+  /// two squares cover 1/3 of the distance between their centres, in any
+  /// view; the colour profile's cover must lie in [cover_min, cover_max].
+  /// This is what tells a landmark from cards and objects whose squares are
+  /// spaced otherwise, whatever the threshold made of the squares' sizes.
+  double cover_min = 0.18;
+  double cover_max = 0.5;
   int max_candidates = 400;  ///< FIP candidates kept (largest first); bounds the graph's cost
 
   // 8. corners
