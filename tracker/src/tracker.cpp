@@ -7,6 +7,12 @@
 namespace ld {
 namespace {
 
+// A detection two pool landmarks could both be (a landmark that left the
+// image where another one left before, a landmark found again next to a
+// duplicate) goes to the one seen more recently, as in a matching cascade:
+// each second unseen adds this many landmark sizes to a pair's cost.
+constexpr double kStaleCost = 1.0;
+
 bool finite(const cv::Point2f& p) { return std::isfinite(p.x) && std::isfinite(p.y); }
 
 bool finiteLandmark(const Landmark& lm) {
@@ -201,7 +207,12 @@ void Tracker::assign(int64_t utime) {
   for (size_t i = 0; i < n_pool; ++i) {
     const PoolEntry& e = pool_[i];
     const double unseen_s = static_cast<double>(utime - e.last_seen_utime) * 1e-6;
-    const double max_dist = params_.max_distance + params_.coast_distance_growth * unseen_s;
+    // Without a velocity (seen once, nothing to borrow from), the motion
+    // during the missed frames is unknown: the distance is allowed for the
+    // next frame too.
+    const double frames_of_motion = e.motion == Motion::None && e.frames_since_seen > 0 ? 2 : 1;
+    const double max_dist =
+        params_.max_distance * frames_of_motion + params_.coast_distance_growth * unseen_s;
     // A coasting landmark may also be where it was last seen: the robot
     // stopped or turned back (a landmark that left the image comes back
     // where it left).
@@ -209,6 +220,7 @@ void Tracker::assign(int64_t utime) {
     for (size_t j = 0; j < n_det; ++j) {
       double c = gatedDistance(e.pred_centre, e.pred_size, j, max_dist);
       if (two_places) c = std::min(c, gatedDistance(e.centre, e.size, j, max_dist));
+      if (c != Hungarian::kForbidden) c += kStaleCost * unseen_s * 0.5 * (e.size + det_size_[j]);
       cost_[i * n_det + j] = c;
     }
   }

@@ -12,7 +12,9 @@
 //                 (all age), both non-empty: optimal assignment (Hungarian)
 //                 with cost = distance between the predicted pool landmark and
 //                 the new one; pairs beyond the maximum distance or the size
-//                 ratio are prohibitive, so they never displace a valid match
+//                 ratio are prohibitive, so they never displace a valid match;
+//                 a detection two pool landmarks could both be goes to the one
+//                 seen more recently (each second unseen costs one size)
 //   4. update     matched tracks take the detection (corners, pose; the track's
 //                 payload is kept when the detection has none) and refresh
 //                 their velocity; unmatched tracks coast; unmatched detections
@@ -49,6 +51,8 @@ struct TrackerParams {
   /// pattern square, averaged over the pair), so it holds near and far.
   /// Larger tolerates faster unpredicted motion; smaller separates close
   /// landmarks. Two landmarks' centres are at least about 1.1 sizes apart.
+  /// A landmark seen once (no velocity yet) that missed frames may be twice
+  /// as far.
   double max_distance = 2.0;
   /// Extra distance allowed per second a landmark has been unseen (landmark
   /// sizes per second): the prediction of a coasting landmark gets less
