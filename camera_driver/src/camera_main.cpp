@@ -1,0 +1,218 @@
+// ld-camera: captures a V4L2 webcam (mmap streaming) and publishes each frame
+// as an ld.image_t on IMAGE, as captured (YUYV, MJPEG, GREY stay compact) or
+// converted to BGR/RGB/GRAY. `--list` prints the devices. A device that
+// disappears while streaming is reopened with backoff until it is back.
+#include <atomic>
+#include <cctype>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+
+#include <CLI/CLI.hpp>
+#include <lcm/lcm-cpp.hpp>
+
+#include "ld/fake_v4l2.hpp"
+#include "ld/frame_image.hpp"
+#include "ld/image_convert.hpp"
+#include "ld/lcm_url.hpp"
+#include "ld/v4l2_capture.hpp"
+
+namespace {
+
+std::atomic<bool> g_stop{false};
+void onSignal(int) { g_stop = true; }
+
+bool parseSize(const std::string& text, uint32_t& w, uint32_t& h) {
+  unsigned long a = 0, b = 0;
+  char x = 0, extra = 0;
+  if (std::sscanf(text.c_str(), "%lu%c%lu%c", &a, &x, &b, &extra) != 3 || (x != 'x' && x != 'X'))
+    return false;
+  if (a == 0 || b == 0 || a > 16384 || b > 16384) return false;
+  w = static_cast<uint32_t>(a);
+  h = static_cast<uint32_t>(b);
+  return true;
+}
+
+// The fake's second node, next to the camera as UVC makes it: /dev/video0 -> /dev/video1.
+std::string metadataNodeOf(const std::string& device) {
+  size_t i = device.size();
+  while (i > 0 && std::isdigit(static_cast<unsigned char>(device[i - 1]))) --i;
+  if (i == device.size()) return device + "-meta";
+  return device.substr(0, i) + std::to_string(std::stol(device.substr(i)) + 1);
+}
+
+void say(const std::string& line) { std::cerr << "ld-camera: " << line << std::endl; }
+
+std::string number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.4g", v);
+  return buf;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "ld-camera: V4L2 webcam frames to ld.image_t messages on IMAGE (see README).\n"
+      "Frames go out as captured (YUYV, MJPEG, GREY) unless --convert is given."};
+  std::string device = "/dev/video0", format = "yuyv", size = "640x480", channel = "IMAGE";
+  std::string url = ld::defaultLcmUrl(), convert = "none";
+  double fps = 30;
+  unsigned buffers = 4;
+  bool list = false, verbose = false, fake = false;
+  int64_t fake_unplug_after = -1;
+  double fake_replug_after = 1.0;
+  app.add_option("--device", device, "V4L2 device node")->capture_default_str();
+  app.add_option("--format", format, "capture format: yuyv, mjpeg or grey")
+      ->check(CLI::IsMember({"yuyv", "mjpeg", "mjpg", "grey", "gray"}, CLI::ignore_case))
+      ->capture_default_str();
+  app.add_option("--size", size, "frame size, WIDTHxHEIGHT")
+      ->check(CLI::Validator(
+          [](std::string& s) {
+            uint32_t w, h;
+            return parseSize(s, w, h) ? std::string() : "expected WIDTHxHEIGHT, e.g. 640x480";
+          },
+          "WxH"))
+      ->capture_default_str();
+  app.add_option("--fps", fps, "frame rate; the nearest rate the device offers is used")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--buffers", buffers, "mmap buffers to request")
+      ->check(CLI::Range(4u, 32u))
+      ->capture_default_str();
+  app.add_option("--channel", channel, "LCM channel of the images")->capture_default_str();
+  app.add_option("--lcm-url", url, "LCM URL")->capture_default_str();
+  app.add_option("--convert", convert,
+                 "publish as captured (none) or decoded and converted to bgr, rgb or gray")
+      ->check(CLI::IsMember({"none", "bgr", "rgb", "gray", "grey"}, CLI::ignore_case))
+      ->capture_default_str();
+  app.add_flag("--list", list, "list the V4L2 devices with their formats, sizes and rates");
+  app.add_flag("-v,--verbose", verbose, "print a status line every 5 s");
+  app.add_flag("--fake", fake,
+               "test/demo aid: capture from a built-in fake webcam at --device (a moving "
+               "test pattern) instead of a real V4L2 device")
+      ->group("Test aids");
+  app.add_option("--fake-unplug-after", fake_unplug_after,
+                 "with --fake: unplug the fake webcam after this many frames")
+      ->group("Test aids");
+  app.add_option("--fake-replug-after", fake_replug_after,
+                 "with --fake-unplug-after: plug it back after this many seconds")
+      ->group("Test aids")
+      ->capture_default_str();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+
+  ld::CaptureRequest request;
+  ld::ImageConversion conversion;
+  try {
+    request.fourcc = ld::captureFormatFromName(format);
+    parseSize(size, request.width, request.height);
+    request.fps = fps;
+    request.buffers = buffers;
+    conversion = ld::imageConversionFromName(convert);
+  } catch (const std::exception& e) {
+    say(e.what());
+    return 2;
+  }
+
+  std::unique_ptr<ld::V4l2Io> io;
+  if (fake) {
+    auto dev = std::make_unique<ld::FakeV4l2Device>(
+        ld::systemClock(), std::vector<ld::FakeCameraSpec>{ld::FakeCameraSpec::webcam(device),
+                                                           ld::FakeCameraSpec::metadataNode(
+                                                               metadataNodeOf(device))});
+    if (fake_unplug_after >= 0)
+      dev->scheduleUnplug(device, fake_unplug_after,
+                          static_cast<int64_t>(std::llround(fake_replug_after * 1e6)));
+    io = std::move(dev);
+  } else {
+    io = std::make_unique<ld::SystemV4l2Io>();
+  }
+
+  if (list) {
+    const auto devices = ld::listDevices(*io);
+    std::cout << ld::formatDeviceList(devices);
+    return devices.empty() ? 1 : 0;
+  }
+
+  lcm::LCM lcm(url);
+  if (!lcm.good()) {
+    say("cannot open LCM at " + url);
+    return 2;
+  }
+
+  ld::ReconnectingCapture capture(*io, ld::systemClock(), device, request, {}, say);
+  try {
+    const ld::CaptureFormat& f = capture.start();
+    say(device + " (" + f.card + "): " + f.describe() + " -> " + channel +
+        (conversion == ld::ImageConversion::AsCaptured
+             ? std::string(", as captured")
+             : ", converted to " + ld::imageConversionName(conversion)));
+    if (f.fps > 0 && std::fabs(f.fps - fps) > 0.01)
+      say("asked for " + number(fps) + " fps; the device runs at " + number(f.fps) + " fps");
+  } catch (const ld::CaptureError& e) {
+    say(e.what());
+    return 1;
+  }
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
+
+  ld::FrameToImage converter(conversion);
+  ld::image_t msg;
+  ld::Frame frame;
+  int64_t published = 0, bad = 0, gaps = 0, last_seq = -1, last_published = 0;
+  auto last_status = std::chrono::steady_clock::now();
+  while (!g_stop) {
+    bool got = false;
+    try {
+      got = capture.grab(frame, 200);
+    } catch (const std::exception& e) {
+      say(e.what());
+      return 1;
+    }
+    if (got) {
+      if (last_seq >= 0 && frame.seq > last_seq + 1) gaps += frame.seq - last_seq - 1;
+      last_seq = frame.seq;
+      bool ok = true;
+      try {
+        converter.convert(frame, msg);
+      } catch (const ld::ImageFormatError& e) {
+        ok = false;
+        ++bad;
+        if (bad <= 10 || bad % 100 == 0)
+          say("dropped frame: " + std::string(e.what()) + " (" + std::to_string(bad) +
+              " bad so far)");
+      }
+      capture.requeue(frame);  // the message holds a copy: give the buffer back first
+      if (ok) {
+        lcm.publish(channel, &msg);
+        ++published;
+      }
+    }
+    const auto now = std::chrono::steady_clock::now();
+    if (verbose && now - last_status > std::chrono::seconds(5)) {
+      const double s = std::chrono::duration<double>(now - last_status).count();
+      std::fprintf(stderr,
+                   "ld-camera: %.1f frames/s, %lld published, %lld dropped by the driver, "
+                   "%lld bad, %d reconnects%s\n",
+                   (published - last_published) / s, static_cast<long long>(published),
+                   static_cast<long long>(gaps), static_cast<long long>(bad),
+                   capture.reconnects(), capture.connected() ? "" : " (device away)");
+      last_published = published;
+      last_status = now;
+    }
+  }
+  capture.stop();
+  std::fprintf(stderr,
+               "ld-camera: stopped after %lld frames (%lld dropped by the driver, %lld bad, "
+               "%d reconnects)\n",
+               static_cast<long long>(published), static_cast<long long>(gaps),
+               static_cast<long long>(bad), capture.reconnects());
+  return 0;
+}
