@@ -1,0 +1,374 @@
+// ld-synth: synthetic test data with exact ground truth.
+//
+//   ld-synth scene --out DIR [--count N] [--yaw -70:70] ...   still frames + truth.jsonl
+//   ld-synth sequence --out DIR [--frames N] [--log F.lcmlog] a moving camera: frames,
+//                                                              truth.jsonl, an LCM log
+//
+// Every value option of `scene` takes a number (fixed) or a range "a:b"
+// (drawn uniformly per frame). Errors: one line on stderr, exit code 2.
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <optional>
+#include <random>
+#include <stdexcept>
+#include <string>
+
+#include <CLI/CLI.hpp>
+#include <opencv2/core/utils/logger.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "ld/synth.hpp"
+
+namespace fs = std::filesystem;
+using namespace ld::synth;
+
+namespace {
+
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+class Random {
+ public:
+  explicit Random(uint64_t seed) : eng_(seed) {}
+  double uni() { return static_cast<double>(eng_() >> 11) * 0x1.0p-53; }
+  double uni(double a, double b) { return a + (b - a) * uni(); }
+  uint64_t next() { return eng_(); }
+
+ private:
+  std::mt19937_64 eng_;
+};
+
+// "a" (fixed) or "a:b" (uniform per frame).
+struct Range {
+  double lo = 0, hi = 0;
+  double draw(Random& r) const { return lo == hi ? lo : r.uni(lo, hi); }
+};
+
+Range parseRange(const std::string& name, const std::string& text) {
+  const auto num = [&](const std::string& s) {
+    size_t used = 0;
+    double v = 0;
+    try {
+      v = std::stod(s, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != s.size() || s.empty() || !std::isfinite(v))
+      throw UsageError("--" + name + ": '" + text + "' is not a number or a range a:b");
+    return v;
+  };
+  const size_t colon = text.find(':');
+  Range r;
+  if (colon == std::string::npos) {
+    r.lo = r.hi = num(text);
+  } else {
+    r.lo = num(text.substr(0, colon));
+    r.hi = num(text.substr(colon + 1));
+    if (r.lo > r.hi) throw UsageError("--" + name + ": range " + text + " is empty (a > b)");
+  }
+  return r;
+}
+
+void requireWithin(const std::string& name, const Range& r, double lo, double hi) {
+  if (r.lo < lo || r.hi > hi)
+    throw UsageError("--" + name + " must lie within " + std::to_string(lo) + ":" + std::to_string(hi));
+}
+
+ld::CameraModel makeCamera(const std::string& file, const std::string& resolution) {
+  std::optional<cv::Size> size;
+  if (!resolution.empty()) {
+    int w = 0, h = 0;
+    char x = 0;
+    if (std::sscanf(resolution.c_str(), "%d%c%d", &w, &x, &h) != 3 || (x != 'x' && x != 'X') ||
+        w < 16 || h < 16 || w > 16384 || h > 16384)
+      throw UsageError("--resolution: '" + resolution + "' is not WIDTHxHEIGHT");
+    size = cv::Size(w, h);
+  }
+  ld::CameraModel cam;
+  if (!file.empty()) {
+    if (!std::ifstream(file)) throw std::runtime_error("camera file " + file + ": cannot open");
+    cam = ld::CameraModel::load(file);  // throws with a one-line reason
+    if (size) cam = cam.scaledTo(*size);
+  } else {
+    const cv::Size s = size.value_or(cv::Size(640, 480));
+    cam = ld::CameraModel::pinhole(s, 600.0 * s.width / 640.0);
+  }
+  return cam;
+}
+
+void makeFolder(const std::string& dir) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir))
+    throw std::runtime_error("cannot create folder " + dir + (ec ? ": " + ec.message() : ""));
+}
+
+// ---------------------------------------------------------------------------
+// scene
+
+struct SceneArgs {
+  std::string out, camera, resolution, payload, background, lighting = "random", degrade = "mild";
+  int count = 1, landmarks = 1, cards = 0;
+  std::optional<int> distractors;
+  uint64_t seed = 1;
+  std::string size = "0.15", distance = "1.5", yaw = "0", pitch = "0", roll = "0", x, y = "-0.5:0.5";
+  std::string defocus, motion, noise, jpeg;
+  bool no_landmark = false, nominal = false, jpg = false;
+};
+
+Background backgroundFrom(const std::string& s) {
+  if (s == "plain") return Background::Plain;
+  if (s == "office") return Background::Office;
+  if (s == "clutter") return Background::Clutter;
+  throw UsageError("--background must be plain, office or clutter, not '" + s + "'");
+}
+
+void applyLighting(const std::string& preset, SceneSpec& spec, Random& r) {
+  Lighting& l = spec.lighting;
+  if (preset == "random") return;  // randomConditions' mild variation
+  l = Lighting{};
+  l.gradient = r.uni(0, 0.15);
+  l.gradient_angle_deg = r.uni(0, 360);
+  if (preset == "normal") {
+    l.gain = r.uni(0.9, 1.1);
+    l.colour_temp_k = r.uni(5500, 6500);
+  } else if (preset == "dim") {
+    l.gain = r.uni(0.3, 0.45);
+    l.colour_temp_k = r.uni(3500, 5000);
+    l.gradient = r.uni(0.1, 0.3);
+    spec.degradation.noise_sigma *= 1.8;  // the sensor's gain goes up
+  } else if (preset == "tungsten") {
+    l.gain = r.uni(0.8, 1.0);
+    l.colour_temp_k = r.uni(2700, 3200);
+  } else if (preset == "glare") {
+    l.gain = r.uni(0.9, 1.1);
+    l.colour_temp_k = r.uni(5000, 6500);
+    l.glare = r.uni(0.6, 1.2);
+    l.glare_radius = r.uni(0.08, 0.2);
+    // Near a landmark, where it hurts.
+    if (!spec.landmarks.empty()) {
+      const LandmarkTruth t = truthFor(spec.camera, spec.landmarks[0]);
+      const cv::Point2d c = (t.fip_tl + t.ap) / 2;
+      l.glare_centre = {c.x / spec.camera.size.width + r.uni(-0.15, 0.15),
+                        c.y / spec.camera.size.height + r.uni(-0.15, 0.15)};
+    } else {
+      l.glare_centre = {r.uni(0.2, 0.8), r.uni(0.2, 0.8)};
+    }
+  } else {
+    throw UsageError("--lighting must be normal, dim, tungsten, glare or random, not '" + preset + "'");
+  }
+}
+
+void applyDegradation(const SceneArgs& a, SceneSpec& spec, Random& r) {
+  Degradation& d = spec.degradation;
+  if (a.degrade == "none") {
+    d = Degradation{};
+  } else if (a.degrade == "strong") {
+    d.defocus_sigma_px = r.uni(0.5, 1.5);
+    d.motion_px = r.uni(0, 4);
+    d.motion_angle_deg = r.uni(0, 180);
+    d.noise_sigma = r.uni(3, 8);
+    d.jpeg_quality = static_cast<int>(r.uni(50, 80));
+  } else if (a.degrade != "mild") {
+    throw UsageError("--degrade must be none, mild or strong, not '" + a.degrade + "'");
+  }
+  if (!a.defocus.empty()) d.defocus_sigma_px = parseRange("defocus", a.defocus).draw(r);
+  if (!a.motion.empty()) {
+    d.motion_px = parseRange("motion", a.motion).draw(r);
+    d.motion_angle_deg = r.uni(0, 180);
+  }
+  if (!a.noise.empty()) d.noise_sigma = parseRange("noise", a.noise).draw(r);
+  if (!a.jpeg.empty()) d.jpeg_quality = static_cast<int>(std::lround(parseRange("jpeg", a.jpeg).draw(r)));
+}
+
+int runScene(const SceneArgs& a) {
+  const ld::CameraModel camera = makeCamera(a.camera, a.resolution);
+  const Range size = parseRange("size", a.size), dist = parseRange("distance", a.distance),
+              yaw = parseRange("yaw", a.yaw), pitch = parseRange("pitch", a.pitch),
+              roll = parseRange("roll", a.roll), ny = parseRange("y", a.y);
+  requireWithin("size", size, 0.01, 2.0);
+  requireWithin("distance", dist, 0.05, 100.0);
+  requireWithin("yaw", yaw, -89.9, 89.9);
+  requireWithin("pitch", pitch, -89.9, 89.9);
+  requireWithin("roll", roll, -360, 360);
+  requireWithin("y", ny, -1.5, 1.5);
+  std::optional<Range> nx;
+  if (!a.x.empty()) {
+    nx = parseRange("x", a.x);
+    requireWithin("x", *nx, -1.5, 1.5);
+  }
+  if (a.count < 1) throw UsageError("--count must be at least 1");
+  if (a.landmarks < 0 || a.landmarks > 20) throw UsageError("--landmarks must be 0..20");
+  if (a.cards < 0 || a.cards > 50) throw UsageError("--cards must be 0..50");
+  if (a.distractors && (*a.distractors < 0 || *a.distractors > 500))
+    throw UsageError("--distractors must be 0..500");
+  std::optional<Background> background;
+  if (!a.background.empty()) background = backgroundFrom(a.background);
+  // Check the presets once before any work.
+  {
+    Random probe(0);
+    SceneSpec s;
+    applyLighting(a.lighting, s, probe);
+    applyDegradation(a, s, probe);
+  }
+
+  makeFolder(a.out);
+  const std::string truth_path = (fs::path(a.out) / "truth.jsonl").string();
+  std::ofstream truth(truth_path);
+  if (!truth) throw std::runtime_error("cannot write " + truth_path);
+
+  Random r(a.seed);
+  const int K = a.no_landmark ? 0 : a.landmarks;
+  int in_view = 0, total = 0;
+  for (int i = 0; i < a.count; ++i) {
+    // Poses: retried until every landmark is in view and none overlap.
+    std::vector<LandmarkPlacement> lms;
+    for (int k = 0; k < K; ++k) {
+      const std::string payload = a.payload.empty() ? "room-" + std::to_string(101 + k)
+                                  : K == 1            ? a.payload
+                                                      : a.payload + "-" + std::to_string(k);
+      LandmarkPlacement best;
+      for (int attempt = 0; attempt < 200; ++attempt) {
+        double x;
+        if (nx) {
+          x = nx->draw(r);
+        } else {
+          const double w = 1.6 / K;  // K horizontal slots across the image
+          x = -0.8 + w * (k + r.uni(0.2, 0.8));
+        }
+        best = placeLandmark(camera, dist.draw(r), yaw.draw(r), pitch.draw(r), roll.draw(r), x,
+                             ny.draw(r), size.draw(r), payload, k);
+        const LandmarkTruth t = truthFor(camera, best);
+        if (!t.in_view) continue;
+        const cv::Rect box = cv::boundingRect(std::vector<cv::Point2f>(t.corners.begin(), t.corners.end()));
+        bool overlap = false;
+        for (const auto& o : lms) {
+          const LandmarkTruth ot = truthFor(camera, o);
+          const cv::Rect obox = cv::boundingRect(std::vector<cv::Point2f>(ot.corners.begin(), ot.corners.end()));
+          overlap = overlap || (box & obox).area() > 0;
+        }
+        if (!overlap) break;
+      }
+      lms.push_back(best);
+    }
+    SceneSpec spec = randomConditions(camera, lms, r.next());
+    if (background) spec.background = *background;
+    if (a.distractors) spec.distractors = *a.distractors;
+    spec.landmark_like_cards = a.cards;
+    spec.printed_ink = !a.nominal;
+    applyDegradation(a, spec, r);
+    applyLighting(a.lighting, spec, r);
+    const Frame frame = render(spec);
+
+    char name[32];
+    std::snprintf(name, sizeof name, a.jpg ? "%06d.jpg" : "%06d.png", i);
+    const std::string path = (fs::path(a.out) / name).string();
+    bool ok = false;
+    try {
+      ok = cv::imwrite(path, frame.bgr, {cv::IMWRITE_JPEG_QUALITY, 95});
+    } catch (const cv::Exception&) {
+      ok = false;
+    }
+    if (!ok) throw std::runtime_error("cannot write " + path);
+    truth << truthJsonLine(name, frame.bgr.size(), frame.truth) << "\n";
+    if (!truth) throw std::runtime_error("write to " + truth_path + " failed");
+    for (const auto& t : frame.truth) {
+      ++total;
+      in_view += t.in_view;
+    }
+  }
+  std::cout << "wrote " << a.count << " frames to " << a.out << " (" << in_view << " of " << total
+            << " landmarks fully in view)\n";
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);  // our own one-line errors
+  CLI::App app{"ld-synth: synthetic landmark scenes and sequences with exact ground truth"};
+  app.require_subcommand(1);
+
+  SceneArgs sa;
+  auto* scene = app.add_subcommand("scene", "still frames with landmarks at chosen poses: DIR/000000.png ..., DIR/truth.jsonl");
+  scene->add_option("--out,-o", sa.out, "output folder")->required();
+  scene->add_option("--count,-n", sa.count, "number of frames")->capture_default_str();
+  scene->add_option("--seed", sa.seed, "random seed (same seed, same bytes)")->capture_default_str();
+  scene->add_option("--camera", sa.camera, "OpenCV calibration file (default: 640x480, f = 600 px)");
+  scene->add_option("--resolution", sa.resolution, "image size WxH (scales the camera; f = 600 px per 640 without --camera)");
+  scene->add_option("--size", sa.size, "landmark side S in metres, or a range a:b")->capture_default_str();
+  scene->add_option("--distance", sa.distance, "distance to the sheet's centre, metres")->capture_default_str();
+  scene->add_option("--yaw", sa.yaw, "degrees about the sheet's vertical axis; + turns its right edge towards the camera")->capture_default_str();
+  scene->add_option("--pitch", sa.pitch, "degrees about its horizontal axis; + turns its top edge towards the camera")->capture_default_str();
+  scene->add_option("--roll", sa.roll, "degrees in its plane, + is clockwise in the image")->capture_default_str();
+  scene->add_option("--x", sa.x, "normalised image x of the centre, -1..1 (default: spread over the width)");
+  scene->add_option("--y", sa.y, "normalised image y of the centre, -1..1")->capture_default_str();
+  scene->add_option("--landmarks,-k", sa.landmarks, "landmarks per frame")->capture_default_str();
+  scene->add_option("--payload,-p", sa.payload, "QR text (with several landmarks: TEXT-0, TEXT-1, ...; default room-101, ...)");
+  scene->add_option("--background", sa.background, "plain, office or clutter (default: office or clutter at random)");
+  scene->add_option("--distractors", sa.distractors, "colourful distractors (default: 3..10 at random)");
+  scene->add_option("--cards", sa.cards, "landmark-like cards (red square in the middle / next to TL, colours swapped)")->capture_default_str();
+  scene->add_option("--lighting", sa.lighting, "normal, dim, tungsten, glare or random")->capture_default_str();
+  scene->add_option("--degrade", sa.degrade, "none, mild (defocus, noise, JPEG at random) or strong")->capture_default_str();
+  scene->add_option("--defocus", sa.defocus, "Gaussian defocus sigma, px (overrides --degrade)");
+  scene->add_option("--motion", sa.motion, "motion blur length, px (overrides --degrade)");
+  scene->add_option("--noise", sa.noise, "sensor noise sigma at mid grey (overrides --degrade)");
+  scene->add_option("--jpeg", sa.jpeg, "JPEG quality, 0 = none (overrides --degrade)");
+  scene->add_flag("--no-landmark", sa.no_landmark, "no landmark at all (false-positive tests)");
+  scene->add_flag("--nominal-colours", sa.nominal, "pure #0000FF / #FF0000 artwork colours instead of printed ink");
+  scene->add_flag("--jpg", sa.jpg, "write frames as JPEG (quality 95) instead of PNG");
+
+  SequenceOptions qo;
+  std::string q_camera, q_resolution;
+  auto* sequence = app.add_subcommand("sequence", "a camera driving past a wall with landmarks: frames, truth.jsonl, LCM log");
+  sequence->add_option("--out,-o", qo.out_dir, "output folder for frames and truth.jsonl");
+  sequence->add_option("--frames,-n", qo.frames, "number of frames")->capture_default_str();
+  sequence->add_option("--fps", qo.fps, "frame rate of the timestamps")->capture_default_str();
+  sequence->add_option("--log", qo.log_path, "LCM log of ld.image_t to write");
+  sequence->add_option("--channel", qo.channel, "channel in the log")->capture_default_str();
+  sequence->add_option("--format", qo.pixel_format, "pixel format in the log: bgr, rgb, gray, yuyv, uyvy, mjpeg")->capture_default_str();
+  sequence->add_option("--quality", qo.jpeg_quality, "JPEG quality for mjpeg")->capture_default_str();
+  sequence->add_option("--landmarks,-k", qo.landmarks, "landmarks on the wall (ids 0..K-1)")->capture_default_str();
+  sequence->add_option("--payload,-p", qo.payloads, "QR text of each landmark (repeat; default room-101, room-102, ...)");
+  sequence->add_option("--size", qo.side_m, "landmark side S in metres")->capture_default_str();
+  sequence->add_option("--seed", qo.seed, "random seed (same seed, same bytes)")->capture_default_str();
+  sequence->add_option("--start-utime", qo.start_utime, "utime of the first frame, microseconds")->capture_default_str();
+  sequence->add_option("--camera", q_camera, "OpenCV calibration file (default: 640x480, f = 600 px)");
+  sequence->add_option("--resolution", q_resolution, "image size WxH");
+  bool no_png = false;
+  sequence->add_flag("--no-png", no_png, "no PNG frames (truth.jsonl and the log only)");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::cerr << "ld-synth: " << e.what() << "\n";
+    return 2;
+  }
+
+  try {
+    if (scene->parsed()) return runScene(sa);
+    if (qo.out_dir.empty() && qo.log_path.empty()) throw UsageError("sequence: give --out, --log or both");
+    qo.camera = makeCamera(q_camera, q_resolution);
+    qo.write_png = !no_png;
+    if (qo.payloads.size() > 0 && static_cast<int>(qo.payloads.size()) != qo.landmarks) {
+      if (sequence->count("--landmarks") == 0) qo.landmarks = static_cast<int>(qo.payloads.size());
+    }
+    const SequenceStats st = writeSequence(qo);
+    std::cout << "wrote " << st.frames << " frames";
+    if (!qo.out_dir.empty()) std::cout << " to " << qo.out_dir;
+    if (!qo.log_path.empty()) std::cout << " and " << qo.log_path << " (" << qo.pixel_format << ")";
+    std::cout << "; a landmark fully in view in " << st.frames_with_landmark_in_view << "\n";
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "ld-synth: " << e.what() << "\n";
+    return 2;
+  }
+}
