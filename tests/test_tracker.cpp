@@ -183,6 +183,42 @@ TEST(Hungarian, RecoversAHiddenPermutationAtLargeSizes) {
   }
 }
 
+TEST(Hungarian, NoSwapOrMoveImprovesLargeSolutions) {
+  // Beyond brute force: no exchange of two rows' columns and no move of a
+  // row to an unused column lowers the cost (necessary for optimality).
+  std::mt19937_64 rng(8);
+  std::uniform_real_distribution<double> real(0.0, 1000.0);
+  ld::Hungarian h;
+  std::vector<int> r2c;
+  for (auto [rows, cols] : {std::pair{40, 40}, {30, 90}, {90, 30}, {120, 120}}) {
+    std::vector<double> c(static_cast<size_t>(rows) * cols);
+    for (double& v : c) v = real(rng);
+    const double sum = h.solve(c.data(), rows, cols, r2c);
+    EXPECT_EQ(checkMatching(c, rows, cols, r2c, sum), std::min(rows, cols));
+    auto at = [&](int r, int j) { return c[static_cast<size_t>(r) * cols + j]; };
+    std::vector<char> used(static_cast<size_t>(cols), 0);
+    for (int r = 0; r < rows; ++r)
+      if (r2c[static_cast<size_t>(r)] >= 0) used[static_cast<size_t>(r2c[static_cast<size_t>(r)])] = 1;
+    int improvable = 0;
+    for (int r = 0; r < rows; ++r) {
+      const int j = r2c[static_cast<size_t>(r)];
+      for (int k = r + 1; k < rows; ++k) {
+        const int l = r2c[static_cast<size_t>(k)];
+        if (j >= 0 && l >= 0) improvable += at(r, l) + at(k, j) < at(r, j) + at(k, l) - 1e-9;
+      }
+      for (int l = 0; l < cols && j >= 0; ++l)
+        if (!used[static_cast<size_t>(l)]) improvable += at(r, l) < at(r, j) - 1e-9;
+    }
+    for (int r = 0; r < rows; ++r)  // an unassigned row taking an assigned row's column
+      if (r2c[static_cast<size_t>(r)] < 0)
+        for (int k = 0; k < rows; ++k) {
+          const int l = r2c[static_cast<size_t>(k)];
+          if (l >= 0) improvable += at(r, l) < at(k, l) - 1e-9;
+        }
+    EXPECT_EQ(improvable, 0) << rows << "x" << cols;
+  }
+}
+
 TEST(Hungarian, EmptyAndAllForbidden) {
   ld::Hungarian h;
   std::vector<int> r2c{7, 7};

@@ -42,65 +42,87 @@ double Hungarian::solve(const double* cost, int rows, int cols, std::vector<int>
       a_[static_cast<size_t>(i) * m + j] = c == kForbidden ? forbidden_price : c;
     }
 
-  // 2. SHORTEST AUGMENTING PATHS WITH POTENTIALS. Rows are added one at a time;
-  // each addition grows a Dijkstra-like tree over the columns on reduced
-  // costs a[i][j] - u[i] - v[j] until it reaches a free column, then flips the
-  // path. Indices are 1-based; column 0 is the virtual root.
+  // 2. SHORTEST AUGMENTING PATHS WITH POTENTIALS (Kuhn-Munkres in the
+  // Jonker-Volgenant form). Rows are assigned one at a time: Dijkstra over
+  // the reduced costs a[i][j] - u[i] - v[j] >= 0, from the new row to the
+  // nearest free column, then the potentials are updated (keeping every
+  // reduced cost >= 0 and those of the assigned pairs at 0) and the path is
+  // flipped. Each row costs O(n m): O(n^2 m) in all.
   const double inf = std::numeric_limits<double>::infinity();
-  u_.assign(static_cast<size_t>(n) + 1, 0.0);
-  v_.assign(static_cast<size_t>(m) + 1, 0.0);
-  p_.assign(static_cast<size_t>(m) + 1, 0);
-  way_.assign(static_cast<size_t>(m) + 1, 0);
-  for (int i = 1; i <= n; ++i) {
-    p_[0] = i;
-    int j0 = 0;
-    minv_.assign(static_cast<size_t>(m) + 1, inf);
-    used_.assign(static_cast<size_t>(m) + 1, 0);
-    do {
-      used_[j0] = 1;
-      const int i0 = p_[j0];
-      const double* row = &a_[static_cast<size_t>(i0 - 1) * m];
-      const double ui0 = u_[i0];
-      double delta = inf;
-      int j1 = 0;
-      for (int j = 1; j <= m; ++j) {
-        if (used_[j]) continue;
-        const double cur = row[j - 1] - ui0 - v_[j];
-        if (cur < minv_[j]) {
-          minv_[j] = cur;
-          way_[j] = j0;
+  const auto N = static_cast<size_t>(n), M = static_cast<size_t>(m);
+  u_.assign(N, 0.0);
+  v_.assign(M, 0.0);
+  col4row_.assign(N, -1);
+  row4col_.assign(M, -1);
+  shortest_.resize(M);
+  path_.resize(M);
+  remaining_.resize(M);
+  in_tree_row_.resize(N);
+  in_tree_col_.resize(M);
+  for (int cur = 0; cur < n; ++cur) {
+    // 2a. Dijkstra from row `cur` until a free column (the sink) is reached.
+    std::fill(shortest_.begin(), shortest_.end(), inf);
+    std::fill(in_tree_row_.begin(), in_tree_row_.end(), 0);
+    std::fill(in_tree_col_.begin(), in_tree_col_.end(), 0);
+    int n_remaining = m;
+    for (int k = 0; k < m; ++k) remaining_[static_cast<size_t>(k)] = m - 1 - k;
+    double min_val = 0.0;
+    int i = cur, sink = -1;
+    while (sink < 0) {
+      in_tree_row_[static_cast<size_t>(i)] = 1;
+      const double* row = &a_[static_cast<size_t>(i) * M];
+      const double base = min_val - u_[static_cast<size_t>(i)];
+      int best = -1;
+      double lowest = inf;
+      for (int k = 0; k < n_remaining; ++k) {
+        const auto j = static_cast<size_t>(remaining_[static_cast<size_t>(k)]);
+        const double r = base + row[j] - v_[j];
+        if (r < shortest_[j]) {
+          path_[j] = i;
+          shortest_[j] = r;
         }
-        if (minv_[j] < delta) {
-          delta = minv_[j];
-          j1 = j;
+        // Ties go to a free column: shorter paths.
+        if (shortest_[j] < lowest || (shortest_[j] == lowest && row4col_[j] < 0)) {
+          lowest = shortest_[j];
+          best = k;
         }
       }
-      for (int j = 0; j <= m; ++j) {
-        if (used_[j]) {
-          u_[p_[j]] += delta;
-          v_[j] -= delta;
-        } else {
-          minv_[j] -= delta;
-        }
-      }
-      j0 = j1;
-    } while (p_[j0] != 0);
-    do {  // flip the augmenting path back to the root
-      const int j1 = way_[j0];
-      p_[j0] = p_[j1];
-      j0 = j1;
-    } while (j0 != 0);
+      if (best < 0)  // only with costs so large that their sums overflow
+        throw std::invalid_argument("Hungarian::solve: costs too large (sums overflow)");
+      min_val = lowest;
+      const int j = remaining_[static_cast<size_t>(best)];
+      in_tree_col_[static_cast<size_t>(j)] = 1;
+      remaining_[static_cast<size_t>(best)] = remaining_[static_cast<size_t>(--n_remaining)];
+      if (row4col_[static_cast<size_t>(j)] < 0)
+        sink = j;
+      else
+        i = row4col_[static_cast<size_t>(j)];
+    }
+    // 2b. Potentials.
+    u_[static_cast<size_t>(cur)] += min_val;
+    for (size_t r = 0; r < N; ++r)
+      if (in_tree_row_[r] && static_cast<int>(r) != cur)
+        u_[r] += min_val - shortest_[static_cast<size_t>(col4row_[r])];
+    for (size_t c = 0; c < M; ++c)
+      if (in_tree_col_[c]) v_[c] -= min_val - shortest_[c];
+    // 2c. Flip the path from the sink back to row `cur`.
+    for (int j = sink;;) {
+      const int r = path_[static_cast<size_t>(j)];
+      row4col_[static_cast<size_t>(j)] = r;
+      std::swap(col4row_[static_cast<size_t>(r)], j);
+      if (r == cur) break;
+    }
   }
 
   // 3. READ THE ASSIGNMENT, dropping forbidden pairs.
   double sum = 0.0;
-  for (int j = 1; j <= m; ++j) {
-    if (p_[j] == 0) continue;
-    const int r = transposed ? j - 1 : p_[j] - 1;
-    const int c = transposed ? p_[j] - 1 : j - 1;
+  for (int i = 0; i < n; ++i) {
+    const int j = col4row_[static_cast<size_t>(i)];
+    const int r = transposed ? j : i;
+    const int c = transposed ? i : j;
     const double cr = cost[static_cast<size_t>(r) * cols + c];
     if (cr == kForbidden) continue;
-    row_to_col[r] = c;
+    row_to_col[static_cast<size_t>(r)] = c;
     sum += cr;
   }
   return sum;

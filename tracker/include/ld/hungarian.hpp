@@ -1,6 +1,7 @@
-// Optimal assignment: the Hungarian (Kuhn-Munkres) algorithm with potentials,
-// O(n^2 m) for an n x m cost matrix with n <= m (a matrix with more rows than
-// columns is solved transposed). Written for the tracker (section IV of the
+// Optimal assignment: the Hungarian (Kuhn-Munkres) algorithm with potentials
+// and shortest augmenting paths (the Jonker-Volgenant form), O(n^2 m) for an
+// n x m cost matrix with n <= m (a matrix with more rows than columns is
+// solved transposed). Written for the tracker (section IV of the
 // paper: pool landmarks are the agents, new landmarks the tasks), usable on
 // any rectangular matrix.
 //
@@ -34,11 +35,12 @@ class Hungarian {
   double solve(const double* cost, int rows, int cols, std::vector<int>& row_to_col);
 
  private:
-  std::vector<double> a_;     // the matrix as solved: n <= m, forbidden pairs priced
-  std::vector<double> u_, v_;  // row and column potentials
-  std::vector<double> minv_;
-  std::vector<int> p_, way_;   // p_[j]: row matched to column j (1-based, 0 = none)
-  std::vector<char> used_;
+  std::vector<double> a_;         // the matrix as solved: n <= m, forbidden pairs priced
+  std::vector<double> u_, v_;     // row and column potentials
+  std::vector<double> shortest_;  // Dijkstra distances to the columns
+  std::vector<int> path_;         // row before each column on the shortest path
+  std::vector<int> col4row_, row4col_, remaining_;
+  std::vector<char> in_tree_row_, in_tree_col_;
 };
 
 /// One-shot convenience: solves `cost` (rows x cols, row by row) with a fresh
