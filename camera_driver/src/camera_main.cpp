@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <iostream>
 #include <memory>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
@@ -141,12 +142,6 @@ int main(int argc, char** argv) {
     return devices.empty() ? 1 : 0;
   }
 
-  lcm::LCM lcm(url);
-  if (!lcm.good()) {
-    say("cannot open LCM at " + url);
-    return 2;
-  }
-
   ld::ReconnectingCapture capture(*io, ld::systemClock(), device, request, {}, say);
   try {
     const ld::CaptureFormat& f = capture.start();
@@ -160,11 +155,17 @@ int main(int argc, char** argv) {
     say(e.what());
     return 1;
   }
+  lcm::LCM lcm(url);
+  if (!lcm.good()) {
+    say("cannot open LCM at " + url);
+    return 2;
+  }
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
 
   ld::FrameToImage converter(conversion);
   ld::image_t msg;
+  std::vector<uint8_t> encoded;  // reused: publishing allocates nothing once warm
   ld::Frame frame;
   int64_t published = 0, bad = 0, gaps = 0, last_seq = -1, last_published = 0;
   auto last_status = std::chrono::steady_clock::now();
@@ -191,7 +192,10 @@ int main(int argc, char** argv) {
       }
       capture.requeue(frame);  // the message holds a copy: give the buffer back first
       if (ok) {
-        lcm.publish(channel, &msg);
+        const int n = msg.getEncodedSize();
+        encoded.resize(static_cast<size_t>(n));
+        msg.encode(encoded.data(), 0, n);
+        lcm.publish(channel, encoded.data(), static_cast<unsigned>(n));
         ++published;
       }
     }
