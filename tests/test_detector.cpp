@@ -8,6 +8,7 @@
 #include <fstream>
 #include <numeric>
 #include <random>
+#include <set>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -265,22 +266,25 @@ TEST(Regions, SmallSquaresStayWhole) {
   EXPECT_GT(b.sum_b, 1.3 * b.sum_r);
 }
 
-// A thin diagonal line of pixels is one region (8-connectivity); the two
-// colours touching are two regions.
-TEST(Regions, EightConnectedAndPerColour) {
-  cv::Mat img(20, 20, CV_8UC3, cv::Scalar(220, 220, 220));
-  for (int i = 2; i < 12; ++i) img.at<cv::Vec3b>(i, i) = {160, 50, 40};
+// Regions are 4-connected: a square touching a blue background only at a
+// corner pixel stays apart from it; a 2-pixel-wide diagonal strip is one
+// region; two colours touching are two regions.
+TEST(Regions, FourConnectedAndPerColour) {
+  cv::Mat img(30, 30, CV_8UC3, cv::Scalar(220, 220, 220));
+  for (int i = 2; i < 12; ++i) img(cv::Rect(i, i, 2, 1)).setTo(cv::Scalar(160, 50, 40));  // 20 px
   img(cv::Rect(14, 2, 3, 3)).setTo(cv::Scalar(160, 50, 40));
   img(cv::Rect(14, 5, 3, 3)).setTo(cv::Scalar(40, 60, 200));
+  img(cv::Rect(20, 20, 4, 4)).setTo(cv::Scalar(160, 50, 40));
+  img(cv::Rect(24, 24, 6, 6)).setTo(cv::Scalar(160, 50, 40));  // corner to corner
   cv::Mat labels;
   ld::detail::saturationMask(img, kMt, labels);
   ld::detail::RunScratch scratch;
   std::vector<Region> regions;
   ld::detail::extractRegions(labels, img, kMt, 1, 1000, scratch, regions);
-  ASSERT_EQ(regions.size(), 3u);
-  int diag = 0;
-  for (const auto& r : regions) diag += r.area == 10;
-  EXPECT_EQ(diag, 1);
+  ASSERT_EQ(regions.size(), 5u);
+  std::multiset<int> areas;
+  for (const auto& r : regions) areas.insert(r.area);
+  EXPECT_EQ(areas, (std::multiset<int>{9, 9, 16, 20, 36}));
 }
 
 // U shapes and spirals merge through later rows (union-find).

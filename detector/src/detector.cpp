@@ -7,6 +7,7 @@
 #include <cmath>
 #include <functional>
 #include <stdexcept>
+#include <type_traits>
 
 #include <opencv2/imgproc.hpp>
 
@@ -46,9 +47,11 @@ void forEachField(DetectorParams& p, F&& f) {
   f("shape_tolerance", p.shape_tolerance);
   f("sheet_max_saturation", p.sheet_max_saturation);
   f("sheet_min_value", p.sheet_min_value);
+  f("sheet_uniformity", p.sheet_uniformity);
   f("qr_max_brightness", p.qr_max_brightness);
   f("cover_min", p.cover_min);
   f("cover_max", p.cover_max);
+  f("complete_missing", p.complete_missing);
   f("max_candidates", p.max_candidates);
   f("centre_iterations", p.centre_iterations);
 }
@@ -64,6 +67,11 @@ void readField(const std::string& path, const cv::FileNode& n, const char* key, 
 void readField(const std::string& path, const cv::FileNode& n, const char* key, int& v) {
   if (!n.isInt()) badFile(path, std::string("key '") + key + "' must be an integer");
   v = static_cast<int>(n);
+}
+void readField(const std::string& path, const cv::FileNode& n, const char* key, bool& v) {
+  if (!n.isInt() || (static_cast<int>(n) != 0 && static_cast<int>(n) != 1))
+    badFile(path, std::string("key '") + key + "' must be 0 or 1");
+  v = static_cast<int>(n) != 0;
 }
 void readField(const std::string& path, const cv::FileNode& n, const char* key, double& v) {
   if (!n.isInt() && !n.isReal()) badFile(path, std::string("key '") + key + "' must be a number");
@@ -112,7 +120,10 @@ void DetectorParams::save(const std::string& path) const {
   }
   if (!fs.isOpened()) badFile(path, "cannot write");
   DetectorParams copy = *this;
-  forEachField(copy, [&](const char* name, const auto& field) { fs << name << field; });
+  forEachField(copy, [&](const char* name, const auto& field) {
+    if constexpr (std::is_same_v<std::decay_t<decltype(field)>, bool>) fs << name << static_cast<int>(field);
+    else fs << name << field;
+  });
 }
 
 void DetectorParams::validate() const {
@@ -148,6 +159,7 @@ void DetectorParams::validate() const {
   if (!(sheet_min_value >= 0 && sheet_min_value <= 2)) bad("sheet_min_value", "must be in [0, 2]");
   if (!(cover_min >= 0 && cover_min < 1)) bad("cover_min", "must be in [0, 1)");
   if (!(cover_max > cover_min && cover_max <= 1)) bad("cover_max", "must be in (cover_min, 1]");
+  if (!(sheet_uniformity >= 0 && sheet_uniformity <= 1)) bad("sheet_uniformity", "must be in [0, 1]");
   if (!(qr_max_brightness > 0 && qr_max_brightness <= 2)) bad("qr_max_brightness", "must be in (0, 2]");
   if (max_candidates < 3 || max_candidates > 4096) bad("max_candidates", "must be in [3, 4096]");
   if (centre_iterations < 0 || centre_iterations > 10) bad("centre_iterations", "must be in [0, 10]");
@@ -223,7 +235,98 @@ struct Detector::Impl {
   }
 
   void run(const cv::Mat& input);
+  void complete(const cv::Mat& img);
 };
+
+// Landmarks with one square merged into a same-coloured background (the
+// sheet's margin is a quarter of a square: at steep angles or with blur the
+// mask joins them): three squares found, the fourth where the layout puts it.
+void Detector::Impl::complete(const cv::Mat& img) {
+  const DetectorParams& p = params;
+  const int n0 = static_cast<int>(fips.size()), a0 = static_cast<int>(aps.size());
+  used.assign(static_cast<size_t>(n0 + a0), 0);
+  for (const auto& c : candidates) used[c.tl] = used[c.tr] = used[c.bl] = used[n0 + c.ap] = 1;
+  auto labelAt = [&](const cv::Point2d& q) -> int {
+    const int x = static_cast<int>(std::lround(q.x)), y = static_cast<int>(std::lround(q.y));
+    return x >= 0 && y >= 0 && x < labels.cols && y < labels.rows ? labels.at<uint8_t>(y, x) : -1;
+  };
+  auto mean = [](std::initializer_list<const detail::Region*> rs) {
+    detail::Region m = **rs.begin();
+    m.sxx = m.sxy = m.syy = 0;
+    for (const auto* r : rs) {
+      m.sxx += r->sxx / rs.size();
+      m.sxy += r->sxy / rs.size();
+      m.syy += r->syy / rs.size();
+    }
+    return m;
+  };
+  auto order = [&](detail::Candidate& c) {
+    const cv::Point2d t(fips[c.tl].cx, fips[c.tl].cy), a(fips[c.tr].cx, fips[c.tr].cy),
+        b(fips[c.bl].cx, fips[c.bl].cy);
+    if ((a - t).cross(b - t) < 0) std::swap(c.tr, c.bl);
+  };
+  auto tryCandidate = [&](detail::Candidate c) {
+    c.completed = true;
+    c.error = 1.0;  // ranks below complete landmarks
+    order(c);
+    if (!detail::verify(c, fips, aps, img, p)) return false;
+    candidates.push_back(c);
+    return true;
+  };
+  // A FIP missing: two FIPs joined by an edge, and an AP.
+  for (int i = 0; i < n0; ++i)
+    for (int j = i + 1; j < n0; ++j) {
+      if (!adjacency[static_cast<size_t>(i) * n0 + j] || used[i] || used[j]) continue;
+      const detail::Region shape = mean({&fips[i], &fips[j]});
+      const double side = shape.side();
+      const double min_peak = 0.5 * std::min(detail::meanExcess(fips[i]), detail::meanExcess(fips[j]));
+      const cv::Point2d pi(fips[i].cx, fips[i].cy), pj(fips[j].cx, fips[j].cy);
+      for (int k = 0; k < a0; ++k) {
+        if (used[n0 + k]) continue;
+        const double ratio = aps[k].side() / side;
+        if (ratio < p.ap_size_min || ratio > p.ap_size_max) continue;
+        const cv::Point2d pa(aps[k].cx, aps[k].cy);
+        // The missing one opposite the AP (it is TL), opposite j (i is TL), or opposite i (j is TL).
+        const cv::Point2d miss[3] = {pi + pj - pa, pi + pa - pj, pj + pa - pi};
+        for (int conf = 0; conf < 3; ++conf) {
+          if (labelAt(miss[conf]) != detail::kBlue) continue;
+          detail::Region r;
+          if (!detail::completeSquare(img, miss[conf], detail::kBlue, shape, min_peak, r)) continue;
+          fips.push_back(r);
+          const int m = static_cast<int>(fips.size()) - 1;
+          detail::Candidate c;
+          c.ap = k;
+          if (conf == 0) c.tl = m, c.tr = i, c.bl = j;
+          if (conf == 1) c.tl = i, c.tr = m, c.bl = j;
+          if (conf == 2) c.tl = j, c.tr = m, c.bl = i;
+          if (tryCandidate(c)) break;
+          fips.pop_back();
+        }
+      }
+    }
+  // The AP missing: a 3-cycle of FIPs.
+  for (const auto& cyc : cycles) {
+    if (used[cyc[0]] || used[cyc[1]] || used[cyc[2]]) continue;
+    const detail::Region shape = mean({&fips[cyc[0]], &fips[cyc[1]], &fips[cyc[2]]});
+    double min_peak = 1e9;
+    for (int v : cyc) min_peak = std::min(min_peak, 0.5 * detail::meanExcess(fips[v]));
+    for (int corner = 0; corner < 3; ++corner) {
+      const auto& c0 = fips[cyc[corner]];
+      const auto& a = fips[cyc[(corner + 1) % 3]];
+      const auto& b = fips[cyc[(corner + 2) % 3]];
+      const cv::Point2d pred(a.cx + b.cx - c0.cx, a.cy + b.cy - c0.cy);
+      if (labelAt(pred) != detail::kRed) continue;
+      detail::Region r;
+      if (!detail::completeSquare(img, pred, detail::kRed, shape, min_peak, r)) continue;
+      aps.push_back(r);
+      detail::Candidate c;
+      c.tl = cyc[corner], c.tr = cyc[(corner + 1) % 3], c.bl = cyc[(corner + 2) % 3];
+      c.ap = static_cast<int>(aps.size()) - 1;
+      if (tryCandidate(c)) break;
+      aps.pop_back();
+    }
+  }
+}
 
 void Detector::Impl::run(const cv::Mat& input) {
   det.landmarks.clear();
@@ -301,7 +404,8 @@ void Detector::Impl::run(const cv::Mat& input) {
       if (detail::chooseAp(cyc, fips, aps, p, c) && detail::verify(c, fips, aps, *img, p))
         candidates.push_back(c);
     }
-    detail::resolveOverlaps(candidates, n, static_cast<int>(aps.size()), used);
+    if (!paper && p.complete_missing) complete(*img);
+    detail::resolveOverlaps(candidates, static_cast<int>(fips.size()), static_cast<int>(aps.size()), used);
   }
   timer.stamp("geometry");
 

@@ -205,12 +205,13 @@ void extractRegions(const cv::Mat& labels, const cv::Mat& bgr, const MaskThresho
       runs.push_back(run);
     }
     const int cur_end = static_cast<int>(runs.size());
-    // 8-connected union with the previous row's runs of the same colour.
+    // 4-connected union with the previous row's runs of the same colour (8
+    // would join a square to the background through single blurred corners).
     int j = prev_begin;
     for (int i = cur_begin; i < cur_end; ++i) {
       const int x0 = runs[i].x0, x1 = runs[i].x1;
-      while (j < prev_end && runs[j].x1 < x0 - 1) ++j;
-      for (int k = j; k < prev_end && runs[k].x0 <= x1 + 1; ++k)
+      while (j < prev_end && runs[j].x1 < x0) ++j;
+      for (int k = j; k < prev_end && runs[k].x0 <= x1; ++k)
         if (runs[k].colour == runs[i].colour) unite(runs, i, k);
     }
     prev_begin = cur_begin;
@@ -496,16 +497,21 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
     const Region& r = *sq[i];
     fip_value += std::max({r.sum_b, r.sum_g, r.sum_r}) / std::max(1.0, r.n_sum) / 3;
   }
-  const cv::Point2d mid[4] = {(P[0] + P[1]) * 0.5, (P[1] + P[2]) * 0.5, (P[2] + P[3]) * 0.5,
-                              (P[3] + P[0]) * 0.5};
-  double sheet_mean = 0;
-  for (const auto& q : mid) {
-    double sv, vv, mean;
-    if (!sampleSV(bgr, q, sv, vv, &mean)) return fail("outside the image");
-    if (sv > p.sheet_max_saturation) return fail("sheet saturated");
-    if (vv < p.sheet_min_value * fip_value) return fail("sheet dark");
-    sheet_mean += mean / 4;
-  }
+  // Three points on each side between the squares (a third, half and two
+  // thirds of the way from one centre to the next: white paper between the
+  // squares' edges at a sixth and five sixths).
+  double sheet_mean = 0, sheet_lo = 1e9, sheet_hi = 0;
+  for (int i = 0; i < 4; ++i)
+    for (double t : {1.0 / 3, 0.5, 2.0 / 3}) {
+      double sv, vv, mean;
+      if (!sampleSV(bgr, P[i] + (P[(i + 1) % 4] - P[i]) * t, sv, vv, &mean)) return fail("outside the image");
+      if (sv > p.sheet_max_saturation) return fail("sheet saturated");
+      if (vv < p.sheet_min_value * fip_value) return fail("sheet dark");
+      sheet_mean += mean / 12;
+      sheet_lo = std::min(sheet_lo, mean);
+      sheet_hi = std::max(sheet_hi, mean);
+    }
+  if (sheet_lo < p.sheet_uniformity * sheet_hi) return fail("sheet uneven");
   // The QR: its square is darker than the sheet (black modules, or grey when
   // they are too small to resolve). A 5 x 5 grid over its middle, placed by
   // the affine frame of TL, TR, BL.
@@ -586,6 +592,47 @@ double coverFraction(const cv::Mat& bgr, cv::Point2d a, uint8_t ca, cv::Point2d 
       break;
     }
   return ta + tb;
+}
+
+double meanExcess(const Region& r) {
+  if (!(r.n_sum > 0)) return 0;
+  return (r.colour == kBlue ? r.sum_b - std::max(r.sum_g, r.sum_r) : r.sum_r - std::max(r.sum_g, r.sum_b)) / r.n_sum;
+}
+
+bool completeSquare(const cv::Mat& bgr, cv::Point2d guess, uint8_t colour, const Region& shape,
+                    double min_peak, Region& out) {
+  const double h = std::max(1.5, 0.6 * shape.side());
+  const int x0 = std::max(0, static_cast<int>(std::floor(guess.x - h)));
+  const int y0 = std::max(0, static_cast<int>(std::floor(guess.y - h)));
+  const int x1 = std::min(bgr.cols - 1, static_cast<int>(std::ceil(guess.x + h)));
+  const int y1 = std::min(bgr.rows - 1, static_cast<int>(std::ceil(guess.y + h)));
+  if (x1 < x0 || y1 < y0) return false;
+  int peak = -255;
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x) peak = std::max(peak, hueExcess(bgr.ptr<uint8_t>(y) + 3 * x, colour));
+  if (peak < min_peak) return false;
+  const int half = peak / 2;
+  double sw = 0, sx = 0, sy = 0, sb = 0, sg = 0, sr = 0;
+  int n = 0;
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x) {
+      const uint8_t* px = bgr.ptr<uint8_t>(y) + 3 * x;
+      const int w = hueExcess(px, colour) - half;
+      if (w <= 0) continue;
+      sw += w, sx += w * x, sy += w * y;
+      sb += px[0], sg += px[1], sr += px[2];
+      ++n;
+    }
+  if (sw <= 0) return false;
+  out = shape;
+  out.colour = colour;
+  out.cx = sx / sw;
+  out.cy = sy / sw;
+  out.x0 = x0, out.y0 = y0, out.x1 = x1, out.y1 = y1;
+  out.area = n;
+  out.sum_b = sb, out.sum_g = sg, out.sum_r = sr;
+  out.n_sum = n;
+  return true;
 }
 
 void resolveOverlaps(std::vector<Candidate>& cands, int n_fips, int n_aps, std::vector<uint8_t>& used) {

@@ -68,7 +68,7 @@ struct RunScratch {
   std::vector<Acc> acc;        // per region
 };
 
-/// 4. contours (fast front end): 8-connected regions of each colour of the
+/// 4. contours (fast front end): 4-connected regions of each colour of the
 /// label image, with their area, bbox, weighted centroid, moments and the
 /// channel sums of their pixels. Regions outside [min_area, max_area] are
 /// dropped.
@@ -125,6 +125,7 @@ struct Candidate {
   int tl = -1, tr = -1, bl = -1, ap = -1;
   double error = 0;  ///< combined geometric error (lower is better)
   float score = 0;
+  bool completed = false;  ///< one square found by completeSquare
 };
 
 /// 7. AP choice and ordering for a 3-cycle: for each choice of corner FIP the
@@ -151,6 +152,19 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
 /// between a corner square and one in the middle of a card. Negative when
 /// the profile shows no gap.
 double coverFraction(const cv::Mat& bgr, cv::Point2d a, uint8_t colour_a, cv::Point2d b, uint8_t colour_b);
+
+/// A square of `colour` around `guess` where the layout predicts one but the
+/// mask has no region of its own for it (it merged with a same-coloured
+/// background through the sheet's thin margin): the centroid of the colour
+/// excess above half its peak within `side` of the guess. False when the
+/// peak excess is below `min_peak` (no such square there). `shape` gives
+/// the moments the result takes.
+bool completeSquare(const cv::Mat& bgr, cv::Point2d guess, uint8_t colour, const Region& shape,
+                    double min_peak, Region& out);
+
+/// Colour excess of a region's own colour, per pixel: its mean colour's
+/// (blue: b - max(g, r), red: r - max(g, b)).
+double meanExcess(const Region& r);
 
 /// Candidates sharing a region: the best score wins, greedily.
 void resolveOverlaps(std::vector<Candidate>& candidates, int n_fips, int n_aps,

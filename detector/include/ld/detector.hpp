@@ -100,8 +100,11 @@ struct DetectorParams {
   /// The sheet between the squares and at the centre must be less saturated
   /// than this (0..1)...
   double sheet_max_saturation = 0.45;
-  /// ... and at least this bright relative to the FIPs' brightest channel.
-  double sheet_min_value = 0.7;
+  /// ... and at least this bright relative to the FIPs' brightest channel
+  /// (printed blue is dark: about half the paper's brightness) ...
+  double sheet_min_value = 1.0;
+  /// ... and even: its darkest sample at least this fraction of its brightest.
+  double sheet_uniformity = 0.6;
   /// The QR square's mean brightness over the sheet's: at most this. The
   /// black modules (grey when too small to resolve) tell a landmark from
   /// squares of other things that happen to lie like one.
@@ -113,6 +116,11 @@ struct DetectorParams {
   /// spaced otherwise, whatever the threshold made of the squares' sizes.
   double cover_min = 0.18;
   double cover_max = 0.5;
+  /// Fast front end: also accept a landmark whose fourth square has no
+  /// region of its own (merged with a same-coloured background through the
+  /// sheet's thin margin, as at steep angles) when the colour is there where
+  /// the other three put it; it must pass the same verification.
+  bool complete_missing = true;
   int max_candidates = 400;  ///< FIP candidates kept (largest first); bounds the graph's cost
 
   // 8. corners
