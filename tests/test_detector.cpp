@@ -246,7 +246,7 @@ TEST(Regions, SmallSquaresStayWhole) {
   ld::detail::saturationMask(img, kMt, labels);
   ld::detail::RunScratch scratch;
   std::vector<Region> regions;
-  ld::detail::extractRegions(labels, img, kMt, 3, 1000, scratch, regions);
+  ld::detail::extractRegions(labels, img, kMt, 3, 1000, 0.0, scratch, regions);
   ASSERT_EQ(regions.size(), 2u);
   const Region& b = regions[0].colour == ld::detail::kBlue ? regions[0] : regions[1];
   const Region& r = regions[0].colour == ld::detail::kBlue ? regions[1] : regions[0];
@@ -280,11 +280,31 @@ TEST(Regions, FourConnectedAndPerColour) {
   ld::detail::saturationMask(img, kMt, labels);
   ld::detail::RunScratch scratch;
   std::vector<Region> regions;
-  ld::detail::extractRegions(labels, img, kMt, 1, 1000, scratch, regions);
+  ld::detail::extractRegions(labels, img, kMt, 1, 1000, 0.0, scratch, regions);
   ASSERT_EQ(regions.size(), 5u);
   std::multiset<int> areas;
   for (const auto& r : regions) areas.insert(r.area);
   EXPECT_EQ(areas, (std::multiset<int>{9, 9, 16, 20, 36}));
+}
+
+// Rings and bent strokes fill little of the square their moments describe:
+// dropped at min_fill; a solid square (or any parallelogram) fills it all.
+TEST(Regions, FillDropsRingsAndBentStrokes) {
+  cv::Mat img(40, 60, CV_8UC3, cv::Scalar(220, 220, 220));
+  cv::rectangle(img, cv::Rect(2, 2, 16, 16), cv::Scalar(160, 50, 40), 2);  // ring
+  img(cv::Rect(22, 20, 30, 2)).setTo(cv::Scalar(160, 50, 40));              // an L
+  img(cv::Rect(22, 20, 2, 18)).setTo(cv::Scalar(160, 50, 40));
+  img(cv::Rect(40, 2, 8, 8)).setTo(cv::Scalar(160, 50, 40));                // square
+  cv::Mat labels;
+  ld::detail::saturationMask(img, kMt, labels);
+  ld::detail::RunScratch scratch;
+  std::vector<Region> regions;
+  ld::detail::extractRegions(labels, img, kMt, 1, 1000, 0.0, scratch, regions);
+  EXPECT_EQ(regions.size(), 3u);
+  ld::detail::extractRegions(labels, img, kMt, 1, 1000, 0.5, scratch, regions);
+  ASSERT_EQ(regions.size(), 1u);
+  EXPECT_EQ(regions[0].area, 64);
+  EXPECT_NEAR(ld::detail::fill(regions[0]), 1.0, 1e-9);
 }
 
 // U shapes and spirals merge through later rows (union-find).
@@ -298,7 +318,7 @@ TEST(Regions, MergesThroughLaterRows) {
   ld::detail::saturationMask(img, kMt, labels);
   ld::detail::RunScratch scratch;
   std::vector<Region> regions;
-  ld::detail::extractRegions(labels, img, kMt, 1, 1000, scratch, regions);
+  ld::detail::extractRegions(labels, img, kMt, 1, 1000, 0.0, scratch, regions);
   ASSERT_EQ(regions.size(), 1u);
   EXPECT_EQ(regions[0].area, 3 * 20 + 28);
 }

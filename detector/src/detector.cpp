@@ -189,6 +189,11 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// Three FIPs of a landmark: two sides alike and the third sqrt(2) longer,
+// within this ratio (the squares' moments, which measure the sides, are
+// unreliable for tiny blurred squares).
+constexpr double kTriangleTolerance = 1.5;
+
 // A tiny named-stage timer: stamp(name) records the time since the previous stamp.
 class StageTimer {
  public:
@@ -286,10 +291,24 @@ void Detector::Impl::complete(const cv::Mat& img) {
         const double ratio = aps[k].side() / side;
         if (ratio < p.ap_size_min || ratio > p.ap_size_max) continue;
         const cv::Point2d pa(aps[k].cx, aps[k].cy);
-        // The missing one opposite the AP (it is TL), opposite j (i is TL), or opposite i (j is TL).
+        // Distances in the frame of the squares' moments: neighbours 3 apart,
+        // the diagonal 4.24 (only their ratios count: sizes are unreliable).
+        const double dij = detail::normalisedDistance(fips[i], fips[j]);
+        const double dia = detail::normalisedDistance(fips[i], aps[k]);
+        const double dja = detail::normalisedDistance(fips[j], aps[k]);
+        if (!(dia >= p.d_min && dia <= p.d_max && dja >= p.d_min && dja <= p.d_max)) continue;
+        auto near = [](double ratio, double want) {
+          return ratio > want / kTriangleTolerance && ratio < want * kTriangleTolerance;
+        };
+        // The missing one opposite the AP (it is TL: i, j diagonal, the AP next
+        // to both), opposite j (i is TL: j next to i, the AP diagonal to i),
+        // or opposite i (j is TL).
+        const bool fits[3] = {near(dij / dia, std::sqrt(2.0)) && near(dia / dja, 1.0),
+                              near(dia / dij, std::sqrt(2.0)) && near(dja / dij, 1.0),
+                              near(dja / dij, std::sqrt(2.0)) && near(dia / dij, 1.0)};
         const cv::Point2d miss[3] = {pi + pj - pa, pi + pa - pj, pj + pa - pi};
         for (int conf = 0; conf < 3; ++conf) {
-          if (labelAt(miss[conf]) != detail::kBlue) continue;
+          if (!fits[conf] || labelAt(miss[conf]) != detail::kBlue) continue;
           detail::Region r;
           if (!detail::completeSquare(img, miss[conf], detail::kBlue, shape, min_peak, r)) continue;
           fips.push_back(r);
@@ -310,7 +329,9 @@ void Detector::Impl::complete(const cv::Mat& img) {
     const detail::Region shape = mean({&fips[cyc[0]], &fips[cyc[1]], &fips[cyc[2]]});
     double min_peak = 1e9;
     for (int v : cyc) min_peak = std::min(min_peak, 0.5 * detail::meanExcess(fips[v]));
-    for (int corner = 0; corner < 3; ++corner) {
+    int corner = 0;
+    if (!detail::rightIsosceles(cyc, fips, kTriangleTolerance, &corner)) continue;
+    {
       const auto& c0 = fips[cyc[corner]];
       const auto& a = fips[cyc[(corner + 1) % 3]];
       const auto& b = fips[cyc[(corner + 2) % 3]];
@@ -322,8 +343,7 @@ void Detector::Impl::complete(const cv::Mat& img) {
       detail::Candidate c;
       c.tl = cyc[corner], c.tr = cyc[(corner + 1) % 3], c.bl = cyc[(corner + 2) % 3];
       c.ap = static_cast<int>(aps.size()) - 1;
-      if (tryCandidate(c)) break;
-      aps.pop_back();
+      if (!tryCandidate(c)) aps.pop_back();
     }
   }
 }
@@ -359,7 +379,7 @@ void Detector::Impl::run(const cv::Mat& input) {
     const detail::MaskThresholds mt{p.saturation_threshold_blue, p.saturation_threshold, p.value_min};
     detail::saturationMask(*src, mt, labels);
     timer.stamp("saturation");
-    detail::extractRegions(labels, *src, mt, p.min_area_px, max_area, runs, regions);
+    detail::extractRegions(labels, *src, mt, p.min_area_px, max_area, p.min_fill, runs, regions);
     timer.stamp("contours");
   } else {
     detail::saturationImage(*src, sat);
@@ -401,7 +421,8 @@ void Detector::Impl::run(const cv::Mat& input) {
     detail::threeCycles(adjacency, n, cycles);
     for (const auto& cyc : cycles) {
       detail::Candidate c;
-      if (detail::chooseAp(cyc, fips, aps, p, c) && detail::verify(c, fips, aps, *img, p))
+      if (detail::rightIsosceles(cyc, fips, kTriangleTolerance) && detail::chooseAp(cyc, fips, aps, p, c) &&
+          detail::verify(c, fips, aps, *img, p))
         candidates.push_back(c);
     }
     if (!paper && p.complete_missing) complete(*img);

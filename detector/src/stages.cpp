@@ -83,7 +83,7 @@ double excessAt(const cv::Mat& bgr, const cv::Point2d& p, uint8_t colour) {
 
 double Region::side() const {
   const double d = sxx * syy - sxy * sxy;
-  return d > 0 ? std::sqrt(12.0) * std::pow(d, 0.25) : 0.0;
+  return d > 0 ? std::sqrt(12.0 * std::sqrt(d)) : 0.0;
 }
 
 // ====================================================================== front ends
@@ -163,18 +163,18 @@ inline int64_t sumSq(int64_t n) { return n * (n + 1) * (2 * n + 1) / 6; }
 
 }  // namespace
 
-void extractRegions(const cv::Mat& labels, const cv::Mat& bgr, const MaskThresholds& mt,
-                    int min_area, int max_area, RunScratch& scratch, std::vector<Region>& out) {
+void extractRegions(const cv::Mat& labels, const cv::Mat& bgr, const MaskThresholds& mt, int min_area,
+                    int max_area, double min_fill, RunScratch& scratch, std::vector<Region>& out) {
   CV_Assert(labels.type() == CV_8UC1 && bgr.type() == CV_8UC3 && labels.size() == bgr.size());
   out.clear();
   auto& runs = scratch.runs;
   runs.clear();
   const int w = labels.cols, h = labels.rows;
-  const int thr_b = thresholdQ8(mt.blue), thr_r = thresholdQ8(mt.red);
+
+  // Runs of each row, united with the previous row's.
   int prev_begin = 0, prev_end = 0;
   for (int y = 0; y < h; ++y) {
     const uint8_t* L = labels.ptr<uint8_t>(y);
-    const uint8_t* src = bgr.ptr<uint8_t>(y);
     const int cur_begin = static_cast<int>(runs.size());
     int x = 0;
     while (x < w) {
@@ -188,21 +188,9 @@ void extractRegions(const cv::Mat& labels, const cv::Mat& bgr, const MaskThresho
       while (x < w && L[x] == kNone) ++x;
       if (x >= w) break;
       const uint8_t c = L[x];
-      const int thr = c == kBlue ? thr_b : thr_r;
-      RunScratch::Run run{y, x, x, c, static_cast<int>(runs.size()), 0, 0, 0, 0, 0, 0};
-      for (; x < w && L[x] == c; ++x) {
-        const int b = src[3 * x], g = src[3 * x + 1], r = src[3 * x + 2];
-        const int mx = std::max({b, g, r}), mn = std::min({b, g, r});
-        const int wt = std::max(1, (mx - mn) - ((mx * thr) >> 8));
-        run.w += wt;
-        run.wx += static_cast<int64_t>(wt) * x;
-        run.b += b;
-        run.g += g;
-        run.r += r;
-      }
-      run.x1 = x - 1;
-      run.wy = run.w * y;
-      runs.push_back(run);
+      const int x0 = x;
+      while (x < w && L[x] == c) ++x;
+      runs.push_back({y, x0, x - 1, c, static_cast<int>(runs.size())});
     }
     const int cur_end = static_cast<int>(runs.size());
     // 4-connected union with the previous row's runs of the same colour (8
@@ -218,23 +206,24 @@ void extractRegions(const cv::Mat& labels, const cv::Mat& bgr, const MaskThresho
     prev_end = cur_end;
   }
 
-  // Accumulate the runs into their regions.
+  // Area moments of every region from its runs (closed forms, no pixels).
   using Acc = RunScratch::Acc;
   auto& acc = scratch.acc;
   acc.clear();
   auto& region_of = scratch.region_of;
-  region_of.assign(runs.size(), -1);
+  region_of.resize(runs.size());
   for (int i = 0; i < static_cast<int>(runs.size()); ++i) {
     const auto& run = runs[i];
     const int root = findRoot(runs, i);
-    int& ri = region_of[root];
-    if (ri < 0) {
-      ri = static_cast<int>(acc.size());
+    if (root == i) {
+      region_of[i] = static_cast<int>(acc.size());
       Acc a;
       a.x0 = run.x0, a.x1 = run.x1, a.y0 = run.y, a.y1 = run.y, a.colour = run.colour;
       acc.push_back(a);
+    } else {
+      region_of[i] = region_of[root];  // root < i: already set
     }
-    Acc& a = acc[ri];
+    Acc& a = acc[region_of[i]];
     const int64_t n = run.x1 - run.x0 + 1;
     const int64_t sx = n * (run.x0 + run.x1) / 2;  // n*(x0+x1) is always even
     a.n += n;
@@ -243,35 +232,64 @@ void extractRegions(const cv::Mat& labels, const cv::Mat& bgr, const MaskThresho
     a.sxx += sumSq(run.x1) - (run.x0 > 0 ? sumSq(run.x0 - 1) : 0);
     a.syy += n * run.y * run.y;
     a.sxy += sx * run.y;
-    a.w += run.w;
-    a.wx += run.wx;
-    a.wy += run.wy;
-    a.b += run.b;
-    a.g += run.g;
-    a.r += run.r;
     a.x0 = std::min(a.x0, run.x0);
     a.x1 = std::max(a.x1, run.x1);
     a.y1 = std::max(a.y1, run.y);
   }
-  for (const Acc& a : acc) {
+
+  // Regions of a square's size and shape; then their pixels: weighted
+  // centroid and channel sums.
+  auto& keep = scratch.keep;
+  keep.assign(acc.size(), -1);
+  for (int k = 0; k < static_cast<int>(acc.size()); ++k) {
+    const Acc& a = acc[k];
     if (a.n < min_area || a.n > max_area) continue;
     Region r;
     r.colour = a.colour;
     r.x0 = a.x0, r.y0 = a.y0, r.x1 = a.x1, r.y1 = a.y1;
     r.area = static_cast<int>(a.n);
     const double n = static_cast<double>(a.n);
-    r.cx = static_cast<double>(a.wx) / static_cast<double>(a.w);
-    r.cy = static_cast<double>(a.wy) / static_cast<double>(a.w);
     const double mx = a.sx / n, my = a.sy / n;
     // + 1/12: a pixel's own extent, so a filled n x n block has the moments of an n x n square.
     r.sxx = a.sxx / n - mx * mx + 1.0 / 12;
     r.syy = a.syy / n - my * my + 1.0 / 12;
     r.sxy = a.sxy / n - mx * my;
-    r.sum_b = static_cast<double>(a.b);
-    r.sum_g = static_cast<double>(a.g);
-    r.sum_r = static_cast<double>(a.r);
+    r.cx = mx, r.cy = my;
     r.n_sum = n;
+    if (fill(r) < min_fill) continue;
+    keep[k] = static_cast<int>(out.size());
     out.push_back(r);
+  }
+  if (out.empty()) return;
+  auto& sums = scratch.sums;
+  sums.assign(out.size(), {});
+  const int thr_b = thresholdQ8(mt.blue), thr_r = thresholdQ8(mt.red);
+  for (int i = 0; i < static_cast<int>(runs.size()); ++i) {
+    const int k = keep[region_of[i]];
+    if (k < 0) continue;
+    const auto& run = runs[i];
+    const int thr = run.colour == kBlue ? thr_b : thr_r;
+    const uint8_t* src = bgr.ptr<uint8_t>(run.y);
+    int64_t sw = 0, swx = 0, sb = 0, sg = 0, sr = 0;
+    for (int x = run.x0; x <= run.x1; ++x) {
+      const int b = src[3 * x], g = src[3 * x + 1], r = src[3 * x + 2];
+      const int mx = std::max({b, g, r}), mn = std::min({b, g, r});
+      const int wt = std::max(1, (mx - mn) - ((mx * thr) >> 8));
+      sw += wt;
+      swx += static_cast<int64_t>(wt) * x;
+      sb += b, sg += g, sr += r;
+    }
+    auto& s = sums[k];
+    s.w += sw, s.wx += swx, s.wy += sw * run.y, s.b += sb, s.g += sg, s.r += sr;
+  }
+  for (size_t k = 0; k < out.size(); ++k) {
+    const auto& s = sums[k];
+    Region& r = out[k];
+    r.cx = static_cast<double>(s.wx) / static_cast<double>(s.w);
+    r.cy = static_cast<double>(s.wy) / static_cast<double>(s.w);
+    r.sum_b = static_cast<double>(s.b);
+    r.sum_g = static_cast<double>(s.g);
+    r.sum_r = static_cast<double>(s.r);
   }
 }
 
@@ -417,6 +435,19 @@ void threeCycles(const std::vector<uint8_t>& adj, int n, std::vector<std::array<
   }
 }
 
+bool rightIsosceles(const std::array<int, 3>& cyc, const std::vector<Region>& fips, double tol, int* corner) {
+  // d[k]: the side opposite vertex k.
+  const double d[3] = {normalisedDistance(fips[cyc[1]], fips[cyc[2]]),
+                       normalisedDistance(fips[cyc[0]], fips[cyc[2]]),
+                       normalisedDistance(fips[cyc[0]], fips[cyc[1]])};
+  const int k = d[0] >= d[1] ? (d[0] >= d[2] ? 0 : 2) : (d[1] >= d[2] ? 1 : 2);
+  const double a = d[(k + 1) % 3], b = d[(k + 2) % 3];
+  if (!(a > 0 && b > 0)) return false;
+  const double r1 = d[k] / std::sqrt(2.0 * a * b), r2 = a / b;
+  if (corner) *corner = k;
+  return r1 < tol && r1 > 1 / tol && r2 < tol && r2 > 1 / tol;
+}
+
 bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
               const std::vector<Region>& aps, const DetectorParams& p, Candidate& out) {
   const Region& f0 = fips[cycle[0]];
@@ -425,7 +456,7 @@ bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
   Sym2 s{(f0.sxx + f1.sxx + f2.sxx) / 3, (f0.sxy + f1.sxy + f2.sxy) / 3, (f0.syy + f1.syy + f2.syy) / 3};
   Sym2 m;
   if (!metric(s, m)) return false;
-  const double fip_side = std::sqrt(12.0) * std::pow(s.det(), 0.25);
+  const double fip_side = std::sqrt(12.0 * std::sqrt(s.det()));
   double best = p.ap_max_offset;
   bool found = false;
   for (int corner = 0; corner < 3; ++corner) {
@@ -485,7 +516,7 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   if (std::abs(cosang) > tol) return fail("angle");
 
   // Sizes: every square within the AP size gates of the FIPs' mean side.
-  const double side = std::sqrt(12.0) * std::pow(s.det(), 0.25);
+  const double side = std::sqrt(12.0 * std::sqrt(s.det()));
   for (const Region* r : sq) {
     const double ratio = r->side() / side;
     if (ratio < p.ap_size_min || ratio > p.ap_size_max) return fail("square size");

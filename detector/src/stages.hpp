@@ -55,25 +55,30 @@ struct RunScratch {
     int y, x0, x1;
     uint8_t colour;
     int parent;
-    int64_t w, wx, wy;  // weight sums (saturation excess)
-    int64_t b, g, r;    // channel sums
   };
-  struct Acc {
-    int64_t n = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, w = 0, wx = 0, wy = 0, b = 0, g = 0, r = 0;
+  struct Acc {  // area moments of a region
+    int64_t n = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
     int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
     uint8_t colour = 0;
   };
+  struct Sums {  // pixel sums of a kept region
+    int64_t w = 0, wx = 0, wy = 0, b = 0, g = 0, r = 0;
+  };
   std::vector<Run> runs;
-  std::vector<int> region_of;  // root run -> region index
+  std::vector<int> region_of;  // run -> region
   std::vector<Acc> acc;        // per region
+  std::vector<int> keep;       // region -> index in the output, or -1
+  std::vector<Sums> sums;      // per output region
 };
 
 /// 4. contours (fast front end): 4-connected regions of each colour of the
-/// label image, with their area, bbox, weighted centroid, moments and the
-/// channel sums of their pixels. Regions outside [min_area, max_area] are
-/// dropped.
-void extractRegions(const cv::Mat& labels, const cv::Mat& bgr, const MaskThresholds& t,
-                    int min_area, int max_area, RunScratch& scratch, std::vector<Region>& out);
+/// label image (run-based union-find). Regions outside [min_area, max_area]
+/// or filling less than min_fill of their moments' square are dropped; the
+/// rest get bbox, area moments, a centroid weighted by saturation above the
+/// threshold (sub-pixel, smooth at the edges) and the channel sums of their
+/// pixels.
+void extractRegions(const cv::Mat& labels, const cv::Mat& bgr, const MaskThresholds& t, int min_area,
+                    int max_area, double min_fill, RunScratch& scratch, std::vector<Region>& out);
 
 /// HSV saturation of an 8-bit BGR image (0..255), as the paper's front end uses.
 void saturationImage(const cv::Mat& bgr, cv::Mat& sat);
@@ -119,6 +124,12 @@ bool fipEdge(const Region& a, const Region& b, const DetectorParams& p);
 /// The 3-cycles of a graph given by its adjacency matrix (n x n, row major,
 /// nonzero = edge), as index triples i < j < k.
 void threeCycles(const std::vector<uint8_t>& adjacency, int n, std::vector<std::array<int, 3>>& out);
+
+/// Whether three FIPs make a right isosceles triangle in the frame of their
+/// moments (two sides alike, the third sqrt(2) longer, within `tol` as a
+/// ratio), and which of them is the corner (opposite the longest side).
+bool rightIsosceles(const std::array<int, 3>& cycle, const std::vector<Region>& fips, double tol,
+                    int* corner = nullptr);
 
 /// A landmark candidate: indices into the FIP and AP lists.
 struct Candidate {
