@@ -45,6 +45,9 @@ void forEachField(DetectorParams& p, F&& f) {
   f("ap_size_min", p.ap_size_min);
   f("ap_size_max", p.ap_size_max);
   f("shape_tolerance", p.shape_tolerance);
+  f("max_anisotropy", p.max_anisotropy);
+  f("square_scale_min", p.square_scale_min);
+  f("square_scale_max", p.square_scale_max);
   f("sheet_max_saturation", p.sheet_max_saturation);
   f("sheet_min_value", p.sheet_min_value);
   f("sheet_uniformity", p.sheet_uniformity);
@@ -155,6 +158,9 @@ void DetectorParams::validate() const {
   if (!(ap_size_min > 0 && ap_size_min <= 1)) bad("ap_size_min", "must be in (0, 1]");
   if (!(ap_size_max >= 1)) bad("ap_size_max", "must be >= 1");
   if (!(shape_tolerance > 0 && shape_tolerance <= 1)) bad("shape_tolerance", "must be in (0, 1]");
+  if (!(max_anisotropy >= 1)) bad("max_anisotropy", "must be >= 1");
+  if (!(square_scale_min > 0 && square_scale_min <= 1)) bad("square_scale_min", "must be in (0, 1]");
+  if (!(square_scale_max >= 1)) bad("square_scale_max", "must be >= 1");
   if (!(sheet_max_saturation > 0 && sheet_max_saturation <= 1)) bad("sheet_max_saturation", "must be in (0, 1]");
   if (!(sheet_min_value >= 0 && sheet_min_value <= 2)) bad("sheet_min_value", "must be in [0, 2]");
   if (!(cover_min >= 0 && cover_min < 1)) bad("cover_min", "must be in [0, 1)");
@@ -309,8 +315,11 @@ void Detector::Impl::complete(const cv::Mat& img) {
         const cv::Point2d miss[3] = {pi + pj - pa, pi + pa - pj, pj + pa - pi};
         for (int conf = 0; conf < 3; ++conf) {
           if (!fits[conf] || labelAt(miss[conf]) != detail::kBlue) continue;
+          // The landmark's frame: TL to TR and TL to BL (their order does not matter here).
+          const cv::Point2d tl = conf == 0 ? miss[0] : conf == 1 ? pi : pj;
+          const cv::Point2d o1 = conf == 0 ? pi : miss[conf], o2 = conf == 0 ? pj : conf == 1 ? pj : pi;
           detail::Region r;
-          if (!detail::completeSquare(img, miss[conf], detail::kBlue, shape, min_peak, r)) continue;
+          if (!detail::completeSquare(img, miss[conf], detail::kBlue, o1 - tl, o2 - tl, min_peak, r)) continue;
           fips.push_back(r);
           const int m = static_cast<int>(fips.size()) - 1;
           detail::Candidate c;
@@ -326,7 +335,6 @@ void Detector::Impl::complete(const cv::Mat& img) {
   // The AP missing: a 3-cycle of FIPs.
   for (const auto& cyc : cycles) {
     if (used[cyc[0]] || used[cyc[1]] || used[cyc[2]]) continue;
-    const detail::Region shape = mean({&fips[cyc[0]], &fips[cyc[1]], &fips[cyc[2]]});
     double min_peak = 1e9;
     for (int v : cyc) min_peak = std::min(min_peak, 0.5 * detail::meanExcess(fips[v]));
     int corner = 0;
@@ -338,7 +346,10 @@ void Detector::Impl::complete(const cv::Mat& img) {
       const cv::Point2d pred(a.cx + b.cx - c0.cx, a.cy + b.cy - c0.cy);
       if (labelAt(pred) != detail::kRed) continue;
       detail::Region r;
-      if (!detail::completeSquare(img, pred, detail::kRed, shape, min_peak, r)) continue;
+      const cv::Point2d tl(c0.cx, c0.cy);
+      if (!detail::completeSquare(img, pred, detail::kRed, cv::Point2d(a.cx, a.cy) - tl, cv::Point2d(b.cx, b.cy) - tl,
+                                  min_peak, r))
+        continue;
       aps.push_back(r);
       detail::Candidate c;
       c.tl = cyc[corner], c.tr = cyc[(corner + 1) % 3], c.bl = cyc[(corner + 2) % 3];

@@ -515,6 +515,14 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   if (lmax > lmin * (1 + tol)) return fail("side ratio");
   if (std::abs(cosang) > tol) return fail("angle");
 
+  // Each square as the centres predict it: a square of the landmark's frame
+  // (not a bar or a stripe), of a plausible size.
+  for (const Region* r : sq) {
+    double scale, aniso;
+    if (!squareConsistency(*r, e1, e2, scale, aniso)) return fail("degenerate square");
+    if (aniso > p.max_anisotropy) return fail("square anisotropic");
+    if (scale < p.square_scale_min || scale > p.square_scale_max) return fail("square scale");
+  }
   // Sizes: every square within the AP size gates of the FIPs' mean side.
   const double side = std::sqrt(12.0 * std::sqrt(s.det()));
   for (const Region* r : sq) {
@@ -630,39 +638,74 @@ double meanExcess(const Region& r) {
   return (r.colour == kBlue ? r.sum_b - std::max(r.sum_g, r.sum_r) : r.sum_r - std::max(r.sum_g, r.sum_b)) / r.n_sum;
 }
 
-bool completeSquare(const cv::Mat& bgr, cv::Point2d guess, uint8_t colour, const Region& shape,
+bool completeSquare(const cv::Mat& bgr, cv::Point2d guess, uint8_t colour, cv::Point2d e1, cv::Point2d e2,
                     double min_peak, Region& out) {
-  const double h = std::max(1.5, 0.6 * shape.side());
-  const int x0 = std::max(0, static_cast<int>(std::floor(guess.x - h)));
-  const int y0 = std::max(0, static_cast<int>(std::floor(guess.y - h)));
-  const int x1 = std::min(bgr.cols - 1, static_cast<int>(std::ceil(guess.x + h)));
-  const int y1 = std::min(bgr.rows - 1, static_cast<int>(std::ceil(guess.y + h)));
+  // The layout frame at the guess: layout units u -> pixels is A = [e1 e2] / 6.
+  const double a00 = e1.x / 6, a01 = e2.x / 6, a10 = e1.y / 6, a11 = e2.y / 6;
+  const double det = a00 * a11 - a01 * a10;
+  if (!(std::abs(det) > 1e-9)) return false;
+  const double i00 = a11 / det, i01 = -a01 / det, i10 = -a10 / det, i11 = a00 / det;
+  // Search 1.5 half-sides around the guess (the square's own half-side is 1u).
+  constexpr double kReach = 1.25;
+  const double rx = kReach * (std::abs(a00) + std::abs(a01)), ry = kReach * (std::abs(a10) + std::abs(a11));
+  const int x0 = std::max(0, static_cast<int>(std::floor(guess.x - rx)));
+  const int y0 = std::max(0, static_cast<int>(std::floor(guess.y - ry)));
+  const int x1 = std::min(bgr.cols - 1, static_cast<int>(std::ceil(guess.x + rx)));
+  const int y1 = std::min(bgr.rows - 1, static_cast<int>(std::ceil(guess.y + ry)));
   if (x1 < x0 || y1 < y0) return false;
+  auto inside = [&](int x, int y) {
+    const double dx = x - guess.x, dy = y - guess.y;
+    return std::abs(i00 * dx + i01 * dy) <= kReach && std::abs(i10 * dx + i11 * dy) <= kReach;
+  };
   int peak = -255;
   for (int y = y0; y <= y1; ++y)
-    for (int x = x0; x <= x1; ++x) peak = std::max(peak, hueExcess(bgr.ptr<uint8_t>(y) + 3 * x, colour));
+    for (int x = x0; x <= x1; ++x)
+      if (inside(x, y)) peak = std::max(peak, hueExcess(bgr.ptr<uint8_t>(y) + 3 * x, colour));
   if (peak < min_peak) return false;
   const int half = peak / 2;
-  double sw = 0, sx = 0, sy = 0, sb = 0, sg = 0, sr = 0;
+  double sw = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, sb = 0, sg = 0, sr = 0;
   int n = 0;
   for (int y = y0; y <= y1; ++y)
     for (int x = x0; x <= x1; ++x) {
+      if (!inside(x, y)) continue;
       const uint8_t* px = bgr.ptr<uint8_t>(y) + 3 * x;
       const int w = hueExcess(px, colour) - half;
       if (w <= 0) continue;
       sw += w, sx += w * x, sy += w * y;
+      sxx += static_cast<double>(w) * x * x, syy += static_cast<double>(w) * y * y, sxy += static_cast<double>(w) * x * y;
       sb += px[0], sg += px[1], sr += px[2];
       ++n;
     }
   if (sw <= 0) return false;
-  out = shape;
+  out = Region();
   out.colour = colour;
   out.cx = sx / sw;
   out.cy = sy / sw;
+  out.sxx = sxx / sw - out.cx * out.cx + 1.0 / 12;
+  out.syy = syy / sw - out.cy * out.cy + 1.0 / 12;
+  out.sxy = sxy / sw - out.cx * out.cy;
   out.x0 = x0, out.y0 = y0, out.x1 = x1, out.y1 = y1;
   out.area = n;
   out.sum_b = sb, out.sum_g = sg, out.sum_r = sr;
   out.n_sum = n;
+  return true;
+}
+
+bool squareConsistency(const Region& r, cv::Point2d e1, cv::Point2d e2, double& scale, double& anisotropy) {
+  const Sym2 e{(e1.x * e1.x + e2.x * e2.x) / 108, (e1.x * e1.y + e2.x * e2.y) / 108,
+               (e1.y * e1.y + e2.y * e2.y) / 108};
+  const double de = e.det();
+  if (!(de > 1e-12)) return false;
+  // Eigenvalues of inverse(E) * S: product det(S) / det(E), sum trace(inverse(E) * S).
+  const Sym2 s = moments(r);
+  const double prod = s.det() / de;
+  const double sum = (e.yy * s.xx - 2 * e.xy * s.xy + e.xx * s.yy) / de;
+  if (!(prod > 0)) return false;
+  const double disc = std::sqrt(std::max(0.0, sum * sum / 4 - prod));
+  const double lmax = sum / 2 + disc, lmin = sum / 2 - disc;
+  if (!(lmin > 0)) return false;
+  scale = std::sqrt(std::sqrt(prod));
+  anisotropy = std::sqrt(lmax / lmin);
   return true;
 }
 

@@ -166,16 +166,24 @@ double coverFraction(const cv::Mat& bgr, cv::Point2d a, uint8_t colour_a, cv::Po
 
 /// A square of `colour` around `guess` where the layout predicts one but the
 /// mask has no region of its own for it (it merged with a same-coloured
-/// background through the sheet's thin margin): the centroid of the colour
-/// excess above half its peak within `side` of the guess. False when the
-/// peak excess is below `min_peak` (no such square there). `shape` gives
-/// the moments the result takes.
-bool completeSquare(const cv::Mat& bgr, cv::Point2d guess, uint8_t colour, const Region& shape,
+/// background through the sheet's thin margin): the centroid and moments of
+/// the colour excess above half its peak within 1.5 half-sides of the guess
+/// in the layout's frame (e1 = TR - TL, e2 = BL - TL). False when the peak
+/// excess is below `min_peak` (no such square there).
+bool completeSquare(const cv::Mat& bgr, cv::Point2d guess, uint8_t colour, cv::Point2d e1, cv::Point2d e2,
                     double min_peak, Region& out);
 
 /// Colour excess of a region's own colour, per pixel: its mean colour's
 /// (blue: b - max(g, r), red: r - max(g, b)).
 double meanExcess(const Region& r);
+
+/// How a square's measured moments compare with those the layout predicts
+/// from the centres (the affine frame of TL, TR, BL: a square of side 2u has
+/// the moments (e1 e1' + e2 e2') / 108 for e1 = TR - TL, e2 = BL - TL):
+/// `scale` the side ratio measured / predicted, `anisotropy` the ratio of
+/// the axes of the measured moments in the predicted square's frame (1 for
+/// a square; large for a stripe or a bar). False when degenerate.
+bool squareConsistency(const Region& r, cv::Point2d e1, cv::Point2d e2, double& scale, double& anisotropy);
 
 /// Candidates sharing a region: the best score wins, greedily.
 void resolveOverlaps(std::vector<Candidate>& candidates, int n_fips, int n_aps,

@@ -97,6 +97,14 @@ struct DetectorParams {
   /// also lie in [d_min, d_max]). Lower rejects more look-alikes and more
   /// steep, blurred views.
   double shape_tolerance = 0.5;
+  /// Each square against the one the centres predict (the frame of TL, TR,
+  /// BL): its moments' axes in that frame may differ by this ratio at most
+  /// (stripes and bars differ more)...
+  double max_anisotropy = 2.2;
+  /// ... and its side over the predicted side must lie in this range
+  /// (thresholded faint squares come out small).
+  double square_scale_min = 0.25;
+  double square_scale_max = 1.6;
   /// The sheet between the squares and at the centre must be less saturated
   /// than this (0..1)...
   double sheet_max_saturation = 0.45;
