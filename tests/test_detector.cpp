@@ -438,6 +438,66 @@ TEST(Overlaps, BestScoreWinsGreedily) {
   EXPECT_EQ(c[1].tl, 5);
 }
 
+TEST(Geometry, RightIsoscelesFindsTheCorner) {
+  for (double roll : {0.0, 70.0, 200.0}) {
+    const auto sq = layoutRegions(9, roll, {150, 120});
+    const std::vector<Region> fips{sq[1], sq[2], sq[0]};  // TR, BL, TL
+    int corner = -1;
+    EXPECT_TRUE(ld::detail::rightIsosceles({0, 1, 2}, fips, 1.35, &corner)) << roll;
+    EXPECT_EQ(corner, 2) << roll;
+  }
+  auto sq = layoutRegions(9, 0, {150, 120});
+  sq[2].cx = sq[0].cx + 2 * (sq[1].cx - sq[0].cx);  // three in a row
+  sq[2].cy = sq[0].cy;
+  EXPECT_FALSE(ld::detail::rightIsosceles({0, 1, 2}, std::vector<Region>{sq[0], sq[1], sq[2]}, 1.35));
+}
+
+// A square of the landmark's frame (from the centres) fits it; a bar does not.
+TEST(Geometry, SquareConsistencyWithTheFrame) {
+  const auto sq = layoutRegions(10, 30, {200, 200});
+  const cv::Point2d e1(sq[1].cx - sq[0].cx, sq[1].cy - sq[0].cy), e2(sq[2].cx - sq[0].cx, sq[2].cy - sq[0].cy);
+  double scale = 0, aniso = 0;
+  ASSERT_TRUE(ld::detail::squareConsistency(sq[3], e1, e2, scale, aniso));
+  EXPECT_NEAR(scale, 1.0, 1e-9);
+  EXPECT_NEAR(aniso, 1.0, 1e-9);
+  Region bar = sq[3];
+  bar.sxx = 30.0 * 30 / 12, bar.syy = 10.0 * 10 / 12, bar.sxy = 0;  // 30 x 10
+  ASSERT_TRUE(ld::detail::squareConsistency(bar, e1, e2, scale, aniso));
+  EXPECT_NEAR(aniso, 3.0, 1e-6);
+  EXPECT_NEAR(scale, std::sqrt(3.0), 1e-6);
+  // Under foreshortening the frame squeezes with the squares.
+  const cv::Point2d f1(e1.x * 0.3, e1.y), f2(e2.x * 0.3, e2.y);
+  Region squeezed = sq[3];
+  const double c = std::cos(30 * CV_PI / 180), s = std::sin(30 * CV_PI / 180), v = 100.0 / 12;
+  // R diag(v) R' squeezed in x by 0.3: moments of the projected square.
+  squeezed.sxx = 0.09 * v * (c * c + s * s), squeezed.syy = v, squeezed.sxy = 0;
+  ASSERT_TRUE(ld::detail::squareConsistency(squeezed, f1, f2, scale, aniso));
+  EXPECT_NEAR(aniso, 1.0, 1e-6);
+}
+
+// Along any side of a landmark the two squares cover a third of the
+// distance between their centres; between a card's corner square and one
+// in its middle, two thirds.
+TEST(Geometry, CoverFractionOfTheSides) {
+  cv::Mat img = background(kCam.size, 15, true);
+  const Placed p = place(0.8, 25, 30);
+  drawSheet(img, kCam, p);
+  const Truth t = truthOf(kCam, p);
+  const cv::Point2d P[4] = {t.centres[0], t.centres[1], t.centres[3], t.centres[2]};  // TL, TR, AP, BL
+  const uint8_t C[4] = {ld::detail::kBlue, ld::detail::kBlue, ld::detail::kRed, ld::detail::kBlue};
+  for (int i = 0; i < 4; ++i)
+    EXPECT_NEAR(ld::detail::coverFraction(img, P[i], C[i], P[(i + 1) % 4], C[(i + 1) % 4]), 1.0 / 3, 0.05) << i;
+  // A card with its red square in the middle: TL to the middle.
+  cv::Mat card = background(kCam.size, 15, true);
+  Placed pc = p;
+  pc.artwork = ld::artwork::renderLandmark("x", 720, inkColours());
+  const int u = 80;
+  pc.artwork(cv::Rect(7 * u / 2, 7 * u / 2, 2 * u, 2 * u)).setTo(cv::Scalar(45, 60, 215));
+  drawSheet(card, kCam, pc);
+  const cv::Point2d mid = (t.centres[0] + t.centres[3]) * 0.5;
+  EXPECT_NEAR(ld::detail::coverFraction(card, t.centres[0], ld::detail::kBlue, mid, ld::detail::kRed), 2.0 / 3, 0.07);
+}
+
 // ====================================================================== corners
 
 TEST(Corners, HomographyExact) {
@@ -576,6 +636,54 @@ TEST(Detector, RealLandmarkBesideLookAlike) {
   const auto& d = det.detect(img);
   ASSERT_EQ(d.landmarks.size(), 1u);
   EXPECT_TRUE(found(d, truthOf(kCam, real)));
+}
+
+// A FIP touching a blue object beside the sheet merges with it in the mask:
+// the other three squares put it where it is.
+TEST(Detector, SquareMergedWithTheBackgroundIsCompleted) {
+  cv::Mat img = background(kCam.size, 16, true);
+  const Placed p = place(1.0, 0, 0, 0.15, 0, 0);
+  const Truth t = truthOf(kCam, p);
+  // A blue object overlapping the sheet's left margin next to TL.
+  const int x = static_cast<int>(t.corners[0].x), y = static_cast<int>(t.corners[0].y);
+  img(cv::Rect(x - 60, y - 10, 60, 40)).setTo(cv::Scalar(150, 60, 40));
+  drawSheet(img, kCam, p);
+  img(cv::Rect(x - 60, y + 2, 61, 10)).setTo(cv::Scalar(150, 60, 40));  // bridging the margin
+  ld::DetectorParams q;
+  q.complete_missing = false;
+  ld::Detector without(q), with;
+  EXPECT_FALSE(found(without.detect(img), t));
+  const auto& d = with.detect(img);
+  ASSERT_EQ(d.landmarks.size(), 1u);
+  EXPECT_TRUE(ld::matchesTruth(d.landmarks[0], t.centres));
+}
+
+// Parallel blue stripes and an orange one: squares' centres may lie like a
+// landmark's, the squares themselves are bars.
+TEST(Detector, RejectsStripes) {
+  ld::Detector det;
+  for (double angle : {0.0, 30.0, 60.0}) {
+    cv::Mat img(kCam.size, CV_8UC3, cv::Scalar(200, 220, 235));
+    const cv::Point2d c(320, 240), d(std::cos(angle * CV_PI / 180), std::sin(angle * CV_PI / 180)), n(-d.y, d.x);
+    for (int k = -3; k <= 3; ++k) {
+      const cv::Point2d o = c + n * (k * 14.0);
+      cv::line(img, o - d * 120, o + d * 120, k == 1 ? cv::Scalar(40, 110, 230) : cv::Scalar(140, 50, 60), 6);
+    }
+    EXPECT_TRUE(det.detect(img).landmarks.empty()) << angle;
+  }
+}
+
+// The QR is part of the landmark: a sheet with the four squares and a blank
+// middle is not one (cards with squares only are common).
+TEST(Detector, BlankMiddleIsNoLandmark) {
+  cv::Mat img = background(kCam.size, 17);
+  Placed p = place(1.0, 10, 20);
+  p.artwork = artworkImage().clone();
+  const int u = p.artwork.cols / 9;
+  p.artwork(cv::Rect(5 * u / 2, 5 * u / 2, 4 * u, 4 * u)).setTo(cv::Scalar(225, 228, 230));
+  drawSheet(img, kCam, p);
+  ld::Detector det;
+  EXPECT_TRUE(det.detect(img).landmarks.empty());
 }
 
 TEST(Detector, GrayAndDegenerateImagesGiveNothing) {

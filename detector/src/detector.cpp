@@ -234,6 +234,7 @@ struct Detector::Impl {
   detail::RunScratch runs;
   std::vector<detail::Region> regions, fips, aps;
   std::vector<uint8_t> adjacency, used;
+  std::vector<double> fip_ap;  // normalised FIP-AP distances (completion)
   std::vector<std::array<int, 3>> cycles;
   std::vector<detail::Candidate> candidates;
   Detection det;
@@ -276,6 +277,17 @@ void Detector::Impl::complete(const cv::Mat& img) {
         b(fips[c.bl].cx, fips[c.bl].cy);
     if ((a - t).cross(b - t) < 0) std::swap(c.tr, c.bl);
   };
+  // The known squares are squares of the frame the centres make (verify
+  // checks it again; here it saves measuring the missing one).
+  auto squaresFit = [&](std::initializer_list<const detail::Region*> rs, cv::Point2d e1, cv::Point2d e2) {
+    for (const auto* r : rs) {
+      double scale, aniso;
+      if (!detail::squareConsistency(*r, e1, e2, scale, aniso) || aniso > p.max_anisotropy ||
+          scale < p.square_scale_min || scale > p.square_scale_max)
+        return false;
+    }
+    return true;
+  };
   auto tryCandidate = [&](detail::Candidate c) {
     c.completed = true;
     c.error = 1.0;  // ranks below complete landmarks
@@ -285,6 +297,9 @@ void Detector::Impl::complete(const cv::Mat& img) {
     return true;
   };
   // A FIP missing: two FIPs joined by an edge, and an AP.
+  fip_ap.resize(static_cast<size_t>(n0) * a0);
+  for (int i = 0; i < n0; ++i)
+    for (int k = 0; k < a0; ++k) fip_ap[static_cast<size_t>(i) * a0 + k] = detail::normalisedDistance(fips[i], aps[k]);
   for (int i = 0; i < n0; ++i)
     for (int j = i + 1; j < n0; ++j) {
       if (!adjacency[static_cast<size_t>(i) * n0 + j] || used[i] || used[j]) continue;
@@ -292,6 +307,7 @@ void Detector::Impl::complete(const cv::Mat& img) {
       const double side = shape.side();
       const double min_peak = 0.5 * std::min(detail::meanExcess(fips[i]), detail::meanExcess(fips[j]));
       const cv::Point2d pi(fips[i].cx, fips[i].cy), pj(fips[j].cx, fips[j].cy);
+      const double dij = detail::normalisedDistance(fips[i], fips[j]);
       for (int k = 0; k < a0; ++k) {
         if (used[n0 + k]) continue;
         const double ratio = aps[k].side() / side;
@@ -299,9 +315,7 @@ void Detector::Impl::complete(const cv::Mat& img) {
         const cv::Point2d pa(aps[k].cx, aps[k].cy);
         // Distances in the frame of the squares' moments: neighbours 3 apart,
         // the diagonal 4.24 (only their ratios count: sizes are unreliable).
-        const double dij = detail::normalisedDistance(fips[i], fips[j]);
-        const double dia = detail::normalisedDistance(fips[i], aps[k]);
-        const double dja = detail::normalisedDistance(fips[j], aps[k]);
+        const double dia = fip_ap[static_cast<size_t>(i) * a0 + k], dja = fip_ap[static_cast<size_t>(j) * a0 + k];
         if (!(dia >= p.d_min && dia <= p.d_max && dja >= p.d_min && dja <= p.d_max)) continue;
         auto near = [](double ratio, double want) {
           return ratio > want / kTriangleTolerance && ratio < want * kTriangleTolerance;
@@ -318,6 +332,7 @@ void Detector::Impl::complete(const cv::Mat& img) {
           // The landmark's frame: TL to TR and TL to BL (their order does not matter here).
           const cv::Point2d tl = conf == 0 ? miss[0] : conf == 1 ? pi : pj;
           const cv::Point2d o1 = conf == 0 ? pi : miss[conf], o2 = conf == 0 ? pj : conf == 1 ? pj : pi;
+          if (!squaresFit({&fips[i], &fips[j], &aps[k]}, o1 - tl, o2 - tl)) continue;
           detail::Region r;
           if (!detail::completeSquare(img, miss[conf], detail::kBlue, o1 - tl, o2 - tl, min_peak, r)) continue;
           fips.push_back(r);
@@ -347,6 +362,7 @@ void Detector::Impl::complete(const cv::Mat& img) {
       if (labelAt(pred) != detail::kRed) continue;
       detail::Region r;
       const cv::Point2d tl(c0.cx, c0.cy);
+      if (!squaresFit({&c0, &a, &b}, cv::Point2d(a.cx, a.cy) - tl, cv::Point2d(b.cx, b.cy) - tl)) continue;
       if (!detail::completeSquare(img, pred, detail::kRed, cv::Point2d(a.cx, a.cy) - tl, cv::Point2d(b.cx, b.cy) - tl,
                                   min_peak, r))
         continue;
@@ -441,13 +457,22 @@ void Detector::Impl::run(const cv::Mat& input) {
   }
   timer.stamp("geometry");
 
-  // 8. CORNERS
+  // 8. CORNERS (through the undistorted image when the camera distorts: the
+  // sheet maps to it by a homography)
+  const bool pose = camera && side_m > 0;
+  if (pose && scaled.size != img->size()) scaled = camera->scaledTo(img->size());
+  const bool distorted = pose && scaled.hasDistortion();
   for (const auto& c : candidates) {
-    const std::array<cv::Point2d, 4> centres{
+    std::array<cv::Point2d, 4> centres{
         cv::Point2d(fips[c.tl].cx, fips[c.tl].cy), cv::Point2d(fips[c.tr].cx, fips[c.tr].cy),
         cv::Point2d(fips[c.bl].cx, fips[c.bl].cy), cv::Point2d(aps[c.ap].cx, aps[c.ap].cy)};
     std::array<cv::Point2d, 4> corrected, corners;
+    if (distorted) detail::undistortPixels(scaled, centres);
     if (!detail::fitCorners(centres, p.centre_iterations, corrected, corners)) continue;
+    if (distorted) {
+      detail::distortPixels(scaled, corrected);
+      detail::distortPixels(scaled, corners);
+    }
     Landmark lm;
     lm.fip_tl = corrected[0];
     lm.fip_tr = corrected[1];
@@ -460,8 +485,7 @@ void Detector::Impl::run(const cv::Mat& input) {
   timer.stamp("corners");
 
   // 9. POSE
-  if (camera && side_m > 0) {
-    if (scaled.size != img->size()) scaled = camera->scaledTo(img->size());
+  if (pose) {
     for (auto& lm : det.landmarks) {
       Pose pose;
       if (detail::estimatePose(lm.corners, scaled, side_m, pose)) lm.pose = pose;

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <tuple>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/hal/intrin.hpp>
@@ -301,55 +302,6 @@ inline int hueExcess(const uint8_t* px, uint8_t colour) {
 }
 
 }  // namespace
-
-bool refineMoments(const cv::Mat& bgr, Region& reg, std::vector<int>& border) {
-  const int m = 1 + std::max(reg.width(), reg.height()) / 2;
-  const int x0 = std::max(0, reg.x0 - m), y0 = std::max(0, reg.y0 - m);
-  const int x1 = std::min(bgr.cols - 1, reg.x1 + m), y1 = std::min(bgr.rows - 1, reg.y1 + m);
-  if (x1 - x0 < 2 || y1 - y0 < 2) return false;
-  // Background: the median excess on the window's border.
-  border.clear();
-  for (int x = x0; x <= x1; ++x) {
-    border.push_back(hueExcess(bgr.ptr<uint8_t>(y0) + 3 * x, reg.colour));
-    border.push_back(hueExcess(bgr.ptr<uint8_t>(y1) + 3 * x, reg.colour));
-  }
-  for (int y = y0 + 1; y < y1; ++y) {
-    border.push_back(hueExcess(bgr.ptr<uint8_t>(y) + 3 * x0, reg.colour));
-    border.push_back(hueExcess(bgr.ptr<uint8_t>(y) + 3 * x1, reg.colour));
-  }
-  std::nth_element(border.begin(), border.begin() + static_cast<long>(border.size() / 2), border.end());
-  const int bg = std::max(0, border[border.size() / 2]);
-  // Peak: the largest excess inside the region's box.
-  int peak = 0;
-  for (int y = reg.y0; y <= reg.y1; ++y) {
-    const uint8_t* row = bgr.ptr<uint8_t>(y);
-    for (int x = reg.x0; x <= reg.x1; ++x) peak = std::max(peak, hueExcess(row + 3 * x, reg.colour));
-  }
-  if (peak - bg < 8) return false;
-  const int floor = bg + (peak - bg) / 10;
-  double sw = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
-  for (int y = y0; y <= y1; ++y) {
-    const uint8_t* row = bgr.ptr<uint8_t>(y);
-    for (int x = x0; x <= x1; ++x) {
-      const int w = std::min(hueExcess(row + 3 * x, reg.colour), peak) - floor;
-      if (w <= 0) continue;
-      sw += w;
-      sx += w * x;
-      sy += w * y;
-      sxx += static_cast<double>(w) * x * x;
-      syy += static_cast<double>(w) * y * y;
-      sxy += static_cast<double>(w) * x * y;
-    }
-  }
-  if (sw <= 0) return false;
-  const double cx = sx / sw, cy = sy / sw;
-  reg.cx = cx;
-  reg.cy = cy;
-  reg.sxx = sxx / sw - cx * cx + 1.0 / 12;
-  reg.syy = syy / sw - cy * cy + 1.0 / 12;
-  reg.sxy = sxy / sw - cx * cy;
-  return true;
-}
 
 void saturationImage(const cv::Mat& bgr, cv::Mat& sat) {
   CV_Assert(bgr.type() == CV_8UC3);
@@ -710,8 +662,10 @@ bool squareConsistency(const Region& r, cv::Point2d e1, cv::Point2d e2, double& 
 }
 
 void resolveOverlaps(std::vector<Candidate>& cands, int n_fips, int n_aps, std::vector<uint8_t>& used) {
-  std::stable_sort(cands.begin(), cands.end(),
-                   [](const Candidate& a, const Candidate& b) { return a.error < b.error; });
+  // (std::sort with a full tie-break: deterministic, and unlike stable_sort no allocation)
+  std::sort(cands.begin(), cands.end(), [](const Candidate& a, const Candidate& b) {
+    return std::tie(a.error, a.tl, a.tr, a.bl, a.ap) < std::tie(b.error, b.tl, b.tr, b.bl, b.ap);
+  });
   used.assign(static_cast<size_t>(n_fips + n_aps), 0);
   size_t kept = 0;
   for (size_t i = 0; i < cands.size(); ++i) {
@@ -814,6 +768,26 @@ bool fitCorners(const std::array<cv::Point2d, 4>& centres, int iterations,
   for (int i = 0; i < 4; ++i) corners[i] = applyH(H, {layout::kCornersU[i][0], layout::kCornersU[i][1]});
   if (H_out) *H_out = H;
   return true;
+}
+
+void undistortPixels(const CameraModel& camera, std::array<cv::Point2d, 4>& pts) {
+  const cv::Mat in(4, 1, CV_64FC2, pts.data());
+  cv::Mat out;
+  cv::undistortPoints(in, out, cv::Mat(camera.K), camera.dist, cv::noArray(), cv::Mat(camera.K));
+  for (int i = 0; i < 4; ++i) pts[i] = out.at<cv::Point2d>(i);
+}
+
+void distortPixels(const CameraModel& camera, std::array<cv::Point2d, 4>& pts) {
+  const cv::Matx33d Ki = camera.K.inv();
+  std::array<cv::Point3d, 4> rays;
+  for (int i = 0; i < 4; ++i) {
+    const cv::Vec3d r = Ki * cv::Vec3d(pts[i].x, pts[i].y, 1.0);
+    rays[i] = {r[0] / r[2], r[1] / r[2], 1.0};
+  }
+  std::vector<cv::Point2d> out;
+  cv::projectPoints(cv::Mat(4, 1, CV_64FC3, rays.data()), cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0),
+                    cv::Mat(camera.K), camera.dist, out);
+  for (int i = 0; i < 4; ++i) pts[i] = out[i];
 }
 
 bool estimatePose(const std::array<cv::Point2f, 4>& corners, const CameraModel& camera,

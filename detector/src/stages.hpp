@@ -90,15 +90,6 @@ void saturationImage(const cv::Mat& bgr, cv::Mat& sat);
 void contourRegions(const cv::Mat& edges, const cv::Mat& bgr, int min_area, int max_area,
                     std::vector<std::vector<cv::Point>>& contours, std::vector<Region>& out);
 
-/// Refines a fast-front-end region's centre and moments from the colour
-/// excess of its hue (blue: b - max(g, r); red: r - max(g, b)) over its
-/// bounding box grown by a margin, above the local background (the median
-/// excess on the window's border): the excess is linear in how much of a
-/// pixel the square covers, so these moments are the printed square's (plus
-/// the blur's), where the thresholded region's are smaller. False when the
-/// square is too faint to refine (the region is left as it was).
-bool refineMoments(const cv::Mat& bgr, Region& r, std::vector<int>& scratch);
-
 // ---------------------------------------------------------------- colour
 
 /// 5. colour: FIP when sum blue > a * sum red and sum blue > b * sum green, AP
@@ -203,6 +194,11 @@ cv::Point2d applyH(const cv::Matx33d& H, const cv::Point2d& p);
 bool fitCorners(const std::array<cv::Point2d, 4>& centres, int iterations,
                 std::array<cv::Point2d, 4>& corrected_centres, std::array<cv::Point2d, 4>& corners,
                 cv::Matx33d* H_out = nullptr);
+
+/// Pixel positions of a distorting camera to those of its ideal pinhole
+/// (same K), and back.
+void undistortPixels(const CameraModel& camera, std::array<cv::Point2d, 4>& pts);
+void distortPixels(const CameraModel& camera, std::array<cv::Point2d, 4>& pts);
 
 /// 9. pose: cv::solvePnP (IPPE square) on the pattern corners; the result is
 /// in the sheet's object frame of LANDMARK.md (x right, y down on the sheet,
