@@ -1,21 +1,41 @@
 // The landmark detector: section III of the paper (Fig. 2), on the landmark of
-// docs/landmark.md, with what the paper lacked (any roll, several landmarks,
-// sub-pixel corners, pose).
+// docs/landmark.md, with what the paper lacked (small squares, any roll,
+// several landmarks, look-alike rejection, sub-pixel corners, pose).
 //
-//   1. blur            optional small denoising
-//   2. saturation      per-pixel colour strength, thresholded to a mask
-//   3. edges           (paper front end only) Canny on the saturation image
-//   4. contours        connected regions of the mask (or Canny contours)
-//   5. colour          colour-ratio classification into FIP and AP candidates
-//                      (sum blue > a * sum red and sum blue > b * sum green)
-//   6. graph           FIP graph with the distance (1) and size-ratio (2) constraints
-//   7. cycles          its 3-cycles, the AP choice, ordering TL, TR, BL, AP,
-//                      overlapping candidates resolved to the best
-//   8. corners         the four outer corners, sub-pixel
-//   9. pose            cv::solvePnP (planar square) when intrinsics and side are set
+//   1. blur        optional (none in the fast front end; the paper's 9x9)
+//   2. saturation  fast: one vectorised pass labelling each pixel blue, red or
+//                  neither (HSV saturation over a per-colour threshold, a
+//                  value floor, a hue window); paper: the HSV saturation image
+//   3. edges       paper front end only: Canny on the saturation image
+//   4. contours    fast: 4-connected regions of each colour (run-based
+//                  union-find), with area moments, a saturation-weighted
+//                  sub-pixel centroid and channel sums; paper: contours'
+//                  bounding rectangles
+//   5. colour      the paper's colour ratios (sum blue > a * sum red and
+//                  sum blue > b * sum green; the same for red) into FIP and AP
+//                  candidates
+//   6-7. geometry  the FIP graph (distance (1) and size-ratio (2) constraints,
+//                  measured in the frame of the squares' second moments so
+//                  that they hold at any roll and foreshortening), its
+//                  3-cycles, the AP where TR + BL - TL predicts it (which
+//                  fixes TL at any roll), TL, TR, AP, BL clockwise; then
+//                  verification against look-alikes (squares of the frame the
+//                  centres make, a third of each side covered by squares, an
+//                  even white sheet between them, a QR darker than the sheet
+//                  in the middle, no coloured square there); landmarks whose
+//                  fourth square merged into a same-coloured background
+//                  completed from the other three; overlaps resolved by score
+//   8. corners     the homography from the four square centres, each
+//                  corrected for the perspective shift of a projected square's
+//                  centroid, gives the pattern's outer corners (through the
+//                  undistorted image when the camera distorts)
+//   9. pose        cv::solvePnP (IPPE square) when intrinsics and side are set
+//
+// Each stage is stamped by name into Detection::stages: "blur", "saturation",
+// "edges", "contours", "colour", "geometry", "corners", "pose" (those that ran).
 //
 // A Detector keeps its buffers between frames: once warmed up, detect() does
-// not allocate for frames of the same size.
+// not allocate for frames of the same size (pose, through cv::solvePnP, does).
 #pragma once
 
 #include <array>
@@ -148,17 +168,20 @@ struct DetectorParams {
   void validate() const;
 };
 
+/// The sheet's object frame (origin at the sheet's centre, x right, y down on
+/// the sheet, z into the wall) in the camera frame (x right, y down, z
+/// forward): a frontal, upright sheet has rvec = 0.
 struct Pose {
   cv::Vec3d t;     ///< sheet centre in the camera frame, metres
-  cv::Vec3d rvec;  ///< Rodrigues vector of the sheet frame (x right, y down on the sheet)
-  double distance = 0;
+  cv::Vec3d rvec;  ///< Rodrigues vector of the sheet frame
+  double distance = 0;  ///< |t|
 };
 
 /// One detection, in LANDMARK.md's terms.
 struct Landmark {
   cv::Point2f fip_tl, fip_tr, fip_bl, ap;
   std::array<cv::Point2f, 4> corners;  ///< TL, TR, BR, BL outer corners of the pattern
-  float score = 0;                     ///< 0..1, higher is more certain
+  float score = 0;                     ///< 0..1, higher fits the layout better
   std::optional<Pose> pose;
   std::optional<std::string> payload;  ///< filled by the QR reader, not the detector
 };
