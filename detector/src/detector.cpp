@@ -252,7 +252,8 @@ struct Detector::Impl {
 
 // Landmarks with one square merged into a same-coloured background (the
 // sheet's margin is a quarter of a square: at steep angles or with blur the
-// mask joins them): three squares found, the fourth where the layout puts it.
+// mask joins them) or too faint for the mask: three squares found, the fourth
+// measured where the layout puts it.
 void Detector::Impl::complete(const cv::Mat& img) {
   const DetectorParams& p = params;
   const int n0 = static_cast<int>(fips.size()), a0 = static_cast<int>(aps.size());
@@ -282,8 +283,9 @@ void Detector::Impl::complete(const cv::Mat& img) {
   auto squaresFit = [&](std::initializer_list<const detail::Region*> rs, cv::Point2d e1, cv::Point2d e2) {
     for (const auto* r : rs) {
       double scale, aniso;
-      if (!detail::squareConsistency(*r, e1, e2, scale, aniso) || aniso > p.max_anisotropy ||
-          scale < p.square_scale_min || scale > p.square_scale_max)
+      if (!detail::squareConsistency(*r, e1, e2, scale, aniso) ||
+          aniso > detail::anisotropyLimit(p.max_anisotropy, r->area) || scale < p.square_scale_min ||
+          scale > p.square_scale_max)
         return false;
     }
     return true;
@@ -328,7 +330,7 @@ void Detector::Impl::complete(const cv::Mat& img) {
                               near(dja / dij, std::sqrt(2.0)) && near(dia / dij, 1.0)};
         const cv::Point2d miss[3] = {pi + pj - pa, pi + pa - pj, pj + pa - pi};
         for (int conf = 0; conf < 3; ++conf) {
-          if (!fits[conf] || labelAt(miss[conf]) != detail::kBlue) continue;
+          if (!fits[conf] || labelAt(miss[conf]) == detail::kRed || labelAt(miss[conf]) < 0) continue;
           // The landmark's frame: TL to TR and TL to BL (their order does not matter here).
           const cv::Point2d tl = conf == 0 ? miss[0] : conf == 1 ? pi : pj;
           const cv::Point2d o1 = conf == 0 ? pi : miss[conf], o2 = conf == 0 ? pj : conf == 1 ? pj : pi;
@@ -359,7 +361,7 @@ void Detector::Impl::complete(const cv::Mat& img) {
       const auto& a = fips[cyc[(corner + 1) % 3]];
       const auto& b = fips[cyc[(corner + 2) % 3]];
       const cv::Point2d pred(a.cx + b.cx - c0.cx, a.cy + b.cy - c0.cy);
-      if (labelAt(pred) != detail::kRed) continue;
+      if (labelAt(pred) == detail::kBlue || labelAt(pred) < 0) continue;
       detail::Region r;
       const cv::Point2d tl(c0.cx, c0.cy);
       if (!squaresFit({&c0, &a, &b}, cv::Point2d(a.cx, a.cy) - tl, cv::Point2d(b.cx, b.cy) - tl)) continue;

@@ -472,7 +472,7 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   for (const Region* r : sq) {
     double scale, aniso;
     if (!squareConsistency(*r, e1, e2, scale, aniso)) return fail("degenerate square");
-    if (aniso > p.max_anisotropy) return fail("square anisotropic");
+    if (aniso > anisotropyLimit(p.max_anisotropy, r->area)) return fail("square anisotropic");
     if (scale < p.square_scale_min || scale > p.square_scale_max) return fail("square scale");
   }
   // Sizes: every square within the AP size gates of the FIPs' mean side.

@@ -3,6 +3,7 @@
 // include/ld/detector.hpp's stage list.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <vector>
@@ -157,7 +158,7 @@ double coverFraction(const cv::Mat& bgr, cv::Point2d a, uint8_t colour_a, cv::Po
 
 /// A square of `colour` around `guess` where the layout predicts one but the
 /// mask has no region of its own for it (it merged with a same-coloured
-/// background through the sheet's thin margin): the centroid and moments of
+/// background through the sheet's thin margin, or it is too faint): the centroid and moments of
 /// the colour excess above half its peak within 1.5 half-sides of the guess
 /// in the layout's frame (e1 = TR - TL, e2 = BL - TL). False when the peak
 /// excess is below `min_peak` (no such square there).
@@ -175,6 +176,13 @@ double meanExcess(const Region& r);
 /// the axes of the measured moments in the predicted square's frame (1 for
 /// a square; large for a stripe or a bar). False when degenerate.
 bool squareConsistency(const Region& r, cv::Point2d e1, cv::Point2d e2, double& scale, double& anisotropy);
+
+/// The largest anisotropy `squareConsistency` may report for a region of
+/// `area` pixels: max_anisotropy, loosened for tiny regions whose moments
+/// are only roughly a square's (by 8 / area).
+inline double anisotropyLimit(double max_anisotropy, int area) {
+  return max_anisotropy + 8.0 / std::max(1, area);
+}
 
 /// Candidates sharing a region: the best score wins, greedily.
 void resolveOverlaps(std::vector<Candidate>& candidates, int n_fips, int n_aps,

@@ -146,8 +146,9 @@ struct DetectorParams {
   double cover_max = 0.5;
   /// Fast front end: also accept a landmark whose fourth square has no
   /// region of its own (merged with a same-coloured background through the
-  /// sheet's thin margin, as at steep angles) when the colour is there where
-  /// the other three put it; it must pass the same verification.
+  /// sheet's thin margin, as at steep angles, or too faint for the mask) when
+  /// its colour is there where the other three put it; it must pass the same
+  /// verification, and ranks below landmarks found whole.
   bool complete_missing = true;
   int max_candidates = 400;  ///< FIP candidates kept (largest first); bounds the graph's cost
 
