@@ -686,6 +686,22 @@ TEST(Detector, BlankMiddleIsNoLandmark) {
   EXPECT_TRUE(det.detect(img).landmarks.empty());
 }
 
+// Hundreds of small blue and red dots: the graph is dense, the work bounded
+// (max_candidates, max_cycles), and the landmark's larger squares come first.
+TEST(Detector, DenseClutterStillFindsTheLandmark) {
+  cv::Mat img(kCam.size, CV_8UC3, cv::Scalar(215, 215, 215));
+  int k = 0;
+  for (int y = 3; y < img.rows; y += 11)
+    for (int x = 3; x < img.cols; x += 11, ++k)
+      img(cv::Rect(x, y, 4, 4)).setTo(k % 5 ? cv::Scalar(150, 50, 40) : cv::Scalar(40, 60, 210));
+  const Placed p = place(0.7, 15, 40);
+  drawSheet(img, kCam, p);
+  ld::Detector det;
+  const auto& d = det.detect(img);
+  EXPECT_EQ(d.landmarks.size(), 1u);
+  EXPECT_TRUE(found(d, truthOf(kCam, p)));
+}
+
 TEST(Detector, GrayAndDegenerateImagesGiveNothing) {
   ld::Detector det;
   EXPECT_TRUE(det.detect(cv::Mat()).landmarks.empty());

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <functional>
 #include <stdexcept>
+#include <tuple>
 #include <type_traits>
 
 #include <opencv2/imgproc.hpp>
@@ -56,6 +57,7 @@ void forEachField(DetectorParams& p, F&& f) {
   f("cover_max", p.cover_max);
   f("complete_missing", p.complete_missing);
   f("max_candidates", p.max_candidates);
+  f("max_cycles", p.max_cycles);
   f("centre_iterations", p.centre_iterations);
 }
 
@@ -168,6 +170,7 @@ void DetectorParams::validate() const {
   if (!(sheet_uniformity >= 0 && sheet_uniformity <= 1)) bad("sheet_uniformity", "must be in [0, 1]");
   if (!(qr_max_brightness > 0 && qr_max_brightness <= 2)) bad("qr_max_brightness", "must be in (0, 2]");
   if (max_candidates < 3 || max_candidates > 4096) bad("max_candidates", "must be in [3, 4096]");
+  if (max_cycles < 1) bad("max_cycles", "must be >= 1");
   if (centre_iterations < 0 || centre_iterations > 10) bad("centre_iterations", "must be in [0, 10]");
 }
 
@@ -199,6 +202,11 @@ using Clock = std::chrono::steady_clock;
 // within this ratio (the squares' moments, which measure the sides, are
 // unreliable for tiny blurred squares).
 constexpr double kTriangleTolerance = 1.5;
+
+// Missing squares measured, and (FIP pair, AP) triples looked at, per frame
+// at most: what bounds the completion's cost in cluttered frames.
+constexpr int kMaxCompletionTrials = 400;
+constexpr int kMaxCompletionPairs = 20000;
 
 // A tiny named-stage timer: stamp(name) records the time since the previous stamp.
 class StageTimer {
@@ -234,7 +242,7 @@ struct Detector::Impl {
   detail::RunScratch runs;
   std::vector<detail::Region> regions, fips, aps;
   std::vector<uint8_t> adjacency, used;
-  std::vector<double> fip_ap;  // normalised FIP-AP distances (completion)
+  detail::RegionIndex ap_index;
   std::vector<std::array<int, 3>> cycles;
   std::vector<detail::Candidate> candidates;
   Detection det;
@@ -299,10 +307,8 @@ void Detector::Impl::complete(const cv::Mat& img) {
     return true;
   };
   // A FIP missing: two FIPs joined by an edge, and an AP.
-  fip_ap.resize(static_cast<size_t>(n0) * a0);
-  for (int i = 0; i < n0; ++i)
-    for (int k = 0; k < a0; ++k) fip_ap[static_cast<size_t>(i) * a0 + k] = detail::normalisedDistance(fips[i], aps[k]);
-  for (int i = 0; i < n0; ++i)
+  int budget = kMaxCompletionTrials, evals = kMaxCompletionPairs;
+  for (int i = 0; i < n0 && budget > 0 && evals > 0; ++i)
     for (int j = i + 1; j < n0; ++j) {
       if (!adjacency[static_cast<size_t>(i) * n0 + j] || used[i] || used[j]) continue;
       const detail::Region shape = mean({&fips[i], &fips[j]});
@@ -310,15 +316,17 @@ void Detector::Impl::complete(const cv::Mat& img) {
       const double min_peak = 0.5 * std::min(detail::meanExcess(fips[i]), detail::meanExcess(fips[j]));
       const cv::Point2d pi(fips[i].cx, fips[i].cy), pj(fips[j].cx, fips[j].cy);
       const double dij = detail::normalisedDistance(fips[i], fips[j]);
-      for (int k = 0; k < a0; ++k) {
-        if (used[n0 + k]) continue;
+      // The AP lies within about twice the pair's distance.
+      ap_index.near(aps, pi.x, pi.y, 2.5 * cv::norm(pj - pi), [&](int k) {
+        if (used[n0 + k] || budget <= 0 || --evals < 0) return;
         const double ratio = aps[k].side() / side;
-        if (ratio < p.ap_size_min || ratio > p.ap_size_max) continue;
+        if (ratio < p.ap_size_min || ratio > p.ap_size_max) return;
         const cv::Point2d pa(aps[k].cx, aps[k].cy);
         // Distances in the frame of the squares' moments: neighbours 3 apart,
         // the diagonal 4.24 (only their ratios count: sizes are unreliable).
-        const double dia = fip_ap[static_cast<size_t>(i) * a0 + k], dja = fip_ap[static_cast<size_t>(j) * a0 + k];
-        if (!(dia >= p.d_min && dia <= p.d_max && dja >= p.d_min && dja <= p.d_max)) continue;
+        const double dia = detail::normalisedDistance(fips[i], aps[k]);
+        const double dja = detail::normalisedDistance(fips[j], aps[k]);
+        if (!(dia >= p.d_min && dia <= p.d_max && dja >= p.d_min && dja <= p.d_max)) return;
         auto near = [](double ratio, double want) {
           return ratio > want / kTriangleTolerance && ratio < want * kTriangleTolerance;
         };
@@ -336,6 +344,7 @@ void Detector::Impl::complete(const cv::Mat& img) {
           const cv::Point2d o1 = conf == 0 ? pi : miss[conf], o2 = conf == 0 ? pj : conf == 1 ? pj : pi;
           if (!squaresFit({&fips[i], &fips[j], &aps[k]}, o1 - tl, o2 - tl)) continue;
           detail::Region r;
+          --budget;
           if (!detail::completeSquare(img, miss[conf], detail::kBlue, o1 - tl, o2 - tl, min_peak, r)) continue;
           fips.push_back(r);
           const int m = static_cast<int>(fips.size()) - 1;
@@ -347,10 +356,11 @@ void Detector::Impl::complete(const cv::Mat& img) {
           if (tryCandidate(c)) break;
           fips.pop_back();
         }
-      }
+      });
     }
   // The AP missing: a 3-cycle of FIPs.
   for (const auto& cyc : cycles) {
+    if (budget <= 0) break;
     if (used[cyc[0]] || used[cyc[1]] || used[cyc[2]]) continue;
     double min_peak = 1e9;
     for (int v : cyc) min_peak = std::min(min_peak, 0.5 * detail::meanExcess(fips[v]));
@@ -365,6 +375,7 @@ void Detector::Impl::complete(const cv::Mat& img) {
       detail::Region r;
       const cv::Point2d tl(c0.cx, c0.cy);
       if (!squaresFit({&c0, &a, &b}, cv::Point2d(a.cx, a.cy) - tl, cv::Point2d(b.cx, b.cy) - tl)) continue;
+      --budget;
       if (!detail::completeSquare(img, pred, detail::kRed, cv::Point2d(a.cx, a.cy) - tl, cv::Point2d(b.cx, b.cy) - tl,
                                   min_peak, r))
         continue;
@@ -428,11 +439,13 @@ void Detector::Impl::run(const cv::Mat& input) {
     if (r.colour == detail::kBlue && detail::isFip(r, p.color_ratio_a, p.color_ratio_b)) fips.push_back(r);
     else if (r.colour == detail::kRed && detail::isAp(r, p.color_ratio_a, p.color_ratio_b)) aps.push_back(r);
   }
+  // Largest first (the graph's 3-cycles come in index order: when a cluttered
+  // frame has more than max_cycles, those among the larger squares are kept).
   auto keepLargest = [&](std::vector<detail::Region>& v) {
-    if (static_cast<int>(v.size()) <= p.max_candidates) return;
-    std::nth_element(v.begin(), v.begin() + p.max_candidates, v.end(),
-                     [](const detail::Region& a, const detail::Region& b) { return a.area > b.area; });
-    v.resize(static_cast<size_t>(p.max_candidates));
+    std::sort(v.begin(), v.end(), [](const detail::Region& a, const detail::Region& b) {
+      return std::tie(b.area, a.cy, a.cx) < std::tie(a.area, b.cy, b.cx);
+    });
+    if (static_cast<int>(v.size()) > p.max_candidates) v.resize(static_cast<size_t>(p.max_candidates));
   };
   keepLargest(fips);
   keepLargest(aps);
@@ -447,10 +460,11 @@ void Detector::Impl::run(const cv::Mat& input) {
       for (int j = i + 1; j < n; ++j)
         if (detail::fipEdge(fips[i], fips[j], p))
           adjacency[static_cast<size_t>(i) * n + j] = adjacency[static_cast<size_t>(j) * n + i] = 1;
-    detail::threeCycles(adjacency, n, cycles);
+    detail::threeCycles(adjacency, n, cycles, static_cast<size_t>(p.max_cycles));
+    ap_index.build(aps);
     for (const auto& cyc : cycles) {
       detail::Candidate c;
-      if (detail::rightIsosceles(cyc, fips, kTriangleTolerance) && detail::chooseAp(cyc, fips, aps, p, c) &&
+      if (detail::rightIsosceles(cyc, fips, kTriangleTolerance) && detail::chooseAp(cyc, fips, aps, p, c, &ap_index) &&
           detail::verify(c, fips, aps, *img, p))
         candidates.push_back(c);
     }

@@ -122,7 +122,8 @@ void saturationMask(const cv::Mat& bgr, const MaskThresholds& mt, cv::Mat& label
         const cv::v_uint8 bright = mx >= vvmin;
         // blue: hue within 210..270 degrees, so cyan, teal and violet are not blue
         const cv::v_uint8 isb = (b == mx) & (c > tb) & bright & ((b - g) > (g - r)) & ((b - r) > (r - g));
-        // red: hue below 30 degrees (r - g > g - b), so yellow and warm-lit white are not red
+        // red: hue below 30 degrees (r - g > g - b), so yellow and warm-lit white
+        // are not red (printed red and its blend with the paper stay below 15)
         const cv::v_uint8 isr = (r == mx) & ~(b == mx) & (c > tr) & bright & ((r - g) > (g - b));
         cv::v_store(dst + x, (isb & one) | (isr & two));
       }
@@ -374,7 +375,7 @@ bool fipEdge(const Region& a, const Region& b, const DetectorParams& p) {
   return d >= p.d_min && d <= p.d_max;
 }
 
-void threeCycles(const std::vector<uint8_t>& adj, int n, std::vector<std::array<int, 3>>& out) {
+void threeCycles(const std::vector<uint8_t>& adj, int n, std::vector<std::array<int, 3>>& out, size_t max_out) {
   out.clear();
   for (int i = 0; i < n; ++i) {
     const uint8_t* ai = &adj[static_cast<size_t>(i) * n];
@@ -382,9 +383,25 @@ void threeCycles(const std::vector<uint8_t>& adj, int n, std::vector<std::array<
       if (!ai[j]) continue;
       const uint8_t* aj = &adj[static_cast<size_t>(j) * n];
       for (int k = j + 1; k < n; ++k)
-        if (ai[k] && aj[k]) out.push_back({i, j, k});
+        if (ai[k] && aj[k]) {
+          if (out.size() >= max_out) return;
+          out.push_back({i, j, k});
+        }
     }
   }
+}
+
+void RegionIndex::build(const std::vector<Region>& regions) {
+  order.resize(regions.size());
+  for (size_t k = 0; k < regions.size(); ++k) order[k] = static_cast<int>(k);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return regions[a].cx < regions[b].cx; });
+  xs.resize(regions.size());
+  for (size_t k = 0; k < order.size(); ++k) xs[k] = regions[order[k]].cx;
+}
+
+double maxAxis(const Region& r) {
+  const double t = (r.sxx + r.syy) / 2, d = std::sqrt(std::max(0.0, (r.sxx - r.syy) * (r.sxx - r.syy) / 4 + r.sxy * r.sxy));
+  return std::sqrt(12.0 * (t + d));
 }
 
 bool rightIsosceles(const std::array<int, 3>& cyc, const std::vector<Region>& fips, double tol, int* corner) {
@@ -401,7 +418,8 @@ bool rightIsosceles(const std::array<int, 3>& cyc, const std::vector<Region>& fi
 }
 
 bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
-              const std::vector<Region>& aps, const DetectorParams& p, Candidate& out) {
+              const std::vector<Region>& aps, const DetectorParams& p, Candidate& out,
+              const RegionIndex* ap_index) {
   const Region& f0 = fips[cycle[0]];
   const Region& f1 = fips[cycle[1]];
   const Region& f2 = fips[cycle[2]];
@@ -416,12 +434,12 @@ bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
     const Region& a = fips[cycle[(corner + 1) % 3]];
     const Region& b = fips[cycle[(corner + 2) % 3]];
     const double px = a.cx + b.cx - c.cx, py = a.cy + b.cy - c.cy;
-    for (int k = 0; k < static_cast<int>(aps.size()); ++k) {
+    auto consider = [&](int k) {
       const Region& ap = aps[k];
       const double e = std::sqrt(quad(m, ap.cx - px, ap.cy - py));
-      if (e >= best) continue;
+      if (e >= best) return;
       const double ratio = ap.side() / fip_side;
-      if (ratio < p.ap_size_min || ratio > p.ap_size_max) continue;
+      if (ratio < p.ap_size_min || ratio > p.ap_size_max) return;
       best = e;
       found = true;
       out.tl = cycle[corner];
@@ -430,6 +448,14 @@ bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
       out.bl = clockwise ? cycle[(corner + 2) % 3] : cycle[(corner + 1) % 3];
       out.ap = k;
       out.error = e / p.ap_max_offset;
+    };
+    if (ap_index) {
+      // |d| <= offset / sqrt(lambda_min(M)) = offset * sqrt(12 lambda_max(S)).
+      Region mean_fip;
+      mean_fip.sxx = s.xx, mean_fip.sxy = s.xy, mean_fip.syy = s.yy;
+      ap_index->near(aps, px, py, p.ap_max_offset * maxAxis(mean_fip), consider);
+    } else {
+      for (int k = 0; k < static_cast<int>(aps.size()); ++k) consider(k);
     }
   }
   return found;

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -40,14 +41,15 @@ struct Region {
 struct MaskThresholds {
   double blue = 0.25;  ///< saturation a blue pixel exceeds
   double red = 0.45;   ///< saturation a red pixel exceeds
-  int value_min = 25; ///< darker pixels are never saturated
+  int value_min = 40; ///< darker pixels are never saturated
 };
 
 /// 2. saturation (fast front end): one pass over an 8-bit BGR image writing a
 /// CV_8U label image: kBlue where blue is the pixel's largest channel and it
 /// is saturated ((max - min) > threshold * max, max >= value_min), kRed where
-/// red is and its hue is below 30 degrees (r - g > g - b: red and red-orange,
-/// not yellow), kNone elsewhere.
+/// red is and its hue is below 30 degrees (r - g > g - b: red and
+/// red-orange, not yellow), kNone elsewhere. Blue must lie within 210..270
+/// degrees (not cyan or violet).
 void saturationMask(const cv::Mat& bgr, const MaskThresholds& t, cv::Mat& labels);
 
 /// Scratch memory of the run-based labelling, kept between frames.
@@ -114,8 +116,30 @@ double normalisedDistance(const Region& a, const Region& b);
 bool fipEdge(const Region& a, const Region& b, const DetectorParams& p);
 
 /// The 3-cycles of a graph given by its adjacency matrix (n x n, row major,
-/// nonzero = edge), as index triples i < j < k.
-void threeCycles(const std::vector<uint8_t>& adjacency, int n, std::vector<std::array<int, 3>>& out);
+/// nonzero = edge), as index triples i < j < k in lexicographic order; at
+/// most max_out of them (the first).
+void threeCycles(const std::vector<uint8_t>& adjacency, int n, std::vector<std::array<int, 3>>& out,
+                 size_t max_out = SIZE_MAX);
+
+/// Regions sorted by x, for the squares near a point.
+struct RegionIndex {
+  std::vector<int> order;
+  std::vector<double> xs;
+  void build(const std::vector<Region>& regions);
+  /// f(k) for every region k whose centre lies within r of (x, y) in x and in y.
+  template <typename F>
+  void near(const std::vector<Region>& regions, double x, double y, double r, F&& f) const {
+    auto it = std::lower_bound(xs.begin(), xs.end(), x - r);
+    for (; it != xs.end() && *it <= x + r; ++it) {
+      const int k = order[static_cast<size_t>(it - xs.begin())];
+      if (std::abs(regions[k].cy - y) <= r) f(k);
+    }
+  }
+};
+
+/// The longest axis of a region's moments as a square's side: sqrt(12
+/// lambda_max), pixels.
+double maxAxis(const Region& r);
 
 /// Whether three FIPs make a right isosceles triangle in the frame of their
 /// moments (two sides alike, the third sqrt(2) longer, within `tol` as a
@@ -137,7 +161,8 @@ struct Candidate {
 /// TR and BL are then ordered so TL, TR, AP, BL run clockwise in the image.
 /// Returns false when no AP fits.
 bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
-              const std::vector<Region>& aps, const DetectorParams& p, Candidate& out);
+              const std::vector<Region>& aps, const DetectorParams& p, Candidate& out,
+              const RegionIndex* ap_index = nullptr);
 
 /// Verification against look-alikes: convex quadrilateral, consistent sizes,
 /// a square layout in the frame of the squares' moments, white unsaturated

@@ -74,7 +74,9 @@ struct DetectorParams {
   /// is dark and only moderately saturated, while no usual light makes white
   /// paper blue, so blue can go lower and keep small FIPs whole.
   double saturation_threshold_blue = 0.25;
-  int value_min = 25;  ///< darker pixels (max channel, 0..255) are never saturated: noise
+  /// Darker pixels (max channel, 0..255) are never saturated: in the dark,
+  /// sensor noise alone makes saturated speckles by the thousand.
+  int value_min = 40;
 
   // 3. edges (paper front end)
   double canny_low = 50.0;   ///< Canny hysteresis thresholds on the saturation image
@@ -150,7 +152,11 @@ struct DetectorParams {
   /// its colour is there where the other three put it; it must pass the same
   /// verification, and ranks below landmarks found whole.
   bool complete_missing = true;
-  int max_candidates = 400;  ///< FIP candidates kept (largest first); bounds the graph's cost
+  /// FIP and AP candidates kept (largest first), and 3-cycles of the FIP
+  /// graph examined (those among the largest squares first): what bounds the
+  /// time of frames cluttered with hundreds of small blue and red things.
+  int max_candidates = 400;
+  int max_cycles = 10000;
 
   // 8. corners
   /// Perspective correction of the square centres before the corners are
