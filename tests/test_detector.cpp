@@ -857,6 +857,7 @@ TEST(Params, SaveLoadRoundTrip) {
   p.d_max = 6.25;
   p.max_candidates = 99;
   p.centre_iterations = 1;
+  p.complete_missing = false;
   const std::string path = tempPath("params.yaml");
   p.save(path);
   const ld::DetectorParams q = ld::DetectorParams::load(path);
@@ -867,6 +868,7 @@ TEST(Params, SaveLoadRoundTrip) {
   EXPECT_DOUBLE_EQ(q.d_max, 6.25);
   EXPECT_EQ(q.max_candidates, 99);
   EXPECT_EQ(q.centre_iterations, 1);
+  EXPECT_FALSE(q.complete_missing);
   EXPECT_DOUBLE_EQ(q.color_ratio_a, p.color_ratio_a);
   EXPECT_DOUBLE_EQ(q.sheet_min_value, p.sheet_min_value);
   std::remove(path.c_str());
@@ -906,6 +908,8 @@ TEST(Params, BadFilesGiveClearErrors) {
             std::string::npos);
   EXPECT_NE(loadError("%YAML:1.0\n---\nd_min: fast\n").find("'d_min' must be a number"), std::string::npos);
   EXPECT_NE(loadError("%YAML:1.0\n---\nfront_end: 3\n").find("'front_end' must be a string"), std::string::npos);
+  EXPECT_NE(loadError("%YAML:1.0\n---\ncomplete_missing: 2\n").find("'complete_missing' must be 0 or 1"),
+            std::string::npos);
   EXPECT_NE(loadError("%YAML:1.0\n---\n{ [ unbalanced").find("detector params"), std::string::npos);
   EXPECT_THROW(ld::DetectorParams::load("/nonexistent/dir/params.yaml"), std::runtime_error);
 }
