@@ -87,12 +87,9 @@ int main(int argc, char** argv) {
   int64_t processed = 0, bad = 0, last_processed = 0;
   auto last_status = std::chrono::steady_clock::now();
   while (!g_stop) {
-    if (lcm.handleTimeout(200) < 0) {
-      std::cerr << "ld-detector: LCM receive failed\n";
-      return 1;
-    }
-    while (lcm.handleTimeout(0) > 0) {
-    }  // drain the queue: only the newest frame is processed
+    // waits, then drains the queue: only the newest message is processed
+    if (!ld::pumpLcm(lcm, 200, g_stop, "ld-detector")) return 1;
+    if (g_stop) break;
     if (latest.pending_) {
       latest.pending_ = false;
       const int n = static_cast<int>(latest.bytes_.size());

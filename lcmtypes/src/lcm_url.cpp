@@ -1,12 +1,28 @@
 #include "ld/lcm_url.hpp"
 
+#include <cerrno>
 #include <cstdlib>
+#include <cstring>
+#include <iostream>
+
+#include <lcm/lcm-cpp.hpp>
 
 namespace ld {
 
 std::string defaultLcmUrl() {
   if (const char* env = std::getenv("LCM_DEFAULT_URL"); env && *env) return env;
   return "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608";
+}
+
+bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const char* program) {
+  if (lcm.handleTimeout(timeout_ms) < 0) {
+    if (stop || errno == EINTR) return true;  // a signal, not a failure
+    std::cerr << program << ": LCM receive failed: " << std::strerror(errno) << "\n";
+    return false;
+  }
+  while (!stop && lcm.handleTimeout(0) > 0) {
+  }
+  return true;
 }
 
 }  // namespace ld

@@ -92,12 +92,9 @@ int main(int argc, char** argv) {
   std::vector<int64_t> ids;
   int64_t frames = 0, decoded = 0;
   while (!g_stop) {
-    if (lcm.handleTimeout(200) < 0) {
-      std::cerr << "ld-qr-reader: LCM receive failed\n";
-      return 1;
-    }
-    while (lcm.handleTimeout(0) > 0) {
-    }
+    // waits, then drains the queue: only the newest message is processed
+    if (!ld::pumpLcm(lcm, 200, g_stop, "ld-qr-reader")) return 1;
+    if (g_stop) break;
     if (!in.matcher.takeNewest(pair)) continue;
     const int ni = static_cast<int>(pair.image.size()), nl = static_cast<int>(pair.list.size());
     if (image.decode(pair.image.data(), 0, ni) != ni || list.decode(pair.list.data(), 0, nl) != nl)

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -57,7 +58,10 @@ cv::Mat aprilTagImage(apriltag_family_t* family, int id) {
   const int b = (static_cast<int>(family->total_width) - static_cast<int>(family->width_at_border)) / 2;
   cv::Mat full(im->height, im->width, CV_8UC1, im->buf, static_cast<size_t>(im->stride));
   cv::Mat tag = full(cv::Rect(b, b, im->width - 2 * b, im->height - 2 * b)).clone();
-  image_u8_destroy(im);
+  // Debian's libapriltag exports apriltag_to_image but not image_u8_destroy;
+  // this is what image_u8_destroy does (the image and its buffer are malloc'd).
+  free(im->buf);
+  free(im);
   return tag;
 }
 

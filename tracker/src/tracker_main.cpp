@@ -99,13 +99,9 @@ int main(int argc, char** argv) {
   int64_t processed = 0, bad = 0, last_processed = 0, resets = 0;
   auto last_status = std::chrono::steady_clock::now();
   while (!g_stop) {
-    if (lcm.handleTimeout(200) < 0) {
-      if (g_stop || errno == EINTR) continue;  // a signal, not a failure
-      std::cerr << "ld-tracker: LCM receive failed: " << std::strerror(errno) << "\n";
-      return 1;
-    }
-    while (lcm.handleTimeout(0) > 0) {
-    }  // drain the queue: only the newest message is processed
+    // waits, then drains the queue: only the newest message is processed
+    if (!ld::pumpLcm(lcm, 200, g_stop, "ld-tracker")) return 1;
+    if (g_stop) break;
     if (latest.pending_) {
       latest.pending_ = false;
       const int n = static_cast<int>(latest.bytes_.size());

@@ -1,6 +1,7 @@
 // The LCM URL the project's processes use unless told otherwise.
 #pragma once
 
+#include <atomic>
 #include <string>
 
 namespace ld {
@@ -10,5 +11,20 @@ namespace ld {
 /// large images are not dropped by the kernel (raise net.core.rmem_max to
 /// let it take effect; see README).
 std::string defaultLcmUrl();
+
+}  // namespace ld
+
+namespace lcm {
+class LCM;
+}
+
+namespace ld {
+
+/// One turn of a process's receive loop: waits up to timeout_ms for messages
+/// on `lcm`, then handles every message already queued, so that the caller
+/// sees only the newest. A signal interrupting the wait (and setting `stop`)
+/// is not an error. Returns false only when LCM itself failed, which is
+/// reported in one line prefixed with `program`.
+bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const char* program);
 
 }  // namespace ld
