@@ -25,6 +25,34 @@ cv::Matx33d viewToImage(const std::array<cv::Point2f, 4>& corners, int side, dou
   return sheet_to_image * view_to_sheet;
 }
 
+cv::Matx33d sheetToImage(const std::array<cv::Point2f, 4>& corners) {
+  std::vector<cv::Point2f> sheet, img(corners.begin(), corners.end());
+  for (const auto& c : layout::kCornersU)
+    sheet.emplace_back(static_cast<float>(c[0]), static_cast<float>(c[1]));
+  return cv::Matx33d(cv::getPerspectiveTransform(sheet, img));
+}
+
+// How well the three finder patterns of an n-module grid of samples (values
+// 0..255, dark = low) look like finder patterns: the correlation of their
+// 7x7 samples with the ideal pattern, -1..1.
+double finderScore(const cv::Mat& samples, int n) {
+  static const auto ideal = [](int r, int c) {
+    const int d = std::max(std::abs(r - 3), std::abs(c - 3));
+    return d == 2 ? 0.0 : 1.0;  // 1 = dark: rings at distance 0, 1 (centre 3x3) and 3
+  };
+  double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+  int count = 0;
+  for (const auto& [r0, c0] : {std::pair{0, 0}, {0, n - 7}, {n - 7, 0}})
+    for (int r = 0; r < 7; ++r)
+      for (int c = 0; c < 7; ++c) {
+        const double x = ideal(r, c), y = 255.0 - samples.at<float>(r0 + r, c0 + c);
+        sx += x; sy += y; sxx += x * x; syy += y * y; sxy += x * y;
+        ++count;
+      }
+  const double cov = sxy - sx * sy / count, vx = sxx - sx * sx / count, vy = syy - sy * sy / count;
+  return vx > 0 && vy > 0 ? cov / std::sqrt(vx * vy) : -1.0;
+}
+
 double projectedQrSide(const std::array<cv::Point2f, 4>& c) {
   double pattern = 0;
   for (size_t i = 0; i < 4; ++i) pattern += cv::norm(c[i] - c[(i + 1) % 4]);
@@ -37,7 +65,93 @@ double projectedQrSide(const std::array<cv::Point2f, 4>& c) {
 struct QrReader::Impl {
   QrReaderParams params;
   zbar::ImageScanner scanner;
-  cv::Mat gray, view, work, blurred;
+  cv::Mat gray, view, work, blurred, map, sampled, samples, sharpened, bits, clean;
+
+  // The QR read module by module: where the camera gives about a pixel per
+  // module, zbar cannot find the finder patterns in the view, but the sheet
+  // frame says where every module is. ld-generate prints an N-module code
+  // with exactly one module of quiet zone in the QR square (docs/landmark.md),
+  // so for each plausible version the module centres are sampled from the
+  // image (3x3 points in the module's middle, averaged), thresholded, and
+  // redrawn as a clean code for zbar, whose error correction rejects the
+  // wrong versions and bad reads.
+  std::optional<std::string> readGrid(const cv::Matx33d& sheet_to_image, double qr_px) {
+    std::vector<std::pair<double, int>> candidates;  // (finder score, n)
+    for (int version = 1; version <= 15; ++version) {
+      const int n = 17 + 4 * version;
+      if (qr_px / (n + 2) < 0.6) break;  // far under a pixel per module
+      sampleModules(sheet_to_image, n);
+      candidates.emplace_back(finderScore(samples, n), n);
+    }
+    std::sort(candidates.rbegin(), candidates.rend());
+    for (size_t k = 0; k < candidates.size() && k < 3; ++k) {
+      const int n = candidates[k].second;
+      if (candidates[k].first < 0.3) break;
+      // The corners are off by a fraction of a module in hard views: align
+      // the grid (shift and scale about the QR's centre) to the finders.
+      const double module = (layout::kQrMax - layout::kQrMin) / (n + 2);
+      const double mid = (layout::kQrMin + layout::kQrMax) / 2;
+      cv::Matx33d best = sheet_to_image;
+      double best_score = -2;
+      for (double scale : {0.98, 1.0, 1.02})
+        for (double dy : {-0.3, 0.0, 0.3})
+          for (double dx : {-0.3, 0.0, 0.3}) {
+            const cv::Matx33d adjust(scale, 0, (1 - scale) * mid + dx * module,  //
+                                     0, scale, (1 - scale) * mid + dy * module,  //
+                                     0, 0, 1);
+            sampleModules(sheet_to_image * adjust, n);
+            const double score = finderScore(samples, n);
+            if (score > best_score) best_score = score, best = sheet_to_image * adjust;
+          }
+      sampleModules(best, n);
+      // The camera's blur spreads each module over its neighbours: undo some
+      // of it on the grid (a module minus k times its neighbours' mean
+      // deviation), then threshold globally (Otsu) and locally.
+      for (double k : {0.0, 0.7, 1.4}) {
+        cv::Mat grid = samples;
+        if (k > 0) {
+          cv::blur(samples, sharpened, {3, 3}, {-1, -1}, cv::BORDER_REPLICATE);
+          sharpened = samples + k * (samples - sharpened);
+          grid = sharpened;
+        }
+        cv::Mat s8;
+        grid.convertTo(s8, CV_8U);
+        cv::threshold(s8, bits, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
+        if (auto r = scanBits(n)) return r;
+        cv::adaptiveThreshold(s8, bits, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY,
+                              std::min(n | 1, 9), 0);
+        if (auto r = scanBits(n)) return r;
+      }
+    }
+    return std::nullopt;
+  }
+
+  void sampleModules(const cv::Matx33d& sheet_to_image, int n) {
+    constexpr int kSub = 3;
+    const double module = (layout::kQrMax - layout::kQrMin) / (n + 2);
+    map.create(n * kSub, n * kSub, CV_32FC2);
+    for (int r = 0; r < n * kSub; ++r) {
+      auto* row = map.ptr<cv::Vec2f>(r);
+      const double v = layout::kQrMin + module * (1 + (r / kSub) + 0.5 + ((r % kSub) - 1) * 0.25);
+      for (int c = 0; c < n * kSub; ++c) {
+        const double u = layout::kQrMin + module * (1 + (c / kSub) + 0.5 + ((c % kSub) - 1) * 0.25);
+        const cv::Vec3d p = sheet_to_image * cv::Vec3d(u, v, 1.0);
+        row[c] = {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
+      }
+    }
+    cv::remap(gray, sampled, map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    sampled.convertTo(sampled, CV_32F);
+    cv::resize(sampled, samples, {n, n}, 0, 0, cv::INTER_AREA);
+  }
+
+  std::optional<std::string> scanBits(int n) {
+    constexpr int kPx = 4, kQuiet = 4;
+    clean.create((n + 2 * kQuiet) * kPx, (n + 2 * kQuiet) * kPx, CV_8U);
+    clean.setTo(255);
+    cv::resize(bits, clean(cv::Rect(kQuiet * kPx, kQuiet * kPx, n * kPx, n * kPx)), {n * kPx, n * kPx},
+               0, 0, cv::INTER_NEAREST);
+    return scan(clean);
+  }
 
   std::optional<std::string> scan(const cv::Mat& img) {
     cv::Mat cont = img.isContinuous() ? img : img.clone();
@@ -115,6 +229,9 @@ std::optional<QrResult> QrReader::decode(const cv::Mat& image,
     cv::resize(m.view, m.work, {}, scale, scale, scale < 1 ? cv::INTER_AREA : cv::INTER_CUBIC);
     if (auto s = m.scan(m.work)) return QrResult{*s, attempt};
   }
+  // 6: module by module, from the sheet frame.
+  ++attempt;
+  if (auto s = m.readGrid(sheetToImage(corners), qr_px)) return QrResult{*s, attempt};
   return std::nullopt;
 }
 

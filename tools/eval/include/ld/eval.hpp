@@ -1,0 +1,66 @@
+// Evaluation on ld-synth scenes: how often the detector finds a landmark and
+// the QR reader reads its payload, swept over viewing angle and distance.
+// Shared by the accuracy tests and ld-eval, so that what the tests assert and
+// what the report prints are the same measurement.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "ld/camera.hpp"
+#include "ld/detector.hpp"
+
+namespace ld::eval {
+
+/// A distinct test payload for index i: ASCII, UTF-8 (accents, Greek, CJK)
+/// and long ones, up to 100 bytes, cycling through those kinds.
+std::string payloadFor(int i);
+
+/// Conditions of one sweep. Every trial renders one landmark at the swept
+/// distance and yaw, with random roll (any, when any_roll), pitch within
+/// +-max_pitch_deg, position in the image's middle half (moved to the centre
+/// when it would leave the view) and random lighting and degradation
+/// (ld::synth::randomConditions), all drawn from `seed`.
+struct SweepOptions {
+  CameraModel camera = CameraModel::defaultVga();
+  double side_m = 0.15;
+  int trials = 20;  ///< per sweep point
+  uint64_t seed = 1;
+  bool any_roll = true;
+  double max_pitch_deg = 10.0;
+  bool decode = false;  ///< also read the QR (from the detected corners)
+  /// The payload printed on trial k's landmark (k drawn at random in [0, 1000)).
+  std::function<std::string(int)> payload = payloadFor;
+  DetectorParams params;
+};
+
+/// One sweep point: the swept value and what happened in its trials.
+struct Point {
+  double distance_m = 0, yaw_deg = 0;
+  int trials = 0;
+  int detected = 0;       ///< the landmark was found (centres match the truth)
+  int decoded = 0;        ///< ... and its QR read to exactly its payload
+  int wrong_payload = 0;  ///< a payload other than the printed one (must stay 0)
+  double detectRate() const { return trials ? static_cast<double>(detected) / trials : 0; }
+  double decodeRate() const { return trials ? static_cast<double>(decoded) / trials : 0; }
+};
+
+/// The trials at one (distance, yaw), yaw drawn uniformly from
+/// [yaw_deg - yaw_jitter_deg, yaw_deg + yaw_jitter_deg].
+Point measure(const SweepOptions& options, double distance_m, double yaw_deg,
+              double yaw_jitter_deg = 0.0);
+
+/// Sweeps: one Point per value. `progress`, when set, is called after each point.
+std::vector<Point> overYaw(const SweepOptions& options, double distance_m,
+                           const std::vector<double>& yaws_deg,
+                           const std::function<void(const Point&)>& progress = {});
+std::vector<Point> overDistance(const SweepOptions& options, const std::vector<double>& distances_m,
+                                double max_abs_yaw_deg,
+                                const std::function<void(const Point&)>& progress = {});
+
+/// Totals over a sweep's points.
+Point total(const std::vector<Point>& points);
+
+}  // namespace ld::eval

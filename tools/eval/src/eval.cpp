@@ -1,0 +1,116 @@
+#include "ld/eval.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "ld/qr_reader.hpp"
+#include "ld/synth.hpp"
+
+namespace ld::eval {
+
+std::string payloadFor(int i) {
+  const std::string n = std::to_string(i);
+  switch (i % 5) {
+    case 0:
+      return "room-" + n;
+    case 1:
+      return "salle-" + n + " \xc3\xa9t\xc3\xa9 caf\xc3\xa9";  // "été café"
+    case 2:
+      return "\xce\xba\xcf\x8c\xce\xbc\xce\xb2\xce\xbf\xcf\x82-" + n +  // "κόμβος-"
+             " \xe6\x9d\xb1\xe4\xba\xac";                           // "東京"
+    case 3: {  // long ASCII: exactly 100 bytes
+      std::string s = "https://example.org/building-7/floor-2/corridor-B/landmark?id=" + n + "&v=";
+      while (s.size() < 100) s += static_cast<char>('a' + s.size() % 26);
+      return s;
+    }
+    default: {  // long UTF-8: at most 100 bytes, whole characters only
+      std::string s = "dock-" + n + " ";
+      const std::string ch[] = {"\xc3\xa9", "\xc3\xbc", "\xce\xb1", "\xe6\x97\xa5", "x"};
+      for (int k = 0;; ++k) {
+        const std::string& c = ch[k % 5];
+        if (s.size() + c.size() > 100) break;
+        s += c;
+      }
+      return s;
+    }
+  }
+}
+
+namespace {
+
+uint64_t pointSeed(uint64_t seed, double distance_m, double yaw_deg) {
+  const auto d = static_cast<uint64_t>(std::llround(distance_m * 1000.0));
+  const auto y = static_cast<uint64_t>(std::llround((yaw_deg + 360.0) * 10.0));
+  return seed * 0x9E3779B97F4A7C15ull ^ (d * 1000003ull + y);
+}
+
+}  // namespace
+
+Point measure(const SweepOptions& o, double distance_m, double yaw_deg, double yaw_jitter_deg) {
+  Detector detector(o.params);
+  QrReader reader;
+  std::mt19937_64 rng(pointSeed(o.seed, distance_m, yaw_deg));
+  std::uniform_real_distribution<double> U(0, 1);
+  Point p;
+  p.distance_m = distance_m;
+  p.yaw_deg = yaw_deg;
+  for (int k = 0; k < o.trials; ++k) {
+    const double yaw = yaw_deg + (2 * U(rng) - 1) * yaw_jitter_deg;
+    const double roll = o.any_roll ? U(rng) * 360 - 180 : 0;
+    const double pitch = (2 * U(rng) - 1) * o.max_pitch_deg;
+    const double nx = U(rng) - 0.5, ny = U(rng) - 0.5;
+    const std::string payload = o.payload(static_cast<int>(rng() % 1000));
+    auto lm = synth::placeLandmark(o.camera, distance_m, yaw, pitch, roll, nx, ny, o.side_m, payload);
+    if (!synth::truthFor(o.camera, lm).in_view)
+      lm = synth::placeLandmark(o.camera, distance_m, yaw, pitch, roll, 0, 0, o.side_m, payload);
+    const synth::Frame frame = synth::render(synth::randomConditions(o.camera, {lm}, rng()));
+    const synth::LandmarkTruth& t = frame.truth[0];
+    ++p.trials;
+    const Detection& det = detector.detect(frame.bgr);
+    for (const Landmark& d : det.landmarks) {
+      if (!matchesTruth(d, {t.fip_tl, t.fip_tr, t.fip_bl, t.ap})) continue;
+      ++p.detected;
+      if (o.decode) {
+        const auto r = reader.decode(frame.bgr, d.corners);
+        if (r && r->payload == payload) ++p.decoded;
+        if (r && r->payload != payload) ++p.wrong_payload;
+      }
+      break;
+    }
+  }
+  return p;
+}
+
+std::vector<Point> overYaw(const SweepOptions& o, double distance_m, const std::vector<double>& yaws,
+                           const std::function<void(const Point&)>& progress) {
+  std::vector<Point> out;
+  for (double y : yaws) {
+    out.push_back(measure(o, distance_m, y));
+    if (progress) progress(out.back());
+  }
+  return out;
+}
+
+std::vector<Point> overDistance(const SweepOptions& o, const std::vector<double>& distances,
+                                double max_abs_yaw_deg, const std::function<void(const Point&)>& progress) {
+  std::vector<Point> out;
+  for (double d : distances) {
+    out.push_back(measure(o, d, 0.0, max_abs_yaw_deg));
+    if (progress) progress(out.back());
+  }
+  return out;
+}
+
+Point total(const std::vector<Point>& points) {
+  Point t;
+  for (const Point& p : points) {
+    t.trials += p.trials;
+    t.detected += p.detected;
+    t.decoded += p.decoded;
+    t.wrong_payload += p.wrong_payload;
+  }
+  return t;
+}
+
+}  // namespace ld::eval
