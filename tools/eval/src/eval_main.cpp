@@ -1,0 +1,297 @@
+// ld-eval: detection and QR decode rates on ld-synth sweeps, as tables
+// (markdown) and plots (PNG). See README, "Evaluating".
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include <CLI/CLI.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "ld/eval.hpp"
+
+namespace {
+
+struct Series {
+  std::string name;
+  std::vector<cv::Point2d> points;  // (x, rate 0..1)
+};
+
+// A line chart of rates (0..100 %) against x, one line per series.
+void plot(const std::string& path, const std::string& title, const std::string& xlabel,
+          const std::vector<Series>& series) {
+  const int W = 800, H = 500, L = 70, R = 20, T = 50, B = 60;
+  cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
+  double x0 = 1e18, x1 = -1e18;
+  for (const auto& s : series)
+    for (const auto& p : s.points) x0 = std::min(x0, p.x), x1 = std::max(x1, p.x);
+  if (!(x1 > x0)) x1 = x0 + 1;
+  const auto px = [&](double x, double y) {
+    return cv::Point(L + static_cast<int>(std::lround((x - x0) / (x1 - x0) * (W - L - R))),
+                     T + static_cast<int>(std::lround((1 - y) * (H - T - B))));
+  };
+  const auto text = [&](const std::string& s, cv::Point at, double scale = 0.5) {
+    cv::putText(img, s, at, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  };
+  for (int k = 0; k <= 10; ++k) {
+    const double y = k / 10.0;
+    cv::line(img, px(x0, y), px(x1, y), cv::Scalar(225, 225, 225));
+    text(std::to_string(k * 10), px(x0, y) + cv::Point(-35, 5));
+  }
+  // Ticks at the sweep's values when there are few, else 8 even steps.
+  std::vector<double> xs;
+  if (!series.empty() && series[0].points.size() <= 17)
+    for (const auto& p : series[0].points) xs.push_back(p.x);
+  else
+    for (int k = 0; k <= 8; ++k) xs.push_back(x0 + (x1 - x0) * k / 8);
+  for (double x : xs) {
+    cv::line(img, px(x, 0), px(x, 1), cv::Scalar(235, 235, 235));
+    std::ostringstream s;
+    s << std::round(x * 100) / 100;
+    text(s.str(), px(x, 0) + cv::Point(-12, 20));
+  }
+  cv::rectangle(img, px(x0, 1), px(x1, 0), cv::Scalar(0, 0, 0));
+  text(title, {L, 30}, 0.6);
+  text(xlabel, {W / 2 - 60, H - 15});
+  text("%", {15, T + (H - T - B) / 2});
+  const cv::Scalar colours[] = {{200, 80, 0}, {0, 0, 220}, {0, 150, 0}, {150, 0, 150}, {0, 140, 220}, {80, 80, 80}};
+  for (size_t i = 0; i < series.size(); ++i) {
+    const cv::Scalar c = colours[i % 6];
+    const auto& pts = series[i].points;
+    for (size_t k = 0; k < pts.size(); ++k) {
+      cv::circle(img, px(pts[k].x, pts[k].y), 3, c, cv::FILLED, cv::LINE_AA);
+      if (k > 0) cv::line(img, px(pts[k - 1].x, pts[k - 1].y), px(pts[k].x, pts[k].y), c, 2, cv::LINE_AA);
+    }
+    const cv::Point at(L + 15, H - B - 20 - 22 * static_cast<int>(series.size() - 1 - i));
+    cv::line(img, at, at + cv::Point(25, 0), c, 2, cv::LINE_AA);
+    text(series[i].name, at + cv::Point(32, 5));
+  }
+  if (!cv::imwrite(path, img)) throw std::runtime_error("cannot write plot " + path);
+}
+
+std::vector<double> range(double from, double to, double step) {
+  if (!(step > 0) || !(to >= from)) throw std::invalid_argument("bad range: need from <= to and step > 0");
+  std::vector<double> v;
+  for (int k = 0;; ++k) {
+    const double x = from + k * step;
+    if (x > to + 1e-9) break;
+    v.push_back(std::round(x * 1e6) / 1e6);
+  }
+  return v;
+}
+
+std::string pct(int n, int d) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.1f", d ? 100.0 * n / d : 0.0);
+  return b;
+}
+
+std::string cm(double m) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g cm", m * 100);
+  return b;
+}
+
+struct Common {
+  std::string camera_file, params_file, markdown, png;
+  int trials = 20;
+  uint64_t seed = 1;
+  ld::eval::SweepOptions options() const {
+    ld::eval::SweepOptions o;
+    if (!camera_file.empty()) o.camera = ld::CameraModel::load(camera_file);
+    if (!params_file.empty()) o.params = ld::DetectorParams::load(params_file);
+    o.trials = trials;
+    o.seed = seed;
+    return o;
+  }
+};
+
+void addCommon(CLI::App* app, Common& c) {
+  app->add_option("--camera", c.camera_file, "camera calibration (OpenCV YAML/XML); default 640x480, f = 600 px");
+  app->add_option("--params", c.params_file, "detector parameters (YAML)");
+  app->add_option("--trials", c.trials, "frames per sweep point")->check(CLI::PositiveNumber);
+  app->add_option("--seed", c.seed, "scene seed");
+  app->add_option("--markdown", c.markdown, "also write the table to this file");
+  app->add_option("--png", c.png, "write a plot");
+}
+
+void emit(const Common& c, const std::string& table) {
+  std::cout << table << std::flush;
+  if (!c.markdown.empty()) {
+    std::ofstream f(c.markdown);
+    if (!(f << table)) throw std::runtime_error("cannot write " + c.markdown);
+  }
+}
+
+void progress(const ld::eval::Point& p) {
+  std::fprintf(stderr, "  %.2f m, yaw %+.0f: detected %d/%d, decoded %d\n", p.distance_m, p.yaw_deg,
+               p.detected, p.trials, p.decoded);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"ld-eval: detection and QR decode rates on ld-synth sweeps (see README)."};
+  app.require_subcommand(1);
+
+  Common yc;
+  std::vector<double> y_sides{0.09, 0.15}, y_dists{1.5, 2.5};
+  double y_max = 80, y_step = 10;
+  auto* yaw = app.add_subcommand("yaw", "detection rate against horizontal viewing angle (paper, Fig. 8)");
+  addCommon(yaw, yc);
+  yaw->add_option("--side", y_sides, "printed sides S, metres (one per series)");
+  yaw->add_option("--distance", y_dists, "distance per side, metres");
+  yaw->add_option("--max-yaw", y_max, "degrees");
+  yaw->add_option("--step", y_step, "degrees");
+
+  Common dc;
+  std::vector<double> d_sides{0.09, 0.15};
+  double d_from = 0.5, d_to = 5.0, d_step = 0.5, d_yaw = 30;
+  auto* dist = app.add_subcommand("distance", "detection rate against distance for several sizes");
+  addCommon(dist, dc);
+  dist->add_option("--side", d_sides, "printed sides S, metres");
+  dist->add_option("--from", d_from)->capture_default_str();
+  dist->add_option("--to", d_to)->capture_default_str();
+  dist->add_option("--step", d_step)->capture_default_str();
+  dist->add_option("--max-yaw", d_yaw, "yaw drawn within +-this, degrees")->capture_default_str();
+
+  Common qc;
+  double q_side = 0.15, q_from = 0.3, q_to = 1.2, q_step = 0.1, q_yaw = 40;
+  auto* qr = app.add_subcommand("qr", "QR decode rate against distance, short and long payloads");
+  addCommon(qr, qc);
+  qr->add_option("--side", q_side, "printed side S, metres")->capture_default_str();
+  qr->add_option("--from", q_from)->capture_default_str();
+  qr->add_option("--to", q_to)->capture_default_str();
+  qr->add_option("--step", q_step)->capture_default_str();
+  qr->add_option("--max-yaw", q_yaw, "yaw drawn within +-this, degrees")->capture_default_str();
+
+  Common sc;
+  double s_detect = 3.0, s_read = 1.0, s_yaw = 30;
+  std::vector<double> s_sides{0.05, 0.07, 0.09, 0.12, 0.15, 0.20, 0.25, 0.30, 0.40};
+  int s_payload = 20;
+  auto* size = app.add_subcommand("size", "the smallest landmark detected at X m and read at Y m (>= 95 %)");
+  addCommon(size, sc);
+  size->add_option("--detect-at", s_detect, "distance the landmark must be detected at, metres")->capture_default_str();
+  size->add_option("--read-at", s_read, "distance its QR must be read at, metres")->capture_default_str();
+  size->add_option("--max-yaw", s_yaw, "yaw drawn within +-this, degrees")->capture_default_str();
+  size->add_option("--payload-bytes", s_payload, "payload length to read")->capture_default_str();
+  size->add_option("--side", s_sides, "candidate sides, metres");
+
+  CLI11_PARSE(app, argc, argv);
+  try {
+    if (yaw->parsed()) {
+      if (y_dists.size() != y_sides.size())
+        throw std::invalid_argument("give one --distance per --side");
+      auto o = yc.options();
+      std::vector<double> yaws = range(-y_max, y_max, y_step);
+      std::vector<Series> series;
+      std::ostringstream t;
+      t << "| yaw (deg) |";
+      for (size_t i = 0; i < y_sides.size(); ++i) t << " " << cm(y_sides[i]) << " at " << y_dists[i] << " m |";
+      t << "\n|---|" << std::string(y_sides.size() * 4, '-') << "\n";
+      std::vector<std::vector<ld::eval::Point>> all;
+      for (size_t i = 0; i < y_sides.size(); ++i) {
+        o.side_m = y_sides[i];
+        all.push_back(ld::eval::overYaw(o, y_dists[i], yaws, progress));
+        Series s{cm(y_sides[i]) + " at " + std::to_string(y_dists[i]).substr(0, 3) + " m", {}};
+        for (const auto& p : all.back()) s.points.emplace_back(p.yaw_deg, p.detectRate());
+        series.push_back(s);
+      }
+      for (size_t k = 0; k < yaws.size(); ++k) {
+        t << "| " << yaws[k] << " |";
+        for (const auto& pts : all) t << " " << pct(pts[k].detected, pts[k].trials) << " % |";
+        t << "\n";
+      }
+      emit(yc, t.str());
+      if (!yc.png.empty()) plot(yc.png, "Detection rate against yaw", "yaw (degrees)", series);
+    } else if (dist->parsed()) {
+      auto o = dc.options();
+      const std::vector<double> ds = range(d_from, d_to, d_step);
+      std::vector<Series> series;
+      std::vector<std::vector<ld::eval::Point>> all;
+      for (double side : d_sides) {
+        o.side_m = side;
+        all.push_back(ld::eval::overDistance(o, ds, d_yaw, progress));
+        Series s{cm(side), {}};
+        for (const auto& p : all.back()) s.points.emplace_back(p.distance_m, p.detectRate());
+        series.push_back(s);
+      }
+      std::ostringstream t;
+      t << "| distance (m) |";
+      for (double side : d_sides) t << " " << cm(side) << " |";
+      t << "\n|---|" << std::string(d_sides.size() * 4, '-') << "\n";
+      for (size_t k = 0; k < ds.size(); ++k) {
+        t << "| " << ds[k] << " |";
+        for (const auto& pts : all) t << " " << pct(pts[k].detected, pts[k].trials) << " % |";
+        t << "\n";
+      }
+      emit(dc, t.str());
+      if (!dc.png.empty()) plot(dc.png, "Detection rate against distance", "distance (m)", series);
+    } else if (qr->parsed()) {
+      auto o = qc.options();
+      o.side_m = q_side;
+      o.decode = true;
+      const std::vector<double> ds = range(q_from, q_to, q_step);
+      // payloadFor's kinds: 0-2 are 8-23 bytes, 3-4 are 99-100 bytes.
+      struct Kind { std::string name; int first, count; };
+      const std::vector<Kind> kinds{{"8-23 bytes", 0, 3}, {"99-100 bytes", 3, 2}};
+      std::vector<Series> series;
+      std::vector<std::vector<ld::eval::Point>> all;
+      for (const auto& k : kinds) {
+        o.payload = [k](int i) { return ld::eval::payloadFor(5 * i + k.first + i % k.count); };
+        all.push_back(ld::eval::overDistance(o, ds, q_yaw, progress));
+        Series s{k.name, {}};
+        for (const auto& p : all.back()) s.points.emplace_back(p.distance_m, p.decodeRate());
+        series.push_back(s);
+      }
+      std::ostringstream t;
+      t << "| distance (m) | detected | decoded, " << kinds[0].name << " | decoded, " << kinds[1].name
+        << " | wrong payloads |\n|---|---|---|---|---|\n";
+      for (size_t k = 0; k < ds.size(); ++k) {
+        const auto& a = all[0][k];
+        const auto& b = all[1][k];
+        t << "| " << ds[k] << " | " << pct(a.detected + b.detected, a.trials + b.trials) << " % | "
+          << pct(a.decoded, a.trials) << " % | " << pct(b.decoded, b.trials) << " % | "
+          << a.wrong_payload + b.wrong_payload << " |\n";
+      }
+      emit(qc, t.str());
+      if (!qc.png.empty()) plot(qc.png, "QR decode rate against distance (" + cm(q_side) + ")", "distance (m)", series);
+    } else if (size->parsed()) {
+      auto o = sc.options();
+      std::sort(s_sides.begin(), s_sides.end());
+      std::ostringstream t;
+      t << "| side | detected at " << s_detect << " m | read at " << s_read << " m |\n|---|---|---|\n";
+      double answer = -1;
+      for (double side : s_sides) {
+        o.side_m = side;
+        o.decode = false;
+        const auto det = ld::eval::measure(o, s_detect, 0, s_yaw);
+        o.decode = true;
+        o.payload = [s_payload](int i) {
+          std::string p = "id-" + std::to_string(i) + "-";
+          while (static_cast<int>(p.size()) < s_payload) p += static_cast<char>('a' + p.size() % 26);
+          return p;
+        };
+        const auto rd = ld::eval::measure(o, s_read, 0, s_yaw);
+        t << "| " << cm(side) << " | " << pct(det.detected, det.trials) << " % | "
+          << pct(rd.decoded, rd.trials) << " % |\n";
+        if (det.detectRate() >= 0.95 && rd.decodeRate() >= 0.95) {
+          answer = side;
+          break;
+        }
+      }
+      t << "\n" << (answer > 0 ? "smallest landmark: " + cm(answer) : std::string("no candidate side reaches 95 %"))
+        << " (detected at " << s_detect << " m and read at " << s_read << " m in 95 % of frames, yaw within +-"
+        << s_yaw << " deg)\n";
+      emit(sc, t.str());
+      return answer > 0 ? 0 : 3;
+    }
+  } catch (const std::exception& e) {
+    std::cerr << "ld-eval: " << e.what() << "\n";
+    return 2;
+  }
+  return 0;
+}
