@@ -1,17 +1,21 @@
-// The landmark detector, CPU backend: the orchestration of the stages of
-// stages.cpp, in the order of the paper's Fig. 2, and the parameter file.
+// The landmark detector: the orchestration of the stages of stages.cpp, in
+// the order of the paper's Fig. 2, on either backend's filters (filters.hpp),
+// and the parameter file.
 #include "ld/detector.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <iostream>
 #include <stdexcept>
 #include <tuple>
 #include <type_traits>
 
 #include <opencv2/imgproc.hpp>
 
+#include "filters.hpp"
 #include "stages.hpp"
 
 namespace ld {
@@ -24,6 +28,7 @@ namespace {
 template <typename F>
 void forEachField(DetectorParams& p, F&& f) {
   f("front_end", p.front_end);
+  f("backend", p.backend);
   f("blur_kernel", p.blur_kernel);
   f("blur_sigma", p.blur_sigma);
   f("saturation_threshold", p.saturation_threshold);
@@ -136,6 +141,7 @@ void DetectorParams::validate() const {
     throw std::invalid_argument(std::string("detector params: ") + field + " " + why);
   };
   if (front_end != "fast" && front_end != "paper") bad("front_end", "must be \"fast\" or \"paper\"");
+  if (backend != "cpu" && backend != "gles" && backend != "auto") bad("backend", "must be \"cpu\", \"gles\" or \"auto\"");
   if (blur_kernel != -1 && blur_kernel != 0 && (blur_kernel < 1 || blur_kernel % 2 == 0 || blur_kernel > 31))
     bad("blur_kernel", "must be -1, 0 or an odd number from 1 to 31");
   if (!(blur_sigma >= 0 && blur_sigma <= 20)) bad("blur_sigma", "must be in [0, 20]");
@@ -196,7 +202,7 @@ bool matchesTruth(const Landmark& d, const std::array<cv::Point2d, 4>& truth, do
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
+using detail::StageTimer;
 
 // Three FIPs of a landmark: two sides alike and the third sqrt(2) longer,
 // within this ratio (the squares' moments, which measure the sides, are
@@ -208,36 +214,32 @@ constexpr double kTriangleTolerance = 1.5;
 constexpr int kMaxCompletionTrials = 400;
 constexpr int kMaxCompletionPairs = 20000;
 
-// A tiny named-stage timer: stamp(name) records the time since the previous stamp.
-class StageTimer {
- public:
-  explicit StageTimer(std::vector<StageTime>& out) : out_(out), start_(Clock::now()), last_(start_) {}
-  void stamp(const char* name) {
-    const auto now = Clock::now();
-    out_.push_back({name, std::chrono::duration<double, std::milli>(now - last_).count()});
-    last_ = now;
-  }
-  double totalMs() const { return std::chrono::duration<double, std::milli>(Clock::now() - start_).count(); }
+// One warning per process about the GPU not being used (whether it could
+// not be started or failed later).
+std::atomic<bool> g_backend_warned{false};
 
- private:
-  std::vector<StageTime>& out_;
-  Clock::time_point start_, last_;
-};
+void warnBackend(const std::string& what) {
+  if (g_backend_warned.exchange(true)) return;
+  std::cerr << "landmark detector: warning: " << what << "\n";
+}
 
 }  // namespace
+
+void detail::resetBackendWarning() { g_backend_warned = false; }
 
 struct Detector::Impl {
   DetectorParams params;
   bool paper = false;
-  int blur_kernel = 0;
-  double blur_sigma = 0;
+  detail::FilterSettings filter_settings;
+  std::unique_ptr<detail::Filters> filters;
+  std::string fallback_why;  // why the CPU runs where the GPU was asked for
 
   std::optional<CameraModel> camera;  // as given
   CameraModel scaled;                 // for the current frame size
   double side_m = 0;
 
   // Buffers kept between frames.
-  cv::Mat converted, blurred, labels, sat, edges;
+  cv::Mat converted, labels, edges;
   std::vector<std::vector<cv::Point>> contours;
   detail::RunScratch runs;
   std::vector<detail::Region> regions, fips, aps;
@@ -250,8 +252,37 @@ struct Detector::Impl {
   explicit Impl(const DetectorParams& p) : params(p) {
     params.validate();
     paper = params.front_end == "paper";
-    blur_kernel = params.blur_kernel >= 0 ? params.blur_kernel : (paper ? 9 : 0);
-    blur_sigma = params.blur_kernel >= 0 ? params.blur_sigma : (paper ? 3.0 : 0.0);
+    filter_settings = detail::FilterSettings::from(params);
+    if (params.backend != "cpu") {
+      std::string why;
+      filters = detail::makeGlesFilters(why);
+      if (!filters) {
+        if (params.backend == "gles")
+          throw std::runtime_error("GLES backend unavailable: " + why + " (backend \"auto\" falls back to the CPU)");
+        fallback_why = why;
+        warnBackend("GLES backend unavailable (" + why + "); running the CPU backend");
+      }
+    }
+    if (!filters) filters = detail::makeCpuFilters();
+  }
+
+  // Stages 1-3 on the backend's filters; a GPU failing mid-run is dropped for
+  // the CPU, and the frame done again there.
+  const cv::Mat* runFilters(const cv::Mat& img, StageTimer& timer) {
+    const cv::Mat* filtered = &img;
+    try {
+      if (!paper) filters->labelMap(img, filter_settings, labels, filtered, timer);
+      else filters->edgeMap(img, filter_settings, edges, timer);
+      return filtered;
+    } catch (const detail::BackendFailure& e) {
+      fallback_why = e.what();
+      warnBackend(std::string("GLES backend failed (") + e.what() + "); running the CPU backend from now on");
+      filters = detail::makeCpuFilters();
+    }
+    labels.release();  // may be a view of the GPU backend's buffer
+    if (!paper) filters->labelMap(img, filter_settings, labels, filtered, timer);
+    else filters->edgeMap(img, filter_settings, edges, timer);
+    return filtered;
   }
 
   void run(const cv::Mat& input);
@@ -406,30 +437,13 @@ void Detector::Impl::run(const cv::Mat& input) {
   const int max_area = static_cast<int>(
       std::min<int64_t>(INT32_MAX, static_cast<int64_t>(img->total()) * p.max_area_frac_1000 / 1000));
 
-  // 1. BLUR
-  const cv::Mat* src = img;
-  if (blur_kernel > 1) {
-    cv::GaussianBlur(*img, blurred, {blur_kernel, blur_kernel}, blur_sigma);
-    src = &blurred;
-    timer.stamp("blur");
-  }
+  // 1-3. BLUR, SATURATION, (EDGES): the backend's filters
+  const cv::Mat* src = runFilters(*img, timer);
 
-  // 2-4. SATURATION, (EDGES), CONTOURS: candidate regions
-  if (!paper) {
-    const detail::MaskThresholds mt{p.saturation_threshold_blue, p.saturation_threshold, p.value_min};
-    detail::saturationMask(*src, mt, labels);
-    timer.stamp("saturation");
-    detail::extractRegions(labels, *src, mt, p.min_area_px, max_area, p.min_fill, runs, regions);
-    timer.stamp("contours");
-  } else {
-    detail::saturationImage(*src, sat);
-    cv::threshold(sat, sat, p.saturation_threshold * 255.0, 0, cv::THRESH_TOZERO);
-    timer.stamp("saturation");
-    cv::Canny(sat, edges, p.canny_low, p.canny_high);
-    timer.stamp("edges");
-    detail::contourRegions(edges, *img, p.min_area_px, max_area, contours, regions);
-    timer.stamp("contours");
-  }
+  // 4. CONTOURS: candidate regions
+  if (!paper) detail::extractRegions(labels, *src, filter_settings.mask, p.min_area_px, max_area, p.min_fill, runs, regions);
+  else detail::contourRegions(edges, *img, p.min_area_px, max_area, contours, regions);
+  timer.stamp("contours");
 
   // 5. COLOUR: FIP and AP candidates by the colour ratios
   fips.clear();
@@ -529,5 +543,13 @@ const Detection& Detector::detect(const cv::Mat& bgr) {
 }
 
 const DetectorParams& Detector::params() const { return impl_->params; }
+
+const char* Detector::backend() const { return impl_->filters->name(); }
+
+std::string Detector::backendInfo() const {
+  std::string s = impl_->filters->info();
+  if (!impl_->fallback_why.empty()) s += " (GLES not used: " + impl_->fallback_why + ")";
+  return s;
+}
 
 }  // namespace ld

@@ -34,6 +34,17 @@
 // Each stage is stamped by name into Detection::stages: "blur", "saturation",
 // "edges", "contours", "colour", "geometry", "corners", "pose" (those that ran).
 //
+// Backends (DetectorParams::backend): stages 1-3, the per-pixel filters, run
+// on the CPU or on the GPU through OpenGL ES 3.0 shaders on a headless EGL
+// context ("gles"); stages 4-9 are the same code for both. The GLES backend
+// uploads each frame as a texture ("upload"), runs blur, the fast front
+// end's labelling or the paper's saturation, Sobel, non-maximum suppression
+// and double threshold as shaders, and reads back one byte per pixel
+// ("readback": the label image or the edge candidates); the paper front
+// end's hysteresis then runs on the CPU ("hysteresis"). Both backends give
+// the same label images; edge maps differ only where the float blur rounds
+// otherwise than OpenCV's fixed-point one.
+//
 // A Detector keeps its buffers between frames: once warmed up, detect() does
 // not allocate for frames of the same size (pose, through cv::solvePnP, does).
 #pragma once
@@ -57,6 +68,16 @@ struct DetectorParams {
   /// connected regions are the candidate squares; keeps 3-8 px squares whole.
   /// "paper": the paper's blur -> saturation -> Canny -> contours.
   std::string front_end = "fast";
+
+  /// Where the per-pixel filters run. "cpu" (default); "gles": OpenGL ES
+  /// shaders on a headless EGL context (the Detector's constructor throws
+  /// std::runtime_error when none can be made); "auto": the GPU when an EGL
+  /// context can be made, else the CPU with one warning on stderr per
+  /// process. A GPU that fails later, mid-run, is dropped for the CPU with
+  /// one warning, whichever was asked for. The environment variable
+  /// LD_EGL_FORCE_FAIL=1 makes every EGL context fail (fallback tests), and
+  /// LD_EGL_PLATFORM=device|surfaceless|gbm restricts the EGL platform tried.
+  std::string backend = "cpu";
 
   // 1. blur
   /// Gaussian kernel (odd; 0 = no blur; -1 = the front end's own: none for
@@ -207,6 +228,8 @@ struct Detection {
 
 class Detector {
  public:
+  /// Throws std::invalid_argument on bad parameters, std::runtime_error
+  /// when backend "gles" was asked for and no EGL context can be made.
   explicit Detector(const DetectorParams& params = {});
   ~Detector();
   Detector(Detector&&) noexcept;
@@ -222,8 +245,12 @@ class Detector {
 
   const DetectorParams& params() const;
 
-  /// Name of the backend ("cpu").
-  const char* backend() const { return "cpu"; }
+  /// The backend that runs now: "cpu" or "gles" (with "auto", what it chose;
+  /// "cpu" after a GPU failure).
+  const char* backend() const;
+  /// One line on it: the GPU, its driver and EGL platform; for the CPU after
+  /// a fallback, why the GPU is not used.
+  std::string backendInfo() const;
 
  private:
   struct Impl;

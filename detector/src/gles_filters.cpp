@@ -1,0 +1,575 @@
+// The GLES backend's filters (filters.hpp): OpenGL ES 3.0 fragment shaders on
+// a headless EGL context (egl_context.hpp).
+//
+// A frame goes up once, as an RGB8 texture filled from a pixel unpack buffer
+// (the BGR bytes as they are: the shaders read .r as blue). Then, per front end:
+//   fast:  [blur H -> blur V ->] label pass: kNone/kBlue/kRed per pixel, four
+//          pixels per RGBA8 texel, read back through a pixel pack buffer as
+//          the single-channel label image (one byte a pixel) the CPU's region
+//          stage takes. With a blur the blurred image comes back too (the
+//          regions' colour sums are taken over it).
+//   paper: blur H -> blur V + saturation + threshold (one pass) -> Sobel
+//          (L1 magnitude and direction sector, R32UI) -> non-maximum
+//          suppression and double threshold, four pixels per RGBA8 texel
+//          (0, 1 weak, 2 strong), read back as a single-channel map; the
+//          hysteresis runs on the CPU (filters.hpp: a flood fill over a
+//          sparse map, not worth a GPU's many passes).
+// All integer work (labels, saturation, Sobel, suppression) is exact, the
+// same arithmetic as the CPU's; only the blur is float (OpenCV's is fixed
+// point), with a half-float intermediate where it can be rendered to.
+//
+// Each stage ends in glFinish, so that its time is the GPU's and the stage
+// times ("upload", "blur", "saturation", "edges", "readback") add up.
+#include <GLES3/gl3.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <map>
+
+#include <opencv2/imgproc.hpp>
+
+#include "egl_context.hpp"
+#include "filters.hpp"
+
+namespace ld::detail {
+namespace {
+
+const char* kVertex = R"(#version 300 es
+// One triangle covering the viewport.
+void main() {
+  vec2 p = vec2(float((gl_VertexID & 1) << 2) - 1.0, float((gl_VertexID & 2) << 1) - 1.0);
+  gl_Position = vec4(p, 0.0, 1.0);
+}
+)";
+
+const char* kHeader = R"(#version 300 es
+precision highp float;
+precision highp int;
+precision highp sampler2D;
+precision highp usampler2D;
+)";
+
+// Labels of four pixels per texel, the arithmetic of saturationMask.
+const char* kLabel = R"(
+uniform sampler2D src;  // b, g, r in .rgb
+uniform int width;
+uniform int thr_b, thr_r, vmin;
+out vec4 o;
+float label(ivec2 p) {
+  if (p.x >= width) return 0.0;
+  ivec3 v = ivec3(round(texelFetch(src, p, 0).rgb * 255.0));
+  int b = v.x, g = v.y, r = v.z;
+  int mx = max(b, max(g, r)), mn = min(b, min(g, r)), c = mx - mn;
+  if (mx < vmin) return 0.0;
+  if (b == mx) return c > ((mx * thr_b) >> 8) && b - g > max(0, g - r) && b - r > max(0, r - g) ? 1.0 : 0.0;
+  if (r == mx) return c > ((mx * thr_r) >> 8) && r - g > max(0, g - b) ? 2.0 : 0.0;
+  return 0.0;
+}
+void main() {
+  ivec2 q = ivec2(gl_FragCoord.xy);
+  int x = q.x * 4;
+  o = vec4(label(ivec2(x, q.y)), label(ivec2(x + 1, q.y)), label(ivec2(x + 2, q.y)), label(ivec2(x + 3, q.y))) / 255.0;
+}
+)";
+
+// Separable Gaussian, OpenCV's default border (reflect 101). RADIUS and
+// VERTICAL are defined before this. The vertical pass ends in one of:
+// OUT_RGBA (the blurred image, rounded to 8 bits), OUT_SAT (its HSV
+// saturation, cut to zero at or below thr, as saturationImage and
+// cv::threshold TOZERO); the horizontal pass writes OUT_TMP (unrounded).
+const char* kBlur = R"(
+uniform sampler2D src;
+uniform float w[RADIUS + 1];
+uniform int n;    // pixels along the pass
+uniform int thr;  // OUT_SAT
+int reflect101(int i) {
+  i = i < 0 ? -i : i;
+  i = i >= n ? 2 * n - 2 - i : i;
+  return clamp(i, 0, n - 1);
+}
+out vec4 o;
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  vec3 s = vec3(0.0);
+  for (int k = -RADIUS; k <= RADIUS; ++k) {
+#ifdef VERTICAL
+    ivec2 q = ivec2(p.x, reflect101(p.y + k));
+#else
+    ivec2 q = ivec2(reflect101(p.x + k), p.y);
+#endif
+    s += w[abs(k)] * texelFetch(src, q, 0).rgb;
+  }
+#if defined(OUT_TMP)
+  o = vec4(s, 1.0);
+#else
+  ivec3 v = clamp(ivec3(round(s * 255.0)), 0, 255);
+#if defined(OUT_RGBA)
+  o = vec4(vec3(v) / 255.0, 1.0);
+#else
+  int mx = max(v.x, max(v.y, v.z)), mn = min(v.x, min(v.y, v.z));
+  int sat = mx > 0 ? (255 * (mx - mn) + mx / 2) / mx : 0;
+  o = vec4(float(sat > thr ? sat : 0) / 255.0, 0.0, 0.0, 1.0);
+#endif
+#endif
+}
+)";
+
+// Sobel (3x3, replicated border) on the saturation image: L1 magnitude and
+// the direction sector (0 horizontal, 1 vertical, 2 and 3 the diagonals) in
+// one integer, magnitude | sector << 16.
+const char* kSobel = R"(
+uniform sampler2D sat;
+uniform ivec2 size;
+out uint o;
+int at(ivec2 p) { return int(round(texelFetch(sat, clamp(p, ivec2(0), size - 1), 0).r * 255.0)); }
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  int a = at(p + ivec2(-1, -1)), b = at(p + ivec2(0, -1)), c = at(p + ivec2(1, -1));
+  int d = at(p + ivec2(-1, 0)), f = at(p + ivec2(1, 0));
+  int g = at(p + ivec2(-1, 1)), h = at(p + ivec2(0, 1)), i = at(p + ivec2(1, 1));
+  int dx = (c + 2 * f + i) - (a + 2 * d + g);
+  int dy = (g + 2 * h + i) - (a + 2 * b + c);
+  int ax = abs(dx), ay = abs(dy);
+  // tan(22.5 deg) and tan(67.5 deg) in 15-bit fixed point
+  int t22 = ax * 13573, t67 = t22 + (ax << 16);
+  int sector = (ay << 15) < t22 ? 0 : (ay << 15) > t67 ? 1 : ((dx ^ dy) < 0 ? 3 : 2);
+  o = uint(ax + ay) | (uint(sector) << 16);
+}
+)";
+
+// Non-maximum suppression along the gradient and the double threshold, four
+// pixels per texel: 0, 1 (above low), 2 (above high). Ties go to the pixel
+// before (left, above), as OpenCV's Canny breaks them.
+const char* kNms = R"(
+uniform usampler2D grad;
+uniform ivec2 size;
+uniform int low, high;
+out vec4 o;
+int mag(ivec2 p) {
+  if (p.x < 0 || p.y < 0 || p.x >= size.x || p.y >= size.y) return 0;
+  return int(texelFetch(grad, p, 0).r & 0xffffu);
+}
+float classify(ivec2 p) {
+  if (p.x >= size.x) return 0.0;
+  uint v = texelFetch(grad, p, 0).r;
+  int m = int(v & 0xffffu), sector = int(v >> 16);
+  if (m <= low) return 0.0;
+  bool peak;
+  if (sector == 0) peak = m > mag(p + ivec2(-1, 0)) && m >= mag(p + ivec2(1, 0));
+  else if (sector == 1) peak = m > mag(p + ivec2(0, -1)) && m >= mag(p + ivec2(0, 1));
+  else if (sector == 2) peak = m > mag(p + ivec2(-1, -1)) && m > mag(p + ivec2(1, 1));
+  else peak = m > mag(p + ivec2(1, -1)) && m > mag(p + ivec2(-1, 1));
+  return !peak ? 0.0 : m > high ? 2.0 : 1.0;
+}
+void main() {
+  ivec2 q = ivec2(gl_FragCoord.xy);
+  int x = q.x * 4;
+  o = vec4(classify(ivec2(x, q.y)), classify(ivec2(x + 1, q.y)), classify(ivec2(x + 2, q.y)),
+           classify(ivec2(x + 3, q.y))) / 255.0;
+}
+)";
+
+std::string glError(GLenum e) {
+  switch (e) {
+    case GL_INVALID_ENUM: return "GL_INVALID_ENUM";
+    case GL_INVALID_VALUE: return "GL_INVALID_VALUE";
+    case GL_INVALID_OPERATION: return "GL_INVALID_OPERATION";
+    case GL_INVALID_FRAMEBUFFER_OPERATION: return "GL_INVALID_FRAMEBUFFER_OPERATION";
+    case GL_OUT_OF_MEMORY: return "GL_OUT_OF_MEMORY";
+    default: return "GL error " + std::to_string(e);
+  }
+}
+
+void check(const char* what) {
+  const GLenum e = glGetError();
+  if (e != GL_NO_ERROR) throw BackendFailure(std::string("GLES ") + what + ": " + glError(e));
+}
+
+GLuint compile(GLenum type, const std::string& src) {
+  const GLuint s = glCreateShader(type);
+  const char* p = src.c_str();
+  glShaderSource(s, 1, &p, nullptr);
+  glCompileShader(s);
+  GLint ok = 0;
+  glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    char log[1024] = {0};
+    glGetShaderInfoLog(s, sizeof log, nullptr, log);
+    glDeleteShader(s);
+    throw BackendFailure(std::string("GLES shader does not compile: ") + log);
+  }
+  return s;
+}
+
+GLuint link(const std::string& fragment) {
+  const GLuint vs = compile(GL_VERTEX_SHADER, kVertex);
+  GLuint fs = 0;
+  try {
+    fs = compile(GL_FRAGMENT_SHADER, fragment);
+  } catch (...) {
+    glDeleteShader(vs);
+    throw;
+  }
+  const GLuint prog = glCreateProgram();
+  glAttachShader(prog, vs);
+  glAttachShader(prog, fs);
+  glLinkProgram(prog);
+  glDeleteShader(vs);
+  glDeleteShader(fs);
+  GLint ok = 0;
+  glGetProgramiv(prog, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    char log[1024] = {0};
+    glGetProgramInfoLog(prog, sizeof log, nullptr, log);
+    glDeleteProgram(prog);
+    throw BackendFailure(std::string("GLES program does not link: ") + log);
+  }
+  return prog;
+}
+
+class GlesFilters final : public Filters {
+ public:
+  explicit GlesFilters(std::unique_ptr<EglContext> ctx) : ctx_(std::move(ctx)) {
+    glGenVertexArrays(1, &vao_);
+    glGenFramebuffers(1, &fbo_);
+    glGenBuffers(1, &pbo_up_);
+    glGenBuffers(1, &pbo_down_);
+    const auto& i = ctx_->info();
+    const char* ext = reinterpret_cast<const char*>(glGetString(GL_EXTENSIONS));
+    const std::string exts = ext ? ext : "";
+    half_float_target_ = i.major > 3 || (i.major == 3 && i.minor >= 2) ||
+                         exts.find("GL_EXT_color_buffer_half_float") != std::string::npos ||
+                         exts.find("GL_EXT_color_buffer_float") != std::string::npos;
+    label_ = program("label", std::string(kHeader) + kLabel);
+    sobel_ = program("sobel", std::string(kHeader) + kSobel);
+    nms_ = program("nms", std::string(kHeader) + kNms);
+    check("setup");
+  }
+
+  ~GlesFilters() override {
+    if (!ctx_->makeCurrent()) return;  // the context is gone: nothing to free
+    for (auto& [key, prog] : programs_) glDeleteProgram(prog);
+    freeTextures();
+    glDeleteBuffers(1, &pbo_up_);
+    glDeleteBuffers(1, &pbo_down_);
+    glDeleteFramebuffers(1, &fbo_);
+    glDeleteVertexArrays(1, &vao_);
+  }
+
+  const char* name() const override { return "gles"; }
+
+  std::string info() const override {
+    const auto& i = ctx_->info();
+    return "gles: " + i.renderer + " (" + i.version + ") via EGL " + i.platform + ", fragment shaders" +
+           (half_float_target_ ? "" : ", 8-bit blur intermediate");
+  }
+
+  void labelMap(const cv::Mat& bgr, const FilterSettings& s, cv::Mat& labels, const cv::Mat*& filtered,
+                StageTimer& timer) override {
+    begin(bgr);
+    upload(bgr);
+    timer.stamp("upload");
+    GLuint src = src_tex_;
+    if (s.blur_kernel > 1) {
+      blur(s, "rgba", blurred_tex_);
+      src = blurred_tex_;
+      timer.stamp("blur");
+    }
+    glUseProgram(label_);
+    bindTexture(0, src, "src", label_);
+    glUniform1i(glGetUniformLocation(label_, "width"), w_);
+    glUniform1i(glGetUniformLocation(label_, "thr_b"), q8(s.mask.blue));
+    glUniform1i(glGetUniformLocation(label_, "thr_r"), q8(s.mask.red));
+    glUniform1i(glGetUniformLocation(label_, "vmin"), std::clamp(s.mask.value_min, 0, 255));
+    draw(packed_tex_, w4_, h_);
+    finish("saturation");
+    timer.stamp("saturation");
+    readPacked();
+    labels = packed_.colRange(0, w_);
+    filtered = &bgr;
+    if (s.blur_kernel > 1) {
+      readRgba(blurred_tex_, blurred_rgba_);
+      cv::cvtColor(blurred_rgba_, blurred_bgr_, cv::COLOR_BGRA2BGR);
+      filtered = &blurred_bgr_;
+    }
+    timer.stamp("readback");
+  }
+
+  void edgeMap(const cv::Mat& bgr, const FilterSettings& s, cv::Mat& edges, StageTimer& timer) override {
+    begin(bgr);
+    upload(bgr);
+    timer.stamp("upload");
+    // blur, saturation and threshold (blur H, then V fused with the rest)
+    const int thr = static_cast<int>(std::floor(s.saturation_threshold * 255.0));
+    if (s.blur_kernel > 1) {
+      blur(s, "sat", sat_tex_, thr);
+      timer.stamp("blur");  // the fused pass's saturation is a few integer ops
+    } else {
+      saturation(thr);
+    }
+    timer.stamp("saturation");
+    // Sobel, then suppression and double threshold
+    glUseProgram(sobel_);
+    bindTexture(0, sat_tex_, "sat", sobel_);
+    glUniform2i(glGetUniformLocation(sobel_, "size"), w_, h_);
+    draw(grad_tex_, w_, h_);
+    glUseProgram(nms_);
+    bindTexture(0, grad_tex_, "grad", nms_);
+    glUniform2i(glGetUniformLocation(nms_, "size"), w_, h_);
+    glUniform1i(glGetUniformLocation(nms_, "low"), static_cast<int>(std::floor(s.canny_low)));
+    glUniform1i(glGetUniformLocation(nms_, "high"), static_cast<int>(std::floor(s.canny_high)));
+    draw(packed_tex_, w4_, h_);
+    finish("edges");
+    timer.stamp("edges");
+    readPacked();
+    timer.stamp("readback");
+    hysteresis(packed_.colRange(0, w_), edges, stack_);
+    timer.stamp("hysteresis");
+  }
+
+ private:
+  static int q8(double t) { return std::clamp(static_cast<int>(std::lround(t * 256.0)), 0, 256); }
+
+  GLuint program(const std::string& key, const std::string& fragment) {
+    auto it = programs_.find(key);
+    if (it != programs_.end()) return it->second;
+    const GLuint p = link(fragment);
+    programs_[key] = p;
+    return p;
+  }
+
+  void begin(const cv::Mat& bgr) {
+    CV_Assert(bgr.type() == CV_8UC3 && !bgr.empty());
+    if (!ctx_->makeCurrent()) throw BackendFailure("GLES: cannot make the EGL context current");
+    if (bgr.cols != w_ || bgr.rows != h_) allocate(bgr.cols, bgr.rows);
+  }
+
+  GLuint texture(GLenum format, int w, int h) {
+    GLuint t = 0;
+    glGenTextures(1, &t);
+    glBindTexture(GL_TEXTURE_2D, t);
+    glTexStorage2D(GL_TEXTURE_2D, 1, format, w, h);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    return t;
+  }
+
+  void freeTextures() {
+    for (GLuint* t : {&src_tex_, &tmp_tex_, &blurred_tex_, &sat_tex_, &grad_tex_, &packed_tex_})
+      if (*t) {
+        glDeleteTextures(1, t);
+        *t = 0;
+      }
+  }
+
+  void allocate(int w, int h) {
+    GLint max_size = 0;
+    glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
+    if (w > max_size || h > max_size)
+      throw BackendFailure("GLES: a " + std::to_string(w) + "x" + std::to_string(h) +
+                           " frame exceeds the GPU's texture size limit " + std::to_string(max_size));
+    freeTextures();
+    w_ = w, h_ = h, w4_ = (w + 3) / 4;
+    src_tex_ = texture(GL_RGB8, w, h);
+    tmp_tex_ = texture(half_float_target_ ? GL_RGBA16F : GL_RGBA8, w, h);
+    blurred_tex_ = texture(GL_RGBA8, w, h);
+    sat_tex_ = texture(GL_R8, w, h);
+    grad_tex_ = texture(GL_R32UI, w, h);
+    packed_tex_ = texture(GL_RGBA8, w4_, h);
+    packed_.create(h, w4_ * 4, CV_8UC1);
+    glBindBuffer(GL_PIXEL_UNPACK_BUFFER, pbo_up_);
+    glBufferData(GL_PIXEL_UNPACK_BUFFER, static_cast<GLsizeiptr>(w) * h * 3, nullptr, GL_STREAM_DRAW);
+    glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
+    glBindBuffer(GL_PIXEL_PACK_BUFFER, pbo_down_);
+    glBufferData(GL_PIXEL_PACK_BUFFER, static_cast<GLsizeiptr>(w) * h * 4, nullptr, GL_STREAM_READ);
+    glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+    check("allocation");
+  }
+
+  void upload(const cv::Mat& bgr) {
+    glBindBuffer(GL_PIXEL_UNPACK_BUFFER, pbo_up_);
+    const size_t row = static_cast<size_t>(w_) * 3;
+    void* dst = glMapBufferRange(GL_PIXEL_UNPACK_BUFFER, 0, static_cast<GLsizeiptr>(row * h_),
+                                 GL_MAP_WRITE_BIT | GL_MAP_INVALIDATE_BUFFER_BIT);
+    if (!dst) {
+      glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
+      check("upload map");
+      throw BackendFailure("GLES: cannot map the upload buffer");
+    }
+    if (bgr.isContinuous()) std::memcpy(dst, bgr.data, row * h_);
+    else
+      for (int y = 0; y < h_; ++y) std::memcpy(static_cast<uint8_t*>(dst) + row * y, bgr.ptr(y), row);
+    glUnmapBuffer(GL_PIXEL_UNPACK_BUFFER);
+    glBindTexture(GL_TEXTURE_2D, src_tex_);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, w_, h_, GL_RGB, GL_UNSIGNED_BYTE, nullptr);
+    glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
+    finish("upload");
+  }
+
+  void bindTexture(int unit, GLuint tex, const char* uniform, GLuint prog) {
+    glActiveTexture(GL_TEXTURE0 + unit);
+    glBindTexture(GL_TEXTURE_2D, tex);
+    glUniform1i(glGetUniformLocation(prog, uniform), unit);
+  }
+
+  void draw(GLuint target, int w, int h) {
+    glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, target, 0);
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
+      if (target == tmp_tex_ && half_float_target_) {
+        // Half float announced but not renderable here: 8 bits it is.
+        half_float_target_ = false;
+        glDeleteTextures(1, &tmp_tex_);
+        tmp_tex_ = texture(GL_RGBA8, w_, h_);
+        glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, tmp_tex_, 0);
+      }
+      if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+        throw BackendFailure("GLES: incomplete framebuffer");
+    }
+    glViewport(0, 0, w, h);
+    glBindVertexArray(vao_);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+  }
+
+  void finish(const char* what) {
+    glFinish();
+    check(what);
+  }
+
+  // Separable Gaussian: H into tmp, V into `target` ("rgba": the blurred
+  // image; "sat": its thresholded saturation).
+  void blur(const FilterSettings& s, const char* out, GLuint target, int thr = 0) {
+    const int radius = s.blur_kernel / 2;
+    if (kernel_size_ != s.blur_kernel || kernel_sigma_ != s.blur_sigma) {
+      const cv::Mat k = cv::getGaussianKernel(s.blur_kernel, s.blur_sigma, CV_32F);
+      weights_.assign(k.ptr<float>() + radius, k.ptr<float>() + s.blur_kernel);
+      kernel_size_ = s.blur_kernel;
+      kernel_sigma_ = s.blur_sigma;
+    }
+    const std::string defs = "#define RADIUS " + std::to_string(radius) + "\n";
+    const GLuint h = program("blurH" + std::to_string(radius),
+                             std::string(kHeader) + defs + "#define OUT_TMP\n" + kBlur);
+    const GLuint v = program(std::string("blurV") + out + std::to_string(radius),
+                             std::string(kHeader) + defs + "#define VERTICAL\n#define " +
+                                 (std::strcmp(out, "rgba") == 0 ? "OUT_RGBA" : "OUT_SAT") + "\n" + kBlur);
+    glUseProgram(h);
+    bindTexture(0, src_tex_, "src", h);
+    glUniform1fv(glGetUniformLocation(h, "w"), radius + 1, weights_.data());
+    glUniform1i(glGetUniformLocation(h, "n"), w_);
+    draw(tmp_tex_, w_, h_);
+    glUseProgram(v);
+    bindTexture(0, tmp_tex_, "src", v);
+    glUniform1fv(glGetUniformLocation(v, "w"), radius + 1, weights_.data());
+    glUniform1i(glGetUniformLocation(v, "n"), h_);
+    glUniform1i(glGetUniformLocation(v, "thr"), thr);
+    draw(target, w_, h_);
+    finish("blur");
+  }
+
+  // Saturation and threshold without a blur: the vertical pass of radius 0.
+  void saturation(int thr) {
+    const GLuint v = program("sat0", std::string(kHeader) + "#define RADIUS 0\n#define VERTICAL\n#define OUT_SAT\n" + kBlur);
+    const float one = 1.0f;
+    glUseProgram(v);
+    bindTexture(0, src_tex_, "src", v);
+    glUniform1fv(glGetUniformLocation(v, "w"), 1, &one);
+    glUniform1i(glGetUniformLocation(v, "n"), h_);
+    glUniform1i(glGetUniformLocation(v, "thr"), thr);
+    draw(sat_tex_, w_, h_);
+    finish("saturation");
+  }
+
+  // Reads the attachment of fbo_ (w x h RGBA8) into `dst` through the pack
+  // buffer and a fence.
+  void readInto(GLuint tex, int w, int h, uint8_t* dst, size_t bytes) {
+    glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, tex, 0);
+    glBindBuffer(GL_PIXEL_PACK_BUFFER, pbo_down_);
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
+    GLsync fence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+    const GLenum r = glClientWaitSync(fence, GL_SYNC_FLUSH_COMMANDS_BIT, 5'000'000'000ull);
+    glDeleteSync(fence);
+    if (r != GL_ALREADY_SIGNALED && r != GL_CONDITION_SATISFIED) {
+      glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+      throw BackendFailure("GLES: the read-back fence did not signal within 5 s");
+    }
+    const void* src = glMapBufferRange(GL_PIXEL_PACK_BUFFER, 0, static_cast<GLsizeiptr>(bytes), GL_MAP_READ_BIT);
+    if (!src) {
+      glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+      check("read-back map");
+      throw BackendFailure("GLES: cannot map the read-back buffer");
+    }
+    std::memcpy(dst, src, bytes);
+    glUnmapBuffer(GL_PIXEL_PACK_BUFFER);
+    glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+    check("read-back");
+  }
+
+  void readPacked() {
+    CV_Assert(packed_.isContinuous());
+    readInto(packed_tex_, w4_, h_, packed_.data, packed_.total());
+  }
+
+  void readRgba(GLuint tex, cv::Mat& dst) {
+    dst.create(h_, w_, CV_8UC4);
+    CV_Assert(dst.isContinuous());
+    readInto(tex, w_, h_, dst.data, dst.total() * 4);
+  }
+
+  std::unique_ptr<EglContext> ctx_;
+  bool half_float_target_ = false;
+  GLuint vao_ = 0, fbo_ = 0, pbo_up_ = 0, pbo_down_ = 0;
+  GLuint label_ = 0, sobel_ = 0, nms_ = 0;
+  std::map<std::string, GLuint> programs_;
+  GLuint src_tex_ = 0, tmp_tex_ = 0, blurred_tex_ = 0, sat_tex_ = 0, grad_tex_ = 0, packed_tex_ = 0;
+  int w_ = 0, h_ = 0, w4_ = 0;
+  int kernel_size_ = -1;
+  double kernel_sigma_ = -1;
+  std::vector<float> weights_;
+  cv::Mat packed_, blurred_rgba_, blurred_bgr_;
+  std::vector<int> stack_;
+};
+
+// A small frame through the label pass, against the CPU's: a driver that
+// gets integer arithmetic or texel fetches wrong is no backend.
+bool selfTest(Filters& gles, std::string& why) {
+  cv::Mat img(4, 13, CV_8UC3);
+  cv::RNG rng(7);
+  rng.fill(img, cv::RNG::UNIFORM, 0, 256);
+  img.at<cv::Vec3b>(0, 0) = {200, 40, 30};  // blue
+  img.at<cv::Vec3b>(0, 1) = {30, 60, 200};  // red
+  FilterSettings s;
+  cv::Mat cpu, gpu;
+  saturationMask(img, s.mask, cpu);
+  std::vector<StageTime> st;
+  StageTimer timer(st);
+  const cv::Mat* filtered = nullptr;
+  gles.labelMap(img, s, gpu, filtered, timer);
+  if (cv::countNonZero(cpu != gpu) != 0) {
+    why = "GLES self-test: the GPU's label map differs from the CPU's";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+bool glesBuilt() { return true; }
+
+std::unique_ptr<Filters> makeGlesFilters(std::string& why, bool /*allow_compute*/) {
+  std::unique_ptr<EglContext> ctx = EglContext::create(why);
+  if (!ctx) return nullptr;
+  try {
+    auto f = std::make_unique<GlesFilters>(std::move(ctx));
+    if (!selfTest(*f, why)) return nullptr;
+    return f;
+  } catch (const std::exception& e) {
+    why = e.what();
+    return nullptr;
+  }
+}
+
+}  // namespace ld::detail

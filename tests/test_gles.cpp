@@ -1,0 +1,311 @@
+// The GLES backend (detector/src/gles_filters.cpp, egl_context.cpp) against
+// the CPU backend, on Mesa's llvmpipe where no GPU is present: headless
+// context creation, label maps and edge maps, landmarks, the fallback to the
+// CPU when no EGL display can be made, and bad input.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <random>
+
+#include <opencv2/imgproc.hpp>
+
+#include "../detector/src/egl_context.hpp"
+#include "../detector/src/filters.hpp"
+#include "ld/detector.hpp"
+#include "ld/synth.hpp"
+
+namespace {
+
+const ld::CameraModel kCam = ld::CameraModel::defaultVga();
+
+// Sets an environment variable for the scope.
+class ScopedEnv {
+ public:
+  ScopedEnv(const char* name, const char* value) : name_(name) {
+    if (const char* old = std::getenv(name)) old_ = old, had_ = true;
+    setenv(name, value, 1);
+  }
+  ~ScopedEnv() {
+    if (had_) setenv(name_, old_.c_str(), 1);
+    else unsetenv(name_);
+  }
+
+ private:
+  const char* name_;
+  std::string old_;
+  bool had_ = false;
+};
+
+std::unique_ptr<ld::detail::Filters> gles(bool allow_compute = true) {
+  std::string why;
+  auto f = ld::detail::makeGlesFilters(why, allow_compute);
+  EXPECT_TRUE(f) << why;
+  return f;
+}
+
+// Synthetic scenes with one or two landmarks of 15 cm at 0.8-2 m, any roll,
+// yaw within +-50 degrees, over cluttered backgrounds with distractors.
+std::vector<ld::synth::Frame> scenes(int n, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> U(0, 1);
+  std::vector<ld::synth::Frame> out;
+  for (int i = 0; i < n; ++i) {
+    std::vector<ld::synth::LandmarkPlacement> lms;
+    const int k = 1 + i % 2;
+    for (int j = 0; j < k; ++j)
+      lms.push_back(ld::synth::placeLandmark(kCam, 0.8 + 1.2 * U(rng), (U(rng) - 0.5) * 100, (U(rng) - 0.5) * 20,
+                                             U(rng) * 360, k == 1 ? (U(rng) - 0.5) * 0.6 : (j ? 0.45 : -0.45),
+                                             (U(rng) - 0.5) * 0.6, 0.15, "lm", j));
+    out.push_back(ld::synth::render(ld::synth::randomConditions(kCam, lms, rng())));
+  }
+  return out;
+}
+
+// The fraction of the edge pixels of `a` with an edge pixel of `b` within one pixel.
+double agreement(const cv::Mat& a, const cv::Mat& b) {
+  cv::Mat grown;
+  cv::dilate(b, grown, cv::Mat::ones(3, 3, CV_8U));
+  const int n = cv::countNonZero(a);
+  return n ? static_cast<double>(cv::countNonZero(a & grown)) / n : 1.0;
+}
+
+// Every landmark of `a` in `b` with all four centres within `tol` px, and as many.
+void expectSameLandmarks(const ld::Detection& a, const ld::Detection& b, double tol, const std::string& what) {
+  ASSERT_EQ(a.landmarks.size(), b.landmarks.size()) << what;
+  for (const auto& la : a.landmarks) {
+    double best = 1e9;
+    for (const auto& lb : b.landmarks) {
+      double worst = 0;
+      const cv::Point2f pa[4] = {la.fip_tl, la.fip_tr, la.fip_bl, la.ap};
+      const cv::Point2f pb[4] = {lb.fip_tl, lb.fip_tr, lb.fip_bl, lb.ap};
+      for (int i = 0; i < 4; ++i) worst = std::max(worst, cv::norm(pa[i] - pb[i]));
+      best = std::min(best, worst);
+    }
+    EXPECT_LE(best, tol) << what;
+  }
+}
+
+}  // namespace
+
+TEST(GlesContext, HeadlessOnThisMachine) {
+  ASSERT_TRUE(ld::detail::glesBuilt());
+  std::string why;
+  auto ctx = ld::detail::EglContext::create(why);
+  ASSERT_TRUE(ctx) << why;
+  const auto& info = ctx->info();
+  std::printf("EGL %s: %s, %s\n", info.platform.c_str(), info.renderer.c_str(), info.version.c_str());
+  EXPECT_GE(info.major * 10 + info.minor, 30);
+  EXPECT_FALSE(info.renderer.empty());
+  EXPECT_TRUE(ctx->makeCurrent());
+  // A second context on the same display, and the first still works after it.
+  auto second = ld::detail::EglContext::create(why);
+  ASSERT_TRUE(second) << why;
+  second.reset();
+  EXPECT_TRUE(ctx->makeCurrent());
+}
+
+// Each headless platform EGL offers here gives a context on its own.
+TEST(GlesContext, EachPlatform) {
+  int made = 0;
+  for (const char* platform : {"device", "surfaceless", "gbm"}) {
+    ScopedEnv env("LD_EGL_PLATFORM", platform);
+    std::string why;
+    auto ctx = ld::detail::EglContext::create(why);
+    std::printf("%s: %s\n", platform, ctx ? ctx->info().platform.c_str() : why.c_str());
+    if (ctx) {
+      ++made;
+      EXPECT_EQ(ctx->info().platform.rfind(platform, 0), 0u);
+    } else {
+      EXPECT_FALSE(why.empty());
+    }
+  }
+  EXPECT_GE(made, 1);
+  ScopedEnv env("LD_EGL_PLATFORM", "wayland");
+  std::string why;
+  EXPECT_FALSE(ld::detail::EglContext::create(why));
+  EXPECT_NE(why.find("LD_EGL_PLATFORM"), std::string::npos) << why;
+}
+
+// The fast front end's label images are the CPU's, pixel for pixel: on
+// scenes, on random colours (every branch of the rule), and at widths that
+// are not a multiple of four.
+TEST(GlesParity, LabelMapsIdentical) {
+  auto g = gles();
+  ASSERT_TRUE(g);
+  auto c = ld::detail::makeCpuFilters();
+  const auto s = ld::detail::FilterSettings::from({});
+  std::vector<cv::Mat> images;
+  for (auto& f : scenes(3, 11)) images.push_back(f.bgr);
+  cv::RNG rng(5);
+  for (cv::Size size : {cv::Size(640, 480), cv::Size(37, 23), cv::Size(3, 3), cv::Size(1001, 7)}) {
+    cv::Mat noise(size, CV_8UC3);
+    rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+    images.push_back(noise);
+  }
+  for (const cv::Mat& img : images) {
+    std::vector<ld::StageTime> st;
+    ld::detail::StageTimer timer(st);
+    cv::Mat lc, lg;
+    const cv::Mat *fc = nullptr, *fg = nullptr;
+    c->labelMap(img, s, lc, fc, timer);
+    g->labelMap(img, s, lg, fg, timer);
+    ASSERT_EQ(lg.size(), img.size());
+    EXPECT_EQ(cv::countNonZero(lc != lg), 0) << img.size();
+    EXPECT_GT(cv::countNonZero(lc == ld::detail::kBlue), 0);
+    EXPECT_GT(cv::countNonZero(lc == ld::detail::kRed), 0);
+    EXPECT_EQ(fg, &img);
+  }
+}
+
+// With a blur the fast front end's labels and blurred image differ from the
+// CPU's only where the float blur rounds the other way.
+TEST(GlesParity, BlurredLabelMapsAgree) {
+  auto g = gles();
+  ASSERT_TRUE(g);
+  auto c = ld::detail::makeCpuFilters();
+  ld::DetectorParams p;
+  p.blur_kernel = 5;
+  p.blur_sigma = 1.2;
+  const auto s = ld::detail::FilterSettings::from(p);
+  for (auto& f : scenes(2, 12)) {
+    std::vector<ld::StageTime> st;
+    ld::detail::StageTimer timer(st);
+    cv::Mat lc, lg;
+    const cv::Mat *fc = nullptr, *fg = nullptr;
+    c->labelMap(f.bgr, s, lc, fc, timer);
+    g->labelMap(f.bgr, s, lg, fg, timer);
+    ASSERT_TRUE(fc && fg);
+    double diff = cv::norm(*fc, *fg, cv::NORM_INF);
+    EXPECT_LE(diff, 1.0);
+    EXPECT_LE(cv::countNonZero(lc != lg), static_cast<int>(0.001 * lc.total()));
+  }
+}
+
+// The paper front end's edge maps: at least 98 % of each map's edge pixels
+// have one of the other's within one pixel.
+TEST(GlesParity, EdgeMapsAgree) {
+  auto g = gles();
+  ASSERT_TRUE(g);
+  auto c = ld::detail::makeCpuFilters();
+  for (const ld::DetectorParams& p : {ld::DetectorParams::paper(), [] {
+         ld::DetectorParams q = ld::DetectorParams::paper();
+         q.blur_kernel = 0;  // Sobel, suppression and thresholds alone: exact
+         return q;
+       }()}) {
+    const auto s = ld::detail::FilterSettings::from(p);
+    for (auto& f : scenes(3, 13)) {
+      std::vector<ld::StageTime> st;
+      ld::detail::StageTimer timer(st);
+      cv::Mat ec, eg;
+      c->edgeMap(f.bgr, s, ec, timer);
+      g->edgeMap(f.bgr, s, eg, timer);
+      ASSERT_EQ(eg.size(), ec.size());
+      ASSERT_EQ(eg.type(), CV_8UC1);
+      const double cg = agreement(ec, eg), gc = agreement(eg, ec);
+      const int differ = cv::countNonZero(ec != eg);
+      std::printf("blur %d: %d CPU edge pixels, %.4f / %.4f within 1 px, %d differ\n", s.blur_kernel,
+                  cv::countNonZero(ec), cg, gc, differ);
+      EXPECT_GT(cv::countNonZero(ec), 1000);
+      EXPECT_GE(cg, 0.98);
+      EXPECT_GE(gc, 0.98);
+      if (s.blur_kernel <= 1) {
+        EXPECT_LE(differ, static_cast<int>(0.001 * cv::countNonZero(ec)) + 5);
+      }
+    }
+  }
+}
+
+// Both front ends: the same landmarks, centres within 0.5 px.
+TEST(GlesParity, SameLandmarks) {
+  const auto frames = scenes(8, 14);
+  for (const char* fe : {"fast", "paper"}) {
+    ld::DetectorParams p = std::string(fe) == "paper" ? ld::DetectorParams::paper() : ld::DetectorParams{};
+    ld::Detector cpu(p);
+    p.backend = "gles";
+    ld::Detector gpu(p);
+    ASSERT_STREQ(gpu.backend(), "gles");
+    int found = 0;
+    for (size_t i = 0; i < frames.size(); ++i) {
+      const ld::Detection a = cpu.detect(frames[i].bgr);
+      const ld::Detection& b = gpu.detect(frames[i].bgr);
+      expectSameLandmarks(a, b, 0.5, std::string(fe) + " frame " + std::to_string(i));
+      found += static_cast<int>(a.landmarks.size());
+      EXPECT_GT(b.stageMs("upload"), 0.0);
+      EXPECT_GT(b.stageMs("readback"), 0.0);
+      EXPECT_EQ(a.stageMs("upload"), 0.0);
+    }
+    std::printf("%s: %d landmarks in %zu frames, the same on both backends\n", fe, found, frames.size());
+    EXPECT_GE(found, static_cast<int>(frames.size()) / 2) << fe;
+  }
+}
+
+// No EGL display: "auto" runs the CPU with one warning per process, "gles"
+// throws a clear error, and detection goes on.
+TEST(GlesFallback, ForcedEglFailure) {
+  ScopedEnv env("LD_EGL_FORCE_FAIL", "1");
+  ld::detail::resetBackendWarning();
+  ld::DetectorParams p;
+  p.backend = "auto";
+  testing::internal::CaptureStderr();
+  ld::Detector a(p), b(p);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_STREQ(a.backend(), "cpu");
+  EXPECT_STREQ(b.backend(), "cpu");
+  EXPECT_NE(a.backendInfo().find("LD_EGL_FORCE_FAIL"), std::string::npos) << a.backendInfo();
+  size_t lines = 0;
+  for (char ch : err) lines += ch == '\n';
+  EXPECT_EQ(lines, 1u) << err;
+  EXPECT_NE(err.find("warning"), std::string::npos) << err;
+  EXPECT_NE(err.find("CPU"), std::string::npos) << err;
+  const auto frames = scenes(1, 15);
+  EXPECT_FALSE(a.detect(frames[0].bgr).landmarks.empty());
+
+  p.backend = "gles";
+  try {
+    ld::Detector g(p);
+    ADD_FAILURE() << "backend gles without EGL did not throw";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("GLES backend unavailable"), std::string::npos) << e.what();
+  }
+  ld::detail::resetBackendWarning();
+}
+
+// Without the forced failure "auto" takes the GPU here (llvmpipe), silently.
+TEST(GlesFallback, AutoTakesTheGpu) {
+  ld::detail::resetBackendWarning();
+  ld::DetectorParams p;
+  p.backend = "auto";
+  testing::internal::CaptureStderr();
+  ld::Detector d(p);
+  EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+  EXPECT_STREQ(d.backend(), "gles");
+  EXPECT_EQ(d.backendInfo().rfind("gles: ", 0), 0u) << d.backendInfo();
+}
+
+// Empty, tiny, gray, four-channel and 16-bit images, and frames changing size,
+// on both front ends: no crash, no landmarks where none can be.
+TEST(GlesInput, BadAndOddImages) {
+  for (const char* fe : {"fast", "paper"}) {
+    ld::DetectorParams p = std::string(fe) == "paper" ? ld::DetectorParams::paper() : ld::DetectorParams{};
+    p.backend = "gles";
+    ld::Detector d(p);
+    EXPECT_TRUE(d.detect(cv::Mat()).landmarks.empty());
+    EXPECT_TRUE(d.detect(cv::Mat(1, 1, CV_8UC3, cv::Scalar(255, 0, 0))).landmarks.empty());
+    EXPECT_TRUE(d.detect(cv::Mat(2, 2, CV_8UC3, cv::Scalar(255, 0, 0))).landmarks.empty());
+    EXPECT_TRUE(d.detect(cv::Mat(3, 3, CV_8UC3, cv::Scalar(255, 0, 0))).landmarks.empty());
+    EXPECT_TRUE(d.detect(cv::Mat(480, 640, CV_8UC1, cv::Scalar(128))).landmarks.empty());
+    EXPECT_TRUE(d.detect(cv::Mat(480, 640, CV_16UC3, cv::Scalar(0))).landmarks.empty());
+    // a 15 cm landmark at 1 m, a little turned: both front ends find it
+    const auto f = ld::synth::render(ld::synth::randomConditions(
+        kCam, {ld::synth::placeLandmark(kCam, 1.0, 15, 5, 30, 0.1, -0.1, 0.15)}, 16));
+    cv::Mat bgra;
+    cv::cvtColor(f.bgr, bgra, cv::COLOR_BGR2BGRA);
+    const size_t n = d.detect(f.bgr).landmarks.size();
+    EXPECT_GT(n, 0u) << fe;
+    EXPECT_EQ(d.detect(bgra).landmarks.size(), n) << fe;
+    // A view into a larger image (not continuous), then the full frame again.
+    EXPECT_NO_THROW(d.detect(f.bgr(cv::Rect(3, 5, 317, 211))));
+    EXPECT_EQ(d.detect(f.bgr).landmarks.size(), n) << fe;
+    EXPECT_STREQ(d.backend(), "gles");
+  }
+}
