@@ -13,6 +13,7 @@
 #include "ld/image_convert.hpp"
 #include "ld/landmark_msg.hpp"
 #include "ld/lcm_url.hpp"
+#include "ld/message_decode.hpp"
 
 namespace {
 
@@ -39,7 +40,7 @@ class LatestFrame {
 int main(int argc, char** argv) {
   CLI::App app{"ld-detector: IMAGE in, LANDMARKS out (see README)."};
   std::string url = ld::defaultLcmUrl(), in_channel = "IMAGE", out_channel = "LANDMARKS";
-  std::string params_file, camera_file, backend = "cpu";
+  std::string params_file, camera_file, backend;
   double side_m = 0;
   bool verbose = false;
   app.add_option("--lcm-url", url, "LCM URL")->capture_default_str();
@@ -48,8 +49,11 @@ int main(int argc, char** argv) {
   app.add_option("--params", params_file, "detector parameters (YAML)");
   app.add_option("--camera", camera_file, "camera calibration (OpenCV YAML/XML) for pose");
   app.add_option("--size", side_m, "printed landmark side S in metres, for pose");
-  app.add_option("--backend", backend, "detector backend")->check(CLI::IsMember({"cpu"}))
-      ->capture_default_str();
+  app.add_option("--backend", backend,
+                 "where the filters run: cpu; gles (OpenGL ES on a headless EGL context, an error when none "
+                 "can be made); auto (the GPU when it can, else the CPU with one warning). "
+                 "Default: the params file's, else cpu")
+      ->check(CLI::IsMember({"cpu", "gles", "auto"}));
   app.add_flag("-v,--verbose", verbose, "print a status line every 5 s");
   CLI11_PARSE(app, argc, argv);
 
@@ -57,6 +61,7 @@ int main(int argc, char** argv) {
   try {
     ld::DetectorParams params;
     if (!params_file.empty()) params = ld::DetectorParams::load(params_file);
+    if (!backend.empty()) params.backend = backend;
     params.validate();
     detector = ld::Detector(params);
     if (!camera_file.empty() || side_m > 0) {
@@ -76,6 +81,7 @@ int main(int argc, char** argv) {
     std::cerr << "ld-detector: cannot open LCM at " << url << "\n";
     return 2;
   }
+  if (verbose) std::fprintf(stderr, "ld-detector: backend %s\n", detector.backendInfo().c_str());
   LatestFrame latest;
   lcm.subscribe(in_channel, &LatestFrame::onMessage, &latest);
   std::signal(SIGINT, onSignal);
@@ -92,11 +98,10 @@ int main(int argc, char** argv) {
     if (g_stop) break;
     if (latest.pending_) {
       latest.pending_ = false;
-      const int n = static_cast<int>(latest.bytes_.size());
       try {
-        if (image.decode(latest.bytes_.data(), 0, n) != n)
-          throw ld::ImageFormatError("message on " + in_channel + " (" + std::to_string(n) +
-                                     " bytes) is not a valid ld.image_t");
+        std::string why;
+        if (!ld::decodeMessage(latest.bytes_.data(), latest.bytes_.size(), image, &why))
+          throw ld::ImageFormatError("message on " + in_channel + " is " + why);
         ld::imageToBgr(image, bgr);
         const ld::Detection& det = detector.detect(bgr);
         ld::toListMessage(det, image.utime, ld::imageSeq(image).value_or(-1), bgr.cols, bgr.rows,

@@ -13,6 +13,7 @@
 #include "ld/image_convert.hpp"
 #include "ld/landmark_list_t.hpp"
 #include "ld/lcm_url.hpp"
+#include "ld/message_decode.hpp"
 #include "ld/qr_code_list_t.hpp"
 #include "ld/qr_reader.hpp"
 #include "ld/qr_tracks.hpp"
@@ -32,22 +33,21 @@ struct Inputs {
 
   void onImage(const lcm::ReceiveBuffer* rb, const std::string& ch) {
     const auto* p = static_cast<const uint8_t*>(rb->data);
-    const int n = static_cast<int>(rb->data_size);
-    if (header_probe.decode(p, 0, n) != n) return reportBad(ch, n, "ld.image_t");
+    if (!ld::decodeMessage(p, rb->data_size, header_probe, &why)) return reportBad(ch, why);
     matcher.addImage({header_probe.utime, ld::imageSeq(header_probe).value_or(-1)}, p, rb->data_size);
   }
   void onList(const lcm::ReceiveBuffer* rb, const std::string& ch) {
     const auto* p = static_cast<const uint8_t*>(rb->data);
-    const int n = static_cast<int>(rb->data_size);
-    if (list_probe.decode(p, 0, n) != n) return reportBad(ch, n, "ld.landmark_list_t");
+    if (!ld::decodeMessage(p, rb->data_size, list_probe, &why)) return reportBad(ch, why);
     matcher.addList({list_probe.utime, list_probe.seq}, p, rb->data_size);
   }
-  void reportBad(const std::string& ch, int n, const char* type) {
+  void reportBad(const std::string& ch, const std::string& what) {
     ++bad;
     if (bad <= 10 || bad % 100 == 0)
-      std::cerr << "ld-qr-reader: dropped message on " << ch << " (" << n << " bytes): not a valid "
-                << type << " (" << bad << " bad so far)\n";
+      std::cerr << "ld-qr-reader: dropped message on " << ch << ": " << what << " (" << bad
+                << " bad so far)\n";
   }
+  std::string why;
 };
 
 }  // namespace
@@ -108,7 +108,7 @@ int main(int argc, char** argv) {
       try {
         ld::imageToBgr(image, bgr);
       } catch (const ld::ImageFormatError& e) {
-        std::cerr << "ld-qr-reader: " << e.what() << "\n";
+        in.reportBad(image_ch, e.what());
         continue;
       }
     }

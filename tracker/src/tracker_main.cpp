@@ -15,6 +15,7 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include "ld/lcm_url.hpp"
+#include "ld/message_decode.hpp"
 #include "ld/tracker.hpp"
 #include "ld/tracker_msg.hpp"
 
@@ -104,12 +105,12 @@ int main(int argc, char** argv) {
     if (g_stop) break;
     if (latest.pending_) {
       latest.pending_ = false;
-      const int n = static_cast<int>(latest.bytes_.size());
-      if (in.decode(latest.bytes_.data(), 0, n) != n) {
+      std::string why;
+      if (!ld::decodeMessage(latest.bytes_.data(), latest.bytes_.size(), in, &why)) {
         ++bad;
         if (bad <= 10 || bad % 100 == 0)
-          std::cerr << "ld-tracker: dropped message: message on " << in_channel << " (" << n
-                    << " bytes) is not a valid ld.landmark_list_t (" << bad << " bad so far)\n";
+          std::cerr << "ld-tracker: dropped message: message on " << in_channel << " is " << why
+                    << " (" << bad << " bad so far)\n";
       } else {
         const auto t0 = std::chrono::steady_clock::now();
         ld::landmarksFromList(in, detections);

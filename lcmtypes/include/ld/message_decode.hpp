@@ -1,0 +1,30 @@
+// Decoding messages that arrive from the bus, where any bytes may arrive.
+//
+// The decoders lcm-gen writes (LCM 1.3.1) trust the counts in the message:
+// an array count of 2^31-1 makes them allocate and zero gigabytes before they
+// notice the bytes are missing, a string length of 0 or less throws
+// std::length_error, and a boolean byte other than 0 or 1 ends up in a C++
+// bool (undefined behaviour). decodeMessage first walks the encoding and
+// checks every count, length and boolean against the bytes that are really
+// there; only a message that passes goes to the generated decoder.
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+#include "ld/image_t.hpp"
+#include "ld/landmark_list_t.hpp"
+#include "ld/qr_code_list_t.hpp"
+
+namespace ld {
+
+/// Decodes exactly one message of the type from `size` bytes at `data`.
+/// Returns false, and says why in `error` when given (one line: the type and
+/// what was wrong at which byte), when the bytes are not such a message.
+bool decodeMessage(const void* data, size_t size, image_t& out, std::string* error = nullptr);
+bool decodeMessage(const void* data, size_t size, landmark_list_t& out,
+                   std::string* error = nullptr);
+bool decodeMessage(const void* data, size_t size, qr_code_list_t& out,
+                   std::string* error = nullptr);
+
+}  // namespace ld

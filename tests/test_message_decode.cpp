@@ -1,0 +1,156 @@
+// decodeMessage (ld/message_decode.hpp): well-formed messages decode exactly
+// as LCM's own decoder does; the encodings that made the generated decoders
+// allocate gigabytes, throw or load invalid booleans (found by
+// tests/fuzz/fuzz_messages) are refused with a reason, quickly.
+#include <gtest/gtest.h>
+
+#include <cstring>
+
+#include "ld/image_convert.hpp"
+#include "ld/message_decode.hpp"
+
+namespace {
+
+using Bytes = std::vector<uint8_t>;
+
+template <class T>
+Bytes encode(const T& msg) {
+  Bytes b(static_cast<size_t>(msg.getEncodedSize()));
+  EXPECT_EQ(msg.encode(b.data(), 0, static_cast<int>(b.size())), static_cast<int>(b.size()));
+  return b;
+}
+
+void putI32(Bytes& b, size_t at, int32_t v) {
+  for (int i = 0; i < 4; ++i) b[at + i] = static_cast<uint8_t>(static_cast<uint32_t>(v) >> (24 - 8 * i));
+}
+
+ld::landmark_list_t sampleList() {
+  ld::landmark_list_t list{};
+  list.utime = 123;
+  list.seq = 4;
+  list.width = 640;
+  list.height = 480;
+  list.backend = "cpu";
+  list.stage_names = {"saturation", "contours"};
+  list.stage_ms = {0.5f, 0.25f};
+  list.nstages = 2;
+  ld::landmark_t lm{};
+  lm.track_id = -1;
+  lm.has_payload = true;
+  lm.payload = "dock";
+  list.landmarks = {lm, lm};
+  list.nlandmarks = 2;
+  return list;
+}
+
+// byte offsets in sampleList()'s encoding
+constexpr size_t kBackendLen = 8 + 8 + 8 + 4 + 4;        // after hash, utime, seq, width, height
+constexpr size_t kNstages = kBackendLen + 4 + 4 + 8;      // after "cpu\0" and frames_skipped
+constexpr size_t kFirstLandmark = kNstages + 4 + 4 + 11 + 4 + 9 + 2 * 4 + 4;
+constexpr size_t kHasPayload = kFirstLandmark + 16 * 4 + 4;
+
+TEST(DecodeMessage, WellFormedMessagesDecodeAsLcmDoes) {
+  const ld::landmark_list_t list = sampleList();
+  const Bytes b = encode(list);
+  ld::landmark_list_t out;
+  std::string why;
+  ASSERT_TRUE(ld::decodeMessage(b.data(), b.size(), out, &why)) << why;
+  EXPECT_EQ(encode(out), b);
+  EXPECT_EQ(out.landmarks[1].payload, "dock");
+
+  const ld::image_t img = ld::matToImage(cv::Mat(6, 8, CV_8UC3, cv::Scalar(1, 2, 3)),
+                                         ld::image_t::PIXEL_FORMAT_BGR, 5, 9);
+  ld::image_t img_out;
+  const Bytes bi = encode(img);
+  ASSERT_TRUE(ld::decodeMessage(bi.data(), bi.size(), img_out, &why)) << why;
+  EXPECT_EQ(encode(img_out), bi);
+  EXPECT_EQ(ld::imageSeq(img_out), 9);
+
+  ld::qr_code_list_t codes{};
+  codes.codes.resize(1);
+  codes.codes[0].payload = "x";
+  codes.ncodes = 1;
+  ld::qr_code_list_t codes_out;
+  const Bytes bq = encode(codes);
+  ASSERT_TRUE(ld::decodeMessage(bq.data(), bq.size(), codes_out, &why)) << why;
+  EXPECT_EQ(encode(codes_out), bq);
+}
+
+TEST(DecodeMessage, LayoutOfTheSampleIsAsAssumed) {
+  const Bytes b = encode(sampleList());
+  EXPECT_EQ(b[kBackendLen + 3], 4);  // "cpu" + NUL
+  EXPECT_EQ(b[kNstages + 3], 2);
+  EXPECT_EQ(b[kHasPayload], 1);
+}
+
+TEST(DecodeMessage, HugeCountIsRefusedWithoutAllocating) {
+  Bytes b = encode(sampleList());
+  putI32(b, kNstages, 0x7fffffff);  // the generated decoder resizes to 2^31 strings first
+  ld::landmark_list_t out;
+  std::string why;
+  EXPECT_FALSE(ld::decodeMessage(b.data(), b.size(), out, &why));
+  EXPECT_NE(why.find("nstages 2147483647 does not fit"), std::string::npos) << why;
+
+  ld::image_t img = ld::matToImage(cv::Mat(6, 8, CV_8UC1, cv::Scalar(1)),
+                                   ld::image_t::PIXEL_FORMAT_GRAY, 5);
+  Bytes bi = encode(img);
+  putI32(bi, 8 + 8 + 4 * 4, 0x7ffffff0);  // image size: 2 GB of zeros in the generated decoder
+  ld::image_t img_out;
+  EXPECT_FALSE(ld::decodeMessage(bi.data(), bi.size(), img_out, &why));
+  EXPECT_NE(why.find("image size"), std::string::npos) << why;
+  putI32(bi, 8 + 8 + 4 * 4, -5);
+  EXPECT_FALSE(ld::decodeMessage(bi.data(), bi.size(), img_out, &why));
+  EXPECT_NE(why.find("negative"), std::string::npos) << why;
+}
+
+TEST(DecodeMessage, StringLengthZeroIsRefusedNotThrown) {
+  Bytes b = encode(sampleList());
+  putI32(b, kBackendLen, 0);  // the generated decoder throws std::length_error
+  ld::landmark_list_t out;
+  std::string why;
+  EXPECT_FALSE(ld::decodeMessage(b.data(), b.size(), out, &why));
+  EXPECT_NE(why.find("string backend has length 0"), std::string::npos) << why;
+  putI32(b, kBackendLen, -1000);
+  EXPECT_FALSE(ld::decodeMessage(b.data(), b.size(), out, &why));
+}
+
+TEST(DecodeMessage, StringsMustBeCStrings) {
+  Bytes b = encode(sampleList());
+  b[kBackendLen + 4 + 3] = 'x';  // no terminating NUL
+  ld::landmark_list_t out;
+  std::string why;
+  EXPECT_FALSE(ld::decodeMessage(b.data(), b.size(), out, &why));
+  EXPECT_NE(why.find("not a C string"), std::string::npos) << why;
+  b = encode(sampleList());
+  b[kBackendLen + 4 + 1] = 0;  // "c\0u\0": would re-encode shorter
+  EXPECT_FALSE(ld::decodeMessage(b.data(), b.size(), out, &why));
+}
+
+TEST(DecodeMessage, BooleanOtherThanZeroOrOneIsRefused) {
+  Bytes b = encode(sampleList());
+  b[kHasPayload] = 2;  // would be loaded into a C++ bool
+  ld::landmark_list_t out;
+  std::string why;
+  EXPECT_FALSE(ld::decodeMessage(b.data(), b.size(), out, &why));
+  EXPECT_NE(why.find("boolean has_payload is 2"), std::string::npos) << why;
+}
+
+TEST(DecodeMessage, TruncatedTrailingAndForeignMessagesAreRefused) {
+  const Bytes b = encode(sampleList());
+  ld::landmark_list_t out;
+  std::string why;
+  for (size_t n = 0; n < b.size(); ++n) {
+    EXPECT_FALSE(ld::decodeMessage(b.data(), n, out, &why)) << n;
+    EXPECT_FALSE(why.empty());
+  }
+  Bytes longer = b;
+  longer.push_back(0);
+  EXPECT_FALSE(ld::decodeMessage(longer.data(), longer.size(), out, &why));
+  EXPECT_NE(why.find("1 bytes after the message"), std::string::npos) << why;
+
+  ld::image_t img;
+  EXPECT_FALSE(ld::decodeMessage(b.data(), b.size(), img, &why));
+  EXPECT_NE(why.find("fingerprint is not ld.image_t's"), std::string::npos) << why;
+}
+
+}  // namespace
