@@ -191,7 +191,9 @@ int main(int argc, char** argv) {
       std::ostringstream t;
       t << "| yaw (deg) |";
       for (size_t i = 0; i < y_sides.size(); ++i) t << " " << cm(y_sides[i]) << " at " << y_dists[i] << " m |";
-      t << "\n|---|" << std::string(y_sides.size() * 4, '-') << "\n";
+      t << "\n|---|";
+      for (size_t i = 0; i < y_sides.size(); ++i) t << "---|";
+      t << "\n";
       std::vector<std::vector<ld::eval::Point>> all;
       for (size_t i = 0; i < y_sides.size(); ++i) {
         o.side_m = y_sides[i];
@@ -222,7 +224,9 @@ int main(int argc, char** argv) {
       std::ostringstream t;
       t << "| distance (m) |";
       for (double side : d_sides) t << " " << cm(side) << " |";
-      t << "\n|---|" << std::string(d_sides.size() * 4, '-') << "\n";
+      t << "\n|---|";
+      for (size_t i = 0; i < d_sides.size(); ++i) t << "---|";
+      t << "\n";
       for (size_t k = 0; k < ds.size(); ++k) {
         t << "| " << ds[k] << " |";
         for (const auto& pts : all) t << " " << pct(pts[k].detected, pts[k].trials) << " % |";
