@@ -244,6 +244,7 @@ class GlesFilters final : public Filters {
     label_ = program("label", std::string(kHeader) + kLabel);
     sobel_ = program("sobel", std::string(kHeader) + kSobel);
     nms_ = program("nms", std::string(kHeader) + kNms);
+    sat0_ = program("sat0", std::string(kHeader) + "#define RADIUS 0\n#define VERTICAL\n#define OUT_SAT\n" + kBlur);
     check("setup");
   }
 
@@ -448,12 +449,15 @@ class GlesFilters final : public Filters {
       kernel_size_ = s.blur_kernel;
       kernel_sigma_ = s.blur_sigma;
     }
-    const std::string defs = "#define RADIUS " + std::to_string(radius) + "\n";
-    const GLuint h = program("blurH" + std::to_string(radius),
-                             std::string(kHeader) + defs + "#define OUT_TMP\n" + kBlur);
-    const GLuint v = program(std::string("blurV") + out + std::to_string(radius),
-                             std::string(kHeader) + defs + "#define VERTICAL\n#define " +
-                                 (std::strcmp(out, "rgba") == 0 ? "OUT_RGBA" : "OUT_SAT") + "\n" + kBlur);
+    const bool rgba = std::strcmp(out, "rgba") == 0;
+    if (blur_radius_ != radius) {  // programs for this radius (compiled once, not per frame)
+      const std::string defs = std::string(kHeader) + "#define RADIUS " + std::to_string(radius) + "\n";
+      blur_h_ = program("blurH" + std::to_string(radius), defs + "#define OUT_TMP\n" + kBlur);
+      blur_v_rgba_ = program("blurVrgba" + std::to_string(radius), defs + "#define VERTICAL\n#define OUT_RGBA\n" + kBlur);
+      blur_v_sat_ = program("blurVsat" + std::to_string(radius), defs + "#define VERTICAL\n#define OUT_SAT\n" + kBlur);
+      blur_radius_ = radius;
+    }
+    const GLuint h = blur_h_, v = rgba ? blur_v_rgba_ : blur_v_sat_;
     glUseProgram(h);
     bindTexture(0, src_tex_, "src", h);
     glUniform1fv(glGetUniformLocation(h, "w"), radius + 1, weights_.data());
@@ -470,7 +474,7 @@ class GlesFilters final : public Filters {
 
   // Saturation and threshold without a blur: the vertical pass of radius 0.
   void saturation(int thr) {
-    const GLuint v = program("sat0", std::string(kHeader) + "#define RADIUS 0\n#define VERTICAL\n#define OUT_SAT\n" + kBlur);
+    const GLuint v = sat0_;
     const float one = 1.0f;
     glUseProgram(v);
     bindTexture(0, src_tex_, "src", v);
@@ -522,7 +526,9 @@ class GlesFilters final : public Filters {
   std::unique_ptr<EglContext> ctx_;
   bool half_float_target_ = false;
   GLuint vao_ = 0, fbo_ = 0, pbo_up_ = 0, pbo_down_ = 0;
-  GLuint label_ = 0, sobel_ = 0, nms_ = 0;
+  GLuint label_ = 0, sobel_ = 0, nms_ = 0, sat0_ = 0;
+  int blur_radius_ = -1;
+  GLuint blur_h_ = 0, blur_v_rgba_ = 0, blur_v_sat_ = 0;
   std::map<std::string, GLuint> programs_;
   GLuint src_tex_ = 0, tmp_tex_ = 0, blurred_tex_ = 0, sat_tex_ = 0, grad_tex_ = 0, packed_tex_ = 0;
   int w_ = 0, h_ = 0, w4_ = 0;

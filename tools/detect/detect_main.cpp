@@ -48,7 +48,7 @@ std::vector<std::string> expandInputs(const std::vector<std::string>& inputs) {
 int main(int argc, char** argv) {
   CLI::App app{"ld-detect: find landmarks in images; JSON Lines on stdout (see README)."};
   std::vector<std::string> inputs;
-  std::string params_file, camera_file, draw_dir, out_file, backend = "cpu";
+  std::string params_file, camera_file, draw_dir, out_file, backend;
   double side_m = 0;
   bool summary = false, decode = false;
   app.add_option("inputs", inputs, "image files or folders")->required();
@@ -57,8 +57,11 @@ int main(int argc, char** argv) {
   app.add_option("--size", side_m, "printed landmark side S in metres, for pose");
   app.add_option("--draw", draw_dir, "write overlay images into this folder");
   app.add_option("-o,--output", out_file, "write JSON Lines here instead of stdout");
-  app.add_option("--backend", backend, "detector backend")->check(CLI::IsMember({"cpu"}))
-      ->capture_default_str();
+  app.add_option("--backend", backend,
+                 "where the filters run: cpu; gles (OpenGL ES on a headless EGL context, an error when none "
+                 "can be made); auto (the GPU when it can, else the CPU with one warning). "
+                 "Default: the params file's, else cpu")
+      ->check(CLI::IsMember({"cpu", "gles", "auto"}));
   app.add_flag("--decode", decode, "read each landmark's QR payload too (zbar)");
   app.add_flag("--summary", summary, "print a summary (frames, landmarks, detect_ms) on stderr");
   CLI11_PARSE(app, argc, argv);
@@ -67,6 +70,7 @@ int main(int argc, char** argv) {
   try {
     ld::DetectorParams params;
     if (!params_file.empty()) params = ld::DetectorParams::load(params_file);
+    if (!backend.empty()) params.backend = backend;
     params.validate();
     detector = ld::Detector(params);
     if (!camera_file.empty() || side_m > 0) {
@@ -141,10 +145,10 @@ int main(int argc, char** argv) {
     const auto pct = [&](double q) { return times[static_cast<size_t>(q * (times.size() - 1))]; };
     std::fprintf(stderr,
                  "ld-detect: %zu images, %d with landmarks, %d landmarks, %.2f per image; "
-                 "detect_ms median %.3f, p95 %.3f, max %.3f; %d unreadable\n",
+                 "detect_ms median %.3f, p95 %.3f, max %.3f; %d unreadable; backend %s\n",
                  times.size(), with_landmarks, total_landmarks,
                  static_cast<double>(total_landmarks) / static_cast<double>(times.size()),
-                 pct(0.5), pct(0.95), times.back(), failed);
+                 pct(0.5), pct(0.95), times.back(), failed, detector.backendInfo().c_str());
   }
   return failed > 0 ? 1 : 0;
 }
