@@ -1,0 +1,133 @@
+// Watches the process set's channels on the bus and measures it: message
+// rates, end-to-end latency (IMAGE received -> LANDMARKS_TRACKED received
+// for the same frame, matched by utime and seq, both on this process's
+// steady clock), frames the detector and tracker skipped, tracks and their
+// payloads. Receive times are the kernel's (SO_TIMESTAMP, which LCM passes
+// on as recv_utime), so the monitor's own scheduling does not blur them.
+// ld-run prints its status line and writes its summary.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "ld/landmark_list_t.hpp"
+#include "ld/qr_code_list_t.hpp"
+
+namespace lcm {
+class LCM;
+class ReceiveBuffer;
+}  // namespace lcm
+
+namespace ld {
+
+struct BusChannels {
+  std::string image = "IMAGE";
+  std::string landmarks = "LANDMARKS";
+  std::string tracked = "LANDMARKS_TRACKED";
+  std::string codes = "LANDMARK_CODES";
+};
+
+/// Reads utime and the "seq" metadata of an encoded ld.image_t without
+/// copying its pixels. seq is -1 when absent. False when the bytes are not a
+/// well-formed image_t.
+bool peekImageKey(const uint8_t* data, size_t size, int64_t& utime, int64_t& seq);
+
+/// Percentiles of a sample (nearest rank); all zero for an empty sample.
+struct Percentiles {
+  size_t count = 0;
+  double p50 = 0, p90 = 0, p99 = 0, max = 0, mean = 0;
+};
+Percentiles percentiles(std::vector<double> values);
+
+class BusMonitor {
+ public:
+  using Micros = int64_t;  ///< wall-clock time, microseconds (LCM's recv_utime)
+
+  explicit BusMonitor(BusChannels channels = {});
+  /// Subscribes the four channels on `lcm` (the object must outlive it).
+  void subscribe(lcm::LCM& lcm);
+
+  // What the handlers record; public so tests can feed a monitor directly.
+  void imageSeen(int64_t utime, int64_t seq, Micros rx_us);
+  void landmarksSeen(const landmark_list_t& list, Micros rx_us);
+  void trackedSeen(const landmark_list_t& list, Micros rx_us);
+  void codesSeen(const qr_code_list_t& codes, Micros rx_us);
+
+  /// Rates since the previous call, latency over that window, skipped
+  /// frames, tracks and payloads read, as one line.
+  std::string statusLine(Micros now_us);
+
+  /// Everything measured since the start:
+  /// {"channels": {name: {"messages", "rate_hz"}},
+  ///  "frames": {"images", "tracked", "matched", "unmatched_images", "detector_skipped",
+  ///             "tracker_skipped"},
+  ///  "landmarks_per_frame": {"mean", "max", "histogram": {"n": frames}},
+  ///  "latency_ms": {"count", "p50", "p90", "p99", "max", "mean"},
+  ///  "tracks": [{"id", "payload", "first_seq", "last_seq", "frames_visible", "frames_coasting"}],
+  ///  "payloads_decoded", "per_frame": [{"seq", "utime", "latency_ms"|null, "landmarks", "ids"}]}
+  nlohmann::ordered_json summary() const;
+
+  int64_t trackedFrames() const { return tracked_frames_; }
+  /// LCM_SELF_TEST messages seen (each process sends one, repeated every
+  /// 100 ms until its own copy comes back) and when the last came.
+  int64_t selfTests() const { return self_tests_; }
+  Micros lastSelfTest() const { return last_self_test_us_; }
+  size_t latencyCount() const { return latencies_ms_.size(); }
+
+ private:
+  struct ChannelCount {
+    int64_t total = 0, window = 0;
+    Micros first = 0, last = 0;
+  };
+  struct TrackInfo {
+    int64_t first_seq = 0, last_seq = 0;
+    int64_t frames_visible = 0, frames_coasting = 0;
+    std::string payload;
+    bool has_payload = false;
+    int payload_changes = 0;
+  };
+  struct FrameRecord {
+    int64_t utime = 0, seq = 0;
+    double latency_ms = -1;  // < 0: the image was not seen
+    int landmarks = 0;       // visible
+    std::vector<int64_t> ids;
+  };
+  // Cumulative skip counters of a publisher that may restart (counter drops).
+  struct SkipCounter {
+    int64_t last = 0, sum = 0;
+    void update(int64_t v) {
+      sum += v >= last ? v - last : v;
+      last = v;
+    }
+  };
+
+  void count(ChannelCount& c, Micros rx_us);
+  void setPayload(int64_t id, const std::string& payload);
+  void onImage(const lcm::ReceiveBuffer* rb, const std::string& channel);
+  void onLandmarks(const lcm::ReceiveBuffer* rb, const std::string& channel);
+  void onTracked(const lcm::ReceiveBuffer* rb, const std::string& channel);
+  void onCodes(const lcm::ReceiveBuffer* rb, const std::string& channel);
+  void onSelfTest(const lcm::ReceiveBuffer* rb, const std::string& channel);
+
+  BusChannels ch_;
+  ChannelCount images_, landmarks_, tracked_, codes_;
+  Micros last_status_us_ = 0;
+  std::map<std::pair<int64_t, int64_t>, Micros> pending_;  // image key -> received
+  int64_t self_tests_ = 0;
+  Micros last_self_test_us_ = 0;
+  int64_t tracked_frames_ = 0, matched_ = 0, unmatched_images_ = 0, bad_ = 0;
+  SkipCounter det_skipped_, trk_skipped_;
+  std::vector<double> latencies_ms_;
+  size_t window_start_ = 0;  // first latency of the current status window
+  std::map<int64_t, TrackInfo> tracks_;
+  std::map<int, int64_t> histogram_;
+  std::vector<FrameRecord> frames_;
+  landmark_list_t list_buf_;
+  qr_code_list_t codes_buf_;
+};
+
+}  // namespace ld

@@ -1,0 +1,32 @@
+// A private network namespace for LCM: loopback up and multicast routed to
+// it, so that nothing the process set sends can leave the machine.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace ld {
+
+/// Moves the calling process (and the children it starts afterwards) into a
+/// new network namespace, brings `lo` up and routes 224.0.0.0/4 to it (as
+/// `ip link set lo up; ip route add 224.0.0.0/4 dev lo`). Root uses
+/// unshare(CLONE_NEWNET); other users get a user namespace too. Call it
+/// before any thread is started. Sets LD_IN_NETNS=1 for the children.
+/// Throws std::runtime_error naming the step that failed.
+void enterPrivateNetns();
+
+/// True when LD_IN_NETNS=1 (already inside such a namespace).
+bool inPrivateNetns();
+
+/// net.core.rmem_max of the current network namespace (bytes), -1 if unreadable.
+int64_t rmemMax();
+
+/// The UDP port of an "udpm://group:port?..." URL (LCM's default 7667 when
+/// the URL has none), or -1 for other providers.
+int lcmUdpPort(const std::string& url);
+
+/// True when process `pid` has a UDP socket bound to `port` in this network
+/// namespace (for LCM: it has subscribed and joined the group).
+bool hasUdpSocketOnPort(int pid, int port);
+
+}  // namespace ld

@@ -1,0 +1,59 @@
+// ld-run's configuration: which processes to start, with which arguments.
+// A JSON file (see tools/run/ld-run.example.json) gives the defaults; the
+// command line overrides them.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "ld/bus_monitor.hpp"
+#include "ld/supervisor.hpp"
+
+namespace ld {
+
+struct WorkerConfig {
+  bool enabled = true;
+  std::string program;            ///< "ld-detector", ...; a bare name is looked up next to ld-run
+  std::vector<std::string> args;  ///< extra arguments after the ones ld-run adds
+};
+
+struct RunConfig {
+  std::string lcm_url;  ///< empty: the project default (ld::defaultLcmUrl)
+  BusChannels channels;
+
+  /// "camera" (ld-camera), "replay" (lcm-logplayer), "play" (ld-play: a
+  /// log's images looped at a fixed rate with fresh utime and seq), "none".
+  std::string source = "camera";
+  std::vector<std::string> camera_args;  ///< for ld-camera
+  std::string log;                       ///< for replay and play
+  double speed = 1.0;                    ///< replay speed
+  std::string replay_channels;           ///< replay only these (regex); default: the image channel
+  double play_fps = 30;                  ///< play: frames per second
+  double play_duration_s = 0;            ///< play: seconds (0: once through the log)
+  std::string play_format = "keep";      ///< play: publish as logged or converted (bgr, yuyv, ...)
+  std::vector<std::string> source_args;  ///< extra arguments of the replay / play program
+
+  WorkerConfig detector{true, "ld-detector", {}};
+  WorkerConfig tracker{true, "ld-tracker", {}};
+  WorkerConfig qr_reader{true, "ld-qr-reader", {}};
+
+  std::string record;  ///< lcm-logger output file ("" none)
+  std::string record_channels;  ///< default: LANDMARKS, LANDMARKS_TRACKED and LANDMARK_CODES
+
+  RestartPolicy restart;
+
+  /// Reads a JSON config; unknown keys and wrong types are errors
+  /// (std::runtime_error naming the key).
+  static RunConfig fromJson(const nlohmann::json& j);
+  static RunConfig load(const std::string& path);
+};
+
+/// The processes to start, in order: recorder, workers, then the source.
+/// `url` is the LCM URL every process gets; `self_dir` is where ld-run's
+/// sibling programs are looked for.
+std::vector<ProcessSpec> buildProcessSpecs(const RunConfig& cfg, const std::string& url,
+                                           const std::string& self_dir);
+
+}  // namespace ld

@@ -1,0 +1,115 @@
+// A small process supervisor: starts a set of programs, restarts the ones
+// that die (with exponential backoff), collects their output line by line,
+// and stops them in order. Used by ld-run; no LCM in here.
+#pragma once
+
+#include <chrono>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <poll.h>
+#include <sys/types.h>
+
+namespace ld {
+
+using SteadyClock = std::chrono::steady_clock;
+
+/// What happens when a process ends by itself.
+enum class ProcessRole {
+  Worker,    ///< always restarted (ld-detector, ld-tracker, ld-qr-reader, ld-camera)
+  Source,    ///< a replay: exit status 0 means "done", anything else is restarted
+  Recorder,  ///< restarted like a worker; started first and stopped last (lcm-logger)
+};
+
+struct ProcessSpec {
+  std::string name;               ///< short name in status lines and the summary ("detector")
+  std::vector<std::string> argv;  ///< argv[0]: a path, or a name looked up on PATH
+  ProcessRole role = ProcessRole::Worker;
+};
+
+/// Restart delays: initial_s, then doubled on each consecutive failure up to
+/// max_s. A process that ran stable_after_s before dying starts over at
+/// initial_s, so a one-off crash costs initial_s and a crash loop does not
+/// spin.
+struct RestartPolicy {
+  double initial_s = 0.2;
+  double max_s = 5.0;
+  double stable_after_s = 10.0;
+};
+
+/// Delay before a restart after `consecutive_failures` (>= 1) quick deaths.
+double restartDelay(const RestartPolicy& policy, int consecutive_failures);
+
+/// "exit 0", "exit 3", "signal 9 (Killed)".
+std::string describeWaitStatus(int status);
+
+/// The program to run for `name`: a name with a '/' is used as is; a bare
+/// name is found next to `self_dir` first (the installed or built ld-*
+/// siblings), then on $PATH. Returns `name` unchanged when nothing matches.
+std::string resolveProgram(const std::string& name, const std::string& self_dir);
+
+/// The directory of the running executable (/proc/self/exe).
+std::string selfDirectory();
+
+struct ProcessState {
+  ProcessSpec spec;
+  pid_t pid = -1;                   ///< -1 when not running
+  int starts = 0;                   ///< times started (restarts = starts - 1)
+  int consecutive_failures = 0;
+  bool done = false;                ///< a Source that finished (exit 0)
+  bool failed_to_start = false;     ///< the last exec failed
+  std::string last_exit;            ///< describeWaitStatus of the last end, "" if none
+  SteadyClock::time_point started{};
+  SteadyClock::time_point restart_at{};  ///< when pid == -1 and not done: next start
+  int out_fd = -1;                  ///< read end of the child's stdout+stderr
+  std::string partial;              ///< output not yet ended by a newline
+};
+
+class Supervisor {
+ public:
+  /// Receives each line a child writes (stdout and stderr merged), and the
+  /// supervisor's own notes about it (start, exit, restart).
+  using LineSink = std::function<void(const std::string& name, const std::string& line)>;
+
+  Supervisor(RestartPolicy policy, LineSink sink);
+  ~Supervisor();  ///< kills (SIGKILL) whatever still runs
+  Supervisor(const Supervisor&) = delete;
+  Supervisor& operator=(const Supervisor&) = delete;
+
+  /// Adds a process (not started yet); returns its index.
+  size_t add(ProcessSpec spec);
+  /// Starts process i now. False (and a note to the sink) when fork or exec
+  /// fails; it is then retried like a process that died.
+  bool start(size_t i);
+
+  /// Reaps children that ended, restarts the ones due, reads their output.
+  /// Call it every few tens of milliseconds.
+  void poll(SteadyClock::time_point now);
+  /// The output pipes, for the caller's poll(2).
+  void appendPollFds(std::vector<pollfd>& fds) const;
+
+  /// Sends SIGTERM in order (sources, then workers, then recorders), each
+  /// group given up to `grace_s` before SIGKILL. True when every process
+  /// ended by that signal or with exit status 0.
+  bool stopAll(double grace_s);
+  bool stopping() const { return stopping_; }
+
+  const std::vector<ProcessState>& processes() const { return procs_; }
+  /// A Source exists and all sources are done.
+  bool sourcesDone() const;
+  /// Number of restarts so far, all processes.
+  int restarts() const;
+
+ private:
+  void onExit(ProcessState& p, int status, SteadyClock::time_point now);
+  void drainOutput(ProcessState& p, bool eof);
+  bool stopGroup(ProcessRole role, double grace_s);
+
+  RestartPolicy policy_;
+  LineSink sink_;
+  std::vector<ProcessState> procs_;
+  bool stopping_ = false;
+};
+
+}  // namespace ld

@@ -1,0 +1,296 @@
+#include "ld/bus_monitor.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <numeric>
+
+#include <lcm/lcm-cpp.hpp>
+
+#include "ld/image_t.hpp"
+
+namespace ld {
+namespace {
+
+// LCM's encoding is big-endian.
+bool readI32(const uint8_t* d, size_t size, size_t& off, int32_t& v) {
+  if (size < 4 || off > size - 4) return false;
+  uint32_t u = 0;
+  for (int i = 0; i < 4; ++i) u = (u << 8) | d[off + static_cast<size_t>(i)];
+  v = static_cast<int32_t>(u);
+  off += 4;
+  return true;
+}
+
+bool readI64(const uint8_t* d, size_t size, size_t& off, int64_t& v) {
+  if (size < 8 || off > size - 8) return false;
+  uint64_t u = 0;
+  for (int i = 0; i < 8; ++i) u = (u << 8) | d[off + static_cast<size_t>(i)];
+  v = static_cast<int64_t>(u);
+  off += 8;
+  return true;
+}
+
+double round3(double v) { return std::round(v * 1000.0) / 1000.0; }
+
+double rate(int64_t n, int64_t a_us, int64_t b_us) {
+  const double s = static_cast<double>(b_us - a_us) * 1e-6;
+  return n > 1 && s > 0 ? (static_cast<double>(n) - 1) / s : 0;
+}
+
+template <typename T>
+bool decodeWhole(T& msg, const lcm::ReceiveBuffer* rb) {
+  const int n = static_cast<int>(rb->data_size);
+  return msg.decode(rb->data, 0, n) == n;
+}
+
+// The kernel's receive time when LCM has it, else now.
+int64_t receivedAt(const lcm::ReceiveBuffer* rb) {
+  if (rb->recv_utime > 0) return rb->recv_utime;
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+}  // namespace
+
+bool peekImageKey(const uint8_t* d, size_t size, int64_t& utime, int64_t& seq) {
+  size_t off = 0;
+  int64_t hash = 0;
+  if (!readI64(d, size, off, hash) || hash != image_t::getHash()) return false;
+  if (!readI64(d, size, off, utime)) return false;
+  int32_t v = 0, data_size = 0;
+  for (int i = 0; i < 4; ++i)  // width, height, row_stride, pixelformat
+    if (!readI32(d, size, off, v)) return false;
+  if (!readI32(d, size, off, data_size) || data_size < 0 ||
+      static_cast<size_t>(data_size) > size - off)
+    return false;
+  off += static_cast<size_t>(data_size);
+  int32_t nmeta = 0;
+  if (!readI32(d, size, off, nmeta) || nmeta < 0) return false;
+  seq = -1;
+  for (int32_t m = 0; m < nmeta; ++m) {
+    int32_t klen = 0, n = 0;
+    if (!readI32(d, size, off, klen) || klen < 1 || static_cast<size_t>(klen) > size - off) return false;
+    const std::string key(reinterpret_cast<const char*>(d + off), static_cast<size_t>(klen - 1));
+    off += static_cast<size_t>(klen);
+    if (!readI32(d, size, off, n) || n < 0 || static_cast<size_t>(n) > size - off) return false;
+    if (key == "seq" && n > 0 && n < 20) {
+      const std::string text(reinterpret_cast<const char*>(d + off), static_cast<size_t>(n));
+      char* end = nullptr;
+      const long long s = std::strtoll(text.c_str(), &end, 10);
+      if (end && *end == 0) seq = s;
+    }
+    off += static_cast<size_t>(n);
+  }
+  return off == size;
+}
+
+Percentiles percentiles(std::vector<double> v) {
+  Percentiles p;
+  p.count = v.size();
+  if (v.empty()) return p;
+  std::sort(v.begin(), v.end());
+  const auto rank = [&](double q) {
+    const size_t k = static_cast<size_t>(std::ceil(q * static_cast<double>(v.size())));
+    return v[std::min(v.size() - 1, k == 0 ? 0 : k - 1)];
+  };
+  p.p50 = rank(0.50);
+  p.p90 = rank(0.90);
+  p.p99 = rank(0.99);
+  p.max = v.back();
+  p.mean = std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
+  return p;
+}
+
+BusMonitor::BusMonitor(BusChannels channels) : ch_(std::move(channels)) {}
+
+void BusMonitor::subscribe(lcm::LCM& lcm) {
+  lcm.subscribe(ch_.image, &BusMonitor::onImage, this);
+  lcm.subscribe(ch_.landmarks, &BusMonitor::onLandmarks, this);
+  lcm.subscribe(ch_.tracked, &BusMonitor::onTracked, this);
+  lcm.subscribe(ch_.codes, &BusMonitor::onCodes, this);
+  lcm.subscribe("LCM_SELF_TEST", &BusMonitor::onSelfTest, this);
+}
+
+void BusMonitor::count(ChannelCount& c, Micros rx_us) {
+  if (c.total == 0) c.first = rx_us;
+  c.last = rx_us;
+  ++c.total;
+  ++c.window;
+}
+
+void BusMonitor::onImage(const lcm::ReceiveBuffer* rb, const std::string&) {
+  int64_t utime = 0, seq = -1;
+  if (!peekImageKey(static_cast<const uint8_t*>(rb->data), rb->data_size, utime, seq)) {
+    ++bad_;
+    return;
+  }
+  imageSeen(utime, seq, receivedAt(rb));
+}
+
+void BusMonitor::onSelfTest(const lcm::ReceiveBuffer* rb, const std::string&) {
+  ++self_tests_;
+  last_self_test_us_ = receivedAt(rb);
+}
+
+void BusMonitor::onLandmarks(const lcm::ReceiveBuffer* rb, const std::string&) {
+  if (decodeWhole(list_buf_, rb)) landmarksSeen(list_buf_, receivedAt(rb));
+  else ++bad_;
+}
+
+void BusMonitor::onTracked(const lcm::ReceiveBuffer* rb, const std::string&) {
+  if (decodeWhole(list_buf_, rb)) trackedSeen(list_buf_, receivedAt(rb));
+  else ++bad_;
+}
+
+void BusMonitor::onCodes(const lcm::ReceiveBuffer* rb, const std::string&) {
+  if (decodeWhole(codes_buf_, rb)) codesSeen(codes_buf_, receivedAt(rb));
+  else ++bad_;
+}
+
+void BusMonitor::imageSeen(int64_t utime, int64_t seq, Micros rx_us) {
+  count(images_, rx_us);
+  pending_[{utime, seq}] = rx_us;
+  // Frames never tracked (skipped by the detector) are forgotten after 5 s.
+  while (!pending_.empty()) {
+    auto oldest = std::min_element(pending_.begin(), pending_.end(),
+                                   [](const auto& a, const auto& b) { return a.second < b.second; });
+    if (rx_us - oldest->second < 5'000'000) break;
+    pending_.erase(oldest);
+    ++unmatched_images_;
+  }
+}
+
+void BusMonitor::landmarksSeen(const landmark_list_t& list, Micros rx_us) {
+  count(landmarks_, rx_us);
+  det_skipped_.update(list.frames_skipped);
+}
+
+void BusMonitor::trackedSeen(const landmark_list_t& list, Micros rx_us) {
+  count(tracked_, rx_us);
+  ++tracked_frames_;
+  trk_skipped_.update(list.frames_skipped);
+  FrameRecord f;
+  f.utime = list.utime;
+  f.seq = list.seq;
+  const auto it = pending_.find({list.utime, list.seq});
+  if (it != pending_.end()) {
+    f.latency_ms = static_cast<double>(rx_us - it->second) * 1e-3;
+    latencies_ms_.push_back(f.latency_ms);
+    ++matched_;
+    pending_.erase(it);
+  }
+  for (const auto& lm : list.landmarks) {
+    if (lm.track_id < 0) continue;
+    auto [t, is_new] = tracks_.try_emplace(lm.track_id);
+    if (is_new) t->second.first_seq = list.seq;
+    t->second.last_seq = list.seq;
+    if (lm.visible) {
+      ++t->second.frames_visible;
+      ++f.landmarks;
+      f.ids.push_back(lm.track_id);
+    } else {
+      ++t->second.frames_coasting;
+    }
+    if (lm.has_payload) setPayload(lm.track_id, lm.payload);
+  }
+  ++histogram_[f.landmarks];
+  frames_.push_back(std::move(f));
+}
+
+void BusMonitor::setPayload(int64_t id, const std::string& payload) {
+  TrackInfo& t = tracks_[id];
+  if (t.has_payload && t.payload != payload) ++t.payload_changes;
+  t.payload = payload;
+  t.has_payload = true;
+}
+
+void BusMonitor::codesSeen(const qr_code_list_t& codes, Micros rx_us) {
+  count(codes_, rx_us);
+  for (const auto& c : codes.codes) setPayload(c.track_id, c.payload);
+}
+
+std::string BusMonitor::statusLine(Micros now_us) {
+  const double s = last_status_us_ == 0 ? 0 : static_cast<double>(now_us - last_status_us_) * 1e-6;
+  const auto hz = [&](ChannelCount& c) {
+    const double r = s > 0 ? static_cast<double>(c.window) / s : 0;
+    c.window = 0;
+    return r;
+  };
+  const double hi = hz(images_), hl = hz(landmarks_), ht = hz(tracked_), hc = hz(codes_);
+  const Percentiles p = percentiles(std::vector<double>(
+      latencies_ms_.begin() + static_cast<std::ptrdiff_t>(window_start_), latencies_ms_.end()));
+  window_start_ = latencies_ms_.size();
+  last_status_us_ = now_us;
+  int read = 0;
+  for (const auto& [id, t] : tracks_) read += t.has_payload;
+  char buf[320];
+  std::snprintf(buf, sizeof buf,
+                "%s %.1f/s  %s %.1f/s  %s %.1f/s  %s %.1f/s | e2e p50 %.2f ms p99 %.2f ms | "
+                "skipped det %lld trk %lld | tracks %zu, %d read",
+                ch_.image.c_str(), hi, ch_.landmarks.c_str(), hl, ch_.tracked.c_str(), ht,
+                ch_.codes.c_str(), hc, p.p50, p.p99, static_cast<long long>(det_skipped_.sum),
+                static_cast<long long>(trk_skipped_.sum), tracks_.size(), read);
+  return buf;
+}
+
+nlohmann::ordered_json BusMonitor::summary() const {
+  using J = nlohmann::ordered_json;
+  J j;
+  J chans = J::object();
+  for (const auto& [name, c] : {std::pair<std::string, const ChannelCount*>{ch_.image, &images_},
+                                {ch_.landmarks, &landmarks_},
+                                {ch_.tracked, &tracked_},
+                                {ch_.codes, &codes_}})
+    chans[name] = {{"messages", c->total}, {"rate_hz", round3(rate(c->total, c->first, c->last))}};
+  j["channels"] = chans;
+  j["frames"] = {{"images", images_.total},
+                 {"tracked", tracked_frames_},
+                 {"matched", matched_},
+                 {"unmatched_images", unmatched_images_ + static_cast<int64_t>(pending_.size())},
+                 {"detector_skipped", det_skipped_.sum},
+                 {"tracker_skipped", trk_skipped_.sum},
+                 {"bad_messages", bad_}};
+  double sum = 0;
+  int maxn = 0;
+  J hist = J::object();
+  for (const auto& [n, frames] : histogram_) {
+    sum += static_cast<double>(n) * static_cast<double>(frames);
+    maxn = std::max(maxn, n);
+    hist[std::to_string(n)] = frames;
+  }
+  j["landmarks_per_frame"] = {
+      {"mean", round3(tracked_frames_ > 0 ? sum / static_cast<double>(tracked_frames_) : 0)},
+      {"max", maxn},
+      {"histogram", hist}};
+  const Percentiles p = percentiles(latencies_ms_);
+  j["latency_ms"] = {{"count", p.count},   {"p50", round3(p.p50)}, {"p90", round3(p.p90)},
+                     {"p99", round3(p.p99)}, {"max", round3(p.max)}, {"mean", round3(p.mean)}};
+  J tracks = J::array();
+  int read = 0;
+  for (const auto& [id, t] : tracks_) {
+    read += t.has_payload;
+    tracks.push_back({{"id", id},
+                      {"payload", t.has_payload ? J(t.payload) : J(nullptr)},
+                      {"payload_changes", t.payload_changes},
+                      {"first_seq", t.first_seq},
+                      {"last_seq", t.last_seq},
+                      {"frames_visible", t.frames_visible},
+                      {"frames_coasting", t.frames_coasting}});
+  }
+  j["tracks"] = tracks;
+  j["payloads_decoded"] = read;
+  J per = J::array();
+  for (const auto& f : frames_)
+    per.push_back({{"seq", f.seq},
+                   {"utime", f.utime},
+                   {"latency_ms", f.latency_ms < 0 ? J(nullptr) : J(round3(f.latency_ms))},
+                   {"landmarks", f.landmarks},
+                   {"ids", f.ids}});
+  j["per_frame"] = per;
+  return j;
+}
+
+}  // namespace ld

@@ -1,0 +1,153 @@
+#include "ld/netns.hpp"
+
+#include <cerrno>
+#include <cstdlib>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+#include <arpa/inet.h>
+#include <dirent.h>
+#include <fcntl.h>
+#include <net/if.h>
+#include <net/route.h>
+#include <netinet/in.h>
+#include <sched.h>
+#include <sys/ioctl.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+namespace ld {
+namespace {
+
+[[noreturn]] void fail(const std::string& what) {
+  throw std::runtime_error(what + ": " + std::strerror(errno));
+}
+
+void writeFile(const std::string& path, const std::string& text) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);
+  if (fd < 0) fail("cannot open " + path);
+  const ssize_t n = ::write(fd, text.data(), text.size());
+  const int e = errno;
+  ::close(fd);
+  errno = e;
+  if (n != static_cast<ssize_t>(text.size())) fail("cannot write " + path);
+}
+
+sockaddr_in ipv4(const char* text) {
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  ::inet_pton(AF_INET, text, &a.sin_addr);
+  return a;
+}
+
+}  // namespace
+
+bool inPrivateNetns() {
+  const char* v = std::getenv("LD_IN_NETNS");
+  return v && std::string(v) == "1";
+}
+
+void enterPrivateNetns() {
+  const uid_t uid = ::getuid();
+  const gid_t gid = ::getgid();
+  if (uid == 0) {
+    if (::unshare(CLONE_NEWNET) != 0) fail("unshare(CLONE_NEWNET)");
+  } else {
+    if (::unshare(CLONE_NEWUSER | CLONE_NEWNET) != 0) fail("unshare(CLONE_NEWUSER | CLONE_NEWNET)");
+    writeFile("/proc/self/setgroups", "deny");
+    writeFile("/proc/self/uid_map", "0 " + std::to_string(uid) + " 1");
+    writeFile("/proc/self/gid_map", "0 " + std::to_string(gid) + " 1");
+  }
+  const int s = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (s < 0) fail("socket");
+  ifreq ifr{};
+  std::strncpy(ifr.ifr_name, "lo", IFNAMSIZ - 1);
+  if (::ioctl(s, SIOCGIFFLAGS, &ifr) != 0) {
+    ::close(s);
+    fail("lo: SIOCGIFFLAGS");
+  }
+  ifr.ifr_flags = static_cast<short>(ifr.ifr_flags | IFF_UP | IFF_RUNNING);
+  if (::ioctl(s, SIOCSIFFLAGS, &ifr) != 0) {
+    ::close(s);
+    fail("cannot bring lo up");
+  }
+  rtentry rt{};
+  const sockaddr_in dst = ipv4("224.0.0.0"), mask = ipv4("240.0.0.0");
+  std::memcpy(&rt.rt_dst, &dst, sizeof dst);
+  std::memcpy(&rt.rt_genmask, &mask, sizeof mask);
+  rt.rt_flags = RTF_UP;
+  char dev[] = "lo";
+  rt.rt_dev = dev;
+  if (::ioctl(s, SIOCADDRT, &rt) != 0 && errno != EEXIST) {
+    ::close(s);
+    fail("cannot route 224.0.0.0/4 to lo");
+  }
+  ::close(s);
+  ::setenv("LD_IN_NETNS", "1", 1);
+}
+
+int64_t rmemMax() {
+  std::ifstream f("/proc/sys/net/core/rmem_max");
+  int64_t v = -1;
+  if (!(f >> v)) return -1;
+  return v;
+}
+
+int lcmUdpPort(const std::string& url) {
+  const std::string prefix = "udpm://";
+  if (url.rfind(prefix, 0) != 0) return url.empty() ? 7667 : -1;
+  const size_t end = url.find('?');
+  const std::string addr = url.substr(prefix.size(), end == std::string::npos ? std::string::npos
+                                                                               : end - prefix.size());
+  const size_t colon = addr.rfind(':');
+  if (colon == std::string::npos) return 7667;
+  try {
+    return std::stoi(addr.substr(colon + 1));
+  } catch (const std::exception&) {
+    return -1;
+  }
+}
+
+bool hasUdpSocketOnPort(int pid, int port) {
+  std::set<unsigned long> inodes;
+  for (const char* table : {"/proc/net/udp", "/proc/net/udp6"}) {
+    std::ifstream f(table);
+    std::string line;
+    std::getline(f, line);  // header
+    while (std::getline(f, line)) {
+      std::istringstream in(line);
+      std::string sl, local, remote, st, queues, tr, retr;
+      unsigned long uid = 0, timeout = 0, inode = 0;
+      if (!(in >> sl >> local >> remote >> st >> queues >> tr >> retr >> uid >> timeout >> inode))
+        continue;
+      const size_t colon = local.rfind(':');
+      if (colon == std::string::npos) continue;
+      if (std::stoi(local.substr(colon + 1), nullptr, 16) == port) inodes.insert(inode);
+    }
+  }
+  if (inodes.empty()) return false;
+  const std::string dir = "/proc/" + std::to_string(pid) + "/fd";
+  DIR* d = ::opendir(dir.c_str());
+  if (!d) return false;
+  bool found = false;
+  while (const dirent* e = ::readdir(d)) {
+    char target[64];
+    const std::string link = dir + "/" + e->d_name;
+    const ssize_t n = ::readlink(link.c_str(), target, sizeof target - 1);
+    if (n <= 0) continue;
+    target[n] = 0;
+    unsigned long inode = 0;
+    if (std::sscanf(target, "socket:[%lu]", &inode) == 1 && inodes.count(inode)) {
+      found = true;
+      break;
+    }
+  }
+  ::closedir(d);
+  return found;
+}
+
+}  // namespace ld

@@ -1,0 +1,462 @@
+// ld-run: starts the process set (a camera or a replayed log, ld-detector,
+// ld-tracker, ld-qr-reader), restarts whatever dies, prints a live status
+// line measured on the bus, stops everything in order on Ctrl-C / SIGTERM,
+// and writes a JSON summary at exit.
+#include <atomic>
+#include <cerrno>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <thread>
+
+#include <CLI/CLI.hpp>
+#include <lcm/lcm-cpp.hpp>
+#include <poll.h>
+#include <unistd.h>
+
+#include "ld/bus_monitor.hpp"
+#include "ld/lcm_url.hpp"
+#include "ld/netns.hpp"
+#include "ld/run_config.hpp"
+#include "ld/supervisor.hpp"
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using Json = nlohmann::ordered_json;
+
+std::atomic<bool> g_stop{false};
+std::atomic<int> g_signal{0};
+void onSignal(int s) {
+  g_signal = s;
+  g_stop = true;
+}
+
+double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+
+int64_t wallMicros() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+int64_t rssKb(int pid) {
+  std::ifstream f("/proc/" + std::to_string(pid) + "/status");
+  std::string key;
+  while (f >> key) {
+    if (key == "VmRSS:") {
+      int64_t kb = 0;
+      f >> kb;
+      return kb;
+    }
+    f.ignore(1 << 12, '\n');
+  }
+  return -1;
+}
+
+// Child output and ld-run's own notes, on stderr or in per-process files,
+// kept apart from the status line when stderr is a terminal.
+class Console {
+ public:
+  Console(bool tty, bool quiet, std::string log_dir)
+      : tty_(tty), quiet_(quiet), log_dir_(std::move(log_dir)) {}
+  void line(const std::string& name, const std::string& text) {
+    if (!log_dir_.empty() && name != "ld-run") {
+      auto& f = files_[name];
+      if (!f.is_open()) f.open(log_dir_ + "/" + name + ".log", std::ios::app);
+      f << text << std::endl;
+      return;
+    }
+    if (quiet_ && name != "ld-run") return;
+    clearStatus();
+    std::fprintf(stderr, "[%s] %s\n", name.c_str(), text.c_str());
+  }
+  void status(const std::string& text) {
+    if (tty_) {
+      std::fprintf(stderr, "\r\033[K%s", text.c_str());
+      status_shown_ = true;
+    } else {
+      std::fprintf(stderr, "[status] %s\n", text.c_str());
+    }
+    std::fflush(stderr);
+  }
+  void clearStatus() {
+    if (status_shown_) std::fprintf(stderr, "\r\033[K");
+    status_shown_ = false;
+  }
+
+ private:
+  bool tty_, quiet_;
+  bool status_shown_ = false;
+  std::string log_dir_;
+  std::map<std::string, std::ofstream> files_;
+};
+
+struct RssSeries {
+  int64_t max_kb = 0, last_kb = 0;
+  std::vector<std::pair<double, int64_t>> samples;  // (seconds since start, kB)
+};
+
+void writeFileAtomically(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp);
+    f << text;
+  }
+  std::rename(tmp.c_str(), path.c_str());
+}
+
+Json processesJson(const ld::Supervisor& sup, const std::map<std::string, RssSeries>* rss) {
+  Json arr = Json::array();
+  for (const auto& p : sup.processes()) {
+    Json j{{"name", p.spec.name},
+           {"argv", p.spec.argv},
+           {"pid", p.pid},
+           {"running", p.pid > 0},
+           {"starts", p.starts},
+           {"restarts", std::max(0, p.starts - 1)},
+           {"done", p.done},
+           {"last_exit", p.last_exit}};
+    if (rss) {
+      const auto it = rss->find(p.spec.name);
+      if (it != rss->end()) {
+        Json samples = Json::array();
+        for (const auto& [t, kb] : it->second.samples)
+          samples.push_back({std::round(t * 10) / 10, kb});
+        j["rss_kb"] = {{"max", it->second.max_kb}, {"last", it->second.last_kb}, {"samples", samples}};
+      }
+    }
+    arr.push_back(j);
+  }
+  return arr;
+}
+
+void printReport(const Json& s) {
+  const Json& f = s["summary"]["frames"];
+  const Json& lat = s["summary"]["latency_ms"];
+  const Json& lpf = s["summary"]["landmarks_per_frame"];
+  std::printf("run: %.1f s, %s\n", s["duration_s"].get<double>(), s["end"].get<std::string>().c_str());
+  std::printf("frames: %lld images, %lld tracked (skipped: %lld by the detector, %lld by the tracker)\n",
+              f["images"].get<long long>(), f["tracked"].get<long long>(),
+              f["detector_skipped"].get<long long>(), f["tracker_skipped"].get<long long>());
+  std::printf("landmarks per frame: mean %.2f, max %d; frames by count:", lpf["mean"].get<double>(),
+              lpf["max"].get<int>());
+  for (const auto& [n, c] : lpf["histogram"].items()) std::printf(" %s:%lld", n.c_str(), c.get<long long>());
+  std::printf("\n");
+  std::printf("end-to-end latency IMAGE -> LANDMARKS_TRACKED (%lld frames): p50 %.2f ms, p90 %.2f ms, "
+              "p99 %.2f ms, max %.2f ms\n",
+              lat["count"].get<long long>(), lat["p50"].get<double>(), lat["p90"].get<double>(),
+              lat["p99"].get<double>(), lat["max"].get<double>());
+  std::printf("tracks (%zu, %d with a payload):\n", s["summary"]["tracks"].size(),
+              s["summary"]["payloads_decoded"].get<int>());
+  for (const auto& t : s["summary"]["tracks"])
+    std::printf("  id %-4lld %-20s frames %lld-%lld, %lld visible, %lld coasting\n",
+                t["id"].get<long long>(),
+                t["payload"].is_null() ? "(no payload)" : ("\"" + t["payload"].get<std::string>() + "\"").c_str(),
+                t["first_seq"].get<long long>(), t["last_seq"].get<long long>(),
+                t["frames_visible"].get<long long>(), t["frames_coasting"].get<long long>());
+  for (const auto& p : s["processes"]) {
+    std::printf("process %-10s restarts %d, last exit: %s", p["name"].get<std::string>().c_str(),
+                p["restarts"].get<int>(), p["last_exit"].get<std::string>().c_str());
+    if (p.contains("rss_kb"))
+      std::printf(", RSS max %.1f MiB", static_cast<double>(p["rss_kb"]["max"].get<int64_t>()) / 1024);
+    std::printf("\n");
+  }
+  std::fflush(stdout);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "ld-run: starts the process set (source, ld-detector, ld-tracker, ld-qr-reader), restarts\n"
+      "what dies, prints a live status line and writes a JSON summary (see README)."};
+  std::string config_file, url, replay, play, source, summary_file, state_file, log_dir, record;
+  std::vector<std::string> camera_args, processes;
+  double speed = 0, drain_s = 3, wait_ready_s = 10, status_interval = -1, grace_s = 3;
+  double play_fps = 0, play_duration = 0;
+  std::string play_format;
+  bool exit_when_done = false, netns = false, report = false, quiet = false;
+  app.add_option("-c,--config", config_file, "JSON config (see tools/run/ld-run.example.json)");
+  app.add_option("--lcm-url", url, "LCM URL of every process (default: the project's, ttl=0)");
+  app.add_option("--source", source, "camera, replay, play or none (default: the config's, or camera)")
+      ->check(CLI::IsMember({"camera", "replay", "play", "none"}));
+  app.add_option("--replay", replay, "replay this LCM log with lcm-logplayer (implies --source replay)");
+  app.add_option("--speed", speed, "replay speed factor (lcm-logplayer -s)");
+  app.add_option("--play", play,
+                 "loop this log's images with ld-play, fresh utime and seq (implies --source play)");
+  app.add_option("--fps", play_fps, "--play: frames per second");
+  app.add_option("--duration", play_duration, "--play: seconds to publish (default: the log once)");
+  app.add_option("--play-format", play_format, "--play: keep, bgr, rgb, gray, yuyv, uyvy or mjpeg");
+  app.add_option("--camera-arg", camera_args, "an argument for ld-camera (repeatable)")
+      ->allow_extra_args(false);
+  app.add_option("--processes", processes,
+                 "which of detector, tracker, qr-reader to run (default: the config's, all); "
+                 "'none' for only the source")
+      ->delimiter(',');
+  app.add_flag("--exit-when-replay-done", exit_when_done,
+               "end the run when the replay (or play) has finished and the set has drained");
+  app.add_option("--drain", drain_s, "seconds at most to wait for the last frames after the replay")
+      ->capture_default_str();
+  app.add_option("--record", record, "record the outputs with lcm-logger to this file");
+  app.add_flag("--netns", netns,
+               "run the whole set in a private network namespace (multicast on loopback only)");
+  app.add_option("--summary", summary_file, "write a JSON summary here at exit");
+  app.add_option("--state-file", state_file, "keep the process table (pids, restarts) in this JSON file");
+  app.add_flag("--report", report, "print a readable summary on stdout at exit");
+  app.add_option("--status-interval", status_interval,
+                 "seconds between status lines (default 1 on a terminal, else 5; 0: none)");
+  app.add_option("--log-dir", log_dir, "write each process's output to DIR/NAME.log instead of stderr");
+  app.add_flag("-q,--quiet", quiet, "do not print the processes' output");
+  app.add_option("--wait-ready", wait_ready_s,
+                 "seconds at most to wait for the processes to subscribe before the source starts")
+      ->capture_default_str();
+  app.add_option("--stop-grace", grace_s, "seconds a process gets to stop before SIGKILL")
+      ->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  ld::RunConfig cfg;
+  try {
+    if (!config_file.empty()) cfg = ld::RunConfig::load(config_file);
+  } catch (const std::exception& e) {
+    std::cerr << "ld-run: " << e.what() << "\n";
+    return 2;
+  }
+  if (!url.empty()) cfg.lcm_url = url;
+  if (!replay.empty()) {
+    cfg.source = "replay";
+    cfg.log = replay;
+  }
+  if (!play.empty()) {
+    cfg.source = "play";
+    cfg.log = play;
+  }
+  if (!source.empty()) cfg.source = source;
+  if (speed > 0) cfg.speed = speed;
+  if (play_fps > 0) cfg.play_fps = play_fps;
+  if (play_duration > 0) cfg.play_duration_s = play_duration;
+  if (!play_format.empty()) cfg.play_format = play_format;
+  cfg.camera_args.insert(cfg.camera_args.end(), camera_args.begin(), camera_args.end());
+  if (!record.empty()) cfg.record = record;
+  if (!processes.empty()) {
+    cfg.detector.enabled = cfg.tracker.enabled = cfg.qr_reader.enabled = false;
+    for (const auto& p : processes) {
+      if (p == "detector") cfg.detector.enabled = true;
+      else if (p == "tracker") cfg.tracker.enabled = true;
+      else if (p == "qr-reader" || p == "qr_reader") cfg.qr_reader.enabled = true;
+      else if (p != "none" && !p.empty()) {
+        std::cerr << "ld-run: --processes: unknown process \"" << p << "\"\n";
+        return 2;
+      }
+    }
+  }
+  if (exit_when_done && cfg.source != "replay" && cfg.source != "play") {
+    std::cerr << "ld-run: --exit-when-replay-done needs a replay or play source\n";
+    return 2;
+  }
+
+  // 1. The network namespace, before any thread exists.
+  if (netns && !ld::inPrivateNetns()) {
+    try {
+      ld::enterPrivateNetns();
+    } catch (const std::exception& e) {
+      std::cerr << "ld-run: --netns: " << e.what() << "\n";
+      return 2;
+    }
+  }
+  if (cfg.lcm_url.empty()) cfg.lcm_url = ld::defaultLcmUrl();
+
+  std::vector<ld::ProcessSpec> specs;
+  try {
+    specs = ld::buildProcessSpecs(cfg, cfg.lcm_url, ld::selfDirectory());
+  } catch (const std::exception& e) {
+    std::cerr << "ld-run: " << e.what() << "\n";
+    return 2;
+  }
+  if (!cfg.log.empty() && ::access(cfg.log.c_str(), R_OK) != 0) {
+    std::cerr << "ld-run: cannot read log " << cfg.log << ": " << std::strerror(errno) << "\n";
+    return 2;
+  }
+
+  const bool tty = ::isatty(STDERR_FILENO);
+  if (status_interval < 0) status_interval = tty ? 1 : 5;
+  Console console(tty, quiet, log_dir);
+  const auto note = [&](const std::string& text) { console.line("ld-run", text); };
+
+  // 2. The monitor subscribes before anything publishes.
+  lcm::LCM lcm(cfg.lcm_url);
+  if (!lcm.good()) {
+    std::cerr << "ld-run: cannot open LCM at " << cfg.lcm_url << "\n";
+    return 2;
+  }
+  ld::BusMonitor monitor(cfg.channels);
+  monitor.subscribe(lcm);
+
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
+  std::signal(SIGHUP, onSignal);
+  std::signal(SIGPIPE, SIG_IGN);
+
+  ld::Supervisor sup(cfg.restart, [&](const std::string& n, const std::string& l) { console.line(n, l); });
+  std::vector<size_t> early, late;  // late: the image source, started once the rest listens
+  for (auto& s : specs) {
+    const bool is_source = s.role == ld::ProcessRole::Source || s.name == "camera";
+    (is_source ? late : early).push_back(sup.add(std::move(s)));
+  }
+  if (!cfg.record.empty()) std::remove(cfg.record.c_str());
+  const auto t0 = Clock::now();
+  std::map<std::string, RssSeries> rss;
+  bool ready = false;
+  std::string end_reason = "stopped by signal";
+  const auto writeState = [&]() {
+    if (state_file.empty()) return;
+    Json j{{"pid", ::getpid()}, {"ready", ready}, {"restarts", sup.restarts()},
+           {"processes", processesJson(sup, nullptr)}};
+    writeFileAtomically(state_file, j.dump(2) + "\n");
+  };
+
+  // 3. Start the recorder and the workers and wait until each listens: its
+  //    socket is bound to the LCM port and its LCM self test is over (LCM
+  //    drops everything else that arrives during the test, which it repeats
+  //    every 100 ms until its own message comes back). Then start the
+  //    source, so that no frame is lost.
+  const int64_t self_tests_before = monitor.selfTests();
+  for (size_t i : early) sup.start(i);
+  const int port = ld::lcmUdpPort(cfg.lcm_url);
+  const auto ready_deadline = Clock::now() + std::chrono::milliseconds(static_cast<int64_t>(wait_ready_s * 1000));
+  while (!g_stop && port > 0 && !early.empty()) {
+    lcm.handleTimeout(20);
+    sup.poll(Clock::now());
+    bool all = true;
+    for (size_t i : early) {
+      const auto& p = sup.processes()[i];
+      if (p.pid <= 0 || !ld::hasUdpSocketOnPort(p.pid, port)) all = false;
+    }
+    if (all && monitor.selfTests() - self_tests_before >= static_cast<int64_t>(early.size()) &&
+        wallMicros() - monitor.lastSelfTest() > 150'000)
+      break;
+    if (Clock::now() > ready_deadline) {
+      note("not every process listens after " + std::to_string(wait_ready_s).substr(0, 4) +
+           " s; starting the source anyway");
+      break;
+    }
+  }
+  if (!g_stop) {
+    for (size_t i : late) sup.start(i);
+    ready = true;
+  }
+  writeState();
+  {
+    std::string names;
+    for (const auto& p : sup.processes()) names += " " + p.spec.name;
+    note("running" + names + " on " + cfg.lcm_url + (ld::inPrivateNetns() ? " (private network namespace)" : ""));
+  }
+
+  // 4. The loop: bus messages, child output and deaths, status, RSS.
+  monitor.statusLine(wallMicros());  // starts the first status window
+  auto next_status = Clock::now() + std::chrono::milliseconds(static_cast<int64_t>(status_interval * 1000));
+  auto next_rss = Clock::now();
+  Clock::time_point done_at{};
+  int64_t tracked_at_done = -1;
+  Clock::time_point last_tracked_change{};
+  std::vector<std::pair<pid_t, int>> last_pids;
+  int exit_code = 0;
+  std::vector<pollfd> fds;
+  while (!g_stop) {
+    fds.clear();
+    fds.push_back({lcm.getFileno(), POLLIN, 0});
+    sup.appendPollFds(fds);
+    const int r = ::poll(fds.data(), fds.size(), 50);
+    if (r < 0 && errno != EINTR) {
+      note(std::string("poll failed: ") + std::strerror(errno));
+      exit_code = 1;
+      break;
+    }
+    if (r > 0 && (fds[0].revents & POLLIN)) {
+      while (lcm.handleTimeout(0) > 0) {
+      }
+    }
+    const auto now = Clock::now();
+    sup.poll(now);
+
+    std::vector<std::pair<pid_t, int>> pids;
+    for (const auto& p : sup.processes()) pids.emplace_back(p.pid, p.starts);
+    if (pids != last_pids) {
+      writeState();
+      last_pids = pids;
+    }
+    if (now >= next_rss) {
+      for (const auto& p : sup.processes()) {
+        if (p.pid <= 0) continue;
+        const int64_t kb = rssKb(p.pid);
+        if (kb < 0) continue;
+        RssSeries& s = rss[p.spec.name];
+        s.samples.emplace_back(seconds(now - t0), kb);
+        s.last_kb = kb;
+        s.max_kb = std::max(s.max_kb, kb);
+      }
+      next_rss = now + std::chrono::seconds(1);
+    }
+    if (status_interval > 0 && now >= next_status) {
+      console.status(monitor.statusLine(wallMicros()) + " | restarts " + std::to_string(sup.restarts()));
+      next_status = now + std::chrono::milliseconds(static_cast<int64_t>(status_interval * 1000));
+    }
+    if (exit_when_done && sup.sourcesDone()) {
+      // Drain: wait until no tracked frame came for 0.5 s (or --drain passed).
+      if (done_at == Clock::time_point{}) {
+        done_at = last_tracked_change = now;
+        tracked_at_done = monitor.trackedFrames();
+      }
+      if (monitor.trackedFrames() != tracked_at_done) {
+        tracked_at_done = monitor.trackedFrames();
+        last_tracked_change = now;
+      }
+      if (now - last_tracked_change > std::chrono::milliseconds(500) ||
+          seconds(now - done_at) > drain_s) {
+        end_reason = "replay done";
+        break;
+      }
+    }
+  }
+  if (g_signal) end_reason = std::string("stopped by ") + (g_signal == SIGINT ? "SIGINT" : g_signal == SIGTERM ? "SIGTERM" : "SIGHUP");
+  console.clearStatus();
+
+  // 5. Stop in order: source, workers, recorder.
+  note(end_reason + "; stopping");
+  // Whatever is still on the bus for the monitor.
+  while (lcm.handleTimeout(0) > 0) {
+  }
+  if (!sup.stopAll(grace_s)) {
+    note("not every process stopped cleanly");
+    exit_code = 1;
+  }
+  writeState();
+
+  Json s{{"duration_s", std::round(seconds(Clock::now() - t0) * 1000) / 1000},
+         {"end", end_reason},
+         {"lcm_url", cfg.lcm_url},
+         {"netns", ld::inPrivateNetns()},
+         {"rmem_max", ld::rmemMax()},
+         {"source", cfg.source},
+         {"log", cfg.log},
+         {"processes", processesJson(sup, &rss)},
+         {"summary", monitor.summary()}};
+  if (!summary_file.empty()) {
+    std::ofstream f(summary_file);
+    if (!(f << s.dump(2) << "\n")) {
+      std::cerr << "ld-run: cannot write " << summary_file << "\n";
+      exit_code = 1;
+    }
+  }
+  if (report) printReport(s);
+  const Json& f = s["summary"]["frames"];
+  const Json& lat = s["summary"]["latency_ms"];
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "%lld images, %lld tracked, e2e p50 %.2f ms p99 %.2f ms, %d restarts; exit %d",
+                f["images"].get<long long>(), f["tracked"].get<long long>(), lat["p50"].get<double>(),
+                lat["p99"].get<double>(), sup.restarts(), exit_code);
+  note(buf);
+  return exit_code;
+}

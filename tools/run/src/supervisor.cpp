@@ -1,0 +1,303 @@
+#include "ld/supervisor.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <climits>
+#include <cmath>
+#include <csignal>
+#include <cstdlib>
+#include <cstring>
+#include <thread>
+
+#include <fcntl.h>
+#include <sys/prctl.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+namespace ld {
+
+double restartDelay(const RestartPolicy& policy, int consecutive_failures) {
+  const int n = std::max(1, consecutive_failures);
+  const double d = policy.initial_s * std::pow(2.0, std::min(n - 1, 30));
+  return std::min(d, policy.max_s);
+}
+
+std::string describeWaitStatus(int status) {
+  if (WIFEXITED(status)) return "exit " + std::to_string(WEXITSTATUS(status));
+  if (WIFSIGNALED(status)) {
+    const int s = WTERMSIG(status);
+    const char* name = strsignal(s);
+    return "signal " + std::to_string(s) + (name ? std::string(" (") + name + ")" : "");
+  }
+  return "status " + std::to_string(status);
+}
+
+namespace {
+
+bool isExecutable(const std::string& path) {
+  struct stat st{};
+  return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode) && ::access(path.c_str(), X_OK) == 0;
+}
+
+}  // namespace
+
+std::string resolveProgram(const std::string& name, const std::string& self_dir) {
+  if (name.empty() || name.find('/') != std::string::npos) return name;
+  if (!self_dir.empty() && isExecutable(self_dir + "/" + name)) return self_dir + "/" + name;
+  if (const char* path = std::getenv("PATH")) {
+    std::string p = path;
+    size_t start = 0;
+    while (start <= p.size()) {
+      const size_t end = std::min(p.find(':', start), p.size());
+      const std::string dir = p.substr(start, end - start);
+      if (!dir.empty() && isExecutable(dir + "/" + name)) return dir + "/" + name;
+      start = end + 1;
+    }
+  }
+  return name;
+}
+
+std::string selfDirectory() {
+  char buf[PATH_MAX];
+  const ssize_t n = ::readlink("/proc/self/exe", buf, sizeof buf - 1);
+  if (n <= 0) return "";
+  std::string path(buf, static_cast<size_t>(n));
+  const size_t slash = path.rfind('/');
+  return slash == std::string::npos ? "" : path.substr(0, slash);
+}
+
+Supervisor::Supervisor(RestartPolicy policy, LineSink sink)
+    : policy_(policy), sink_(std::move(sink)) {}
+
+Supervisor::~Supervisor() {
+  for (auto& p : procs_) {
+    if (p.pid > 0) {
+      ::kill(p.pid, SIGKILL);
+      ::waitpid(p.pid, nullptr, 0);
+    }
+    if (p.out_fd >= 0) ::close(p.out_fd);
+  }
+}
+
+size_t Supervisor::add(ProcessSpec spec) {
+  ProcessState s;
+  s.spec = std::move(spec);
+  procs_.push_back(std::move(s));
+  return procs_.size() - 1;
+}
+
+bool Supervisor::start(size_t i) {
+  ProcessState& p = procs_.at(i);
+  const auto now = SteadyClock::now();
+  int out[2], err[2];
+  if (::pipe2(out, O_CLOEXEC) != 0) {
+    sink_(p.spec.name, std::string("cannot start: pipe: ") + std::strerror(errno));
+    return false;
+  }
+  if (::pipe2(err, O_CLOEXEC) != 0) {  // exec errno travels here; closed by a successful exec
+    ::close(out[0]);
+    ::close(out[1]);
+    sink_(p.spec.name, std::string("cannot start: pipe: ") + std::strerror(errno));
+    return false;
+  }
+  std::vector<char*> argv;
+  for (auto& a : p.spec.argv) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const pid_t parent = ::getpid();
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    for (int fd : {out[0], out[1], err[0], err[1]}) ::close(fd);
+    sink_(p.spec.name, std::string("cannot start: fork: ") + std::strerror(errno));
+    return false;
+  }
+  if (pid == 0) {
+    // Child: own process group (a terminal's Ctrl-C reaches only ld-run, which
+    // stops the set in order), ended with the supervisor if it dies.
+    ::setpgid(0, 0);
+    ::prctl(PR_SET_PDEATHSIG, SIGTERM);
+    if (::getppid() != parent) ::_exit(127);
+    for (int s : {SIGINT, SIGTERM, SIGPIPE, SIGHUP, SIGCHLD}) ::signal(s, SIG_DFL);
+    sigset_t none;
+    sigemptyset(&none);
+    ::sigprocmask(SIG_SETMASK, &none, nullptr);
+    ::dup2(out[1], STDOUT_FILENO);
+    ::dup2(out[1], STDERR_FILENO);
+    ::execvp(argv[0], argv.data());
+    const int e = errno;
+    ssize_t w = ::write(err[1], &e, sizeof e);
+    (void)w;
+    ::_exit(127);
+  }
+  ::close(out[1]);
+  ::close(err[1]);
+  int child_errno = 0;
+  ssize_t n;
+  do {
+    n = ::read(err[0], &child_errno, sizeof child_errno);
+  } while (n < 0 && errno == EINTR);
+  ::close(err[0]);
+  ++p.starts;
+  p.started = now;
+  if (n == static_cast<ssize_t>(sizeof child_errno)) {
+    ::waitpid(pid, nullptr, 0);
+    ::close(out[0]);
+    p.pid = -1;
+    p.failed_to_start = true;
+    ++p.consecutive_failures;
+    const double d = restartDelay(policy_, p.consecutive_failures);
+    p.restart_at = now + std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(d));
+    p.last_exit = std::string("exec failed: ") + std::strerror(child_errno);
+    sink_(p.spec.name, "cannot start " + p.spec.argv.at(0) + ": " + std::strerror(child_errno) +
+                           "; retrying in " + std::to_string(d).substr(0, 4) + " s");
+    return false;
+  }
+  ::fcntl(out[0], F_SETFL, ::fcntl(out[0], F_GETFL) | O_NONBLOCK);
+  if (p.out_fd >= 0) ::close(p.out_fd);
+  p.out_fd = out[0];
+  p.partial.clear();
+  p.pid = pid;
+  p.failed_to_start = false;
+  p.done = false;
+  sink_(p.spec.name, (p.starts > 1 ? "restarted, pid " : "started, pid ") + std::to_string(pid));
+  return true;
+}
+
+void Supervisor::drainOutput(ProcessState& p, bool eof) {
+  if (p.out_fd < 0) return;
+  char buf[4096];
+  for (;;) {
+    const ssize_t n = ::read(p.out_fd, buf, sizeof buf);
+    if (n > 0) {
+      p.partial.append(buf, static_cast<size_t>(n));
+      size_t nl;
+      while ((nl = p.partial.find('\n')) != std::string::npos) {
+        sink_(p.spec.name, p.partial.substr(0, nl));
+        p.partial.erase(0, nl + 1);
+      }
+      if (p.partial.size() > 8192) {  // a very long line: pass it on in pieces
+        sink_(p.spec.name, p.partial);
+        p.partial.clear();
+      }
+      continue;
+    }
+    if (n < 0 && errno == EINTR) continue;
+    if (n == 0 || eof) {  // EOF (every writer gone), or the child is gone: stop reading
+      if (n == 0 || (n < 0 && errno != EAGAIN)) {
+        if (!p.partial.empty()) sink_(p.spec.name, p.partial);
+        p.partial.clear();
+        ::close(p.out_fd);
+        p.out_fd = -1;
+      }
+    }
+    return;
+  }
+}
+
+void Supervisor::onExit(ProcessState& p, int status, SteadyClock::time_point now) {
+  drainOutput(p, true);
+  p.pid = -1;
+  p.last_exit = describeWaitStatus(status);
+  if (stopping_) return;
+  if (p.spec.role == ProcessRole::Source && WIFEXITED(status) && WEXITSTATUS(status) == 0) {
+    p.done = true;
+    sink_(p.spec.name, "finished (exit 0)");
+    return;
+  }
+  const double ran = std::chrono::duration<double>(now - p.started).count();
+  p.consecutive_failures = ran >= policy_.stable_after_s ? 1 : p.consecutive_failures + 1;
+  const double d = restartDelay(policy_, p.consecutive_failures);
+  p.restart_at = now + std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(d));
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "; restarting in %.2f s", d);
+  sink_(p.spec.name, "died (" + p.last_exit + ")" + buf);
+}
+
+void Supervisor::poll(SteadyClock::time_point now) {
+  for (auto& p : procs_) drainOutput(p, false);
+  for (;;) {
+    int status = 0;
+    const pid_t pid = ::waitpid(-1, &status, WNOHANG);
+    if (pid <= 0) break;
+    for (auto& p : procs_)
+      if (p.pid == pid) onExit(p, status, now);
+  }
+  if (stopping_) return;
+  for (size_t i = 0; i < procs_.size(); ++i) {
+    ProcessState& p = procs_[i];
+    if (p.pid < 0 && !p.done && p.starts > 0 && now >= p.restart_at) start(i);
+  }
+}
+
+void Supervisor::appendPollFds(std::vector<pollfd>& fds) const {
+  for (const auto& p : procs_)
+    if (p.out_fd >= 0) fds.push_back({p.out_fd, POLLIN, 0});
+}
+
+bool Supervisor::stopGroup(ProcessRole role, double grace_s) {
+  bool clean = true;
+  for (auto& p : procs_)
+    if (p.spec.role == role && p.pid > 0) ::kill(p.pid, SIGTERM);
+  const auto deadline = SteadyClock::now() + std::chrono::duration_cast<SteadyClock::duration>(
+                                                 std::chrono::duration<double>(grace_s));
+  for (;;) {
+    bool any = false;
+    for (auto& p : procs_) {
+      if (p.spec.role != role || p.pid <= 0) continue;
+      int status = 0;
+      const pid_t r = ::waitpid(p.pid, &status, WNOHANG);
+      if (r == p.pid) {
+        const bool ok = (WIFEXITED(status) && WEXITSTATUS(status) == 0) ||
+                        (WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM);
+        if (!ok) clean = false;
+        onExit(p, status, SteadyClock::now());
+        sink_(p.spec.name, "stopped (" + p.last_exit + ")");
+      } else {
+        drainOutput(p, false);
+        any = true;
+      }
+    }
+    if (!any) break;
+    if (SteadyClock::now() >= deadline) {
+      for (auto& p : procs_) {
+        if (p.spec.role != role || p.pid <= 0) continue;
+        ::kill(p.pid, SIGKILL);
+        int status = 0;
+        ::waitpid(p.pid, &status, 0);
+        onExit(p, status, SteadyClock::now());
+        sink_(p.spec.name, "killed: did not stop within the grace period");
+        clean = false;
+      }
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return clean;
+}
+
+bool Supervisor::stopAll(double grace_s) {
+  stopping_ = true;
+  bool clean = stopGroup(ProcessRole::Source, grace_s);
+  clean = stopGroup(ProcessRole::Worker, grace_s) && clean;
+  clean = stopGroup(ProcessRole::Recorder, grace_s) && clean;
+  for (auto& p : procs_) drainOutput(p, true);
+  return clean;
+}
+
+bool Supervisor::sourcesDone() const {
+  bool any = false;
+  for (const auto& p : procs_) {
+    if (p.spec.role != ProcessRole::Source) continue;
+    any = true;
+    if (!p.done) return false;
+  }
+  return any;
+}
+
+int Supervisor::restarts() const {
+  int n = 0;
+  for (const auto& p : procs_) n += std::max(0, p.starts - 1);
+  return n;
+}
+
+}  // namespace ld
