@@ -157,8 +157,8 @@ TEST(GlesParity, LabelMapsIdentical) {
   }
 }
 
-// With a blur the fast front end's labels and blurred image differ from the
-// CPU's only where the float blur rounds the other way.
+// With a blur, the fast front end's blurred image and labels are the CPU's
+// (the GPU's blur is OpenCV's fixed point; a pixel off by one at most).
 TEST(GlesParity, BlurredLabelMapsAgree) {
   auto g = gles();
   ASSERT_TRUE(g);
@@ -175,8 +175,8 @@ TEST(GlesParity, BlurredLabelMapsAgree) {
     c->labelMap(f.bgr, s, lc, fc, timer);
     g->labelMap(f.bgr, s, lg, fg, timer);
     ASSERT_TRUE(fc && fg);
-    double diff = cv::norm(*fc, *fg, cv::NORM_INF);
-    EXPECT_LE(diff, 1.0);
+    ASSERT_EQ(fg->type(), CV_8UC3);
+    EXPECT_LE(cv::norm(*fc, *fg, cv::NORM_INF), 1.0);
     EXPECT_LE(cv::countNonZero(lc != lg), static_cast<int>(0.001 * lc.total()));
   }
 }
@@ -189,7 +189,7 @@ TEST(GlesParity, EdgeMapsAgree) {
   auto c = ld::detail::makeCpuFilters();
   for (const ld::DetectorParams& p : {ld::DetectorParams::paper(), [] {
          ld::DetectorParams q = ld::DetectorParams::paper();
-         q.blur_kernel = 0;  // Sobel, suppression and thresholds alone: exact
+         q.blur_kernel = 0;  // Sobel, suppression and thresholds alone
          return q;
        }()}) {
     const auto s = ld::detail::FilterSettings::from(p);
@@ -208,9 +208,8 @@ TEST(GlesParity, EdgeMapsAgree) {
       EXPECT_GT(cv::countNonZero(ec), 1000);
       EXPECT_GE(cg, 0.98);
       EXPECT_GE(gc, 0.98);
-      if (s.blur_kernel <= 1) {
-        EXPECT_LE(differ, static_cast<int>(0.001 * cv::countNonZero(ec)) + 5);
-      }
+      // The same integer arithmetic (OpenCV's fixed-point blur included): all but a few pixels alike.
+      EXPECT_LE(differ, static_cast<int>(0.001 * cv::countNonZero(ec)) + 5);
     }
   }
 }

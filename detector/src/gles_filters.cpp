@@ -14,9 +14,10 @@
 //          (0, 1 weak, 2 strong), read back as a single-channel map; the
 //          hysteresis runs on the CPU (filters.hpp: a flood fill over a
 //          sparse map, not worth a GPU's many passes).
-// All integer work (labels, saturation, Sobel, suppression) is exact, the
-// same arithmetic as the CPU's; only the blur is float (OpenCV's is fixed
-// point), with a half-float intermediate where it can be rendered to.
+// All of it is integer arithmetic, the same as the CPU's: labels,
+// saturation, Sobel and suppression exactly; the blur is OpenCV's 8-bit fixed
+// point with the weights rounded to 1/256 as OpenCV rounds them for the usual
+// kernels (where its rounding differs, a blurred pixel is off by one).
 //
 // Each stage ends in glFinish, so that its time is the GPU's and the stage
 // times ("upload", "blur", "saturation", "edges", "readback") add up.
@@ -24,6 +25,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <map>
 
@@ -73,14 +75,24 @@ void main() {
 }
 )";
 
-// Separable Gaussian, OpenCV's default border (reflect 101). RADIUS and
-// VERTICAL are defined before this. The vertical pass ends in one of:
-// OUT_RGBA (the blurred image, rounded to 8 bits), OUT_SAT (its HSV
-// saturation, cut to zero at or below thr, as saturationImage and
-// cv::threshold TOZERO); the horizontal pass writes OUT_TMP (unrounded).
+// Separable Gaussian in OpenCV's fixed point, which it reproduces exactly:
+// weights in 1/256 (rounded, the centre taking what the rounding left), the
+// horizontal pass's sums kept whole (8.8, RGBA16UI: OUT_TMP), the vertical
+// pass's rounded back to 8 bits; OpenCV's default border (reflect 101).
+// RADIUS and VERTICAL are defined before this. The vertical pass reads the
+// intermediate (SRC_FIXED) and ends in one of: OUT_RGBA (the blurred image),
+// OUT_SAT (its HSV saturation, cut to zero at or below thr, as
+// saturationImage and cv::threshold TOZERO). With RADIUS 0 and OUT_SAT it is
+// the saturation pass alone.
 const char* kBlur = R"(
+#ifdef SRC_FIXED
+uniform usampler2D src;
+#define FETCH(q) ivec3(texelFetch(src, q, 0).rgb)
+#else
 uniform sampler2D src;
-uniform float w[RADIUS + 1];
+#define FETCH(q) ivec3(round(texelFetch(src, q, 0).rgb * 255.0))
+#endif
+uniform int w[RADIUS + 1];
 uniform int n;    // pixels along the pass
 uniform int thr;  // OUT_SAT
 int reflect101(int i) {
@@ -88,22 +100,30 @@ int reflect101(int i) {
   i = i >= n ? 2 * n - 2 - i : i;
   return clamp(i, 0, n - 1);
 }
+#ifdef OUT_TMP
+out uvec4 o;
+#else
 out vec4 o;
+#endif
 void main() {
   ivec2 p = ivec2(gl_FragCoord.xy);
-  vec3 s = vec3(0.0);
+  ivec3 s = ivec3(0);
   for (int k = -RADIUS; k <= RADIUS; ++k) {
 #ifdef VERTICAL
     ivec2 q = ivec2(p.x, reflect101(p.y + k));
 #else
     ivec2 q = ivec2(reflect101(p.x + k), p.y);
 #endif
-    s += w[abs(k)] * texelFetch(src, q, 0).rgb;
+    s += w[abs(k)] * FETCH(q);
   }
 #if defined(OUT_TMP)
-  o = vec4(s, 1.0);
+  o = uvec4(uvec3(s), 0u);
 #else
-  ivec3 v = clamp(ivec3(round(s * 255.0)), 0, 255);
+#ifdef SRC_FIXED
+  ivec3 v = (s + 32768) >> 16;
+#else
+  ivec3 v = s;  // RADIUS 0, weight 1
+#endif
 #if defined(OUT_RGBA)
   o = vec4(vec3(v) / 255.0, 1.0);
 #else
@@ -235,12 +255,6 @@ class GlesFilters final : public Filters {
     glGenFramebuffers(1, &fbo_);
     glGenBuffers(1, &pbo_up_);
     glGenBuffers(1, &pbo_down_);
-    const auto& i = ctx_->info();
-    const char* ext = reinterpret_cast<const char*>(glGetString(GL_EXTENSIONS));
-    const std::string exts = ext ? ext : "";
-    half_float_target_ = i.major > 3 || (i.major == 3 && i.minor >= 2) ||
-                         exts.find("GL_EXT_color_buffer_half_float") != std::string::npos ||
-                         exts.find("GL_EXT_color_buffer_float") != std::string::npos;
     label_ = program("label", std::string(kHeader) + kLabel);
     sobel_ = program("sobel", std::string(kHeader) + kSobel);
     nms_ = program("nms", std::string(kHeader) + kNms);
@@ -262,8 +276,7 @@ class GlesFilters final : public Filters {
 
   std::string info() const override {
     const auto& i = ctx_->info();
-    return "gles: " + i.renderer + " (" + i.version + ") via EGL " + i.platform + ", fragment shaders" +
-           (half_float_target_ ? "" : ", 8-bit blur intermediate");
+    return "gles: " + i.renderer + " (" + i.version + ") via EGL " + i.platform + ", fragment shaders";
   }
 
   void labelMap(const cv::Mat& bgr, const FilterSettings& s, cv::Mat& labels, const cv::Mat*& filtered,
@@ -373,7 +386,7 @@ class GlesFilters final : public Filters {
     freeTextures();
     w_ = w, h_ = h, w4_ = (w + 3) / 4;
     src_tex_ = texture(GL_RGB8, w, h);
-    tmp_tex_ = texture(half_float_target_ ? GL_RGBA16F : GL_RGBA8, w, h);
+    tmp_tex_ = texture(GL_RGBA16UI, w, h);
     blurred_tex_ = texture(GL_RGBA8, w, h);
     sat_tex_ = texture(GL_R8, w, h);
     grad_tex_ = texture(GL_R32UI, w, h);
@@ -419,15 +432,7 @@ class GlesFilters final : public Filters {
     glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, target, 0);
     if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
-      if (target == tmp_tex_ && half_float_target_) {
-        // Half float announced but not renderable here: 8 bits it is.
-        half_float_target_ = false;
-        glDeleteTextures(1, &tmp_tex_);
-        tmp_tex_ = texture(GL_RGBA8, w_, h_);
-        glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, tmp_tex_, 0);
-      }
-      if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-        throw BackendFailure("GLES: incomplete framebuffer");
+      throw BackendFailure("GLES: incomplete framebuffer");
     }
     glViewport(0, 0, w, h);
     glBindVertexArray(vao_);
@@ -444,8 +449,16 @@ class GlesFilters final : public Filters {
   void blur(const FilterSettings& s, const char* out, GLuint target, int thr = 0) {
     const int radius = s.blur_kernel / 2;
     if (kernel_size_ != s.blur_kernel || kernel_sigma_ != s.blur_sigma) {
-      const cv::Mat k = cv::getGaussianKernel(s.blur_kernel, s.blur_sigma, CV_32F);
-      weights_.assign(k.ptr<float>() + radius, k.ptr<float>() + s.blur_kernel);
+      // OpenCV's Gaussian in 1/256: rounded, the centre taking the remainder
+      const cv::Mat k = cv::getGaussianKernel(s.blur_kernel, s.blur_sigma, CV_64F);
+      weights_.assign(static_cast<size_t>(radius) + 1, 0);
+      int sum = 0;
+      for (int i = 0; i < s.blur_kernel; ++i) {
+        const int wq = static_cast<int>(std::lround(k.at<double>(i) * 256.0));
+        sum += wq;
+        if (i >= radius) weights_[static_cast<size_t>(i - radius)] = wq;
+      }
+      weights_[0] += 256 - sum;
       kernel_size_ = s.blur_kernel;
       kernel_sigma_ = s.blur_sigma;
     }
@@ -453,19 +466,20 @@ class GlesFilters final : public Filters {
     if (blur_radius_ != radius) {  // programs for this radius (compiled once, not per frame)
       const std::string defs = std::string(kHeader) + "#define RADIUS " + std::to_string(radius) + "\n";
       blur_h_ = program("blurH" + std::to_string(radius), defs + "#define OUT_TMP\n" + kBlur);
-      blur_v_rgba_ = program("blurVrgba" + std::to_string(radius), defs + "#define VERTICAL\n#define OUT_RGBA\n" + kBlur);
-      blur_v_sat_ = program("blurVsat" + std::to_string(radius), defs + "#define VERTICAL\n#define OUT_SAT\n" + kBlur);
+      const std::string v = defs + "#define VERTICAL\n#define SRC_FIXED\n";
+      blur_v_rgba_ = program("blurVrgba" + std::to_string(radius), v + "#define OUT_RGBA\n" + kBlur);
+      blur_v_sat_ = program("blurVsat" + std::to_string(radius), v + "#define OUT_SAT\n" + kBlur);
       blur_radius_ = radius;
     }
     const GLuint h = blur_h_, v = rgba ? blur_v_rgba_ : blur_v_sat_;
     glUseProgram(h);
     bindTexture(0, src_tex_, "src", h);
-    glUniform1fv(glGetUniformLocation(h, "w"), radius + 1, weights_.data());
+    glUniform1iv(glGetUniformLocation(h, "w"), radius + 1, weights_.data());
     glUniform1i(glGetUniformLocation(h, "n"), w_);
     draw(tmp_tex_, w_, h_);
     glUseProgram(v);
     bindTexture(0, tmp_tex_, "src", v);
-    glUniform1fv(glGetUniformLocation(v, "w"), radius + 1, weights_.data());
+    glUniform1iv(glGetUniformLocation(v, "w"), radius + 1, weights_.data());
     glUniform1i(glGetUniformLocation(v, "n"), h_);
     glUniform1i(glGetUniformLocation(v, "thr"), thr);
     draw(target, w_, h_);
@@ -475,10 +489,10 @@ class GlesFilters final : public Filters {
   // Saturation and threshold without a blur: the vertical pass of radius 0.
   void saturation(int thr) {
     const GLuint v = sat0_;
-    const float one = 1.0f;
+    const int one = 1;
     glUseProgram(v);
     bindTexture(0, src_tex_, "src", v);
-    glUniform1fv(glGetUniformLocation(v, "w"), 1, &one);
+    glUniform1iv(glGetUniformLocation(v, "w"), 1, &one);
     glUniform1i(glGetUniformLocation(v, "n"), h_);
     glUniform1i(glGetUniformLocation(v, "thr"), thr);
     draw(sat_tex_, w_, h_);
@@ -524,7 +538,6 @@ class GlesFilters final : public Filters {
   }
 
   std::unique_ptr<EglContext> ctx_;
-  bool half_float_target_ = false;
   GLuint vao_ = 0, fbo_ = 0, pbo_up_ = 0, pbo_down_ = 0;
   GLuint label_ = 0, sobel_ = 0, nms_ = 0, sat0_ = 0;
   int blur_radius_ = -1;
@@ -534,7 +547,7 @@ class GlesFilters final : public Filters {
   int w_ = 0, h_ = 0, w4_ = 0;
   int kernel_size_ = -1;
   double kernel_sigma_ = -1;
-  std::vector<float> weights_;
+  std::vector<int> weights_;
   cv::Mat packed_, blurred_rgba_, blurred_bgr_;
   std::vector<int> stack_;
 };

@@ -1,8 +1,10 @@
 // ld-bench: the paper's Tables I and II for this machine. Median ms per stage
-// of our detector at three resolutions on ld-synth scenes, and in the same
-// run, on the same scenes with markers of the same printed size at the same
-// poses, AprilTag 3 (tag36h11, one thread, default decimation) and OpenCV's
-// ArUco (DICT_4X4_50). Prints Markdown tables.
+// of our detector at three resolutions on ld-synth scenes, on each backend
+// asked for (CPU; GLES with its upload and read-back shown apart, as the
+// paper's "+transfer"), and in the same run, on the same scenes with markers
+// of the same printed size at the same poses, AprilTag 3 (tag36h11, one
+// thread, default decimation) and OpenCV's ArUco (DICT_4X4_50). Prints
+// Markdown tables.
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -87,6 +89,7 @@ struct Scene {
 
 struct Row {
   std::string name;
+  std::string backend;
   std::map<std::string, std::vector<double>> stages;
   std::vector<double> total, apriltag, aruco;
   int truths = 0, found = 0, found_tag = 0, found_aruco = 0;
@@ -108,6 +111,7 @@ int main(int argc, char** argv) {
   std::string markdown;
   std::vector<std::string> resolutions{"640x480", "1280x720", "1920x1080"};
   bool with_paper = true;
+  std::vector<std::string> backends{"cpu", "gles"};
   app.add_option("--frames", frames, "scenes per resolution")->capture_default_str();
   app.add_option("--repeats", repeats, "timed runs per scene (the median is kept)")->capture_default_str();
   app.add_option("--seed", seed, "scene seed")->capture_default_str();
@@ -115,6 +119,12 @@ int main(int argc, char** argv) {
   app.add_option("--resolutions", resolutions, "WxH list")->delimiter(',')->capture_default_str();
   app.add_option("--markdown", markdown, "also write the tables to this file");
   app.add_flag("!--no-paper", with_paper, "skip the paper front-end row");
+  app.add_option("--backend", backends,
+                 "backends to measure, a list of cpu, gles, auto (gles rows are left out, with a note, "
+                 "where no EGL context can be made)")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"cpu", "gles", "auto"}))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   cv::setNumThreads(1);
@@ -130,9 +140,22 @@ int main(int argc, char** argv) {
      << "median of per-scene medians, one thread, ms. Scenes: ld-synth, 1-2 landmarks of "
      << side_m << " m at 0.8-2.5 m, yaw within +-45 deg, any roll, random lighting, noise and JPEG; "
      << "AprilTag (tag36h11) and ArUco (4x4) markers of the same printed size at the same poses.\n\n";
-  md << "| resolution | front end | blur | saturation | edges | contours | colour | geometry | corners | total | FPS | AprilTag 3 | x ours | ArUco | x ours | found: ours / AprilTag / ArUco |\n";
-  md << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
-  std::vector<std::string> table2;
+  md << "| resolution | backend | front end | upload | blur | saturation | edges | readback | contours | colour | geometry | corners | total | FPS | AprilTag 3 | x ours | ArUco | x ours | found: ours / AprilTag / ArUco |\n";
+  md << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  std::vector<std::string> table1, table2, notes;
+  // GLES availability, once (a context made and dropped).
+  std::string gles_why;
+  if (std::find(backends.begin(), backends.end(), "gles") != backends.end()) {
+    ld::DetectorParams probe;
+    probe.backend = "gles";
+    try {
+      ld::Detector d(probe);
+      notes.push_back("GLES: " + d.backendInfo() + ".");
+    } catch (const std::exception& e) {
+      gles_why = e.what();
+      notes.push_back("GLES rows left out: " + gles_why + ".");
+    }
+  }
 
   for (const auto& res : resolutions) {
     int w = 0, h = 0;
@@ -172,11 +195,20 @@ int main(int argc, char** argv) {
 
     std::vector<std::string> front_ends{"fast"};
     if (with_paper) front_ends.push_back("paper");
-    for (const auto& fe : front_ends) {
+    bool markers_done = false;  // AprilTag and ArUco: once per resolution
+    std::map<std::string, double> cpu_filter;  // front end -> CPU filter ms (Table I)
+    for (const auto& fe : front_ends)
+    for (const auto& be : backends) {
+      if (be == "gles" && !gles_why.empty()) continue;
       ld::DetectorParams params;
       params.front_end = fe;
+      params.backend = be;
       ld::Detector detector(params);
       Row row;
+      row.backend = detector.backend();
+      if (be == "auto") row.backend += " (auto)";
+      const bool markers = fe == "fast" && !markers_done;
+      markers_done = markers_done || markers;
       for (const Scene& s : scenes) {
         std::map<std::string, std::vector<double>> per;
         std::vector<double> tot, at, ar;
@@ -196,7 +228,7 @@ int main(int argc, char** argv) {
           row.found += std::any_of(det.landmarks.begin(), det.landmarks.end(),
                                    [&](const ld::Landmark& d) { return matches(d, t); });
         }
-        if (fe != "fast") continue;
+        if (!markers) continue;
         // AprilTag and ArUco take gray images (conversion not timed).
         cv::Mat gray;
         cv::cvtColor(s.tag.bgr, gray, cv::COLOR_BGR2GRAY);
@@ -242,15 +274,42 @@ int main(int argc, char** argv) {
         row.aruco.push_back(median(ar));
       }
       const double total = median(row.total);
-      auto stage = [&](const char* n) {
-        auto it = row.stages.find(n);
-        return it == row.stages.end() ? std::string("-") : fmt(median(it->second));
+      // The median of one stage over the scenes (-1: it did not run), and of
+      // a sum of stages per scene.
+      auto stageMs = [&](std::initializer_list<const char*> names) {
+        std::vector<double> sum;
+        bool any = false;
+        for (const char* n : names) {
+          auto it = row.stages.find(n);
+          if (it == row.stages.end()) continue;
+          any = true;
+          sum.resize(it->second.size(), 0.0);
+          for (size_t i = 0; i < it->second.size(); ++i) sum[i] += it->second[i];
+        }
+        return any ? median(sum) : -1.0;
       };
-      md << "| " << res << " | " << fe << " | " << stage("blur") << " | " << stage("saturation")
-         << " | " << stage("edges") << " | " << stage("contours") << " | " << stage("colour")
-         << " | " << stage("geometry") << " | " << stage("corners") << " | " << fmt(total)
-         << " | " << fmt(1000.0 / total, 0) << " | ";
-      if (fe == "fast") {
+      auto stage = [&](std::initializer_list<const char*> names) {
+        const double v = stageMs(names);
+        return v < 0 ? std::string("-") : fmt(v);
+      };
+      md << "| " << res << " | " << row.backend << " | " << fe << " | " << stage({"upload"}) << " | "
+         << stage({"blur"}) << " | " << stage({"saturation"}) << " | " << stage({"edges", "hysteresis"})
+         << " | " << stage({"readback"}) << " | " << stage({"contours"}) << " | " << stage({"colour"})
+         << " | " << stage({"geometry"}) << " | " << stage({"corners"}) << " | " << fmt(total) << " | "
+         << fmt(1000.0 / total, 0) << " | ";
+      // Table I: the filters (blur, saturation, edges; the hysteresis of the
+      // GLES paper front end included) and, for GLES, the transfers.
+      const double filters = std::max(0.0, stageMs({"blur", "saturation", "edges", "hysteresis"}));
+      const double transfer = std::max(0.0, stageMs({"upload", "readback"}));
+      if (std::string(detector.backend()) == "cpu") {
+        cpu_filter[fe] = filters;
+      } else {
+        const auto cpu = cpu_filter.find(fe);
+        table1.push_back("| " + res + " | " + fe + " | " + (cpu == cpu_filter.end() ? "-" : fmt(cpu->second)) +
+                         " | " + fmt(filters) + " | +" + fmt(stageMs({"upload"})) + " +" +
+                         fmt(stageMs({"readback"})) + " | " + fmt(filters + transfer) + " | " + fmt(total) + " |");
+      }
+      if (markers) {
         const double at = median(row.apriltag), ar = median(row.aruco);
         md << fmt(at) << " | " << fmt(at / total, 1) << " | " << fmt(ar) << " | "
            << fmt(ar / total, 1) << " | " << row.found << " / " << row.found_tag << " / "
@@ -261,17 +320,29 @@ int main(int argc, char** argv) {
       if (w == 640 && h == 480) {
         double filter = 0, geometry = 0;
         for (auto& [name, v] : row.stages)
-          ((name == "blur" || name == "saturation" || name == "edges" || name == "contours")
+          ((name == "upload" || name == "blur" || name == "saturation" || name == "edges" ||
+            name == "hysteresis" || name == "readback" || name == "contours")
                ? filter : geometry) += median(v);
-        table2.push_back("| " + fe + " | " + fmt(filter) + " | " + fmt(geometry) + " | " +
+        table2.push_back("| " + row.backend + " | " + fe + " | " + fmt(filter) + " | " + fmt(geometry) + " | " +
                          fmt(total) + " | " + fmt(1000.0 / total, 0) + " |");
       }
     }
   }
+  md << "\nGLES rows: upload = the frame into a texture through a pixel buffer; readback = one byte a "
+        "pixel back (labels, or edge candidates; with a blur in the fast front end the blurred image too); "
+        "edges includes the paper front end's hysteresis, on the CPU. Every GPU stage ends in glFinish.\n";
+  for (const auto& n : notes) md << "\n" << n << "\n";
+  if (!table1.empty()) {
+    md << "\nTable I: the filters (blur + saturation + edges) on the CPU and on the GPU, with the "
+          "GPU's transfers (upload + readback) apart, ms.\n\n"
+       << "| resolution | front end | CPU filters | GLES filters | +transfer (up +down) | GLES filters + transfer | GLES total |\n"
+       << "|---|---|---|---|---|---|---|\n";
+    for (const auto& r : table1) md << r << "\n";
+  }
   if (!table2.empty()) {
-    md << "\nTable II (640x480): filter = blur + saturation + edges + contours; geometry = the rest "
-          "(stage medians, so filter + geometry need not equal the total's median).\n\n"
-       << "| front end | filter | geometry | total | FPS |\n|---|---|---|---|---|\n";
+    md << "\nTable II (640x480): filter = upload + blur + saturation + edges + readback + contours; "
+          "geometry = the rest (stage medians, so filter + geometry need not equal the total's median).\n\n"
+       << "| backend | front end | filter | geometry | total | FPS |\n|---|---|---|---|---|---|\n";
     for (const auto& r : table2) md << r << "\n";
   }
   apriltag_detector_destroy(td);

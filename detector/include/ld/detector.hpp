@@ -41,9 +41,9 @@
 // end's labelling or the paper's saturation, Sobel, non-maximum suppression
 // and double threshold as shaders, and reads back one byte per pixel
 // ("readback": the label image or the edge candidates); the paper front
-// end's hysteresis then runs on the CPU ("hysteresis"). Both backends give
-// the same label images; edge maps differ only where the float blur rounds
-// otherwise than OpenCV's fixed-point one.
+// end's hysteresis then runs on the CPU ("hysteresis"). The shaders do the
+// CPU's integer arithmetic (OpenCV's fixed-point blur included): both
+// backends give the same label images and edge maps.
 //
 // A Detector keeps its buffers between frames: once warmed up, detect() does
 // not allocate for frames of the same size (pose, through cv::solvePnP, does).
