@@ -1,0 +1,75 @@
+#!/usr/bin/env bash
+# ld-run as a supervisor, in a private network namespace: the set runs on a
+# looped log (ld-play, 15 frames/s). Each of ld-detector, ld-tracker and
+# ld-qr-reader in turn is killed with SIGKILL: it must be running again (a
+# new pid, the same program) within 2 s while the other processes keep their
+# pids, and frames must be tracked again afterwards. SIGTERM to ld-run then
+# stops every process, and ld-run exits 0.
+set -euo pipefail
+BIN=$1
+T=$(mktemp -d)
+RUN=
+cleanup() {
+  [ -n "$RUN" ] && kill -KILL "$RUN" 2>/dev/null || true
+  rm -rf "$T"
+}
+trap cleanup EXIT
+"$BIN/ld-synth" sequence --out "$T/seq" --frames 30 --fps 15 --landmarks 2 --seed 3 --size 0.3 \
+  --format mjpeg --log "$T/in.lcmlog" --no-png >/dev/null
+
+"$BIN/ld-run" --netns --play "$T/in.lcmlog" --fps 15 --duration 120 --state-file "$T/state.json" \
+  --summary "$T/summary.json" --log-dir "$T" --status-interval 0 -q &
+RUN=$!
+
+pid_of() { jq -r ".processes[] | select(.name == \"$1\") | .pid" "$T/state.json"; }
+now_ms() { date +%s%3N; }
+
+for _ in $(seq 100); do  # up to 10 s for the set to be up
+  [ -s "$T/state.json" ] && [ "$(jq .ready "$T/state.json")" = true ] && break
+  sleep 0.1
+done
+[ "$(jq .ready "$T/state.json")" = true ]
+sleep 1
+
+for victim in detector tracker qr-reader; do
+  declare -A before=()
+  for p in detector tracker qr-reader play; do before[$p]=$(pid_of $p); done
+  old=${before[$victim]}
+  exe=$(readlink "/proc/$old/exe")
+  kill -KILL "$old"
+  t0=$(now_ms)
+  new=$old
+  while [ $(( $(now_ms) - t0 )) -lt 5000 ]; do
+    new=$(pid_of $victim)
+    if [ "$new" -gt 0 ] && [ "$new" != "$old" ] && kill -0 "$new" 2>/dev/null; then break; fi
+    sleep 0.02
+  done
+  dt=$(( $(now_ms) - t0 ))
+  echo "$victim: pid $old killed, back as pid $new after $dt ms"
+  [ "$new" -gt 0 ] && [ "$new" != "$old" ]
+  [ "$dt" -le 2000 ]
+  [ "$(readlink "/proc/$new/exe")" = "$exe" ]
+  for p in detector tracker qr-reader play; do
+    [ "$p" = "$victim" ] && continue
+    [ "$(pid_of $p)" = "${before[$p]}" ] || { echo "$p changed pid"; exit 1; }
+    kill -0 "${before[$p]}"
+  done
+  sleep 1.5  # the restarted process works again before the next kill
+done
+
+pids=$(jq -r '.processes[] | .pid' "$T/state.json")
+kill -TERM "$RUN"
+rc=0; wait "$RUN" || rc=$?
+RUN=
+echo "ld-run exit status after SIGTERM: $rc"
+[ "$rc" -eq 0 ]
+for p in $pids; do ! kill -0 "$p" 2>/dev/null; done   # every process gone
+[ "$(jq -r .end "$T/summary.json")" = "stopped by SIGTERM" ]
+[ "$(jq '[.processes[] | select(.name == "detector" or .name == "tracker" or .name == "qr-reader") | .restarts] | add' "$T/summary.json")" -eq 3 ]
+[ "$(jq '[.processes[] | select(.name == "play") | .restarts] | add' "$T/summary.json")" -eq 0 ]
+# frames kept flowing through the restarts: the last tracked frame is recent
+last=$(jq '.summary.per_frame[-1].seq' "$T/summary.json")
+images=$(jq '.summary.frames.images' "$T/summary.json")
+echo "images: $images, tracked: $(jq .summary.frames.tracked "$T/summary.json"), last tracked seq: $last"
+[ "$last" -ge $(( images - 5 )) ]
+echo "1 passed, 0 failed"

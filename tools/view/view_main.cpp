@@ -1,0 +1,292 @@
+// ld-view: draws the tracked landmarks (track ids, payloads, pose axes) on
+// the frames they were found in, matched by utime and seq. Reads the live
+// bus (IMAGE, LANDMARKS_TRACKED, LANDMARK_CODES) or LCM logs, and shows the
+// result in a window or writes PNGs / a video.
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <deque>
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <optional>
+
+#include <CLI/CLI.hpp>
+#include <lcm/lcm-cpp.hpp>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/highgui.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "ld/camera.hpp"
+#include "ld/image_convert.hpp"
+#include "ld/landmark_json.hpp"
+#include "ld/landmark_msg.hpp"
+#include "ld/lcm_url.hpp"
+#include "ld/qr_code_list_t.hpp"
+
+namespace {
+
+std::atomic<bool> g_stop{false};
+void onSignal(int) { g_stop = true; }
+
+using Key = std::pair<int64_t, int64_t>;  // (utime, seq)
+
+struct Options {
+  std::string out_dir, video;
+  bool window = false;
+  double fps = 30;
+  std::optional<ld::CameraModel> camera;
+  double axis_m = 0.1;
+};
+
+// Where the annotated frames go: PNG files, a video, a window.
+class Sink {
+ public:
+  explicit Sink(const Options& o) : o_(o) {}
+  bool put(const cv::Mat& img, int64_t seq) {
+    if (!o_.out_dir.empty()) {
+      char name[32];
+      std::snprintf(name, sizeof name, "/%06lld.png", static_cast<long long>(seq < 0 ? count_ : seq));
+      if (!cv::imwrite(o_.out_dir + name, img)) {
+        std::cerr << "ld-view: cannot write " << o_.out_dir + name << "\n";
+        return false;
+      }
+    }
+    if (!o_.video.empty()) {
+      if (!writer_.isOpened()) {
+        writer_.open(o_.video, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), o_.fps, img.size());
+        if (!writer_.isOpened()) {
+          std::cerr << "ld-view: cannot open video " << o_.video << " (MJPG)\n";
+          return false;
+        }
+        size_ = img.size();
+      }
+      if (img.size() == size_) writer_.write(img);
+    }
+    if (o_.window) {
+      cv::imshow("ld-view", img);
+      const int k = cv::waitKey(1);
+      if (k == 'q' || k == 27) g_stop = true;
+    }
+    ++count_;
+    return true;
+  }
+  int64_t count() const { return count_; }
+
+ private:
+  const Options& o_;
+  cv::VideoWriter writer_;
+  cv::Size size_;
+  int64_t count_ = 0;
+};
+
+// Draws one frame: every visible track with its id and payload (LANDMARK.md's
+// overlay: outline, centres, TL marked), coasting tracks as a thin grey
+// outline at their predicted place, pose axes when the pose is known and a
+// calibration was given.
+void annotate(cv::Mat& bgr, const ld::landmark_list_t& list, const std::map<int64_t, std::string>& payloads,
+              const Options& o) {
+  const int thick = std::max(1, bgr.cols / 640);
+  std::vector<ld::Landmark> visible;
+  for (const auto& m : list.landmarks) {
+    ld::Landmark lm = ld::fromMessage(m);
+    // The label drawLandmarks writes by the TL corner: "#id payload".
+    const auto p = payloads.find(m.track_id);
+    lm.payload = "#" + std::to_string(m.track_id) + (p != payloads.end() ? " " + p->second : "");
+    if (!m.visible) {
+      std::vector<cv::Point> quad;
+      for (const auto& c : lm.corners) quad.emplace_back(cvRound(c.x), cvRound(c.y));
+      cv::polylines(bgr, quad, true, cv::Scalar(160, 160, 160), 1, cv::LINE_AA);
+      cv::putText(bgr, *lm.payload + " (coasting)", lm.corners[0] + cv::Point2f(0, -6.0f * thick),
+                  cv::FONT_HERSHEY_SIMPLEX, 0.45 * thick, cv::Scalar(160, 160, 160), thick, cv::LINE_AA);
+    } else {
+      visible.push_back(lm);
+    }
+    if (m.visible && m.pose_valid && o.camera) {
+      const cv::Vec3d rvec(m.rvec[0], m.rvec[1], m.rvec[2]), t(m.t[0], m.t[1], m.t[2]);
+      cv::drawFrameAxes(bgr, cv::Mat(o.camera->K), o.camera->dist.empty() ? cv::Mat() : o.camera->dist,
+                        rvec, t, static_cast<float>(o.axis_m), thick);
+    }
+  }
+  ld::drawLandmarks(bgr, visible);
+  char head[160];
+  std::snprintf(head, sizeof head, "seq %lld  %zu tracked, %zu visible", static_cast<long long>(list.seq),
+                list.landmarks.size(), visible.size());
+  cv::putText(bgr, head, cv::Point(8, 20 * thick), cv::FONT_HERSHEY_SIMPLEX, 0.55 * thick,
+              cv::Scalar(0, 0, 0), 3 * thick, cv::LINE_AA);
+  cv::putText(bgr, head, cv::Point(8, 20 * thick), cv::FONT_HERSHEY_SIMPLEX, 0.55 * thick,
+              cv::Scalar(255, 255, 255), thick, cv::LINE_AA);
+}
+
+template <typename T>
+bool decodeExact(T& msg, const void* data, int size) {
+  return msg.decode(data, 0, size) == size;
+}
+
+// --- logs: tracked lists and codes first, then every image in log order ---
+int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, const std::string& tracked_ch,
+             const std::string& codes_ch, bool all_frames, const Options& o) {
+  std::map<Key, ld::landmark_list_t> lists;
+  std::map<Key, ld::qr_code_list_t> codes;
+  for (const auto& path : logs) {
+    lcm::LogFile log(path, "r");
+    if (!log.good()) {
+      std::cerr << "ld-view: cannot read log " << path << "\n";
+      return 2;
+    }
+    while (const lcm::LogEvent* ev = log.readNextEvent()) {
+      if (ev->channel == tracked_ch) {
+        ld::landmark_list_t l;
+        if (decodeExact(l, ev->data, ev->datalen)) lists[{l.utime, l.seq}] = std::move(l);
+      } else if (ev->channel == codes_ch) {
+        ld::qr_code_list_t c;
+        if (decodeExact(c, ev->data, ev->datalen)) codes[{c.utime, c.seq}] = std::move(c);
+      }
+    }
+  }
+  Sink sink(o);
+  std::map<int64_t, std::string> payloads;  // what was known up to the frame drawn
+  ld::image_t img;
+  cv::Mat bgr;
+  int64_t images = 0, bad = 0;
+  for (const auto& path : logs) {
+    lcm::LogFile log(path, "r");
+    while (!g_stop) {
+      const lcm::LogEvent* ev = log.readNextEvent();
+      if (!ev) break;
+      if (ev->channel != image_ch) continue;
+      if (!decodeExact(img, ev->data, ev->datalen)) {
+        ++bad;
+        continue;
+      }
+      ++images;
+      const Key key{img.utime, ld::imageSeq(img).value_or(-1)};
+      const auto l = lists.find(key);
+      if (l == lists.end() && !all_frames) continue;
+      const auto c = codes.find(key);
+      if (c != codes.end())
+        for (const auto& code : c->second.codes) payloads[code.track_id] = code.payload;
+      try {
+        ld::imageToBgr(img, bgr);
+      } catch (const std::exception& e) {
+        std::cerr << "ld-view: " << e.what() << "\n";
+        ++bad;
+        continue;
+      }
+      if (l != lists.end()) annotate(bgr, l->second, payloads, o);
+      if (!sink.put(bgr, key.second)) return 1;
+    }
+  }
+  std::fprintf(stderr, "ld-view: %lld images, %zu tracked lists, %lld frames written%s\n",
+               static_cast<long long>(images), lists.size(), static_cast<long long>(sink.count()),
+               bad ? (", " + std::to_string(bad) + " bad").c_str() : "");
+  return sink.count() > 0 ? 0 : 1;
+}
+
+// --- live bus: recent images kept, each drawn when its tracked list comes ---
+class Live {
+ public:
+  Live(const Options& o) : sink_(o), o_(o) {}
+  void onImage(const lcm::ReceiveBuffer* rb, const std::string&) {
+    if (!decodeExact(img_, rb->data, static_cast<int>(rb->data_size))) return;
+    recent_.push_back({{img_.utime, ld::imageSeq(img_).value_or(-1)}, img_});
+    while (recent_.size() > 60) recent_.pop_front();
+  }
+  void onCodes(const lcm::ReceiveBuffer* rb, const std::string&) {
+    ld::qr_code_list_t c;
+    if (!decodeExact(c, rb->data, static_cast<int>(rb->data_size))) return;
+    for (const auto& code : c.codes) payloads_[code.track_id] = code.payload;
+  }
+  void onTracked(const lcm::ReceiveBuffer* rb, const std::string&) {
+    if (!decodeExact(list_, rb->data, static_cast<int>(rb->data_size))) return;
+    for (auto it = recent_.rbegin(); it != recent_.rend(); ++it) {
+      if (it->first != Key{list_.utime, list_.seq}) continue;
+      try {
+        ld::imageToBgr(it->second, bgr_);
+      } catch (const std::exception& e) {
+        std::cerr << "ld-view: " << e.what() << "\n";
+        return;
+      }
+      annotate(bgr_, list_, payloads_, o_);
+      if (!sink_.put(bgr_, list_.seq)) g_stop = true;
+      return;
+    }
+  }
+  int64_t frames() const { return sink_.count(); }
+
+ private:
+  Sink sink_;
+  const Options& o_;
+  ld::image_t img_;
+  ld::landmark_list_t list_;
+  cv::Mat bgr_;
+  std::deque<std::pair<Key, ld::image_t>> recent_;
+  std::map<int64_t, std::string> payloads_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"ld-view: tracked landmarks drawn on their frames, live or from LCM logs."};
+  std::vector<std::string> logs;
+  std::string url = ld::defaultLcmUrl(), image_ch = "IMAGE", tracked_ch = "LANDMARKS_TRACKED",
+              codes_ch = "LANDMARK_CODES", camera_file;
+  bool all_frames = false, force_window = false;
+  Options o;
+  app.add_option("--log", logs, "read these LCM logs instead of the bus (images, tracks and codes "
+                                "may be in different logs; repeatable)");
+  app.add_option("--out", o.out_dir, "write annotated frames as DIR/SEQ.png");
+  app.add_option("--video", o.video, "write annotated frames to this video (MJPG, e.g. .avi)");
+  app.add_flag("--window", force_window, "show a window (default when a display exists and no --out/--video)");
+  app.add_option("--fps", o.fps, "frame rate of --video")->capture_default_str();
+  app.add_option("--camera", camera_file, "camera calibration (OpenCV YAML/XML): draws pose axes");
+  app.add_option("--axis-length", o.axis_m, "pose axis length, metres")->capture_default_str();
+  app.add_flag("--all", all_frames, "logs: also frames without tracked landmarks");
+  app.add_option("--lcm-url", url, "LCM URL (live)")->capture_default_str();
+  app.add_option("--image", image_ch, "image channel")->capture_default_str();
+  app.add_option("--tracks", tracked_ch, "tracked landmarks channel")->capture_default_str();
+  app.add_option("--codes", codes_ch, "QR codes channel")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  const bool display = std::getenv("DISPLAY") || std::getenv("WAYLAND_DISPLAY");
+  o.window = force_window || (display && o.out_dir.empty() && o.video.empty());
+  if (!o.window && o.out_dir.empty() && o.video.empty()) {
+    std::cerr << "ld-view: no display: give --out DIR or --video FILE\n";
+    return 2;
+  }
+  if (!camera_file.empty()) {
+    try {
+      o.camera = ld::CameraModel::load(camera_file);
+    } catch (const std::exception& e) {
+      std::cerr << "ld-view: " << e.what() << "\n";
+      return 2;
+    }
+  }
+  if (!o.out_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(o.out_dir, ec);
+    if (ec) {
+      std::cerr << "ld-view: cannot create " << o.out_dir << ": " << ec.message() << "\n";
+      return 2;
+    }
+  }
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
+  if (!logs.empty()) return viewLogs(logs, image_ch, tracked_ch, codes_ch, all_frames, o);
+
+  lcm::LCM lcm(url);
+  if (!lcm.good()) {
+    std::cerr << "ld-view: cannot open LCM at " << url << "\n";
+    return 2;
+  }
+  Live live(o);
+  lcm.subscribe(image_ch, &Live::onImage, &live);
+  lcm.subscribe(tracked_ch, &Live::onTracked, &live);
+  lcm.subscribe(codes_ch, &Live::onCodes, &live);
+  while (!g_stop)
+    if (!ld::pumpLcm(lcm, 200, g_stop, "ld-view")) return 1;
+  std::fprintf(stderr, "ld-view: %lld frames drawn\n", static_cast<long long>(live.frames()));
+  return 0;
+}
