@@ -4,6 +4,7 @@
 #include <cmath>
 #include <random>
 
+#include "ld/adaptive.hpp"
 #include "ld/qr_reader.hpp"
 #include "ld/synth.hpp"
 
@@ -45,10 +46,36 @@ uint64_t pointSeed(uint64_t seed, double distance_m, double yaw_deg) {
   return seed * 0x9E3779B97F4A7C15ull ^ (d * 1000003ull + y);
 }
 
+void applyLighting(const SweepOptions& o, synth::SceneSpec& spec) {
+  if (o.colour_temp_k > 0) spec.lighting.colour_temp_k = o.colour_temp_k;
+  if (o.gain > 0) spec.lighting.gain = o.gain;
+  if (o.glare >= 0) {
+    spec.lighting.glare = o.glare;
+    if (!spec.landmarks.empty()) {  // on the landmark, where it hurts
+      const synth::LandmarkTruth t = synth::truthFor(spec.camera, spec.landmarks[0]);
+      const cv::Point2d c = (t.fip_tl + t.ap) / 2;
+      spec.lighting.glare_centre = {c.x / spec.camera.size.width, c.y / spec.camera.size.height};
+    }
+  }
+}
+
+// The fixed or the adaptive detector, as the options say.
+struct AnyDetector {
+  explicit AnyDetector(const SweepOptions& o) : adaptive(o.adaptive), fixed(o.params), adapt(o.params) {}
+  const Detection& detect(const cv::Mat& bgr) {
+    if (!adaptive) return fixed.detect(bgr);
+    adapt.adapter().reset();  // independent frames
+    return adapt.detect(bgr);
+  }
+  bool adaptive;
+  Detector fixed;
+  AdaptiveDetector adapt;
+};
+
 }  // namespace
 
 Point measure(const SweepOptions& o, double distance_m, double yaw_deg, double yaw_jitter_deg) {
-  Detector detector(o.params);
+  AnyDetector detector(o);
   QrReader reader;
   std::mt19937_64 rng(pointSeed(o.seed, distance_m, yaw_deg));
   std::uniform_real_distribution<double> U(0, 1);
@@ -64,7 +91,9 @@ Point measure(const SweepOptions& o, double distance_m, double yaw_deg, double y
     auto lm = synth::placeLandmark(o.camera, distance_m, yaw, pitch, roll, nx, ny, o.side_m, payload);
     if (!synth::truthFor(o.camera, lm).in_view)
       lm = synth::placeLandmark(o.camera, distance_m, yaw, pitch, roll, 0, 0, o.side_m, payload);
-    const synth::Frame frame = synth::render(synth::randomConditions(o.camera, {lm}, rng()));
+    synth::SceneSpec spec = synth::randomConditions(o.camera, {lm}, rng());
+    applyLighting(o, spec);
+    const synth::Frame frame = synth::render(spec);
     const synth::LandmarkTruth& t = frame.truth[0];
     ++p.trials;
     const Detection& det = detector.detect(frame.bgr);
@@ -100,6 +129,21 @@ std::vector<Point> overDistance(const SweepOptions& o, const std::vector<double>
     if (progress) progress(out.back());
   }
   return out;
+}
+
+double falsePositivesPerFrame(const SweepOptions& o, int frames) {
+  AnyDetector detector(o);
+  std::mt19937_64 rng(pointSeed(o.seed, 0, -999));
+  int found = 0;
+  for (int k = 0; k < frames; ++k) {
+    synth::SceneSpec spec = synth::randomConditions(o.camera, {}, rng());
+    spec.background = k % 2 ? synth::Background::Clutter : synth::Background::Office;
+    spec.distractors = 8 + static_cast<int>(rng() % 8);
+    spec.landmark_like_cards = static_cast<int>(rng() % 3);
+    applyLighting(o, spec);
+    found += static_cast<int>(detector.detect(synth::render(spec).bgr).landmarks.size());
+  }
+  return frames > 0 ? static_cast<double>(found) / frames : 0.0;
 }
 
 Point total(const std::vector<Point>& points) {

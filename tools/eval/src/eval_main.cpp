@@ -180,6 +180,16 @@ int main(int argc, char** argv) {
   size->add_option("--payload-bytes", s_payload, "payload length to read")->capture_default_str();
   size->add_option("--side", s_sides, "candidate sides, metres");
 
+  Common lc;
+  double l_side = 0.15, l_dist = 1.5, l_yaw = 40;
+  int l_fp_frames = 100;
+  auto* light = app.add_subcommand("lighting", "fixed defaults against adaptive lighting: colour temperature, level, glare");
+  addCommon(light, lc);
+  light->add_option("--side", l_side, "printed side S, metres")->capture_default_str();
+  light->add_option("--distance", l_dist, "metres")->capture_default_str();
+  light->add_option("--max-yaw", l_yaw, "yaw drawn within +-this, degrees")->capture_default_str();
+  light->add_option("--fp-frames", l_fp_frames, "distractor frames per condition for false positives")->capture_default_str();
+
   CLI11_PARSE(app, argc, argv);
   try {
     if (yaw->parsed()) {
@@ -263,6 +273,45 @@ int main(int argc, char** argv) {
       }
       emit(qc, t.str());
       if (!qc.png.empty()) plot(qc.png, "QR decode rate against distance (" + cm(q_side) + ")", "distance (m)", series);
+    } else if (light->parsed()) {
+      struct Sweep { std::string name, png_suffix, unit; std::vector<double> values; double ld::eval::SweepOptions::*field; };
+      const std::vector<Sweep> sweeps{
+          {"colour temperature", "temperature", "K", {2000, 2700, 3200, 4000, 5000, 6500, 8000, 10000}, &ld::eval::SweepOptions::colour_temp_k},
+          {"light level (gain)", "gain", "", {0.15, 0.2, 0.3, 0.4, 0.6, 0.8, 1.0, 1.3}, &ld::eval::SweepOptions::gain},
+          {"glare on the landmark", "glare", "", {0.0, 0.3, 0.6, 0.9, 1.2}, &ld::eval::SweepOptions::glare}};
+      std::ostringstream t;
+      for (const auto& sw : sweeps) {
+        t << "| " << sw.name << " | fixed: detected | adaptive: detected | fixed: false per frame | adaptive: false per frame |\n"
+          << "|---|---|---|---|---|\n";
+        std::vector<Series> series{{"fixed defaults", {}}, {"adaptive", {}}};
+        for (double v : sw.values) {
+          ld::eval::SweepOptions o = lc.options();
+          o.side_m = l_side;
+          o.*(sw.field) = v;
+          double rate[2], fp[2];
+          for (int a = 0; a < 2; ++a) {
+            o.adaptive = a == 1;
+            const auto p = ld::eval::measure(o, l_dist, 0, l_yaw);
+            rate[a] = p.detectRate();
+            fp[a] = ld::eval::falsePositivesPerFrame(o, l_fp_frames);
+            series[static_cast<size_t>(a)].points.emplace_back(v, rate[a]);
+            std::fprintf(stderr, "  %s %g %s: detected %.0f %%, false %.3f/frame\n", sw.name.c_str(), v,
+                         a ? "adaptive" : "fixed", 100 * rate[a], fp[a]);
+          }
+          char row[256];
+          std::snprintf(row, sizeof row, "| %g %s | %.1f %% | %.1f %% | %.3f | %.3f |\n", v, sw.unit.c_str(),
+                        100 * rate[0], 100 * rate[1], fp[0], fp[1]);
+          t << row;
+        }
+        t << "\n";
+        if (!lc.png.empty()) {
+          std::string path = lc.png;
+          const auto dot = path.rfind(".png");
+          path = (dot == std::string::npos ? path : path.substr(0, dot)) + "_" + sw.png_suffix + ".png";
+          plot(path, "Detection rate against " + sw.name, sw.name + (sw.unit.empty() ? "" : " (" + sw.unit + ")"), series);
+        }
+      }
+      emit(lc, t.str());
     } else if (size->parsed()) {
       auto o = sc.options();
       std::sort(s_sides.begin(), s_sides.end());

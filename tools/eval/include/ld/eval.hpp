@@ -34,6 +34,14 @@ struct SweepOptions {
   /// The payload printed on trial k's landmark (k drawn at random in [0, 1000)).
   std::function<std::string(int)> payload = payloadFor;
   DetectorParams params;
+  /// Detect through ld::AdaptiveDetector (lighting adaptation) instead of the
+  /// fixed defaults. Each trial is a fresh frame: the adapter has only the
+  /// frame itself to go by, no landmarks seen before.
+  bool adaptive = false;
+  /// Overrides of the random lighting (negative: keep randomConditions').
+  double colour_temp_k = -1;  ///< 2700 tungsten .. 6500 daylight
+  double gain = -1;           ///< 1 = well lit office
+  double glare = -1;          ///< peak of a specular spot near the landmark
 };
 
 /// One sweep point: the swept value and what happened in its trials.
@@ -59,6 +67,10 @@ std::vector<Point> overYaw(const SweepOptions& options, double distance_m,
 std::vector<Point> overDistance(const SweepOptions& options, const std::vector<double>& distances_m,
                                 double max_abs_yaw_deg,
                                 const std::function<void(const Point&)>& progress = {});
+
+/// False landmarks per frame on `frames` scenes with colourful distractors,
+/// landmark-like cards and no landmark, under the options' lighting.
+double falsePositivesPerFrame(const SweepOptions& options, int frames);
 
 /// Totals over a sweep's points.
 Point total(const std::vector<Point>& points);

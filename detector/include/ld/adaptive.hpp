@@ -1,0 +1,86 @@
+// Adaptive lighting (the paper's first item of future work): the detector's
+// colour ratios, saturation thresholds and value floor assume a roughly
+// neutral, well exposed image. Warm tungsten light turns the white sheet
+// orange and dims the blue squares; dim light pushes printed blue under the
+// value floor. Rather than retuning those thresholds by hand, the adapter
+// estimates the light's colour and level and corrects the frame (one gain per
+// channel) before detection, which moves every colour threshold with the
+// light at once:
+//  - from the white sheet of landmarks confirmed in recent frames (the one
+//    surface whose true colour is known), when there are any;
+//  - otherwise from the frame itself: the mean of its brightest unclipped
+//    pixels (walls, paper and ceilings are the usual near-white surfaces).
+// Estimates are smoothed over frames; gains are bounded so that noise in the
+// dark is not amplified without limit.
+#pragma once
+
+#include <opencv2/core.hpp>
+
+#include "ld/detector.hpp"
+
+namespace ld {
+
+struct AdaptiveParams {
+  /// The corrected white's brightest channel (0..255).
+  double target_white = 200.0;
+  /// Per-channel gains are clamped to [1 / max_gain, max_gain].
+  double max_gain = 8.0;
+  /// Frame estimate: the whitest this fraction of pixels (not clipped).
+  double bright_fraction = 0.05;
+  /// Weight of a new estimate against the running one (1: no smoothing).
+  double smoothing = 0.5;
+  /// A landmark-sheet estimate stays preferred for this many frames.
+  int landmark_memory_frames = 30;
+  /// No correction while the estimated white is within this relative
+  /// deviation from the target on every channel (saves the pass in good light).
+  double deadband = 0.08;
+};
+
+class LightingAdapter {
+ public:
+  explicit LightingAdapter(const AdaptiveParams& params = {});
+
+  /// The frame to detect on: `bgr` corrected for the current estimate (or
+  /// `bgr` itself when no correction is needed). Updates the estimate from
+  /// the frame first when no landmark was confirmed recently. The returned
+  /// reference stays valid until the next call.
+  const cv::Mat& correct(const cv::Mat& bgr);
+
+  /// Feeds back the detections made on the corrected frame of the last
+  /// correct() call with the original frame: the sheet between the squares
+  /// of each landmark is a white reference.
+  void observe(const cv::Mat& original_bgr, const Detection& detection);
+
+  /// Per-channel gains (B, G, R) applied by the last correct().
+  cv::Vec3d gains() const { return gains_; }
+  /// Whether the last estimate came from a landmark's sheet.
+  bool fromLandmarks() const { return frames_since_landmark_ < params_.landmark_memory_frames; }
+
+  void reset();
+
+ private:
+  void update(const cv::Vec3d& white);
+
+  AdaptiveParams params_;
+  cv::Vec3d white_{0, 0, 0};  // running estimate of white (BGR); 0: none yet
+  cv::Vec3d gains_{1, 1, 1};
+  int frames_since_landmark_ = 1 << 20;
+  cv::Mat corrected_;
+  std::vector<int> hist_;
+};
+
+/// A Detector with a LightingAdapter in front: detect() corrects the frame,
+/// detects, and feeds the confirmed landmarks back.
+class AdaptiveDetector {
+ public:
+  explicit AdaptiveDetector(const DetectorParams& params = {}, const AdaptiveParams& adaptive = {});
+  const Detection& detect(const cv::Mat& bgr);
+  Detector& detector() { return detector_; }
+  LightingAdapter& adapter() { return adapter_; }
+
+ private:
+  Detector detector_;
+  LightingAdapter adapter_;
+};
+
+}  // namespace ld
