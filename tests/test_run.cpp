@@ -1,0 +1,265 @@
+// ld-run's library: supervisor (restart with backoff, ordered stop, output
+// lines), bus monitor (latency matching, skips, tracks, payloads), config.
+#include <chrono>
+#include <csignal>
+#include <thread>
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "ld/bus_monitor.hpp"
+#include "ld/image_convert.hpp"
+#include "ld/netns.hpp"
+#include "ld/run_config.hpp"
+#include "ld/supervisor.hpp"
+
+namespace {
+
+using namespace std::chrono_literals;
+
+struct Lines {
+  std::vector<std::pair<std::string, std::string>> all;
+  ld::Supervisor::LineSink sink() {
+    return [this](const std::string& n, const std::string& l) { all.emplace_back(n, l); };
+  }
+  bool has(const std::string& name, const std::string& text) const {
+    for (const auto& [n, l] : all)
+      if (n == name && l.find(text) != std::string::npos) return true;
+    return false;
+  }
+};
+
+// Polls the supervisor until pred() or the timeout.
+template <typename Pred>
+bool pollUntil(ld::Supervisor& sup, Pred pred, std::chrono::milliseconds timeout) {
+  const auto end = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < end) {
+    sup.poll(std::chrono::steady_clock::now());
+    if (pred()) return true;
+    std::this_thread::sleep_for(10ms);
+  }
+  return false;
+}
+
+TEST(Supervisor, RestartDelayDoublesUpToTheMaximum) {
+  ld::RestartPolicy p{0.2, 1.0, 10};
+  EXPECT_DOUBLE_EQ(ld::restartDelay(p, 1), 0.2);
+  EXPECT_DOUBLE_EQ(ld::restartDelay(p, 2), 0.4);
+  EXPECT_DOUBLE_EQ(ld::restartDelay(p, 3), 0.8);
+  EXPECT_DOUBLE_EQ(ld::restartDelay(p, 4), 1.0);
+  EXPECT_DOUBLE_EQ(ld::restartDelay(p, 100), 1.0);
+}
+
+TEST(Supervisor, DescribesWaitStatus) {
+  EXPECT_EQ(ld::describeWaitStatus(3 << 8), "exit 3");
+  EXPECT_EQ(ld::describeWaitStatus(SIGKILL).rfind("signal 9", 0), 0u);
+}
+
+TEST(Supervisor, KilledWorkerComesBackOthersKeepTheirPid) {
+  Lines lines;
+  ld::Supervisor sup({0.1, 1.0, 10}, lines.sink());
+  const size_t a = sup.add({"a", {"sleep", "30"}, ld::ProcessRole::Worker});
+  const size_t b = sup.add({"b", {"sleep", "30"}, ld::ProcessRole::Worker});
+  ASSERT_TRUE(sup.start(a));
+  ASSERT_TRUE(sup.start(b));
+  const pid_t pa = sup.processes()[a].pid, pb = sup.processes()[b].pid;
+  ASSERT_EQ(::kill(pa, SIGKILL), 0);
+  ASSERT_TRUE(pollUntil(sup, [&] { return sup.processes()[a].pid > 0 && sup.processes()[a].pid != pa; }, 2000ms));
+  EXPECT_EQ(sup.processes()[b].pid, pb);
+  EXPECT_EQ(sup.processes()[a].starts, 2);
+  EXPECT_EQ(sup.restarts(), 1);
+  EXPECT_TRUE(lines.has("a", "died (signal 9"));
+  EXPECT_TRUE(sup.stopAll(2.0));
+  EXPECT_EQ(sup.processes()[a].pid, -1);
+  EXPECT_EQ(sup.processes()[b].pid, -1);
+  EXPECT_EQ(::kill(pb, 0), -1);
+}
+
+TEST(Supervisor, CrashLoopBacksOff) {
+  Lines lines;
+  ld::Supervisor sup({0.05, 0.4, 10}, lines.sink());
+  const size_t i = sup.add({"crash", {"false"}, ld::ProcessRole::Worker});
+  ASSERT_TRUE(sup.start(i));
+  pollUntil(sup, [] { return false; }, 1000ms);
+  // 0.05 + 0.1 + 0.2 + 0.4 + 0.4 ...: about 5 starts in a second, not dozens
+  EXPECT_GE(sup.processes()[i].starts, 3);
+  EXPECT_LE(sup.processes()[i].starts, 7);
+  EXPECT_TRUE(lines.has("crash", "died (exit 1)"));
+  sup.stopAll(1.0);
+}
+
+TEST(Supervisor, SourceThatFinishesIsDoneNotRestarted) {
+  Lines lines;
+  ld::Supervisor sup({0.05, 1, 10}, lines.sink());
+  const size_t i = sup.add({"replay", {"sh", "-c", "echo one; echo two >&2"}, ld::ProcessRole::Source});
+  ASSERT_TRUE(sup.start(i));
+  ASSERT_TRUE(pollUntil(sup, [&] { return sup.sourcesDone(); }, 2000ms));
+  pollUntil(sup, [] { return false; }, 200ms);
+  EXPECT_EQ(sup.processes()[i].starts, 1);
+  EXPECT_TRUE(lines.has("replay", "one"));
+  EXPECT_TRUE(lines.has("replay", "two"));
+  EXPECT_TRUE(lines.has("replay", "finished"));
+}
+
+TEST(Supervisor, MissingProgramIsReportedAndRetried) {
+  Lines lines;
+  ld::Supervisor sup({0.05, 0.1, 10}, lines.sink());
+  const size_t i = sup.add({"ghost", {"/nonexistent/ld-ghost"}, ld::ProcessRole::Worker});
+  EXPECT_FALSE(sup.start(i));
+  EXPECT_TRUE(lines.has("ghost", "cannot start /nonexistent/ld-ghost"));
+  pollUntil(sup, [] { return false; }, 300ms);
+  EXPECT_GE(sup.processes()[i].starts, 2);
+  EXPECT_TRUE(sup.stopAll(0.5));
+}
+
+TEST(Supervisor, StopsAProcessIgnoringSigtermWithSigkill) {
+  Lines lines;
+  ld::Supervisor sup({0.1, 1, 10}, lines.sink());
+  const size_t i = sup.add({"stubborn", {"sh", "-c", "trap '' TERM; echo up; while :; do sleep 0.05; done"},
+                            ld::ProcessRole::Worker});
+  ASSERT_TRUE(sup.start(i));
+  ASSERT_TRUE(pollUntil(sup, [&] { return lines.has("stubborn", "up"); }, 2000ms));
+  EXPECT_FALSE(sup.stopAll(0.3));
+  EXPECT_TRUE(lines.has("stubborn", "killed"));
+  EXPECT_EQ(sup.processes()[i].pid, -1);
+}
+
+TEST(Netns, LcmUdpPort) {
+  EXPECT_EQ(ld::lcmUdpPort("udpm://239.255.76.67:7667?ttl=0"), 7667);
+  EXPECT_EQ(ld::lcmUdpPort("udpm://239.255.76.67:7700"), 7700);
+  EXPECT_EQ(ld::lcmUdpPort("udpm://239.255.76.67"), 7667);
+  EXPECT_EQ(ld::lcmUdpPort("memq://"), -1);
+}
+
+ld::landmark_t trackedLandmark(int64_t id, bool visible, const std::string& payload = "") {
+  ld::landmark_t m{};
+  m.track_id = id;
+  m.visible = visible;
+  m.has_payload = !payload.empty();
+  m.payload = payload;
+  return m;
+}
+
+ld::landmark_list_t list(int64_t utime, int64_t seq, std::vector<ld::landmark_t> lms, int64_t skipped = 0) {
+  ld::landmark_list_t l{};
+  l.utime = utime;
+  l.seq = seq;
+  l.frames_skipped = skipped;
+  l.landmarks = std::move(lms);
+  l.nlandmarks = static_cast<int32_t>(l.landmarks.size());
+  return l;
+}
+
+TEST(BusMonitor, PeeksUtimeAndSeqOfAnEncodedImage) {
+  const ld::image_t img = ld::matToImage(cv::Mat(4, 6, CV_8UC3, cv::Scalar(1, 2, 3)),
+                                         ld::image_t::PIXEL_FORMAT_BGR, 123456789, 42);
+  std::vector<uint8_t> buf(static_cast<size_t>(img.getEncodedSize()));
+  img.encode(buf.data(), 0, static_cast<int>(buf.size()));
+  int64_t utime = 0, seq = 0;
+  ASSERT_TRUE(ld::peekImageKey(buf.data(), buf.size(), utime, seq));
+  EXPECT_EQ(utime, 123456789);
+  EXPECT_EQ(seq, 42);
+  EXPECT_FALSE(ld::peekImageKey(buf.data(), buf.size() - 1, utime, seq));  // truncated
+  buf[0] ^= 1;
+  EXPECT_FALSE(ld::peekImageKey(buf.data(), buf.size(), utime, seq));  // another type
+}
+
+TEST(BusMonitor, MatchesFramesByUtimeAndSeqAndSummarises) {
+  ld::BusMonitor m;
+  // three frames published 33 ms apart; tracked 2 ms, 3 ms and (frame 2) never
+  m.imageSeen(1000, 0, 1'000'000);
+  m.imageSeen(2000, 1, 1'033'000);
+  m.imageSeen(3000, 2, 1'066'000);
+  m.landmarksSeen(list(1000, 0, {}), 1'001'000);
+  m.trackedSeen(list(1000, 0, {trackedLandmark(7, true), trackedLandmark(8, true)}), 1'002'000);
+  m.trackedSeen(list(2000, 1, {trackedLandmark(7, true), trackedLandmark(8, false)}, 1), 1'036'000);
+  m.trackedSeen(list(9999, 5, {}), 1'040'000);  // an image never seen: no latency
+  ld::qr_code_list_t codes{};
+  ld::qr_code_t c{};
+  c.track_id = 7;
+  c.payload = "dock";
+  codes.codes = {c};
+  codes.ncodes = 1;
+  m.codesSeen(codes, 1'037'000);
+
+  const auto s = m.summary();
+  EXPECT_EQ(s["frames"]["images"], 3);
+  EXPECT_EQ(s["frames"]["tracked"], 3);
+  EXPECT_EQ(s["frames"]["matched"], 2);
+  EXPECT_EQ(s["frames"]["unmatched_images"], 1);
+  EXPECT_EQ(s["frames"]["tracker_skipped"], 1);
+  EXPECT_EQ(s["latency_ms"]["count"], 2);
+  EXPECT_DOUBLE_EQ(s["latency_ms"]["p50"].get<double>(), 2.0);
+  EXPECT_DOUBLE_EQ(s["latency_ms"]["max"].get<double>(), 3.0);
+  EXPECT_TRUE(s["per_frame"][2]["latency_ms"].is_null());
+  EXPECT_EQ(s["landmarks_per_frame"]["histogram"]["2"], 1);
+  EXPECT_EQ(s["landmarks_per_frame"]["histogram"]["1"], 1);
+  EXPECT_EQ(s["landmarks_per_frame"]["histogram"]["0"], 1);
+  ASSERT_EQ(s["tracks"].size(), 2u);
+  EXPECT_EQ(s["tracks"][0]["id"], 7);
+  EXPECT_EQ(s["tracks"][0]["payload"], "dock");
+  EXPECT_EQ(s["tracks"][0]["frames_visible"], 2);
+  EXPECT_TRUE(s["tracks"][1]["payload"].is_null());
+  EXPECT_EQ(s["tracks"][1]["frames_coasting"], 1);
+  EXPECT_EQ(s["payloads_decoded"], 1);
+}
+
+TEST(BusMonitor, SkipCountersSurviveAPublisherRestart) {
+  ld::BusMonitor m;
+  m.landmarksSeen(list(1, 1, {}, 5), 1);
+  m.landmarksSeen(list(2, 2, {}, 7), 2);
+  m.landmarksSeen(list(3, 3, {}, 1), 3);  // restarted: counts from 0 again
+  EXPECT_EQ(m.summary()["frames"]["detector_skipped"], 8);
+}
+
+TEST(BusMonitor, Percentiles) {
+  const auto p = ld::percentiles({5, 1, 4, 2, 3, 6, 7, 8, 9, 10});
+  EXPECT_EQ(p.count, 10u);
+  EXPECT_DOUBLE_EQ(p.p50, 5);
+  EXPECT_DOUBLE_EQ(p.p90, 9);
+  EXPECT_DOUBLE_EQ(p.p99, 10);
+  EXPECT_DOUBLE_EQ(p.mean, 5.5);
+  EXPECT_EQ(ld::percentiles({}).count, 0u);
+}
+
+TEST(RunConfig, ReadsJsonAndBuildsTheProcessTable) {
+  const auto cfg = ld::RunConfig::fromJson(nlohmann::json::parse(R"({
+    "lcm_url": "udpm://239.255.76.67:7667?ttl=0",
+    "source": {"type": "replay", "log": "x.lcmlog", "speed": 2},
+    "detector": {"args": ["--params", "d.yaml"]},
+    "qr_reader": {"enabled": false},
+    "record": {"file": "out.lcmlog"}
+  })"));
+  const auto specs = ld::buildProcessSpecs(cfg, cfg.lcm_url, "");
+  ASSERT_EQ(specs.size(), 4u);
+  EXPECT_EQ(specs[0].name, "recorder");
+  EXPECT_EQ(specs[0].role, ld::ProcessRole::Recorder);
+  EXPECT_EQ(specs[1].name, "detector");
+  EXPECT_EQ(specs[1].argv.back(), "d.yaml");
+  EXPECT_EQ(specs[2].name, "tracker");
+  EXPECT_EQ(specs[3].name, "replay");
+  EXPECT_EQ(specs[3].role, ld::ProcessRole::Source);
+  EXPECT_EQ(specs[3].argv.back(), "x.lcmlog");
+  EXPECT_NE(std::find(specs[3].argv.begin(), specs[3].argv.end(), "--regexp=^IMAGE$"), specs[3].argv.end());
+}
+
+TEST(RunConfig, RejectsUnknownKeysAndBadValues) {
+  EXPECT_THROW(ld::RunConfig::fromJson(nlohmann::json::parse(R"({"detectr": {}})")), std::runtime_error);
+  EXPECT_THROW(ld::RunConfig::fromJson(nlohmann::json::parse(R"({"source": {"type": "tape"}})")),
+               std::runtime_error);
+  EXPECT_THROW(ld::RunConfig::fromJson(nlohmann::json::parse(R"({"tracker": {"args": "x"}})")),
+               std::runtime_error);
+  EXPECT_THROW(ld::RunConfig::fromJson(nlohmann::json::parse(R"({"restart": {"initial_s": 0}})")),
+               std::runtime_error);
+  const auto cfg = ld::RunConfig::fromJson(nlohmann::json::parse(R"({"source": {"type": "replay"}})"));
+  EXPECT_THROW(ld::buildProcessSpecs(cfg, "udpm://", ""), std::runtime_error);  // no log
+}
+
+TEST(RunConfig, ExampleConfigLoads) {
+  const auto cfg = ld::RunConfig::load(std::string(LD_SOURCE_DIR) + "/tools/run/ld-run.example.json");
+  EXPECT_EQ(cfg.source, "camera");
+  EXPECT_FALSE(ld::buildProcessSpecs(cfg, "udpm://239.255.76.67:7667?ttl=0", "").empty());
+}
+
+}  // namespace
