@@ -4,43 +4,60 @@
 #  2. make a synthetic sequence with ld-synth (landmarks with QR payloads,
 #     a moving camera): PNG frames, ground truth and an LCM log of IMAGE;
 #  3. run ld-detect over the frames (overlays in out/demo/overlay);
-#  4. run ld-detector on the log replayed by lcm-logplayer, inside a private
-#     network namespace, record LANDMARKS with lcm-logger and summarise it.
+#  4. run the whole process set with ld-run in a private network namespace:
+#     lcm-logplayer replays the log to ld-detector (with the camera's
+#     calibration, so landmarks get a pose), ld-tracker and ld-qr-reader;
+#     ld-run records their outputs and prints a summary (frames, landmarks per
+#     frame, track ids with payloads, end-to-end latency percentiles);
+#  5. draw the tracked landmarks on the frames with ld-view (PNGs and a video).
 set -euo pipefail
 BUILD=${1:-build}
 BIN=$(cd "$BUILD/bin" && pwd)
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 OUT=${LD_DEMO_OUT:-$ROOT/out/demo}
 rm -rf "$OUT" && mkdir -p "$OUT"
+SIDE=0.3   # printed landmark side, metres: QR codes readable along the whole path at 640x480
 
 echo "== 1. printable landmarks"
 "$BIN/ld-generate" -p "room-214/door" -s 0.15 --dpi 300 --png "$OUT/landmark.png" --svg "$OUT/landmark.svg"
 "$BIN/ld-generate" --sheet -p dock -p lift -p room-101 -p room-102 -s 0.09 --svg "$OUT/sheet.svg" --png "$OUT/sheet.png" --dpi 150
 
 echo "== 2. synthetic sequence"
-"$BIN/ld-synth" sequence --out "$OUT/seq" --frames 120 --fps 30 --landmarks 3 --seed 7 \
+"$BIN/ld-synth" sequence --out "$OUT/seq" --frames 120 --fps 30 --landmarks 3 --seed 7 --size $SIDE \
   --format mjpeg --log "$OUT/demo.lcmlog"
 
 echo "== 3. ld-detect over the frames"
 "$BIN/ld-detect" "$OUT/seq" --draw "$OUT/overlay" -o "$OUT/detections.jsonl" --summary
 
-echo "== 4. ld-detector on the replayed log (private network namespace)"
-"$ROOT/scripts/netns-run.sh" bash -c '
-  set -euo pipefail
-  BIN=$1; OUT=$2
-  URL="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608"
-  lcm-logger --lcm-url="$URL" -c LANDMARKS -f "$OUT/landmarks.lcmlog" >/dev/null &
-  logger=$!
-  "$BIN/ld-detector" --lcm-url "$URL" &
-  det=$!
-  sleep 1
-  lcm-logplayer --lcm-url="$URL" "$OUT/demo.lcmlog"
-  sleep 1
-  kill -INT $det; wait $det || true
-  kill -INT $logger; wait $logger || true
-' demo "$BIN" "$OUT"
-"$BIN/ld-dump" "$OUT/landmarks.lcmlog" > "$OUT/landmarks.jsonl"
-msgs=$(grep -c '"type":"landmark_list_t"' "$OUT/landmarks.jsonl" || true)
-found=$(grep -c '"fip_tl"' "$OUT/landmarks.jsonl" || true)
-echo "ld-detector published $msgs LANDMARKS messages for 120 frames; $found with landmarks"
-echo "outputs in $OUT"
+echo "== 4. the process set on the replayed log (ld-run --netns)"
+# ld-synth's default camera (640x480, f = 600 px), as an OpenCV calibration file.
+cat > "$OUT/camera.yaml" <<'YAML'
+%YAML:1.0
+---
+image_width: 640
+image_height: 480
+camera_matrix: !!opencv-matrix
+   rows: 3
+   cols: 3
+   dt: d
+   data: [ 600., 0., 319.5, 0., 600., 239.5, 0., 0., 1. ]
+distortion_coefficients: !!opencv-matrix
+   rows: 1
+   cols: 5
+   dt: d
+   data: [ 0., 0., 0., 0., 0. ]
+YAML
+cat > "$OUT/run.json" <<JSON
+{
+  "source": {"type": "replay", "log": "$OUT/demo.lcmlog"},
+  "detector": {"args": ["--camera", "$OUT/camera.yaml", "--size", "$SIDE"]},
+  "record": {"file": "$OUT/run.lcmlog"}
+}
+JSON
+"$BIN/ld-run" --netns --config "$OUT/run.json" --exit-when-replay-done --summary "$OUT/summary.json" \
+  --log-dir "$OUT" --status-interval 1 --report
+
+echo "== 5. tracked landmarks drawn on the frames (ld-view)"
+"$BIN/ld-view" --log "$OUT/demo.lcmlog" --log "$OUT/run.lcmlog" --camera "$OUT/camera.yaml" \
+  --axis-length 0.15 --out "$OUT/view" --video "$OUT/view.avi" --fps 30
+echo "outputs in $OUT: summary.json, view/ (annotated PNGs), view.avi, overlay/ (ld-detect), run.lcmlog"
