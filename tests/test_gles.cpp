@@ -4,9 +4,17 @@
 // CPU when no EGL display can be made, and bad input.
 #include <gtest/gtest.h>
 
-#include <cstdlib>
-#include <random>
+#include <sys/wait.h>
+#include <unistd.h>
 
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "../detector/src/egl_context.hpp"
@@ -181,11 +189,18 @@ TEST(GlesParity, BlurredLabelMapsAgree) {
   }
 }
 
-// The paper front end's edge maps: at least 98 % of each map's edge pixels
-// have one of the other's within one pixel.
-TEST(GlesParity, EdgeMapsAgree) {
+// The paper front end's edge maps, on the fragment-shader path and on the
+// compute-shader path: at least 98 % of each map's edge pixels have one of
+// the other's within one pixel (in fact all but a few are the same pixels).
+class GlesEdges : public testing::TestWithParam<const char*> {};
+
+TEST_P(GlesEdges, EdgeMapsAgree) {
+  const bool compute = std::string(GetParam()) == "compute";
+  ScopedEnv env("LD_GLES_COMPUTE", compute ? "1" : "0");
   auto g = gles();
   ASSERT_TRUE(g);
+  std::printf("%s\n", g->info().c_str());
+  EXPECT_EQ(g->info().find("paper front end: compute shaders") != std::string::npos, compute) << g->info();
   auto c = ld::detail::makeCpuFilters();
   for (const ld::DetectorParams& p : {ld::DetectorParams::paper(), [] {
          ld::DetectorParams q = ld::DetectorParams::paper();
@@ -214,7 +229,10 @@ TEST(GlesParity, EdgeMapsAgree) {
   }
 }
 
-// Both front ends: the same landmarks, centres within 0.5 px.
+INSTANTIATE_TEST_SUITE_P(Paths, GlesEdges, testing::Values("fragment", "compute"));
+
+// Both front ends: the same landmarks, centres within 0.5 px (the paper
+// front end's first frames try both shader paths, then keep the faster).
 TEST(GlesParity, SameLandmarks) {
   const auto frames = scenes(8, 14);
   for (const char* fe : {"fast", "paper"}) {
@@ -233,7 +251,11 @@ TEST(GlesParity, SameLandmarks) {
       EXPECT_GT(b.stageMs("readback"), 0.0);
       EXPECT_EQ(a.stageMs("upload"), 0.0);
     }
-    std::printf("%s: %d landmarks in %zu frames, the same on both backends\n", fe, found, frames.size());
+    std::printf("%s: %d landmarks in %zu frames, the same on both backends; %s\n", fe, found, frames.size(),
+                gpu.backendInfo().c_str());
+    if (std::string(fe) == "paper") {  // the shader path is chosen by now
+      EXPECT_EQ(gpu.backendInfo().find("the faster on the first frames"), std::string::npos) << gpu.backendInfo();
+    }
     EXPECT_GE(found, static_cast<int>(frames.size()) / 2) << fe;
   }
 }
@@ -279,6 +301,76 @@ TEST(GlesFallback, AutoTakesTheGpu) {
   EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
   EXPECT_STREQ(d.backend(), "gles");
   EXPECT_EQ(d.backendInfo().rfind("gles: ", 0), 0u) << d.backendInfo();
+}
+
+// A GPU that fails mid-run (here: a frame beyond any GPU's texture size
+// limit) is dropped for the CPU with one warning; detection goes on.
+TEST(GlesFallback, FailureMidRunSwitchesToCpu) {
+  ld::detail::resetBackendWarning();
+  ld::DetectorParams p;
+  p.backend = "gles";
+  ld::Detector d(p);
+  const auto f = ld::synth::render(ld::synth::randomConditions(
+      kCam, {ld::synth::placeLandmark(kCam, 1.0, 15, 5, 30, 0.1, -0.1, 0.15)}, 17));
+  const size_t n = d.detect(f.bgr).landmarks.size();
+  ASSERT_GT(n, 0u);
+  ASSERT_STREQ(d.backend(), "gles");
+  testing::internal::CaptureStderr();
+  EXPECT_TRUE(d.detect(cv::Mat(3, 70000, CV_8UC3, cv::Scalar(200, 40, 30))).landmarks.empty());
+  EXPECT_EQ(d.detect(f.bgr).landmarks.size(), n);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_STREQ(d.backend(), "cpu");
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  EXPECT_NE(err.find("texture size limit"), std::string::npos) << err;
+  EXPECT_NE(d.backendInfo().find("texture size limit"), std::string::npos) << d.backendInfo();
+  ld::detail::resetBackendWarning();
+}
+
+namespace {
+
+// Runs a shell command; its exit status, and its stderr in `err`.
+int run(const std::string& cmd, std::string& err) {
+  const auto tmp = std::filesystem::temp_directory_path() / ("test_gles_err_" + std::to_string(getpid()));
+  const int rc = std::system((cmd + " 2> " + tmp.string()).c_str());
+  std::ifstream in(tmp);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  err = ss.str();
+  std::filesystem::remove(tmp);
+  return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+}  // namespace
+
+// ld-detect --backend: gles and cpu find the same landmark; without EGL,
+// auto warns once and goes on, gles stops with a clear error.
+TEST(GlesCli, DetectBackendOption) {
+  const auto dir = std::filesystem::temp_directory_path() / ("test_gles_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  const auto f = ld::synth::render(ld::synth::randomConditions(
+      kCam, {ld::synth::placeLandmark(kCam, 1.2, -20, 0, 120, 0, 0, 0.15)}, 18));
+  ASSERT_TRUE(cv::imwrite((dir / "frame.png").string(), f.bgr));
+  const std::string detect = std::string(LD_BIN_DIR) + "/ld-detect " + (dir / "frame.png").string();
+  std::string err;
+  std::string out[2];
+  for (int k = 0; k < 2; ++k) {
+    const auto json = dir / ("out" + std::to_string(k) + ".jsonl");
+    EXPECT_EQ(run(detect + " --backend " + (k ? "gles" : "cpu") + " -o " + json.string(), err), 0) << err;
+    std::ifstream in(json);
+    std::getline(in, out[k]);
+    // detect_ms aside, the same line
+    out[k] = out[k].substr(out[k].find("\"landmarks\""));
+  }
+  EXPECT_EQ(out[0], out[1]);
+  EXPECT_NE(out[0].find("fip_tl"), std::string::npos) << out[0];
+
+  EXPECT_EQ(run("LD_EGL_FORCE_FAIL=1 " + detect + " --backend auto -o /dev/null", err), 0) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  EXPECT_NE(err.find("warning: GLES backend unavailable"), std::string::npos) << err;
+  EXPECT_EQ(run("LD_EGL_FORCE_FAIL=1 " + detect + " --backend gles -o /dev/null", err), 2) << err;
+  EXPECT_NE(err.find("GLES backend unavailable"), std::string::npos) << err;
+  EXPECT_EQ(run(detect + " --backend metal -o /dev/null", err), 105) << err;  // CLI11's validation error
+  std::filesystem::remove_all(dir);
 }
 
 // Empty, tiny, gray, four-channel and 16-bit images, and frames changing size,

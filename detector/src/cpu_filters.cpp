@@ -21,6 +21,7 @@ FilterSettings FilterSettings::from(const DetectorParams& p) {
 void hysteresis(const cv::Mat& nms, cv::Mat& edges, std::vector<int>& stack) {
   CV_Assert(nms.type() == CV_8UC1);
   const int w = nms.cols, h = nms.rows;
+  if (edges.datastart == nms.datastart) edges.release();  // never written over its input
   edges.create(nms.size(), CV_8UC1);
   edges.setTo(0);
   stack.clear();

@@ -21,9 +21,10 @@
 //
 // Each stage ends in glFinish, so that its time is the GPU's and the stage
 // times ("upload", "blur", "saturation", "edges", "readback") add up.
-#include <GLES3/gl3.h>
+#include <GLES3/gl31.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -190,6 +191,133 @@ void main() {
 }
 )";
 
+// ---- OpenGL ES 3.1 compute path of the paper front end: two dispatches
+// where the fragment path needs four passes and three intermediate
+// textures; tiles of T x T pixels share their neighbourhoods in shared memory.
+const char* kComputeHeader = R"(#version 310 es
+precision highp float;
+precision highp int;
+precision highp sampler2D;
+precision highp usampler2D;
+precision highp uimage2D;
+)";
+
+// Blur (OpenCV's fixed point, as kBlur), saturation and threshold in one
+// dispatch: the tile and its halo loaded once, the horizontal sums kept in
+// shared memory, the vertical ones per pixel. RADIUS 0 with w[0] = 256: the
+// saturation alone.
+const char* kComputeBlurSat = R"(
+layout(local_size_x = T, local_size_y = T) in;
+uniform sampler2D src;
+layout(r32ui, binding = 0) writeonly uniform highp uimage2D sat_out;
+uniform ivec2 size;
+uniform int w[RADIUS + 1];
+uniform int thr;
+#define S (T + 2 * RADIUS)
+shared uint px[S * S];   // b | g << 8 | r << 16
+shared uvec2 hs[S * T];  // horizontal sums: b | g << 16, r
+int reflect101(int i, int n) {
+  i = i < 0 ? -i : i;
+  i = i >= n ? 2 * n - 2 - i : i;
+  return clamp(i, 0, n - 1);
+}
+void main() {
+  ivec2 o = ivec2(gl_WorkGroupID.xy) * T;
+  int lid = int(gl_LocalInvocationIndex);
+  for (int i = lid; i < S * S; i += T * T) {
+    ivec2 q = o - RADIUS + ivec2(i % S, i / S);
+    q = ivec2(reflect101(q.x, size.x), reflect101(q.y, size.y));
+    uvec3 c = uvec3(round(texelFetch(src, q, 0).rgb * 255.0));
+    px[i] = c.x | (c.y << 8) | (c.z << 16);
+  }
+  barrier();
+  for (int i = lid; i < S * T; i += T * T) {
+    int row = i / T, col = i % T;
+    uvec3 s = uvec3(0u);
+    for (int k = -RADIUS; k <= RADIUS; ++k) {
+      uint p = px[row * S + col + RADIUS + k];
+      s += uint(w[abs(k)]) * uvec3(p & 255u, (p >> 8) & 255u, p >> 16);
+    }
+    hs[i] = uvec2(s.x | (s.y << 16), s.z);
+  }
+  barrier();
+  ivec2 l = ivec2(gl_LocalInvocationID.xy);
+  ivec2 p = o + l;
+  if (p.x >= size.x || p.y >= size.y) return;
+  ivec3 v = ivec3(0);
+  for (int k = -RADIUS; k <= RADIUS; ++k) {
+    uvec2 h = hs[(l.y + RADIUS + k) * T + l.x];
+    v += w[abs(k)] * ivec3(int(h.x & 0xffffu), int(h.x >> 16), int(h.y));
+  }
+  v = (v + 32768) >> 16;
+  int mx = max(v.x, max(v.y, v.z)), mn = min(v.x, min(v.y, v.z));
+  int sat = mx > 0 ? (255 * (mx - mn) + mx / 2) / mx : 0;
+  imageStore(sat_out, p, uvec4(uint(sat > thr ? sat : 0)));
+}
+)";
+
+// Sobel, non-maximum suppression and double threshold in one dispatch (the
+// arithmetic of kSobel and kNms), four pixels a word into a storage buffer
+// laid out as the single-channel map read back.
+const char* kComputeEdges = R"(
+layout(local_size_x = T, local_size_y = T) in;
+uniform usampler2D sat;
+uniform ivec2 size;
+uniform int low, high, w4;
+layout(std430, binding = 0) writeonly buffer Out { uint packed_map[]; };
+#define A (T + 4)
+#define B (T + 2)
+shared int sv[A * A];    // saturation, replicated border
+shared uint g[B * B];    // magnitude | sector << 16; 0 outside the image
+shared uint cls[T * T];
+void main() {
+  ivec2 o = ivec2(gl_WorkGroupID.xy) * T;
+  int lid = int(gl_LocalInvocationIndex);
+  for (int i = lid; i < A * A; i += T * T) {
+    ivec2 q = clamp(o - 2 + ivec2(i % A, i / A), ivec2(0), size - 1);
+    sv[i] = int(texelFetch(sat, q, 0).r);
+  }
+  barrier();
+  for (int i = lid; i < B * B; i += T * T) {
+    ivec2 b = ivec2(i % B, i / B);
+    ivec2 q = o - 1 + b;
+    if (q.x < 0 || q.y < 0 || q.x >= size.x || q.y >= size.y) {
+      g[i] = 0u;
+      continue;
+    }
+    int c = (b.y + 1) * A + b.x + 1;
+    int dx = (sv[c - A + 1] + 2 * sv[c + 1] + sv[c + A + 1]) - (sv[c - A - 1] + 2 * sv[c - 1] + sv[c + A - 1]);
+    int dy = (sv[c + A - 1] + 2 * sv[c + A] + sv[c + A + 1]) - (sv[c - A - 1] + 2 * sv[c - A] + sv[c - A + 1]);
+    int ax = abs(dx), ay = abs(dy);
+    int t22 = ax * 13573, t67 = t22 + (ax << 16);
+    int sector = (ay << 15) < t22 ? 0 : (ay << 15) > t67 ? 1 : ((dx ^ dy) < 0 ? 3 : 2);
+    g[i] = uint(ax + ay) | (uint(sector) << 16);
+  }
+  barrier();
+  ivec2 l = ivec2(gl_LocalInvocationID.xy);
+  ivec2 p = o + l;
+  uint cl = 0u;
+  if (p.x < size.x && p.y < size.y) {
+    int c = (l.y + 1) * B + l.x + 1;
+    int m = int(g[c] & 0xffffu), sector = int(g[c] >> 16);
+    if (m > low) {
+      bool peak;
+      if (sector == 0) peak = m > int(g[c - 1] & 0xffffu) && m >= int(g[c + 1] & 0xffffu);
+      else if (sector == 1) peak = m > int(g[c - B] & 0xffffu) && m >= int(g[c + B] & 0xffffu);
+      else if (sector == 2) peak = m > int(g[c - B - 1] & 0xffffu) && m > int(g[c + B + 1] & 0xffffu);
+      else peak = m > int(g[c - B + 1] & 0xffffu) && m > int(g[c + B - 1] & 0xffffu);
+      cl = !peak ? 0u : m > high ? 2u : 1u;
+    }
+  }
+  cls[l.y * T + l.x] = cl;
+  barrier();
+  if ((l.x & 3) == 0 && p.x < size.x && p.y < size.y) {
+    int k = l.y * T + l.x;
+    packed_map[p.y * w4 + p.x / 4] = cls[k] | (cls[k + 1] << 8) | (cls[k + 2] << 16) | (cls[k + 3] << 24);
+  }
+}
+)";
+
 std::string glError(GLenum e) {
   switch (e) {
     case GL_INVALID_ENUM: return "GL_INVALID_ENUM";
@@ -248,9 +376,27 @@ GLuint link(const std::string& fragment) {
   return prog;
 }
 
+GLuint linkCompute(const std::string& src) {
+  const GLuint cs = compile(GL_COMPUTE_SHADER, src);
+  const GLuint prog = glCreateProgram();
+  glAttachShader(prog, cs);
+  glLinkProgram(prog);
+  glDeleteShader(cs);
+  GLint ok = 0;
+  glGetProgramiv(prog, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    char log[1024] = {0};
+    glGetProgramInfoLog(prog, sizeof log, nullptr, log);
+    glDeleteProgram(prog);
+    throw BackendFailure(std::string("GLES compute program does not link: ") + log);
+  }
+  return prog;
+}
+
 class GlesFilters final : public Filters {
  public:
-  explicit GlesFilters(std::unique_ptr<EglContext> ctx) : ctx_(std::move(ctx)) {
+  /// compute: 0 never, 1 always where OpenGL ES 3.1 has them, -1 where they are measured faster.
+  GlesFilters(std::unique_ptr<EglContext> ctx, int compute) : ctx_(std::move(ctx)) {
     glGenVertexArrays(1, &vao_);
     glGenFramebuffers(1, &fbo_);
     glGenBuffers(1, &pbo_up_);
@@ -260,6 +406,24 @@ class GlesFilters final : public Filters {
     nms_ = program("nms", std::string(kHeader) + kNms);
     sat0_ = program("sat0", std::string(kHeader) + "#define RADIUS 0\n#define VERTICAL\n#define OUT_SAT\n" + kBlur);
     check("setup");
+    // Compute shaders where OpenGL ES 3.1 has them (and they compile);
+    // otherwise the fragment path does everything.
+    const auto& i = ctx_->info();
+    if (compute != 0 && (i.major > 3 || (i.major == 3 && i.minor >= 1))) {
+      // 16 x 16 tiles where 256 invocations fit (ES 3.1 promises 128); the
+      // shared memory stays under the 16 KiB ES 3.1 promises up to a 31 tap blur.
+      GLint invocations = 0;
+      glGetIntegerv(GL_MAX_COMPUTE_WORK_GROUP_INVOCATIONS, &invocations);
+      tile_ = invocations >= 256 ? 16 : 8;
+      try {
+        edges_cs_ = computeProgram("edges", kComputeEdges, -1);
+        glGenBuffers(1, &ssbo_);
+        compute_ = glGetError() == GL_NO_ERROR;
+        if (compute_) path_ = compute > 0 ? Path::Compute : Path::Measure;
+      } catch (const BackendFailure& e) {
+        compute_note_ = e.what();
+      }
+    }
   }
 
   ~GlesFilters() override {
@@ -268,6 +432,7 @@ class GlesFilters final : public Filters {
     freeTextures();
     glDeleteBuffers(1, &pbo_up_);
     glDeleteBuffers(1, &pbo_down_);
+    if (ssbo_) glDeleteBuffers(1, &ssbo_);
     glDeleteFramebuffers(1, &fbo_);
     glDeleteVertexArrays(1, &vao_);
   }
@@ -276,7 +441,13 @@ class GlesFilters final : public Filters {
 
   std::string info() const override {
     const auto& i = ctx_->info();
-    return "gles: " + i.renderer + " (" + i.version + ") via EGL " + i.platform + ", fragment shaders";
+    std::string paper = path_ == Path::Compute    ? "compute shaders"
+                        : path_ == Path::Measure  ? "compute or fragment shaders, the faster on the first frames"
+                        : compute_               ? "fragment shaders (measured faster than compute here)"
+                                                 : "fragment shaders";
+    if (!compute_note_.empty()) paper += " (no compute: " + compute_note_ + ")";
+    return "gles: " + i.renderer + " (" + i.version + ") via EGL " + i.platform +
+           "; fast front end: fragment shaders; paper front end: " + paper;
   }
 
   void labelMap(const cv::Mat& bgr, const FilterSettings& s, cv::Mat& labels, const cv::Mat*& filtered,
@@ -314,8 +485,28 @@ class GlesFilters final : public Filters {
     begin(bgr);
     upload(bgr);
     timer.stamp("upload");
-    // blur, saturation and threshold (blur H, then V fused with the rest)
     const int thr = static_cast<int>(std::floor(s.saturation_threshold * 255.0));
+    if (path_ != Path::Measure) {
+      if (path_ == Path::Compute) edgeMapCompute(s, thr, edges, timer);
+      else edgeMapFragment(s, thr, edges, timer);
+      return;
+    }
+    // The first frames alternate between the paths (both give the same
+    // edges), the first of each a warm-up (shaders compile on first use);
+    // then the faster one stays.
+    const bool compute = trial_ % 2 == 0;
+    const auto t0 = StageTimer::Clock::now();
+    if (compute) edgeMapCompute(s, thr, edges, timer);
+    else edgeMapFragment(s, thr, edges, timer);
+    const double ms = std::chrono::duration<double, std::milli>(StageTimer::Clock::now() - t0).count();
+    if (trial_ >= 2) (compute ? compute_ms_ : fragment_ms_) += ms;
+    if (++trial_ == 6) path_ = compute_ms_ < fragment_ms_ ? Path::Compute : Path::Fragment;
+  }
+
+ private:
+  // The fragment path of edgeMap: blur H, blur V + saturation + threshold,
+  // Sobel, suppression + double threshold, read back through the pack buffer.
+  void edgeMapFragment(const FilterSettings& s, int thr, cv::Mat& edges, StageTimer& timer) {
     if (s.blur_kernel > 1) {
       blur(s, "sat", sat_tex_, thr);
       timer.stamp("blur");  // the fused pass's saturation is a few integer ops
@@ -342,7 +533,112 @@ class GlesFilters final : public Filters {
     timer.stamp("hysteresis");
   }
 
+ public:
+  // Small frames through the label pass and both edge paths, against the
+  // CPU: a driver that gets integer arithmetic, texel fetches or shared
+  // memory wrong is no backend (or, for compute shaders only, no compute).
+  bool selfTest(std::string& why) {
+    cv::Mat img(29, 37, CV_8UC3);
+    cv::RNG rng(7);
+    rng.fill(img, cv::RNG::UNIFORM, 0, 256);
+    cv::rectangle(img, {5, 5}, {15, 15}, {200, 40, 30}, cv::FILLED);   // blue
+    cv::rectangle(img, {20, 8}, {30, 20}, {30, 60, 200}, cv::FILLED);  // red
+    const FilterSettings s = FilterSettings::from(DetectorParams::paper());
+    auto cpu = makeCpuFilters();
+    std::vector<StageTime> st;
+    StageTimer timer(st);
+    cv::Mat want, got, edges;  // (got: a view of packed_ after labelMap)
+    const cv::Mat* filtered = nullptr;
+    FilterSettings no_blur = s;
+    no_blur.blur_kernel = 0;
+    cpu->labelMap(img, no_blur, want, filtered, timer);
+    labelMap(img, no_blur, got, filtered, timer);
+    if (cv::countNonZero(want != got) != 0) {
+      why = "GLES self-test: the GPU's label map differs from the CPU's";
+      return false;
+    }
+    cpu->edgeMap(img, s, want, timer);
+    const Path path = path_;
+    path_ = Path::Fragment;
+    edgeMap(img, s, edges, timer);
+    if (cv::countNonZero(want != edges) != 0) {
+      why = "GLES self-test: the GPU's edge map differs from the CPU's";
+      return false;
+    }
+    path_ = path;
+    if (compute_) {
+      const int thr = static_cast<int>(std::floor(s.saturation_threshold * 255.0));
+      edgeMapCompute(s, thr, edges, timer);
+      if (cv::countNonZero(want != edges) != 0) {
+        compute_ = false;
+        path_ = Path::Fragment;
+        compute_note_ = "the compute shaders' edge map differs from the CPU's";
+      }
+    }
+    return true;
+  }
+
  private:
+  // The compute path of edgeMap: blur + saturation, then Sobel + suppression
+  // + double threshold, straight into the storage buffer read back.
+  void edgeMapCompute(const FilterSettings& s, int thr, cv::Mat& edges, StageTimer& timer) {
+    const int radius = s.blur_kernel > 1 ? s.blur_kernel / 2 : 0;
+    if (radius > 0) setWeights(s);
+    const GLuint bs = computeProgram("blursat", kComputeBlurSat, radius);
+    const int no_blur = 256;  // both passes' weight: 256 * 256 >> 16 = 1
+    const GLuint groups_x = static_cast<GLuint>((w_ + tile_ - 1) / tile_),
+                 groups_y = static_cast<GLuint>((h_ + tile_ - 1) / tile_);
+    glUseProgram(bs);
+    bindTexture(0, src_tex_, "src", bs);
+    glUniform1iv(glGetUniformLocation(bs, "w"), radius + 1, radius > 0 ? weights_.data() : &no_blur);
+    glUniform2i(glGetUniformLocation(bs, "size"), w_, h_);
+    glUniform1i(glGetUniformLocation(bs, "thr"), thr);
+    glBindImageTexture(0, sat32_tex_, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_R32UI);
+    glDispatchCompute(groups_x, groups_y, 1);
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
+    finish(radius > 0 ? "blur" : "saturation");
+    if (radius > 0) timer.stamp("blur");  // the saturation is fused into it
+    timer.stamp("saturation");
+    glUseProgram(edges_cs_);
+    bindTexture(0, sat32_tex_, "sat", edges_cs_);
+    glUniform2i(glGetUniformLocation(edges_cs_, "size"), w_, h_);
+    glUniform1i(glGetUniformLocation(edges_cs_, "low"), static_cast<int>(std::floor(s.canny_low)));
+    glUniform1i(glGetUniformLocation(edges_cs_, "high"), static_cast<int>(std::floor(s.canny_high)));
+    glUniform1i(glGetUniformLocation(edges_cs_, "w4"), w4_);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, ssbo_);
+    glDispatchCompute(groups_x, groups_y, 1);
+    glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+    finish("edges");
+    timer.stamp("edges");
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, ssbo_);
+    const void* src = glMapBufferRange(GL_SHADER_STORAGE_BUFFER, 0, static_cast<GLsizeiptr>(packed_.total()),
+                                       GL_MAP_READ_BIT);
+    if (!src) {
+      glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+      check("read-back map");
+      throw BackendFailure("GLES: cannot map the storage buffer");
+    }
+    std::memcpy(packed_.data, src, packed_.total());
+    glUnmapBuffer(GL_SHADER_STORAGE_BUFFER);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+    check("read-back");
+    timer.stamp("readback");
+    hysteresis(packed_.colRange(0, w_), edges, stack_);
+    timer.stamp("hysteresis");
+  }
+
+  // A compute program for this tile size (and blur radius, >= 0), compiled once.
+  GLuint computeProgram(const std::string& key, const char* body, int radius) {
+    const std::string k = key + std::to_string(radius);
+    auto it = programs_.find(k);
+    if (it != programs_.end()) return it->second;
+    std::string src = std::string(kComputeHeader) + "#define T " + std::to_string(tile_) + "\n";
+    if (radius >= 0) src += "#define RADIUS " + std::to_string(radius) + "\n";
+    const GLuint p = linkCompute(src + body);
+    programs_[k] = p;
+    return p;
+  }
+
   static int q8(double t) { return std::clamp(static_cast<int>(std::lround(t * 256.0)), 0, 256); }
 
   GLuint program(const std::string& key, const std::string& fragment) {
@@ -370,7 +666,7 @@ class GlesFilters final : public Filters {
   }
 
   void freeTextures() {
-    for (GLuint* t : {&src_tex_, &tmp_tex_, &blurred_tex_, &sat_tex_, &grad_tex_, &packed_tex_})
+    for (GLuint* t : {&src_tex_, &tmp_tex_, &blurred_tex_, &sat_tex_, &grad_tex_, &packed_tex_, &sat32_tex_})
       if (*t) {
         glDeleteTextures(1, t);
         *t = 0;
@@ -392,6 +688,12 @@ class GlesFilters final : public Filters {
     grad_tex_ = texture(GL_R32UI, w, h);
     packed_tex_ = texture(GL_RGBA8, w4_, h);
     packed_.create(h, w4_ * 4, CV_8UC1);
+    if (compute_) {
+      sat32_tex_ = texture(GL_R32UI, w, h);
+      glBindBuffer(GL_SHADER_STORAGE_BUFFER, ssbo_);
+      glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(packed_.total()), nullptr, GL_STREAM_READ);
+      glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+    }
     glBindBuffer(GL_PIXEL_UNPACK_BUFFER, pbo_up_);
     glBufferData(GL_PIXEL_UNPACK_BUFFER, static_cast<GLsizeiptr>(w) * h * 3, nullptr, GL_STREAM_DRAW);
     glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
@@ -444,24 +746,28 @@ class GlesFilters final : public Filters {
     check(what);
   }
 
+  // OpenCV's Gaussian in 1/256: rounded, the centre taking the remainder.
+  void setWeights(const FilterSettings& s) {
+    if (kernel_size_ == s.blur_kernel && kernel_sigma_ == s.blur_sigma) return;
+    const int radius = s.blur_kernel / 2;
+    const cv::Mat k = cv::getGaussianKernel(s.blur_kernel, s.blur_sigma, CV_64F);
+    weights_.assign(static_cast<size_t>(radius) + 1, 0);
+    int sum = 0;
+    for (int i = 0; i < s.blur_kernel; ++i) {
+      const int wq = static_cast<int>(std::lround(k.at<double>(i) * 256.0));
+      sum += wq;
+      if (i >= radius) weights_[static_cast<size_t>(i - radius)] = wq;
+    }
+    weights_[0] += 256 - sum;
+    kernel_size_ = s.blur_kernel;
+    kernel_sigma_ = s.blur_sigma;
+  }
+
   // Separable Gaussian: H into tmp, V into `target` ("rgba": the blurred
   // image; "sat": its thresholded saturation).
   void blur(const FilterSettings& s, const char* out, GLuint target, int thr = 0) {
     const int radius = s.blur_kernel / 2;
-    if (kernel_size_ != s.blur_kernel || kernel_sigma_ != s.blur_sigma) {
-      // OpenCV's Gaussian in 1/256: rounded, the centre taking the remainder
-      const cv::Mat k = cv::getGaussianKernel(s.blur_kernel, s.blur_sigma, CV_64F);
-      weights_.assign(static_cast<size_t>(radius) + 1, 0);
-      int sum = 0;
-      for (int i = 0; i < s.blur_kernel; ++i) {
-        const int wq = static_cast<int>(std::lround(k.at<double>(i) * 256.0));
-        sum += wq;
-        if (i >= radius) weights_[static_cast<size_t>(i - radius)] = wq;
-      }
-      weights_[0] += 256 - sum;
-      kernel_size_ = s.blur_kernel;
-      kernel_sigma_ = s.blur_sigma;
-    }
+    setWeights(s);
     const bool rgba = std::strcmp(out, "rgba") == 0;
     if (blur_radius_ != radius) {  // programs for this radius (compiled once, not per frame)
       const std::string defs = std::string(kHeader) + "#define RADIUS " + std::to_string(radius) + "\n";
@@ -540,6 +846,15 @@ class GlesFilters final : public Filters {
   std::unique_ptr<EglContext> ctx_;
   GLuint vao_ = 0, fbo_ = 0, pbo_up_ = 0, pbo_down_ = 0;
   GLuint label_ = 0, sobel_ = 0, nms_ = 0, sat0_ = 0;
+  bool compute_ = false;     // compute shaders usable
+  // The paper front end's path: fragment or compute shaders, or measuring
+  // which is faster on the first frames.
+  enum class Path { Fragment, Compute, Measure } path_ = Path::Fragment;
+  int trial_ = 0;
+  double compute_ms_ = 0, fragment_ms_ = 0;
+  std::string compute_note_; // why not, when they exist but fail to compile
+  int tile_ = 16;            // compute tiles: tile_ x tile_ invocations
+  GLuint edges_cs_ = 0, ssbo_ = 0, sat32_tex_ = 0;
   int blur_radius_ = -1;
   GLuint blur_h_ = 0, blur_v_rgba_ = 0, blur_v_sat_ = 0;
   std::map<std::string, GLuint> programs_;
@@ -552,38 +867,18 @@ class GlesFilters final : public Filters {
   std::vector<int> stack_;
 };
 
-// A small frame through the label pass, against the CPU's: a driver that
-// gets integer arithmetic or texel fetches wrong is no backend.
-bool selfTest(Filters& gles, std::string& why) {
-  cv::Mat img(4, 13, CV_8UC3);
-  cv::RNG rng(7);
-  rng.fill(img, cv::RNG::UNIFORM, 0, 256);
-  img.at<cv::Vec3b>(0, 0) = {200, 40, 30};  // blue
-  img.at<cv::Vec3b>(0, 1) = {30, 60, 200};  // red
-  FilterSettings s;
-  cv::Mat cpu, gpu;
-  saturationMask(img, s.mask, cpu);
-  std::vector<StageTime> st;
-  StageTimer timer(st);
-  const cv::Mat* filtered = nullptr;
-  gles.labelMap(img, s, gpu, filtered, timer);
-  if (cv::countNonZero(cpu != gpu) != 0) {
-    why = "GLES self-test: the GPU's label map differs from the CPU's";
-    return false;
-  }
-  return true;
-}
-
 }  // namespace
 
 bool glesBuilt() { return true; }
 
-std::unique_ptr<Filters> makeGlesFilters(std::string& why, bool /*allow_compute*/) {
+std::unique_ptr<Filters> makeGlesFilters(std::string& why, bool allow_compute) {
   std::unique_ptr<EglContext> ctx = EglContext::create(why);
   if (!ctx) return nullptr;
   try {
-    auto f = std::make_unique<GlesFilters>(std::move(ctx));
-    if (!selfTest(*f, why)) return nullptr;
+    const char* env = std::getenv("LD_GLES_COMPUTE");
+    const int compute = !allow_compute ? 0 : env && std::strcmp(env, "0") == 0 ? 0 : env && std::strcmp(env, "1") == 0 ? 1 : -1;
+    auto f = std::make_unique<GlesFilters>(std::move(ctx), compute);
+    if (!f->selfTest(why)) return nullptr;
     return f;
   } catch (const std::exception& e) {
     why = e.what();
