@@ -373,6 +373,23 @@ TEST(GlesCli, DetectBackendOption) {
   std::filesystem::remove_all(dir);
 }
 
+// Two GLES detectors used in turn on one thread (each has its own context,
+// made current as needed) give what each gives alone.
+TEST(GlesInput, TwoDetectorsInTurn) {
+  ld::DetectorParams fast, paper = ld::DetectorParams::paper();
+  fast.backend = paper.backend = "gles";
+  ld::Detector a(fast), b(paper), cpu_a, cpu_b(ld::DetectorParams::paper());
+  for (const auto& f : scenes(3, 19)) {
+    const ld::Detection wa = cpu_a.detect(f.bgr), wb = cpu_b.detect(f.bgr);
+    const ld::Detection ga = a.detect(f.bgr);
+    const ld::Detection& gb = b.detect(f.bgr);
+    expectSameLandmarks(wa, ga, 1e-4, "fast");
+    expectSameLandmarks(wb, gb, 1e-4, "paper");
+  }
+  EXPECT_STREQ(a.backend(), "gles");
+  EXPECT_STREQ(b.backend(), "gles");
+}
+
 // Empty, tiny, gray, four-channel and 16-bit images, and frames changing size,
 // on both front ends: no crash, no landmarks where none can be.
 TEST(GlesInput, BadAndOddImages) {

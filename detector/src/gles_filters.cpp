@@ -584,7 +584,11 @@ class GlesFilters final : public Filters {
   void edgeMapCompute(const FilterSettings& s, int thr, cv::Mat& edges, StageTimer& timer) {
     const int radius = s.blur_kernel > 1 ? s.blur_kernel / 2 : 0;
     if (radius > 0) setWeights(s);
-    const GLuint bs = computeProgram("blursat", kComputeBlurSat, radius);
+    if (blur_sat_radius_ != radius) {  // compiled once per radius, not per frame
+      blur_sat_cs_ = computeProgram("blursat", kComputeBlurSat, radius);
+      blur_sat_radius_ = radius;
+    }
+    const GLuint bs = blur_sat_cs_;
     const int no_blur = 256;  // both passes' weight: 256 * 256 >> 16 = 1
     const GLuint groups_x = static_cast<GLuint>((w_ + tile_ - 1) / tile_),
                  groups_y = static_cast<GLuint>((h_ + tile_ - 1) / tile_);
@@ -855,6 +859,8 @@ class GlesFilters final : public Filters {
   std::string compute_note_; // why not, when they exist but fail to compile
   int tile_ = 16;            // compute tiles: tile_ x tile_ invocations
   GLuint edges_cs_ = 0, ssbo_ = 0, sat32_tex_ = 0;
+  GLuint blur_sat_cs_ = 0;
+  int blur_sat_radius_ = -1;
   int blur_radius_ = -1;
   GLuint blur_h_ = 0, blur_v_rgba_ = 0, blur_v_sat_ = 0;
   std::map<std::string, GLuint> programs_;

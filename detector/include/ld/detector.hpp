@@ -35,15 +35,19 @@
 // "edges", "contours", "colour", "geometry", "corners", "pose" (those that ran).
 //
 // Backends (DetectorParams::backend): stages 1-3, the per-pixel filters, run
-// on the CPU or on the GPU through OpenGL ES 3.0 shaders on a headless EGL
+// on the CPU or on the GPU through OpenGL ES shaders on a headless EGL
 // context ("gles"); stages 4-9 are the same code for both. The GLES backend
-// uploads each frame as a texture ("upload"), runs blur, the fast front
-// end's labelling or the paper's saturation, Sobel, non-maximum suppression
-// and double threshold as shaders, and reads back one byte per pixel
-// ("readback": the label image or the edge candidates); the paper front
-// end's hysteresis then runs on the CPU ("hysteresis"). The shaders do the
-// CPU's integer arithmetic (OpenCV's fixed-point blur included): both
-// backends give the same label images and edge maps.
+// uploads each frame as a texture through a pixel buffer ("upload"), runs
+// the fast front end's labelling (fragment shader), or the paper front
+// end's blur, saturation, Sobel, non-maximum suppression and double
+// threshold (OpenGL ES 3.1 compute shaders or 3.0 fragment shaders, the
+// faster of the two as measured on the first frames), and reads back one
+// byte per pixel ("readback": the label image, or the edge candidates whose
+// hysteresis then runs on the CPU: "hysteresis"). The shaders do the CPU's
+// integer arithmetic (OpenCV's fixed-point blur included): both backends
+// give the same label images, edge maps and landmarks. Each GPU stage ends
+// in glFinish, so stage times are the GPU's. A GLES Detector holds its own
+// EGL context; use it from one thread at a time.
 //
 // A Detector keeps its buffers between frames: once warmed up, detect() does
 // not allocate for frames of the same size (pose, through cv::solvePnP, does).
@@ -76,7 +80,9 @@ struct DetectorParams {
   /// process. A GPU that fails later, mid-run, is dropped for the CPU with
   /// one warning, whichever was asked for. The environment variable
   /// LD_EGL_FORCE_FAIL=1 makes every EGL context fail (fallback tests), and
-  /// LD_EGL_PLATFORM=device|surfaceless|gbm restricts the EGL platform tried.
+  /// LD_EGL_PLATFORM=device|surfaceless|gbm restricts the EGL platform
+  /// tried; LD_GLES_COMPUTE=0 or 1 keeps the paper front end off or on
+  /// compute shaders instead of measuring which is faster.
   std::string backend = "cpu";
 
   // 1. blur
