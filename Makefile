@@ -4,7 +4,7 @@ BUILD_DIR ?= build
 BUILD_TYPE ?= Release
 JOBS ?= $(shell nproc)
 
-.PHONY: all deps configure build test demo clean
+.PHONY: all deps configure build test demo clean asan-test fuzz
 
 all: build
 
@@ -20,6 +20,22 @@ build: configure
 # The whole test suite.
 test: build
 	ctest --test-dir $(BUILD_DIR) --output-on-failure -j $(JOBS) --timeout 600
+
+# The whole test suite built with AddressSanitizer and UndefinedBehaviorSanitizer
+# (gcc, RelWithDebInfo) in build-asan/; any finding fails its test.
+ASAN_DIR ?= build-asan
+asan-test: deps
+	cmake -S . -B $(ASAN_DIR) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLD_SANITIZE=ON
+	cmake --build $(ASAN_DIR) -j $(JOBS)
+	ASAN_OPTIONS=detect_leaks=1:detect_stack_use_after_return=1 \
+	UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+	LSAN_OPTIONS=suppressions=$(CURDIR)/tests/sanitizer/lsan.supp \
+	ctest --test-dir $(ASAN_DIR) --output-on-failure -j $(JOBS) --timeout 1200
+
+# Long fuzzing runs: FUZZ_TIME seconds per target (see scripts/fuzz.sh).
+FUZZ_TIME ?= 600
+fuzz: deps
+	bash scripts/fuzz.sh all build-fuzz $(FUZZ_TIME)
 
 # The main job on the embedded default (no camera needed).
 demo: build

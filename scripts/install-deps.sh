@@ -16,6 +16,7 @@ PACKAGES=(
   libqrencode-dev nlohmann-json3-dev libcli11-dev
   libapriltag-dev
   iproute2 jq
+  clang libclang-rt-14-dev   # libFuzzer targets (tests/fuzz)
 )
 
 missing=()

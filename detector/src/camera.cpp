@@ -1,8 +1,36 @@
 #include "ld/camera.hpp"
 
+#include <cstdint>
 #include <stdexcept>
 
+#include "ld/config_file.hpp"
+
 namespace ld {
+namespace {
+
+// Reads a matrix of at most max_elements values. OpenCV allocates the
+// declared rows x cols before it reads the data, so the declared size is
+// checked first: a file saying cols: 2147483647 would otherwise ask for tens
+// of gigabytes (found by tests/fuzz/fuzz_camera).
+cv::Mat readMatrix(const cv::FileNode& node, int max_elements, const std::string& path,
+                   const char* name) {
+  if (node.empty()) return {};
+  if (node.isMap()) {
+    const cv::FileNode rows = node["rows"], cols = node["cols"];
+    if (!rows.isInt() || !cols.isInt())
+      throw std::runtime_error("camera file " + path + ": " + name + " has no integer rows and cols");
+    const int r = static_cast<int>(rows), c = static_cast<int>(cols);
+    if (r < 0 || c < 0 || static_cast<int64_t>(r) * c > max_elements)
+      throw std::runtime_error("camera file " + path + ": " + name + " is " + std::to_string(r) +
+                               "x" + std::to_string(c) + ", more than " +
+                               std::to_string(max_elements) + " values");
+  }
+  cv::Mat m;
+  node >> m;
+  return m;
+}
+
+}  // namespace
 
 CameraModel CameraModel::defaultVga() { return pinhole({640, 480}, 600.0); }
 
@@ -15,25 +43,31 @@ CameraModel CameraModel::pinhole(cv::Size size, double focal_px) {
 }
 
 CameraModel CameraModel::load(const std::string& path) {
+  if (const auto why = notATextFile(path)) throw std::runtime_error("camera file " + path + ": " + *why);
   cv::FileStorage fs;
   try {
     if (!fs.open(path, cv::FileStorage::READ))
       throw std::runtime_error("camera file " + path + ": cannot open or parse");
   } catch (const cv::Exception& e) {
     throw std::runtime_error("camera file " + path + ": cannot parse (" + e.err + ")");
+  } catch (const std::runtime_error&) {
+    throw;
+  } catch (const std::exception& e) {  // OpenCV's parser lets std::length_error and others out
+    throw std::runtime_error("camera file " + path + ": cannot parse (" + e.what() + ")");
   }
   CameraModel c;
   try {
-    cv::Mat K;
-    fs["camera_matrix"] >> K;
+    cv::Mat K = readMatrix(fs["camera_matrix"], 9, path, "camera_matrix");
     if (K.empty()) throw std::runtime_error("camera file " + path + ": no camera_matrix");
     if (K.rows != 3 || K.cols != 3)
       throw std::runtime_error("camera file " + path + ": camera_matrix is not 3x3");
     K.convertTo(K, CV_64F);
     c.K = cv::Matx33d(K);
+    if (!cv::checkRange(K))
+      throw std::runtime_error("camera file " + path + ": camera_matrix has a value that is not finite");
     if (!(c.K(0, 0) > 0) || !(c.K(1, 1) > 0))
       throw std::runtime_error("camera file " + path + ": focal lengths must be positive");
-    fs["distortion_coefficients"] >> c.dist;
+    c.dist = readMatrix(fs["distortion_coefficients"], 14, path, "distortion_coefficients");
     if (!c.dist.empty()) {
       c.dist.convertTo(c.dist, CV_64F);
       c.dist = c.dist.reshape(1, 1);
@@ -41,6 +75,9 @@ CameraModel CameraModel::load(const std::string& path) {
       if (n != 4 && n != 5 && n != 8 && n != 12 && n != 14)
         throw std::runtime_error("camera file " + path +
                                  ": distortion_coefficients must have 4, 5, 8, 12 or 14 values");
+      if (!cv::checkRange(c.dist))
+        throw std::runtime_error("camera file " + path +
+                                 ": distortion_coefficients has a value that is not finite");
     }
     int w = 0, h = 0;
     if (!fs["image_width"].empty()) fs["image_width"] >> w;
@@ -48,8 +85,21 @@ CameraModel CameraModel::load(const std::string& path) {
     if (w <= 0 || h <= 0)
       throw std::runtime_error("camera file " + path + ": image_width/image_height missing");
     c.size = {w, h};
+    // a camera matrix: [fx s cx; 0 fy cy; 0 0 1], its principal point in the image
+    if (c.K(1, 0) != 0 || c.K(2, 0) != 0 || c.K(2, 1) != 0 || c.K(2, 2) != 1)
+      throw std::runtime_error("camera file " + path +
+                               ": camera_matrix is not of the form [fx s cx; 0 fy cy; 0 0 1]");
+    if (!(c.K(0, 2) >= -1 && c.K(0, 2) <= w) || !(c.K(1, 2) >= -1 && c.K(1, 2) <= h))
+      throw std::runtime_error("camera file " + path + ": principal point (" +
+                               std::to_string(c.K(0, 2)) + ", " + std::to_string(c.K(1, 2)) +
+                               ") is outside the " + std::to_string(w) + "x" + std::to_string(h) +
+                               " image");
   } catch (const cv::Exception& e) {
     throw std::runtime_error("camera file " + path + ": malformed (" + e.err + ")");
+  } catch (const std::runtime_error&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw std::runtime_error("camera file " + path + ": malformed (" + e.what() + ")");
   }
   return c;
 }

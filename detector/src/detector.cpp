@@ -16,6 +16,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "filters.hpp"
+#include "ld/config_file.hpp"
 #include "stages.hpp"
 
 namespace ld {
@@ -99,6 +100,7 @@ DetectorParams DetectorParams::paper() {
 }
 
 DetectorParams DetectorParams::load(const std::string& path) {
+  if (const auto why = notATextFile(path)) badFile(path, *why);
   cv::FileStorage fs;
   try {
     if (!fs.open(path, cv::FileStorage::READ)) badFile(path, "cannot open or parse");
@@ -510,6 +512,12 @@ void Detector::Impl::run(const cv::Mat& input) {
     lm.ap = corrected[3];
     for (int i = 0; i < 4; ++i) lm.corners[i] = corners[i];
     lm.score = c.score;
+    // a distortion model that does not invert there (found by
+    // tests/fuzz/fuzz_camera) gives no landmark rather than NaN positions
+    const auto finite = [](const cv::Point2f& q) { return std::isfinite(q.x) && std::isfinite(q.y); };
+    if (!finite(lm.fip_tl) || !finite(lm.fip_tr) || !finite(lm.fip_bl) || !finite(lm.ap) ||
+        !std::all_of(lm.corners.begin(), lm.corners.end(), finite))
+      continue;
     det.landmarks.push_back(lm);
   }
   timer.stamp("corners");

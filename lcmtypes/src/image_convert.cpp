@@ -62,10 +62,53 @@ cv::Mat rawView(const image_t& msg, const FormatInfo& f) {
                  static_cast<size_t>(stride));
 }
 
+// Largest MJPEG frame decoded (8K UHD fits): the decoder allocates the whole
+// image before it finds out that the data is missing, so a few hundred bytes
+// claiming 30000x30000 would otherwise cost gigabytes.
+constexpr int64_t kMaxMjpegPixels = int64_t{1} << 25;
+
+// The frame size in a JPEG stream's SOFn header, read without decoding; an
+// empty size when the stream has no such header before its scan data.
+cv::Size jpegFrameSize(const uint8_t* p, size_t n) {
+  if (n < 4 || p[0] != 0xFF || p[1] != 0xD8) return {};  // SOI
+  size_t i = 2;
+  while (i + 4 <= n) {
+    if (p[i] != 0xFF) return {};
+    const uint8_t m = p[i + 1];
+    if (m == 0xFF) {  // fill byte
+      ++i;
+      continue;
+    }
+    if (m == 0x01 || (m >= 0xD0 && m <= 0xD8)) {  // markers without a length
+      i += 2;
+      continue;
+    }
+    if (m == 0xD9 || m == 0xDA) return {};  // EOI or SOS before any frame header
+    const size_t len = (static_cast<size_t>(p[i + 2]) << 8) | p[i + 3];
+    if (len < 2) return {};
+    if (m >= 0xC0 && m <= 0xCF && m != 0xC4 && m != 0xC8 && m != 0xCC) {  // SOF0..SOF15
+      if (len < 7 || i + 9 > n) return {};
+      return {(p[i + 7] << 8) | p[i + 8], (p[i + 5] << 8) | p[i + 6]};
+    }
+    i += 2 + len;
+  }
+  return {};
+}
+
 void decodeMjpeg(const image_t& msg, cv::Mat& out, int flags) {
   if (static_cast<size_t>(msg.size) != msg.data.size() || msg.size <= 0)
     fail("MJPEG size field " + std::to_string(msg.size) + " does not match " +
          std::to_string(msg.data.size()) + " data bytes");
+  const cv::Size frame = jpegFrameSize(msg.data.data(), msg.data.size());
+  if (frame.width <= 0 || frame.height <= 0)
+    fail("MJPEG data is not a JPEG stream with a frame size");
+  if (msg.width > 0 && msg.height > 0 && (frame.width != msg.width || frame.height != msg.height))
+    fail("MJPEG data is " + std::to_string(frame.width) + "x" + std::to_string(frame.height) +
+         " but the message says " + std::to_string(msg.width) + "x" +
+         std::to_string(msg.height));
+  if (static_cast<int64_t>(frame.width) * frame.height > kMaxMjpegPixels)
+    fail("MJPEG frame " + std::to_string(frame.width) + "x" + std::to_string(frame.height) +
+         " is larger than " + std::to_string(kMaxMjpegPixels) + " pixels");
   const cv::Mat buf(1, msg.size, CV_8UC1, const_cast<uint8_t*>(msg.data.data()));
   cv::Mat decoded;
   try {

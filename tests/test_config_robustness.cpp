@@ -1,0 +1,110 @@
+// The configuration readers on the malformed files tests/fuzz found (kept as
+// corpus entries regress-*): each is refused with one line naming the file
+// and the problem, and a camera that loads never makes the detector report
+// a non-finite position.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+
+#include "ld/camera.hpp"
+#include "ld/detector.hpp"
+#include "ld/synth.hpp"
+#include "ld/tracker.hpp"
+
+namespace {
+
+const std::string kCorpus = std::string(LD_SOURCE_DIR) + "/tests/fuzz/corpus/";
+
+std::string loadError(const std::string& file) {
+  try {
+    ld::CameraModel::load(kCorpus + "fuzz_camera/" + file);
+  } catch (const std::runtime_error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+std::string writeTemp(const std::string& name, const std::string& text) {
+  const std::string path = ::testing::TempDir() + name;
+  std::ofstream(path, std::ios::binary) << text;
+  return path;
+}
+
+TEST(CameraFile, MalformedFilesFoundByFuzzingAreRefusedWithAReason) {
+  EXPECT_EQ(loadError("vga.yml"), "");
+  EXPECT_EQ(loadError("wide8.xml"), "");
+  // cols: a huge number (as libFuzzer mutated it, not even an integer);
+  // OpenCV allocated rows x cols before reading
+  EXPECT_NE(loadError("regress-huge-cols.xml").find("camera_matrix has no integer rows and cols"),
+            std::string::npos);
+  // no "dt": OpenCV's reader threw std::length_error, not cv::Exception
+  EXPECT_NE(loadError("regress-no-dt.yml").find("camera file "), std::string::npos);
+  // a NUL byte in an XML attribute: OpenCV 4.6's parser dereferenced a null pointer
+  EXPECT_NE(loadError("regress-nul-in-xml-attribute.xml").find("NUL byte"), std::string::npos);
+  // cx = 6.4e8
+  EXPECT_NE(loadError("regress-far-principal-point.yml").find("principal point"), std::string::npos);
+}
+
+TEST(CameraFile, NonFiniteAndNonCameraMatricesAreRefused) {
+  const std::string head = "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n"
+                           "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n";
+  auto load = [&](const std::string& data) {
+    try {
+      ld::CameraModel::load(writeTemp("cam.yml", head + "   data: [ " + data + " ]\n"));
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_EQ(load("600., 0., 319.5, 0., 600., 239.5, 0., 0., 1."), "");
+  EXPECT_NE(load("600., 0., .Inf, 0., 600., 239.5, 0., 0., 1.").find("not finite"), std::string::npos);
+  EXPECT_NE(load("600., 0., 319.5, 0., 600., 239.5, 0., 1., 1.").find("of the form"), std::string::npos);
+  std::string huge = head;
+  huge.replace(huge.find("cols: 3"), 7, "cols: 2147483647");
+  try {
+    ld::CameraModel::load(writeTemp("cam.yml", huge + "   data: [ 1. ]\n"));
+    FAIL() << "loaded";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("3x2147483647, more than 9 values"), std::string::npos)
+        << e.what();
+  }
+}
+
+// p2 = 20 (tangential distortion): the distortion model does not invert
+// over the frame; the detector used to report NaN corners.
+TEST(CameraFile, DivergingDistortionGivesNoNonFiniteLandmark) {
+  const ld::CameraModel cam = ld::CameraModel::load(kCorpus + "fuzz_camera/regress-tangential-20.yml");
+  ld::synth::SceneSpec spec;
+  spec.camera = ld::CameraModel::pinhole({160, 120}, 150.0);
+  spec.background = ld::synth::Background::Plain;
+  spec.distractors = 0;
+  spec.landmarks.push_back(ld::synth::placeLandmark(spec.camera, 0.6, 10, 0, 5));
+  const cv::Mat frame = ld::synth::render(spec).bgr;
+  ld::Detector plain;
+  ASSERT_EQ(plain.detect(frame).landmarks.size(), 1u);  // the frame has a landmark
+  ld::Detector detector;
+  detector.setCamera(cam, 0.15);
+  for (const auto& lm : detector.detect(frame).landmarks)
+    for (const auto& c : lm.corners) EXPECT_TRUE(std::isfinite(c.x) && std::isfinite(c.y));
+}
+
+TEST(ParamsFile, BinaryFilesAreRefusedBeforeOpenCvParsesThem) {
+  const std::string path = writeTemp("p.yml", std::string("%YAML:1.0\nmax_distance: 3\0\n", 28));
+  try {
+    ld::TrackerParams::load(path);
+    FAIL() << "loaded";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("NUL byte at offset 25"), std::string::npos) << e.what();
+  }
+  try {
+    ld::DetectorParams::load(path);
+    FAIL() << "loaded";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("detector params " + path + ": contains a NUL byte"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+}  // namespace
