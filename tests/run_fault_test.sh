@@ -63,7 +63,9 @@ rc=0; wait "$RUN" || rc=$?
 RUN=
 echo "ld-run exit status after SIGTERM: $rc"
 [ "$rc" -eq 0 ]
-for p in $pids; do ! kill -0 "$p" 2>/dev/null; done   # every process gone
+for p in $pids; do
+  if kill -0 "$p" 2>/dev/null; then echo "pid $p still running"; exit 1; fi   # every process gone
+done
 [ "$(jq -r .end "$T/summary.json")" = "stopped by SIGTERM" ]
 [ "$(jq '[.processes[] | select(.name == "detector" or .name == "tracker" or .name == "qr-reader") | .restarts] | add' "$T/summary.json")" -eq 3 ]
 [ "$(jq '[.processes[] | select(.name == "play") | .restarts] | add' "$T/summary.json")" -eq 0 ]
