@@ -216,7 +216,7 @@ int main(int argc, char** argv) {
         std::map<std::string, std::vector<double>> per;
         std::vector<double> tot, at, ar;
         // warm-up (the GLES backend's first frames also choose its shader path)
-        for (int k = &s == &scenes.front() ? 8 : 1; k > 0; --k) detector.detect(s.ours.bgr);
+        for (int k = &s == &scenes.front() ? 12 : 1; k > 0; --k) detector.detect(s.ours.bgr);
         for (int r = 0; r < repeats; ++r) {
           const auto t0 = Clock::now();
           const ld::Detection& det = detector.detect(s.ours.bgr);
