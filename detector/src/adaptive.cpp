@@ -42,7 +42,7 @@ const cv::Mat& LightingAdapter::correct(const cv::Mat& bgr) {
         ++hist_[std::min({row[x][0], row[x][1], row[x][2]})];
     }
     const int want = std::max(1, static_cast<int>(params_.bright_fraction * n));
-    int level = 255, count = 0;
+    int level = 249, count = 0;  // white clipped in every channel tells nothing
     for (; level > 0 && count + hist_[level] < want; --level) count += hist_[level];
     cv::Vec3d sum(0, 0, 0);
     int m = 0;
@@ -50,7 +50,7 @@ const cv::Mat& LightingAdapter::correct(const cv::Mat& bgr) {
       const auto* row = bgr.ptr<cv::Vec3b>(y);
       for (int x = 0; x < bgr.cols; x += kStep) {
         const int v = std::min({row[x][0], row[x][1], row[x][2]});
-        if (v >= level && std::max({row[x][0], row[x][1], row[x][2]}) < 250) sum += cv::Vec3d(row[x][0], row[x][1], row[x][2]), ++m;
+        if (v >= level && v < 250) sum += cv::Vec3d(row[x][0], row[x][1], row[x][2]), ++m;
       }
     }
     if (m > 0) update(sum / m);
@@ -71,6 +71,10 @@ const cv::Mat& LightingAdapter::correct(const cv::Mat& bgr) {
     return bgr;
   }
   cv::multiply(bgr, cv::Scalar(gains_[0], gains_[1], gains_[2]), corrected_);
+  // A strong correction amplifies the weak channel's noise and JPEG blocks
+  // (under tungsten: blue) into speckled squares: smooth them back.
+  if (params_.denoise_sigma > 0 && std::max({gains_[0], gains_[1], gains_[2]}) > params_.denoise_above_gain)
+    cv::GaussianBlur(corrected_, corrected_, {0, 0}, params_.denoise_sigma);
   return corrected_;
 }
 

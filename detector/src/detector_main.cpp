@@ -9,6 +9,7 @@
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
 
+#include "ld/adaptive.hpp"
 #include "ld/detector.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/landmark_msg.hpp"
@@ -54,10 +55,15 @@ int main(int argc, char** argv) {
                  "can be made); auto (the GPU when it can, else the CPU with one warning). "
                  "Default: the params file's, else cpu")
       ->check(CLI::IsMember({"cpu", "gles", "auto"}));
+  bool adaptive = false;
+  app.add_flag("--adaptive", adaptive,
+               "adapt to the light's colour and level (white balance from confirmed landmarks' sheets or "
+               "the frame's whitest pixels) before detecting");
   app.add_flag("-v,--verbose", verbose, "print a status line every 5 s");
   CLI11_PARSE(app, argc, argv);
 
   ld::Detector detector;
+  ld::LightingAdapter adapter;  // with --adaptive: frames are corrected before detection
   try {
     ld::DetectorParams params;
     if (!params_file.empty()) params = ld::DetectorParams::load(params_file);
@@ -103,7 +109,8 @@ int main(int argc, char** argv) {
         if (!ld::decodeMessage(latest.bytes_.data(), latest.bytes_.size(), image, &why))
           throw ld::ImageFormatError("message on " + in_channel + " is " + why);
         ld::imageToBgr(image, bgr);
-        const ld::Detection& det = detector.detect(bgr);
+        const ld::Detection& det = detector.detect(adaptive ? adapter.correct(bgr) : bgr);
+        if (adaptive) adapter.observe(bgr, det);
         ld::toListMessage(det, image.utime, ld::imageSeq(image).value_or(-1), bgr.cols, bgr.rows,
                           detector.backend(), latest.skipped_, out);
         lcm.publish(out_channel, &out);

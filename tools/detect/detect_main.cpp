@@ -9,6 +9,7 @@
 #include <CLI/CLI.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "ld/adaptive.hpp"
 #include "ld/detector.hpp"
 #include "ld/landmark_json.hpp"
 #include "ld/qr_reader.hpp"
@@ -62,11 +63,16 @@ int main(int argc, char** argv) {
                  "can be made); auto (the GPU when it can, else the CPU with one warning). "
                  "Default: the params file's, else cpu")
       ->check(CLI::IsMember({"cpu", "gles", "auto"}));
+  bool adaptive = false;
+  app.add_flag("--adaptive", adaptive,
+               "adapt to the light's colour and level (white balance from confirmed landmarks' sheets or "
+               "the frame's whitest pixels) before detecting");
   app.add_flag("--decode", decode, "read each landmark's QR payload too (zbar)");
   app.add_flag("--summary", summary, "print a summary (frames, landmarks, detect_ms) on stderr");
   CLI11_PARSE(app, argc, argv);
 
   ld::Detector detector;
+  ld::LightingAdapter adapter;  // with --adaptive: frames are corrected before detection
   try {
     ld::DetectorParams params;
     if (!params_file.empty()) params = ld::DetectorParams::load(params_file);
@@ -119,7 +125,8 @@ int main(int argc, char** argv) {
       continue;
     }
     const auto t0 = std::chrono::steady_clock::now();
-    const ld::Detection& det = detector.detect(img);
+    const ld::Detection& det = detector.detect(adaptive ? adapter.correct(img) : img);
+    if (adaptive) adapter.observe(img, det);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     found.assign(det.landmarks.begin(), det.landmarks.end());
     if (decode)

@@ -11,7 +11,8 @@
 //  - otherwise from the frame itself: the mean of its brightest unclipped
 //    pixels (walls, paper and ceilings are the usual near-white surfaces).
 // Estimates are smoothed over frames; gains are bounded so that noise in the
-// dark is not amplified without limit.
+// dark is not amplified without limit, and a strongly corrected frame is
+// smoothed a little against the amplified noise.
 #pragma once
 
 #include <opencv2/core.hpp>
@@ -34,6 +35,11 @@ struct AdaptiveParams {
   /// No correction while the estimated white is within this relative
   /// deviation from the target on every channel (saves the pass in good light).
   double deadband = 0.08;
+  /// Gaussian smoothing (sigma, px) of the corrected frame when a channel's
+  /// gain exceeds denoise_above_gain: strong gains turn the weak channel's
+  /// noise and JPEG blocks into speckle that breaks the squares up.
+  double denoise_sigma = 1.2;
+  double denoise_above_gain = 1.3;
 };
 
 class LightingAdapter {
