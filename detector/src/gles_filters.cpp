@@ -1,8 +1,10 @@
 // The GLES backend's filters (filters.hpp): OpenGL ES 3.0 fragment shaders on
 // a headless EGL context (egl_context.hpp).
 //
-// A frame goes up once, as an RGB8 texture filled from a pixel unpack buffer
-// (the BGR bytes as they are: the shaders read .r as blue). Then, per front end:
+// A frame goes up once, through a pixel unpack buffer, as its BGR bytes just
+// as they are, four to an RGBA8UI texel (kRaw: no format conversion in the
+// driver, and a label pass that reads four pixels from three texels). Then,
+// per front end:
 //   fast:  [blur H -> blur V ->] label pass: kNone/kBlue/kRed per pixel, four
 //          pixels per RGBA8 texel, read back through a pixel pack buffer as
 //          the single-channel label image (one byte a pixel) the CPU's region
@@ -53,15 +55,34 @@ precision highp sampler2D;
 precision highp usampler2D;
 )";
 
-// Labels of four pixels per texel, the arithmetic of saturationMask.
+// The frame as uploaded: its BGR bytes as they are, four to an RGBA8UI
+// texel (no format conversion on the way up, where drivers convert RGB8 on
+// the CPU), rows padded to whole groups of four pixels (three texels).
+const char* kRaw = R"(
+uniform usampler2D raw;
+uvec3 pixel(ivec2 p) {
+  int b = 3 * p.x, t = b >> 2, o = b & 3;
+  uvec4 a = texelFetch(raw, ivec2(t, p.y), 0);
+  if (o == 0) return a.xyz;
+  if (o == 1) return a.yzw;
+  uvec4 c = texelFetch(raw, ivec2(t + 1, p.y), 0);
+  return o == 2 ? uvec3(a.zw, c.x) : uvec3(a.w, c.xy);
+}
+)";
+
+// Labels of four pixels per texel, the arithmetic of saturationMask; the
+// four pixels are three texels of the raw frame (or, BLURRED, four of the
+// blurred RGBA8 image).
 const char* kLabel = R"(
+#ifdef BLURRED
 uniform sampler2D src;  // b, g, r in .rgb
+#endif
 uniform int width;
 uniform int thr_b, thr_r, vmin;
 out vec4 o;
-float label(ivec2 p) {
-  if (p.x >= width) return 0.0;
-  ivec3 v = ivec3(round(texelFetch(src, p, 0).rgb * 255.0));
+float label(int x, uvec3 px) {
+  if (x >= width) return 0.0;
+  ivec3 v = ivec3(px);
   int b = v.x, g = v.y, r = v.z;
   int mx = max(b, max(g, r)), mn = min(b, min(g, r)), c = mx - mn;
   if (mx < vmin) return 0.0;
@@ -72,26 +93,44 @@ float label(ivec2 p) {
 void main() {
   ivec2 q = ivec2(gl_FragCoord.xy);
   int x = q.x * 4;
-  o = vec4(label(ivec2(x, q.y)), label(ivec2(x + 1, q.y)), label(ivec2(x + 2, q.y)), label(ivec2(x + 3, q.y))) / 255.0;
+#ifdef BLURRED
+  uvec3 p0 = uvec3(round(texelFetch(src, ivec2(x, q.y), 0).rgb * 255.0));
+  uvec3 p1 = uvec3(round(texelFetch(src, ivec2(x + 1, q.y), 0).rgb * 255.0));
+  uvec3 p2 = uvec3(round(texelFetch(src, ivec2(x + 2, q.y), 0).rgb * 255.0));
+  uvec3 p3 = uvec3(round(texelFetch(src, ivec2(x + 3, q.y), 0).rgb * 255.0));
+#else
+  uvec4 a = texelFetch(raw, ivec2(3 * q.x, q.y), 0);
+  uvec4 b = texelFetch(raw, ivec2(3 * q.x + 1, q.y), 0);
+  uvec4 c = texelFetch(raw, ivec2(3 * q.x + 2, q.y), 0);
+  uvec3 p0 = a.xyz, p1 = uvec3(a.w, b.xy), p2 = uvec3(b.zw, c.x), p3 = c.yzw;
+#endif
+  o = vec4(label(x, p0), label(x + 1, p1), label(x + 2, p2), label(x + 3, p3)) / 255.0;
 }
+)";
+
+// One pixel a texel (b, g, r, 0 in RGBA8UI) from the raw frame, for the
+// passes that read many neighbours of each pixel.
+const char* kUnpack = R"(
+out uvec4 o;
+void main() { o = uvec4(pixel(ivec2(gl_FragCoord.xy)), 0u); }
 )";
 
 // Separable Gaussian in OpenCV's fixed point, which it reproduces exactly:
 // weights in 1/256 (rounded, the centre taking what the rounding left), the
 // horizontal pass's sums kept whole (8.8, RGBA16UI: OUT_TMP), the vertical
 // pass's rounded back to 8 bits; OpenCV's default border (reflect 101).
-// RADIUS and VERTICAL are defined before this. The vertical pass reads the
-// intermediate (SRC_FIXED) and ends in one of: OUT_RGBA (the blurred image),
-// OUT_SAT (its HSV saturation, cut to zero at or below thr, as
-// saturationImage and cv::threshold TOZERO). With RADIUS 0 and OUT_SAT it is
-// the saturation pass alone.
+// RADIUS and VERTICAL are defined before this. The horizontal pass reads
+// the unpacked frame (kUnpack), the vertical one the intermediate; it ends
+// in one of: OUT_RGBA (the blurred image), OUT_SAT (its HSV saturation, cut
+// to zero at or below thr, as saturationImage and cv::threshold TOZERO).
+// With SRC_RAW, RADIUS 0 and OUT_SAT it is the saturation pass alone, on
+// the raw frame.
 const char* kBlur = R"(
-#ifdef SRC_FIXED
+#ifdef SRC_RAW
+#define FETCH(q) ivec3(pixel(q))
+#else
 uniform usampler2D src;
 #define FETCH(q) ivec3(texelFetch(src, q, 0).rgb)
-#else
-uniform sampler2D src;
-#define FETCH(q) ivec3(round(texelFetch(src, q, 0).rgb * 255.0))
 #endif
 uniform int w[RADIUS + 1];
 uniform int n;    // pixels along the pass
@@ -120,10 +159,10 @@ void main() {
 #if defined(OUT_TMP)
   o = uvec4(uvec3(s), 0u);
 #else
-#ifdef SRC_FIXED
-  ivec3 v = (s + 32768) >> 16;
-#else
+#ifdef SRC_RAW
   ivec3 v = s;  // RADIUS 0, weight 1
+#else
+  ivec3 v = (s + 32768) >> 16;
 #endif
 #if defined(OUT_RGBA)
   o = vec4(vec3(v) / 255.0, 1.0);
@@ -208,7 +247,6 @@ precision highp uimage2D;
 // saturation alone.
 const char* kComputeBlurSat = R"(
 layout(local_size_x = T, local_size_y = T) in;
-uniform sampler2D src;
 layout(r32ui, binding = 0) writeonly uniform highp uimage2D sat_out;
 uniform ivec2 size;
 uniform int w[RADIUS + 1];
@@ -227,7 +265,7 @@ void main() {
   for (int i = lid; i < S * S; i += T * T) {
     ivec2 q = o - RADIUS + ivec2(i % S, i / S);
     q = ivec2(reflect101(q.x, size.x), reflect101(q.y, size.y));
-    uvec3 c = uvec3(round(texelFetch(src, q, 0).rgb * 255.0));
+    uvec3 c = pixel(q);
     px[i] = c.x | (c.y << 8) | (c.z << 16);
   }
   barrier();
@@ -401,10 +439,12 @@ class GlesFilters final : public Filters {
     glGenFramebuffers(1, &fbo_);
     glGenBuffers(1, &pbo_up_);
     glGenBuffers(1, &pbo_down_);
-    label_ = program("label", std::string(kHeader) + kLabel);
+    label_ = program("label", std::string(kHeader) + kRaw + kLabel);
+    label_blurred_ = program("label_blurred", std::string(kHeader) + "#define BLURRED\n" + kLabel);
     sobel_ = program("sobel", std::string(kHeader) + kSobel);
     nms_ = program("nms", std::string(kHeader) + kNms);
-    sat0_ = program("sat0", std::string(kHeader) + "#define RADIUS 0\n#define VERTICAL\n#define OUT_SAT\n" + kBlur);
+    sat0_ = program("sat0", std::string(kHeader) + kRaw + "#define SRC_RAW\n#define RADIUS 0\n#define VERTICAL\n#define OUT_SAT\n" + kBlur);
+    unpack_ = program("unpack", std::string(kHeader) + kRaw + kUnpack);
     check("setup");
     // Compute shaders where OpenGL ES 3.1 has them (and they compile);
     // otherwise the fragment path does everything.
@@ -455,18 +495,21 @@ class GlesFilters final : public Filters {
     begin(bgr);
     upload(bgr);
     timer.stamp("upload");
-    GLuint src = src_tex_;
+    GLuint prog = label_;
     if (s.blur_kernel > 1) {
       blur(s, "rgba", blurred_tex_);
-      src = blurred_tex_;
+      prog = label_blurred_;
+      glUseProgram(prog);
+      bindTexture(0, blurred_tex_, "src", prog);
       timer.stamp("blur");
+    } else {
+      glUseProgram(prog);
+      bindTexture(0, src_tex_, "raw", prog);
     }
-    glUseProgram(label_);
-    bindTexture(0, src, "src", label_);
-    glUniform1i(glGetUniformLocation(label_, "width"), w_);
-    glUniform1i(glGetUniformLocation(label_, "thr_b"), q8(s.mask.blue));
-    glUniform1i(glGetUniformLocation(label_, "thr_r"), q8(s.mask.red));
-    glUniform1i(glGetUniformLocation(label_, "vmin"), std::clamp(s.mask.value_min, 0, 255));
+    glUniform1i(glGetUniformLocation(prog, "width"), w_);
+    glUniform1i(glGetUniformLocation(prog, "thr_b"), q8(s.mask.blue));
+    glUniform1i(glGetUniformLocation(prog, "thr_r"), q8(s.mask.red));
+    glUniform1i(glGetUniformLocation(prog, "vmin"), std::clamp(s.mask.value_min, 0, 255));
     draw(packed_tex_, w4_, h_);
     finish("saturation");
     timer.stamp("saturation");
@@ -597,7 +640,7 @@ class GlesFilters final : public Filters {
     const GLuint groups_x = static_cast<GLuint>((w_ + tile_ - 1) / tile_),
                  groups_y = static_cast<GLuint>((h_ + tile_ - 1) / tile_);
     glUseProgram(bs);
-    bindTexture(0, src_tex_, "src", bs);
+    bindTexture(0, src_tex_, "raw", bs);
     glUniform1iv(glGetUniformLocation(bs, "w"), radius + 1, radius > 0 ? weights_.data() : &no_blur);
     glUniform2i(glGetUniformLocation(bs, "size"), w_, h_);
     glUniform1i(glGetUniformLocation(bs, "thr"), thr);
@@ -640,7 +683,7 @@ class GlesFilters final : public Filters {
     const std::string k = key + std::to_string(radius);
     auto it = programs_.find(k);
     if (it != programs_.end()) return it->second;
-    std::string src = std::string(kComputeHeader) + "#define T " + std::to_string(tile_) + "\n";
+    std::string src = std::string(kComputeHeader) + kRaw + "#define T " + std::to_string(tile_) + "\n";
     if (radius >= 0) src += "#define RADIUS " + std::to_string(radius) + "\n";
     const GLuint p = linkCompute(src + body);
     programs_[k] = p;
@@ -674,7 +717,7 @@ class GlesFilters final : public Filters {
   }
 
   void freeTextures() {
-    for (GLuint* t : {&src_tex_, &tmp_tex_, &blurred_tex_, &sat_tex_, &grad_tex_, &packed_tex_, &sat32_tex_})
+    for (GLuint* t : {&src_tex_, &unpacked_tex_, &tmp_tex_, &blurred_tex_, &sat_tex_, &grad_tex_, &packed_tex_, &sat32_tex_})
       if (*t) {
         glDeleteTextures(1, t);
         *t = 0;
@@ -689,7 +732,8 @@ class GlesFilters final : public Filters {
                            " frame exceeds the GPU's texture size limit " + std::to_string(max_size));
     freeTextures();
     w_ = w, h_ = h, w4_ = (w + 3) / 4;
-    src_tex_ = texture(GL_RGB8, w, h);
+    src_tex_ = texture(GL_RGBA8UI, w4_ * 3, h);
+    unpacked_tex_ = texture(GL_RGBA8UI, w, h);
     tmp_tex_ = texture(GL_RGBA16UI, w, h);
     blurred_tex_ = texture(GL_RGBA8, w, h);
     sat_tex_ = texture(GL_R8, w, h);
@@ -703,7 +747,7 @@ class GlesFilters final : public Filters {
       glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
     }
     glBindBuffer(GL_PIXEL_UNPACK_BUFFER, pbo_up_);
-    glBufferData(GL_PIXEL_UNPACK_BUFFER, static_cast<GLsizeiptr>(w) * h * 3, nullptr, GL_STREAM_DRAW);
+    glBufferData(GL_PIXEL_UNPACK_BUFFER, static_cast<GLsizeiptr>(w4_) * 12 * h, nullptr, GL_STREAM_DRAW);
     glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
     glBindBuffer(GL_PIXEL_PACK_BUFFER, pbo_down_);
     glBufferData(GL_PIXEL_PACK_BUFFER, static_cast<GLsizeiptr>(w) * h * 4, nullptr, GL_STREAM_READ);
@@ -713,21 +757,21 @@ class GlesFilters final : public Filters {
 
   void upload(const cv::Mat& bgr) {
     glBindBuffer(GL_PIXEL_UNPACK_BUFFER, pbo_up_);
-    const size_t row = static_cast<size_t>(w_) * 3;
-    void* dst = glMapBufferRange(GL_PIXEL_UNPACK_BUFFER, 0, static_cast<GLsizeiptr>(row * h_),
+    const size_t row = static_cast<size_t>(w_) * 3, pitch = static_cast<size_t>(w4_) * 12;
+    void* dst = glMapBufferRange(GL_PIXEL_UNPACK_BUFFER, 0, static_cast<GLsizeiptr>(pitch * h_),
                                  GL_MAP_WRITE_BIT | GL_MAP_INVALIDATE_BUFFER_BIT);
     if (!dst) {
       glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
       check("upload map");
       throw BackendFailure("GLES: cannot map the upload buffer");
     }
-    if (bgr.isContinuous()) std::memcpy(dst, bgr.data, row * h_);
+    if (bgr.isContinuous() && row == pitch) std::memcpy(dst, bgr.data, row * h_);
     else
-      for (int y = 0; y < h_; ++y) std::memcpy(static_cast<uint8_t*>(dst) + row * y, bgr.ptr(y), row);
+      for (int y = 0; y < h_; ++y) std::memcpy(static_cast<uint8_t*>(dst) + pitch * y, bgr.ptr(y), row);
     glUnmapBuffer(GL_PIXEL_UNPACK_BUFFER);
     glBindTexture(GL_TEXTURE_2D, src_tex_);
-    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, w_, h_, GL_RGB, GL_UNSIGNED_BYTE, nullptr);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, w4_ * 3, h_, GL_RGBA_INTEGER, GL_UNSIGNED_BYTE, nullptr);
     glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
     finish("upload");
   }
@@ -771,7 +815,7 @@ class GlesFilters final : public Filters {
     kernel_sigma_ = s.blur_sigma;
   }
 
-  // Separable Gaussian: H into tmp, V into `target` ("rgba": the blurred
+  // Separable Gaussian: the frame unpacked, H into tmp, V into `target` ("rgba": the blurred
   // image; "sat": its thresholded saturation).
   void blur(const FilterSettings& s, const char* out, GLuint target, int thr = 0) {
     const int radius = s.blur_kernel / 2;
@@ -780,14 +824,17 @@ class GlesFilters final : public Filters {
     if (blur_radius_ != radius) {  // programs for this radius (compiled once, not per frame)
       const std::string defs = std::string(kHeader) + "#define RADIUS " + std::to_string(radius) + "\n";
       blur_h_ = program("blurH" + std::to_string(radius), defs + "#define OUT_TMP\n" + kBlur);
-      const std::string v = defs + "#define VERTICAL\n#define SRC_FIXED\n";
+      const std::string v = defs + "#define VERTICAL\n";
       blur_v_rgba_ = program("blurVrgba" + std::to_string(radius), v + "#define OUT_RGBA\n" + kBlur);
       blur_v_sat_ = program("blurVsat" + std::to_string(radius), v + "#define OUT_SAT\n" + kBlur);
       blur_radius_ = radius;
     }
     const GLuint h = blur_h_, v = rgba ? blur_v_rgba_ : blur_v_sat_;
+    glUseProgram(unpack_);
+    bindTexture(0, src_tex_, "raw", unpack_);
+    draw(unpacked_tex_, w_, h_);
     glUseProgram(h);
-    bindTexture(0, src_tex_, "src", h);
+    bindTexture(0, unpacked_tex_, "src", h);
     glUniform1iv(glGetUniformLocation(h, "w"), radius + 1, weights_.data());
     glUniform1i(glGetUniformLocation(h, "n"), w_);
     draw(tmp_tex_, w_, h_);
@@ -805,7 +852,7 @@ class GlesFilters final : public Filters {
     const GLuint v = sat0_;
     const int one = 1;
     glUseProgram(v);
-    bindTexture(0, src_tex_, "src", v);
+    bindTexture(0, src_tex_, "raw", v);
     glUniform1iv(glGetUniformLocation(v, "w"), 1, &one);
     glUniform1i(glGetUniformLocation(v, "n"), h_);
     glUniform1i(glGetUniformLocation(v, "thr"), thr);
@@ -853,7 +900,7 @@ class GlesFilters final : public Filters {
 
   std::unique_ptr<EglContext> ctx_;
   GLuint vao_ = 0, fbo_ = 0, pbo_up_ = 0, pbo_down_ = 0;
-  GLuint label_ = 0, sobel_ = 0, nms_ = 0, sat0_ = 0;
+  GLuint label_ = 0, label_blurred_ = 0, sobel_ = 0, nms_ = 0, sat0_ = 0, unpack_ = 0;
   bool compute_ = false;     // compute shaders usable
   // The paper front end's path: fragment or compute shaders, or measuring
   // which is faster on the first frames.
@@ -869,7 +916,7 @@ class GlesFilters final : public Filters {
   int blur_radius_ = -1;
   GLuint blur_h_ = 0, blur_v_rgba_ = 0, blur_v_sat_ = 0;
   std::map<std::string, GLuint> programs_;
-  GLuint src_tex_ = 0, tmp_tex_ = 0, blurred_tex_ = 0, sat_tex_ = 0, grad_tex_ = 0, packed_tex_ = 0;
+  GLuint src_tex_ = 0, unpacked_tex_ = 0, tmp_tex_ = 0, blurred_tex_ = 0, sat_tex_ = 0, grad_tex_ = 0, packed_tex_ = 0;
   int w_ = 0, h_ = 0, w4_ = 0;
   int kernel_size_ = -1;
   double kernel_sigma_ = -1;
