@@ -2,9 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <random>
 
+#include <opencv2/imgproc.hpp>
+
 #include "ld/adaptive.hpp"
+#include "ld/markers.hpp"
 #include "ld/qr_reader.hpp"
 #include "ld/synth.hpp"
 
@@ -75,6 +79,13 @@ struct AnyDetector {
 }  // namespace
 
 Point measure(const SweepOptions& o, double distance_m, double yaw_deg, double yaw_jitter_deg) {
+  const bool marker = o.target != "landmark";
+  std::unique_ptr<markers::Detector> marker_detector;
+  cv::Mat marker_texture, gray;
+  if (marker) {
+    marker_detector = std::make_unique<markers::Detector>(markers::parse(o.target));
+    marker_texture = markers::sheetTexture(marker_detector->kind(), 0, 540);
+  }
   AnyDetector detector(o);
   QrReader reader;
   std::mt19937_64 rng(pointSeed(o.seed, distance_m, yaw_deg));
@@ -91,11 +102,21 @@ Point measure(const SweepOptions& o, double distance_m, double yaw_deg, double y
     auto lm = synth::placeLandmark(o.camera, distance_m, yaw, pitch, roll, nx, ny, o.side_m, payload);
     if (!synth::truthFor(o.camera, lm).in_view)
       lm = synth::placeLandmark(o.camera, distance_m, yaw, pitch, roll, 0, 0, o.side_m, payload);
+    if (marker) lm.texture = marker_texture;
     synth::SceneSpec spec = synth::randomConditions(o.camera, {lm}, rng());
     applyLighting(o, spec);
     const synth::Frame frame = synth::render(spec);
     const synth::LandmarkTruth& t = frame.truth[0];
     ++p.trials;
+    if (marker) {
+      cv::cvtColor(frame.bgr, gray, cv::COLOR_BGR2GRAY);
+      for (const auto& f : marker_detector->detect(gray))
+        if (f.id == 0 && markers::matches(f.corners, t.corners)) {
+          ++p.detected;
+          break;
+        }
+      continue;
+    }
     const Detection& det = detector.detect(frame.bgr);
     for (const Landmark& d : det.landmarks) {
       if (!matchesTruth(d, {t.fip_tl, t.fip_tr, t.fip_bl, t.ap})) continue;

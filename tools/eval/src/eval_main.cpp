@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "ld/eval.hpp"
+#include "ld/markers.hpp"
 
 namespace {
 
@@ -97,6 +98,7 @@ std::string cm(double m) {
 
 struct Common {
   std::string camera_file, params_file, markdown, png;
+  bool compare = false;
   int trials = 20;
   uint64_t seed = 1;
   ld::eval::SweepOptions options() const {
@@ -116,6 +118,8 @@ void addCommon(CLI::App* app, Common& c) {
   app->add_option("--seed", c.seed, "scene seed");
   app->add_option("--markdown", c.markdown, "also write the table to this file");
   app->add_option("--png", c.png, "write a plot");
+  app->add_flag("--compare", c.compare,
+                "also AprilTag 3 (tag36h11) and ArUco (4x4) markers of the same printed size at the same poses");
 }
 
 void emit(const Common& c, const std::string& table) {
@@ -192,58 +196,48 @@ int main(int argc, char** argv) {
 
   CLI11_PARSE(app, argc, argv);
   try {
-    if (yaw->parsed()) {
-      if (y_dists.size() != y_sides.size())
+    if (yaw->parsed() || dist->parsed()) {
+      // One column and one plotted series per (side, target).
+      const bool by_yaw = yaw->parsed();
+      const Common& c = by_yaw ? yc : dc;
+      const std::vector<double>& sides = by_yaw ? y_sides : d_sides;
+      if (by_yaw && y_dists.size() != y_sides.size())
         throw std::invalid_argument("give one --distance per --side");
-      auto o = yc.options();
-      std::vector<double> yaws = range(-y_max, y_max, y_step);
+      const std::vector<double> xs = by_yaw ? range(-y_max, y_max, y_step) : range(d_from, d_to, d_step);
+      std::vector<std::string> targets{"landmark"};
+      if (c.compare) targets.insert(targets.end(), {"apriltag", "aruco"});
       std::vector<Series> series;
-      std::ostringstream t;
-      t << "| yaw (deg) |";
-      for (size_t i = 0; i < y_sides.size(); ++i) t << " " << cm(y_sides[i]) << " at " << y_dists[i] << " m |";
-      t << "\n|---|";
-      for (size_t i = 0; i < y_sides.size(); ++i) t << "---|";
-      t << "\n";
       std::vector<std::vector<ld::eval::Point>> all;
-      for (size_t i = 0; i < y_sides.size(); ++i) {
-        o.side_m = y_sides[i];
-        all.push_back(ld::eval::overYaw(o, y_dists[i], yaws, progress));
-        Series s{cm(y_sides[i]) + " at " + std::to_string(y_dists[i]).substr(0, 3) + " m", {}};
-        for (const auto& p : all.back()) s.points.emplace_back(p.yaw_deg, p.detectRate());
-        series.push_back(s);
-      }
-      for (size_t k = 0; k < yaws.size(); ++k) {
-        t << "| " << yaws[k] << " |";
+      for (size_t i = 0; i < sides.size(); ++i)
+        for (const auto& target : targets) {
+          auto o = c.options();
+          o.side_m = sides[i];
+          o.target = target;
+          all.push_back(by_yaw ? ld::eval::overYaw(o, y_dists[i], xs, progress)
+                               : ld::eval::overDistance(o, xs, d_yaw, progress));
+          std::ostringstream name;
+          name << cm(sides[i]);
+          if (by_yaw) name << " at " << y_dists[i] << " m";
+          if (target != "landmark") name << " " << ld::markers::name(ld::markers::parse(target));
+          Series sr{name.str(), {}};
+          for (const auto& p : all.back()) sr.points.emplace_back(by_yaw ? p.yaw_deg : p.distance_m, p.detectRate());
+          series.push_back(sr);
+        }
+      std::ostringstream t;
+      t << (by_yaw ? "| yaw (deg) |" : "| distance (m) |");
+      for (const auto& sr : series) t << " " << sr.name << " |";
+      t << "\n|---|";
+      for (size_t i = 0; i < series.size(); ++i) t << "---|";
+      t << "\n";
+      for (size_t k = 0; k < xs.size(); ++k) {
+        t << "| " << xs[k] << " |";
         for (const auto& pts : all) t << " " << pct(pts[k].detected, pts[k].trials) << " % |";
         t << "\n";
       }
-      emit(yc, t.str());
-      if (!yc.png.empty()) plot(yc.png, "Detection rate against yaw", "yaw (degrees)", series);
-    } else if (dist->parsed()) {
-      auto o = dc.options();
-      const std::vector<double> ds = range(d_from, d_to, d_step);
-      std::vector<Series> series;
-      std::vector<std::vector<ld::eval::Point>> all;
-      for (double side : d_sides) {
-        o.side_m = side;
-        all.push_back(ld::eval::overDistance(o, ds, d_yaw, progress));
-        Series s{cm(side), {}};
-        for (const auto& p : all.back()) s.points.emplace_back(p.distance_m, p.detectRate());
-        series.push_back(s);
-      }
-      std::ostringstream t;
-      t << "| distance (m) |";
-      for (double side : d_sides) t << " " << cm(side) << " |";
-      t << "\n|---|";
-      for (size_t i = 0; i < d_sides.size(); ++i) t << "---|";
-      t << "\n";
-      for (size_t k = 0; k < ds.size(); ++k) {
-        t << "| " << ds[k] << " |";
-        for (const auto& pts : all) t << " " << pct(pts[k].detected, pts[k].trials) << " % |";
-        t << "\n";
-      }
-      emit(dc, t.str());
-      if (!dc.png.empty()) plot(dc.png, "Detection rate against distance", "distance (m)", series);
+      emit(c, t.str());
+      if (!c.png.empty())
+        plot(c.png, by_yaw ? "Detection rate against yaw" : "Detection rate against distance",
+             by_yaw ? "yaw (degrees)" : "distance (m)", series);
     } else if (qr->parsed()) {
       auto o = qc.options();
       o.side_m = q_side;

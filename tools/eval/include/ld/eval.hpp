@@ -38,6 +38,10 @@ struct SweepOptions {
   /// fixed defaults. Each trial is a fresh frame: the adapter has only the
   /// frame itself to go by, no landmarks seen before.
   bool adaptive = false;
+  /// What is printed and detected: "landmark" (ours), or "apriltag" /
+  /// "aruco": that marker at the same printed size and the same poses,
+  /// found by its own detector (ld/markers.hpp). Markers have no payload.
+  std::string target = "landmark";
   /// Overrides of the random lighting (negative: keep randomConditions').
   double colour_temp_k = -1;  ///< 2700 tungsten .. 6500 daylight
   double gain = -1;           ///< 1 = well lit office
