@@ -229,6 +229,35 @@ TEST_P(GlesEdges, EdgeMapsAgree) {
   }
 }
 
+// Odd sizes (partial tiles and texels, rows of one or two groups) and noise
+// (edges everywhere, borders included): the same edge maps.
+TEST_P(GlesEdges, OddSizesAndNoise) {
+  const bool compute = std::string(GetParam()) == "compute";
+  ScopedEnv env("LD_GLES_COMPUTE", compute ? "1" : "0");
+  auto g = gles();
+  ASSERT_TRUE(g);
+  auto c = ld::detail::makeCpuFilters();
+  cv::RNG rng(21);
+  for (cv::Size size : {cv::Size(37, 23), cv::Size(1001, 7), cv::Size(5, 5), cv::Size(3, 3), cv::Size(17, 300),
+                        cv::Size(640, 480)})
+    for (int blur : {9, 5, 0}) {
+      cv::Mat img(size, CV_8UC3);
+      rng.fill(img, cv::RNG::UNIFORM, 0, 256);
+      cv::rectangle(img, {1, 1}, {size.width / 2, size.height / 2}, {200, 40, 30}, cv::FILLED);
+      ld::DetectorParams p = ld::DetectorParams::paper();
+      p.blur_kernel = blur;
+      p.blur_sigma = blur == 5 ? 1.2 : p.blur_sigma;
+      const auto s = ld::detail::FilterSettings::from(p);
+      std::vector<ld::StageTime> st;
+      ld::detail::StageTimer timer(st);
+      cv::Mat ec, eg;
+      c->edgeMap(img, s, ec, timer);
+      g->edgeMap(img, s, eg, timer);
+      ASSERT_EQ(eg.size(), size);
+      EXPECT_EQ(cv::countNonZero(ec != eg), 0) << size << " blur " << blur;
+    }
+}
+
 INSTANTIATE_TEST_SUITE_P(Paths, GlesEdges, testing::Values("fragment", "compute"));
 
 // Both front ends: the same landmarks, centres within 0.5 px (the paper
