@@ -308,6 +308,7 @@ int main(int argc, char** argv) {
   if (!cfg.record.empty()) std::remove(cfg.record.c_str());
   const auto t0 = Clock::now();
   std::map<std::string, RssSeries> rss;
+  int64_t self_rss_max_kb = 0;  // ld-run's own (it receives every image too)
   bool ready = false;
   std::string end_reason = "stopped by signal";
   const auto writeState = [&]() {
@@ -397,6 +398,7 @@ int main(int argc, char** argv) {
         s.last_kb = kb;
         s.max_kb = std::max(s.max_kb, kb);
       }
+      self_rss_max_kb = std::max(self_rss_max_kb, rssKb(::getpid()));
       next_rss = now + std::chrono::seconds(1);
     }
     if (status_interval > 0 && now >= next_status) {
@@ -442,6 +444,7 @@ int main(int argc, char** argv) {
          {"source", cfg.source},
          {"log", cfg.log},
          {"processes", processesJson(sup, &rss)},
+         {"ld_run_rss_kb_max", self_rss_max_kb},
          {"summary", monitor.summary()}};
   if (!summary_file.empty()) {
     std::ofstream f(summary_file);
