@@ -29,5 +29,10 @@ jq -r 'select(.width == 1920 and .height == 1080 and .pixelformat == "BGR") | .s
   sort -n > "$T/seqs"
 received=$(sort -u "$T/seqs" | wc -l)
 echo "received $received of $FRAMES 1920x1080 BGR frames ($(wc -l < "$T/seqs") messages)"
-seq 0 $((FRAMES - 1)) | diff - "$T/seqs"
+if ! seq 0 $((FRAMES - 1)) | diff - "$T/seqs" > "$T/diff"; then
+  echo "lost frames: $(grep -c '^<' "$T/diff" || true)"
+  echo "hint: net.core.rmem_max on the host is $(cat /proc/sys/net/core/rmem_max); raise it to 8388608" \
+       "before the namespace is made (see README: recv_buf_size and rmem_max)"
+  exit 1
+fi
 echo "1 passed, 0 failed"
