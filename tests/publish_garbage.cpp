@@ -1,43 +1,104 @@
 // ld-publish-garbage: publishes malformed messages on a channel, for fault
 // tests: random bytes, a truncated image_t, an image_t whose size does not
-// match its format, and one with an unknown pixel format.
+// match its format, one with an unknown pixel format, and the encodings that
+// LCM's generated decoders cannot take (see ld/message_decode.hpp): counts of
+// 2^31-1 in each message type, a string of length 0, an image claiming 2 GB
+// of data, and an MJPEG frame whose header claims 30000x30000. Every one of
+// them is malformed for every message type, whatever the channel carries.
+#include <chrono>
 #include <iostream>
 #include <random>
+#include <thread>
 
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
 
 #include "ld/image_convert.hpp"
+#include "ld/landmark_list_t.hpp"
 #include "ld/lcm_url.hpp"
+#include "ld/qr_code_list_t.hpp"
+
+namespace {
+
+template <class T>
+std::vector<uint8_t> encode(const T& msg) {
+  std::vector<uint8_t> buf(static_cast<size_t>(msg.getEncodedSize()));
+  msg.encode(buf.data(), 0, static_cast<int>(buf.size()));
+  return buf;
+}
+
+void putI32(std::vector<uint8_t>& b, size_t at, uint32_t v) {
+  for (int i = 0; i < 4; ++i) b[at + i] = static_cast<uint8_t>(v >> (24 - 8 * i));
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"Publish malformed messages (test helper)."};
   std::string url = ld::defaultLcmUrl(), channel = "IMAGE";
+  int interval_ms = 0;
   app.add_option("--lcm-url", url);
   app.add_option("--channel", channel);
+  app.add_option("--interval-ms", interval_ms, "pause between messages (receivers that keep only "
+                                               "the newest message then see each one)");
   CLI11_PARSE(app, argc, argv);
   lcm::LCM lcm(url);
   if (!lcm.good()) return 2;
 
+  std::vector<std::vector<uint8_t>> messages;
   std::mt19937 rng(1);
   std::vector<uint8_t> junk(1000);
   for (auto& b : junk) b = static_cast<uint8_t>(rng());
-  lcm.publish(channel, junk.data(), static_cast<unsigned>(junk.size()));
+  messages.push_back(junk);
 
-  ld::image_t img = ld::matToImage(cv::Mat(48, 64, CV_8UC3, cv::Scalar(1, 2, 3)),
-                                   ld::image_t::PIXEL_FORMAT_BGR, 1, 0);
-  std::vector<uint8_t> buf(static_cast<size_t>(img.getEncodedSize()));
-  img.encode(buf.data(), 0, static_cast<int>(buf.size()));
-  lcm.publish(channel, buf.data(), static_cast<unsigned>(buf.size() / 2));  // truncated
+  const ld::image_t img = ld::matToImage(cv::Mat(48, 64, CV_8UC3, cv::Scalar(1, 2, 3)),
+                                         ld::image_t::PIXEL_FORMAT_BGR, 1, 0);
+  std::vector<uint8_t> buf = encode(img);
+  messages.emplace_back(buf.begin(), buf.begin() + static_cast<long>(buf.size() / 2));  // truncated
 
   ld::image_t bad = img;
   bad.width = 640;
   bad.height = 480;  // 9216 bytes cannot hold 640x480 BGR
-  lcm.publish(channel, &bad);
+  messages.push_back(encode(bad));
 
   bad = img;
   bad.pixelformat = ld::fourcc('H', '2', '6', '4');
-  lcm.publish(channel, &bad);
-  std::cout << "published 4 malformed messages on " << channel << "\n";
+  messages.push_back(encode(bad));
+
+  buf = encode(img);
+  putI32(buf, 8 + 8 + 4 * 4, 0x7ffffff0);  // size: 2 GB that are not there
+  messages.push_back(buf);
+
+  ld::image_t jpeg = ld::matToImage(cv::Mat(6, 8, CV_8UC3, cv::Scalar(1, 2, 3)),
+                                    ld::image_t::PIXEL_FORMAT_MJPEG, 1, 0);
+  for (size_t i = 2; i + 9 < jpeg.data.size(); ++i)
+    if (jpeg.data[i] == 0xFF && jpeg.data[i + 1] == 0xC0) {  // SOF0: height, width = 30000
+      jpeg.data[i + 5] = jpeg.data[i + 7] = 30000 >> 8;
+      jpeg.data[i + 6] = jpeg.data[i + 8] = 30000 & 0xff;
+      break;
+    }
+  jpeg.width = jpeg.height = 0;
+  messages.push_back(encode(jpeg));
+
+  ld::landmark_list_t list{};
+  list.backend = "cpu";
+  buf = encode(list);
+  const size_t backend_len = 8 + 8 + 8 + 4 + 4, nstages = backend_len + 4 + 4 + 8;
+  putI32(buf, nstages, 0x7fffffff);  // 2^31-1 stage names
+  messages.push_back(buf);
+  buf = encode(list);
+  putI32(buf, backend_len, 0);  // a string of length 0
+  messages.push_back(buf);
+
+  ld::qr_code_list_t codes{};
+  buf = encode(codes);
+  putI32(buf, 8 + 8 + 8, 0x7fffffff);  // 2^31-1 codes
+  messages.push_back(buf);
+
+  for (const auto& m : messages) {
+    lcm.publish(channel, m.data(), static_cast<unsigned>(m.size()));
+    if (interval_ms > 0) std::this_thread::sleep_for(std::chrono::milliseconds(interval_ms));
+  }
+  std::cout << "published " << messages.size() << " malformed messages on " << channel << "\n";
   return 0;
 }

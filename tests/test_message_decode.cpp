@@ -205,3 +205,17 @@ TEST(ImageLimits, MjpegFrameSizeIsCheckedBeforeDecoding) {
   EXPECT_EQ(decodeError(mjpegClaiming(8, 6, true)), "");
   EXPECT_EQ(ld::imageToBgr(mjpegClaiming(8, 6, false)).size(), cv::Size(8, 6));
 }
+
+TEST(ImageLimits, CheckImageRefusesWhatDecodingWouldWithoutDecoding) {
+  const ld::image_t good = ld::matToImage(cv::Mat(6, 8, CV_8UC3, cv::Scalar(1, 2, 3)),
+                                          ld::image_t::PIXEL_FORMAT_YUYV, 1);
+  EXPECT_NO_THROW(ld::checkImage(good));
+  EXPECT_NO_THROW(ld::checkImage(mjpegClaiming(8, 6, true)));
+  ld::image_t bad = good;
+  bad.height = 7;
+  EXPECT_THROW(ld::checkImage(bad), ld::ImageFormatError);
+  bad = good;
+  bad.pixelformat = ld::fourcc('H', '2', '6', '4');
+  EXPECT_THROW(ld::checkImage(bad), ld::ImageFormatError);
+  EXPECT_THROW(ld::checkImage(mjpegClaiming(30000, 30000, true)), ld::ImageFormatError);
+}

@@ -95,7 +95,8 @@ cv::Size jpegFrameSize(const uint8_t* p, size_t n) {
   return {};
 }
 
-void decodeMjpeg(const image_t& msg, cv::Mat& out, int flags) {
+// The checks of an MJPEG message that need no decoding.
+void checkMjpeg(const image_t& msg) {
   if (static_cast<size_t>(msg.size) != msg.data.size() || msg.size <= 0)
     fail("MJPEG size field " + std::to_string(msg.size) + " does not match " +
          std::to_string(msg.data.size()) + " data bytes");
@@ -109,6 +110,10 @@ void decodeMjpeg(const image_t& msg, cv::Mat& out, int flags) {
   if (static_cast<int64_t>(frame.width) * frame.height > kMaxMjpegPixels)
     fail("MJPEG frame " + std::to_string(frame.width) + "x" + std::to_string(frame.height) +
          " is larger than " + std::to_string(kMaxMjpegPixels) + " pixels");
+}
+
+void decodeMjpeg(const image_t& msg, cv::Mat& out, int flags) {
+  checkMjpeg(msg);
   const cv::Mat buf(1, msg.size, CV_8UC1, const_cast<uint8_t*>(msg.data.data()));
   cv::Mat decoded;
   try {
@@ -182,6 +187,13 @@ int32_t pixelFormatFromName(const std::string& name) {
 }
 
 bool isSupportedPixelFormat(int32_t pixelformat) { return findFormat(pixelformat) != nullptr; }
+
+void checkImage(const image_t& msg) {
+  const FormatInfo* f = findFormat(msg.pixelformat);
+  if (!f) fail("unsupported pixel format " + pixelFormatName(msg.pixelformat));
+  if (f->bytes_per_pixel == 0) checkMjpeg(msg);
+  else (void)rawView(msg, *f);
+}
 
 void imageToBgr(const image_t& msg, cv::Mat& out) {
   const FormatInfo* f = findFormat(msg.pixelformat);

@@ -13,6 +13,7 @@
 #include "ld/landmark_json.hpp"
 #include "ld/landmark_msg.hpp"
 #include "ld/lcm_url.hpp"
+#include "ld/message_decode.hpp"
 #include "ld/qr_code_list_t.hpp"
 
 namespace {
@@ -29,8 +30,7 @@ int64_t fingerprint(const uint8_t* data, size_t size) {
 
 template <typename T>
 bool decodeAs(const uint8_t* data, size_t size, T& msg) {
-  return fingerprint(data, size) == T::getHash() &&
-         msg.decode(data, 0, static_cast<int>(size)) == static_cast<int>(size);
+  return fingerprint(data, size) == T::getHash() && ld::decodeMessage(data, size, msg);
 }
 
 nlohmann::ordered_json landmarkJson(const ld::landmark_t& m) {

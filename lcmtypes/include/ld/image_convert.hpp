@@ -41,6 +41,13 @@ int32_t pixelFormatFromName(const std::string& name);
 /// True for the formats imageToBgr can decode.
 bool isSupportedPixelFormat(int32_t pixelformat);
 
+/// Checks, without decoding the pixels, what imageToBgr checks first: a
+/// supported format, sizes and strides that fit the data, and for MJPEG a
+/// JPEG frame header within the size limit that agrees with width and height
+/// (the compressed data itself is only checked by decoding it). Throws
+/// ImageFormatError naming the problem.
+void checkImage(const image_t& msg);
+
 /// Decodes any supported format into 8-bit BGR. `out` is reused when it
 /// already has the right size and type, so a warmed-up caller does not
 /// allocate (MJPEG decoding allocates inside libjpeg regardless).
