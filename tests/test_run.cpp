@@ -125,6 +125,24 @@ TEST(Supervisor, StopsAProcessIgnoringSigtermWithSigkill) {
   EXPECT_EQ(sup.processes()[i].pid, -1);
 }
 
+TEST(Supervisor, ChildInheritsOnlyStdio) {
+  int fds[2];
+  ASSERT_EQ(::pipe(fds), 0);  // not close-on-exec, as LCM's sockets are not
+  Lines lines;
+  ld::Supervisor sup({0.1, 1, 10}, lines.sink());
+  const size_t i = sup.add({"fds", {"sh", "-c", "ls /proc/$$/fd"}, ld::ProcessRole::Source});
+  ASSERT_TRUE(sup.start(i));
+  ASSERT_TRUE(pollUntil(sup, [&] { return sup.sourcesDone(); }, 2000ms));
+  pollUntil(sup, [] { return false; }, 100ms);
+  EXPECT_TRUE(lines.has("fds", "2"));
+  for (const auto& [n, l] : lines.all) {
+    EXPECT_NE(l, std::to_string(fds[0]));
+    EXPECT_NE(l, std::to_string(fds[1]));
+  }
+  ::close(fds[0]);
+  ::close(fds[1]);
+}
+
 TEST(Netns, LcmUdpPort) {
   EXPECT_EQ(ld::lcmUdpPort("udpm://239.255.76.67:7667?ttl=0"), 7667);
   EXPECT_EQ(ld::lcmUdpPort("udpm://239.255.76.67:7700"), 7700);

@@ -10,6 +10,8 @@
 #include <thread>
 
 #include <fcntl.h>
+#include <linux/close_range.h>
+#include <sys/syscall.h>
 #include <sys/prctl.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -38,6 +40,17 @@ namespace {
 bool isExecutable(const std::string& path) {
   struct stat st{};
   return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode) && ::access(path.c_str(), X_OK) == 0;
+}
+
+// Sets FD_CLOEXEC on every descriptor above stderr (between fork and exec:
+// only async-signal-safe calls).
+void markDescriptorsCloseOnExec() {
+#if defined(SYS_close_range) && defined(CLOSE_RANGE_CLOEXEC)
+  if (::syscall(SYS_close_range, 3U, ~0U, CLOSE_RANGE_CLOEXEC) == 0) return;
+#endif
+  long max = ::sysconf(_SC_OPEN_MAX);
+  if (max < 0 || max > 65536) max = 65536;
+  for (int fd = 3; fd < max; ++fd) ::fcntl(fd, F_SETFD, FD_CLOEXEC);
 }
 
 }  // namespace
@@ -123,6 +136,9 @@ bool Supervisor::start(size_t i) {
     ::sigprocmask(SIG_SETMASK, &none, nullptr);
     ::dup2(out[1], STDOUT_FILENO);
     ::dup2(out[1], STDERR_FILENO);
+    // Nothing else of the supervisor's reaches the program (its LCM sockets
+    // above all: they would make the child look subscribed).
+    markDescriptorsCloseOnExec();
     ::execvp(argv[0], argv.data());
     const int e = errno;
     ssize_t w = ::write(err[1], &e, sizeof e);
