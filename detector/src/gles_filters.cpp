@@ -117,24 +117,16 @@ void main() { o = uvec4(pixel(ivec2(gl_FragCoord.xy)), 0u); }
 
 // Separable Gaussian in OpenCV's fixed point, which it reproduces exactly:
 // weights in 1/256 (rounded, the centre taking what the rounding left), the
-// horizontal pass's sums kept whole (8.8, RGBA16UI: OUT_TMP), the vertical
-// pass's rounded back to 8 bits; OpenCV's default border (reflect 101).
-// RADIUS and VERTICAL are defined before this. The horizontal pass reads
-// the unpacked frame (kUnpack), the vertical one the intermediate; it ends
-// in one of: OUT_RGBA (the blurred image), OUT_SAT (its HSV saturation, cut
-// to zero at or below thr, as saturationImage and cv::threshold TOZERO).
-// With SRC_RAW, RADIUS 0 and OUT_SAT it is the saturation pass alone, on
-// the raw frame.
+// horizontal pass's sums kept whole (8.8), the vertical pass's rounded back
+// to 8 bits; OpenCV's default border (reflect 101). This per-pixel form is
+// the fast front end's (when it blurs at all): RADIUS and VERTICAL are
+// defined before this; the horizontal pass reads the unpacked frame
+// (kUnpack) and writes OUT_TMP (RGBA16UI), the vertical one reads that and
+// writes the blurred image (RGBA8).
 const char* kBlur = R"(
-#ifdef SRC_RAW
-#define FETCH(q) ivec3(pixel(q))
-#else
 uniform usampler2D src;
-#define FETCH(q) ivec3(texelFetch(src, q, 0).rgb)
-#endif
 uniform int w[RADIUS + 1];
-uniform int n;    // pixels along the pass
-uniform int thr;  // OUT_SAT
+uniform int n;  // pixels along the pass
 int reflect101(int i) {
   i = i < 0 ? -i : i;
   i = i >= n ? 2 * n - 2 - i : i;
@@ -154,79 +146,211 @@ void main() {
 #else
     ivec2 q = ivec2(reflect101(p.x + k), p.y);
 #endif
-    s += w[abs(k)] * FETCH(q);
+    s += w[abs(k)] * ivec3(texelFetch(src, q, 0).rgb);
   }
-#if defined(OUT_TMP)
+#ifdef OUT_TMP
   o = uvec4(uvec3(s), 0u);
 #else
-#ifdef SRC_RAW
-  ivec3 v = s;  // RADIUS 0, weight 1
-#else
-  ivec3 v = (s + 32768) >> 16;
-#endif
-#if defined(OUT_RGBA)
-  o = vec4(vec3(v) / 255.0, 1.0);
-#else
-  int mx = max(v.x, max(v.y, v.z)), mn = min(v.x, min(v.y, v.z));
-  int sat = mx > 0 ? (255 * (mx - mn) + mx / 2) / mx : 0;
-  o = vec4(float(sat > thr ? sat : 0) / 255.0, 0.0, 0.0, 1.0);
-#endif
+  o = vec4(vec3((s + 32768) >> 16) / 255.0, 1.0);
 #endif
 }
 )";
 
-// Sobel (3x3, replicated border) on the saturation image: L1 magnitude and
-// the direction sector (0 horizontal, 1 vertical, 2 and 3 the diagonals) in
-// one integer, magnitude | sector << 16.
-const char* kSobel = R"(
-uniform sampler2D sat;
-uniform ivec2 size;
-out uint o;
-int at(ivec2 p) { return int(round(texelFetch(sat, clamp(p, ivec2(0), size - 1), 0).r * 255.0)); }
+// ---- The paper front end on fragment shaders: every pass four pixels a
+// fragment (a group: one texel of each W/4 x H target), which cuts the
+// fragments, and the texel fetches, four-fold.
+
+// HSV saturation as saturationImage, cut to zero at or below thr as
+// cv::threshold TOZERO does.
+const char* kSaturation = R"(
+uniform int thr;
+uint saturation(ivec3 v) {
+  int mx = max(v.x, max(v.y, v.z)), mn = min(v.x, min(v.y, v.z));
+  int sat = mx > 0 ? (255 * (mx - mn) + mx / 2) / mx : 0;
+  return uint(sat > thr ? sat : 0);
+}
+)";
+
+// No blur: the saturation of a group, from its three texels of the raw frame.
+const char* kGroupSat = R"(
+out uvec4 o;
 void main() {
-  ivec2 p = ivec2(gl_FragCoord.xy);
-  int a = at(p + ivec2(-1, -1)), b = at(p + ivec2(0, -1)), c = at(p + ivec2(1, -1));
-  int d = at(p + ivec2(-1, 0)), f = at(p + ivec2(1, 0));
-  int g = at(p + ivec2(-1, 1)), h = at(p + ivec2(0, 1)), i = at(p + ivec2(1, 1));
+  ivec2 q = ivec2(gl_FragCoord.xy);
+  uvec4 a = texelFetch(raw, ivec2(3 * q.x, q.y), 0);
+  uvec4 b = texelFetch(raw, ivec2(3 * q.x + 1, q.y), 0);
+  uvec4 c = texelFetch(raw, ivec2(3 * q.x + 2, q.y), 0);
+  o = uvec4(saturation(ivec3(a.xyz)), saturation(ivec3(a.w, b.xy)), saturation(ivec3(b.zw, c.x)),
+            saturation(ivec3(c.yzw)));
+}
+)";
+
+// Horizontal blur of a group, straight from the raw frame: the groups within
+// reach (G each side) are read whole, three texels each; near the left and
+// right borders, pixel by pixel with the reflection. The twelve sums (8.8,
+// 16 bits each: pixel k's channel c is number 3k + c, two to a word) go to
+// two targets, RGBA32UI and RG32UI.
+const char* kGroupBlurH = R"(
+uniform int w[RADIUS + 1];
+uniform int width;
+layout(location = 0) out uvec4 o0;
+layout(location = 1) out uvec2 o1;
+#define G ((RADIUS + 3) / 4)
+#define N (4 * (2 * G + 1))
+int reflect101(int i, int n) {
+  i = i < 0 ? -i : i;
+  i = i >= n ? 2 * n - 2 - i : i;
+  return clamp(i, 0, n - 1);
+}
+void main() {
+  ivec2 q = ivec2(gl_FragCoord.xy);
+  int x0 = 4 * (q.x - G);  // the first pixel of px
+  uvec3 px[N];
+  if (q.x >= G && 4 * q.x + 3 + RADIUS <= width - 1) {
+    for (int g = 0; g < 2 * G + 1; ++g) {
+      int t = 3 * (q.x - G + g);
+      uvec4 a = texelFetch(raw, ivec2(t, q.y), 0);
+      uvec4 b = texelFetch(raw, ivec2(t + 1, q.y), 0);
+      uvec4 c = texelFetch(raw, ivec2(t + 2, q.y), 0);
+      px[4 * g] = a.xyz;
+      px[4 * g + 1] = uvec3(a.w, b.xy);
+      px[4 * g + 2] = uvec3(b.zw, c.x);
+      px[4 * g + 3] = c.yzw;
+    }
+  } else {
+    for (int i = 0; i < N; ++i) px[i] = pixel(ivec2(reflect101(x0 + i, width), q.y));
+  }
+  uvec3 s[4];
+  for (int k = 0; k < 4; ++k) {
+    uvec3 acc = uvec3(0u);
+    for (int t = -RADIUS; t <= RADIUS; ++t) acc += uint(w[abs(t)]) * px[4 * G + k + t];
+    s[k] = acc;
+  }
+  o0 = uvec4(s[0].x | (s[0].y << 16), s[0].z | (s[1].x << 16), s[1].y | (s[1].z << 16), s[2].x | (s[2].y << 16));
+  o1 = uvec2(s[2].z | (s[3].x << 16), s[3].y | (s[3].z << 16));
+}
+)";
+
+// Vertical blur of a group's horizontal sums, rounded to 8 bits, and its
+// saturation.
+const char* kGroupBlurV = R"(
+uniform usampler2D h0;
+uniform usampler2D h1;
+uniform int w[RADIUS + 1];
+uniform int height;
+out uvec4 o;
+int reflect101(int i, int n) {
+  i = i < 0 ? -i : i;
+  i = i >= n ? 2 * n - 2 - i : i;
+  return clamp(i, 0, n - 1);
+}
+ivec3 lo(uint a, uint b) { return ivec3(int(a & 0xffffu), int(a >> 16), int(b & 0xffffu)); }
+ivec3 hi(uint a, uint b) { return ivec3(int(a >> 16), int(b & 0xffffu), int(b >> 16)); }
+void main() {
+  ivec2 q = ivec2(gl_FragCoord.xy);
+  ivec3 s0 = ivec3(0), s1 = ivec3(0), s2 = ivec3(0), s3 = ivec3(0);
+  for (int t = -RADIUS; t <= RADIUS; ++t) {
+    ivec2 r = ivec2(q.x, reflect101(q.y + t, height));
+    uvec4 a = texelFetch(h0, r, 0);
+    uvec2 b = texelFetch(h1, r, 0).xy;
+    int k = w[abs(t)];
+    s0 += k * lo(a.x, a.y);
+    s1 += k * hi(a.y, a.z);
+    s2 += k * lo(a.w, b.x);
+    s3 += k * hi(b.x, b.y);
+  }
+  o = uvec4(saturation((s0 + 32768) >> 16), saturation((s1 + 32768) >> 16), saturation((s2 + 32768) >> 16),
+            saturation((s3 + 32768) >> 16));
+}
+)";
+
+// Sobel (3x3, replicated border) on a group of the saturation: L1 magnitude
+// and direction sector (0 horizontal, 1 vertical, 2 and 3 the diagonals),
+// magnitude | sector << 16, per pixel. Each row needs the pixels from one
+// before the group to one after it.
+const char* kGroupSobel = R"(
+uniform usampler2D sat;
+uniform ivec2 size;  // pixels
+out uvec4 o;
+void row(int y, int q, out int v[6]) {
+  y = clamp(y, 0, size.y - 1);
+  int w4 = (size.x + 3) / 4;
+  uvec4 l = texelFetch(sat, ivec2(max(q - 1, 0), y), 0);
+  uvec4 m = texelFetch(sat, ivec2(q, y), 0);
+  uvec4 r = texelFetch(sat, ivec2(min(q + 1, w4 - 1), y), 0);
+  if (q >= 1 && 4 * q + 4 <= size.x - 1) {
+    v = int[6](int(l.w), int(m.x), int(m.y), int(m.z), int(m.w), int(r.x));
+  } else {  // at a border: pixel indices clamped (the replicated border)
+    uint a[12] = uint[12](l.x, l.y, l.z, l.w, m.x, m.y, m.z, m.w, r.x, r.y, r.z, r.w);
+    for (int i = 0; i < 6; ++i) v[i] = int(a[clamp(4 * q - 1 + i, 0, size.x - 1) - 4 * q + 4]);
+  }
+}
+uint gradient(int a, int b, int c, int d, int f, int g, int h, int i) {
   int dx = (c + 2 * f + i) - (a + 2 * d + g);
   int dy = (g + 2 * h + i) - (a + 2 * b + c);
   int ax = abs(dx), ay = abs(dy);
   // tan(22.5 deg) and tan(67.5 deg) in 15-bit fixed point
   int t22 = ax * 13573, t67 = t22 + (ax << 16);
   int sector = (ay << 15) < t22 ? 0 : (ay << 15) > t67 ? 1 : ((dx ^ dy) < 0 ? 3 : 2);
-  o = uint(ax + ay) | (uint(sector) << 16);
+  return uint(ax + ay) | (uint(sector) << 16);
+}
+void main() {
+  ivec2 q = ivec2(gl_FragCoord.xy);
+  int t[6], m[6], b[6];
+  row(q.y - 1, q.x, t);
+  row(q.y, q.x, m);
+  row(q.y + 1, q.x, b);
+  uint g[4];
+  for (int k = 0; k < 4; ++k)
+    g[k] = gradient(t[k], t[k + 1], t[k + 2], m[k], m[k + 2], b[k], b[k + 1], b[k + 2]);
+  o = uvec4(g[0], g[1], g[2], g[3]);
 }
 )";
 
-// Non-maximum suppression along the gradient and the double threshold, four
-// pixels per texel: 0, 1 (above low), 2 (above high). Ties go to the pixel
-// before (left, above), as OpenCV's Canny breaks them.
-const char* kNms = R"(
+// Non-maximum suppression along the gradient and the double threshold of a
+// group: 0, 1 (above low), 2 (above high) per pixel, one byte each. Ties go
+// to the pixel before (left, above), as OpenCV's Canny breaks them; outside
+// the image the magnitude is 0.
+const char* kGroupNms = R"(
 uniform usampler2D grad;
 uniform ivec2 size;
 uniform int low, high;
 out vec4 o;
-int mag(ivec2 p) {
-  if (p.x < 0 || p.y < 0 || p.x >= size.x || p.y >= size.y) return 0;
-  return int(texelFetch(grad, p, 0).r & 0xffffu);
+void row(int y, int q, out int v[6]) {
+  int w4 = (size.x + 3) / 4;
+  if (y < 0 || y >= size.y) {
+    v = int[6](0, 0, 0, 0, 0, 0);
+    return;
+  }
+  uvec4 l = q >= 1 ? texelFetch(grad, ivec2(q - 1, y), 0) : uvec4(0u);
+  uvec4 m = texelFetch(grad, ivec2(q, y), 0);
+  uvec4 r = q + 1 < w4 ? texelFetch(grad, ivec2(q + 1, y), 0) : uvec4(0u);
+  uint a[6] = uint[6](l.w, m.x, m.y, m.z, m.w, r.x);
+  for (int i = 0; i < 6; ++i) {
+    int p = 4 * q - 1 + i;
+    v[i] = p >= 0 && p < size.x ? int(a[i] & 0xffffu) : 0;
+  }
 }
-float classify(ivec2 p) {
-  if (p.x >= size.x) return 0.0;
-  uint v = texelFetch(grad, p, 0).r;
-  int m = int(v & 0xffffu), sector = int(v >> 16);
-  if (m <= low) return 0.0;
+float classify(int k, uint g, int t[6], int m[6], int b[6]) {
+  int mag = int(g & 0xffffu), sector = int(g >> 16);
+  if (mag <= low) return 0.0;
   bool peak;
-  if (sector == 0) peak = m > mag(p + ivec2(-1, 0)) && m >= mag(p + ivec2(1, 0));
-  else if (sector == 1) peak = m > mag(p + ivec2(0, -1)) && m >= mag(p + ivec2(0, 1));
-  else if (sector == 2) peak = m > mag(p + ivec2(-1, -1)) && m > mag(p + ivec2(1, 1));
-  else peak = m > mag(p + ivec2(1, -1)) && m > mag(p + ivec2(-1, 1));
-  return !peak ? 0.0 : m > high ? 2.0 : 1.0;
+  if (sector == 0) peak = mag > m[k] && mag >= m[k + 2];
+  else if (sector == 1) peak = mag > t[k + 1] && mag >= b[k + 1];
+  else if (sector == 2) peak = mag > t[k] && mag > b[k + 2];
+  else peak = mag > t[k + 2] && mag > b[k];
+  return !peak ? 0.0 : mag > high ? 2.0 : 1.0;
 }
 void main() {
   ivec2 q = ivec2(gl_FragCoord.xy);
-  int x = q.x * 4;
-  o = vec4(classify(ivec2(x, q.y)), classify(ivec2(x + 1, q.y)), classify(ivec2(x + 2, q.y)),
-           classify(ivec2(x + 3, q.y))) / 255.0;
+  int t[6], m[6], b[6];
+  row(q.y - 1, q.x, t);
+  row(q.y, q.x, m);
+  row(q.y + 1, q.x, b);
+  uvec4 c = texelFetch(grad, q, 0);
+  int x = 4 * q.x;
+  o = vec4(x < size.x ? classify(0, c.x, t, m, b) : 0.0, x + 1 < size.x ? classify(1, c.y, t, m, b) : 0.0,
+           x + 2 < size.x ? classify(2, c.z, t, m, b) : 0.0, x + 3 < size.x ? classify(3, c.w, t, m, b) : 0.0) /
+      255.0;
 }
 )";
 
@@ -295,7 +419,7 @@ void main() {
 )";
 
 // Sobel, non-maximum suppression and double threshold in one dispatch (the
-// arithmetic of kSobel and kNms), four pixels a word into a storage buffer
+// arithmetic of kGroupSobel and kGroupNms), four pixels a word into a storage buffer
 // laid out as the single-channel map read back.
 const char* kComputeEdges = R"(
 layout(local_size_x = T, local_size_y = T) in;
@@ -437,13 +561,14 @@ class GlesFilters final : public Filters {
   GlesFilters(std::unique_ptr<EglContext> ctx, int compute) : ctx_(std::move(ctx)) {
     glGenVertexArrays(1, &vao_);
     glGenFramebuffers(1, &fbo_);
+    glGenFramebuffers(1, &fbo2_);
     glGenBuffers(1, &pbo_up_);
     glGenBuffers(1, &pbo_down_);
     label_ = program("label", std::string(kHeader) + kRaw + kLabel);
     label_blurred_ = program("label_blurred", std::string(kHeader) + "#define BLURRED\n" + kLabel);
-    sobel_ = program("sobel", std::string(kHeader) + kSobel);
-    nms_ = program("nms", std::string(kHeader) + kNms);
-    sat0_ = program("sat0", std::string(kHeader) + kRaw + "#define SRC_RAW\n#define RADIUS 0\n#define VERTICAL\n#define OUT_SAT\n" + kBlur);
+    group_sat_ = program("groupSat", std::string(kHeader) + kRaw + kSaturation + kGroupSat);
+    group_sobel_ = program("groupSobel", std::string(kHeader) + kGroupSobel);
+    group_nms_ = program("groupNms", std::string(kHeader) + kGroupNms);
     unpack_ = program("unpack", std::string(kHeader) + kRaw + kUnpack);
     check("setup");
     // Compute shaders where OpenGL ES 3.1 has them (and they compile);
@@ -474,6 +599,7 @@ class GlesFilters final : public Filters {
     glDeleteBuffers(1, &pbo_down_);
     if (ssbo_) glDeleteBuffers(1, &ssbo_);
     glDeleteFramebuffers(1, &fbo_);
+    glDeleteFramebuffers(1, &fbo2_);
     glDeleteVertexArrays(1, &vao_);
   }
 
@@ -497,7 +623,7 @@ class GlesFilters final : public Filters {
     timer.stamp("upload");
     GLuint prog = label_;
     if (s.blur_kernel > 1) {
-      blur(s, "rgba", blurred_tex_);
+      blur(s);
       prog = label_blurred_;
       glUseProgram(prog);
       bindTexture(0, blurred_tex_, "src", prog);
@@ -555,22 +681,47 @@ class GlesFilters final : public Filters {
   // Sobel, suppression + double threshold, read back through the pack buffer.
   void edgeMapFragment(const FilterSettings& s, int thr, cv::Mat& edges, StageTimer& timer) {
     if (s.blur_kernel > 1) {
-      blur(s, "sat", sat_tex_, thr);
-      timer.stamp("blur");  // the fused pass's saturation is a few integer ops
+      // blur H (raw frame -> sums), blur V + saturation + threshold
+      const int radius = s.blur_kernel / 2;
+      setWeights(s);
+      if (group_blur_radius_ != radius) {  // compiled once per radius, not per frame
+        const std::string defs = std::string(kHeader) + "#define RADIUS " + std::to_string(radius) + "\n";
+        group_blur_h_ = program("groupBlurH" + std::to_string(radius), defs + kRaw + kGroupBlurH);
+        group_blur_v_ = program("groupBlurV" + std::to_string(radius), defs + kSaturation + kGroupBlurV);
+        group_blur_radius_ = radius;
+      }
+      glUseProgram(group_blur_h_);
+      bindTexture(0, src_tex_, "raw", group_blur_h_);
+      glUniform1iv(glGetUniformLocation(group_blur_h_, "w"), radius + 1, weights_.data());
+      glUniform1i(glGetUniformLocation(group_blur_h_, "width"), w_);
+      draw2(hsum0_tex_, hsum1_tex_, w4_, h_);
+      glUseProgram(group_blur_v_);
+      bindTexture(0, hsum0_tex_, "h0", group_blur_v_);
+      bindTexture(1, hsum1_tex_, "h1", group_blur_v_);
+      glUniform1iv(glGetUniformLocation(group_blur_v_, "w"), radius + 1, weights_.data());
+      glUniform1i(glGetUniformLocation(group_blur_v_, "height"), h_);
+      glUniform1i(glGetUniformLocation(group_blur_v_, "thr"), thr);
+      draw(gsat_tex_, w4_, h_);
+      finish("blur");
+      timer.stamp("blur");  // the saturation is fused into its vertical pass
     } else {
-      saturation(thr);
+      glUseProgram(group_sat_);
+      bindTexture(0, src_tex_, "raw", group_sat_);
+      glUniform1i(glGetUniformLocation(group_sat_, "thr"), thr);
+      draw(gsat_tex_, w4_, h_);
+      finish("saturation");
     }
     timer.stamp("saturation");
     // Sobel, then suppression and double threshold
-    glUseProgram(sobel_);
-    bindTexture(0, sat_tex_, "sat", sobel_);
-    glUniform2i(glGetUniformLocation(sobel_, "size"), w_, h_);
-    draw(grad_tex_, w_, h_);
-    glUseProgram(nms_);
-    bindTexture(0, grad_tex_, "grad", nms_);
-    glUniform2i(glGetUniformLocation(nms_, "size"), w_, h_);
-    glUniform1i(glGetUniformLocation(nms_, "low"), static_cast<int>(std::floor(s.canny_low)));
-    glUniform1i(glGetUniformLocation(nms_, "high"), static_cast<int>(std::floor(s.canny_high)));
+    glUseProgram(group_sobel_);
+    bindTexture(0, gsat_tex_, "sat", group_sobel_);
+    glUniform2i(glGetUniformLocation(group_sobel_, "size"), w_, h_);
+    draw(ggrad_tex_, w4_, h_);
+    glUseProgram(group_nms_);
+    bindTexture(0, ggrad_tex_, "grad", group_nms_);
+    glUniform2i(glGetUniformLocation(group_nms_, "size"), w_, h_);
+    glUniform1i(glGetUniformLocation(group_nms_, "low"), static_cast<int>(std::floor(s.canny_low)));
+    glUniform1i(glGetUniformLocation(group_nms_, "high"), static_cast<int>(std::floor(s.canny_high)));
     draw(packed_tex_, w4_, h_);
     finish("edges");
     timer.stamp("edges");
@@ -717,7 +868,8 @@ class GlesFilters final : public Filters {
   }
 
   void freeTextures() {
-    for (GLuint* t : {&src_tex_, &unpacked_tex_, &tmp_tex_, &blurred_tex_, &sat_tex_, &grad_tex_, &packed_tex_, &sat32_tex_})
+    for (GLuint* t : {&src_tex_, &unpacked_tex_, &tmp_tex_, &blurred_tex_, &packed_tex_, &hsum0_tex_, &hsum1_tex_,
+                      &gsat_tex_, &ggrad_tex_, &sat32_tex_})
       if (*t) {
         glDeleteTextures(1, t);
         *t = 0;
@@ -736,8 +888,10 @@ class GlesFilters final : public Filters {
     unpacked_tex_ = texture(GL_RGBA8UI, w, h);
     tmp_tex_ = texture(GL_RGBA16UI, w, h);
     blurred_tex_ = texture(GL_RGBA8, w, h);
-    sat_tex_ = texture(GL_R8, w, h);
-    grad_tex_ = texture(GL_R32UI, w, h);
+    hsum0_tex_ = texture(GL_RGBA32UI, w4_, h);
+    hsum1_tex_ = texture(GL_RG32UI, w4_, h);
+    gsat_tex_ = texture(GL_RGBA8UI, w4_, h);
+    ggrad_tex_ = texture(GL_RGBA32UI, w4_, h);
     packed_tex_ = texture(GL_RGBA8, w4_, h);
     packed_.create(h, w4_ * 4, CV_8UC1);
     if (compute_) {
@@ -793,6 +947,20 @@ class GlesFilters final : public Filters {
     glDrawArrays(GL_TRIANGLES, 0, 3);
   }
 
+  // Two targets at once (the horizontal blur's sums).
+  void draw2(GLuint target0, GLuint target1, int w, int h) {
+    glBindFramebuffer(GL_FRAMEBUFFER, fbo2_);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, target0, 0);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT1, GL_TEXTURE_2D, target1, 0);
+    const GLenum buffers[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+    glDrawBuffers(2, buffers);
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+      throw BackendFailure("GLES: incomplete framebuffer (two targets)");
+    glViewport(0, 0, w, h);
+    glBindVertexArray(vao_);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+  }
+
   void finish(const char* what) {
     glFinish();
     check(what);
@@ -815,49 +983,31 @@ class GlesFilters final : public Filters {
     kernel_sigma_ = s.blur_sigma;
   }
 
-  // Separable Gaussian: the frame unpacked, H into tmp, V into `target` ("rgba": the blurred
-  // image; "sat": its thresholded saturation).
-  void blur(const FilterSettings& s, const char* out, GLuint target, int thr = 0) {
+  // The fast front end's blur, pixel by pixel: the frame unpacked, H into
+  // tmp, V into the blurred image.
+  void blur(const FilterSettings& s) {
     const int radius = s.blur_kernel / 2;
     setWeights(s);
-    const bool rgba = std::strcmp(out, "rgba") == 0;
     if (blur_radius_ != radius) {  // programs for this radius (compiled once, not per frame)
       const std::string defs = std::string(kHeader) + "#define RADIUS " + std::to_string(radius) + "\n";
       blur_h_ = program("blurH" + std::to_string(radius), defs + "#define OUT_TMP\n" + kBlur);
-      const std::string v = defs + "#define VERTICAL\n";
-      blur_v_rgba_ = program("blurVrgba" + std::to_string(radius), v + "#define OUT_RGBA\n" + kBlur);
-      blur_v_sat_ = program("blurVsat" + std::to_string(radius), v + "#define OUT_SAT\n" + kBlur);
+      blur_v_ = program("blurV" + std::to_string(radius), defs + "#define VERTICAL\n" + kBlur);
       blur_radius_ = radius;
     }
-    const GLuint h = blur_h_, v = rgba ? blur_v_rgba_ : blur_v_sat_;
     glUseProgram(unpack_);
     bindTexture(0, src_tex_, "raw", unpack_);
     draw(unpacked_tex_, w_, h_);
-    glUseProgram(h);
-    bindTexture(0, unpacked_tex_, "src", h);
-    glUniform1iv(glGetUniformLocation(h, "w"), radius + 1, weights_.data());
-    glUniform1i(glGetUniformLocation(h, "n"), w_);
+    glUseProgram(blur_h_);
+    bindTexture(0, unpacked_tex_, "src", blur_h_);
+    glUniform1iv(glGetUniformLocation(blur_h_, "w"), radius + 1, weights_.data());
+    glUniform1i(glGetUniformLocation(blur_h_, "n"), w_);
     draw(tmp_tex_, w_, h_);
-    glUseProgram(v);
-    bindTexture(0, tmp_tex_, "src", v);
-    glUniform1iv(glGetUniformLocation(v, "w"), radius + 1, weights_.data());
-    glUniform1i(glGetUniformLocation(v, "n"), h_);
-    glUniform1i(glGetUniformLocation(v, "thr"), thr);
-    draw(target, w_, h_);
+    glUseProgram(blur_v_);
+    bindTexture(0, tmp_tex_, "src", blur_v_);
+    glUniform1iv(glGetUniformLocation(blur_v_, "w"), radius + 1, weights_.data());
+    glUniform1i(glGetUniformLocation(blur_v_, "n"), h_);
+    draw(blurred_tex_, w_, h_);
     finish("blur");
-  }
-
-  // Saturation and threshold without a blur: the vertical pass of radius 0.
-  void saturation(int thr) {
-    const GLuint v = sat0_;
-    const int one = 1;
-    glUseProgram(v);
-    bindTexture(0, src_tex_, "raw", v);
-    glUniform1iv(glGetUniformLocation(v, "w"), 1, &one);
-    glUniform1i(glGetUniformLocation(v, "n"), h_);
-    glUniform1i(glGetUniformLocation(v, "thr"), thr);
-    draw(sat_tex_, w_, h_);
-    finish("saturation");
   }
 
   // Reads the attachment of fbo_ (w x h RGBA8) into `dst` through the pack
@@ -899,8 +1049,10 @@ class GlesFilters final : public Filters {
   }
 
   std::unique_ptr<EglContext> ctx_;
-  GLuint vao_ = 0, fbo_ = 0, pbo_up_ = 0, pbo_down_ = 0;
-  GLuint label_ = 0, label_blurred_ = 0, sobel_ = 0, nms_ = 0, sat0_ = 0, unpack_ = 0;
+  GLuint vao_ = 0, fbo_ = 0, fbo2_ = 0, pbo_up_ = 0, pbo_down_ = 0;
+  GLuint label_ = 0, label_blurred_ = 0, unpack_ = 0;
+  GLuint group_sat_ = 0, group_sobel_ = 0, group_nms_ = 0, group_blur_h_ = 0, group_blur_v_ = 0;
+  int group_blur_radius_ = -1;
   bool compute_ = false;     // compute shaders usable
   // The paper front end's path: fragment or compute shaders, or measuring
   // which is faster on the first frames.
@@ -914,9 +1066,10 @@ class GlesFilters final : public Filters {
   GLuint blur_sat_cs_ = 0;
   int blur_sat_radius_ = -1;
   int blur_radius_ = -1;
-  GLuint blur_h_ = 0, blur_v_rgba_ = 0, blur_v_sat_ = 0;
+  GLuint blur_h_ = 0, blur_v_ = 0;
   std::map<std::string, GLuint> programs_;
-  GLuint src_tex_ = 0, unpacked_tex_ = 0, tmp_tex_ = 0, blurred_tex_ = 0, sat_tex_ = 0, grad_tex_ = 0, packed_tex_ = 0;
+  GLuint src_tex_ = 0, unpacked_tex_ = 0, tmp_tex_ = 0, blurred_tex_ = 0, packed_tex_ = 0;
+  GLuint hsum0_tex_ = 0, hsum1_tex_ = 0, gsat_tex_ = 0, ggrad_tex_ = 0;  // groups of four pixels
   int w_ = 0, h_ = 0, w4_ = 0;
   int kernel_size_ = -1;
   double kernel_sigma_ = -1;
