@@ -1,25 +1,34 @@
-// The GLES backend's filters (filters.hpp): OpenGL ES 3.0 fragment shaders on
-// a headless EGL context (egl_context.hpp).
+// The GLES backend's filters (filters.hpp): OpenGL ES 3.0 fragment shaders,
+// and OpenGL ES 3.1 compute shaders where they exist and are faster, on a
+// headless EGL context (egl_context.hpp).
 //
 // A frame goes up once, through a pixel unpack buffer, as its BGR bytes just
 // as they are, four to an RGBA8UI texel (kRaw: no format conversion in the
-// driver, and a label pass that reads four pixels from three texels). Then,
-// per front end:
-//   fast:  [blur H -> blur V ->] label pass: kNone/kBlue/kRed per pixel, four
-//          pixels per RGBA8 texel, read back through a pixel pack buffer as
-//          the single-channel label image (one byte a pixel) the CPU's region
-//          stage takes. With a blur the blurred image comes back too (the
-//          regions' colour sums are taken over it).
-//   paper: blur H -> blur V + saturation + threshold (one pass) -> Sobel
-//          (L1 magnitude and direction sector, R32UI) -> non-maximum
-//          suppression and double threshold, four pixels per RGBA8 texel
-//          (0, 1 weak, 2 strong), read back as a single-channel map; the
-//          hysteresis runs on the CPU (filters.hpp: a flood fill over a
-//          sparse map, not worth a GPU's many passes).
+// driver). Then, per front end:
+//   fast:  label pass: kNone/kBlue/kRed per pixel, four pixels (three texels
+//          of the frame) per fragment into an RGBA8 texel, read back through
+//          a pixel pack buffer as the single-channel label image (one byte a
+//          pixel) the CPU's region stage takes. With a blur (not the
+//          default) the frame is unpacked and blurred pixel by pixel first,
+//          and the blurred image comes back too (the regions' colour sums
+//          are taken over it).
+//   paper: fragment path, four pixels a fragment throughout: blur H (from
+//          the frame, into two targets) -> blur V + saturation + threshold
+//          -> Sobel (L1 magnitude and direction sector) -> non-maximum
+//          suppression and double threshold (0, 1 weak, 2 strong), read back
+//          as a single-channel map. Compute path: blur + saturation, then
+//          Sobel + suppression, two dispatches sharing each tile's
+//          neighbourhood in shared memory, into a storage buffer read back.
+//          The faster path is measured on the first frames. The hysteresis
+//          runs on the CPU (filters.hpp: a flood fill over a sparse map, not
+//          worth a GPU's many passes).
 // All of it is integer arithmetic, the same as the CPU's: labels,
 // saturation, Sobel and suppression exactly; the blur is OpenCV's 8-bit fixed
 // point with the weights rounded to 1/256 as OpenCV rounds them for the usual
-// kernels (where its rounding differs, a blurred pixel is off by one).
+// kernels (where its rounding differed, a blurred pixel would be off by one).
+// The colour sums of the regions stay on the CPU: they are taken over the
+// few pixels of the few regions that look like squares, less work than a
+// pass over the frame would be.
 //
 // Each stage ends in glFinish, so that its time is the GPU's and the stage
 // times ("upload", "blur", "saturation", "edges", "readback") add up.
