@@ -257,7 +257,8 @@ struct Detector::Impl {
     filter_settings = detail::FilterSettings::from(params);
     if (params.backend != "cpu") {
       std::string why;
-      filters = detail::makeGlesFilters(why);
+      // "auto" takes a GPU, not a software renderer emulating one on the CPU
+      filters = detail::makeGlesFilters(why, true, params.backend == "auto");
       if (!filters) {
         if (params.backend == "gles")
           throw std::runtime_error("GLES backend unavailable: " + why + " (backend \"auto\" falls back to the CPU)");

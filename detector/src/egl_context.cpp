@@ -225,6 +225,9 @@ std::unique_ptr<EglContext> EglContext::create(std::string& why) {
     glGetIntegerv(GL_MINOR_VERSION, &minor);
     c->info_.major = major;
     c->info_.minor = minor;
+    for (const char* sw : {"llvmpipe", "softpipe", "SwiftShader", "Software Rasterizer", "swrast"})
+      c->info_.software = c->info_.software || c->info_.renderer.find(sw) != std::string::npos;
+    c->info_.software = c->info_.software || r.name.find("(software)") != std::string::npos;
     if (major < 3) {
       fail(r.name, "OpenGL ES " + std::to_string(major) + "." + std::to_string(minor) + " is below 3.0");
       continue;  // the destructor releases it

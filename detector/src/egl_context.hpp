@@ -32,6 +32,9 @@ struct EglInfo {
   std::string platform;  ///< "device", "surfaceless" or "gbm" (and which device or node)
   std::string vendor, renderer, version;  ///< GL_VENDOR, GL_RENDERER, GL_VERSION
   int major = 0, minor = 0;               ///< the context's OpenGL ES version
+  /// A software rasterizer (Mesa's llvmpipe or softpipe, SwiftShader): the
+  /// CPU emulating a GPU, slower than the CPU backend itself.
+  bool software = false;
 };
 
 class EglContext {

@@ -81,10 +81,11 @@ std::unique_ptr<Filters> makeCpuFilters();
 
 /// The GLES backend: a headless EGL context of its own and the shaders. On
 /// failure returns nullptr and says why in `why` (no EGL display, no
-/// OpenGL ES 3.0 context, a shader that does not compile, a build without
-/// GLES). `allow_compute` false keeps to the fragment-shader path even where
-/// OpenGL ES 3.1 compute shaders exist.
-std::unique_ptr<Filters> makeGlesFilters(std::string& why, bool allow_compute = true);
+/// OpenGL ES 3.0 context, a shader that does not compile, a self-test that
+/// disagrees with the CPU, a build without GLES; with `hardware_only`, a
+/// software rasterizer such as llvmpipe). `allow_compute` false keeps to the
+/// fragment-shader path even where OpenGL ES 3.1 compute shaders exist.
+std::unique_ptr<Filters> makeGlesFilters(std::string& why, bool allow_compute = true, bool hardware_only = false);
 
 /// Whether this build has the GLES backend at all.
 bool glesBuilt();

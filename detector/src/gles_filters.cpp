@@ -1091,9 +1091,13 @@ class GlesFilters final : public Filters {
 
 bool glesBuilt() { return true; }
 
-std::unique_ptr<Filters> makeGlesFilters(std::string& why, bool allow_compute) {
+std::unique_ptr<Filters> makeGlesFilters(std::string& why, bool allow_compute, bool hardware_only) {
   std::unique_ptr<EglContext> ctx = EglContext::create(why);
   if (!ctx) return nullptr;
+  if (hardware_only && ctx->info().software) {
+    why = "no GPU, only the software renderer " + ctx->info().renderer + ", slower than the CPU backend";
+    return nullptr;
+  }
   try {
     const char* env = std::getenv("LD_GLES_COMPUTE");
     const int compute = !allow_compute ? 0 : env && std::strcmp(env, "0") == 0 ? 0 : env && std::strcmp(env, "1") == 0 ? 1 : -1;

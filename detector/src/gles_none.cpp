@@ -7,7 +7,7 @@ namespace ld::detail {
 
 bool glesBuilt() { return false; }
 
-std::unique_ptr<Filters> makeGlesFilters(std::string& why, bool) {
+std::unique_ptr<Filters> makeGlesFilters(std::string& why, bool, bool) {
   why = "this build has no GLES backend (EGL/GLESv2 development files missing at configure time)";
   return nullptr;
 }

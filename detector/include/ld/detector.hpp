@@ -74,10 +74,12 @@ struct DetectorParams {
   std::string front_end = "fast";
 
   /// Where the per-pixel filters run. "cpu" (default); "gles": OpenGL ES
-  /// shaders on a headless EGL context (the Detector's constructor throws
+  /// shaders on a headless EGL context, a software renderer (Mesa's
+  /// llvmpipe) included (the Detector's constructor throws
   /// std::runtime_error when none can be made); "auto": the GPU when an EGL
-  /// context can be made, else the CPU with one warning on stderr per
-  /// process. A GPU that fails later, mid-run, is dropped for the CPU with
+  /// context on a GPU can be made, else (no EGL, or only a software
+  /// renderer, which is slower than the CPU backend) the CPU with one
+  /// warning on stderr per process. A GPU that fails later, mid-run, is dropped for the CPU with
   /// one warning, whichever was asked for. The environment variable
   /// LD_EGL_FORCE_FAIL=1 makes every EGL context fail (fallback tests), and
   /// LD_EGL_PLATFORM=device|surfaceless|gbm restricts the EGL platform
