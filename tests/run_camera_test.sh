@@ -1,0 +1,56 @@
+#!/usr/bin/env bash
+# ld-run with its camera source: ld-camera on its built-in fake webcam
+# (a moving test pattern), the set behind it, in a private network namespace.
+# Frames flow (IMAGE and LANDMARKS_TRACKED at the camera's rate), a killed
+# camera is back within 2 s, and SIGTERM ends everything with exit 0.
+set -euo pipefail
+BIN=$1
+T=$(mktemp -d)
+RUN=
+cleanup() {
+  [ -n "$RUN" ] && kill -KILL "$RUN" 2>/dev/null || true
+  rm -rf "$T"
+}
+trap cleanup EXIT
+"$BIN/ld-run" --netns --source camera --camera-arg=--fake --camera-arg=--device=/dev/ld-fake0 \
+  --camera-arg=--fps=20 --state-file "$T/state.json" --summary "$T/summary.json" --log-dir "$T" \
+  --status-interval 0 -q &
+RUN=$!
+for _ in $(seq 100); do
+  [ -s "$T/state.json" ] && [ "$(jq .ready "$T/state.json")" = true ] && break
+  sleep 0.1
+done
+sleep 2
+old=$(jq -r '.processes[] | select(.name == "camera") | .pid' "$T/state.json")
+kill -KILL "$old"
+t0=$(date +%s%3N)
+new=$old
+while [ $(( $(date +%s%3N) - t0 )) -lt 5000 ]; do
+  new=$(jq -r '.processes[] | select(.name == "camera") | .pid' "$T/state.json")
+  if [ "$new" -gt 0 ] && [ "$new" != "$old" ]; then break; fi
+  sleep 0.02
+done
+echo "camera: pid $old killed, back as pid $new after $(( $(date +%s%3N) - t0 )) ms"
+[ "$new" -gt 0 ] && [ "$new" != "$old" ]
+[ $(( $(date +%s%3N) - t0 )) -le 2000 ]
+sleep 2
+kill -TERM "$RUN"
+rc=0; wait "$RUN" || rc=$?
+RUN=
+[ "$rc" -eq 0 ]
+jq -c '.summary.channels, .summary.frames' "$T/summary.json"
+images=$(jq .summary.frames.images "$T/summary.json")
+tracked=$(jq .summary.frames.tracked "$T/summary.json")
+rate=$(jq '.summary.channels.IMAGE.rate_hz' "$T/summary.json")
+[ "$images" -ge 40 ]                      # ~4 s at 20 frames/s, less the restart
+# the restarted camera counts from seq 0 again: frames came through after it
+after=$(jq '[.summary.per_frame[].seq] as $s
+            | [range(1; $s | length) | select($s[.] < $s[. - 1])] as $resets
+            | if ($resets | length) == 1 then ($s | length) - $resets[0] else -1 end' "$T/summary.json")
+echo "tracked frames from the restarted camera: $after"
+[ "$after" -ge 10 ]
+[ "$tracked" -ge $(( images * 9 / 10 )) ]  # nearly every frame through the set
+jq -e '.summary.channels.LANDMARKS_TRACKED.rate_hz > 10' "$T/summary.json" >/dev/null
+echo "camera frames: $images at $rate frames/s, tracked: $tracked"
+[ "$(jq '.processes[] | select(.name == "camera") | .restarts' "$T/summary.json")" -eq 1 ]
+echo "1 passed, 0 failed"
