@@ -52,7 +52,8 @@ int main(int argc, char** argv) {
   app.add_option("--size", side_m, "printed landmark side S in metres, for pose");
   app.add_option("--backend", backend,
                  "where the filters run: cpu; gles (OpenGL ES on a headless EGL context, an error when none "
-                 "can be made); auto (the GPU when it can, else the CPU with one warning). "
+                 "can be made; Mesa's llvmpipe counts); auto (a GPU when there is one, else the CPU with one "
+                 "warning). "
                  "Default: the params file's, else cpu")
       ->check(CLI::IsMember({"cpu", "gles", "auto"}));
   bool adaptive = false;

@@ -121,7 +121,7 @@ int main(int argc, char** argv) {
   app.add_flag("!--no-paper", with_paper, "skip the paper front-end row");
   app.add_option("--backend", backends,
                  "backends to measure, a list of cpu, gles, auto (gles rows are left out, with a note, "
-                 "where no EGL context can be made)")
+                 "where no EGL context can be made; gles takes a software renderer too, auto only a GPU)")
       ->delimiter(',')
       ->check(CLI::IsMember({"cpu", "gles", "auto"}))
       ->capture_default_str();
