@@ -1,0 +1,409 @@
+// ld-soak: drives the process set (ld-detector, ld-tracker, ld-qr-reader)
+// with synthetic camera frames for a chosen time and reports, over time, each
+// process's memory (VmRSS) and open file descriptors, and the messages on
+// each link: what was published, received, deliberately skipped (the
+// processes' own frames_skipped counts) and lost. Ends with a verdict: memory
+// flat, fds flat, nothing lost but the deliberate skips.
+//
+// LCM stays inside a private network namespace: run it as
+//   scripts/netns-run.sh build/bin/ld-soak --duration 600
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <optional>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <lcm/lcm-cpp.hpp>
+
+#include "ld/image_convert.hpp"
+#include "ld/lcm_url.hpp"
+#include "ld/message_decode.hpp"
+#include "ld/synth.hpp"
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+struct Options {
+  double duration_s = 60;
+  double fps = 30;
+  int width = 1920, height = 1080;
+  int landmarks = 4;
+  int loop_frames = 30;
+  std::string format = "mjpeg";
+  double sample_s = 5;
+  double warmup_s = 20;
+  std::string bin_dir;
+  std::string log_dir;
+  std::string csv;
+  double max_growth_mb = 8;  // allowed RSS growth after the warm-up, per process
+};
+
+// One process of the set, started with its stderr in a file.
+struct Child {
+  std::string name;
+  pid_t pid = -1;
+  std::string err_path;
+};
+
+Child spawn(const std::string& bin_dir, const std::string& name, const std::string& url,
+            const std::string& log_dir) {
+  Child c{name, -1, log_dir + "/" + name + ".err"};
+  const std::string exe = bin_dir + "/" + name;
+  const pid_t pid = fork();
+  if (pid < 0) throw std::runtime_error("fork failed");
+  if (pid == 0) {
+    const int fd = open(c.err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd >= 0) {
+      dup2(fd, 2);
+      close(fd);
+    }
+    execl(exe.c_str(), name.c_str(), "--lcm-url", url.c_str(), static_cast<char*>(nullptr));
+    std::perror(exe.c_str());
+    _exit(127);
+  }
+  c.pid = pid;
+  return c;
+}
+
+struct ProcSample {
+  double rss_mb = 0;
+  int fds = 0;
+  bool alive = false;
+};
+
+ProcSample sampleProcess(pid_t pid) {
+  ProcSample s;
+  std::ifstream status("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(status, line))
+    if (line.rfind("VmRSS:", 0) == 0) {
+      s.rss_mb = std::stod(line.substr(6)) / 1024.0;
+      s.alive = true;
+    }
+  std::error_code ec;
+  for (auto it = fs::directory_iterator("/proc/" + std::to_string(pid) + "/fd", ec);
+       !ec && it != fs::directory_iterator(); it.increment(ec))
+    ++s.fds;
+  return s;
+}
+
+// What ld-soak hears back on the output channels.
+struct Outputs {
+  int64_t landmarks = 0, tracked = 0, codes = 0;
+  int64_t detector_skipped = 0, tracker_skipped = 0;  // the processes' own counts, latest
+  int64_t landmarks_with_detections = 0, codes_entries = 0, bad = 0;
+  ld::landmark_list_t list;
+  ld::qr_code_list_t code_list;
+
+  void onLandmarks(const lcm::ReceiveBuffer* rb, const std::string&) {
+    if (!ld::decodeMessage(rb->data, rb->data_size, list)) return void(++bad);
+    ++landmarks;
+    detector_skipped = list.frames_skipped;
+    if (!list.landmarks.empty()) ++landmarks_with_detections;
+  }
+  void onTracked(const lcm::ReceiveBuffer* rb, const std::string&) {
+    if (!ld::decodeMessage(rb->data, rb->data_size, list)) return void(++bad);
+    ++tracked;
+    tracker_skipped = list.frames_skipped;
+  }
+  void onCodes(const lcm::ReceiveBuffer* rb, const std::string&) {
+    if (!ld::decodeMessage(rb->data, rb->data_size, code_list)) return void(++bad);
+    ++codes;
+    codes_entries += code_list.ncodes;
+  }
+};
+
+// The frames of the loop: the landmarks drift a little from frame to frame
+// (the tracker follows them) over an office background, with fresh sensor
+// noise in each frame.
+std::vector<ld::image_t> renderLoop(const Options& o) {
+  const ld::CameraModel camera = ld::CameraModel::pinhole({o.width, o.height}, 0.75 * o.width);
+  std::vector<ld::synth::LandmarkPlacement> base;
+  for (int k = 0; k < o.landmarks; ++k) {
+    const double nx = o.landmarks == 1 ? 0.0 : -0.65 + 1.3 * k / (o.landmarks - 1);
+    const double ny = (k % 2 ? 0.35 : -0.3);
+    base.push_back(ld::synth::placeLandmark(camera, 1.4 + 0.5 * (k % 3), -25.0 + 17.0 * k, 0, 8.0 * k,
+                                            nx, ny, 0.2, "soak-" + std::to_string(k), k));
+  }
+  const int32_t format = ld::pixelFormatFromName(o.format);
+  std::vector<ld::image_t> frames;
+  for (int i = 0; i < o.loop_frames; ++i) {
+    ld::synth::SceneSpec spec;
+    spec.camera = camera;
+    spec.background = ld::synth::Background::Office;
+    spec.distractors = 6;
+    spec.seed = 5;
+    spec.noise_seed = 1000 + static_cast<uint64_t>(i);
+    spec.degradation.noise_sigma = 2.0;
+    const double phase = 2 * 3.14159265358979 * i / o.loop_frames;  // the loop closes smoothly
+    for (auto lm : base) {
+      lm.tvec[0] += 0.04 * std::sin(phase + lm.id);
+      lm.tvec[1] += 0.02 * std::cos(phase + lm.id);
+      spec.landmarks.push_back(lm);
+    }
+    const ld::synth::Frame f = ld::synth::render(spec);
+    frames.push_back(ld::matToImage(f.bgr, format, 0, 0, 85));
+  }
+  return frames;
+}
+
+// "stopped after ..." line of a process's stderr: the numbers in it, in order.
+std::vector<int64_t> exitCounts(const std::string& err_path, const std::string& program) {
+  std::ifstream f(err_path);
+  std::string line, last;
+  while (std::getline(f, line))
+    if (line.rfind(program + ": stopped after", 0) == 0) last = line;
+  std::vector<int64_t> v;
+  const std::regex num("[0-9]+");
+  for (auto it = std::sregex_iterator(last.begin(), last.end(), num); it != std::sregex_iterator(); ++it)
+    v.push_back(std::stoll(it->str()));
+  return v;
+}
+
+double secondsSince(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  CLI::App app{"ld-soak: the process set under a long camera load; memory, fds and messages lost "
+               "over time (run it in a private network namespace: scripts/netns-run.sh)."};
+  app.add_option("-d,--duration", o.duration_s, "seconds of load")->capture_default_str();
+  app.add_option("--fps", o.fps, "frames per second")->capture_default_str();
+  app.add_option("--width", o.width, "frame width")->capture_default_str();
+  app.add_option("--height", o.height, "frame height")->capture_default_str();
+  app.add_option("-k,--landmarks", o.landmarks, "landmarks in view")->capture_default_str();
+  app.add_option("--loop-frames", o.loop_frames, "distinct frames rendered, published in a loop")
+      ->capture_default_str();
+  app.add_option("--format", o.format, "pixel format published: mjpeg, yuyv, bgr, gray, ...")
+      ->capture_default_str();
+  app.add_option("--sample-interval", o.sample_s, "seconds between samples")->capture_default_str();
+  app.add_option("--warmup", o.warmup_s, "seconds before the memory baseline is taken")
+      ->capture_default_str();
+  app.add_option("--max-growth-mb", o.max_growth_mb,
+                 "largest RSS growth after the warm-up that still counts as flat")
+      ->capture_default_str();
+  app.add_option("--bin", o.bin_dir, "folder of ld-detector, ld-tracker, ld-qr-reader (default: ld-soak's)");
+  app.add_option("--log-dir", o.log_dir, "where the processes' stderr goes (default: a temporary folder)");
+  app.add_option("--csv", o.csv, "also write the samples to this CSV file");
+  CLI11_PARSE(app, argc, argv);
+
+  if (std::getenv("LD_IN_NETNS") == nullptr || std::string(std::getenv("LD_IN_NETNS")) != "1") {
+    std::cerr << "ld-soak: run me in a private network namespace, so that LCM stays on this "
+                 "machine: scripts/netns-run.sh " << argv[0] << " ...\n";
+    return 2;
+  }
+  if (o.duration_s <= 0 || o.fps <= 0 || o.loop_frames < 1 || o.landmarks < 1 || o.sample_s <= 0) {
+    std::cerr << "ld-soak: duration, fps, loop-frames, landmarks and sample-interval must be positive\n";
+    return 2;
+  }
+  if (o.bin_dir.empty()) o.bin_dir = fs::read_symlink("/proc/self/exe").parent_path().string();
+  if (o.log_dir.empty()) {
+    std::string tmpl = (fs::temp_directory_path() / "ld-soak-XXXXXX").string();
+    if (!mkdtemp(tmpl.data())) {
+      std::perror("ld-soak: mkdtemp");
+      return 2;
+    }
+    o.log_dir = tmpl;
+  }
+  fs::create_directories(o.log_dir);
+
+  std::cout << "ld-soak: rendering " << o.loop_frames << " frames of " << o.width << "x" << o.height
+            << " with " << o.landmarks << " landmarks (" << o.format << ")..." << std::flush;
+  std::vector<ld::image_t> frames;
+  try {
+    frames = renderLoop(o);
+  } catch (const std::exception& e) {
+    std::cerr << "\nld-soak: " << e.what() << "\n";
+    return 2;
+  }
+  size_t bytes = 0;
+  for (const auto& f : frames) bytes += f.data.size();
+  std::cout << " " << bytes / frames.size() / 1024 << " KiB per frame\n";
+
+  const std::string url = ld::defaultLcmUrl();
+  lcm::LCM lcm(url);
+  if (!lcm.good()) {
+    std::cerr << "ld-soak: cannot open LCM at " << url << "\n";
+    return 2;
+  }
+  Outputs out;
+  lcm.subscribe("LANDMARKS", &Outputs::onLandmarks, &out);
+  lcm.subscribe("LANDMARKS_TRACKED", &Outputs::onTracked, &out);
+  lcm.subscribe("LANDMARK_CODES", &Outputs::onCodes, &out);
+
+  std::vector<Child> set;
+  for (const char* name : {"ld-detector", "ld-tracker", "ld-qr-reader"})
+    set.push_back(spawn(o.bin_dir, name, url, o.log_dir));
+  std::this_thread::sleep_for(std::chrono::seconds(1));  // subscriptions in place
+
+  std::ofstream csv;
+  if (!o.csv.empty()) {
+    csv.open(o.csv);
+    csv << "t_s,published,landmarks,tracked,codes,detector_skipped";
+    for (const auto& c : set) csv << "," << c.name << "_rss_mb," << c.name << "_fds";
+    csv << "\n";
+  }
+  std::printf("%7s %9s %9s %9s %9s %8s", "t (s)", "IMAGE", "LANDMARKS", "TRACKED", "CODES", "skipped");
+  for (const auto& c : set) std::printf(" | %-12s %4s", (c.name.substr(3) + " MB").c_str(), "fds");
+  std::printf("\n");
+
+  struct Row {
+    double t;
+    std::vector<ProcSample> procs;
+  };
+  std::vector<Row> rows;
+  auto sample = [&](double t, int64_t published) {
+    Row r{t, {}};
+    for (const auto& c : set) r.procs.push_back(sampleProcess(c.pid));
+    std::printf("%7.1f %9lld %9lld %9lld %9lld %8lld", t, static_cast<long long>(published),
+                static_cast<long long>(out.landmarks), static_cast<long long>(out.tracked),
+                static_cast<long long>(out.codes), static_cast<long long>(out.detector_skipped));
+    for (const auto& p : r.procs) std::printf(" | %12.1f %4d", p.rss_mb, p.fds);
+    std::printf("\n");
+    std::fflush(stdout);
+    if (csv.is_open()) {
+      csv << t << "," << published << "," << out.landmarks << "," << out.tracked << "," << out.codes
+          << "," << out.detector_skipped;
+      for (const auto& p : r.procs) csv << "," << p.rss_mb << "," << p.fds;
+      csv << "\n";
+    }
+    rows.push_back(std::move(r));
+  };
+
+  // Publish at the frame rate; between frames, take what comes back.
+  const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / o.fps));
+  const int64_t total = std::llround(o.duration_s * o.fps);
+  const auto t0 = Clock::now();
+  const int64_t utime0 = std::chrono::duration_cast<std::chrono::microseconds>(
+                             std::chrono::system_clock::now().time_since_epoch()).count();
+  std::vector<uint8_t> buf;
+  double next_sample = 0;
+  int64_t late = 0;
+  bool died = false;
+  for (int64_t i = 0; i < total && !died; ++i) {
+    const auto due = t0 + i * period;
+    while (Clock::now() < due) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(due - Clock::now()).count();
+      lcm.handleTimeout(static_cast<int>(std::max<int64_t>(left, 0)));
+    }
+    if (Clock::now() - due > period) ++late;  // ld-soak itself could not keep the rate
+    ld::image_t& msg = frames[static_cast<size_t>(i % static_cast<int64_t>(frames.size()))];
+    msg.utime = utime0 + std::llround(i * 1e6 / o.fps);
+    ld::setImageSeq(msg, i);
+    buf.resize(static_cast<size_t>(msg.getEncodedSize()));
+    msg.encode(buf.data(), 0, static_cast<int>(buf.size()));
+    lcm.publish("IMAGE", buf.data(), static_cast<unsigned>(buf.size()));
+    if (secondsSince(t0) >= next_sample) {
+      sample(secondsSince(t0), i + 1);
+      next_sample += o.sample_s;
+      for (const auto& c : set)
+        if (waitpid(c.pid, nullptr, WNOHANG) == c.pid) {
+          std::cerr << "ld-soak: " << c.name << " exited during the run (see " << c.err_path << ")\n";
+          died = true;
+        }
+    }
+  }
+  const double publish_s = secondsSince(t0);
+  // let the set finish the last frames
+  const auto drain_until = Clock::now() + std::chrono::seconds(2);
+  while (Clock::now() < drain_until) lcm.handleTimeout(100);
+  sample(secondsSince(t0), total);
+
+  for (auto& c : set) kill(c.pid, SIGINT);
+  bool clean_exit = !died;
+  for (auto& c : set) {
+    int status = 0;
+    waitpid(c.pid, &status, 0);
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+      clean_exit = false;
+      std::cerr << "ld-soak: " << c.name << " did not exit cleanly (see " << c.err_path << ")\n";
+    }
+  }
+
+  // The processes' own counts, from their exit lines:
+  //   ld-detector: stopped after P frames (S skipped, B bad)
+  //   ld-tracker: stopped after P frames (S skipped, B bad), T tracks
+  //   ld-qr-reader: stopped after P frames, R tracks read, S skipped, U unmatched, B bad
+  const auto det = exitCounts(set[0].err_path, "ld-detector");
+  const auto trk = exitCounts(set[1].err_path, "ld-tracker");
+  const auto qr = exitCounts(set[2].err_path, "ld-qr-reader");
+  if (det.size() < 3 || trk.size() < 3 || qr.size() < 5) {
+    std::cerr << "ld-soak: missing exit lines in " << o.log_dir << "\n";
+    return 1;
+  }
+  const int64_t det_in = det[0] + det[1] + det[2], trk_in = trk[0] + trk[1] + trk[2];
+  const int64_t lost_image = total - det_in;          // IMAGE frames ld-detector never saw
+  const int64_t lost_landmarks = det[0] - trk_in;     // LANDMARKS lists ld-tracker never saw
+  const int64_t lost_to_soak = (det[0] - out.landmarks) + (trk[0] - out.tracked) + (qr[0] - out.codes);
+
+  std::printf("\nframes published: %lld in %.1f s (%.1f fps; %lld published late), %dx%d %s, %d landmarks\n",
+              static_cast<long long>(total), publish_s, total / publish_s, static_cast<long long>(late),
+              o.width, o.height, o.format.c_str(), o.landmarks);
+  std::printf("IMAGE -> ld-detector:       %lld received = %lld processed + %lld skipped (deliberate) + "
+              "%lld bad; lost %lld\n",
+              static_cast<long long>(det_in), static_cast<long long>(det[0]),
+              static_cast<long long>(det[1]), static_cast<long long>(det[2]),
+              static_cast<long long>(lost_image));
+  std::printf("LANDMARKS -> ld-tracker:    %lld published, %lld received = %lld processed + %lld skipped "
+              "(deliberate) + %lld bad; lost %lld\n",
+              static_cast<long long>(det[0]), static_cast<long long>(trk_in), static_cast<long long>(trk[0]),
+              static_cast<long long>(trk[1]), static_cast<long long>(trk[2]),
+              static_cast<long long>(lost_landmarks));
+  std::printf("ld-qr-reader:               %lld frames joined, %lld tracks read, %lld skipped (deliberate), "
+              "%lld unmatched, %lld bad\n",
+              static_cast<long long>(qr[0]), static_cast<long long>(qr[1]), static_cast<long long>(qr[2]),
+              static_cast<long long>(qr[3]), static_cast<long long>(qr[4]));
+  std::printf("outputs -> ld-soak:         LANDMARKS %lld of %lld (%lld with landmarks), LANDMARKS_TRACKED "
+              "%lld of %lld, LANDMARK_CODES %lld of %lld (%lld codes); lost %lld\n",
+              static_cast<long long>(out.landmarks), static_cast<long long>(det[0]),
+              static_cast<long long>(out.landmarks_with_detections), static_cast<long long>(out.tracked),
+              static_cast<long long>(trk[0]), static_cast<long long>(out.codes),
+              static_cast<long long>(qr[0]), static_cast<long long>(out.codes_entries),
+              static_cast<long long>(lost_to_soak));
+
+  // Memory and fds: the first sample after the warm-up against the last.
+  size_t base = 0;
+  while (base + 1 < rows.size() && rows[base].t < o.warmup_s) ++base;
+  bool mem_flat = true, fds_flat = true;
+  const double minutes = std::max(1e-9, (rows.back().t - rows[base].t) / 60.0);
+  for (size_t k = 0; k < set.size(); ++k) {
+    double peak = 0;
+    for (size_t r = base; r < rows.size(); ++r) peak = std::max(peak, rows[r].procs[k].rss_mb);
+    const ProcSample& a = rows[base].procs[k];
+    const ProcSample& b = rows.back().procs[k];
+    const double growth = b.rss_mb - a.rss_mb;
+    if (growth > o.max_growth_mb || !b.alive) mem_flat = false;
+    if (a.fds != b.fds) fds_flat = false;
+    std::printf("%-13s RSS %.1f MB at %.0f s -> %.1f MB at %.0f s (%+.1f MB, %+.2f MB/min, peak %.1f); fds %d -> %d\n",
+                (set[k].name + ":").c_str(), a.rss_mb, rows[base].t, b.rss_mb, rows.back().t, growth,
+                growth / minutes, peak, a.fds, b.fds);
+  }
+  const bool none_lost = lost_image == 0 && lost_landmarks == 0 && lost_to_soak == 0 && out.bad == 0;
+  const bool pass = mem_flat && fds_flat && none_lost && clean_exit;
+  std::printf("verdict: %s (memory %s, fds %s, %s, %s)\n", pass ? "PASS" : "FAIL",
+              mem_flat ? "flat" : "GROWS", fds_flat ? "flat" : "CHANGE",
+              none_lost ? "no message lost" : "MESSAGES LOST",
+              clean_exit ? "clean exits" : "A PROCESS FAILED");
+  std::printf("process logs: %s\n", o.log_dir.c_str());
+  return pass ? 0 : 1;
+}
