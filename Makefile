@@ -1,5 +1,7 @@
 # The two entry points of the README. Both install what is missing (Debian
-# packages, via scripts/install-deps.sh), configure and build in build/.
+# packages, via scripts/install-deps.sh), apply the host settings the stack
+# needs (scripts/host-setup.sh: the socket receive buffer limit), configure
+# and build in build/.
 BUILD_DIR ?= build
 BUILD_TYPE ?= Release
 JOBS ?= $(shell nproc)
@@ -10,6 +12,7 @@ all: build
 
 deps:
 	bash scripts/install-deps.sh
+	bash scripts/host-setup.sh
 
 configure: deps
 	cmake -S . -B $(BUILD_DIR) -DCMAKE_BUILD_TYPE=$(BUILD_TYPE)
