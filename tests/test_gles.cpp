@@ -199,8 +199,8 @@ TEST_P(GlesEdges, EdgeMapsAgree) {
   ScopedEnv env("LD_GLES_COMPUTE", compute ? "1" : "0");
   auto g = gles();
   ASSERT_TRUE(g);
-  std::printf("%s\n", g->info().c_str());
-  EXPECT_EQ(g->info().find("paper front end: compute shaders") != std::string::npos, compute) << g->info();
+  std::printf("%s\n", g->info(true).c_str());
+  EXPECT_EQ(g->info(true).find("paper front end on compute shaders") != std::string::npos, compute) << g->info(true);
   auto c = ld::detail::makeCpuFilters();
   for (const ld::DetectorParams& p : {ld::DetectorParams::paper(), [] {
          ld::DetectorParams q = ld::DetectorParams::paper();

@@ -55,7 +55,9 @@ namespace {
 class CpuFilters final : public Filters {
  public:
   const char* name() const override { return "cpu"; }
-  std::string info() const override { return "cpu: OpenCV and the vectorised label pass"; }
+  std::string info(bool paper) const override {
+    return paper ? "cpu: OpenCV's blur and Canny" : "cpu: the vectorised label pass";
+  }
 
   void labelMap(const cv::Mat& bgr, const FilterSettings& s, cv::Mat& labels, const cv::Mat*& filtered,
                 StageTimer& timer) override {

@@ -556,7 +556,7 @@ const DetectorParams& Detector::params() const { return impl_->params; }
 const char* Detector::backend() const { return impl_->filters->name(); }
 
 std::string Detector::backendInfo() const {
-  std::string s = impl_->filters->info();
+  std::string s = impl_->filters->info(impl_->paper);
   if (!impl_->fallback_why.empty()) s += " (GLES not used: " + impl_->fallback_why + ")";
   return s;
 }

@@ -59,8 +59,9 @@ class Filters {
   virtual ~Filters() = default;
   /// "cpu" or "gles".
   virtual const char* name() const = 0;
-  /// One line on what runs (the GPU, the EGL platform, the shader path).
-  virtual std::string info() const = 0;
+  /// One line on what runs for a front end (the GPU, the EGL platform, the
+  /// shader path).
+  virtual std::string info(bool paper_front_end) const = 0;
 
   /// Fast front end, stages 1-2: the label image (CV_8UC1, kNone / kBlue /
   /// kRed per pixel, as saturationMask) of an 8-bit BGR image, after the blur

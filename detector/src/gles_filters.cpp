@@ -614,15 +614,16 @@ class GlesFilters final : public Filters {
 
   const char* name() const override { return "gles"; }
 
-  std::string info() const override {
+  std::string info(bool paper) const override {
     const auto& i = ctx_->info();
-    std::string paper = path_ == Path::Compute    ? "compute shaders"
-                        : path_ == Path::Measure  ? "compute or fragment shaders, the faster on the first frames"
-                        : compute_               ? "fragment shaders (measured faster than compute here)"
-                                                 : "fragment shaders";
-    if (!compute_note_.empty()) paper += " (no compute: " + compute_note_ + ")";
-    return "gles: " + i.renderer + " (" + i.version + ") via EGL " + i.platform +
-           "; fast front end: fragment shaders; paper front end: " + paper;
+    std::string path = !paper                   ? "fragment shaders"
+                       : path_ == Path::Compute ? "compute shaders"
+                       : path_ == Path::Measure ? "compute or fragment shaders, the faster on the first frames"
+                       : compute_               ? "fragment shaders (measured faster than compute here)"
+                                                : "fragment shaders";
+    if (paper && !compute_note_.empty()) path += " (no compute: " + compute_note_ + ")";
+    return "gles: " + i.renderer + " (" + i.version + ") via EGL " + i.platform + "; " +
+           (paper ? "paper" : "fast") + " front end on " + path;
   }
 
   void labelMap(const cv::Mat& bgr, const FilterSettings& s, cv::Mat& labels, const cv::Mat*& filtered,
