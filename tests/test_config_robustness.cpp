@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <fstream>
 
 #include "ld/camera.hpp"
@@ -105,6 +106,34 @@ TEST(ParamsFile, BinaryFilesAreRefusedBeforeOpenCvParsesThem) {
               std::string::npos)
         << e.what();
   }
+}
+
+ld::Landmark squareAt(float x, float y) {
+  ld::Landmark lm;
+  lm.fip_tl = {x, y};
+  lm.fip_tr = {x + 20, y};
+  lm.fip_bl = {x, y + 20};
+  lm.ap = {x + 20, y + 20};
+  lm.corners = {{{x - 5, y - 5}, {x + 25, y - 5}, {x + 25, y + 25}, {x - 5, y + 25}}};
+  return lm;
+}
+
+// Found by tests/fuzz/fuzz_messages: utimes come from the bus, and the
+// difference of two of them overflowed int64_t (undefined behaviour).
+TEST(TrackerTimes, AnyTwoUtimesWork) {
+  ld::TrackerParams p;
+  p.max_lifetime_s = 1e300;  // "forever" (used to overflow the lifetime in microseconds)
+  ld::Tracker tracker(p);
+  tracker.update({squareAt(50, 50)}, 0);
+  const auto& tracks = tracker.update({}, 8000000000000000000);
+  ASSERT_EQ(tracks.size(), 1u);  // still coasting: its lifetime is not over
+  EXPECT_FALSE(tracks[0].visible);
+  EXPECT_EQ(tracks[0].time_since_seen_us, 8000000000000000000);
+  // more than INT64_MAX microseconds apart: the track ends, nothing overflows
+  ld::Tracker extremes(p);
+  extremes.update({squareAt(50, 50)}, INT64_MIN + 5);
+  EXPECT_TRUE(extremes.update({}, INT64_MAX).empty());
+  ASSERT_EQ(extremes.update({squareAt(50, 50)}, INT64_MAX).size(), 1u);
 }
 
 }  // namespace

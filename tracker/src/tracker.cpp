@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <stdexcept>
 
 namespace ld {
@@ -21,6 +22,14 @@ bool finiteLandmark(const Landmark& lm) {
   for (const auto& c : lm.corners)
     if (!finite(c)) return false;
   return true;
+}
+
+// Microseconds from `then` to `now` (now >= then: update() restarts when time
+// goes back), saturated: any two utimes may arrive, and their difference can
+// exceed int64_t (found by tests/fuzz/fuzz_messages).
+int64_t elapsedUs(int64_t now, int64_t then) {
+  const uint64_t d = static_cast<uint64_t>(now) - static_cast<uint64_t>(then);
+  return d > static_cast<uint64_t>(INT64_MAX) ? INT64_MAX : static_cast<int64_t>(d);
 }
 
 double dist(const cv::Point2d& a, const cv::Point2d& b) { return std::hypot(a.x - b.x, a.y - b.y); }
@@ -95,9 +104,11 @@ const std::vector<Track>& Tracker::update(const std::vector<Landmark>& detection
   }
 
   // 1. EXPIRE: a landmark stays in the pool while unseen for less than its lifetime.
-  const auto lifetime_us = static_cast<int64_t>(std::llround(params_.max_lifetime_s * 1e6));
+  // (clamped to 9e12 s, "forever": a larger lifetime would not fit in int64_t microseconds)
+  const auto lifetime_us =
+      static_cast<int64_t>(std::llround(std::min(params_.max_lifetime_s, 9e12) * 1e6));
   const auto expired = std::remove_if(pool_.begin(), pool_.end(), [&](const PoolEntry& e) {
-    return utime - e.last_seen_utime >= lifetime_us;
+    return elapsedUs(utime, e.last_seen_utime) >= lifetime_us;
   });
   stats_.tracks_dropped += pool_.end() - expired;
   pool_.erase(expired, pool_.end());
@@ -188,7 +199,7 @@ void Tracker::predict(int64_t utime) {
     e.pred_centre = e.centre;
     e.pred_size = e.size;
     if (!params_.predict || e.motion == Motion::None) continue;
-    const double dt = static_cast<double>(utime - e.last_seen_utime) * 1e-6;
+    const double dt = static_cast<double>(elapsedUs(utime, e.last_seen_utime)) * 1e-6;
     e.pred_centre = e.centre + e.velocity * dt;
     e.pred_size = std::clamp(e.size + e.size_rate * dt, 0.5 * e.size, 2.0 * e.size);
   }
@@ -206,7 +217,7 @@ void Tracker::assign(int64_t utime) {
   cost_.resize(n_pool * n_det);
   for (size_t i = 0; i < n_pool; ++i) {
     const PoolEntry& e = pool_[i];
-    const double unseen_s = static_cast<double>(utime - e.last_seen_utime) * 1e-6;
+    const double unseen_s = static_cast<double>(elapsedUs(utime, e.last_seen_utime)) * 1e-6;
     // Without a velocity (seen once, nothing to borrow from), the motion
     // during the missed frames is unknown: the distance is allowed for the
     // next frame too.
@@ -246,7 +257,7 @@ double Tracker::gatedDistance(const cv::Point2d& centre, double size, size_t j,
 void Tracker::updateMatched(PoolEntry& e, const Landmark& det, int d, int64_t utime) {
   const cv::Point2d centre = det_centre_[static_cast<size_t>(d)];
   const double size = det_size_[static_cast<size_t>(d)];
-  const double dt = static_cast<double>(utime - e.last_seen_utime) * 1e-6;
+  const double dt = static_cast<double>(elapsedUs(utime, e.last_seen_utime)) * 1e-6;
   if (e.frames_since_seen > 0 && dist(e.centre, centre) < dist(e.pred_centre, centre)) {
     // Found where it was last seen, not where its motion led: that motion
     // has ended (the robot stopped or turned back).
@@ -289,7 +300,7 @@ void Tracker::report(int64_t utime) {
     t.age = e.age;
     t.hits = e.hits;
     t.frames_since_seen = e.frames_since_seen;
-    t.time_since_seen_us = utime - e.last_seen_utime;
+    t.time_since_seen_us = elapsedUs(utime, e.last_seen_utime);
     t.visible = visible;
     t.detection_index = visible ? det_index_[static_cast<size_t>(e.detection)] : -1;
     t.landmark = e.lm;
