@@ -3,9 +3,11 @@
 # namespace): an ld-synth log replayed by lcm-logplayer to a live
 # ld-detector; lcm-logger records LANDMARKS. Every frame must come back once
 # with its utime and seq, most with landmarks; a malformed IMAGE message is
-# reported and does not stop the process.
+# reported and does not stop the process. An optional third argument is the
+# detector's --backend (cpu by default; gles: the GPU backend, on llvmpipe
+# where there is no GPU).
 set -euo pipefail
-BIN=$1; ROOT=$2
+BIN=$1; ROOT=$2; BACKEND=${3:-cpu}
 T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
 FRAMES=30
 "$BIN/ld-synth" sequence --out "$T/seq" --frames $FRAMES --fps 10 --landmarks 2 --seed 3 \
@@ -13,11 +15,11 @@ FRAMES=30
 
 "$ROOT/scripts/netns-run.sh" bash -c '
   set -euo pipefail
-  BIN=$1; T=$2
+  BIN=$1; T=$2; BACKEND=$3
   URL="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608"
   lcm-logger --lcm-url="$URL" -c LANDMARKS -f "$T/out.lcmlog" >/dev/null 2>&1 &
   logger=$!
-  "$BIN/ld-detector" --lcm-url "$URL" 2> "$T/detector.err" &
+  "$BIN/ld-detector" --lcm-url "$URL" --backend "$BACKEND" 2> "$T/detector.err" &
   det=$!
   sleep 1
   "$BIN/ld-publish-garbage" --lcm-url "$URL" --channel IMAGE
@@ -26,7 +28,7 @@ FRAMES=30
   kill -0 $det   # still running after the bad message
   kill -INT $det; wait $det
   kill -INT $logger; wait $logger || true
-' test "$BIN" "$T"
+' test "$BIN" "$T" "$BACKEND"
 
 "$BIN/ld-dump" "$T/in.lcmlog" | jq -c '[.seq, .utime]' | sort > "$T/in.keys"
 "$BIN/ld-dump" "$T/out.lcmlog" -c LANDMARKS > "$T/out.jsonl"
@@ -36,8 +38,11 @@ with=$(jq -c 'select(.landmarks | length > 0)' "$T/out.jsonl" | wc -l)
 echo "frames in: $FRAMES, LANDMARKS out: $n_out, with landmarks: $with"
 cat "$T/detector.err"
 diff "$T/in.keys" "$T/out.keys"                      # each frame once, same utime and seq
-[ "$(jq -r .backend "$T/out.jsonl" | sort -u)" = cpu ]
+[ "$(jq -r .backend "$T/out.jsonl" | sort -u)" = "$BACKEND" ]
 [ "$(jq -r '.stage_ms | has("saturation")' "$T/out.jsonl" | sort -u)" = true ]
+if [ "$BACKEND" = gles ]; then
+  [ "$(jq -r '.stage_ms | has("upload") and has("readback")' "$T/out.jsonl" | sort -u)" = true ]
+fi
 [ "$with" -ge $((FRAMES * 2 / 3)) ]
 grep -q "dropped frame" "$T/detector.err"            # the garbage message was reported
 echo "1 passed, 0 failed"
