@@ -348,6 +348,24 @@ TEST(GlesFallback, AutoTakesAGpuNotASoftwareRenderer) {
   ld::detail::resetBackendWarning();
 }
 
+// The backend is a parameter like the others: saved, loaded, validated.
+TEST(GlesParams, BackendInParameterFiles) {
+  const auto path = std::filesystem::temp_directory_path() / ("test_gles_params_" + std::to_string(getpid()) + ".yaml");
+  ld::DetectorParams p;
+  p.backend = "auto";
+  p.save(path.string());
+  EXPECT_EQ(ld::DetectorParams::load(path.string()).backend, "auto");
+  std::filesystem::remove(path);
+  p.backend = "metal";
+  try {
+    p.validate();
+    ADD_FAILURE() << "backend metal accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("backend"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(ld::Detector{p}, std::invalid_argument);
+}
+
 // A GPU that fails mid-run (here: a frame beyond any GPU's texture size
 // limit) is dropped for the CPU with one warning; detection goes on.
 TEST(GlesFallback, FailureMidRunSwitchesToCpu) {
