@@ -776,11 +776,17 @@ class GlesFilters final : public Filters {
     path_ = path;
     if (compute_) {
       const int thr = static_cast<int>(std::floor(s.saturation_threshold * 255.0));
-      edgeMapCompute(s, thr, edges, timer);
-      if (cv::countNonZero(want != edges) != 0) {
+      try {
+        edgeMapCompute(s, thr, edges, timer);
+        if (cv::countNonZero(want != edges) != 0) compute_note_ = "the compute shaders' edge map differs from the CPU's";
+      } catch (const BackendFailure& e) {
+        for (int k = 0; k < 8 && glGetError() != GL_NO_ERROR; ++k) {
+        }  // the error flags, cleared for the fragment path
+        compute_note_ = e.what();
+      }
+      if (!compute_note_.empty()) {
         compute_ = false;
         path_ = Path::Fragment;
-        compute_note_ = "the compute shaders' edge map differs from the CPU's";
       }
     }
     return true;
