@@ -16,15 +16,13 @@
 #include <sstream>
 
 #include <CLI/CLI.hpp>
-#include <apriltag/apriltag.h>
-#include <apriltag/tag36h11.h>
-#include <opencv2/aruco.hpp>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "ld/detector.hpp"
-#include "ld/landmark_layout.hpp"
+#include "ld/markers.hpp"
 #include "ld/synth.hpp"
+#include "ld/tracker_bench.hpp"
 
 namespace {
 
@@ -38,49 +36,6 @@ double median(std::vector<double> v) {
 
 double msSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-
-// A square sheet texture with `marker` (black border included) filling the
-// pattern square [0.5u, 8.5u] of a 9u white sheet, like our landmark's
-// pattern: the same printed size.
-cv::Mat sheetWithMarker(const cv::Mat& marker_gray, int side_px) {
-  cv::Mat sheet(side_px, side_px, CV_8UC3, cv::Scalar(255, 255, 255));
-  const int m0 = static_cast<int>(std::lround(side_px * ld::layout::kPatternMin / ld::layout::kUnits));
-  const int m1 = static_cast<int>(std::lround(side_px * ld::layout::kPatternMax / ld::layout::kUnits));
-  cv::Mat scaled, bgr;
-  cv::resize(marker_gray, scaled, {m1 - m0, m1 - m0}, 0, 0, cv::INTER_NEAREST);
-  cv::cvtColor(scaled, bgr, cv::COLOR_GRAY2BGR);
-  bgr.copyTo(sheet(cv::Rect(m0, m0, m1 - m0, m1 - m0)));
-  return sheet;
-}
-
-cv::Mat aprilTagImage(apriltag_family_t* family, int id) {
-  image_u8_t* im = apriltag_to_image(family, id);
-  // The family image has one white module around the black border: drop it.
-  const int b = (static_cast<int>(family->total_width) - static_cast<int>(family->width_at_border)) / 2;
-  cv::Mat full(im->height, im->width, CV_8UC1, im->buf, static_cast<size_t>(im->stride));
-  cv::Mat tag = full(cv::Rect(b, b, im->width - 2 * b, im->height - 2 * b)).clone();
-  // Debian's libapriltag exports apriltag_to_image but not image_u8_destroy;
-  // this is what image_u8_destroy does (the image and its buffer are malloc'd).
-  free(im->buf);
-  free(im);
-  return tag;
-}
-
-bool matches(const ld::Landmark& d, const ld::synth::LandmarkTruth& t) {
-  const double size = cv::norm(t.fip_tr - t.fip_tl) / 3.0;  // a FIP's size in px
-  const double tol = std::max(2.0, 0.35 * size);
-  auto near = [&](cv::Point2f a, cv::Point2d b) { return cv::norm(cv::Point2d(a) - b) < tol; };
-  return near(d.fip_tl, t.fip_tl) && near(d.fip_tr, t.fip_tr) && near(d.fip_bl, t.fip_bl) &&
-         near(d.ap, t.ap);
-}
-
-bool markerFound(const std::vector<cv::Point2f>& quad, const ld::synth::LandmarkTruth& t) {
-  cv::Point2f c(0, 0);
-  for (const auto& p : quad) c += p * 0.25f;
-  cv::Point2d tc(0, 0);
-  for (const auto& p : t.corners) tc += p * 0.25;
-  return cv::norm(cv::Point2d(c) - tc) < std::max(3.0, 0.1 * cv::norm(t.corners[1] - t.corners[0]));
 }
 
 struct Scene {
@@ -125,15 +80,15 @@ int main(int argc, char** argv) {
       ->delimiter(',')
       ->check(CLI::IsMember({"cpu", "gles", "auto"}))
       ->capture_default_str();
+  std::vector<int> tracker_counts{10, 50, 200};
+  int tracker_repeats = 100;
+  app.add_option("--tracker-landmarks", tracker_counts, "landmark counts of the tracker rows")->capture_default_str();
+  app.add_option("--tracker-repeats", tracker_repeats, "timed runs per tracker row")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   cv::setNumThreads(1);
-  apriltag_family_t* family = tag36h11_create();
-  apriltag_detector_t* td = apriltag_detector_create();
-  apriltag_detector_add_family(td, family);
-  td->nthreads = 1;  // quad_decimate stays at its default (2.0)
-  const auto dict = cv::aruco::getPredefinedDictionary(cv::aruco::DICT_4X4_50);
-  const auto aruco_params = cv::aruco::DetectorParameters::create();
+  ld::markers::Detector tag_detector(ld::markers::Kind::AprilTag);  // one thread, default decimation
+  ld::markers::Detector aruco_detector(ld::markers::Kind::Aruco);
 
   std::ostringstream md;
   md << "Measured by `ld-bench --frames " << frames << " --repeats " << repeats << "`: "
@@ -181,13 +136,10 @@ int main(int argc, char** argv) {
       s.ours = ld::synth::render(spec);
       const int tex = 540;
       for (size_t k = 0; k < spec.landmarks.size(); ++k)
-        spec.landmarks[k].texture = sheetWithMarker(aprilTagImage(family, static_cast<int>(k)), tex);
+        spec.landmarks[k].texture = ld::markers::sheetTexture(ld::markers::Kind::AprilTag, static_cast<int>(k), tex);
       s.tag = ld::synth::render(spec);
-      for (size_t k = 0; k < spec.landmarks.size(); ++k) {
-        cv::Mat marker;
-        dict->drawMarker(static_cast<int>(k), 60, marker, 1);
-        spec.landmarks[k].texture = sheetWithMarker(marker, tex);
-      }
+      for (size_t k = 0; k < spec.landmarks.size(); ++k)
+        spec.landmarks[k].texture = ld::markers::sheetTexture(ld::markers::Kind::Aruco, static_cast<int>(k), tex);
       s.aruco = ld::synth::render(spec);
       scenes.push_back(std::move(s));
     }
@@ -230,50 +182,31 @@ int main(int argc, char** argv) {
           if (!t.in_view) continue;
           ++row.truths;
           row.found += std::any_of(det.landmarks.begin(), det.landmarks.end(),
-                                   [&](const ld::Landmark& d) { return matches(d, t); });
+                                   [&](const ld::Landmark& d) { return ld::matchesTruth(d, {t.fip_tl, t.fip_tr, t.fip_bl, t.ap}); });
         }
         if (!markers) continue;
         // AprilTag and ArUco take gray images (conversion not timed).
         cv::Mat gray;
-        cv::cvtColor(s.tag.bgr, gray, cv::COLOR_BGR2GRAY);
-        image_u8_t im{gray.cols, gray.rows, static_cast<int32_t>(gray.step), gray.data};
-        zarray_t* dets = nullptr;
-        for (int r = 0; r <= repeats; ++r) {
-          if (dets) apriltag_detections_destroy(dets);
-          const auto t0 = Clock::now();
-          dets = apriltag_detector_detect(td, &im);
-          if (r > 0) at.push_back(msSince(t0));
-        }
-        for (const auto& t : s.tag.truth) {
-          if (!t.in_view) continue;
-          for (int k = 0; k < zarray_size(dets); ++k) {
-            apriltag_detection_t* d;
-            zarray_get(dets, k, &d);
-            std::vector<cv::Point2f> quad;
-            for (auto& p : d->p) quad.emplace_back(static_cast<float>(p[0]), static_cast<float>(p[1]));
-            if (d->id == t.id && markerFound(quad, t)) {
-              ++row.found_tag;
-              break;
-            }
+        // Markers of the same printed size at the same poses, each found by
+        // its own detector; the id and the quad must match the truth.
+        const auto timeMarkers = [&](ld::markers::Detector& d, const ld::synth::Frame& f,
+                                     std::vector<double>& times, int& found) {
+          cv::cvtColor(f.bgr, gray, cv::COLOR_BGR2GRAY);
+          std::vector<ld::markers::Found> quads;
+          for (int r = 0; r <= repeats; ++r) {
+            const auto t0 = Clock::now();
+            quads = d.detect(gray);
+            if (r > 0) times.push_back(msSince(t0));  // the first run warms up
           }
-        }
-        apriltag_detections_destroy(dets);
-        cv::cvtColor(s.aruco.bgr, gray, cv::COLOR_BGR2GRAY);
-        std::vector<std::vector<cv::Point2f>> corners;
-        std::vector<int> ids;
-        for (int r = 0; r <= repeats; ++r) {
-          const auto t0 = Clock::now();
-          cv::aruco::detectMarkers(gray, dict, corners, ids, aruco_params);
-          if (r > 0) ar.push_back(msSince(t0));
-        }
-        for (const auto& t : s.aruco.truth) {
-          if (!t.in_view) continue;
-          for (size_t k = 0; k < ids.size(); ++k)
-            if (ids[k] == t.id && markerFound(corners[k], t)) {
-              ++row.found_aruco;
-              break;
-            }
-        }
+          for (const auto& t : f.truth) {
+            if (!t.in_view) continue;
+            found += std::any_of(quads.begin(), quads.end(), [&](const ld::markers::Found& q) {
+              return q.id == t.id && ld::markers::matches(q.corners, t.corners);
+            });
+          }
+        };
+        timeMarkers(tag_detector, s.tag, at, row.found_tag);
+        timeMarkers(aruco_detector, s.aruco, ar, row.found_aruco);
         row.apriltag.push_back(median(at));
         row.aruco.push_back(median(ar));
       }
@@ -351,8 +284,14 @@ int main(int argc, char** argv) {
        << "| backend | front end | filter | geometry | total | FPS |\n|---|---|---|---|---|---|\n";
     for (const auto& r : table2) md << r << "\n";
   }
-  apriltag_detector_destroy(td);
-  tag36h11_destroy(family);
+  // The tracker (section IV): one assignment and one update per frame.
+  md << "\nTracker: median ms over " << tracker_repeats << " runs; assignment = one Hungarian solve of a "
+        "dense NxN matrix (the worst case), update = one Tracker::update() with N landmarks moving.\n\n"
+     << "| landmarks | assignment | update |\n|---|---|---|\n";
+  for (int n : tracker_counts) {
+    const ld::TrackerTiming t = ld::timeTracker(n, tracker_repeats, seed);
+    md << "| " << n << " | " << fmt(t.assignment_ms, 4) << " | " << fmt(t.update_ms, 4) << " |\n";
+  }
   std::cout << md.str();
   if (!markdown.empty()) {
     std::ofstream f(markdown);
