@@ -43,6 +43,10 @@ TEST(CameraFile, MalformedFilesFoundByFuzzingAreRefusedWithAReason) {
   EXPECT_NE(loadError("regress-no-dt.yml").find("camera file "), std::string::npos);
   // a NUL byte in an XML attribute: OpenCV 4.6's parser dereferenced a null pointer
   EXPECT_NE(loadError("regress-nul-in-xml-attribute.xml").find("NUL byte"), std::string::npos);
+  // "---" with text after it, another "---" later: OpenCV 4.6's YAML parser loops forever
+  EXPECT_NE(loadError("regress-yaml-hang.yml").find("line 2: \"---\" must stand on a line of its own"),
+            std::string::npos)
+      << loadError("regress-yaml-hang.yml");
   // cx = 6.4e8
   EXPECT_NE(loadError("regress-far-principal-point.yml").find("principal point"), std::string::npos);
 }
@@ -88,6 +92,12 @@ TEST(CameraFile, DivergingDistortionGivesNoNonFiniteLandmark) {
   detector.setCamera(cam, 0.15);
   for (const auto& lm : detector.detect(frame).landmarks)
     for (const auto& c : lm.corners) EXPECT_TRUE(std::isfinite(c.x) && std::isfinite(c.y));
+}
+
+TEST(ParamsFile, DashesInCommentsAreFine) {
+  const std::string path =
+      writeTemp("t.yml", "# ---- tracker ----\nmax_distance: 3  # --- wider ---\n");
+  EXPECT_EQ(ld::TrackerParams::load(path).max_distance, 3);
 }
 
 TEST(ParamsFile, BinaryFilesAreRefusedBeforeOpenCvParsesThem) {

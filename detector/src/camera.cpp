@@ -43,7 +43,7 @@ CameraModel CameraModel::pinhole(cv::Size size, double focal_px) {
 }
 
 CameraModel CameraModel::load(const std::string& path) {
-  if (const auto why = notATextFile(path)) throw std::runtime_error("camera file " + path + ": " + *why);
+  if (const auto why = unsafeFileForOpenCv(path)) throw std::runtime_error("camera file " + path + ": " + *why);
   cv::FileStorage fs;
   try {
     if (!fs.open(path, cv::FileStorage::READ))

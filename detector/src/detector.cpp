@@ -100,7 +100,7 @@ DetectorParams DetectorParams::paper() {
 }
 
 DetectorParams DetectorParams::load(const std::string& path) {
-  if (const auto why = notATextFile(path)) badFile(path, *why);
+  if (const auto why = unsafeFileForOpenCv(path)) badFile(path, *why);
   cv::FileStorage fs;
   try {
     if (!fs.open(path, cv::FileStorage::READ)) badFile(path, "cannot open or parse");

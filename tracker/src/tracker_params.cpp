@@ -7,6 +7,8 @@
 
 #include "ld/tracker.hpp"
 
+#include "ld/config_file.hpp"
+
 namespace ld {
 namespace {
 
@@ -54,8 +56,7 @@ TrackerParams TrackerParams::load(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   if (!f) fail(path, "cannot open");
   std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  if (const size_t nul = text.find('\0'); nul != std::string::npos)  // see ld/config_file.hpp
-    fail(path, "contains a NUL byte at offset " + std::to_string(nul) + " (not a text file)");
+  if (const auto why = unsafeForOpenCv(text)) fail(path, *why);
   // OpenCV wants a "%YAML:1.0" first line; plain YAML gets one.
   const size_t first = text.find_first_not_of(" \t\r\n");
   if (first == std::string::npos) text = "%YAML:1.0\n---\n{}\n";
