@@ -43,6 +43,10 @@ TEST(CameraFile, MalformedFilesFoundByFuzzingAreRefusedWithAReason) {
   EXPECT_NE(loadError("regress-no-dt.yml").find("camera file "), std::string::npos);
   // a NUL byte in an XML attribute: OpenCV 4.6's parser dereferenced a null pointer
   EXPECT_NE(loadError("regress-nul-in-xml-attribute.xml").find("NUL byte"), std::string::npos);
+  // "<?xml version=" and nothing after it: OpenCV 4.6's XML parser dereferenced a null pointer
+  EXPECT_NE(loadError("regress-xml-attribute-at-eof.xml").find("XML attribute without a quoted value"),
+            std::string::npos)
+      << loadError("regress-xml-attribute-at-eof.xml");
   // "---" with text after it, another "---" later: OpenCV 4.6's YAML parser loops forever
   EXPECT_NE(loadError("regress-yaml-hang.yml").find("line 2: \"---\" must stand on a line of its own"),
             std::string::npos)

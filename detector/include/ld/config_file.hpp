@@ -2,6 +2,8 @@
 // before it hands a file to cv::FileStorage, whose parsers in OpenCV 4.6 fail
 // badly on some input (found by tests/fuzz/fuzz_camera):
 //  - a NUL byte inside an XML attribute dereferences a null pointer;
+//  - so does an XML attribute whose "=" has no quoted value after it
+//    ("<?xml version=" at the end of a file);
 //  - a YAML "---" document marker with text after it on its line, followed
 //    by another "---" later, makes the YAML parser loop forever.
 // No configuration file needs either: OpenCV writes "---" on a line of its
@@ -20,6 +22,30 @@ inline std::optional<std::string> unsafeForOpenCv(const std::string& text) {
   const size_t nul = text.find('\0');
   if (nul != std::string::npos)
     return "contains a NUL byte at offset " + std::to_string(nul) + " (not a text file)";
+  const size_t first = text.find_first_not_of(" \t\r\n");
+  if (first != std::string::npos && text[first] == '<') {  // XML: every tag closed, attribute values quoted
+    bool in_tag = false;
+    for (size_t i = first; i < text.size(); ++i) {
+      const char c = text[i];
+      if (!in_tag) {
+        in_tag = c == '<';
+        continue;
+      }
+      if (c == '>') {
+        in_tag = false;
+      } else if (c == '"' || c == '\'') {
+        const size_t close = text.find(c, i + 1);
+        if (close == std::string::npos)
+          return "offset " + std::to_string(i) + ": unterminated attribute value";
+        i = close;
+      } else if (c == '=') {
+        const size_t v = text.find_first_not_of(" \t\r\n", i + 1);
+        if (v == std::string::npos || (text[v] != '"' && text[v] != '\''))
+          return "offset " + std::to_string(i) + ": XML attribute without a quoted value";
+      }
+    }
+    if (in_tag) return "unterminated XML tag at the end";
+  }
   size_t line = 1, start = 0;
   while (start <= text.size()) {
     size_t end = text.find('\n', start);
