@@ -16,6 +16,7 @@ FRAMES=30
   BIN=$1; T=$2
   "$BIN/ld-view" --out "$T/live" 2> "$T/live.err" &
   view=$!
+  sleep 1   # subscribed, and the LCM self test (which drops messages) over, before frames come
   "$BIN/ld-run" --replay "$T/in.lcmlog" --exit-when-replay-done --record "$T/run.lcmlog" \
     --status-interval 0 -q
   sleep 0.5
