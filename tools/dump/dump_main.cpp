@@ -41,7 +41,7 @@ nlohmann::ordered_json landmarkJson(const ld::landmark_t& m) {
     j["age"] = m.age;
     j["frames_since_seen"] = m.frames_since_seen;
     j["time_since_seen_us"] = m.time_since_seen_us;
-    j["visible"] = m.visible;
+    j["visible"] = m.visible != 0;
   }
   return j;
 }
