@@ -11,6 +11,7 @@
 
 #include "ld/adaptive.hpp"
 #include "ld/detector.hpp"
+#include "ld/detector_options.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/landmark_msg.hpp"
 #include "ld/lcm_url.hpp"
@@ -41,43 +42,19 @@ class LatestFrame {
 int main(int argc, char** argv) {
   CLI::App app{"ld-detector: IMAGE in, LANDMARKS out (see README)."};
   std::string url = ld::defaultLcmUrl(), in_channel = "IMAGE", out_channel = "LANDMARKS";
-  std::string params_file, camera_file, backend;
-  double side_m = 0;
   bool verbose = false;
   app.add_option("--lcm-url", url, "LCM URL")->capture_default_str();
   app.add_option("--in", in_channel, "image channel")->capture_default_str();
   app.add_option("--out", out_channel, "landmarks channel")->capture_default_str();
-  app.add_option("--params", params_file, "detector parameters (YAML)");
-  app.add_option("--camera", camera_file, "camera calibration (OpenCV YAML/XML) for pose");
-  app.add_option("--size", side_m, "printed landmark side S in metres, for pose");
-  app.add_option("--backend", backend,
-                 "where the filters run: cpu; gles (OpenGL ES on a headless EGL context, an error when none "
-                 "can be made; Mesa's llvmpipe counts); auto (a GPU when there is one, else the CPU with one "
-                 "warning). "
-                 "Default: the params file's, else cpu")
-      ->check(CLI::IsMember({"cpu", "gles", "auto"}));
-  bool adaptive = false;
-  app.add_flag("--adaptive", adaptive,
-               "adapt to the light's colour and level (white balance from confirmed landmarks' sheets or "
-               "the frame's whitest pixels) before detecting");
+  ld::DetectorOptions detector_options;
+  detector_options.addTo(app);
   app.add_flag("-v,--verbose", verbose, "print a status line every 5 s");
   CLI11_PARSE(app, argc, argv);
 
   ld::Detector detector;
   ld::LightingAdapter adapter;  // with --adaptive: frames are corrected before detection
   try {
-    ld::DetectorParams params;
-    if (!params_file.empty()) params = ld::DetectorParams::load(params_file);
-    if (!backend.empty()) params.backend = backend;
-    params.validate();
-    detector = ld::Detector(params);
-    if (!camera_file.empty() || side_m > 0) {
-      if (camera_file.empty() || side_m <= 0) {
-        std::cerr << "ld-detector: pose needs both --camera and --size\n";
-        return 2;
-      }
-      detector.setCamera(ld::CameraModel::load(camera_file), side_m);
-    }
+    detector = detector_options.make();
   } catch (const std::exception& e) {
     std::cerr << "ld-detector: " << e.what() << "\n";
     return 2;
@@ -110,8 +87,8 @@ int main(int argc, char** argv) {
         if (!ld::decodeMessage(latest.bytes_.data(), latest.bytes_.size(), image, &why))
           throw ld::ImageFormatError("message on " + in_channel + " is " + why);
         ld::imageToBgr(image, bgr);
-        const ld::Detection& det = detector.detect(adaptive ? adapter.correct(bgr) : bgr);
-        if (adaptive) adapter.observe(bgr, det);
+        const ld::Detection& det = detector.detect(detector_options.adaptive ? adapter.correct(bgr) : bgr);
+        if (detector_options.adaptive) adapter.observe(bgr, det);
         ld::toListMessage(det, image.utime, ld::imageSeq(image).value_or(-1), bgr.cols, bgr.rows,
                           detector.backend(), latest.skipped_, out);
         lcm.publish(out_channel, &out);

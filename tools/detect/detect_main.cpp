@@ -11,6 +11,7 @@
 
 #include "ld/adaptive.hpp"
 #include "ld/detector.hpp"
+#include "ld/detector_options.hpp"
 #include "ld/landmark_json.hpp"
 #include "ld/qr_reader.hpp"
 
@@ -49,25 +50,13 @@ std::vector<std::string> expandInputs(const std::vector<std::string>& inputs) {
 int main(int argc, char** argv) {
   CLI::App app{"ld-detect: find landmarks in images; JSON Lines on stdout (see README)."};
   std::vector<std::string> inputs;
-  std::string params_file, camera_file, draw_dir, out_file, backend;
-  double side_m = 0;
+  std::string draw_dir, out_file;
   bool summary = false, decode = false;
   app.add_option("inputs", inputs, "image files or folders")->required();
-  app.add_option("--params", params_file, "detector parameters (YAML)");
-  app.add_option("--camera", camera_file, "camera calibration (OpenCV YAML/XML), for pose");
-  app.add_option("--size", side_m, "printed landmark side S in metres, for pose");
+  ld::DetectorOptions detector_options;
+  detector_options.addTo(app);
   app.add_option("--draw", draw_dir, "write overlay images into this folder");
   app.add_option("-o,--output", out_file, "write JSON Lines here instead of stdout");
-  app.add_option("--backend", backend,
-                 "where the filters run: cpu; gles (OpenGL ES on a headless EGL context, an error when none "
-                 "can be made; Mesa's llvmpipe counts); auto (a GPU when there is one, else the CPU with one "
-                 "warning). "
-                 "Default: the params file's, else cpu")
-      ->check(CLI::IsMember({"cpu", "gles", "auto"}));
-  bool adaptive = false;
-  app.add_flag("--adaptive", adaptive,
-               "adapt to the light's colour and level (white balance from confirmed landmarks' sheets or "
-               "the frame's whitest pixels) before detecting");
   app.add_flag("--decode", decode, "read each landmark's QR payload too (zbar)");
   app.add_flag("--summary", summary, "print a summary (frames, landmarks, detect_ms) on stderr");
   CLI11_PARSE(app, argc, argv);
@@ -75,18 +64,7 @@ int main(int argc, char** argv) {
   ld::Detector detector;
   ld::LightingAdapter adapter;  // with --adaptive: frames are corrected before detection
   try {
-    ld::DetectorParams params;
-    if (!params_file.empty()) params = ld::DetectorParams::load(params_file);
-    if (!backend.empty()) params.backend = backend;
-    params.validate();
-    detector = ld::Detector(params);
-    if (!camera_file.empty() || side_m > 0) {
-      if (camera_file.empty() || side_m <= 0) {
-        std::cerr << "ld-detect: pose needs both --camera and --size\n";
-        return 2;
-      }
-      detector.setCamera(ld::CameraModel::load(camera_file), side_m);
-    }
+    detector = detector_options.make();
     if (!draw_dir.empty()) fs::create_directories(draw_dir);
   } catch (const std::exception& e) {
     std::cerr << "ld-detect: " << e.what() << "\n";
@@ -126,8 +104,8 @@ int main(int argc, char** argv) {
       continue;
     }
     const auto t0 = std::chrono::steady_clock::now();
-    const ld::Detection& det = detector.detect(adaptive ? adapter.correct(img) : img);
-    if (adaptive) adapter.observe(img, det);
+    const ld::Detection& det = detector.detect(detector_options.adaptive ? adapter.correct(img) : img);
+    if (detector_options.adaptive) adapter.observe(img, det);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     found.assign(det.landmarks.begin(), det.landmarks.end());
     if (decode)

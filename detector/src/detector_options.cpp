@@ -1,0 +1,34 @@
+#include "ld/detector_options.hpp"
+
+#include <stdexcept>
+
+namespace ld {
+
+void DetectorOptions::addTo(CLI::App& app) {
+  app.add_option("--params", params_file, "detector parameters (YAML)");
+  app.add_option("--camera", camera_file, "camera calibration (OpenCV YAML/XML), for pose");
+  app.add_option("--size", side_m, "printed landmark side S in metres, for pose");
+  app.add_option("--backend", backend,
+                 "where the filters run: cpu; gles (OpenGL ES on a headless EGL context, an error when none "
+                 "can be made; Mesa's llvmpipe counts); auto (a GPU when there is one, else the CPU with one "
+                 "warning). Default: the params file's, else cpu")
+      ->check(CLI::IsMember({"cpu", "gles", "auto"}));
+  app.add_flag("--adaptive", adaptive,
+               "adapt to the light's colour and level (white balance from confirmed landmarks' sheets or "
+               "the frame's whitest pixels) before detecting");
+}
+
+Detector DetectorOptions::make() const {
+  DetectorParams params;
+  if (!params_file.empty()) params = DetectorParams::load(params_file);
+  if (!backend.empty()) params.backend = backend;
+  params.validate();
+  Detector detector(params);
+  if (!camera_file.empty() || side_m > 0) {
+    if (camera_file.empty() || side_m <= 0) throw std::invalid_argument("pose needs both --camera and --size");
+    detector.setCamera(CameraModel::load(camera_file), side_m);
+  }
+  return detector;
+}
+
+}  // namespace ld
