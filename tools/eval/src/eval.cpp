@@ -63,17 +63,17 @@ void applyLighting(const SweepOptions& o, synth::SceneSpec& spec) {
   }
 }
 
-// The fixed or the adaptive detector, as the options say.
+// The fixed or the adaptive detector, as the options say: one detector,
+// with the adapter in front only when asked for.
 struct AnyDetector {
-  explicit AnyDetector(const SweepOptions& o) : adaptive(o.adaptive), fixed(o.params), adapt(o.params) {}
+  explicit AnyDetector(const SweepOptions& o) : adaptive(o.adaptive), detector(o.params) {}
   const Detection& detect(const cv::Mat& bgr) {
-    if (!adaptive) return fixed.detect(bgr);
-    adapt.adapter().reset();  // independent frames
-    return adapt.detect(bgr);
+    if (!adaptive) return detector.detector().detect(bgr);
+    detector.adapter().reset();  // independent frames
+    return detector.detect(bgr);
   }
   bool adaptive;
-  Detector fixed;
-  AdaptiveDetector adapt;
+  AdaptiveDetector detector;
 };
 
 }  // namespace
