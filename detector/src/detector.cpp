@@ -471,7 +471,11 @@ void Detector::Impl::run(const cv::Mat& input) {
   // 6-7. GEOMETRY: FIP graph, its 3-cycles, the AP, verification, overlaps
   const int n = static_cast<int>(fips.size());
   candidates.clear();
-  if (n >= 3 && !aps.empty()) {
+  // Three FIPs and an AP make a landmark; two FIPs and an AP, or three FIPs,
+  // may be one whose fourth square the completion finds.
+  const bool whole = n >= 3 && !aps.empty();
+  const bool completion = !paper && p.complete_missing && (n >= 3 || (n >= 2 && !aps.empty()));
+  if (whole || completion) {
     adjacency.assign(static_cast<size_t>(n) * n, 0);
     for (int i = 0; i < n; ++i)
       for (int j = i + 1; j < n; ++j)
@@ -481,11 +485,11 @@ void Detector::Impl::run(const cv::Mat& input) {
     ap_index.build(aps);
     for (const auto& cyc : cycles) {
       detail::Candidate c;
-      if (detail::rightIsosceles(cyc, fips, kTriangleTolerance) && detail::chooseAp(cyc, fips, aps, p, c, &ap_index) &&
+      if (whole && detail::rightIsosceles(cyc, fips, kTriangleTolerance) && detail::chooseAp(cyc, fips, aps, p, c, &ap_index) &&
           detail::verify(c, fips, aps, *img, p))
         candidates.push_back(c);
     }
-    if (!paper && p.complete_missing) complete(*img);
+    if (completion) complete(*img);
     detail::resolveOverlaps(candidates, static_cast<int>(fips.size()), static_cast<int>(aps.size()), used);
   }
   timer.stamp("geometry");
