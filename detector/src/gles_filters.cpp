@@ -95,7 +95,7 @@ float label(int x, uvec3 px) {
   int b = v.x, g = v.y, r = v.z;
   int mx = max(b, max(g, r)), mn = min(b, min(g, r)), c = mx - mn;
   if (mx < vmin) return 0.0;
-  if (b == mx) return c > ((mx * thr_b) >> 8) && b - g > max(0, g - r) && 2 * (b - r) > max(0, r - g) ? 1.0 : 0.0;
+  if (b == mx) return c > ((mx * thr_b) >> 8) && b - g > max(0, g - r) && b - r > max(0, r - g) ? 1.0 : 0.0;
   if (r == mx) return c > ((mx * thr_r) >> 8) && r - g > max(0, g - b) ? 2.0 : 0.0;
   return 0.0;
 }

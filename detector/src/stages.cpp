@@ -15,10 +15,6 @@
 namespace ld::detail {
 namespace {
 
-// How far, in pixels, blur and JPEG move the edge of a square in a colour
-// profile (the cover check's tolerance on short sides).
-constexpr double kCoverBlurPx = 1.5;
-
 int thresholdQ8(double saturation_threshold) {
   return std::clamp(static_cast<int>(std::lround(saturation_threshold * 256.0)), 0, 256);
 }
@@ -124,9 +120,8 @@ void saturationMask(const cv::Mat& bgr, const MaskThresholds& mt, cv::Mat& label
         const cv::v_uint8 tr = cv::v_pack(cv::v_shr<8>(cv::v_mul_wrap(m0, vthr_r)),
                                           cv::v_shr<8>(cv::v_mul_wrap(m1, vthr_r)));
         const cv::v_uint8 bright = mx >= vvmin;
-        // blue: hue within 210..280 degrees, so cyan, teal and violet are not blue
-        // (printed blue blended with warm-lit paper reaches 275)
-        const cv::v_uint8 isb = (b == mx) & (c > tb) & bright & ((b - g) > (g - r)) & (((b - r) + (b - r)) > (r - g));
+        // blue: hue within 210..270 degrees, so cyan, teal and violet are not blue
+        const cv::v_uint8 isb = (b == mx) & (c > tb) & bright & ((b - g) > (g - r)) & ((b - r) > (r - g));
         // red: hue below 30 degrees (r - g > g - b), so yellow and warm-lit white
         // are not red (printed red and its blend with the paper stay below 15)
         const cv::v_uint8 isr = (r == mx) & ~(b == mx) & (c > tr) & bright & ((r - g) > (g - b));
@@ -139,7 +134,7 @@ void saturationMask(const cv::Mat& bgr, const MaskThresholds& mt, cv::Mat& label
       const int mx = std::max({b, g, r}), mn = std::min({b, g, r});
       const int c = mx - mn;
       dst[x] = mx < vmin                                 ? kNone
-               : b == mx ? (c > ((mx * thr_b) >> 8) && b - g > std::max(0, g - r) && 2 * (b - r) > std::max(0, r - g)
+               : b == mx ? (c > ((mx * thr_b) >> 8) && b - g > std::max(0, g - r) && b - r > std::max(0, r - g)
                                 ? kBlue : kNone)
                : r == mx ? (c > ((mx * thr_r) >> 8) && r - g > std::max(0, g - b) ? kRed : kNone)
                          : kNone;
@@ -560,10 +555,7 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   double cover_err = 0;
   for (int i = 0; i < 4; ++i) {
     const double f = coverFraction(bgr, P[i], colours[i], P[(i + 1) % 4], colours[(i + 1) % 4]);
-    // The ends' half levels move by about a pixel of blur each: on a side a
-    // few pixels long (a steep view) that is a good part of the fraction.
-    const double slack = kCoverBlurPx / std::max(1.0, cv::norm(P[(i + 1) % 4] - P[i]));
-    if (f < p.cover_min || f > p.cover_max + slack) return fail("cover");
+    if (f < p.cover_min || f > p.cover_max) return fail("cover");
     cover_err += std::abs(f - 1.0 / 3) / 4;
   }
   // No coloured square inside the QR square (within one FIP side of the centre).

@@ -48,7 +48,7 @@ struct MaskThresholds {
 /// CV_8U label image: kBlue where blue is the pixel's largest channel and it
 /// is saturated ((max - min) > threshold * max, max >= value_min), kRed where
 /// red is and its hue is below 30 degrees (r - g > g - b: red and
-/// red-orange, not yellow), kNone elsewhere. Blue must lie within 210..280
+/// red-orange, not yellow), kNone elsewhere. Blue must lie within 210..270
 /// degrees (not cyan or violet).
 void saturationMask(const cv::Mat& bgr, const MaskThresholds& t, cv::Mat& labels);
 
