@@ -9,6 +9,13 @@
 
 namespace ld {
 
+namespace {
+
+// How far one channel's veil may exceed the common veil of the light's colour.
+constexpr double kVeilSpread = 1.25;
+
+}  // namespace
+
 LightingAdapter::LightingAdapter(const AdaptiveParams& params) : params_(params), hist_(256) {}
 
 void LightingAdapter::reset() {
@@ -23,9 +30,119 @@ void LightingAdapter::update(const cv::Vec3d& white) {
   else white_ = (1 - params_.smoothing) * white_ + params_.smoothing * white;
 }
 
-const cv::Mat& LightingAdapter::correct(const cv::Mat& bgr) {
+const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
+  glare_corrected_ = false;
+  if (!(params_.glare_min_lift > 0)) return bgr;
+  // Per 8x8 block: each channel's darkest value, and the whitest pixel (by
+  // its weakest channel).
+  constexpr int kBlock = 8;
+  const int bw = (bgr.cols + kBlock - 1) / kBlock, bh = (bgr.rows + kBlock - 1) / kBlock;
+  block_min_.create(bh, bw, CV_8UC3);
+  block_white_.create(bh, bw, CV_8UC1);
+  for (int by = 0; by < bh; ++by) {
+    const int y0 = by * kBlock, y1 = std::min(bgr.rows, y0 + kBlock);
+    // The block row's darkest values down each column (vectorised), then
+    // along each block; the white on every other pixel (a maximum is robust).
+    bgr.row(y0).copyTo(row_min_);
+    for (int y = y0 + 1; y < y1; ++y) cv::min(row_min_, bgr.row(y), row_min_);
+    const uint8_t* m = row_min_.ptr<uint8_t>(0);
+    for (int bx = 0; bx < bw; ++bx) {
+      const int x0 = bx * kBlock, x1 = std::min(bgr.cols, x0 + kBlock);
+      uint8_t lo[3] = {255, 255, 255}, hi = 0;
+      for (int x = x0; x < x1; ++x)
+        for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], m[3 * x + c]);
+      for (int y = y0; y < y1; y += 2) {
+        const uint8_t* p = bgr.ptr<uint8_t>(y);
+        for (int x = x0; x < x1; x += 2) hi = std::max(hi, std::min({p[3 * x], p[3 * x + 1], p[3 * x + 2]}));
+      }
+      block_min_.at<cv::Vec3b>(by, bx) = {lo[0], lo[1], lo[2]};
+      block_white_.at<uint8_t>(by, bx) = hi;
+    }
+  }
+  // The frame's black level per channel: a low percentile of the blocks'.
+  int black[3];
+  for (int c = 0; c < 3; ++c) {
+    std::fill(hist_.begin(), hist_.end(), 0);
+    for (int y = 0; y < bh; ++y)
+      for (int x = 0; x < bw; ++x) ++hist_[block_min_.at<cv::Vec3b>(y, x)[c]];
+    int level = 0;
+    for (int count = 0, want = std::max(1, bw * bh / 20); level < 255 && count + hist_[level] < want; ++level)
+      count += hist_[level];
+    black[c] = level;
+  }
+  // Local black (per channel) and white levels over the window.
+  const int k = std::max(1, params_.glare_window / kBlock) | 1;
+  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, {k, k});
+  cv::erode(block_min_, local_black_, kernel, {-1, -1}, 1, cv::BORDER_REPLICATE);
+  cv::dilate(block_white_, local_white_, kernel, {-1, -1}, 1, cv::BORDER_REPLICATE);
+  // The light's colour relative to its strongest channel: the running
+  // white estimate, or neutral before there is one.
+  cv::Vec3d light(1, 1, 1);
+  if (white_[0] > 0) {
+    const double top = std::max({white_[0], white_[1], white_[2]});
+    for (int c = 0; c < 3; ++c) light[c] = std::max(0.25, white_[c] / top);
+  }
+  veil_coarse_.create(bh, bw, CV_8UC3);
+  veiled_.create(bh, bw, CV_8UC1);
+  bool any = false;
+  for (int y = 0; y < bh; ++y)
+    for (int x = 0; x < bw; ++x) {
+      const cv::Vec3b lb = local_black_.at<cv::Vec3b>(y, x);
+      // A veil lifts every channel in the light's colour (a coloured surface
+      // lifts some): the largest veil of that colour under every channel's
+      // local black. The window must still hold white well above its black
+      // (ink on paper, not a plain pale wall).
+      double lift = 255;
+      for (int c = 0; c < 3; ++c) lift = std::min(lift, (lb[c] - black[c]) / light[c]);
+      const int lb_min = std::min({lb[0], lb[1], lb[2]});
+      const bool veiled = lift > params_.glare_min_lift &&
+                          local_white_.at<uint8_t>(y, x) - lb_min > params_.glare_min_contrast;
+      // Each channel's veil: its own local black, but at most a quarter above
+      // the common veil (a window whose darkest thing in one channel is
+      // not dark, say a blue square's blue, would lift that channel too far).
+      cv::Vec3b& v = veil_coarse_.at<cv::Vec3b>(y, x);
+      for (int c = 0; c < 3; ++c)
+        v[c] = cv::saturate_cast<uint8_t>(
+            black[c] + (veiled ? std::min<double>(lb[c] - black[c], kVeilSpread * lift * light[c]) : 0.0));
+      veiled_.at<uint8_t>(y, x) = veiled ? 255 : 0;
+      any |= veiled;
+    }
+  if (!any) return bgr;
+  glare_corrected_ = true;
+  // A smooth veil (the blocks' steps would make edges); the blocks it
+  // reaches after smoothing are the ones to correct.
+  cv::GaussianBlur(veil_coarse_, veil_coarse_, {0, 0}, 1.0);
+  cv::dilate(veiled_, veiled_, cv::getStructuringElement(cv::MORPH_RECT, {5, 5}));
+  cv::resize(veil_coarse_, veil_, bgr.size(), 0, 0, cv::INTER_LINEAR);
+  // Subtract it and stretch what is above it back to [black, 255], per
+  // channel: out = black + (in - veil) * (255 - black) / (255 - veil).
+  for (int c = 0; c < 3; ++c)
+    for (int v = 0; v < 256; ++v) stretch_[c][v] = ((255 - black[c]) << 8) / std::max(1, 255 - v);
+  bgr.copyTo(deglared_);
+  for (int by = 0; by < bh; ++by) {
+    const int y0 = by * kBlock, y1 = std::min(bgr.rows, y0 + kBlock);
+    for (int bx = 0; bx < bw; ++bx) {
+      if (!veiled_.at<uint8_t>(by, bx)) continue;
+      const int x0 = bx * kBlock, x1 = std::min(bgr.cols, x0 + kBlock);
+      for (int y = y0; y < y1; ++y) {
+        const uint8_t* src = bgr.ptr<uint8_t>(y) + 3 * x0;
+        const uint8_t* v = veil_.ptr<uint8_t>(y) + 3 * x0;
+        uint8_t* dst = deglared_.ptr<uint8_t>(y) + 3 * x0;
+        for (int i = 0; i < 3 * (x1 - x0); i += 3)
+          for (int c = 0; c < 3; ++c)
+            if (v[i + c] > black[c] + 2)
+              dst[i + c] = cv::saturate_cast<uint8_t>(black[c] + (((src[i + c] - v[i + c]) * stretch_[c][v[i + c]]) >> 8));
+      }
+    }
+  }
+  return deglared_;
+}
+
+const cv::Mat& LightingAdapter::correct(const cv::Mat& bgr_in) {
   gains_ = {1, 1, 1};
-  if (bgr.empty() || bgr.type() != CV_8UC3) return bgr;
+  glare_corrected_ = false;
+  if (bgr_in.empty() || bgr_in.type() != CV_8UC3) return bgr_in;
+  const cv::Mat& bgr = deglare(bgr_in);
   if (frames_since_landmark_ < (1 << 20)) ++frames_since_landmark_;
 
   if (!fromLandmarks()) {

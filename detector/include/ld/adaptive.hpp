@@ -12,7 +12,10 @@
 //    pixels (walls, paper and ceilings are the usual near-white surfaces).
 // Estimates are smoothed over frames; gains are bounded so that noise in the
 // dark is not amplified without limit, and a strongly corrected frame is
-// smoothed a little against the amplified noise.
+// smoothed a little against the amplified noise. Before the gains, a glare
+// veil (a hot spot lifting every channel of part of the frame) is estimated
+// from the local black level and subtracted where it covers dark and white
+// together.
 #pragma once
 
 #include <opencv2/core.hpp>
@@ -40,6 +43,17 @@ struct AdaptiveParams {
   /// noise and JPEG blocks into speckle that breaks the squares up.
   double denoise_sigma = 1.2;
   double denoise_above_gain = 1.3;
+  /// Glare: light reflected off the sheet (a lamp's hot spot, a window)
+  /// adds the same amount to every channel, which desaturates the squares
+  /// below the colour thresholds. Where the local black level (the darkest
+  /// pixels within glare_window px) has risen more than glare_min_lift above
+  /// the frame's own black level, while the same window still holds pixels
+  /// glare_min_contrast brighter than that (dark ink and white paper under
+  /// one veil, not a plain pale wall), the veil is subtracted and the range
+  /// stretched back to white. glare_min_lift 0 turns it off.
+  double glare_min_lift = 60.0;
+  double glare_min_contrast = 60.0;
+  int glare_window = 40;
 };
 
 class LightingAdapter {
@@ -59,6 +73,8 @@ class LightingAdapter {
 
   /// Per-channel gains (B, G, R) applied by the last correct().
   cv::Vec3d gains() const { return gains_; }
+  /// Whether the last correct() subtracted a glare veil somewhere.
+  bool glareCorrected() const { return glare_corrected_; }
   /// Whether the last estimate came from a landmark's sheet.
   bool fromLandmarks() const { return frames_since_landmark_ < params_.landmark_memory_frames; }
 
@@ -66,6 +82,7 @@ class LightingAdapter {
 
  private:
   void update(const cv::Vec3d& white);
+  const cv::Mat& deglare(const cv::Mat& bgr);
 
   AdaptiveParams params_;
   cv::Vec3d white_{0, 0, 0};  // running estimate of white (BGR); 0: none yet
@@ -73,6 +90,9 @@ class LightingAdapter {
   int frames_since_landmark_ = 1 << 20;
   cv::Mat corrected_;
   std::vector<int> hist_;
+  bool glare_corrected_ = false;
+  cv::Mat deglared_, row_min_, block_min_, block_white_, local_black_, local_white_, veil_coarse_, veiled_, veil_;
+  int stretch_[3][256] = {};
 };
 
 /// A Detector with a LightingAdapter in front: detect() corrects the frame,
