@@ -59,14 +59,14 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
       block_white_.at<uint8_t>(by, bx) = hi;
     }
   }
-  // The frame's black level per channel: a low percentile of the blocks'.
+  // The frame's black level per channel: the 1st percentile of the blocks'.
   int black[3];
   for (int c = 0; c < 3; ++c) {
     std::fill(hist_.begin(), hist_.end(), 0);
     for (int y = 0; y < bh; ++y)
       for (int x = 0; x < bw; ++x) ++hist_[block_min_.at<cv::Vec3b>(y, x)[c]];
     int level = 0;
-    for (int count = 0, want = std::max(1, bw * bh / 20); level < 255 && count + hist_[level] < want; ++level)
+    for (int count = 0, want = std::max(1, bw * bh / 100); level < 255 && count + hist_[level] < want; ++level)
       count += hist_[level];
     black[c] = level;
   }
