@@ -51,7 +51,7 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
       uint8_t lo[3] = {255, 255, 255}, hi = 0;
       for (int x = x0; x < x1; ++x)
         for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], m[3 * x + c]);
-      for (int y = y0; y < y1; y += 2) {
+      for (int y = y0; y < y1; y += 4) {
         const uint8_t* p = bgr.ptr<uint8_t>(y);
         for (int x = x0; x < x1; x += 2) hi = std::max(hi, std::min({p[3 * x], p[3 * x + 1], p[3 * x + 2]}));
       }
@@ -113,11 +113,23 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
   // reaches after smoothing are the ones to correct.
   cv::GaussianBlur(veil_coarse_, veil_coarse_, {0, 0}, 1.0);
   cv::dilate(veiled_, veiled_, cv::getStructuringElement(cv::MORPH_RECT, {5, 5}));
-  cv::resize(veil_coarse_, veil_, bgr.size(), 0, 0, cv::INTER_LINEAR);
   // Subtract it and stretch what is above it back to [black, 255], per
-  // channel: out = black + (in - veil) * (255 - black) / (255 - veil).
+  // channel: out = black + (in - veil) * (255 - black) / (255 - veil), with
+  // the veil interpolated between block centres (bilinear) in the blocks
+  // that need it.
   for (int c = 0; c < 3; ++c)
     for (int v = 0; v < 256; ++v) stretch_[c][v] = ((255 - black[c]) << 8) / std::max(1, 255 - v);
+  auto lerpAxis = [](int n, int blocks, std::vector<cv::Vec3i>& out) {  // (lower, upper, weight 0..256)
+    out.resize(static_cast<size_t>(n));
+    for (int i = 0; i < n; ++i) {
+      const double g = (i + 0.5) / kBlock - 0.5;
+      const int lo = static_cast<int>(std::floor(g));
+      const int w = static_cast<int>(std::lround((g - lo) * 256));
+      out[static_cast<size_t>(i)] = {std::clamp(lo, 0, blocks - 1), std::clamp(lo + 1, 0, blocks - 1), w};
+    }
+  };
+  lerpAxis(bgr.cols, bw, lerp_x_);
+  lerpAxis(bgr.rows, bh, lerp_y_);
   bgr.copyTo(deglared_);
   for (int by = 0; by < bh; ++by) {
     const int y0 = by * kBlock, y1 = std::min(bgr.rows, y0 + kBlock);
@@ -125,13 +137,22 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
       if (!veiled_.at<uint8_t>(by, bx)) continue;
       const int x0 = bx * kBlock, x1 = std::min(bgr.cols, x0 + kBlock);
       for (int y = y0; y < y1; ++y) {
-        const uint8_t* src = bgr.ptr<uint8_t>(y) + 3 * x0;
-        const uint8_t* v = veil_.ptr<uint8_t>(y) + 3 * x0;
-        uint8_t* dst = deglared_.ptr<uint8_t>(y) + 3 * x0;
-        for (int i = 0; i < 3 * (x1 - x0); i += 3)
-          for (int c = 0; c < 3; ++c)
-            if (v[i + c] > black[c] + 2)
-              dst[i + c] = cv::saturate_cast<uint8_t>(black[c] + (((src[i + c] - v[i + c]) * stretch_[c][v[i + c]]) >> 8));
+        const cv::Vec3i ly = lerp_y_[static_cast<size_t>(y)];
+        const auto* top = veil_coarse_.ptr<cv::Vec3b>(ly[0]);
+        const auto* bottom = veil_coarse_.ptr<cv::Vec3b>(ly[1]);
+        const uint8_t* src = bgr.ptr<uint8_t>(y);
+        uint8_t* dst = deglared_.ptr<uint8_t>(y);
+        for (int x = x0; x < x1; ++x) {
+          const cv::Vec3i lx = lerp_x_[static_cast<size_t>(x)];
+          for (int c = 0; c < 3; ++c) {
+            const int t = top[lx[0]][c] * (256 - lx[2]) + top[lx[1]][c] * lx[2];
+            const int b = bottom[lx[0]][c] * (256 - lx[2]) + bottom[lx[1]][c] * lx[2];
+            const int v = (t * (256 - ly[2]) + b * ly[2] + (1 << 15)) >> 16;
+            if (v > black[c] + 2)
+              dst[3 * x + c] =
+                  cv::saturate_cast<uint8_t>(black[c] + (((src[3 * x + c] - v) * stretch_[c][v]) >> 8));
+          }
+        }
       }
     }
   }

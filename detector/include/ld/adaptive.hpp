@@ -91,7 +91,8 @@ class LightingAdapter {
   cv::Mat corrected_;
   std::vector<int> hist_;
   bool glare_corrected_ = false;
-  cv::Mat deglared_, row_min_, block_min_, block_white_, local_black_, local_white_, veil_coarse_, veiled_, veil_;
+  cv::Mat deglared_, row_min_, block_min_, block_white_, local_black_, local_white_, veil_coarse_, veiled_;
+  std::vector<cv::Vec3i> lerp_x_, lerp_y_;  // per column / row: lower and upper block, weight (of 256)
   int stretch_[3][256] = {};
 };
 
