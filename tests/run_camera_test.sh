@@ -5,38 +5,18 @@
 # camera is back within 2 s, and SIGTERM ends everything with exit 0.
 set -euo pipefail
 BIN=$1
-T=$(mktemp -d)
-RUN=
-cleanup() {
-  [ -n "$RUN" ] && kill -KILL "$RUN" 2>/dev/null || true
-  rm -rf "$T"
-}
-trap cleanup EXIT
+source "$(dirname "$0")/ld_run_lib.sh"
 "$BIN/ld-run" --netns --source camera --camera-arg=--fake --camera-arg=--device=/dev/ld-fake0 \
   --camera-arg=--fps=20 --state-file "$T/state.json" --summary "$T/summary.json" --log-dir "$T" \
   --status-interval 0 -q &
 RUN=$!
-for _ in $(seq 100); do
-  [ -s "$T/state.json" ] && [ "$(jq .ready "$T/state.json")" = true ] && break
-  sleep 0.1
-done
+wait_ready "$T/state.json"
 sleep 2
-old=$(jq -r '.processes[] | select(.name == "camera") | .pid' "$T/state.json")
-kill -KILL "$old"
-t0=$(date +%s%3N)
-new=$old
-while [ $(( $(date +%s%3N) - t0 )) -lt 5000 ]; do
-  new=$(jq -r '.processes[] | select(.name == "camera") | .pid' "$T/state.json")
-  if [ "$new" -gt 0 ] && [ "$new" != "$old" ]; then break; fi
-  sleep 0.02
-done
-echo "camera: pid $old killed, back as pid $new after $(( $(date +%s%3N) - t0 )) ms"
+kill_and_wait camera
 [ "$new" -gt 0 ] && [ "$new" != "$old" ]
-[ $(( $(date +%s%3N) - t0 )) -le 2000 ]
+[ "$dt" -le 2000 ]
 sleep 2
-kill -TERM "$RUN"
-rc=0; wait "$RUN" || rc=$?
-RUN=
+stop_run
 [ "$rc" -eq 0 ]
 jq -c '.summary.channels, .summary.frames' "$T/summary.json"
 images=$(jq .summary.frames.images "$T/summary.json")

@@ -7,13 +7,7 @@
 # stops every process, and ld-run exits 0.
 set -euo pipefail
 BIN=$1
-T=$(mktemp -d)
-RUN=
-cleanup() {
-  [ -n "$RUN" ] && kill -KILL "$RUN" 2>/dev/null || true
-  rm -rf "$T"
-}
-trap cleanup EXIT
+source "$(dirname "$0")/ld_run_lib.sh"
 "$BIN/ld-synth" sequence --out "$T/seq" --frames 30 --fps 15 --landmarks 2 --seed 3 --size 0.3 \
   --format mjpeg --log "$T/in.lcmlog" --no-png >/dev/null
 
@@ -21,31 +15,15 @@ trap cleanup EXIT
   --summary "$T/summary.json" --log-dir "$T" --status-interval 0 -q &
 RUN=$!
 
-pid_of() { jq -r ".processes[] | select(.name == \"$1\") | .pid" "$T/state.json"; }
-now_ms() { date +%s%3N; }
-
-for _ in $(seq 100); do  # up to 10 s for the set to be up
-  [ -s "$T/state.json" ] && [ "$(jq .ready "$T/state.json")" = true ] && break
-  sleep 0.1
-done
+wait_ready "$T/state.json"
 [ "$(jq .ready "$T/state.json")" = true ]
 sleep 1
 
 for victim in detector tracker qr-reader; do
   declare -A before=()
   for p in detector tracker qr-reader play; do before[$p]=$(pid_of $p); done
-  old=${before[$victim]}
-  exe=$(readlink "/proc/$old/exe")
-  kill -KILL "$old"
-  t0=$(now_ms)
-  new=$old
-  while [ $(( $(now_ms) - t0 )) -lt 5000 ]; do
-    new=$(pid_of $victim)
-    if [ "$new" -gt 0 ] && [ "$new" != "$old" ] && kill -0 "$new" 2>/dev/null; then break; fi
-    sleep 0.02
-  done
-  dt=$(( $(now_ms) - t0 ))
-  echo "$victim: pid $old killed, back as pid $new after $dt ms"
+  exe=$(readlink "/proc/${before[$victim]}/exe")
+  kill_and_wait "$victim"
   [ "$new" -gt 0 ] && [ "$new" != "$old" ]
   [ "$dt" -le 2000 ]
   [ "$(readlink "/proc/$new/exe")" = "$exe" ]
@@ -58,9 +36,7 @@ for victim in detector tracker qr-reader; do
 done
 
 pids=$(jq -r '.processes[] | .pid' "$T/state.json")
-kill -TERM "$RUN"
-rc=0; wait "$RUN" || rc=$?
-RUN=
+stop_run
 echo "ld-run exit status after SIGTERM: $rc"
 [ "$rc" -eq 0 ]
 for p in $pids; do

@@ -9,16 +9,12 @@
 set -euo pipefail
 BIN=$1
 [ "$(id -u)" -eq 0 ] || { echo "needs root (ip netns, veth)"; exit 77; }
-T=$(mktemp -d)
 A=ldA$$; B=ldB$$; VA=vA$$; VB=vB$$
-RUN_B=
-cleanup() {
-  [ -n "$RUN_B" ] && kill -KILL "$RUN_B" 2>/dev/null || true
+extra_cleanup() {
   ip netns del "$A" 2>/dev/null || true
   ip netns del "$B" 2>/dev/null || true
-  rm -rf "$T"
 }
-trap cleanup EXIT
+source "$(dirname "$0")/ld_run_lib.sh"
 FRAMES=60
 "$BIN/ld-synth" sequence --out "$T/seq" --frames $FRAMES --fps 10 --landmarks 3 --seed 11 --size 0.3 \
   --format mjpeg --log "$T/in.lcmlog" --no-png >/dev/null
@@ -44,18 +40,13 @@ URL="udpm://239.255.76.67:7667?ttl=1&recv_buf_size=8388608"
 
 ip netns exec "$B" env LD_IN_NETNS=1 "$BIN/ld-run" --lcm-url "$URL" --source none --record "$T/two.lcmlog" \
   --summary "$T/b.json" --state-file "$T/b.state" --log-dir "$T" --status-interval 0 -q &
-RUN_B=$!
-for _ in $(seq 100); do
-  [ -s "$T/b.state" ] && [ "$(jq .ready "$T/b.state")" = true ] && break
-  sleep 0.1
-done
+RUN=$!
+wait_ready "$T/b.state"
 [ "$(jq .ready "$T/b.state")" = true ]
 ip netns exec "$A" env LD_IN_NETNS=1 "$BIN/ld-run" --lcm-url "$URL" --processes none \
   --replay "$T/in.lcmlog" --exit-when-replay-done --drain 0.5 --summary "$T/a.json" --status-interval 0 -q
 sleep 1.5  # B finishes the last frames
-kill -TERM "$RUN_B"
-rc=0; wait "$RUN_B" || rc=$?
-RUN_B=
+stop_run
 [ "$rc" -eq 0 ]
 
 VIS='def vis: .visible == true or .visible == 1;'

@@ -39,6 +39,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <initializer_list>
 #include <map>
 
 #include <opencv2/imgproc.hpp>
@@ -521,6 +522,23 @@ GLuint compile(GLenum type, const std::string& src) {
   return s;
 }
 
+// A program of the given compiled shaders (deleted here, linked or not).
+GLuint linkProgram(std::initializer_list<GLuint> shaders, const char* what) {
+  const GLuint prog = glCreateProgram();
+  for (GLuint sh : shaders) glAttachShader(prog, sh);
+  glLinkProgram(prog);
+  for (GLuint sh : shaders) glDeleteShader(sh);
+  GLint ok = 0;
+  glGetProgramiv(prog, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    char log[1024] = {0};
+    glGetProgramInfoLog(prog, sizeof log, nullptr, log);
+    glDeleteProgram(prog);
+    throw BackendFailure(std::string("GLES ") + what + " does not link: " + log);
+  }
+  return prog;
+}
+
 GLuint link(const std::string& fragment) {
   const GLuint vs = compile(GL_VERTEX_SHADER, kVertex);
   GLuint fs = 0;
@@ -530,38 +548,11 @@ GLuint link(const std::string& fragment) {
     glDeleteShader(vs);
     throw;
   }
-  const GLuint prog = glCreateProgram();
-  glAttachShader(prog, vs);
-  glAttachShader(prog, fs);
-  glLinkProgram(prog);
-  glDeleteShader(vs);
-  glDeleteShader(fs);
-  GLint ok = 0;
-  glGetProgramiv(prog, GL_LINK_STATUS, &ok);
-  if (!ok) {
-    char log[1024] = {0};
-    glGetProgramInfoLog(prog, sizeof log, nullptr, log);
-    glDeleteProgram(prog);
-    throw BackendFailure(std::string("GLES program does not link: ") + log);
-  }
-  return prog;
+  return linkProgram({vs, fs}, "program");
 }
 
 GLuint linkCompute(const std::string& src) {
-  const GLuint cs = compile(GL_COMPUTE_SHADER, src);
-  const GLuint prog = glCreateProgram();
-  glAttachShader(prog, cs);
-  glLinkProgram(prog);
-  glDeleteShader(cs);
-  GLint ok = 0;
-  glGetProgramiv(prog, GL_LINK_STATUS, &ok);
-  if (!ok) {
-    char log[1024] = {0};
-    glGetProgramInfoLog(prog, sizeof log, nullptr, log);
-    glDeleteProgram(prog);
-    throw BackendFailure(std::string("GLES compute program does not link: ") + log);
-  }
-  return prog;
+  return linkProgram({compile(GL_COMPUTE_SHADER, src)}, "compute program");
 }
 
 class GlesFilters final : public Filters {
