@@ -117,9 +117,11 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
   // channel: out = black + (in - veil) * (255 - black) / (255 - veil), with
   // the veil interpolated between block centres (bilinear) in the blocks
   // that need it.
+  int stretch[3][256];
   for (int c = 0; c < 3; ++c)
-    for (int v = 0; v < 256; ++v) stretch_[c][v] = ((255 - black[c]) << 8) / std::max(1, 255 - v);
+    for (int v = 0; v < 256; ++v) stretch[c][v] = ((255 - black[c]) << 8) / std::max(1, 255 - v);
   auto lerpAxis = [](int n, int blocks, std::vector<cv::Vec3i>& out) {  // (lower, upper, weight 0..256)
+    if (out.size() == static_cast<size_t>(n)) return;  // the frame size's, from an earlier frame
     out.resize(static_cast<size_t>(n));
     for (int i = 0; i < n; ++i) {
       const double g = (i + 0.5) / kBlock - 0.5;
@@ -150,7 +152,7 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
             const int v = (t * (256 - ly[2]) + b * ly[2] + (1 << 15)) >> 16;
             if (v > black[c] + 2)
               dst[3 * x + c] =
-                  cv::saturate_cast<uint8_t>(black[c] + (((src[3 * x + c] - v) * stretch_[c][v]) >> 8));
+                  cv::saturate_cast<uint8_t>(black[c] + (((src[3 * x + c] - v) * stretch[c][v]) >> 8));
           }
         }
       }

@@ -272,8 +272,8 @@ int main(int argc, char** argv) {
     // camera's video; each scene is one such video of a still frame.
     {
       ld::Detector detector;
-      std::vector<double> correction, total, glare;
-      int found = 0, truths = 0;
+      std::vector<double> correction, total;
+      int found = 0, truths = 0, veiled = 0;
       for (const Scene& s : scenes) {
         ld::LightingAdapter adapter;
         std::vector<double> c, t;
@@ -285,7 +285,7 @@ int main(int argc, char** argv) {
           const double all = msSince(t0);
           adapter.observe(s.ours.bgr, det);
           if (r == 0) {  // the first frame warms up, and is the one counted
-            glare.push_back(adapter.glareCorrected());
+            veiled += adapter.glareCorrected();
             for (const auto& tr : s.ours.truth) {
               if (!tr.in_view) continue;
               ++truths;
@@ -301,10 +301,9 @@ int main(int argc, char** argv) {
         correction.push_back(median(c));
         total.push_back(median(t));
       }
-      const double veiled = std::count(glare.begin(), glare.end(), 1.0);
       adaptive_rows.push_back("| " + res + " | " + fmt(median(correction)) + " | " + fmt(median(total)) + " | " +
-                              fmt(1000.0 / median(total), 0) + " | " + fmt(veiled, 0) + " of " +
-                              std::to_string(glare.size()) + " | " + std::to_string(found) + " of " +
+                              fmt(1000.0 / median(total), 0) + " | " + std::to_string(veiled) + " of " +
+                              std::to_string(scenes.size()) + " | " + std::to_string(found) + " of " +
                               std::to_string(truths) + " |");
     }
   }

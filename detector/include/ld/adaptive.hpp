@@ -93,7 +93,6 @@ class LightingAdapter {
   bool glare_corrected_ = false;
   cv::Mat deglared_, row_min_, block_min_, block_white_, local_black_, local_white_, veil_coarse_, veiled_;
   std::vector<cv::Vec3i> lerp_x_, lerp_y_;  // per column / row: lower and upper block, weight (of 256)
-  int stretch_[3][256] = {};
 };
 
 /// A Detector with a LightingAdapter in front: detect() corrects the frame,
