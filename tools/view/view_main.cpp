@@ -24,6 +24,7 @@
 #include "ld/landmark_json.hpp"
 #include "ld/landmark_msg.hpp"
 #include "ld/lcm_url.hpp"
+#include "ld/message_decode.hpp"
 #include "ld/qr_code_list_t.hpp"
 
 namespace {
@@ -120,11 +121,6 @@ void annotate(cv::Mat& bgr, const ld::landmark_list_t& list, const std::map<int6
               cv::Scalar(255, 255, 255), thick, cv::LINE_AA);
 }
 
-template <typename T>
-bool decodeExact(T& msg, const void* data, int size) {
-  return msg.decode(data, 0, size) == size;
-}
-
 // --- logs: tracked lists and codes first, then every image in log order ---
 int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, const std::string& tracked_ch,
              const std::string& codes_ch, bool all_frames, const Options& o) {
@@ -139,10 +135,10 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
     while (const lcm::LogEvent* ev = log.readNextEvent()) {
       if (ev->channel == tracked_ch) {
         ld::landmark_list_t l;
-        if (decodeExact(l, ev->data, ev->datalen)) lists[{l.utime, l.seq}] = std::move(l);
+        if (ld::decodeMessage(ev->data, static_cast<size_t>(ev->datalen), l)) lists[{l.utime, l.seq}] = std::move(l);
       } else if (ev->channel == codes_ch) {
         ld::qr_code_list_t c;
-        if (decodeExact(c, ev->data, ev->datalen)) codes[{c.utime, c.seq}] = std::move(c);
+        if (ld::decodeMessage(ev->data, static_cast<size_t>(ev->datalen), c)) codes[{c.utime, c.seq}] = std::move(c);
       }
     }
   }
@@ -157,7 +153,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
       const lcm::LogEvent* ev = log.readNextEvent();
       if (!ev) break;
       if (ev->channel != image_ch) continue;
-      if (!decodeExact(img, ev->data, ev->datalen)) {
+      if (!ld::decodeMessage(ev->data, static_cast<size_t>(ev->datalen), img)) {
         ++bad;
         continue;
       }
@@ -190,17 +186,23 @@ class Live {
  public:
   Live(const Options& o) : sink_(o), o_(o) {}
   void onImage(const lcm::ReceiveBuffer* rb, const std::string&) {
-    if (!decodeExact(img_, rb->data, static_cast<int>(rb->data_size))) return;
-    recent_.push_back({{img_.utime, ld::imageSeq(img_).value_or(-1)}, img_});
-    while (recent_.size() > 60) recent_.pop_front();
+    // The last kRecentFrames frames; the one that drops out lends its
+    // buffer to the next (no copy, no allocation once they are all there).
+    if (!ld::decodeMessage(rb->data, rb->data_size, spare_)) return;
+    const Key key{spare_.utime, ld::imageSeq(spare_).value_or(-1)};
+    recent_.emplace_back(key, std::move(spare_));
+    if (recent_.size() > kRecentFrames) {
+      spare_ = std::move(recent_.front().second);
+      recent_.pop_front();
+    }
   }
   void onCodes(const lcm::ReceiveBuffer* rb, const std::string&) {
     ld::qr_code_list_t c;
-    if (!decodeExact(c, rb->data, static_cast<int>(rb->data_size))) return;
+    if (!ld::decodeMessage(rb->data, rb->data_size, c)) return;
     for (const auto& code : c.codes) payloads_[code.track_id] = code.payload;
   }
   void onTracked(const lcm::ReceiveBuffer* rb, const std::string&) {
-    if (!decodeExact(list_, rb->data, static_cast<int>(rb->data_size))) return;
+    if (!ld::decodeMessage(rb->data, rb->data_size, list_)) return;
     for (auto it = recent_.rbegin(); it != recent_.rend(); ++it) {
       if (it->first != Key{list_.utime, list_.seq}) continue;
       try {
@@ -219,7 +221,8 @@ class Live {
  private:
   Sink sink_;
   const Options& o_;
-  ld::image_t img_;
+  static constexpr size_t kRecentFrames = 60;
+  ld::image_t spare_;
   ld::landmark_list_t list_;
   cv::Mat bgr_;
   std::deque<std::pair<Key, ld::image_t>> recent_;
