@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include <opencv2/imgproc.hpp>
 
@@ -250,7 +251,11 @@ void LightingAdapter::observe(const cv::Mat& original, const Detection& detectio
 AdaptiveDetector::AdaptiveDetector(const DetectorParams& params, const AdaptiveParams& adaptive)
     : detector_(params), adapter_(adaptive) {}
 
+AdaptiveDetector::AdaptiveDetector(Detector detector, bool enabled, const AdaptiveParams& adaptive)
+    : detector_(std::move(detector)), adapter_(adaptive), enabled_(enabled) {}
+
 const Detection& AdaptiveDetector::detect(const cv::Mat& bgr) {
+  if (!enabled_) return detector_.detect(bgr);
   const Detection& d = detector_.detect(adapter_.correct(bgr));
   adapter_.observe(bgr, d);
   return d;

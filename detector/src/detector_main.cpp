@@ -51,10 +51,9 @@ int main(int argc, char** argv) {
   app.add_flag("-v,--verbose", verbose, "print a status line every 5 s");
   CLI11_PARSE(app, argc, argv);
 
-  ld::Detector detector;
-  ld::LightingAdapter adapter;  // with --adaptive: frames are corrected before detection
+  ld::AdaptiveDetector detector;  // with --adaptive: frames are corrected before detection
   try {
-    detector = detector_options.make();
+    detector = detector_options.makeAdaptive();
   } catch (const std::exception& e) {
     std::cerr << "ld-detector: " << e.what() << "\n";
     return 2;
@@ -65,7 +64,7 @@ int main(int argc, char** argv) {
     std::cerr << "ld-detector: cannot open LCM at " << url << "\n";
     return 2;
   }
-  if (verbose) std::fprintf(stderr, "ld-detector: backend %s\n", detector.backendInfo().c_str());
+  if (verbose) std::fprintf(stderr, "ld-detector: backend %s\n", detector.detector().backendInfo().c_str());
   LatestFrame latest;
   lcm.subscribe(in_channel, &LatestFrame::onMessage, &latest);
   std::signal(SIGINT, onSignal);
@@ -87,10 +86,9 @@ int main(int argc, char** argv) {
         if (!ld::decodeMessage(latest.bytes_.data(), latest.bytes_.size(), image, &why))
           throw ld::ImageFormatError("message on " + in_channel + " is " + why);
         ld::imageToBgr(image, bgr);
-        const ld::Detection& det = detector.detect(detector_options.adaptive ? adapter.correct(bgr) : bgr);
-        if (detector_options.adaptive) adapter.observe(bgr, det);
+        const ld::Detection& det = detector.detect(bgr);
         ld::toListMessage(det, image.utime, ld::imageSeq(image).value_or(-1), bgr.cols, bgr.rows,
-                          detector.backend(), latest.skipped_, out);
+                          detector.detector().backend(), latest.skipped_, out);
         lcm.publish(out_channel, &out);
         ++processed;
       } catch (const std::exception& e) {

@@ -31,4 +31,6 @@ Detector DetectorOptions::make() const {
   return detector;
 }
 
+AdaptiveDetector DetectorOptions::makeAdaptive() const { return AdaptiveDetector(make(), adaptive); }
+
 }  // namespace ld

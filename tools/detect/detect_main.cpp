@@ -61,10 +61,9 @@ int main(int argc, char** argv) {
   app.add_flag("--summary", summary, "print a summary (frames, landmarks, detect_ms) on stderr");
   CLI11_PARSE(app, argc, argv);
 
-  ld::Detector detector;
-  ld::LightingAdapter adapter;  // with --adaptive: frames are corrected before detection
+  ld::AdaptiveDetector detector;  // with --adaptive: frames are corrected before detection
   try {
-    detector = detector_options.make();
+    detector = detector_options.makeAdaptive();
     if (!draw_dir.empty()) fs::create_directories(draw_dir);
   } catch (const std::exception& e) {
     std::cerr << "ld-detect: " << e.what() << "\n";
@@ -104,8 +103,7 @@ int main(int argc, char** argv) {
       continue;
     }
     const auto t0 = std::chrono::steady_clock::now();
-    const ld::Detection& det = detector.detect(detector_options.adaptive ? adapter.correct(img) : img);
-    if (detector_options.adaptive) adapter.observe(img, det);
+    const ld::Detection& det = detector.detect(img);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     found.assign(det.landmarks.begin(), det.landmarks.end());
     if (decode)
@@ -134,7 +132,7 @@ int main(int argc, char** argv) {
                  "detect_ms median %.3f, p95 %.3f, max %.3f; %d unreadable; backend %s\n",
                  times.size(), with_landmarks, total_landmarks,
                  static_cast<double>(total_landmarks) / static_cast<double>(times.size()),
-                 pct(0.5), pct(0.95), times.back(), failed, detector.backendInfo().c_str());
+                 pct(0.5), pct(0.95), times.back(), failed, detector.detector().backendInfo().c_str());
   }
   return failed > 0 ? 1 : 0;
 }

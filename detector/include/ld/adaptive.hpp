@@ -96,17 +96,22 @@ class LightingAdapter {
 };
 
 /// A Detector with a LightingAdapter in front: detect() corrects the frame,
-/// detects, and feeds the confirmed landmarks back.
+/// detects, and feeds the confirmed landmarks back. With the adapter turned
+/// off (`--adaptive` not given), frames go to the detector as they are.
 class AdaptiveDetector {
  public:
   explicit AdaptiveDetector(const DetectorParams& params = {}, const AdaptiveParams& adaptive = {});
+  /// `detector` as it is (camera, backend), the adapter in front when `enabled`.
+  AdaptiveDetector(Detector detector, bool enabled, const AdaptiveParams& adaptive = {});
   const Detection& detect(const cv::Mat& bgr);
   Detector& detector() { return detector_; }
   LightingAdapter& adapter() { return adapter_; }
+  bool enabled() const { return enabled_; }
 
  private:
   Detector detector_;
   LightingAdapter adapter_;
+  bool enabled_ = true;
 };
 
 }  // namespace ld

@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "ld/adaptive.hpp"
 #include "ld/detector.hpp"
 
 namespace ld {
@@ -13,7 +14,7 @@ namespace ld {
 struct DetectorOptions {
   std::string params_file, camera_file, backend;
   double side_m = 0;
-  bool adaptive = false;  ///< the caller puts an ld::LightingAdapter in front when set
+  bool adaptive = false;  ///< an ld::LightingAdapter in front of the detector
 
   /// Adds the options to `app`.
   void addTo(CLI::App& app);
@@ -23,6 +24,8 @@ struct DetectorOptions {
   /// what is wrong (a bad file, an unavailable backend, pose with only one
   /// of --camera and --size).
   Detector make() const;
+  /// The same, with the lighting adapter in front when --adaptive was given.
+  AdaptiveDetector makeAdaptive() const;
 };
 
 }  // namespace ld

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <random>
 
 #include <opencv2/imgproc.hpp>
@@ -63,18 +64,14 @@ void applyLighting(const SweepOptions& o, synth::SceneSpec& spec) {
   }
 }
 
-// The fixed or the adaptive detector, as the options say: one detector,
-// with the adapter in front only when asked for.
-struct AnyDetector {
-  explicit AnyDetector(const SweepOptions& o) : adaptive(o.adaptive), detector(o.params) {}
-  const Detection& detect(const cv::Mat& bgr) {
-    if (!adaptive) return detector.detector().detect(bgr);
-    detector.adapter().reset();  // independent frames
-    return detector.detect(bgr);
-  }
-  bool adaptive;
-  AdaptiveDetector detector;
-};
+// The fixed or the adaptive detector, as the options say.
+AdaptiveDetector makeDetector(const SweepOptions& o) { return AdaptiveDetector(Detector(o.params), o.adaptive); }
+
+// Every trial is an independent frame: the adapter starts afresh on each.
+const Detection& detectFresh(AdaptiveDetector& detector, const cv::Mat& bgr) {
+  detector.adapter().reset();
+  return detector.detect(bgr);
+}
 
 }  // namespace
 
@@ -86,7 +83,8 @@ Point measure(const SweepOptions& o, double distance_m, double yaw_deg, double y
     marker_detector = std::make_unique<markers::Detector>(markers::parse(o.target));
     marker_texture = markers::sheetTexture(marker_detector->kind(), 0, 540);
   }
-  AnyDetector detector(o);
+  std::optional<AdaptiveDetector> detector;  // ours; markers have their own
+  if (!marker) detector = makeDetector(o);
   QrReader reader;
   std::mt19937_64 rng(pointSeed(o.seed, distance_m, yaw_deg));
   std::uniform_real_distribution<double> U(0, 1);
@@ -117,7 +115,7 @@ Point measure(const SweepOptions& o, double distance_m, double yaw_deg, double y
         }
       continue;
     }
-    const Detection& det = detector.detect(frame.bgr);
+    const Detection& det = detectFresh(*detector, frame.bgr);
     for (const Landmark& d : det.landmarks) {
       if (!matchesTruth(d, {t.fip_tl, t.fip_tr, t.fip_bl, t.ap})) continue;
       ++p.detected;
@@ -153,7 +151,7 @@ std::vector<Point> overDistance(const SweepOptions& o, const std::vector<double>
 }
 
 double falsePositivesPerFrame(const SweepOptions& o, int frames) {
-  AnyDetector detector(o);
+  AdaptiveDetector detector = makeDetector(o);
   std::mt19937_64 rng(pointSeed(o.seed, 0, -999));
   int found = 0;
   for (int k = 0; k < frames; ++k) {
@@ -162,7 +160,7 @@ double falsePositivesPerFrame(const SweepOptions& o, int frames) {
     spec.distractors = 8 + static_cast<int>(rng() % 8);
     spec.landmark_like_cards = static_cast<int>(rng() % 3);
     applyLighting(o, spec);
-    found += static_cast<int>(detector.detect(synth::render(spec).bgr).landmarks.size());
+    found += static_cast<int>(detectFresh(detector, synth::render(spec).bgr).landmarks.size());
   }
   return frames > 0 ? static_cast<double>(found) / frames : 0.0;
 }
