@@ -14,10 +14,18 @@ namespace {
 
 // How far one channel's veil may exceed the common veil of the light's colour.
 constexpr double kVeilSpread = 1.25;
+// The glare pass's statistics are per kGlareBlock x kGlareBlock pixels.
+constexpr int kGlareBlock = 8;
 
 }  // namespace
 
-LightingAdapter::LightingAdapter(const AdaptiveParams& params) : params_(params), hist_(256) {}
+LightingAdapter::LightingAdapter(const AdaptiveParams& params)
+    : params_(params),
+      hist_(256),
+      // the window in blocks (odd), and the reach of a veiled block's smoothing
+      window_kernel_(cv::getStructuringElement(
+          cv::MORPH_RECT, cv::Size(1, 1) * (std::max(1, params.glare_window / kGlareBlock) | 1))),
+      spread_kernel_(cv::getStructuringElement(cv::MORPH_RECT, {5, 5})) {}
 
 void LightingAdapter::reset() {
   white_ = {0, 0, 0};
@@ -36,19 +44,18 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
   if (!(params_.glare_min_lift > 0)) return bgr;
   // Per 8x8 block: each channel's darkest value, and the whitest pixel (by
   // its weakest channel).
-  constexpr int kBlock = 8;
-  const int bw = (bgr.cols + kBlock - 1) / kBlock, bh = (bgr.rows + kBlock - 1) / kBlock;
+  const int bw = (bgr.cols + kGlareBlock - 1) / kGlareBlock, bh = (bgr.rows + kGlareBlock - 1) / kGlareBlock;
   block_min_.create(bh, bw, CV_8UC3);
   block_white_.create(bh, bw, CV_8UC1);
   for (int by = 0; by < bh; ++by) {
-    const int y0 = by * kBlock, y1 = std::min(bgr.rows, y0 + kBlock);
+    const int y0 = by * kGlareBlock, y1 = std::min(bgr.rows, y0 + kGlareBlock);
     // The block row's darkest values down each column (vectorised), then
     // along each block; the white on every other pixel (a maximum is robust).
     bgr.row(y0).copyTo(row_min_);
     for (int y = y0 + 1; y < y1; ++y) cv::min(row_min_, bgr.row(y), row_min_);
     const uint8_t* m = row_min_.ptr<uint8_t>(0);
     for (int bx = 0; bx < bw; ++bx) {
-      const int x0 = bx * kBlock, x1 = std::min(bgr.cols, x0 + kBlock);
+      const int x0 = bx * kGlareBlock, x1 = std::min(bgr.cols, x0 + kGlareBlock);
       uint8_t lo[3] = {255, 255, 255}, hi = 0;
       for (int x = x0; x < x1; ++x)
         for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], m[3 * x + c]);
@@ -72,10 +79,8 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
     black[c] = level;
   }
   // Local black (per channel) and white levels over the window.
-  const int k = std::max(1, params_.glare_window / kBlock) | 1;
-  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, {k, k});
-  cv::erode(block_min_, local_black_, kernel, {-1, -1}, 1, cv::BORDER_REPLICATE);
-  cv::dilate(block_white_, local_white_, kernel, {-1, -1}, 1, cv::BORDER_REPLICATE);
+  cv::erode(block_min_, local_black_, window_kernel_, {-1, -1}, 1, cv::BORDER_REPLICATE);
+  cv::dilate(block_white_, local_white_, window_kernel_, {-1, -1}, 1, cv::BORDER_REPLICATE);
   // The light's colour relative to its strongest channel: the running
   // white estimate, or neutral before there is one.
   cv::Vec3d light(1, 1, 1);
@@ -113,7 +118,7 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
   // A smooth veil (the blocks' steps would make edges); the blocks it
   // reaches after smoothing are the ones to correct.
   cv::GaussianBlur(veil_coarse_, veil_coarse_, {0, 0}, 1.0);
-  cv::dilate(veiled_, veiled_, cv::getStructuringElement(cv::MORPH_RECT, {5, 5}));
+  cv::dilate(veiled_, veiled_, spread_kernel_);
   // Subtract it and stretch what is above it back to [black, 255], per
   // channel: out = black + (in - veil) * (255 - black) / (255 - veil), with
   // the veil interpolated between block centres (bilinear) in the blocks
@@ -125,7 +130,7 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
     if (out.size() == static_cast<size_t>(n)) return;  // the frame size's, from an earlier frame
     out.resize(static_cast<size_t>(n));
     for (int i = 0; i < n; ++i) {
-      const double g = (i + 0.5) / kBlock - 0.5;
+      const double g = (i + 0.5) / kGlareBlock - 0.5;
       const int lo = static_cast<int>(std::floor(g));
       const int w = static_cast<int>(std::lround((g - lo) * 256));
       out[static_cast<size_t>(i)] = {std::clamp(lo, 0, blocks - 1), std::clamp(lo + 1, 0, blocks - 1), w};
@@ -135,10 +140,10 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
   lerpAxis(bgr.rows, bh, lerp_y_);
   bgr.copyTo(deglared_);
   for (int by = 0; by < bh; ++by) {
-    const int y0 = by * kBlock, y1 = std::min(bgr.rows, y0 + kBlock);
+    const int y0 = by * kGlareBlock, y1 = std::min(bgr.rows, y0 + kGlareBlock);
     for (int bx = 0; bx < bw; ++bx) {
       if (!veiled_.at<uint8_t>(by, bx)) continue;
-      const int x0 = bx * kBlock, x1 = std::min(bgr.cols, x0 + kBlock);
+      const int x0 = bx * kGlareBlock, x1 = std::min(bgr.cols, x0 + kGlareBlock);
       for (int y = y0; y < y1; ++y) {
         const cv::Vec3i ly = lerp_y_[static_cast<size_t>(y)];
         const auto* top = veil_coarse_.ptr<cv::Vec3b>(ly[0]);
@@ -223,14 +228,10 @@ void LightingAdapter::observe(const cv::Mat& original, const Detection& detectio
   if (original.empty() || original.type() != CV_8UC3) return;
   // White sheet between the squares, beside the QR square (sheet units u).
   static const cv::Point2f kWhite[] = {{4.5f, 1.5f}, {1.5f, 4.5f}, {7.5f, 4.5f}, {4.5f, 7.5f}};
-  std::vector<cv::Point2f> sheet, img(4);
-  for (const auto& c : layout::kCornersU)
-    sheet.emplace_back(static_cast<float>(c[0]), static_cast<float>(c[1]));
   cv::Vec3d sum(0, 0, 0);
   int m = 0;
   for (const Landmark& lm : detection.landmarks) {
-    std::copy(lm.corners.begin(), lm.corners.end(), img.begin());
-    const cv::Matx33d H(cv::getPerspectiveTransform(sheet, img));
+    const cv::Matx33d H = layout::sheetToImage(lm.corners);
     for (const auto& w : kWhite) {
       const cv::Vec3d p = H * cv::Vec3d(w.x, w.y, 1.0);
       if (!(p[2] > 0)) continue;

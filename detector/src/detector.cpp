@@ -519,10 +519,7 @@ void Detector::Impl::run(const cv::Mat& input) {
     lm.score = c.score;
     // a distortion model that does not invert there (found by
     // tests/fuzz/fuzz_camera) gives no landmark rather than NaN positions
-    const auto finite = [](const cv::Point2f& q) { return std::isfinite(q.x) && std::isfinite(q.y); };
-    if (!finite(lm.fip_tl) || !finite(lm.fip_tr) || !finite(lm.fip_bl) || !finite(lm.ap) ||
-        !std::all_of(lm.corners.begin(), lm.corners.end(), finite))
-      continue;
+    if (!finiteLandmark(lm)) continue;
     det.landmarks.push_back(lm);
   }
   timer.stamp("corners");

@@ -13,23 +13,13 @@ namespace {
 
 // Homography from the upright view (side px, QR square plus margin) to the image.
 cv::Matx33d viewToImage(const std::array<cv::Point2f, 4>& corners, int side, double margin_u) {
-  std::vector<cv::Point2f> sheet, img(corners.begin(), corners.end());
-  for (const auto& c : layout::kCornersU)
-    sheet.emplace_back(static_cast<float>(c[0]), static_cast<float>(c[1]));
-  const cv::Matx33d sheet_to_image(cv::getPerspectiveTransform(sheet, img));
+  const cv::Matx33d sheet_to_image = layout::sheetToImage(corners);
   // view pixel (x, y) -> sheet u: u = q0 + (x + 0.5) * span / side
   const double q0 = layout::kQrMin - margin_u;
   const double span = (layout::kQrMax - layout::kQrMin) + 2 * margin_u;
   const double s = span / side;
   const cv::Matx33d view_to_sheet(s, 0, q0 + 0.5 * s, 0, s, q0 + 0.5 * s, 0, 0, 1);
   return sheet_to_image * view_to_sheet;
-}
-
-cv::Matx33d sheetToImage(const std::array<cv::Point2f, 4>& corners) {
-  std::vector<cv::Point2f> sheet, img(corners.begin(), corners.end());
-  for (const auto& c : layout::kCornersU)
-    sheet.emplace_back(static_cast<float>(c[0]), static_cast<float>(c[1]));
-  return cv::Matx33d(cv::getPerspectiveTransform(sheet, img));
 }
 
 // How well the three finder patterns of an n-module grid of samples (values
@@ -231,7 +221,7 @@ std::optional<QrResult> QrReader::decode(const cv::Mat& image,
   }
   // 6: module by module, from the sheet frame.
   ++attempt;
-  if (auto s = m.readGrid(sheetToImage(corners), qr_px)) return QrResult{*s, attempt};
+  if (auto s = m.readGrid(layout::sheetToImage(corners), qr_px)) return QrResult{*s, attempt};
   return std::nullopt;
 }
 

@@ -14,16 +14,6 @@ namespace {
 // each second unseen adds this many landmark sizes to a pair's cost.
 constexpr double kStaleCost = 1.0;
 
-bool finite(const cv::Point2f& p) { return std::isfinite(p.x) && std::isfinite(p.y); }
-
-bool finiteLandmark(const Landmark& lm) {
-  if (!finite(lm.fip_tl) || !finite(lm.fip_tr) || !finite(lm.fip_bl) || !finite(lm.ap))
-    return false;
-  for (const auto& c : lm.corners)
-    if (!finite(c)) return false;
-  return true;
-}
-
 // Microseconds from `then` to `now` (now >= then: update() restarts when time
 // goes back), saturated: any two utimes may arrive, and their difference can
 // exceed int64_t (found by tests/fuzz/fuzz_messages).

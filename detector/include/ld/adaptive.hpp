@@ -92,6 +92,7 @@ class LightingAdapter {
   std::vector<int> hist_;
   bool glare_corrected_ = false;
   cv::Mat deglared_, row_min_, block_min_, block_white_, local_black_, local_white_, veil_coarse_, veiled_;
+  cv::Mat window_kernel_, spread_kernel_;  // the glare pass's morphology
   std::vector<cv::Vec3i> lerp_x_, lerp_y_;  // per column / row: lower and upper block, weight (of 256)
 };
 

@@ -54,6 +54,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <memory>
 #include <optional>
 #include <string>
@@ -221,6 +222,15 @@ struct Landmark {
   std::optional<Pose> pose;
   std::optional<std::string> payload;  ///< filled by the QR reader, not the detector
 };
+
+/// Whether every position of a landmark is a finite number.
+inline bool finiteLandmark(const Landmark& lm) {
+  const auto finite = [](const cv::Point2f& p) { return std::isfinite(p.x) && std::isfinite(p.y); };
+  if (!finite(lm.fip_tl) || !finite(lm.fip_tr) || !finite(lm.fip_bl) || !finite(lm.ap)) return false;
+  for (const auto& c : lm.corners)
+    if (!finite(c)) return false;
+  return true;
+}
 
 struct StageTime {
   const char* name;

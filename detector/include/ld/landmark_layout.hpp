@@ -9,6 +9,7 @@
 #include <array>
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 namespace ld::layout {
 
@@ -28,6 +29,17 @@ constexpr std::array<std::array<double, 2>, 4> kCentresU{{{1.5, 1.5}, {7.5, 1.5}
 /// Outer corners of the pattern square in units u: TL, TR, BR, BL.
 constexpr std::array<std::array<double, 2>, 4> kCornersU{
     {{kPatternMin, kPatternMin}, {kPatternMax, kPatternMin}, {kPatternMax, kPatternMax}, {kPatternMin, kPatternMax}}};
+
+/// The homography from the sheet frame (units u) to the image, given the
+/// image positions of the pattern square's corners (TL, TR, BR, BL).
+inline cv::Matx33d sheetToImage(const std::array<cv::Point2f, 4>& corners) {
+  cv::Point2f sheet[4], img[4];
+  for (int i = 0; i < 4; ++i) {
+    sheet[i] = {static_cast<float>(kCornersU[i][0]), static_cast<float>(kCornersU[i][1])};
+    img[i] = corners[i];
+  }
+  return cv::Matx33d(cv::getPerspectiveTransform(sheet, img));
+}
 
 /// A point given in units u, in the sheet frame scaled to a sheet of `side`
 /// (any length unit, or pixels).
