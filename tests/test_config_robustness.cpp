@@ -10,7 +10,7 @@
 
 #include "ld/camera.hpp"
 #include "ld/detector.hpp"
-#include "ld/synth.hpp"
+#include "fuzz/synth_frame.hpp"
 #include "ld/tracker.hpp"
 
 namespace {
@@ -84,12 +84,7 @@ TEST(CameraFile, NonFiniteAndNonCameraMatricesAreRefused) {
 // over the frame; the detector used to report NaN corners.
 TEST(CameraFile, DivergingDistortionGivesNoNonFiniteLandmark) {
   const ld::CameraModel cam = ld::CameraModel::load(kCorpus + "fuzz_camera/regress-tangential-20.yml");
-  ld::synth::SceneSpec spec;
-  spec.camera = ld::CameraModel::pinhole({160, 120}, 150.0);
-  spec.background = ld::synth::Background::Plain;
-  spec.distractors = 0;
-  spec.landmarks.push_back(ld::synth::placeLandmark(spec.camera, 0.6, 10, 0, 5));
-  const cv::Mat frame = ld::synth::render(spec).bgr;
+  const cv::Mat& frame = ld::fuzz::landmarkFrame();
   ld::Detector plain;
   ASSERT_EQ(plain.detect(frame).landmarks.size(), 1u);  // the frame has a landmark
   ld::Detector detector;

@@ -202,13 +202,14 @@ TEST_P(GlesEdges, EdgeMapsAgree) {
   std::printf("%s\n", g->info(true).c_str());
   EXPECT_EQ(g->info(true).find("paper front end on compute shaders") != std::string::npos, compute) << g->info(true);
   auto c = ld::detail::makeCpuFilters();
+  const auto frames = scenes(3, 13);
   for (const ld::DetectorParams& p : {ld::DetectorParams::paper(), [] {
          ld::DetectorParams q = ld::DetectorParams::paper();
          q.blur_kernel = 0;  // Sobel, suppression and thresholds alone
          return q;
        }()}) {
     const auto s = ld::detail::FilterSettings::from(p);
-    for (auto& f : scenes(3, 13)) {
+    for (auto& f : frames) {
       std::vector<ld::StageTime> st;
       ld::detail::StageTimer timer(st);
       cv::Mat ec, eg;

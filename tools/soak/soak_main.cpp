@@ -20,9 +20,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
-#include <optional>
 #include <regex>
-#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -33,6 +31,8 @@
 #include "ld/image_convert.hpp"
 #include "ld/lcm_url.hpp"
 #include "ld/message_decode.hpp"
+#include "ld/netns.hpp"
+#include "ld/supervisor.hpp"
 #include "ld/synth.hpp"
 
 namespace fs = std::filesystem;
@@ -107,7 +107,7 @@ ProcSample sampleProcess(pid_t pid) {
 // What ld-soak hears back on the output channels.
 struct Outputs {
   int64_t landmarks = 0, tracked = 0, codes = 0;
-  int64_t detector_skipped = 0, tracker_skipped = 0;  // the processes' own counts, latest
+  int64_t detector_skipped = 0;  // the detector's own count, latest
   int64_t landmarks_with_detections = 0, codes_entries = 0, bad = 0;
   ld::landmark_list_t list;
   ld::qr_code_list_t code_list;
@@ -121,7 +121,6 @@ struct Outputs {
   void onTracked(const lcm::ReceiveBuffer* rb, const std::string&) {
     if (!ld::decodeMessage(rb->data, rb->data_size, list)) return void(++bad);
     ++tracked;
-    tracker_skipped = list.frames_skipped;
   }
   void onCodes(const lcm::ReceiveBuffer* rb, const std::string&) {
     if (!ld::decodeMessage(rb->data, rb->data_size, code_list)) return void(++bad);
@@ -207,7 +206,7 @@ int main(int argc, char** argv) {
   app.add_option("--csv", o.csv, "also write the samples to this CSV file");
   CLI11_PARSE(app, argc, argv);
 
-  if (std::getenv("LD_IN_NETNS") == nullptr || std::string(std::getenv("LD_IN_NETNS")) != "1") {
+  if (!ld::inPrivateNetns()) {
     std::cerr << "ld-soak: run me in a private network namespace, so that LCM stays on this "
                  "machine: scripts/netns-run.sh " << argv[0] << " ...\n";
     return 2;
@@ -216,7 +215,7 @@ int main(int argc, char** argv) {
     std::cerr << "ld-soak: duration, fps, loop-frames, landmarks and sample-interval must be positive\n";
     return 2;
   }
-  if (o.bin_dir.empty()) o.bin_dir = fs::read_symlink("/proc/self/exe").parent_path().string();
+  if (o.bin_dir.empty()) o.bin_dir = ld::selfDirectory();
   if (o.log_dir.empty()) {
     std::string tmpl = (fs::temp_directory_path() / "ld-soak-XXXXXX").string();
     if (!mkdtemp(tmpl.data())) {

@@ -118,6 +118,10 @@ void addCommon(CLI::App* app, Common& c) {
   app->add_option("--seed", c.seed, "scene seed");
   app->add_option("--markdown", c.markdown, "also write the table to this file");
   app->add_option("--png", c.png, "write a plot");
+}
+
+// The detection sweeps (yaw, distance) also measure the markers.
+void addCompare(CLI::App* app, Common& c) {
   app->add_flag("--compare", c.compare,
                 "also AprilTag 3 (tag36h11) and ArUco (4x4) markers of the same printed size at the same poses");
 }
@@ -146,6 +150,7 @@ int main(int argc, char** argv) {
   double y_max = 80, y_step = 10;
   auto* yaw = app.add_subcommand("yaw", "detection rate against horizontal viewing angle (paper, Fig. 8)");
   addCommon(yaw, yc);
+  addCompare(yaw, yc);
   yaw->add_option("--side", y_sides, "printed sides S, metres (one per series)");
   yaw->add_option("--distance", y_dists, "distance per side, metres");
   yaw->add_option("--max-yaw", y_max, "degrees");
@@ -156,6 +161,7 @@ int main(int argc, char** argv) {
   double d_from = 0.5, d_to = 5.0, d_step = 0.5, d_yaw = 30;
   auto* dist = app.add_subcommand("distance", "detection rate against distance for several sizes");
   addCommon(dist, dc);
+  addCompare(dist, dc);
   dist->add_option("--side", d_sides, "printed sides S, metres");
   dist->add_option("--from", d_from)->capture_default_str();
   dist->add_option("--to", d_to)->capture_default_str();
