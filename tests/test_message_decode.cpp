@@ -6,6 +6,7 @@
 
 #include <cstring>
 
+#include "image_error.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/message_decode.hpp"
 
@@ -174,35 +175,26 @@ ld::image_t mjpegClaiming(int w, int h, bool message_says_it_too) {
   return msg;
 }
 
-std::string decodeError(const ld::image_t& msg) {
-  try {
-    ld::imageToBgr(msg);
-  } catch (const ld::ImageFormatError& e) {
-    return e.what();
-  }
-  return "";
-}
-
 }  // namespace
 
 // Found by tests/fuzz/fuzz_image (corpus entry regress-mjpeg-30000x30000): a
 // 650-byte MJPEG message whose frame header claims 30000x30000 made
 // cv::imdecode allocate 2.7 GB before it found the data missing.
 TEST(ImageLimits, MjpegFrameSizeIsCheckedBeforeDecoding) {
-  EXPECT_NE(decodeError(mjpegClaiming(30000, 30000, false)).find("larger than"), std::string::npos);
-  EXPECT_NE(decodeError(mjpegClaiming(30000, 30000, true)).find("larger than"), std::string::npos);
+  EXPECT_NE(ld::test::imageError(mjpegClaiming(30000, 30000, false)).find("larger than"), std::string::npos);
+  EXPECT_NE(ld::test::imageError(mjpegClaiming(30000, 30000, true)).find("larger than"), std::string::npos);
   // within the limit, libjpeg decodes what data there is (a truncated frame
   // comes out grey at the bottom, as from a camera that lost part of it)
   EXPECT_EQ(ld::imageToBgr(mjpegClaiming(640, 480, false)).size(), cv::Size(640, 480));
   ld::image_t says_other = mjpegClaiming(8, 6, false);
   says_other.width = 640;
   says_other.height = 480;
-  EXPECT_NE(decodeError(says_other).find("MJPEG data is 8x6 but the message says 640x480"),
+  EXPECT_NE(ld::test::imageError(says_other).find("MJPEG data is 8x6 but the message says 640x480"),
             std::string::npos);
   ld::image_t not_jpeg = mjpegClaiming(8, 6, false);
   not_jpeg.data[0] = 0x89;
-  EXPECT_NE(decodeError(not_jpeg).find("not a JPEG stream"), std::string::npos);
-  EXPECT_EQ(decodeError(mjpegClaiming(8, 6, true)), "");
+  EXPECT_NE(ld::test::imageError(not_jpeg).find("not a JPEG stream"), std::string::npos);
+  EXPECT_EQ(ld::test::imageError(mjpegClaiming(8, 6, true)), "");
   EXPECT_EQ(ld::imageToBgr(mjpegClaiming(8, 6, false)).size(), cv::Size(8, 6));
 }
 

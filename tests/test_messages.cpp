@@ -5,6 +5,7 @@
 #include <lcm/lcm-cpp.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "image_error.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/landmark_list_t.hpp"
 #include "ld/qr_code_list_t.hpp"
@@ -110,15 +111,6 @@ double meanAbsDiff(const cv::Mat& a, const cv::Mat& b) {
   cv::Mat d;
   cv::absdiff(a, b, d);
   return cv::mean(d.reshape(1))[0];
-}
-
-std::string errorOf(const ld::image_t& msg) {
-  try {
-    ld::imageToBgr(msg);
-  } catch (const ld::ImageFormatError& e) {
-    return e.what();
-  }
-  return "";
 }
 
 }  // namespace
@@ -277,49 +269,49 @@ TEST(ImageConvert, ReusesOutputBuffer) {
 
 TEST(ImageConvert, RefusesInconsistentMessages) {
   const ld::image_t good = ld::matToImage(testImage(40, 30), ld::image_t::PIXEL_FORMAT_BGR, 0);
-  ASSERT_EQ(errorOf(good), "");
+  ASSERT_EQ(ld::test::imageError(good), "");
 
   ld::image_t m = good;
   m.data.resize(m.data.size() - 1);
-  EXPECT_NE(errorOf(m).find("does not match"), std::string::npos) << errorOf(m);
+  EXPECT_NE(ld::test::imageError(m).find("does not match"), std::string::npos) << ld::test::imageError(m);
 
   m = good;
   m.data.resize(m.data.size() - 100);
   m.size = static_cast<int32_t>(m.data.size());
-  EXPECT_NE(errorOf(m).find("needs 3600 bytes"), std::string::npos) << errorOf(m);
+  EXPECT_NE(ld::test::imageError(m).find("needs 3600 bytes"), std::string::npos) << ld::test::imageError(m);
 
   m = good;
   m.height = 31;
-  EXPECT_NE(errorOf(m).find("needs"), std::string::npos) << errorOf(m);
+  EXPECT_NE(ld::test::imageError(m).find("needs"), std::string::npos) << ld::test::imageError(m);
 
   m = good;
   m.row_stride = 10;
-  EXPECT_NE(errorOf(m).find("row_stride"), std::string::npos) << errorOf(m);
+  EXPECT_NE(ld::test::imageError(m).find("row_stride"), std::string::npos) << ld::test::imageError(m);
 
   m = good;
   m.width = -5;
-  EXPECT_NE(errorOf(m).find("invalid size"), std::string::npos) << errorOf(m);
+  EXPECT_NE(ld::test::imageError(m).find("invalid size"), std::string::npos) << ld::test::imageError(m);
 
   m = good;
   m.pixelformat = ld::fourcc('N', 'V', '1', '2');
-  EXPECT_NE(errorOf(m).find("unsupported pixel format 'NV12'"), std::string::npos) << errorOf(m);
+  EXPECT_NE(ld::test::imageError(m).find("unsupported pixel format 'NV12'"), std::string::npos) << ld::test::imageError(m);
 
   m = ld::matToImage(testImage(40, 30), ld::image_t::PIXEL_FORMAT_YUYV, 0);
   m.width = 39;
-  EXPECT_NE(errorOf(m).find("even width"), std::string::npos) << errorOf(m);
+  EXPECT_NE(ld::test::imageError(m).find("even width"), std::string::npos) << ld::test::imageError(m);
 
   m = ld::matToImage(testImage(40, 30), ld::image_t::PIXEL_FORMAT_MJPEG, 0);
   for (size_t i = 2; i < m.data.size(); ++i) m.data[i] = static_cast<uint8_t>(i * 7);
-  EXPECT_NE(errorOf(m).find("MJPEG"), std::string::npos) << errorOf(m);
+  EXPECT_NE(ld::test::imageError(m).find("MJPEG"), std::string::npos) << ld::test::imageError(m);
 
   m = ld::matToImage(testImage(40, 30), ld::image_t::PIXEL_FORMAT_MJPEG, 0);
   m.width = 80;
-  EXPECT_NE(errorOf(m).find("but the message says 80x30"), std::string::npos) << errorOf(m);
+  EXPECT_NE(ld::test::imageError(m).find("but the message says 80x30"), std::string::npos) << ld::test::imageError(m);
 
   m = ld::matToImage(testImage(40, 30), ld::image_t::PIXEL_FORMAT_MJPEG, 0);
   m.data.clear();
   m.size = 0;
-  EXPECT_NE(errorOf(m).find("MJPEG"), std::string::npos) << errorOf(m);
+  EXPECT_NE(ld::test::imageError(m).find("MJPEG"), std::string::npos) << ld::test::imageError(m);
 }
 
 TEST(ImageConvert, PixelFormatNames) {
