@@ -675,6 +675,47 @@ TEST(Detector, SquareMergedWithALargeObjectIsCompletedFromTwoFips) {
   EXPECT_TRUE(ld::matchesTruth(d.landmarks[0], t.centres));
 }
 
+// Two FIPs joined to a blue object behind the sheet through a faintly
+// tinted margin (as JPEG's half-resolution colour and blur make it): one FIP
+// and the AP are left, too few for the completion. The second look around
+// that pair, at raised thresholds, parts the squares from the object.
+TEST(Detector, SecondLookPartsSquaresJoinedToAnObject) {
+  cv::Mat img = background(kCam.size, 18, true);
+  const Placed p = place(1.0, 0, 0, 0.15, 0, 0);
+  const Truth t = truthOf(kCam, p);
+  const int x0 = static_cast<int>(t.corners[0].x), x1 = static_cast<int>(t.corners[1].x);
+  const int y = static_cast<int>(t.corners[0].y);
+  img(cv::Rect(x0 - 40, y - 70, x1 - x0 + 80, 63)).setTo(cv::Scalar(150, 60, 40));  // above the sheet
+  drawSheet(img, kCam, p);
+  const cv::Scalar tint(150, 112, 106);  // saturation 0.29: above the blue threshold (0.25), under 0.35
+  for (const auto& c : {t.centres[0], t.centres[1]})
+    img(cv::Rect(static_cast<int>(c.x) - 4, y - 8, 8, 10)).setTo(tint);
+
+  ld::DetectorParams once;
+  once.second_looks = 0;
+  EXPECT_TRUE(ld::Detector(once).detect(img).landmarks.empty());
+  ld::Detector det;
+  const auto& d = det.detect(img);
+  ASSERT_EQ(d.landmarks.size(), 1u);
+  EXPECT_TRUE(ld::matchesTruth(d.landmarks[0], t.centres));
+}
+
+// A blue and a red card beside a landmark the first pass found: the second
+// look around them sees that landmark again, and reports it once.
+TEST(Detector, SecondLookReportsALandmarkOnce) {
+  cv::Mat img = background(kCam.size, 19);
+  const Placed p = place(1.2, 20, 10, 0.15, 0, 0);
+  drawSheet(img, kCam, p);
+  const Truth t = truthOf(kCam, p);
+  const int x = static_cast<int>(t.corners[1].x) + 12, y = static_cast<int>(t.corners[1].y);
+  img(cv::Rect(x, y, 12, 12)).setTo(cv::Scalar(150, 60, 40));
+  img(cv::Rect(x + 10, y + 40, 12, 12)).setTo(cv::Scalar(40, 60, 200));
+  ld::Detector det;
+  const auto& d = det.detect(img);
+  ASSERT_EQ(d.landmarks.size(), 1u);
+  EXPECT_TRUE(ld::matchesTruth(d.landmarks[0], t.centres));
+}
+
 // Parallel blue stripes and an orange one: squares' centres may lie like a
 // landmark's, the squares themselves are bars.
 TEST(Detector, RejectsStripes) {

@@ -62,6 +62,8 @@ void forEachField(DetectorParams& p, F&& f) {
   f("cover_min", p.cover_min);
   f("cover_max", p.cover_max);
   f("complete_missing", p.complete_missing);
+  f("second_looks", p.second_looks);
+  f("second_look_raise", p.second_look_raise);
   f("max_candidates", p.max_candidates);
   f("max_cycles", p.max_cycles);
   f("centre_iterations", p.centre_iterations);
@@ -177,6 +179,8 @@ void DetectorParams::validate() const {
   if (!(cover_max > cover_min && cover_max <= 1)) bad("cover_max", "must be in (cover_min, 1]");
   if (!(sheet_uniformity >= 0 && sheet_uniformity <= 1)) bad("sheet_uniformity", "must be in [0, 1]");
   if (!(qr_max_brightness > 0 && qr_max_brightness <= 2)) bad("qr_max_brightness", "must be in (0, 2]");
+  if (second_looks < 0 || second_looks > 64) bad("second_looks", "must be in [0, 64]");
+  if (!(second_look_raise > 0 && second_look_raise < 1)) bad("second_look_raise", "must be in (0, 1)");
   if (max_candidates < 3 || max_candidates > 4096) bad("max_candidates", "must be in [3, 4096]");
   if (max_cycles < 1) bad("max_cycles", "must be >= 1");
   if (centre_iterations < 0 || centre_iterations > 10) bad("centre_iterations", "must be in [0, 10]");
@@ -249,6 +253,13 @@ struct Detector::Impl {
   detail::RegionIndex ap_index;
   std::vector<std::array<int, 3>> cycles;
   std::vector<detail::Candidate> candidates;
+  // the second look's
+  cv::Mat look_labels;
+  std::vector<std::array<double, 4>> anchors;  // x, y, radius, rank
+  detail::RegionIndex fip_index;
+  std::vector<cv::Rect> looked;
+  std::vector<detail::Region> all_fips, all_aps;
+  std::vector<detail::Candidate> all_candidates;
   Detection det;
 
   explicit Impl(const DetectorParams& p) : params(p) {
@@ -289,7 +300,10 @@ struct Detector::Impl {
   }
 
   void run(const cv::Mat& input);
+  void classify();
+  void geometry(const cv::Mat& img);
   void complete(const cv::Mat& img);
+  void secondLook(const cv::Mat& img, const cv::Mat& filtered, int max_area);
 };
 
 // Landmarks with one square merged into a same-coloured background (the
@@ -422,6 +436,162 @@ void Detector::Impl::complete(const cv::Mat& img) {
   }
 }
 
+// 5. colour: FIP and AP candidates of `regions` by the colour ratios,
+// largest first (the graph's 3-cycles come in index order: when a cluttered
+// frame has more than max_cycles, those among the larger squares are kept).
+void Detector::Impl::classify() {
+  const DetectorParams& p = params;
+  fips.clear();
+  aps.clear();
+  for (const auto& r : regions) {
+    if (!paper && detail::fill(r) < p.min_fill) continue;
+    if (r.colour == detail::kBlue && detail::isFip(r, p.color_ratio_a, p.color_ratio_b)) fips.push_back(r);
+    else if (r.colour == detail::kRed && detail::isAp(r, p.color_ratio_a, p.color_ratio_b)) aps.push_back(r);
+  }
+  auto keepLargest = [&](std::vector<detail::Region>& v) {
+    std::sort(v.begin(), v.end(), [](const detail::Region& a, const detail::Region& b) {
+      return std::tie(b.area, a.cy, a.cx) < std::tie(a.area, b.cy, b.cx);
+    });
+    if (static_cast<int>(v.size()) > p.max_candidates) v.resize(static_cast<size_t>(p.max_candidates));
+  };
+  keepLargest(fips);
+  keepLargest(aps);
+}
+
+// 6-7. geometry: the FIP graph of `fips`, its 3-cycles, the AP among `aps`,
+// verification, completion, overlaps: `candidates`.
+void Detector::Impl::geometry(const cv::Mat& img) {
+  const DetectorParams& p = params;
+  const int n = static_cast<int>(fips.size());
+  candidates.clear();
+  // Three FIPs and an AP make a landmark; two FIPs and an AP, or three FIPs,
+  // may be one whose fourth square the completion finds.
+  const bool whole = n >= 3 && !aps.empty();
+  const bool completion = !paper && p.complete_missing && (n >= 3 || (n >= 2 && !aps.empty()));
+  if (!whole && !completion) return;
+  adjacency.assign(static_cast<size_t>(n) * n, 0);
+  for (int i = 0; i < n; ++i)
+    for (int j = i + 1; j < n; ++j)
+      if (detail::fipEdge(fips[i], fips[j], p))
+        adjacency[static_cast<size_t>(i) * n + j] = adjacency[static_cast<size_t>(j) * n + i] = 1;
+  detail::threeCycles(adjacency, n, cycles, static_cast<size_t>(p.max_cycles));
+  ap_index.build(aps);
+  for (const auto& cyc : cycles) {
+    detail::Candidate c;
+    if (whole && detail::rightIsosceles(cyc, fips, kTriangleTolerance) &&
+        detail::chooseAp(cyc, fips, aps, p, c, &ap_index) && detail::verify(c, fips, aps, img, p))
+      candidates.push_back(c);
+  }
+  if (completion) complete(img);
+  detail::resolveOverlaps(candidates, static_cast<int>(fips.size()), static_cast<int>(aps.size()), used);
+}
+
+// A second look around the squares no landmark took: a square whose
+// neighbour merged with a background of its colour through the sheet's thin
+// margin (behind a steeply seen or blurred landmark, JPEG's half-resolution
+// colour tints the margin) comes apart under a stricter mask. Each look
+// labels a window around one such square (APs first, then FIPs, the largest
+// first) at saturation thresholds raised by second_look_raise and runs the
+// same regions, colour, geometry and verification there; what it finds joins
+// the first pass's landmarks unless one of them is already there.
+void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int max_area) {
+  const DetectorParams& p = params;
+  const int nf = static_cast<int>(fips.size()), na = static_cast<int>(aps.size());
+  used.assign(static_cast<size_t>(nf + na), 0);
+  for (const auto& c : candidates) used[c.tl] = used[c.tr] = used[c.bl] = used[nf + c.ap] = 1;
+  // Where a landmark may lie: an AP and a FIP, or two FIPs, that no
+  // landmark took and that could be two squares of one (the graph's
+  // distance and size constraints). Around the pair's midpoint, the other
+  // squares lie within half its distance plus three sides (the squares'
+  // longest axis is their side, foreshortened or not): the window adds five,
+  // for squares the threshold made smaller than printed. Windows are at most
+  // 0.6 of the frame's height across (a larger landmark's margins are too
+  // wide to merge through), AP pairs first, then the smaller windows first.
+  anchors.clear();
+  fip_index.build(fips);
+  const double max_radius = 0.3 * std::min(img.cols, img.rows);
+  auto pairUp = [&](const detail::Region& a, const detail::Region& b, double rank) {
+    const double side = std::max(detail::maxAxis(a), detail::maxAxis(b));
+    const double radius = std::max(12.0, 0.5 * std::hypot(a.cx - b.cx, a.cy - b.cy) + 5 * side);
+    if (radius <= max_radius) anchors.push_back({(a.cx + b.cx) / 2, (a.cy + b.cy) / 2, radius, rank});
+  };
+  for (int k = 0; k < na; ++k) {
+    if (used[nf + k]) continue;
+    const detail::Region& ap = aps[k];
+    const double side = ap.side();
+    fip_index.near(fips, ap.cx, ap.cy, p.d_max * detail::maxAxis(ap) / p.ap_size_min, [&](int i) {
+      if (used[i]) return;
+      const double ratio = side / fips[i].side(), d = detail::normalisedDistance(fips[i], ap);
+      if (ratio >= p.ap_size_min && ratio <= p.ap_size_max && d >= p.d_min && d <= p.d_max)
+        pairUp(ap, fips[i], 0);
+    });
+  }
+  for (int i = 0; i < nf; ++i) {
+    if (used[i]) continue;
+    fip_index.near(fips, fips[i].cx, fips[i].cy, p.d_max * detail::maxAxis(fips[i]) * p.w_max, [&](int j) {
+      if (j > i && !used[j] && detail::fipEdge(fips[i], fips[j], p)) pairUp(fips[i], fips[j], 1);
+    });
+  }
+  std::sort(anchors.begin(), anchors.end(), [](const auto& a, const auto& b) {
+    return std::tie(a[3], a[2], a[0], a[1]) < std::tie(b[3], b[2], b[0], b[1]);
+  });
+  if (anchors.empty()) return;
+
+  detail::MaskThresholds strict = filter_settings.mask;
+  strict.blue = std::min(0.95, strict.blue + p.second_look_raise);
+  strict.red = std::min(0.95, strict.red + p.second_look_raise);
+  // The first pass's lists stay aside; each look's squares and landmarks join them.
+  std::swap(fips, all_fips);
+  std::swap(aps, all_aps);
+  std::swap(candidates, all_candidates);
+  const cv::Rect frame(0, 0, img.cols, img.rows);
+  // Windows cover at most a quarter of the frame in all (cluttered frames have many unused squares).
+  int64_t pixels_left = static_cast<int64_t>(img.total()) / 4;
+  int looks = 0;
+  looked.clear();
+  for (const auto& a : anchors) {
+    if (looks >= p.second_looks) break;
+    const cv::Point centre(static_cast<int>(std::lround(a[0])), static_cast<int>(std::lround(a[1])));
+    bool seen = false;
+    for (const auto& w : looked) seen |= w.contains(centre);
+    if (seen) continue;
+    const int r = static_cast<int>(std::ceil(a[2]));
+    const cv::Rect win = cv::Rect(centre.x - r, centre.y - r, 2 * r + 1, 2 * r + 1) & frame;
+    if (win.area() > pixels_left) continue;
+    pixels_left -= win.area();
+    ++looks;
+    looked.push_back(win);
+    detail::saturationMask(filtered(win), strict, look_labels);
+    detail::extractRegions(look_labels, filtered(win), strict, p.min_area_px, max_area, p.min_fill, runs, regions);
+    for (auto& q : regions) {
+      q.x0 += win.x, q.x1 += win.x, q.cx += win.x;
+      q.y0 += win.y, q.y1 += win.y, q.cy += win.y;
+    }
+    classify();
+    geometry(img);
+    const int of = static_cast<int>(all_fips.size()), oa = static_cast<int>(all_aps.size());
+    for (auto c : candidates) {
+      const detail::Region& ap = aps[c.ap];
+      bool again = false;
+      for (const auto& k : all_candidates) {
+        const detail::Region& other = all_aps[k.ap];
+        again |= std::hypot(other.cx - ap.cx, other.cy - ap.cy) < std::max(2.0, 0.5 * detail::maxAxis(ap));
+      }
+      if (again) continue;
+      c.tl += of, c.tr += of, c.bl += of, c.ap += oa;
+      all_candidates.push_back(c);
+    }
+    all_fips.insert(all_fips.end(), fips.begin(), fips.end());
+    all_aps.insert(all_aps.end(), aps.begin(), aps.end());
+  }
+  std::swap(fips, all_fips);
+  std::swap(aps, all_aps);
+  std::swap(candidates, all_candidates);
+  all_fips.clear();
+  all_aps.clear();
+  all_candidates.clear();
+}
+
 void Detector::Impl::run(const cv::Mat& input) {
   det.landmarks.clear();
   det.stages.clear();
@@ -449,49 +619,13 @@ void Detector::Impl::run(const cv::Mat& input) {
   timer.stamp("contours");
 
   // 5. COLOUR: FIP and AP candidates by the colour ratios
-  fips.clear();
-  aps.clear();
-  for (const auto& r : regions) {
-    if (!paper && detail::fill(r) < p.min_fill) continue;
-    if (r.colour == detail::kBlue && detail::isFip(r, p.color_ratio_a, p.color_ratio_b)) fips.push_back(r);
-    else if (r.colour == detail::kRed && detail::isAp(r, p.color_ratio_a, p.color_ratio_b)) aps.push_back(r);
-  }
-  // Largest first (the graph's 3-cycles come in index order: when a cluttered
-  // frame has more than max_cycles, those among the larger squares are kept).
-  auto keepLargest = [&](std::vector<detail::Region>& v) {
-    std::sort(v.begin(), v.end(), [](const detail::Region& a, const detail::Region& b) {
-      return std::tie(b.area, a.cy, a.cx) < std::tie(a.area, b.cy, b.cx);
-    });
-    if (static_cast<int>(v.size()) > p.max_candidates) v.resize(static_cast<size_t>(p.max_candidates));
-  };
-  keepLargest(fips);
-  keepLargest(aps);
+  classify();
   timer.stamp("colour");
 
   // 6-7. GEOMETRY: FIP graph, its 3-cycles, the AP, verification, overlaps
-  const int n = static_cast<int>(fips.size());
-  candidates.clear();
-  // Three FIPs and an AP make a landmark; two FIPs and an AP, or three FIPs,
-  // may be one whose fourth square the completion finds.
-  const bool whole = n >= 3 && !aps.empty();
-  const bool completion = !paper && p.complete_missing && (n >= 3 || (n >= 2 && !aps.empty()));
-  if (whole || completion) {
-    adjacency.assign(static_cast<size_t>(n) * n, 0);
-    for (int i = 0; i < n; ++i)
-      for (int j = i + 1; j < n; ++j)
-        if (detail::fipEdge(fips[i], fips[j], p))
-          adjacency[static_cast<size_t>(i) * n + j] = adjacency[static_cast<size_t>(j) * n + i] = 1;
-    detail::threeCycles(adjacency, n, cycles, static_cast<size_t>(p.max_cycles));
-    ap_index.build(aps);
-    for (const auto& cyc : cycles) {
-      detail::Candidate c;
-      if (whole && detail::rightIsosceles(cyc, fips, kTriangleTolerance) && detail::chooseAp(cyc, fips, aps, p, c, &ap_index) &&
-          detail::verify(c, fips, aps, *img, p))
-        candidates.push_back(c);
-    }
-    if (completion) complete(*img);
-    detail::resolveOverlaps(candidates, static_cast<int>(fips.size()), static_cast<int>(aps.size()), used);
-  }
+  geometry(*img);
+  // 7c. A second look around the squares no landmark took
+  if (!paper && p.second_looks > 0) secondLook(*img, *src, max_area);
   timer.stamp("geometry");
 
   // 8. CORNERS (through the undistorted image when the camera distorts: the
