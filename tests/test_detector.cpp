@@ -681,15 +681,16 @@ TEST(Detector, SquareMergedWithALargeObjectIsCompletedFromTwoFips) {
 // that pair, at raised thresholds, parts the squares from the object.
 TEST(Detector, SecondLookPartsSquaresJoinedToAnObject) {
   cv::Mat img = background(kCam.size, 18, true);
-  const Placed p = place(1.0, 0, 0, 0.15, 0, 0);
+  // squares of 12.5 px, a margin of 3 px
+  const Placed p = place(1.6, 0, 0, 0.15, 0, 0);
   const Truth t = truthOf(kCam, p);
   const int x0 = static_cast<int>(t.corners[0].x), x1 = static_cast<int>(t.corners[1].x);
   const int y = static_cast<int>(t.corners[0].y);
-  img(cv::Rect(x0 - 40, y - 70, x1 - x0 + 80, 63)).setTo(cv::Scalar(150, 60, 40));  // above the sheet
+  img(cv::Rect(x0 - 40, y - 50, x1 - x0 + 80, 45)).setTo(cv::Scalar(150, 60, 40));  // above the sheet
   drawSheet(img, kCam, p);
   const cv::Scalar tint(150, 112, 106);  // saturation 0.29: above the blue threshold (0.25), under 0.35
   for (const auto& c : {t.centres[0], t.centres[1]})
-    img(cv::Rect(static_cast<int>(c.x) - 4, y - 8, 8, 10)).setTo(tint);
+    img(cv::Rect(static_cast<int>(c.x) - 3, y - 6, 6, 8)).setTo(tint);
 
   ld::DetectorParams once;
   once.second_looks = 0;
@@ -704,12 +705,12 @@ TEST(Detector, SecondLookPartsSquaresJoinedToAnObject) {
 // look around them sees that landmark again, and reports it once.
 TEST(Detector, SecondLookReportsALandmarkOnce) {
   cv::Mat img = background(kCam.size, 19);
-  const Placed p = place(1.2, 20, 10, 0.15, 0, 0);
+  const Placed p = place(1.6, 20, 10, 0.15, 0, 0);
   drawSheet(img, kCam, p);
   const Truth t = truthOf(kCam, p);
-  const int x = static_cast<int>(t.corners[1].x) + 12, y = static_cast<int>(t.corners[1].y);
-  img(cv::Rect(x, y, 12, 12)).setTo(cv::Scalar(150, 60, 40));
-  img(cv::Rect(x + 10, y + 40, 12, 12)).setTo(cv::Scalar(40, 60, 200));
+  const int x = static_cast<int>(t.corners[1].x) + 10, y = static_cast<int>(t.corners[1].y);
+  img(cv::Rect(x, y, 10, 10)).setTo(cv::Scalar(150, 60, 40));
+  img(cv::Rect(x + 8, y + 30, 10, 10)).setTo(cv::Scalar(40, 60, 200));
   ld::Detector det;
   const auto& d = det.detect(img);
   ASSERT_EQ(d.landmarks.size(), 1u);

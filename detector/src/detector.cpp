@@ -220,6 +220,11 @@ constexpr double kTriangleTolerance = 1.5;
 constexpr int kMaxCompletionTrials = 400;
 constexpr int kMaxCompletionPairs = 20000;
 
+// Squares the second look starts from are at most this long (pixels, the
+// longest axis): a landmark with larger ones has a sheet margin of 4 px or
+// more, which neither blur nor JPEG's colour tints across.
+constexpr double kSecondLookMaxSide = 16.0;
+
 // One warning per process about the GPU not being used (whether it could
 // not be started or failed later).
 std::atomic<bool> g_backend_warned{false};
@@ -512,6 +517,7 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
   const double max_radius = 0.3 * std::min(img.cols, img.rows);
   auto pairUp = [&](const detail::Region& a, const detail::Region& b, double rank) {
     const double side = std::max(detail::maxAxis(a), detail::maxAxis(b));
+    if (side > kSecondLookMaxSide) return;
     const double radius = std::max(12.0, 0.5 * std::hypot(a.cx - b.cx, a.cy - b.cy) + 5 * side);
     if (radius <= max_radius) anchors.push_back({(a.cx + b.cx) / 2, (a.cy + b.cy) / 2, radius, rank});
   };
