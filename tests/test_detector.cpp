@@ -701,8 +701,9 @@ TEST(Detector, SecondLookPartsSquaresJoinedToAnObject) {
   EXPECT_TRUE(ld::matchesTruth(d.landmarks[0], t.centres));
 }
 
-// A blue and a red card beside a landmark the first pass found: the second
-// look around them sees that landmark again, and reports it once.
+// A blue and a red card beside a landmark the first pass found, and a
+// larger blue object (as a merge would leave): the second look around the
+// cards sees that landmark again, and reports it once.
 TEST(Detector, SecondLookReportsALandmarkOnce) {
   cv::Mat img = background(kCam.size, 19);
   const Placed p = place(1.6, 20, 10, 0.15, 0, 0);
@@ -711,6 +712,7 @@ TEST(Detector, SecondLookReportsALandmarkOnce) {
   const int x = static_cast<int>(t.corners[1].x) + 10, y = static_cast<int>(t.corners[1].y);
   img(cv::Rect(x, y, 10, 10)).setTo(cv::Scalar(150, 60, 40));
   img(cv::Rect(x + 8, y + 30, 10, 10)).setTo(cv::Scalar(40, 60, 200));
+  img(cv::Rect(x + 30, y, 30, 30)).setTo(cv::Scalar(150, 60, 40));
   ld::Detector det;
   const auto& d = det.detect(img);
   ASSERT_EQ(d.landmarks.size(), 1u);

@@ -260,7 +260,8 @@ struct Detector::Impl {
   std::vector<detail::Candidate> candidates;
   // the second look's
   cv::Mat look_labels;
-  std::vector<std::array<double, 4>> anchors;  // x, y, radius, rank
+  std::vector<std::array<double, 5>> anchors;  // x, y, radius, rank, larger square's area
+  std::vector<std::pair<cv::Rect, int64_t>> blobs;  // the first pass's larger regions: bbox, area
   detail::RegionIndex fip_index;
   std::vector<cv::Rect> looked;
   std::vector<detail::Region> all_fips, all_aps;
@@ -519,7 +520,7 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
     const double side = std::max(detail::maxAxis(a), detail::maxAxis(b));
     if (side > kSecondLookMaxSide) return;
     const double radius = std::max(12.0, 0.5 * std::hypot(a.cx - b.cx, a.cy - b.cy) + 5 * side);
-    if (radius <= max_radius) anchors.push_back({(a.cx + b.cx) / 2, (a.cy + b.cy) / 2, radius, rank});
+    if (radius <= max_radius) anchors.push_back({(a.cx + b.cx) / 2, (a.cy + b.cy) / 2, radius, rank, static_cast<double>(std::max(a.area, b.area))});
   };
   for (int k = 0; k < na; ++k) {
     if (used[nf + k]) continue;
@@ -542,6 +543,12 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
     return std::tie(a[3], a[2], a[0], a[1]) < std::tie(b[3], b[2], b[0], b[1]);
   });
   if (anchors.empty()) return;
+  // A merge leaves a region in the window larger than the pair's squares
+  // (2.5 times the larger: the first pass's regions, kept or not, from the
+  // labelling's accumulators); windows without one are not looked at.
+  blobs.clear();
+  for (const auto& r : runs.acc)
+    if (r.n >= 12) blobs.push_back({cv::Rect(r.x0, r.y0, r.x1 - r.x0 + 1, r.y1 - r.y0 + 1), r.n});
 
   detail::MaskThresholds strict = filter_settings.mask;
   strict.blue = std::min(0.95, strict.blue + p.second_look_raise);
@@ -551,8 +558,8 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
   std::swap(aps, all_aps);
   std::swap(candidates, all_candidates);
   const cv::Rect frame(0, 0, img.cols, img.rows);
-  // Windows cover at most a quarter of the frame in all (cluttered frames have many unused squares).
-  int64_t pixels_left = static_cast<int64_t>(img.total()) / 4;
+  // Windows cover at most an eighth of the frame in all (cluttered frames have many unused squares).
+  int64_t pixels_left = static_cast<int64_t>(img.total()) / 8;
   int looks = 0;
   looked.clear();
   for (const auto& a : anchors) {
@@ -563,6 +570,9 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
     if (seen) continue;
     const int r = static_cast<int>(std::ceil(a[2]));
     const cv::Rect win = cv::Rect(centre.x - r, centre.y - r, 2 * r + 1, 2 * r + 1) & frame;
+    bool merged = false;
+    for (const auto& b : blobs) merged |= b.second >= 2.5 * a[4] && (b.first & win).area() > 0;
+    if (!merged) continue;
     if (win.area() > pixels_left) continue;
     pixels_left -= win.area();
     ++looks;
