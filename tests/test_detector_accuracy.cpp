@@ -79,11 +79,12 @@ Sweep sweep(double side_m, double distance, int max_yaw, int step, int per_yaw, 
 }  // namespace
 
 // A 9 cm landmark at 1.5 m: FIPs of 8 px, 3 px wide at 70 degrees of yaw.
+// The issue's target: 95 % within +-70 degrees.
 TEST(DetectionRate, Landmark9cmAt1m5) {
   const Sweep s = sweep(0.09, 1.5, 70, 10, 12, 9015);
   s.print("9 cm at 1.5 m");
   EXPECT_GE(s.rate(60), 0.95);
-  EXPECT_GE(s.rate(70), 0.91);
+  EXPECT_GE(s.rate(70), 0.95);
 }
 
 // A 15 cm landmark at 2.5 m: FIPs of 8 px, 1.4 px wide at 80 degrees.
@@ -95,13 +96,11 @@ TEST(DetectionRate, Landmark15cmAt2m5) {
   EXPECT_GE(s.rate(80), 0.80);
 }
 
-// The issue's targets over the full yaw ranges (95 % within +-70 degrees
-// at 9 cm / 1.5 m and within +-80 degrees at 15 cm / 2.5 m): not met yet at
-// the extreme angles, where printed blue squares 1.5-3 px wide lose their
-// colour to blur, JPEG chroma subsampling and the sheet's thin margin.
+// The issue's target for the 15 cm landmark (95 % within +-80 degrees at
+// 2.5 m): not met yet at the extreme angles, where printed blue squares
+// 1.4-3 px wide lose their colour to blur and JPEG chroma subsampling.
 // Run with --gtest_also_run_disabled_tests.
-TEST(DetectionRate, DISABLED_IssueTargetsAtExtremeYaw) {
-  EXPECT_GE(sweep(0.09, 1.5, 70, 10, 12, 9015).rate(70), 0.95);
+TEST(DetectionRate, DISABLED_IssueTargetAtExtremeYaw15cm) {
   EXPECT_GE(sweep(0.15, 2.5, 80, 10, 12, 15025).rate(80), 0.95);
 }
 
