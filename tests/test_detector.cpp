@@ -975,6 +975,32 @@ TEST(Params, BadFilesGiveClearErrors) {
   EXPECT_THROW(ld::DetectorParams::load("/nonexistent/dir/params.yaml"), std::runtime_error);
 }
 
+// Every configuration reader opens its file the same way (openConfigFile):
+// a missing file names itself, and plain YAML without OpenCV's "%YAML:1.0"
+// line is read like the tracker's parameters always were.
+TEST(Params, FilesOpenLikeEveryConfigFile) {
+  try {
+    ld::DetectorParams::load("/nonexistent/dir/params.yaml");
+    ADD_FAILURE() << "no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("detector params /nonexistent/dir/params.yaml: cannot open"), std::string::npos)
+        << e.what();
+  }
+  try {
+    ld::CameraModel::load("/nonexistent/dir/camera.yaml");
+    ADD_FAILURE() << "no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("camera file /nonexistent/dir/camera.yaml: cannot open"), std::string::npos)
+        << e.what();
+  }
+  const std::string path = tempPath("plain.yaml");
+  std::ofstream(path) << "# no header\nsecond_looks: 2\nd_min: 2.0\n";
+  const ld::DetectorParams q = ld::DetectorParams::load(path);
+  EXPECT_EQ(q.second_looks, 2);
+  EXPECT_DOUBLE_EQ(q.d_min, 2.0);
+  std::remove(path.c_str());
+}
+
 TEST(Params, ValidateNamesTheField) {
   auto err = [](auto&& mutate) {
     ld::DetectorParams p;

@@ -43,18 +43,7 @@ CameraModel CameraModel::pinhole(cv::Size size, double focal_px) {
 }
 
 CameraModel CameraModel::load(const std::string& path) {
-  if (const auto why = unsafeFileForOpenCv(path)) throw std::runtime_error("camera file " + path + ": " + *why);
-  cv::FileStorage fs;
-  try {
-    if (!fs.open(path, cv::FileStorage::READ))
-      throw std::runtime_error("camera file " + path + ": cannot open or parse");
-  } catch (const cv::Exception& e) {
-    throw std::runtime_error("camera file " + path + ": cannot parse (" + e.err + ")");
-  } catch (const std::runtime_error&) {
-    throw;
-  } catch (const std::exception& e) {  // OpenCV's parser lets std::length_error and others out
-    throw std::runtime_error("camera file " + path + ": cannot parse (" + e.what() + ")");
-  }
+  const cv::FileStorage fs = openConfigFile(path, "camera file");
   CameraModel c;
   try {
     cv::Mat K = readMatrix(fs["camera_matrix"], 9, path, "camera_matrix");

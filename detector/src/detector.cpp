@@ -102,13 +102,7 @@ DetectorParams DetectorParams::paper() {
 }
 
 DetectorParams DetectorParams::load(const std::string& path) {
-  if (const auto why = unsafeFileForOpenCv(path)) badFile(path, *why);
-  cv::FileStorage fs;
-  try {
-    if (!fs.open(path, cv::FileStorage::READ)) badFile(path, "cannot open or parse");
-  } catch (const cv::Exception& e) {
-    badFile(path, "cannot parse (" + e.err + ")");
-  }
+  const cv::FileStorage fs = openConfigFile(path, "detector params");
   const cv::FileNode root = fs.root();
   if (!root.isMap()) badFile(path, "not a map of parameter names to values");
   DetectorParams p;

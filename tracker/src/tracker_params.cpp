@@ -53,21 +53,7 @@ std::string num(double v) {
 }  // namespace
 
 TrackerParams TrackerParams::load(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) fail(path, "cannot open");
-  std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  if (const auto why = unsafeForOpenCv(text)) fail(path, *why);
-  // OpenCV wants a "%YAML:1.0" first line; plain YAML gets one.
-  const size_t first = text.find_first_not_of(" \t\r\n");
-  if (first == std::string::npos) text = "%YAML:1.0\n---\n{}\n";
-  else if (text[first] != '<' && text[first] != '{' && text.compare(first, 5, "%YAML") != 0)
-    text = "%YAML:1.0\n---\n" + text;
-  cv::FileStorage fs;
-  try {
-    if (!fs.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY)) fail(path, "cannot parse");
-  } catch (const cv::Exception& e) {
-    fail(path, "cannot parse (" + e.err + ")");
-  }
+  const cv::FileStorage fs = openConfigFile(path, "tracker parameters");
   TrackerParams p;
   const cv::FileNode root = fs.root();
   if (!root.isMap() && !root.empty()) fail(path, "top level is not a map of parameters");

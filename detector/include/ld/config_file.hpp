@@ -10,10 +10,14 @@
 // own, and comments (after '#') are not looked at.
 #pragma once
 
+#include <exception>
 #include <fstream>
 #include <iterator>
 #include <optional>
+#include <stdexcept>
 #include <string>
+
+#include <opencv2/core/persistence.hpp>
 
 namespace ld {
 
@@ -61,12 +65,34 @@ inline std::optional<std::string> unsafeForOpenCv(const std::string& text) {
   return std::nullopt;
 }
 
-/// The same for the file at `path` (nullopt when it cannot be read at all:
-/// the reader reports that itself).
-inline std::optional<std::string> unsafeFileForOpenCv(const std::string& path) {
+/// A configuration file (YAML, XML or JSON) opened for reading, the way every
+/// reader of the project opens one: the file read once, its text checked by
+/// unsafeForOpenCv, plain YAML given the "%YAML:1.0" header OpenCV wants, and
+/// parsed from memory. Throws std::runtime_error("<what> <path>: <why>") when
+/// the file cannot be read, is unsafe, or does not parse (OpenCV's
+/// cv::Exception and the std::length_error and others its parser lets out).
+inline cv::FileStorage openConfigFile(const std::string& path, const std::string& what) {
+  const auto fail = [&](const std::string& why) { throw std::runtime_error(what + " " + path + ": " + why); };
   std::ifstream f(path, std::ios::binary);
-  if (!f) return std::nullopt;
-  return unsafeForOpenCv(std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>()));
+  if (!f) fail("cannot open");
+  std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  if (f.bad()) fail("cannot read");
+  if (const auto why = unsafeForOpenCv(text)) fail(*why);
+  const size_t first = text.find_first_not_of(" \t\r\n");
+  if (first == std::string::npos) text = "%YAML:1.0\n---\n{}\n";
+  else if (text[first] != '<' && text[first] != '{' && text.compare(first, 5, "%YAML") != 0)
+    text = "%YAML:1.0\n---\n" + text;
+  cv::FileStorage fs;
+  try {
+    if (!fs.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY)) fail("cannot parse");
+  } catch (const cv::Exception& e) {
+    fail("cannot parse (" + e.err + ")");
+  } catch (const std::runtime_error&) {
+    throw;
+  } catch (const std::exception& e) {
+    fail(std::string("cannot parse (") + e.what() + ")");
+  }
+  return fs;
 }
 
 }  // namespace ld
