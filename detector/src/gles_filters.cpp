@@ -80,6 +80,18 @@ uvec3 pixel(ivec2 p) {
 }
 )";
 
+// OpenCV's default border (reflect 101: -1 is 1, n is n - 2) for an index
+// into n pixels, the one reflection every blur here reads its border with;
+// the clamp keeps an index further out (a radius wider than the image)
+// inside the image.
+const char* kReflect101 = R"(
+int reflect101(int i, int n) {
+  i = i < 0 ? -i : i;
+  i = i >= n ? 2 * n - 2 - i : i;
+  return clamp(i, 0, n - 1);
+}
+)";
+
 // Labels of four pixels per texel, the arithmetic of saturationMask; the
 // four pixels are three texels of the raw frame (or, BLURRED, four of the
 // blurred RGBA8 image).
@@ -137,11 +149,6 @@ const char* kBlur = R"(
 uniform usampler2D src;
 uniform int w[RADIUS + 1];
 uniform int n;  // pixels along the pass
-int reflect101(int i) {
-  i = i < 0 ? -i : i;
-  i = i >= n ? 2 * n - 2 - i : i;
-  return clamp(i, 0, n - 1);
-}
 #ifdef OUT_TMP
 out uvec4 o;
 #else
@@ -152,9 +159,9 @@ void main() {
   ivec3 s = ivec3(0);
   for (int k = -RADIUS; k <= RADIUS; ++k) {
 #ifdef VERTICAL
-    ivec2 q = ivec2(p.x, reflect101(p.y + k));
+    ivec2 q = ivec2(p.x, reflect101(p.y + k, n));
 #else
-    ivec2 q = ivec2(reflect101(p.x + k), p.y);
+    ivec2 q = ivec2(reflect101(p.x + k, n), p.y);
 #endif
     s += w[abs(k)] * ivec3(texelFetch(src, q, 0).rgb);
   }
@@ -166,9 +173,9 @@ void main() {
 }
 )";
 
-// ---- The paper front end on fragment shaders: every pass four pixels a
-// fragment (a group: one texel of each W/4 x H target), which cuts the
-// fragments, and the texel fetches, four-fold.
+// ---- The paper front end's formulas, each written once and put into the
+// shaders of both its paths (fragment and compute), so that the two cannot
+// drift apart in their arithmetic.
 
 // HSV saturation as saturationImage, cut to zero at or below thr as
 // cv::threshold TOZERO does.
@@ -180,6 +187,43 @@ uint saturation(ivec3 v) {
   return uint(sat > thr ? sat : 0);
 }
 )";
+
+// Sobel (3x3) of a pixel from its eight neighbours, a to i row by row with
+// the pixel itself (e) left out: L1 magnitude and direction sector (0
+// horizontal, 1 vertical, 2 and 3 the diagonals), magnitude | sector << 16.
+const char* kGradient = R"(
+uint gradient(int a, int b, int c, int d, int f, int g, int h, int i) {
+  int dx = (c + 2 * f + i) - (a + 2 * d + g);
+  int dy = (g + 2 * h + i) - (a + 2 * b + c);
+  int ax = abs(dx), ay = abs(dy);
+  // tan(22.5 deg) and tan(67.5 deg) in 15-bit fixed point
+  int t22 = ax * 13573, t67 = t22 + (ax << 16);
+  int sector = (ay << 15) < t22 ? 0 : (ay << 15) > t67 ? 1 : ((dx ^ dy) < 0 ? 3 : 2);
+  return uint(ax + ay) | (uint(sector) << 16);
+}
+)";
+
+// Non-maximum suppression along the gradient and the double threshold of a
+// pixel: 0, 1 (above low) or 2 (above high), from its gradient (as kGradient
+// gives it) and its neighbours' magnitudes, named by compass point (n above).
+// Ties go to the pixel before (left, above), as OpenCV's Canny breaks them.
+const char* kClassify = R"(
+uniform int low, high;
+uint classify(uint g, int nw, int n, int ne, int w, int e, int sw, int s, int se) {
+  int mag = int(g & 0xffffu), sector = int(g >> 16);
+  if (mag <= low) return 0u;
+  bool peak;
+  if (sector == 0) peak = mag > w && mag >= e;
+  else if (sector == 1) peak = mag > n && mag >= s;
+  else if (sector == 2) peak = mag > nw && mag > se;
+  else peak = mag > ne && mag > sw;
+  return !peak ? 0u : mag > high ? 2u : 1u;
+}
+)";
+
+// ---- The paper front end on fragment shaders: every pass four pixels a
+// fragment (a group: one texel of each W/4 x H target), which cuts the
+// fragments, and the texel fetches, four-fold.
 
 // No blur: the saturation of a group, from its three texels of the raw frame.
 const char* kGroupSat = R"(
@@ -206,11 +250,6 @@ layout(location = 0) out uvec4 o0;
 layout(location = 1) out uvec2 o1;
 #define G ((RADIUS + 3) / 4)
 #define N (4 * (2 * G + 1))
-int reflect101(int i, int n) {
-  i = i < 0 ? -i : i;
-  i = i >= n ? 2 * n - 2 - i : i;
-  return clamp(i, 0, n - 1);
-}
 void main() {
   ivec2 q = ivec2(gl_FragCoord.xy);
   int x0 = 4 * (q.x - G);  // the first pixel of px
@@ -248,11 +287,6 @@ uniform usampler2D h1;
 uniform int w[RADIUS + 1];
 uniform int height;
 out uvec4 o;
-int reflect101(int i, int n) {
-  i = i < 0 ? -i : i;
-  i = i >= n ? 2 * n - 2 - i : i;
-  return clamp(i, 0, n - 1);
-}
 ivec3 lo(uint a, uint b) { return ivec3(int(a & 0xffffu), int(a >> 16), int(b & 0xffffu)); }
 ivec3 hi(uint a, uint b) { return ivec3(int(a >> 16), int(b & 0xffffu), int(b >> 16)); }
 void main() {
@@ -273,10 +307,8 @@ void main() {
 }
 )";
 
-// Sobel (3x3, replicated border) on a group of the saturation: L1 magnitude
-// and direction sector (0 horizontal, 1 vertical, 2 and 3 the diagonals),
-// magnitude | sector << 16, per pixel. Each row needs the pixels from one
-// before the group to one after it.
+// Sobel (kGradient, replicated border) on a group of the saturation. Each
+// row needs the pixels from one before the group to one after it.
 const char* kGroupSobel = R"(
 uniform usampler2D sat;
 uniform ivec2 size;  // pixels
@@ -294,15 +326,6 @@ void row(int y, int q, out int v[6]) {
     for (int i = 0; i < 6; ++i) v[i] = int(a[clamp(4 * q - 1 + i, 0, size.x - 1) - 4 * q + 4]);
   }
 }
-uint gradient(int a, int b, int c, int d, int f, int g, int h, int i) {
-  int dx = (c + 2 * f + i) - (a + 2 * d + g);
-  int dy = (g + 2 * h + i) - (a + 2 * b + c);
-  int ax = abs(dx), ay = abs(dy);
-  // tan(22.5 deg) and tan(67.5 deg) in 15-bit fixed point
-  int t22 = ax * 13573, t67 = t22 + (ax << 16);
-  int sector = (ay << 15) < t22 ? 0 : (ay << 15) > t67 ? 1 : ((dx ^ dy) < 0 ? 3 : 2);
-  return uint(ax + ay) | (uint(sector) << 16);
-}
 void main() {
   ivec2 q = ivec2(gl_FragCoord.xy);
   int t[6], m[6], b[6];
@@ -316,14 +339,11 @@ void main() {
 }
 )";
 
-// Non-maximum suppression along the gradient and the double threshold of a
-// group: 0, 1 (above low), 2 (above high) per pixel, one byte each. Ties go
-// to the pixel before (left, above), as OpenCV's Canny breaks them; outside
-// the image the magnitude is 0.
+// Suppression and double threshold (kClassify) of a group, one byte a
+// pixel; outside the image the magnitude is 0.
 const char* kGroupNms = R"(
 uniform usampler2D grad;
 uniform ivec2 size;
-uniform int low, high;
 out vec4 o;
 void row(int y, int q, out int v[6]) {
   int w4 = (size.x + 3) / 4;
@@ -340,16 +360,6 @@ void row(int y, int q, out int v[6]) {
     v[i] = p >= 0 && p < size.x ? int(a[i] & 0xffffu) : 0;
   }
 }
-float classify(int k, uint g, int t[6], int m[6], int b[6]) {
-  int mag = int(g & 0xffffu), sector = int(g >> 16);
-  if (mag <= low) return 0.0;
-  bool peak;
-  if (sector == 0) peak = mag > m[k] && mag >= m[k + 2];
-  else if (sector == 1) peak = mag > t[k + 1] && mag >= b[k + 1];
-  else if (sector == 2) peak = mag > t[k] && mag > b[k + 2];
-  else peak = mag > t[k + 2] && mag > b[k];
-  return !peak ? 0.0 : mag > high ? 2.0 : 1.0;
-}
 void main() {
   ivec2 q = ivec2(gl_FragCoord.xy);
   int t[6], m[6], b[6];
@@ -357,10 +367,13 @@ void main() {
   row(q.y, q.x, m);
   row(q.y + 1, q.x, b);
   uvec4 c = texelFetch(grad, q, 0);
-  int x = 4 * q.x;
-  o = vec4(x < size.x ? classify(0, c.x, t, m, b) : 0.0, x + 1 < size.x ? classify(1, c.y, t, m, b) : 0.0,
-           x + 2 < size.x ? classify(2, c.z, t, m, b) : 0.0, x + 3 < size.x ? classify(3, c.w, t, m, b) : 0.0) /
-      255.0;
+  uint g[4] = uint[4](c.x, c.y, c.z, c.w);
+  float cl[4];
+  for (int k = 0; k < 4; ++k)
+    cl[k] = 4 * q.x + k < size.x
+                ? float(classify(g[k], t[k], t[k + 1], t[k + 2], m[k], m[k + 2], b[k], b[k + 1], b[k + 2]))
+                : 0.0;
+  o = vec4(cl[0], cl[1], cl[2], cl[3]) / 255.0;
 }
 )";
 
@@ -375,24 +388,18 @@ precision highp usampler2D;
 precision highp uimage2D;
 )";
 
-// Blur (OpenCV's fixed point, as kBlur), saturation and threshold in one
-// dispatch: the tile and its halo loaded once, the horizontal sums kept in
-// shared memory, the vertical ones per pixel. RADIUS 0 with w[0] = 256: the
-// saturation alone.
+// Blur (OpenCV's fixed point, as kBlur), saturation and threshold
+// (kSaturation) in one dispatch: the tile and its halo loaded once, the
+// horizontal sums kept in shared memory, the vertical ones per pixel. RADIUS
+// 0 with w[0] = 256: the saturation alone.
 const char* kComputeBlurSat = R"(
 layout(local_size_x = T, local_size_y = T) in;
 layout(r32ui, binding = 0) writeonly uniform highp uimage2D sat_out;
 uniform ivec2 size;
 uniform int w[RADIUS + 1];
-uniform int thr;
 #define S (T + 2 * RADIUS)
 shared uint px[S * S];   // b | g << 8 | r << 16
 shared uvec2 hs[S * T];  // horizontal sums: b | g << 16, r
-int reflect101(int i, int n) {
-  i = i < 0 ? -i : i;
-  i = i >= n ? 2 * n - 2 - i : i;
-  return clamp(i, 0, n - 1);
-}
 void main() {
   ivec2 o = ivec2(gl_WorkGroupID.xy) * T;
   int lid = int(gl_LocalInvocationIndex);
@@ -421,27 +428,25 @@ void main() {
     uvec2 h = hs[(l.y + RADIUS + k) * T + l.x];
     v += w[abs(k)] * ivec3(int(h.x & 0xffffu), int(h.x >> 16), int(h.y));
   }
-  v = (v + 32768) >> 16;
-  int mx = max(v.x, max(v.y, v.z)), mn = min(v.x, min(v.y, v.z));
-  int sat = mx > 0 ? (255 * (mx - mn) + mx / 2) / mx : 0;
-  imageStore(sat_out, p, uvec4(uint(sat > thr ? sat : 0)));
+  imageStore(sat_out, p, uvec4(saturation((v + 32768) >> 16)));
 }
 )";
 
-// Sobel, non-maximum suppression and double threshold in one dispatch (the
-// arithmetic of kGroupSobel and kGroupNms), four pixels a word into a storage buffer
-// laid out as the single-channel map read back.
+// Sobel, non-maximum suppression and double threshold (kGradient and
+// kClassify) in one dispatch, four pixels a word into a storage buffer laid
+// out as the single-channel map read back.
 const char* kComputeEdges = R"(
 layout(local_size_x = T, local_size_y = T) in;
 uniform usampler2D sat;
 uniform ivec2 size;
-uniform int low, high, w4;
+uniform int w4;
 layout(std430, binding = 0) writeonly buffer Out { uint packed_map[]; };
 #define A (T + 4)
 #define B (T + 2)
 shared int sv[A * A];    // saturation, replicated border
 shared uint g[B * B];    // magnitude | sector << 16; 0 outside the image
 shared uint cls[T * T];
+int magnitude(int i) { return int(g[i] & 0xffffu); }
 void main() {
   ivec2 o = ivec2(gl_WorkGroupID.xy) * T;
   int lid = int(gl_LocalInvocationIndex);
@@ -458,12 +463,8 @@ void main() {
       continue;
     }
     int c = (b.y + 1) * A + b.x + 1;
-    int dx = (sv[c - A + 1] + 2 * sv[c + 1] + sv[c + A + 1]) - (sv[c - A - 1] + 2 * sv[c - 1] + sv[c + A - 1]);
-    int dy = (sv[c + A - 1] + 2 * sv[c + A] + sv[c + A + 1]) - (sv[c - A - 1] + 2 * sv[c - A] + sv[c - A + 1]);
-    int ax = abs(dx), ay = abs(dy);
-    int t22 = ax * 13573, t67 = t22 + (ax << 16);
-    int sector = (ay << 15) < t22 ? 0 : (ay << 15) > t67 ? 1 : ((dx ^ dy) < 0 ? 3 : 2);
-    g[i] = uint(ax + ay) | (uint(sector) << 16);
+    g[i] = gradient(sv[c - A - 1], sv[c - A], sv[c - A + 1], sv[c - 1], sv[c + 1], sv[c + A - 1], sv[c + A],
+                    sv[c + A + 1]);
   }
   barrier();
   ivec2 l = ivec2(gl_LocalInvocationID.xy);
@@ -471,15 +472,8 @@ void main() {
   uint cl = 0u;
   if (p.x < size.x && p.y < size.y) {
     int c = (l.y + 1) * B + l.x + 1;
-    int m = int(g[c] & 0xffffu), sector = int(g[c] >> 16);
-    if (m > low) {
-      bool peak;
-      if (sector == 0) peak = m > int(g[c - 1] & 0xffffu) && m >= int(g[c + 1] & 0xffffu);
-      else if (sector == 1) peak = m > int(g[c - B] & 0xffffu) && m >= int(g[c + B] & 0xffffu);
-      else if (sector == 2) peak = m > int(g[c - B - 1] & 0xffffu) && m > int(g[c + B + 1] & 0xffffu);
-      else peak = m > int(g[c - B + 1] & 0xffffu) && m > int(g[c + B - 1] & 0xffffu);
-      cl = !peak ? 0u : m > high ? 2u : 1u;
-    }
+    cl = classify(g[c], magnitude(c - B - 1), magnitude(c - B), magnitude(c - B + 1), magnitude(c - 1),
+                  magnitude(c + 1), magnitude(c + B - 1), magnitude(c + B), magnitude(c + B + 1));
   }
   cls[l.y * T + l.x] = cl;
   barrier();
@@ -561,14 +555,13 @@ class GlesFilters final : public Filters {
   GlesFilters(std::unique_ptr<EglContext> ctx, int compute) : ctx_(std::move(ctx)) {
     glGenVertexArrays(1, &vao_);
     glGenFramebuffers(1, &fbo_);
-    glGenFramebuffers(1, &fbo2_);
     glGenBuffers(1, &pbo_up_);
     glGenBuffers(1, &pbo_down_);
     label_ = program("label", std::string(kHeader) + kRaw + kLabel);
     label_blurred_ = program("label_blurred", std::string(kHeader) + "#define BLURRED\n" + kLabel);
     group_sat_ = program("groupSat", std::string(kHeader) + kRaw + kSaturation + kGroupSat);
-    group_sobel_ = program("groupSobel", std::string(kHeader) + kGroupSobel);
-    group_nms_ = program("groupNms", std::string(kHeader) + kGroupNms);
+    group_sobel_ = program("groupSobel", std::string(kHeader) + kGradient + kGroupSobel);
+    group_nms_ = program("groupNms", std::string(kHeader) + kClassify + kGroupNms);
     unpack_ = program("unpack", std::string(kHeader) + kRaw + kUnpack);
     check("setup");
     // Compute shaders where OpenGL ES 3.1 has them (and they compile);
@@ -581,7 +574,7 @@ class GlesFilters final : public Filters {
       glGetIntegerv(GL_MAX_COMPUTE_WORK_GROUP_INVOCATIONS, &invocations);
       tile_ = invocations >= 256 ? 16 : 8;
       try {
-        edges_cs_ = computeProgram("edges", kComputeEdges, -1);
+        edges_cs_ = computeProgram("edges", std::string(kGradient) + kClassify + kComputeEdges, -1);
         glGenBuffers(1, &ssbo_);
         compute_ = glGetError() == GL_NO_ERROR;
         if (compute_) path_ = compute > 0 ? Path::Compute : Path::Measure;
@@ -599,7 +592,6 @@ class GlesFilters final : public Filters {
     glDeleteBuffers(1, &pbo_down_);
     if (ssbo_) glDeleteBuffers(1, &ssbo_);
     glDeleteFramebuffers(1, &fbo_);
-    glDeleteFramebuffers(1, &fbo2_);
     glDeleteVertexArrays(1, &vao_);
   }
 
@@ -687,15 +679,15 @@ class GlesFilters final : public Filters {
       setWeights(s);
       if (group_blur_radius_ != radius) {  // compiled once per radius, not per frame
         const std::string defs = std::string(kHeader) + "#define RADIUS " + std::to_string(radius) + "\n";
-        group_blur_h_ = program("groupBlurH" + std::to_string(radius), defs + kRaw + kGroupBlurH);
-        group_blur_v_ = program("groupBlurV" + std::to_string(radius), defs + kSaturation + kGroupBlurV);
+        group_blur_h_ = program("groupBlurH" + std::to_string(radius), defs + kRaw + kReflect101 + kGroupBlurH);
+        group_blur_v_ = program("groupBlurV" + std::to_string(radius), defs + kSaturation + kReflect101 + kGroupBlurV);
         group_blur_radius_ = radius;
       }
       glUseProgram(group_blur_h_);
       bindTexture(0, src_tex_, "raw", group_blur_h_);
       glUniform1iv(glGetUniformLocation(group_blur_h_, "w"), radius + 1, weights_.data());
       glUniform1i(glGetUniformLocation(group_blur_h_, "width"), w_);
-      draw2(hsum0_tex_, hsum1_tex_, w4_, h_);
+      draw(hsum0_tex_, w4_, h_, hsum1_tex_);
       glUseProgram(group_blur_v_);
       bindTexture(0, hsum0_tex_, "h0", group_blur_v_);
       bindTexture(1, hsum1_tex_, "h1", group_blur_v_);
@@ -790,7 +782,7 @@ class GlesFilters final : public Filters {
     const int radius = s.blur_kernel > 1 ? s.blur_kernel / 2 : 0;
     if (radius > 0) setWeights(s);
     if (blur_sat_radius_ != radius) {  // compiled once per radius, not per frame
-      blur_sat_cs_ = computeProgram("blursat", kComputeBlurSat, radius);
+      blur_sat_cs_ = computeProgram("blursat", std::string(kSaturation) + kReflect101 + kComputeBlurSat, radius);
       blur_sat_radius_ = radius;
     }
     const GLuint bs = blur_sat_cs_;
@@ -837,7 +829,7 @@ class GlesFilters final : public Filters {
   }
 
   // A compute program for this tile size (and blur radius, >= 0), compiled once.
-  GLuint computeProgram(const std::string& key, const char* body, int radius) {
+  GLuint computeProgram(const std::string& key, const std::string& body, int radius) {
     const std::string k = key + std::to_string(radius);
     auto it = programs_.find(k);
     if (it != programs_.end()) return it->second;
@@ -943,26 +935,18 @@ class GlesFilters final : public Filters {
     glUniform1i(glGetUniformLocation(prog, uniform), unit);
   }
 
-  void draw(GLuint target, int w, int h) {
+  // The bound program over w x h pixels into target, and into target1 too
+  // where there is one (the horizontal blur's sums). Attachment 1 is emptied
+  // when not drawn to: a framebuffer's attachments of different sizes would
+  // cut the drawing to the smallest.
+  void draw(GLuint target, int w, int h, GLuint target1 = 0) {
     glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, target, 0);
-    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
-      throw BackendFailure("GLES: incomplete framebuffer");
-    }
-    glViewport(0, 0, w, h);
-    glBindVertexArray(vao_);
-    glDrawArrays(GL_TRIANGLES, 0, 3);
-  }
-
-  // Two targets at once (the horizontal blur's sums).
-  void draw2(GLuint target0, GLuint target1, int w, int h) {
-    glBindFramebuffer(GL_FRAMEBUFFER, fbo2_);
-    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, target0, 0);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT1, GL_TEXTURE_2D, target1, 0);
     const GLenum buffers[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
-    glDrawBuffers(2, buffers);
+    glDrawBuffers(target1 ? 2 : 1, buffers);
     if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-      throw BackendFailure("GLES: incomplete framebuffer (two targets)");
+      throw BackendFailure("GLES: incomplete framebuffer");
     glViewport(0, 0, w, h);
     glBindVertexArray(vao_);
     glDrawArrays(GL_TRIANGLES, 0, 3);
@@ -997,8 +981,8 @@ class GlesFilters final : public Filters {
     setWeights(s);
     if (blur_radius_ != radius) {  // programs for this radius (compiled once, not per frame)
       const std::string defs = std::string(kHeader) + "#define RADIUS " + std::to_string(radius) + "\n";
-      blur_h_ = program("blurH" + std::to_string(radius), defs + "#define OUT_TMP\n" + kBlur);
-      blur_v_ = program("blurV" + std::to_string(radius), defs + "#define VERTICAL\n" + kBlur);
+      blur_h_ = program("blurH" + std::to_string(radius), defs + "#define OUT_TMP\n" + kReflect101 + kBlur);
+      blur_v_ = program("blurV" + std::to_string(radius), defs + "#define VERTICAL\n" + kReflect101 + kBlur);
       blur_radius_ = radius;
     }
     glUseProgram(unpack_);
@@ -1056,7 +1040,7 @@ class GlesFilters final : public Filters {
   }
 
   std::unique_ptr<EglContext> ctx_;
-  GLuint vao_ = 0, fbo_ = 0, fbo2_ = 0, pbo_up_ = 0, pbo_down_ = 0;
+  GLuint vao_ = 0, fbo_ = 0, pbo_up_ = 0, pbo_down_ = 0;
   GLuint label_ = 0, label_blurred_ = 0, unpack_ = 0;
   GLuint group_sat_ = 0, group_sobel_ = 0, group_nms_ = 0, group_blur_h_ = 0, group_blur_v_ = 0;
   int group_blur_radius_ = -1;
