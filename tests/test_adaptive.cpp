@@ -147,10 +147,26 @@ ld::eval::SweepOptions lit(double temp_k, double gain, bool adaptive) {
 
 }  // namespace
 
+// ld-eval lighting scores both detectors on one rendering of each scene:
+// the same counts as measuring each on its own.
+TEST(AdaptiveDetection, BothDetectorsOnOneRenderingCountAsApart) {
+  auto o = lit(3200, -1, true);
+  o.trials = 8;
+  const auto [fixed, adaptive] = ld::eval::measureFixedAndAdaptive(o, 1.5, 0, 40);
+  const auto alone = ld::eval::measure(o, 1.5, 0, 40);
+  o.adaptive = false;
+  const auto fixed_alone = ld::eval::measure(o, 1.5, 0, 40);
+  EXPECT_EQ(fixed.trials, 8);
+  EXPECT_EQ(adaptive.detected, alone.detected);
+  EXPECT_EQ(fixed.detected, fixed_alone.detected);
+  EXPECT_NE(fixed.detected, adaptive.detected);  // 3200 K: the two differ, so the order is checked too
+  const auto fp = ld::eval::falsePositivesFixedAndAdaptive(o, 10);
+  EXPECT_DOUBLE_EQ(fp[0], ld::eval::falsePositivesPerFrame(o, 10));
+}
+
 TEST(AdaptiveDetection, HoldsUnderTungstenWhereTheDefaultsDrop) {
   for (double temp : {2700.0, 3200.0}) {
-    const auto fixed = ld::eval::measure(lit(temp, -1, false), 1.5, 0, 40);
-    const auto adaptive = ld::eval::measure(lit(temp, -1, true), 1.5, 0, 40);
+    const auto [fixed, adaptive] = ld::eval::measureFixedAndAdaptive(lit(temp, -1, true), 1.5, 0, 40);
     std::printf("%.0f K: fixed %d/%d, adaptive %d/%d\n", temp, fixed.detected, fixed.trials,
                 adaptive.detected, adaptive.trials);
     EXPECT_LE(fixed.detectRate(), 0.5);
@@ -183,8 +199,7 @@ TEST(AdaptiveDetection, HoldsUnderGlareOnTheLandmark) {
     o.glare = 0.3;
     return o;
   };
-  const auto fixed = ld::eval::measure(glare(false), 1.5, 0, 40);
-  const auto adaptive = ld::eval::measure(glare(true), 1.5, 0, 40);
+  const auto [fixed, adaptive] = ld::eval::measureFixedAndAdaptive(glare(true), 1.5, 0, 40);
   std::printf("glare 0.3: fixed %d/%d, adaptive %d/%d\n", fixed.detected, fixed.trials, adaptive.detected,
               adaptive.trials);
   EXPECT_LE(fixed.detectRate(), 0.4);

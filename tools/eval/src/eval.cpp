@@ -1,6 +1,8 @@
 #include "ld/eval.hpp"
 
 #include <algorithm>
+#include <array>
+#include <stdexcept>
 #include <cmath>
 #include <memory>
 #include <optional>
@@ -75,7 +77,13 @@ const Detection& detectFresh(AdaptiveDetector& detector, const cv::Mat& bgr) {
 
 }  // namespace
 
-Point measure(const SweepOptions& o, double distance_m, double yaw_deg, double yaw_jitter_deg) {
+namespace {
+
+// The trials at one sweep point, every frame scored by each of `detectors`
+// (ours, one Point each), or by the options' marker detector when the target
+// is a marker (one Point).
+std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector>& detectors, double distance_m,
+                             double yaw_deg, double yaw_jitter_deg) {
   const bool marker = o.target != "landmark";
   std::unique_ptr<markers::Detector> marker_detector;
   cv::Mat marker_texture, gray;
@@ -83,14 +91,11 @@ Point measure(const SweepOptions& o, double distance_m, double yaw_deg, double y
     marker_detector = std::make_unique<markers::Detector>(markers::parse(o.target));
     marker_texture = markers::sheetTexture(marker_detector->kind(), 0, 540);
   }
-  std::optional<AdaptiveDetector> detector;  // ours; markers have their own
-  if (!marker) detector = makeDetector(o);
   QrReader reader;
   std::mt19937_64 rng(pointSeed(o.seed, distance_m, yaw_deg));
   std::uniform_real_distribution<double> U(0, 1);
-  Point p;
-  p.distance_m = distance_m;
-  p.yaw_deg = yaw_deg;
+  std::vector<Point> points(marker ? 1 : detectors.size());
+  for (Point& p : points) p.distance_m = distance_m, p.yaw_deg = yaw_deg;
   for (int k = 0; k < o.trials; ++k) {
     const double yaw = yaw_deg + (2 * U(rng) - 1) * yaw_jitter_deg;
     const double roll = o.any_roll ? U(rng) * 360 - 180 : 0;
@@ -105,29 +110,75 @@ Point measure(const SweepOptions& o, double distance_m, double yaw_deg, double y
     applyLighting(o, spec);
     const synth::Frame frame = synth::render(spec);
     const synth::LandmarkTruth& t = frame.truth[0];
-    ++p.trials;
+    for (Point& p : points) ++p.trials;
     if (marker) {
       cv::cvtColor(frame.bgr, gray, cv::COLOR_BGR2GRAY);
       for (const auto& f : marker_detector->detect(gray))
         if (f.id == 0 && markers::matches(f.corners, t.corners)) {
-          ++p.detected;
+          ++points[0].detected;
           break;
         }
       continue;
     }
-    const Detection& det = detectFresh(*detector, frame.bgr);
-    for (const Landmark& d : det.landmarks) {
-      if (!matchesTruth(d, {t.fip_tl, t.fip_tr, t.fip_bl, t.ap})) continue;
-      ++p.detected;
-      if (o.decode) {
-        const auto r = reader.decode(frame.bgr, d.corners);
-        if (r && r->payload == payload) ++p.decoded;
-        if (r && r->payload != payload) ++p.wrong_payload;
+    for (size_t i = 0; i < detectors.size(); ++i) {
+      Point& p = points[i];
+      const Detection& det = detectFresh(detectors[i], frame.bgr);
+      for (const Landmark& d : det.landmarks) {
+        if (!matchesTruth(d, {t.fip_tl, t.fip_tr, t.fip_bl, t.ap})) continue;
+        ++p.detected;
+        if (o.decode) {
+          const auto r = reader.decode(frame.bgr, d.corners);
+          if (r && r->payload == payload) ++p.decoded;
+          if (r && r->payload != payload) ++p.wrong_payload;
+        }
+        break;
       }
-      break;
     }
   }
-  return p;
+  return points;
+}
+
+// False landmarks per frame of each of `detectors` on the same scenes.
+std::vector<double> falsePositivesOn(const SweepOptions& o, std::vector<AdaptiveDetector>& detectors, int frames) {
+  std::mt19937_64 rng(pointSeed(o.seed, 0, -999));
+  std::vector<int> found(detectors.size(), 0);
+  for (int k = 0; k < frames; ++k) {
+    synth::SceneSpec spec = synth::randomConditions(o.camera, {}, rng());
+    spec.background = k % 2 ? synth::Background::Clutter : synth::Background::Office;
+    spec.distractors = 8 + static_cast<int>(rng() % 8);
+    spec.landmark_like_cards = static_cast<int>(rng() % 3);
+    applyLighting(o, spec);
+    const synth::Frame frame = synth::render(spec);
+    for (size_t i = 0; i < detectors.size(); ++i)
+      found[i] += static_cast<int>(detectFresh(detectors[i], frame.bgr).landmarks.size());
+  }
+  std::vector<double> rate(detectors.size(), 0.0);
+  for (size_t i = 0; i < detectors.size(); ++i) rate[i] = frames > 0 ? static_cast<double>(found[i]) / frames : 0.0;
+  return rate;
+}
+
+// The fixed defaults and the adaptive detector, in that order.
+std::vector<AdaptiveDetector> fixedAndAdaptive(const SweepOptions& o) {
+  std::vector<AdaptiveDetector> v;
+  v.emplace_back(Detector(o.params), false);
+  v.emplace_back(Detector(o.params), true);
+  return v;
+}
+
+}  // namespace
+
+Point measure(const SweepOptions& o, double distance_m, double yaw_deg, double yaw_jitter_deg) {
+  std::vector<AdaptiveDetector> detectors;  // ours; markers have their own
+  if (o.target == "landmark") detectors.push_back(makeDetector(o));
+  return measureOn(o, detectors, distance_m, yaw_deg, yaw_jitter_deg)[0];
+}
+
+std::array<Point, 2> measureFixedAndAdaptive(const SweepOptions& o, double distance_m, double yaw_deg,
+                                             double yaw_jitter_deg) {
+  if (o.target != "landmark") throw std::invalid_argument("measureFixedAndAdaptive: only for landmarks");
+  std::vector<AdaptiveDetector> detectors = fixedAndAdaptive(o);
+  const auto p = measureOn(o, detectors, distance_m, yaw_deg, yaw_jitter_deg);
+  return {p[0], p[1]};
 }
 
 std::vector<Point> overYaw(const SweepOptions& o, double distance_m, const std::vector<double>& yaws,
@@ -151,18 +202,15 @@ std::vector<Point> overDistance(const SweepOptions& o, const std::vector<double>
 }
 
 double falsePositivesPerFrame(const SweepOptions& o, int frames) {
-  AdaptiveDetector detector = makeDetector(o);
-  std::mt19937_64 rng(pointSeed(o.seed, 0, -999));
-  int found = 0;
-  for (int k = 0; k < frames; ++k) {
-    synth::SceneSpec spec = synth::randomConditions(o.camera, {}, rng());
-    spec.background = k % 2 ? synth::Background::Clutter : synth::Background::Office;
-    spec.distractors = 8 + static_cast<int>(rng() % 8);
-    spec.landmark_like_cards = static_cast<int>(rng() % 3);
-    applyLighting(o, spec);
-    found += static_cast<int>(detectFresh(detector, synth::render(spec).bgr).landmarks.size());
-  }
-  return frames > 0 ? static_cast<double>(found) / frames : 0.0;
+  std::vector<AdaptiveDetector> detectors;
+  detectors.push_back(makeDetector(o));
+  return falsePositivesOn(o, detectors, frames)[0];
+}
+
+std::array<double, 2> falsePositivesFixedAndAdaptive(const SweepOptions& o, int frames) {
+  std::vector<AdaptiveDetector> detectors = fixedAndAdaptive(o);
+  const auto r = falsePositivesOn(o, detectors, frames);
+  return {r[0], r[1]};
 }
 
 Point total(const std::vector<Point>& points) {

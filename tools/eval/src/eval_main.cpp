@@ -288,12 +288,12 @@ int main(int argc, char** argv) {
           ld::eval::SweepOptions o = lc.options();
           o.side_m = l_side;
           o.*(sw.field) = v;
-          double rate[2], fp[2];
+          // both detectors on the same frames: each scene rendered once
+          const auto points = ld::eval::measureFixedAndAdaptive(o, l_dist, 0, l_yaw);
+          const auto fp = ld::eval::falsePositivesFixedAndAdaptive(o, l_fp_frames);
+          double rate[2];
           for (int a = 0; a < 2; ++a) {
-            o.adaptive = a == 1;
-            const auto p = ld::eval::measure(o, l_dist, 0, l_yaw);
-            rate[a] = p.detectRate();
-            fp[a] = ld::eval::falsePositivesPerFrame(o, l_fp_frames);
+            rate[a] = points[static_cast<size_t>(a)].detectRate();
             series[static_cast<size_t>(a)].points.emplace_back(v, rate[a]);
             std::fprintf(stderr, "  %s %g %s: detected %.0f %%, false %.3f/frame\n", sw.name.c_str(), v,
                          a ? "adaptive" : "fixed", 100 * rate[a], fp[a]);

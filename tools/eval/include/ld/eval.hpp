@@ -4,6 +4,7 @@
 // what the report prints are the same measurement.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -75,6 +76,13 @@ std::vector<Point> overDistance(const SweepOptions& options, const std::vector<d
 /// False landmarks per frame on `frames` scenes with colourful distractors,
 /// landmark-like cards and no landmark, under the options' lighting.
 double falsePositivesPerFrame(const SweepOptions& options, int frames);
+
+/// measure() and falsePositivesPerFrame() for the fixed defaults ([0]) and
+/// the adaptive detector ([1]) on the same rendered frames (options.adaptive
+/// is not looked at; landmarks only): what `ld-eval lighting` compares.
+std::array<Point, 2> measureFixedAndAdaptive(const SweepOptions& options, double distance_m, double yaw_deg,
+                                             double yaw_jitter_deg = 0.0);
+std::array<double, 2> falsePositivesFixedAndAdaptive(const SweepOptions& options, int frames);
 
 /// Totals over a sweep's points.
 Point total(const std::vector<Point>& points);
