@@ -13,25 +13,14 @@
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
 
+#include "lcm_bytes.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/landmark_list_t.hpp"
 #include "ld/lcm_url.hpp"
 #include "ld/qr_code_list_t.hpp"
 
-namespace {
-
-template <class T>
-std::vector<uint8_t> encode(const T& msg) {
-  std::vector<uint8_t> buf(static_cast<size_t>(msg.getEncodedSize()));
-  msg.encode(buf.data(), 0, static_cast<int>(buf.size()));
-  return buf;
-}
-
-void putI32(std::vector<uint8_t>& b, size_t at, uint32_t v) {
-  for (int i = 0; i < 4; ++i) b[at + i] = static_cast<uint8_t>(v >> (24 - 8 * i));
-}
-
-}  // namespace
+using ld::test::lcmEncode;
+using ld::test::putI32;
 
 int main(int argc, char** argv) {
   CLI::App app{"Publish malformed messages (test helper)."};
@@ -53,19 +42,19 @@ int main(int argc, char** argv) {
 
   const ld::image_t img = ld::matToImage(cv::Mat(48, 64, CV_8UC3, cv::Scalar(1, 2, 3)),
                                          ld::image_t::PIXEL_FORMAT_BGR, 1, 0);
-  std::vector<uint8_t> buf = encode(img);
+  std::vector<uint8_t> buf = lcmEncode(img);
   messages.emplace_back(buf.begin(), buf.begin() + static_cast<long>(buf.size() / 2));  // truncated
 
   ld::image_t bad = img;
   bad.width = 640;
   bad.height = 480;  // 9216 bytes cannot hold 640x480 BGR
-  messages.push_back(encode(bad));
+  messages.push_back(lcmEncode(bad));
 
   bad = img;
   bad.pixelformat = ld::fourcc('H', '2', '6', '4');
-  messages.push_back(encode(bad));
+  messages.push_back(lcmEncode(bad));
 
-  buf = encode(img);
+  buf = lcmEncode(img);
   putI32(buf, 8 + 8 + 4 * 4, 0x7ffffff0);  // size: 2 GB that are not there
   messages.push_back(buf);
 
@@ -78,20 +67,20 @@ int main(int argc, char** argv) {
       break;
     }
   jpeg.width = jpeg.height = 0;
-  messages.push_back(encode(jpeg));
+  messages.push_back(lcmEncode(jpeg));
 
   ld::landmark_list_t list{};
   list.backend = "cpu";
-  buf = encode(list);
+  buf = lcmEncode(list);
   const size_t backend_len = 8 + 8 + 8 + 4 + 4, nstages = backend_len + 4 + 4 + 8;
   putI32(buf, nstages, 0x7fffffff);  // 2^31-1 stage names
   messages.push_back(buf);
-  buf = encode(list);
+  buf = lcmEncode(list);
   putI32(buf, backend_len, 0);  // a string of length 0
   messages.push_back(buf);
 
   ld::qr_code_list_t codes{};
-  buf = encode(codes);
+  buf = lcmEncode(codes);
   putI32(buf, 8 + 8 + 8, 0x7fffffff);  // 2^31-1 codes
   messages.push_back(buf);
 

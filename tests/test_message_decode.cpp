@@ -7,23 +7,15 @@
 #include <cstring>
 
 #include "image_error.hpp"
+#include "lcm_bytes.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/message_decode.hpp"
 
 namespace {
 
-using Bytes = std::vector<uint8_t>;
-
-template <class T>
-Bytes encode(const T& msg) {
-  Bytes b(static_cast<size_t>(msg.getEncodedSize()));
-  EXPECT_EQ(msg.encode(b.data(), 0, static_cast<int>(b.size())), static_cast<int>(b.size()));
-  return b;
-}
-
-void putI32(Bytes& b, size_t at, int32_t v) {
-  for (int i = 0; i < 4; ++i) b[at + i] = static_cast<uint8_t>(static_cast<uint32_t>(v) >> (24 - 8 * i));
-}
+using ld::test::Bytes;
+using ld::test::lcmEncode;
+using ld::test::putI32;
 
 ld::landmark_list_t sampleList() {
   ld::landmark_list_t list{};
@@ -52,19 +44,19 @@ constexpr size_t kHasPayload = kFirstLandmark + 16 * 4 + 4;
 
 TEST(DecodeMessage, WellFormedMessagesDecodeAsLcmDoes) {
   const ld::landmark_list_t list = sampleList();
-  const Bytes b = encode(list);
+  const Bytes b = lcmEncode(list);
   ld::landmark_list_t out;
   std::string why;
   ASSERT_TRUE(ld::decodeMessage(b.data(), b.size(), out, &why)) << why;
-  EXPECT_EQ(encode(out), b);
+  EXPECT_EQ(lcmEncode(out), b);
   EXPECT_EQ(out.landmarks[1].payload, "dock");
 
   const ld::image_t img = ld::matToImage(cv::Mat(6, 8, CV_8UC3, cv::Scalar(1, 2, 3)),
                                          ld::image_t::PIXEL_FORMAT_BGR, 5, 9);
   ld::image_t img_out;
-  const Bytes bi = encode(img);
+  const Bytes bi = lcmEncode(img);
   ASSERT_TRUE(ld::decodeMessage(bi.data(), bi.size(), img_out, &why)) << why;
-  EXPECT_EQ(encode(img_out), bi);
+  EXPECT_EQ(lcmEncode(img_out), bi);
   EXPECT_EQ(ld::imageSeq(img_out), 9);
 
   ld::qr_code_list_t codes{};
@@ -72,20 +64,20 @@ TEST(DecodeMessage, WellFormedMessagesDecodeAsLcmDoes) {
   codes.codes[0].payload = "x";
   codes.ncodes = 1;
   ld::qr_code_list_t codes_out;
-  const Bytes bq = encode(codes);
+  const Bytes bq = lcmEncode(codes);
   ASSERT_TRUE(ld::decodeMessage(bq.data(), bq.size(), codes_out, &why)) << why;
-  EXPECT_EQ(encode(codes_out), bq);
+  EXPECT_EQ(lcmEncode(codes_out), bq);
 }
 
 TEST(DecodeMessage, LayoutOfTheSampleIsAsAssumed) {
-  const Bytes b = encode(sampleList());
+  const Bytes b = lcmEncode(sampleList());
   EXPECT_EQ(b[kBackendLen + 3], 4);  // "cpu" + NUL
   EXPECT_EQ(b[kNstages + 3], 2);
   EXPECT_EQ(b[kHasPayload], 1);
 }
 
 TEST(DecodeMessage, HugeCountIsRefusedWithoutAllocating) {
-  Bytes b = encode(sampleList());
+  Bytes b = lcmEncode(sampleList());
   putI32(b, kNstages, 0x7fffffff);  // the generated decoder resizes to 2^31 strings first
   ld::landmark_list_t out;
   std::string why;
@@ -94,7 +86,7 @@ TEST(DecodeMessage, HugeCountIsRefusedWithoutAllocating) {
 
   ld::image_t img = ld::matToImage(cv::Mat(6, 8, CV_8UC1, cv::Scalar(1)),
                                    ld::image_t::PIXEL_FORMAT_GRAY, 5);
-  Bytes bi = encode(img);
+  Bytes bi = lcmEncode(img);
   putI32(bi, 8 + 8 + 4 * 4, 0x7ffffff0);  // image size: 2 GB of zeros in the generated decoder
   ld::image_t img_out;
   EXPECT_FALSE(ld::decodeMessage(bi.data(), bi.size(), img_out, &why));
@@ -105,7 +97,7 @@ TEST(DecodeMessage, HugeCountIsRefusedWithoutAllocating) {
 }
 
 TEST(DecodeMessage, StringLengthZeroIsRefusedNotThrown) {
-  Bytes b = encode(sampleList());
+  Bytes b = lcmEncode(sampleList());
   putI32(b, kBackendLen, 0);  // the generated decoder throws std::length_error
   ld::landmark_list_t out;
   std::string why;
@@ -116,19 +108,19 @@ TEST(DecodeMessage, StringLengthZeroIsRefusedNotThrown) {
 }
 
 TEST(DecodeMessage, StringsMustBeCStrings) {
-  Bytes b = encode(sampleList());
+  Bytes b = lcmEncode(sampleList());
   b[kBackendLen + 4 + 3] = 'x';  // no terminating NUL
   ld::landmark_list_t out;
   std::string why;
   EXPECT_FALSE(ld::decodeMessage(b.data(), b.size(), out, &why));
   EXPECT_NE(why.find("not a C string"), std::string::npos) << why;
-  b = encode(sampleList());
+  b = lcmEncode(sampleList());
   b[kBackendLen + 4 + 1] = 0;  // "c\0u\0": would re-encode shorter
   EXPECT_FALSE(ld::decodeMessage(b.data(), b.size(), out, &why));
 }
 
 TEST(DecodeMessage, BooleanOtherThanZeroOrOneIsRefused) {
-  Bytes b = encode(sampleList());
+  Bytes b = lcmEncode(sampleList());
   b[kHasPayload] = 2;  // would be loaded into a C++ bool
   ld::landmark_list_t out;
   std::string why;
@@ -137,7 +129,7 @@ TEST(DecodeMessage, BooleanOtherThanZeroOrOneIsRefused) {
 }
 
 TEST(DecodeMessage, TruncatedTrailingAndForeignMessagesAreRefused) {
-  const Bytes b = encode(sampleList());
+  const Bytes b = lcmEncode(sampleList());
   ld::landmark_list_t out;
   std::string why;
   for (size_t n = 0; n < b.size(); ++n) {

@@ -12,6 +12,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "../lcm_bytes.hpp"
 #include "ld/camera.hpp"
 #include "ld/detector.hpp"
 #include "ld/image_convert.hpp"
@@ -25,7 +26,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-using Bytes = std::vector<uint8_t>;
+using ld::test::Bytes;
+using ld::test::lcmEncode;
 
 void write(const fs::path& dir, const std::string& name, const Bytes& bytes) {
   fs::create_directories(dir);
@@ -33,13 +35,6 @@ void write(const fs::path& dir, const std::string& name, const Bytes& bytes) {
       .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
 }
 
-template <class T>
-Bytes encoded(uint8_t prefix, const T& msg) {
-  Bytes b(1 + static_cast<size_t>(msg.getEncodedSize()));
-  b[0] = prefix;
-  msg.encode(b.data() + 1, 0, static_cast<int>(b.size() - 1));
-  return b;
-}
 
 Bytes fileBytes(const fs::path& path, uint8_t prefix, bool with_prefix) {
   std::ifstream f(path, std::ios::binary);
@@ -81,7 +76,7 @@ int main(int argc, char** argv) {
       {ld::image_t::PIXEL_FORMAT_UYVY, "uyvy"}, {ld::image_t::PIXEL_FORMAT_MJPEG, "mjpeg"}};
   for (size_t i = 0; i < std::size(formats); ++i) {
     const ld::image_t msg = ld::matToImage(small, formats[i].format, 1000, 7, 80);
-    write(root / "fuzz_image", std::string("msg-") + formats[i].name, encoded(0, msg));
+    write(root / "fuzz_image", std::string("msg-") + formats[i].name, lcmEncode(msg, 0));
     Bytes h{1, static_cast<uint8_t>(i),
             static_cast<uint8_t>(msg.width), static_cast<uint8_t>(msg.width >> 8),
             static_cast<uint8_t>(msg.height), static_cast<uint8_t>(msg.height >> 8),
@@ -92,7 +87,7 @@ int main(int argc, char** argv) {
 
   // fuzz_messages: one of each type, with content
   ld::image_t img = ld::matToImage(small, ld::image_t::PIXEL_FORMAT_GRAY, 1000, 7);
-  write(root / "fuzz_messages", "image_t", encoded(0, img));
+  write(root / "fuzz_messages", "image_t", lcmEncode(img, 0));
   const cv::Mat f = frame({160, 120}, 0.5);
   ld::Detector detector;
   ld::landmark_list_t list;
@@ -106,13 +101,13 @@ int main(int argc, char** argv) {
   list.landmarks[1].has_payload = true;
   list.landmarks[1].payload = "room 7";
   list.nlandmarks = static_cast<int32_t>(list.landmarks.size());
-  write(root / "fuzz_messages", "landmark_list_t", encoded(1, list));
+  write(root / "fuzz_messages", "landmark_list_t", lcmEncode(list, 1));
   ld::Tracker tracker;
   std::vector<ld::Landmark> dets;
   ld::landmarksFromList(list, dets);
   ld::landmark_list_t tracked;
   ld::toTrackedListMessage(tracker.update(dets, list.utime), list, 0.2, 0, tracked);
-  write(root / "fuzz_messages", "landmark_list_t-tracked", encoded(1, tracked));
+  write(root / "fuzz_messages", "landmark_list_t-tracked", lcmEncode(tracked, 1));
   ld::qr_code_list_t codes;
   codes.utime = 2000;
   codes.seq = 8;
@@ -127,7 +122,7 @@ int main(int argc, char** argv) {
     codes.codes.push_back(c);
   }
   codes.ncodes = 2;
-  write(root / "fuzz_messages", "qr_code_list_t", encoded(2, codes));
+  write(root / "fuzz_messages", "qr_code_list_t", lcmEncode(codes, 2));
 
   // fuzz_detector: header + pixels; a frame with a landmark in 3, 1 and 4 channels
   const cv::Mat d = frame({120, 90}, 0.45);
