@@ -3,10 +3,12 @@
 #include <gtest/gtest.h>
 
 #include <opencv2/imgproc.hpp>
+#include <qrencode.h>
 
 #include "ld/artwork.hpp"
 #include "ld/landmark_layout.hpp"
 #include "ld/qr_reader.hpp"
+#include "../qr_reader/src/qr_function_patterns.hpp"
 
 namespace {
 
@@ -103,4 +105,28 @@ TEST(QrReader, DegenerateInputDoesNotCrash) {
   EXPECT_FALSE(reader.decode(cv::Mat(), {{{0, 0}, {100, 0}, {100, 100}, {0, 100}}}).has_value());
   const cv::Mat gray(1, 1, CV_8UC1, cv::Scalar(0));
   EXPECT_FALSE(reader.decode(gray, {{{0, 0}, {100, 0}, {100, 100}, {0, 100}}}).has_value());
+}
+
+// The modules the grid reader redraws ideal are those every code has, in
+// every version it reads (1-15): libqrencode's symbols agree module for module.
+TEST(QrReader, FunctionPatternsAreThoseOfEveryCode) {
+  for (int version = 1; version <= 15; ++version) {
+    const std::string payload = "room-" + std::to_string(version);
+    QRcode* code = QRcode_encodeData(static_cast<int>(payload.size()),
+                                     reinterpret_cast<const unsigned char*>(payload.data()), version, QR_ECLEVEL_M);
+    ASSERT_NE(code, nullptr);
+    ASSERT_EQ(code->width, 17 + 4 * version);
+    const int n = code->width;
+    int count = 0, wrong = 0;
+    ld::detail::forEachFunctionModule(n, [&](int r, int c, bool dark) {
+      ASSERT_TRUE(r >= 0 && c >= 0 && r < n && c < n);
+      ++count;
+      wrong += ((code->data[r * n + c] & 1) != 0) != dark;
+    });
+    EXPECT_EQ(wrong, 0) << "version " << version;
+    // finders and separators, timing rows, alignment patterns, the dark module
+    const int k = version < 2 ? 0 : version / 7 + 2, alignments = version < 2 ? 0 : k * k - 3;
+    EXPECT_EQ(count, 3 * 64 + 2 * (n - 16) + 25 * alignments + 1) << "version " << version;
+    QRcode_free(code);
+  }
 }

@@ -2,11 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
+#include <vector>
 
 #include <opencv2/imgproc.hpp>
 #include <zbar.h>
 
 #include "ld/landmark_layout.hpp"
+#include "qr_function_patterns.hpp"
 
 namespace ld {
 namespace {
@@ -61,10 +64,11 @@ struct QrReader::Impl {
   // module, zbar cannot find the finder patterns in the view, but the sheet
   // frame says where every module is. ld-generate prints an N-module code
   // with exactly one module of quiet zone in the QR square (docs/landmark.md),
-  // so for each plausible version the module centres are sampled from the
-  // image (3x3 points in the module's middle, averaged), thresholded, and
-  // redrawn as a clean code for zbar, whose error correction rejects the
-  // wrong versions and bad reads.
+  // so for each plausible version the modules are sampled from the image,
+  // the version chosen by how like finder patterns its corners look, the
+  // modules thresholded and redrawn as a clean code (its function patterns
+  // ideal) for zbar, whose error correction rejects wrong versions and bad
+  // reads.
   std::optional<std::string> readGrid(const cv::Matx33d& sheet_to_image, double qr_px) {
     std::vector<std::pair<double, int>> candidates;  // (finder score, n)
     for (int version = 1; version <= 15; ++version) {
@@ -93,11 +97,14 @@ struct QrReader::Impl {
             const double score = finderScore(samples, n);
             if (score > best_score) best_score = score, best = sheet_to_image * adjust;
           }
-      sampleModules(best, n);
+      // The modules read at their centres alone: averaging 3x3 points of
+      // each (as for the finders above) takes in more of the neighbours'
+      // blur, which costs modules from about 1.5 px per module down.
+      sampleModules(best, n, 1);
       // The camera's blur spreads each module over its neighbours: undo some
       // of it on the grid (a module minus k times its neighbours' mean
       // deviation), then threshold globally (Otsu) and locally.
-      for (double k : {0.0, 0.7, 1.4}) {
+      for (double k : {0.0, 1.4, 2.5}) {
         cv::Mat grid = samples;
         if (k > 0) {
           cv::blur(samples, sharpened, {3, 3}, {-1, -1}, cv::BORDER_REPLICATE);
@@ -116,15 +123,17 @@ struct QrReader::Impl {
     return std::nullopt;
   }
 
-  void sampleModules(const cv::Matx33d& sheet_to_image, int n) {
-    constexpr int kSub = 3;
+  // The modules of an n-module grid sampled from the gray image (kSub x kSub
+  // points a quarter module apart around each centre, averaged): `samples`,
+  // n x n, CV_32F.
+  void sampleModules(const cv::Matx33d& sheet_to_image, int n, int kSub = 3) {
     const double module = (layout::kQrMax - layout::kQrMin) / (n + 2);
     map.create(n * kSub, n * kSub, CV_32FC2);
     for (int r = 0; r < n * kSub; ++r) {
       auto* row = map.ptr<cv::Vec2f>(r);
-      const double v = layout::kQrMin + module * (1 + (r / kSub) + 0.5 + ((r % kSub) - 1) * 0.25);
+      const double v = layout::kQrMin + module * (1 + (r / kSub) + 0.5 + ((r % kSub) - kSub / 2) * 0.25);
       for (int c = 0; c < n * kSub; ++c) {
-        const double u = layout::kQrMin + module * (1 + (c / kSub) + 0.5 + ((c % kSub) - 1) * 0.25);
+        const double u = layout::kQrMin + module * (1 + (c / kSub) + 0.5 + ((c % kSub) - kSub / 2) * 0.25);
         const cv::Vec3d p = sheet_to_image * cv::Vec3d(u, v, 1.0);
         row[c] = {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
       }
@@ -135,6 +144,7 @@ struct QrReader::Impl {
   }
 
   std::optional<std::string> scanBits(int n) {
+    detail::forEachFunctionModule(n, [&](int r, int c, bool dark) { bits.at<uint8_t>(r, c) = dark ? 0 : 255; });
     constexpr int kPx = 4, kQuiet = 4;
     clean.create((n + 2 * kQuiet) * kPx, (n + 2 * kQuiet) * kPx, CV_8U);
     clean.setTo(255);
