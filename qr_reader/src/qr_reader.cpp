@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <utility>
 #include <vector>
 
@@ -59,6 +60,8 @@ struct QrReader::Impl {
   QrReaderParams params;
   zbar::ImageScanner scanner;
   cv::Mat gray, view, work, blurred, map, sampled, samples, sharpened, bits, clean;
+  std::vector<int8_t> known, grid;  // the equaliser's modules: -1 unknown, 0 light, 1 dark
+  std::vector<double> fit_a, fit_b;
 
   // The QR read module by module: where the camera gives about a pixel per
   // module, zbar cannot find the finder patterns in the view, but the sheet
@@ -69,7 +72,9 @@ struct QrReader::Impl {
   // modules thresholded and redrawn as a clean code (its function patterns
   // ideal) for zbar, whose error correction rejects wrong versions and bad
   // reads.
-  std::optional<std::string> readGrid(const cv::Matx33d& sheet_to_image, double qr_px) {
+  // The payload, and 0 when the equaliser's modules gave it, 1 when a fixed
+  // sharpening's did.
+  std::optional<std::pair<std::string, int>> readGrid(const cv::Matx33d& sheet_to_image, double qr_px) {
     std::vector<std::pair<double, int>> candidates;  // (finder score, n)
     for (int version = 1; version <= 15; ++version) {
       const int n = 17 + 4 * version;
@@ -101,6 +106,8 @@ struct QrReader::Impl {
       // each (as for the finders above) takes in more of the neighbours'
       // blur, which costs modules from about 1.5 px per module down.
       sampleModules(best, n, 1);
+      if (equalise(n))
+        if (auto r = scanBits(n)) return std::pair{*r, 0};
       // The camera's blur spreads each module over its neighbours: undo some
       // of it on the grid (a module minus k times its neighbours' mean
       // deviation), then threshold globally (Otsu) and locally.
@@ -114,13 +121,90 @@ struct QrReader::Impl {
         cv::Mat s8;
         grid.convertTo(s8, CV_8U);
         cv::threshold(s8, bits, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
-        if (auto r = scanBits(n)) return r;
+        if (auto r = scanBits(n)) return std::pair{*r, 1};
         cv::adaptiveThreshold(s8, bits, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY,
                               std::min(n | 1, 9), 0);
-        if (auto r = scanBits(n)) return r;
+        if (auto r = scanBits(n)) return std::pair{*r, 1};
       }
     }
     return std::nullopt;
+  }
+
+  // `bits` (dark 0, light 255) from `samples` by a decision-feedback
+  // equaliser: the camera's blur as a linear model, a module's sample = a +
+  // b * its darkness + w_k * the darkness of each of its eight neighbours,
+  // fitted on the modules whose whole neighbourhood is known (the function
+  // patterns and the quiet zone); then each unknown module is what its sample
+  // says once its neighbours' share is taken off, sweep after sweep in place
+  // from a sharpened threshold. Undoes blur, directional (motion) included,
+  // that a fixed sharpening cannot. False when the model does not fit (too
+  // few known modules, no contrast).
+  bool equalise(int n) {
+    constexpr int kFeatures = 10;  // 1, the module, its eight neighbours
+    const int m = n + 2;           // with the quiet zone's ring, light and known
+    known.assign(static_cast<size_t>(m) * m, 0);
+    for (int r = 0; r < n; ++r)
+      for (int c = 0; c < n; ++c) known[static_cast<size_t>(r + 1) * m + c + 1] = -1;
+    detail::forEachFunctionModule(n, [&](int r, int c, bool dark) {
+      known[static_cast<size_t>(r + 1) * m + c + 1] = dark ? 1 : 0;
+    });
+    auto at = [&](const std::vector<int8_t>& g, int r, int c) { return g[static_cast<size_t>(r + 1) * m + c + 1]; };
+    auto features = [&](const std::vector<int8_t>& g, int r, int c, double* f) {
+      f[0] = 1;
+      int k = 1;
+      for (int dr = -1; dr <= 1; ++dr)
+        for (int dc = -1; dc <= 1; ++dc) f[k++] = at(g, r + dr, c + dc);
+    };
+    fit_a.clear();
+    fit_b.clear();
+    double f[kFeatures];
+    for (int r = 0; r < n; ++r)
+      for (int c = 0; c < n; ++c) {
+        bool all = true;
+        for (int dr = -1; dr <= 1 && all; ++dr)
+          for (int dc = -1; dc <= 1 && all; ++dc) all = at(known, r + dr, c + dc) >= 0;
+        if (!all) continue;
+        features(known, r, c, f);
+        fit_a.insert(fit_a.end(), f, f + kFeatures);
+        fit_b.push_back(samples.at<float>(r, c));
+      }
+    const int rows = static_cast<int>(fit_b.size());
+    if (rows < 4 * kFeatures) return false;
+    cv::Mat w;
+    if (!cv::solve(cv::Mat(rows, kFeatures, CV_64F, fit_a.data()), cv::Mat(rows, 1, CV_64F, fit_b.data()), w,
+                   cv::DECOMP_SVD))
+      return false;
+    const double own = w.at<double>(5);  // the module itself (f[5]: dr = dc = 0)
+    if (!(own < -8.0)) return false;     // a dark module must read darker
+    // Start from the sharpened grid's Otsu threshold.
+    cv::blur(samples, sharpened, {3, 3}, {-1, -1}, cv::BORDER_REPLICATE);
+    sharpened = samples + 2.5 * (samples - sharpened);
+    cv::Mat s8;
+    sharpened.convertTo(s8, CV_8U);
+    cv::threshold(s8, bits, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
+    grid = known;
+    for (int r = 0; r < n; ++r)
+      for (int c = 0; c < n; ++c)
+        if (at(known, r, c) < 0) grid[static_cast<size_t>(r + 1) * m + c + 1] = bits.at<uint8_t>(r, c) == 0;
+    for (int sweep = 0; sweep < 8; ++sweep) {
+      bool changed = false;
+      for (int r = 0; r < n; ++r)
+        for (int c = 0; c < n; ++c) {
+          if (at(known, r, c) >= 0) continue;
+          features(grid, r, c, f);
+          double rest = 0;
+          for (int k = 0; k < kFeatures; ++k)
+            if (k != 5) rest += w.at<double>(k) * f[k];
+          const int8_t dark = (samples.at<float>(r, c) - rest) / own > 0.5;
+          int8_t& g = grid[static_cast<size_t>(r + 1) * m + c + 1];
+          changed |= g != dark;
+          g = dark;
+        }
+      if (!changed) break;
+    }
+    for (int r = 0; r < n; ++r)
+      for (int c = 0; c < n; ++c) bits.at<uint8_t>(r, c) = at(grid, r, c) ? 0 : 255;
+    return true;
   }
 
   // The modules of an n-module grid sampled from the gray image (kSub x kSub
@@ -229,9 +313,9 @@ std::optional<QrResult> QrReader::decode(const cv::Mat& image,
     cv::resize(m.view, m.work, {}, scale, scale, scale < 1 ? cv::INTER_AREA : cv::INTER_CUBIC);
     if (auto s = m.scan(m.work)) return QrResult{*s, attempt};
   }
-  // 6: module by module, from the sheet frame.
+  // 6, 7: module by module, from the sheet frame (6: equalised, 7: sharpened).
   ++attempt;
-  if (auto s = m.readGrid(layout::sheetToImage(corners), qr_px)) return QrResult{*s, attempt};
+  if (auto s = m.readGrid(layout::sheetToImage(corners), qr_px)) return QrResult{s->first, attempt + s->second};
   return std::nullopt;
 }
 
