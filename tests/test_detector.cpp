@@ -719,6 +719,26 @@ TEST(Detector, SecondLookReportsALandmarkOnce) {
   EXPECT_TRUE(ld::matchesTruth(d.landmarks[0], t.centres));
 }
 
+// Close up, at an angle, perspective moves the AP well off TR + BL - TL,
+// where a red thing just off the sheet can lie nearer: of the APs in the
+// gate, the one whose landmark verifies best is taken, not the nearest.
+TEST(Detector, ApChosenByVerificationNotOnlyByDistance) {
+  for (double roll : {-34.0, 56.0, 146.0}) {
+    cv::Mat img = background(kCam.size, 21, true);
+    const Placed p = place(0.3, -29, roll, 0.15, 0, 0);
+    drawSheet(img, kCam, p);
+    const Truth t = truthOf(kCam, p);
+    const cv::Point2d predicted = t.centres[1] + t.centres[2] - t.centres[0], d = predicted - t.centres[3];
+    ASSERT_GT(cv::norm(d), 15.0) << roll;  // the perspective's shift, in px
+    const double fip_side = cv::norm(t.centres[1] - t.centres[0]) / 3;
+    cv::circle(img, t.centres[3] + 1.75 * d, static_cast<int>(0.3 * fip_side), cv::Scalar(40, 60, 210), cv::FILLED);
+    ld::Detector det;
+    const auto& found = det.detect(img);
+    ASSERT_EQ(found.landmarks.size(), 1u) << roll;
+    EXPECT_TRUE(ld::matchesTruth(found.landmarks[0], t.centres)) << roll;
+  }
+}
+
 // Parallel blue stripes and an orange one: squares' centres may lie like a
 // landmark's, the squares themselves are bars.
 TEST(Detector, RejectsStripes) {

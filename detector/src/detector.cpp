@@ -251,7 +251,7 @@ struct Detector::Impl {
   std::vector<uint8_t> adjacency, used;
   detail::RegionIndex ap_index;
   std::vector<std::array<int, 3>> cycles;
-  std::vector<detail::Candidate> candidates;
+  std::vector<detail::Candidate> candidates, choices;
   // the second look's
   cv::Mat look_labels;
   std::vector<std::array<double, 5>> anchors;  // x, y, radius, rank, larger square's area
@@ -477,10 +477,14 @@ void Detector::Impl::geometry(const cv::Mat& img) {
   detail::threeCycles(adjacency, n, cycles, static_cast<size_t>(p.max_cycles));
   ap_index.build(aps);
   for (const auto& cyc : cycles) {
-    detail::Candidate c;
-    if (whole && detail::rightIsosceles(cyc, fips, kTriangleTolerance) &&
-        detail::chooseAp(cyc, fips, aps, p, c, &ap_index) && detail::verify(c, fips, aps, img, p))
-      candidates.push_back(c);
+    if (!whole || !detail::rightIsosceles(cyc, fips, kTriangleTolerance)) continue;
+    // Of the APs that fit, the one whose landmark verifies best.
+    detail::apChoices(cyc, fips, aps, p, choices, &ap_index);
+    int best = -1;
+    for (int k = 0; k < static_cast<int>(choices.size()); ++k)
+      if (detail::verify(choices[k], fips, aps, img, p) && (best < 0 || choices[k].error < choices[best].error))
+        best = k;
+    if (best >= 0) candidates.push_back(choices[best]);
   }
   if (completion) complete(img);
   detail::resolveOverlaps(candidates, static_cast<int>(fips.size()), static_cast<int>(aps.size()), used);

@@ -417,37 +417,35 @@ bool rightIsosceles(const std::array<int, 3>& cyc, const std::vector<Region>& fi
   return r1 < tol && r1 > 1 / tol && r2 < tol && r2 > 1 / tol;
 }
 
-bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
-              const std::vector<Region>& aps, const DetectorParams& p, Candidate& out,
-              const RegionIndex* ap_index) {
+void apChoices(const std::array<int, 3>& cycle, const std::vector<Region>& fips, const std::vector<Region>& aps,
+               const DetectorParams& p, std::vector<Candidate>& out, const RegionIndex* ap_index, size_t max_out) {
+  out.clear();
   const Region& f0 = fips[cycle[0]];
   const Region& f1 = fips[cycle[1]];
   const Region& f2 = fips[cycle[2]];
   Sym2 s{(f0.sxx + f1.sxx + f2.sxx) / 3, (f0.sxy + f1.sxy + f2.sxy) / 3, (f0.syy + f1.syy + f2.syy) / 3};
   Sym2 m;
-  if (!metric(s, m)) return false;
+  if (!metric(s, m)) return;
   const double fip_side = std::sqrt(12.0 * std::sqrt(s.det()));
-  double best = p.ap_max_offset;
-  bool found = false;
   for (int corner = 0; corner < 3; ++corner) {
     const Region& c = fips[cycle[corner]];
     const Region& a = fips[cycle[(corner + 1) % 3]];
     const Region& b = fips[cycle[(corner + 2) % 3]];
     const double px = a.cx + b.cx - c.cx, py = a.cy + b.cy - c.cy;
+    const bool clockwise = cross(centre(a) - centre(c), centre(b) - centre(c)) > 0;
     auto consider = [&](int k) {
       const Region& ap = aps[k];
       const double e = std::sqrt(quad(m, ap.cx - px, ap.cy - py));
-      if (e >= best) return;
+      if (e >= p.ap_max_offset) return;
       const double ratio = ap.side() / fip_side;
       if (ratio < p.ap_size_min || ratio > p.ap_size_max) return;
-      best = e;
-      found = true;
-      out.tl = cycle[corner];
-      const bool clockwise = cross(centre(a) - centre(c), centre(b) - centre(c)) > 0;
-      out.tr = clockwise ? cycle[(corner + 1) % 3] : cycle[(corner + 2) % 3];
-      out.bl = clockwise ? cycle[(corner + 2) % 3] : cycle[(corner + 1) % 3];
-      out.ap = k;
-      out.error = e / p.ap_max_offset;
+      Candidate cand;
+      cand.tl = cycle[corner];
+      cand.tr = clockwise ? cycle[(corner + 1) % 3] : cycle[(corner + 2) % 3];
+      cand.bl = clockwise ? cycle[(corner + 2) % 3] : cycle[(corner + 1) % 3];
+      cand.ap = k;
+      cand.error = e / p.ap_max_offset;
+      out.push_back(cand);
     };
     if (ap_index) {
       // |d| <= offset / sqrt(lambda_min(M)) = offset * sqrt(12 lambda_max(S)).
@@ -458,7 +456,21 @@ bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
       for (int k = 0; k < static_cast<int>(aps.size()); ++k) consider(k);
     }
   }
-  return found;
+  // Nearest first (ties: lower indices), at most max_out.
+  std::sort(out.begin(), out.end(), [](const Candidate& a, const Candidate& b) {
+    return std::tie(a.error, a.tl, a.ap) < std::tie(b.error, b.tl, b.ap);
+  });
+  if (out.size() > max_out) out.resize(max_out);
+}
+
+bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
+              const std::vector<Region>& aps, const DetectorParams& p, Candidate& out,
+              const RegionIndex* ap_index) {
+  std::vector<Candidate> choices;
+  apChoices(cycle, fips, aps, p, choices, ap_index, 1);
+  if (choices.empty()) return false;
+  out = choices[0];
+  return true;
 }
 
 bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Region>& aps,

@@ -160,6 +160,14 @@ struct Candidate {
 /// (within ap_max_offset FIP sides, of a compatible size) decides the corner.
 /// TR and BL are then ordered so TL, TR, AP, BL run clockwise in the image.
 /// Returns false when no AP fits.
+/// Every AP that fits a 3-cycle by that rule (each choice of corner, each
+/// AP within the gates), nearest first, at most max_out: where red things
+/// lie near the landmark's AP, and perspective moves the AP off the
+/// parallelogram's prediction, the nearest need not be the AP; verification
+/// decides between them.
+void apChoices(const std::array<int, 3>& cycle, const std::vector<Region>& fips, const std::vector<Region>& aps,
+               const DetectorParams& p, std::vector<Candidate>& out, const RegionIndex* ap_index = nullptr,
+               size_t max_out = 4);
 bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
               const std::vector<Region>& aps, const DetectorParams& p, Candidate& out,
               const RegionIndex* ap_index = nullptr);
