@@ -624,6 +624,36 @@ TEST(Detector, RejectsLookAlikeCards) {
     }
 }
 
+// Under a warm light the QR's black-on-white edges at the landmark's centre
+// come out saturated orange (in the sheet's own hue): still a landmark. A
+// red or blue square there (a card's) is not one.
+TEST(Detector, CentreInTheSheetsHueIsNoColouredSquare) {
+  ld::Detector det;
+  for (int kind = 0; kind < 3; ++kind) {
+    cv::Mat img = background(kCam.size, 22, true);
+    Placed p = place(1.0, 0, 0, 0.15);
+    const int u = p.artwork.cols / 9;
+    if (kind > 0) {
+      p.artwork = p.artwork.clone();
+      p.artwork(cv::Rect(7 * u / 2, 7 * u / 2, 2 * u, 2 * u))
+          .setTo(kind == 1 ? cv::Scalar(45, 60, 215) : cv::Scalar(150, 60, 40));
+    }
+    drawSheet(img, kCam, p);
+    cv::multiply(img, cv::Scalar(0.76, 0.88, 1.0), img);  // warm light: the sheet's red chroma about 0.14
+    const Truth t = truthOf(kCam, p);
+    const cv::Point2d c = (t.centres[0] + t.centres[1] + t.centres[2] + t.centres[3]) * 0.25;
+    if (kind == 0)  // saturation 0.47, red chroma 0.36: a dark edge in the sheet's hue
+      img(cv::Rect(static_cast<int>(c.x) - 1, static_cast<int>(c.y) - 1, 3, 3)).setTo(cv::Scalar(45, 62, 85));
+    const auto& d = det.detect(img);
+    if (kind == 0) {
+      ASSERT_EQ(d.landmarks.size(), 1u);
+      EXPECT_TRUE(ld::matchesTruth(d.landmarks[0], t.centres));
+    } else {
+      EXPECT_TRUE(d.landmarks.empty()) << kind;
+    }
+  }
+}
+
 // The real landmark next to a look-alike card: only the real one.
 TEST(Detector, RealLandmarkBesideLookAlike) {
   cv::Mat img = background(kCam.size, 8);

@@ -80,6 +80,17 @@ double excessAt(const cv::Mat& bgr, const cv::Point2d& p, uint8_t colour) {
   return colour == kBlue ? c[0] - std::max(c[1], c[2]) : c[2] - std::max(c[0], c[1]);
 }
 
+// A hue's excess (blue: b - max(g, r), red: r - max(g, b)) over the
+// brightness: a colour's strength whatever the light's level.
+double chroma(const double c[3], uint8_t colour) {
+  const double excess = colour == kBlue ? c[0] - std::max(c[1], c[2]) : c[2] - std::max(c[0], c[1]);
+  return excess / std::max(1.0, (c[0] + c[1] + c[2]) / 3);
+}
+
+// How much more of a hue than the sheet's a saturated landmark centre may
+// have (printed blue and red have about 1 more).
+constexpr double kCentreChroma = 0.3;
+
 }  // namespace
 
 double Region::side() const {
@@ -529,11 +540,14 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   // Three points on each side between the squares (a third, half and two
   // thirds of the way from one centre to the next: white paper between the
   // squares' edges at a sixth and five sixths).
-  double sheet_mean = 0, sheet_lo = 1e9, sheet_hi = 0;
+  double sheet_mean = 0, sheet_lo = 1e9, sheet_hi = 0, sheet_bgr[3] = {0, 0, 0};
   for (int i = 0; i < 4; ++i)
     for (double t : {1.0 / 3, 0.5, 2.0 / 3}) {
       double sv, vv, mean;
-      if (!sampleSV(bgr, P[i] + (P[(i + 1) % 4] - P[i]) * t, sv, vv, &mean)) return fail("outside the image");
+      const cv::Point2d q = P[i] + (P[(i + 1) % 4] - P[i]) * t;
+      double c[3];
+      if (!sampleSV(bgr, q, sv, vv, &mean) || !sampleBgr(bgr, q, c)) return fail("outside the image");
+      for (int k = 0; k < 3; ++k) sheet_bgr[k] += c[k] / 12;
       if (sv > p.sheet_max_saturation) return fail("sheet saturated");
       if (vv < p.sheet_min_value * fip_value) return fail("sheet dark");
       sheet_mean += mean / 12;
@@ -558,9 +572,26 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   }
   const cv::Point2d ctr = (P[0] + P[1] + P[2] + P[3]) * 0.25;
   {
-    double sv, vv;
-    if (!sampleSV(bgr, ctr, sv, vv)) return fail("outside the image");
-    if (vv >= p.value_min && sv > p.sheet_max_saturation) return fail("centre saturated");
+    // A coloured square at the centre (a card's) saturates the centre and
+    // the points half a unit around it, or the centre in a hue unlike the
+    // sheet's. The QR's black-on-white edges saturate a point or two, in
+    // the sheet's own hue (a warm light tints them orange).
+    const cv::Point2d hx = (P[1] - P[0]) * (0.5 / 6), hy = (P[3] - P[0]) * (0.5 / 6);
+    int saturated = 0;
+    bool centre_saturated = false;
+    for (const cv::Point2d& q : {ctr, ctr + hx, ctr - hx, ctr + hy, ctr - hy}) {
+      double sv, vv;
+      if (!sampleSV(bgr, q, sv, vv)) return fail("outside the image");
+      const bool sat = vv >= p.value_min && sv > p.sheet_max_saturation;
+      saturated += sat;
+      if (q == ctr) centre_saturated = sat;
+    }
+    if (saturated >= 3) return fail("centre saturated");
+    double c[3];
+    if (!sampleBgr(bgr, ctr, c)) return fail("outside the image");
+    if (centre_saturated && (chroma(c, kBlue) - chroma(sheet_bgr, kBlue) > kCentreChroma ||
+                             chroma(c, kRed) - chroma(sheet_bgr, kRed) > kCentreChroma))
+      return fail("centre coloured");
   }
   // Each side: the squares cover a third of it.
   const uint8_t colours[4] = {kBlue, kBlue, kRed, kBlue};
