@@ -769,6 +769,22 @@ TEST(Detector, ApChosenByVerificationNotOnlyByDistance) {
   }
 }
 
+// Closer still and steeper, the AP lies beyond the gate around TR + BL - TL
+// (the near squares look larger, the far ones smaller): the squares' sizes
+// give the perspective, and the AP's place with it.
+TEST(Detector, ApPredictedWithThePerspectiveOfTheSquaresSizes) {
+  ld::Detector det;
+  for (double roll : {-46.0, 44.0, 134.0, -136.0}) {
+    cv::Mat img = background(kCam.size, 23, true);
+    const Placed p = place(0.25, 38, roll, 0.15, 0, 0);
+    drawSheet(img, kCam, p);
+    const Truth t = truthOf(kCam, p);
+    const auto& found = det.detect(img);
+    ASSERT_EQ(found.landmarks.size(), 1u) << roll;
+    EXPECT_TRUE(ld::matchesTruth(found.landmarks[0], t.centres)) << roll;
+  }
+}
+
 // Parallel blue stripes and an orange one: squares' centres may lie like a
 // landmark's, the squares themselves are bars.
 TEST(Detector, RejectsStripes) {

@@ -443,10 +443,19 @@ void apChoices(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
     const Region& a = fips[cycle[(corner + 1) % 3]];
     const Region& b = fips[cycle[(corner + 2) % 3]];
     const double px = a.cx + b.cx - c.cx, py = a.cy + b.cy - c.cy;
+    // The same with the perspective the squares' sizes show: a homography's
+    // denominator w is affine on the sheet, so w_AP = w_a + w_b - w_c, and a
+    // square's side in the image goes as w^(-3/2) (its area as w^-3).
+    const double wc = std::pow(std::max(c.side(), 1.0), -2.0 / 3), wa = std::pow(std::max(a.side(), 1.0), -2.0 / 3),
+                 wb = std::pow(std::max(b.side(), 1.0), -2.0 / 3);
+    const double w_ap = wa + wb - wc;
+    const bool perspective = w_ap > 0.25 * std::min({wa, wb, wc});
+    const double qx = perspective ? (wa * a.cx + wb * b.cx - wc * c.cx) / w_ap : px;
+    const double qy = perspective ? (wa * a.cy + wb * b.cy - wc * c.cy) / w_ap : py;
     const bool clockwise = cross(centre(a) - centre(c), centre(b) - centre(c)) > 0;
     auto consider = [&](int k) {
       const Region& ap = aps[k];
-      const double e = std::sqrt(quad(m, ap.cx - px, ap.cy - py));
+      const double e = std::min(std::sqrt(quad(m, ap.cx - px, ap.cy - py)), std::sqrt(quad(m, ap.cx - qx, ap.cy - qy)));
       if (e >= p.ap_max_offset) return;
       const double ratio = ap.side() / fip_side;
       if (ratio < p.ap_size_min || ratio > p.ap_size_max) return;
@@ -462,7 +471,10 @@ void apChoices(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
       // |d| <= offset / sqrt(lambda_min(M)) = offset * sqrt(12 lambda_max(S)).
       Region mean_fip;
       mean_fip.sxx = s.xx, mean_fip.sxy = s.xy, mean_fip.syy = s.yy;
-      ap_index->near(aps, px, py, p.ap_max_offset * maxAxis(mean_fip), consider);
+      // Each AP once, from a window around both predictions.
+      const double r = p.ap_max_offset * maxAxis(mean_fip);
+      const double half_x = std::abs(qx - px) / 2, half_y = std::abs(qy - py) / 2;
+      ap_index->near(aps, (px + qx) / 2, (py + qy) / 2, r + std::max(half_x, half_y), consider);
     } else {
       for (int k = 0; k < static_cast<int>(aps.size()); ++k) consider(k);
     }
