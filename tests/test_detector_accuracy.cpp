@@ -104,6 +104,28 @@ TEST(DetectionRate, DISABLED_IssueTargetAtExtremeYaw15cm) {
   EXPECT_GE(sweep(0.15, 2.5, 80, 10, 12, 15025).rate(80), 0.95);
 }
 
+// Close range: a 15 cm landmark from 0.25 to 0.35 m at yaw within +-60
+// degrees (strong perspective: the AP far from the affine prediction), in
+// the middle of the image so that it stays in view.
+TEST(DetectionRate, CloseAndSteep) {
+  ld::Detector det;
+  std::mt19937_64 rng(2530);
+  std::uniform_real_distribution<double> U(0, 1);
+  int found = 0, frames = 0;
+  for (double distance : {0.25, 0.3, 0.35})
+    for (int k = 0; k < 30; ++k) {
+      const double yaw = (2 * U(rng) - 1) * 60, roll = U(rng) * 360 - 180, pitch = (U(rng) - 0.5) * 20;
+      const auto lm = ld::synth::placeLandmark(kCam, distance, yaw, pitch, roll, 0, 0, 0.15);
+      const auto frame = ld::synth::render(ld::synth::randomConditions(kCam, {lm}, rng()));
+      if (!frame.truth[0].in_view) continue;
+      ++frames;
+      found += match(det.detect(frame.bgr), frame.truth[0]) != nullptr;
+    }
+  std::printf("close and steep: %d / %d = %.1f %%\n", found, frames, 100.0 * found / frames);
+  EXPECT_GE(frames, 80);
+  EXPECT_GE(found, 0.95 * frames);
+}
+
 // Several landmarks per frame at ordinary angles.
 TEST(DetectionRate, SeveralLandmarksPerFrame) {
   ld::Detector det;
