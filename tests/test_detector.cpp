@@ -750,9 +750,11 @@ TEST(Detector, SecondLookReportsALandmarkOnce) {
 }
 
 // Close up, at an angle, perspective moves the AP well off TR + BL - TL,
-// where a red thing just off the sheet can lie nearer: of the APs in the
-// gate, the one whose landmark verifies best is taken, not the nearest.
-TEST(Detector, ApChosenByVerificationNotOnlyByDistance) {
+// where a red thing just off the sheet can lie nearer: it is not taken for
+// the AP (the perspective prediction and, where both are in the gate, the
+// better verification choose the AP; either alone passes this test, neither
+// does not).
+TEST(Detector, RedThingBesideTheApCloseUpIsNotTakenForIt) {
   for (double roll : {-34.0, 56.0, 146.0}) {
     cv::Mat img = background(kCam.size, 21, true);
     const Placed p = place(0.3, -29, roll, 0.15, 0, 0);
@@ -1059,6 +1061,17 @@ TEST(Params, FilesOpenLikeEveryConfigFile) {
     EXPECT_NE(std::string(e.what()).find("camera file /nonexistent/dir/camera.yaml: cannot open"), std::string::npos)
         << e.what();
   }
+  for (const auto& [file, why] : {std::pair{std::string("/tmp"), std::string("is a directory")},
+                                  {tempPath("empty.yaml"), std::string("is empty")}}) {
+    if (why == "is empty") std::ofstream(file) << "  \n";
+    try {
+      ld::DetectorParams::load(file);
+      ADD_FAILURE() << file << ": no error";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(file + ": " + why), std::string::npos) << e.what();
+    }
+  }
+  std::remove(tempPath("empty.yaml").c_str());
   const std::string path = tempPath("plain.yaml");
   std::ofstream(path) << "# no header\nsecond_looks: 2\nd_min: 2.0\n";
   const ld::DetectorParams q = ld::DetectorParams::load(path);

@@ -218,6 +218,9 @@ constexpr int kMaxCompletionPairs = 20000;
 // longest axis): a landmark with larger ones has a sheet margin of 4 px or
 // more, which neither blur nor JPEG's colour tints across.
 constexpr double kSecondLookMaxSide = 16.0;
+// Pairs of unused squares the second look ranks, at most (its windows are
+// fewer still: second_looks, an eighth of the frame).
+constexpr size_t kMaxAnchors = 256;
 
 // One warning per process about the GPU not being used (whether it could
 // not be started or failed later).
@@ -494,10 +497,10 @@ void Detector::Impl::geometry(const cv::Mat& img) {
 // neighbour merged with a background of its colour through the sheet's thin
 // margin (behind a steeply seen or blurred landmark, JPEG's half-resolution
 // colour tints the margin) comes apart under a stricter mask. Each look
-// labels a window around one such square (APs first, then FIPs, the largest
-// first) at saturation thresholds raised by second_look_raise and runs the
-// same regions, colour, geometry and verification there; what it finds joins
-// the first pass's landmarks unless one of them is already there.
+// labels a window around a pair of such squares at saturation thresholds
+// raised by second_look_raise and runs the same regions, colour, geometry
+// and verification there; what it finds joins the first pass's landmarks
+// unless one of them is already there.
 void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int max_area) {
   const DetectorParams& p = params;
   const int nf = static_cast<int>(fips.size()), na = static_cast<int>(aps.size());
@@ -509,8 +512,10 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
   // squares lie within half its distance plus three sides (the squares'
   // longest axis is their side, foreshortened or not): the window adds five,
   // for squares the threshold made smaller than printed. Windows are at most
-  // 0.6 of the frame's height across (a larger landmark's margins are too
-  // wide to merge through), AP pairs first, then the smaller windows first.
+  // 0.6 of the frame's shorter side across (a larger landmark's margins are
+  // too wide to merge through), AP pairs first, then the smaller windows
+  // first; at most kMaxAnchors of them are kept (cluttered frames make
+  // thousands of pairs).
   anchors.clear();
   fip_index.build(fips);
   const double max_radius = 0.3 * std::min(img.cols, img.rows);
@@ -537,16 +542,24 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
       if (j > i && !used[j] && detail::fipEdge(fips[i], fips[j], p)) pairUp(fips[i], fips[j], 1);
     });
   }
-  std::sort(anchors.begin(), anchors.end(), [](const auto& a, const auto& b) {
-    return std::tie(a[3], a[2], a[0], a[1]) < std::tie(b[3], b[2], b[0], b[1]);
-  });
   if (anchors.empty()) return;
+  const auto first = [](const auto& a, const auto& b) {
+    return std::tie(a[3], a[2], a[0], a[1]) < std::tie(b[3], b[2], b[0], b[1]);
+  };
+  if (anchors.size() > kMaxAnchors) {
+    std::nth_element(anchors.begin(), anchors.begin() + kMaxAnchors, anchors.end(), first);
+    anchors.resize(kMaxAnchors);
+  }
+  std::sort(anchors.begin(), anchors.end(), first);
   // A merge leaves a region in the window larger than the pair's squares
   // (2.5 times the larger: the first pass's regions, kept or not, from the
   // labelling's accumulators); windows without one are not looked at.
   blobs.clear();
   for (const auto& r : runs.acc)
     if (r.n >= 12) blobs.push_back({cv::Rect(r.x0, r.y0, r.x1 - r.x0 + 1, r.y1 - r.y0 + 1), r.n});
+  std::sort(blobs.begin(), blobs.end(), [](const auto& a, const auto& b) {
+    return std::tie(b.second, a.first.y, a.first.x) < std::tie(a.second, b.first.y, b.first.x);
+  });  // largest first
 
   detail::MaskThresholds strict = filter_settings.mask;
   strict.blue = std::min(0.95, strict.blue + p.second_look_raise);
@@ -561,17 +574,23 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
   int looks = 0;
   looked.clear();
   for (const auto& a : anchors) {
-    if (looks >= p.second_looks) break;
+    if (looks >= p.second_looks || pixels_left < 25 * 25) break;  // 25 x 25: the smallest window
     const cv::Point centre(static_cast<int>(std::lround(a[0])), static_cast<int>(std::lround(a[1])));
     bool seen = false;
     for (const auto& w : looked) seen |= w.contains(centre);
     if (seen) continue;
     const int r = static_cast<int>(std::ceil(a[2]));
     const cv::Rect win = cv::Rect(centre.x - r, centre.y - r, 2 * r + 1, 2 * r + 1) & frame;
-    bool merged = false;
-    for (const auto& b : blobs) merged |= b.second >= 2.5 * a[4] && (b.first & win).area() > 0;
-    if (!merged) continue;
     if (win.area() > pixels_left) continue;
+    bool merged = false;
+    for (const auto& b : blobs) {
+      if (b.second < 2.5 * a[4]) break;  // the rest are smaller
+      if ((b.first & win).area() > 0) {
+        merged = true;
+        break;
+      }
+    }
+    if (!merged) continue;
     pixels_left -= win.area();
     ++looks;
     looked.push_back(win);
@@ -585,11 +604,16 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
     geometry(img);
     const int of = static_cast<int>(all_fips.size()), oa = static_cast<int>(all_aps.size());
     for (auto c : candidates) {
-      const detail::Region& ap = aps[c.ap];
+      // The same landmark again (found by the first pass or an earlier
+      // look): a square of it where a square of one already is. The first
+      // finding stays.
+      const detail::Region* mine[4] = {&fips[c.tl], &fips[c.tr], &fips[c.bl], &aps[c.ap]};
       bool again = false;
       for (const auto& k : all_candidates) {
-        const detail::Region& other = all_aps[k.ap];
-        again |= std::hypot(other.cx - ap.cx, other.cy - ap.cy) < std::max(2.0, 0.5 * detail::maxAxis(ap));
+        const detail::Region* theirs[4] = {&all_fips[k.tl], &all_fips[k.tr], &all_fips[k.bl], &all_aps[k.ap]};
+        for (const auto* m : mine)
+          for (const auto* t : theirs)
+            again |= std::hypot(m->cx - t->cx, m->cy - t->cy) < std::max(2.0, 0.5 * detail::maxAxis(*m));
       }
       if (again) continue;
       c.tl += of, c.tr += of, c.bl += of, c.ap += oa;

@@ -589,14 +589,15 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
     // sheet's. The QR's black-on-white edges saturate a point or two, in
     // the sheet's own hue (a warm light tints them orange).
     const cv::Point2d hx = (P[1] - P[0]) * (0.5 / 6), hy = (P[3] - P[0]) * (0.5 / 6);
+    const cv::Point2d around[5] = {ctr, ctr + hx, ctr - hx, ctr + hy, ctr - hy};
     int saturated = 0;
     bool centre_saturated = false;
-    for (const cv::Point2d& q : {ctr, ctr + hx, ctr - hx, ctr + hy, ctr - hy}) {
+    for (int k = 0; k < 5; ++k) {
       double sv, vv;
-      if (!sampleSV(bgr, q, sv, vv)) return fail("outside the image");
+      if (!sampleSV(bgr, around[k], sv, vv)) return fail("outside the image");
       const bool sat = vv >= p.value_min && sv > p.sheet_max_saturation;
       saturated += sat;
-      if (q == ctr) centre_saturated = sat;
+      if (k == 0) centre_saturated = sat;
     }
     if (saturated >= 3) return fail("centre saturated");
     double c[3];

@@ -156,18 +156,18 @@ struct Candidate {
 };
 
 /// 7. AP choice and ordering for a 3-cycle: for each choice of corner FIP the
-/// AP is predicted at TR + BL - TL; the AP candidate nearest its prediction
-/// (within ap_max_offset FIP sides, of a compatible size) decides the corner.
-/// TR and BL are then ordered so TL, TR, AP, BL run clockwise in the image.
-/// Returns false when no AP fits.
-/// Every AP that fits a 3-cycle by that rule (each choice of corner, each
-/// AP within the gates), nearest first, at most max_out: where red things
-/// lie near the landmark's AP, and perspective moves the AP off the
-/// parallelogram's prediction, the nearest need not be the AP; verification
-/// decides between them.
+/// AP is predicted at TR + BL - TL, and where the perspective that the three
+/// squares' sizes show puts it (a homography's denominator w is affine on
+/// the sheet; a square's side goes as w^(-3/2)); every AP candidate within
+/// ap_max_offset FIP sides of either prediction, of a compatible size, is a
+/// choice, nearest first, at most max_out. TR and BL are ordered so TL, TR,
+/// AP, BL run clockwise in the image. Where red things lie near the
+/// landmark's AP the nearest need not be the AP: verification decides
+/// between the choices.
 void apChoices(const std::array<int, 3>& cycle, const std::vector<Region>& fips, const std::vector<Region>& aps,
                const DetectorParams& p, std::vector<Candidate>& out, const RegionIndex* ap_index = nullptr,
                size_t max_out = 4);
+/// The nearest of apChoices; false when no AP fits.
 bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
               const std::vector<Region>& aps, const DetectorParams& p, Candidate& out,
               const RegionIndex* ap_index = nullptr);

@@ -72,8 +72,8 @@ struct QrReader::Impl {
   // modules thresholded and redrawn as a clean code (its function patterns
   // ideal) for zbar, whose error correction rejects wrong versions and bad
   // reads.
-  // The payload, and 0 when the equaliser's modules gave it, 1 when a fixed
-  // sharpening's did.
+  // The payload, and 0 when the equaliser's modules gave it, 1 when the
+  // modules thresholded as read or after a fixed sharpening did.
   std::optional<std::pair<std::string, int>> readGrid(const cv::Matx33d& sheet_to_image, double qr_px) {
     std::vector<std::pair<double, int>> candidates;  // (finder score, n)
     for (int version = 1; version <= 15; ++version) {
@@ -313,7 +313,7 @@ std::optional<QrResult> QrReader::decode(const cv::Mat& image,
     cv::resize(m.view, m.work, {}, scale, scale, scale < 1 ? cv::INTER_AREA : cv::INTER_CUBIC);
     if (auto s = m.scan(m.work)) return QrResult{*s, attempt};
   }
-  // 6, 7: module by module, from the sheet frame (6: equalised, 7: sharpened).
+  // 6, 7: module by module, from the sheet frame (6: equalised, 7: thresholded).
   ++attempt;
   if (auto s = m.readGrid(layout::sheetToImage(corners), qr_px)) return QrResult{s->first, attempt + s->second};
   return std::nullopt;

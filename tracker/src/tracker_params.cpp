@@ -53,7 +53,7 @@ std::string num(double v) {
 }  // namespace
 
 TrackerParams TrackerParams::load(const std::string& path) {
-  const cv::FileStorage fs = openConfigFile(path, "tracker parameters");
+  const cv::FileStorage fs = openConfigFile(path, "tracker parameters", true);
   TrackerParams p;
   const cv::FileNode root = fs.root();
   if (!root.isMap() && !root.empty()) fail(path, "top level is not a map of parameters");

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <exception>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <optional>
@@ -69,29 +70,37 @@ inline std::optional<std::string> unsafeForOpenCv(const std::string& text) {
 /// reader of the project opens one: the file read once, its text checked by
 /// unsafeForOpenCv, plain YAML given the "%YAML:1.0" header OpenCV wants, and
 /// parsed from memory. Throws std::runtime_error("<what> <path>: <why>") when
-/// the file cannot be read, is unsafe, or does not parse (OpenCV's
-/// cv::Exception and the std::length_error and others its parser lets out).
-inline cv::FileStorage openConfigFile(const std::string& path, const std::string& what) {
+/// the path is a directory or cannot be read, the file is empty (unless
+/// `empty_ok`: then it reads as an empty map), is unsafe, or does not parse
+/// (OpenCV's cv::Exception and the std::length_error and others its parser
+/// lets out included).
+inline cv::FileStorage openConfigFile(const std::string& path, const std::string& what, bool empty_ok = false) {
   const auto fail = [&](const std::string& why) { throw std::runtime_error(what + " " + path + ": " + why); };
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) fail("is a directory");
   std::ifstream f(path, std::ios::binary);
   if (!f) fail("cannot open");
   std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  if (f.bad()) fail("cannot read");
   if (const auto why = unsafeForOpenCv(text)) fail(*why);
   const size_t first = text.find_first_not_of(" \t\r\n");
-  if (first == std::string::npos) text = "%YAML:1.0\n---\n{}\n";
-  else if (text[first] != '<' && text[first] != '{' && text.compare(first, 5, "%YAML") != 0)
+  if (first == std::string::npos) {
+    if (!empty_ok) fail("is empty");
+    text = "%YAML:1.0\n---\n{}\n";
+  } else if (text[first] != '<' && text[first] != '{' && text.compare(first, 5, "%YAML") != 0) {
     text = "%YAML:1.0\n---\n" + text;
-  cv::FileStorage fs;
-  try {
-    if (!fs.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY)) fail("cannot parse");
-  } catch (const cv::Exception& e) {
-    fail("cannot parse (" + e.err + ")");
-  } catch (const std::runtime_error&) {
-    throw;
-  } catch (const std::exception& e) {
-    fail(std::string("cannot parse (") + e.what() + ")");
   }
+  cv::FileStorage fs;
+  bool opened = false;
+  std::string error;
+  try {
+    opened = fs.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);
+  } catch (const cv::Exception& e) {
+    error = e.err;
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+  if (!error.empty()) fail("cannot parse (" + error + ")");
+  if (!opened) fail("cannot parse");
   return fs;
 }
 

@@ -187,7 +187,7 @@ struct DetectorParams {
   /// second_look_raise. A square joined to a same-coloured object behind
   /// the sheet through its thin margin (steep views, blur, JPEG's
   /// half-resolution colour) comes apart there. Found landmarks pass the
-  /// same verification; the windows cover at most half the frame.
+  /// same verification; the windows cover at most an eighth of the frame.
   int second_looks = 8;
   double second_look_raise = 0.1;
   /// FIP and AP candidates kept (largest first), and 3-cycles of the FIP

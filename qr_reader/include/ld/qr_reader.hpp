@@ -33,7 +33,8 @@ struct QrResult {
   std::string payload;
   /// Which variation decoded it: 0 the plain view; 1 Otsu, 2 sharpened, 3
   /// adaptive threshold, 4 and 5 other scales of the view; 6 the modules read
-  /// one by one and equalised against the blur, 7 the same sharpened.
+  /// one by one and equalised against the blur, 7 the same thresholded as
+  /// read or after a fixed sharpening.
   int attempt = 0;
 };
 

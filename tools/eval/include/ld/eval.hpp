@@ -79,7 +79,8 @@ double falsePositivesPerFrame(const SweepOptions& options, int frames);
 
 /// measure() and falsePositivesPerFrame() for the fixed defaults ([0]) and
 /// the adaptive detector ([1]) on the same rendered frames (options.adaptive
-/// is not looked at; landmarks only): what `ld-eval lighting` compares.
+/// is not looked at): what `ld-eval lighting` compares. Landmarks only:
+/// throws std::invalid_argument for a marker target.
 std::array<Point, 2> measureFixedAndAdaptive(const SweepOptions& options, double distance_m, double yaw_deg,
                                              double yaw_jitter_deg = 0.0);
 std::array<double, 2> falsePositivesFixedAndAdaptive(const SweepOptions& options, int frames);
