@@ -868,7 +868,8 @@ TEST(Detector, StagesAreNamedAndTimed) {
   const auto& d = fast.detect(img);
   std::vector<std::string> names;
   for (const auto& s : d.stages) names.push_back(s.name);
-  EXPECT_EQ(names, (std::vector<std::string>{"saturation", "contours", "colour", "geometry", "corners", "pose"}));
+  EXPECT_EQ(names, (std::vector<std::string>{"saturation", "contours", "colour", "geometry", "second look", "corners",
+                                             "pose"}));
   EXPECT_GT(d.total_ms, 0);
   EXPECT_GE(d.total_ms, d.stageMs("saturation"));
   EXPECT_EQ(d.stageMs("edges"), 0);

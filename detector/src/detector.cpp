@@ -662,9 +662,13 @@ void Detector::Impl::run(const cv::Mat& input) {
 
   // 6-7. GEOMETRY: FIP graph, its 3-cycles, the AP, verification, overlaps
   geometry(*img);
-  // 7c. A second look around the squares no landmark took
-  if (!paper && p.second_looks > 0) secondLook(*img, *src, max_area);
   timer.stamp("geometry");
+
+  // 7c. SECOND LOOK around the squares no landmark took
+  if (!paper && p.second_looks > 0) {
+    secondLook(*img, *src, max_area);
+    timer.stamp("second look");
+  }
 
   // 8. CORNERS (through the undistorted image when the camera distorts: the
   // sheet maps to it by a homography)

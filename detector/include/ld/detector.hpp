@@ -17,14 +17,18 @@
 //   6-7. geometry  the FIP graph (distance (1) and size-ratio (2) constraints,
 //                  measured in the frame of the squares' second moments so
 //                  that they hold at any roll and foreshortening), its
-//                  3-cycles, the AP where TR + BL - TL predicts it (which
-//                  fixes TL at any roll), TL, TR, AP, BL clockwise; then
+//                  3-cycles, the AP where TR + BL - TL predicts it, or
+//                  where the perspective the squares' sizes show puts it
+//                  (which fixes TL at any roll), TL, TR, AP, BL clockwise; then
 //                  verification against look-alikes (squares of the frame the
 //                  centres make, a third of each side covered by squares, an
 //                  even white sheet between them, a QR darker than the sheet
 //                  in the middle, no coloured square there); landmarks whose
 //                  fourth square merged into a same-coloured background
 //                  completed from the other three; overlaps resolved by score
+//   7c. second look (fast front end) windows around pairs of squares no
+//                  landmark took, where a larger region lies, labelled again
+//                  at raised saturation thresholds and put through 4-7
 //   8. corners     the homography from the four square centres, each
 //                  corrected for the perspective shift of a projected square's
 //                  centroid, gives the pattern's outer corners (through the
@@ -32,7 +36,8 @@
 //   9. pose        cv::solvePnP (IPPE square) when intrinsics and side are set
 //
 // Each stage is stamped by name into Detection::stages: "blur", "saturation",
-// "edges", "contours", "colour", "geometry", "corners", "pose" (those that ran).
+// "edges", "contours", "colour", "geometry", "second look", "corners", "pose"
+// (those that ran).
 //
 // Backends (DetectorParams::backend): stages 1-3, the per-pixel filters, run
 // on the CPU or on the GPU through OpenGL ES shaders on a headless EGL
