@@ -426,6 +426,43 @@ TEST(ApChoiceRule, NoApNoCandidate) {
   EXPECT_FALSE(ld::detail::chooseAp({0, 1, 2}, fips, aps, ld::DetectorParams{}, c));
 }
 
+// Every AP in the gate is a choice, nearest first; sizes that show
+// perspective (TR and BL larger than TL: the AP's corner nearer the camera)
+// move the second prediction, and an AP there is a choice too.
+TEST(ApChoiceRule, EveryApInTheGatesNearestFirst) {
+  const auto sq = layoutRegions(10, 0, {200, 150});
+  std::vector<Region> fips{sq[0], sq[1], sq[2]};
+  Region near = sq[3], nearer = sq[3];
+  near.cx += 5;    // half a side off the prediction
+  nearer.cx -= 2;  // a fifth
+  std::vector<Region> aps{near, nearer};
+  std::vector<ld::detail::Candidate> choices;
+  ld::detail::apChoices({0, 1, 2}, fips, aps, ld::DetectorParams{}, choices);
+  ASSERT_EQ(choices.size(), 2u);
+  EXPECT_EQ(choices[0].ap, 1);
+  EXPECT_EQ(choices[1].ap, 0);
+  EXPECT_LT(choices[0].error, choices[1].error);
+  ld::detail::apChoices({0, 1, 2}, fips, aps, ld::DetectorParams{}, choices, nullptr, 1);
+  EXPECT_EQ(choices.size(), 1u);
+  // Perspective: TR and BL 1.4 times TL's side. w = side^(-2/3) puts the AP
+  // beyond TR + BL - TL, out of the affine gate.
+  for (int k : {1, 2}) {
+    fips[k].sxx *= 1.96, fips[k].syy *= 1.96, fips[k].sxy *= 1.96;
+  }
+  const double wtl = std::pow(fips[0].side(), -2.0 / 3), wtr = std::pow(fips[1].side(), -2.0 / 3),
+               wbl = std::pow(fips[2].side(), -2.0 / 3), w = wtr + wbl - wtl;
+  Region beyond = sq[3];
+  beyond.cx = (wtr * fips[1].cx + wbl * fips[2].cx - wtl * fips[0].cx) / w;
+  beyond.cy = (wtr * fips[1].cy + wbl * fips[2].cy - wtl * fips[0].cy) / w;
+  beyond.sxx *= 1.96 * 1.96, beyond.syy *= 1.96 * 1.96, beyond.sxy *= 1.96 * 1.96;  // nearer still: larger
+  ASSERT_GT(std::hypot(beyond.cx - sq[3].cx, beyond.cy - sq[3].cy), 10.0);  // more than the affine gate
+  aps = {beyond};
+  ld::detail::apChoices({0, 1, 2}, fips, aps, ld::DetectorParams{}, choices);
+  ASSERT_EQ(choices.size(), 1u);
+  EXPECT_EQ(choices[0].tl, 0);
+  EXPECT_LT(choices[0].error, 1e-6);
+}
+
 TEST(Overlaps, BestScoreWinsGreedily) {
   std::vector<ld::detail::Candidate> c(3);
   c[0] = {0, 1, 2, 0, 0.5, 0};
