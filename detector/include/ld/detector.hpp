@@ -187,14 +187,17 @@ struct DetectorParams {
   /// its colour is there where the other three put it; it must pass the same
   /// verification, and ranks below landmarks found whole.
   bool complete_missing = true;
-  /// Fast front end: windows per frame (0: none) around squares no landmark
-  /// took, looked at again with both saturation thresholds raised by
-  /// second_look_raise. A square joined to a same-coloured object behind
-  /// the sheet through its thin margin (steep views, blur, JPEG's
-  /// half-resolution colour) comes apart there. Found landmarks pass the
-  /// same verification; the windows cover at most an eighth of the frame.
+  /// Fast front end, the second look: windows per frame (0: none) around
+  /// pairs of squares (up to 16 px) that no landmark took, where the first
+  /// pass left a larger region, labelled again with both saturation
+  /// thresholds raised by second_look_raise. A square joined to a
+  /// same-coloured object behind the sheet through its thin margin (steep
+  /// views, blur, JPEG's half-resolution colour) comes apart there. Found
+  /// landmarks pass the same verification; the windows cover at most an
+  /// eighth of the frame. More windows find more such landmarks in cluttered
+  /// frames and cost more time (stage "second look").
   int second_looks = 8;
-  double second_look_raise = 0.1;
+  double second_look_raise = 0.1;  ///< higher parts more merges and loses fainter squares
   /// FIP and AP candidates kept (largest first), and 3-cycles of the FIP
   /// graph examined (those among the largest squares first): what bounds the
   /// time of frames cluttered with hundreds of small blue and red things.
