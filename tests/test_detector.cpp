@@ -148,6 +148,13 @@ bool found(const ld::Detection& det, const Truth& t) {
   return false;
 }
 
+// Exactly one landmark, and it is `t`.
+::testing::AssertionResult onlyLandmark(const ld::Detection& det, const Truth& t) {
+  if (det.landmarks.size() != 1) return ::testing::AssertionFailure() << det.landmarks.size() << " landmarks, not 1";
+  if (!ld::matchesTruth(det.landmarks[0], t.centres)) return ::testing::AssertionFailure() << "not the landmark";
+  return ::testing::AssertionSuccess();
+}
+
 // Regions of a layout: TL, TR, BL, AP squares of `side` px, rotated by `roll`
 // degrees about `c`.
 std::array<Region, 4> layoutRegions(double side, double roll_deg, cv::Point2d c) {
@@ -587,8 +594,7 @@ TEST_P(Roll, FindsLandmarkWithRightOrientation) {
   const Truth t = truthOf(kCam, p);
   ld::Detector det;
   const auto& d = det.detect(img);
-  ASSERT_EQ(d.landmarks.size(), 1u) << roll;
-  EXPECT_TRUE(ld::matchesTruth(d.landmarks[0], t.centres)) << roll;
+  ASSERT_TRUE(onlyLandmark(d, t)) << roll;
   for (int i = 0; i < 4; ++i) EXPECT_LT(cv::norm(cv::Point2d(d.landmarks[0].corners[i]) - t.corners[i]), 1.0);
 }
 
@@ -683,8 +689,7 @@ TEST(Detector, CentreInTheSheetsHueIsNoColouredSquare) {
       img(cv::Rect(static_cast<int>(c.x) - 1, static_cast<int>(c.y) - 1, 3, 3)).setTo(cv::Scalar(45, 62, 85));
     const auto& d = det.detect(img);
     if (kind == 0) {
-      ASSERT_EQ(d.landmarks.size(), 1u);
-      EXPECT_TRUE(ld::matchesTruth(d.landmarks[0], t.centres));
+      EXPECT_TRUE(onlyLandmark(d, t));
     } else {
       EXPECT_TRUE(d.landmarks.empty()) << kind;
     }
@@ -720,9 +725,7 @@ TEST(Detector, SquareMergedWithTheBackgroundIsCompleted) {
   q.complete_missing = false;
   ld::Detector without(q), with;
   EXPECT_FALSE(found(without.detect(img), t));
-  const auto& d = with.detect(img);
-  ASSERT_EQ(d.landmarks.size(), 1u);
-  EXPECT_TRUE(ld::matchesTruth(d.landmarks[0], t.centres));
+  EXPECT_TRUE(onlyLandmark(with.detect(img), t));
 }
 
 // The same where the blue object is a large one (a wall, a poster: beyond
@@ -737,9 +740,7 @@ TEST(Detector, SquareMergedWithALargeObjectIsCompletedFromTwoFips) {
   drawSheet(img, kCam, p);
   img(cv::Rect(x - 60, y + 2, 61, 10)).setTo(cv::Scalar(150, 60, 40));  // bridging the margin
   ld::Detector det;
-  const auto& d = det.detect(img);
-  ASSERT_EQ(d.landmarks.size(), 1u);
-  EXPECT_TRUE(ld::matchesTruth(d.landmarks[0], t.centres));
+  EXPECT_TRUE(onlyLandmark(det.detect(img), t));
 }
 
 // Two FIPs joined to a blue object behind the sheet through a faintly
@@ -763,9 +764,7 @@ TEST(Detector, SecondLookPartsSquaresJoinedToAnObject) {
   once.second_looks = 0;
   EXPECT_TRUE(ld::Detector(once).detect(img).landmarks.empty());
   ld::Detector det;
-  const auto& d = det.detect(img);
-  ASSERT_EQ(d.landmarks.size(), 1u);
-  EXPECT_TRUE(ld::matchesTruth(d.landmarks[0], t.centres));
+  EXPECT_TRUE(onlyLandmark(det.detect(img), t));
 }
 
 // A blue and a red card beside a landmark the first pass found, and a
@@ -781,9 +780,7 @@ TEST(Detector, SecondLookReportsALandmarkOnce) {
   img(cv::Rect(x + 8, y + 30, 10, 10)).setTo(cv::Scalar(40, 60, 200));
   img(cv::Rect(x + 30, y, 30, 30)).setTo(cv::Scalar(150, 60, 40));
   ld::Detector det;
-  const auto& d = det.detect(img);
-  ASSERT_EQ(d.landmarks.size(), 1u);
-  EXPECT_TRUE(ld::matchesTruth(d.landmarks[0], t.centres));
+  EXPECT_TRUE(onlyLandmark(det.detect(img), t));
 }
 
 // Close up, at an angle, perspective moves the AP well off TR + BL - TL,
@@ -802,9 +799,7 @@ TEST(Detector, RedThingBesideTheApCloseUpIsNotTakenForIt) {
     const double fip_side = cv::norm(t.centres[1] - t.centres[0]) / 3;
     cv::circle(img, t.centres[3] + 1.75 * d, static_cast<int>(0.3 * fip_side), cv::Scalar(40, 60, 210), cv::FILLED);
     ld::Detector det;
-    const auto& found = det.detect(img);
-    ASSERT_EQ(found.landmarks.size(), 1u) << roll;
-    EXPECT_TRUE(ld::matchesTruth(found.landmarks[0], t.centres)) << roll;
+    EXPECT_TRUE(onlyLandmark(det.detect(img), t)) << roll;
   }
 }
 
@@ -818,9 +813,7 @@ TEST(Detector, ApPredictedWithThePerspectiveOfTheSquaresSizes) {
     const Placed p = place(0.25, 38, roll, 0.15, 0, 0);
     drawSheet(img, kCam, p);
     const Truth t = truthOf(kCam, p);
-    const auto& found = det.detect(img);
-    ASSERT_EQ(found.landmarks.size(), 1u) << roll;
-    EXPECT_TRUE(ld::matchesTruth(found.landmarks[0], t.centres)) << roll;
+    EXPECT_TRUE(onlyLandmark(det.detect(img), t)) << roll;
   }
 }
 
