@@ -257,7 +257,13 @@ struct Detector::Impl {
   std::vector<detail::Candidate> candidates, choices;
   // the second look's
   cv::Mat look_labels;
-  std::vector<std::array<double, 5>> anchors;  // x, y, radius, rank, larger square's area
+  struct Anchor {
+    cv::Point2d centre;
+    double radius;
+    int rank;  // 0: an AP and a FIP, 1: two FIPs
+    int area;  // the larger square's
+  };
+  std::vector<Anchor> anchors;
   std::vector<std::pair<cv::Rect, int64_t>> blobs;  // the first pass's larger regions: bbox, area
   detail::RegionIndex fip_index;
   std::vector<cv::Rect> looked;
@@ -519,11 +525,11 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
   anchors.clear();
   fip_index.build(fips);
   const double max_radius = 0.3 * std::min(img.cols, img.rows);
-  auto pairUp = [&](const detail::Region& a, const detail::Region& b, double rank) {
+  auto pairUp = [&](const detail::Region& a, const detail::Region& b, int rank) {
     const double side = std::max(detail::maxAxis(a), detail::maxAxis(b));
     if (side > kSecondLookMaxSide) return;
     const double radius = std::max(12.0, 0.5 * std::hypot(a.cx - b.cx, a.cy - b.cy) + 5 * side);
-    if (radius <= max_radius) anchors.push_back({(a.cx + b.cx) / 2, (a.cy + b.cy) / 2, radius, rank, static_cast<double>(std::max(a.area, b.area))});
+    if (radius <= max_radius) anchors.push_back({{(a.cx + b.cx) / 2, (a.cy + b.cy) / 2}, radius, rank, std::max(a.area, b.area)});
   };
   for (int k = 0; k < na; ++k) {
     if (used[nf + k]) continue;
@@ -543,8 +549,8 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
     });
   }
   if (anchors.empty()) return;
-  const auto first = [](const auto& a, const auto& b) {
-    return std::tie(a[3], a[2], a[0], a[1]) < std::tie(b[3], b[2], b[0], b[1]);
+  const auto first = [](const Anchor& a, const Anchor& b) {
+    return std::tie(a.rank, a.radius, a.centre.x, a.centre.y) < std::tie(b.rank, b.radius, b.centre.x, b.centre.y);
   };
   if (anchors.size() > kMaxAnchors) {
     std::nth_element(anchors.begin(), anchors.begin() + kMaxAnchors, anchors.end(), first);
@@ -575,16 +581,16 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
   looked.clear();
   for (const auto& a : anchors) {
     if (looks >= p.second_looks || pixels_left < 25 * 25) break;  // 25 x 25: the smallest window
-    const cv::Point centre(static_cast<int>(std::lround(a[0])), static_cast<int>(std::lround(a[1])));
+    const cv::Point centre(static_cast<int>(std::lround(a.centre.x)), static_cast<int>(std::lround(a.centre.y)));
     bool seen = false;
     for (const auto& w : looked) seen |= w.contains(centre);
     if (seen) continue;
-    const int r = static_cast<int>(std::ceil(a[2]));
+    const int r = static_cast<int>(std::ceil(a.radius));
     const cv::Rect win = cv::Rect(centre.x - r, centre.y - r, 2 * r + 1, 2 * r + 1) & frame;
     if (win.area() > pixels_left) continue;
     bool merged = false;
     for (const auto& b : blobs) {
-      if (b.second < 2.5 * a[4]) break;  // the rest are smaller
+      if (b.second < 2.5 * a.area) break;  // the rest are smaller
       if ((b.first & win).area() > 0) {
         merged = true;
         break;

@@ -62,9 +62,11 @@ bool sampleBgr(const cv::Mat& bgr, const cv::Point2d& p, double c[3]) {
 }
 
 // Saturation (0..1), value (0..255) and mean of the channels at a sub-pixel
-// position; false outside the image.
-bool sampleSV(const cv::Mat& bgr, const cv::Point2d& p, double& s, double& v, double* mean = nullptr) {
-  double c[3];
+// position, and its colour when `colour` is given; false outside the image.
+bool sampleSV(const cv::Mat& bgr, const cv::Point2d& p, double& s, double& v, double* mean = nullptr,
+              double* colour = nullptr) {
+  double own[3];
+  double* c = colour ? colour : own;
   if (!sampleBgr(bgr, p, c)) return false;
   const double mx = std::max({c[0], c[1], c[2]}), mn = std::min({c[0], c[1], c[2]});
   v = mx;
@@ -73,18 +75,21 @@ bool sampleSV(const cv::Mat& bgr, const cv::Point2d& p, double& s, double& v, do
   return true;
 }
 
-// Colour excess of a hue at a sub-pixel position (bilinear), or 0 outside.
-double excessAt(const cv::Mat& bgr, const cv::Point2d& p, uint8_t colour) {
-  double c[3];
-  if (!sampleBgr(bgr, p, c)) return 0;
+// A hue's excess in a colour: blue b - max(g, r), red r - max(g, b).
+double excess(const double c[3], uint8_t colour) {
   return colour == kBlue ? c[0] - std::max(c[1], c[2]) : c[2] - std::max(c[0], c[1]);
 }
 
-// A hue's excess (blue: b - max(g, r), red: r - max(g, b)) over the
-// brightness: a colour's strength whatever the light's level.
+// Colour excess of a hue at a sub-pixel position (bilinear), or 0 outside.
+double excessAt(const cv::Mat& bgr, const cv::Point2d& p, uint8_t colour) {
+  double c[3];
+  return sampleBgr(bgr, p, c) ? excess(c, colour) : 0;
+}
+
+// A hue's excess over the brightness: a colour's strength whatever the
+// light's level.
 double chroma(const double c[3], uint8_t colour) {
-  const double excess = colour == kBlue ? c[0] - std::max(c[1], c[2]) : c[2] - std::max(c[0], c[1]);
-  return excess / std::max(1.0, (c[0] + c[1] + c[2]) / 3);
+  return excess(c, colour) / std::max(1.0, (c[0] + c[1] + c[2]) / 3);
 }
 
 // How much more of a hue than the sheet's a saturated landmark centre may
@@ -438,16 +443,17 @@ void apChoices(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
   Sym2 m;
   if (!metric(s, m)) return;
   const double fip_side = std::sqrt(12.0 * std::sqrt(s.det()));
+  // For the prediction with the perspective the squares' sizes show: a
+  // homography's denominator w is affine on the sheet, so w_AP = w_a + w_b -
+  // w_c, and a square's side in the image goes as w^(-3/2) (its area as w^-3).
+  double w[3];
+  for (int k = 0; k < 3; ++k) w[k] = std::pow(std::max(fips[cycle[k]].side(), 1.0), -2.0 / 3);
   for (int corner = 0; corner < 3; ++corner) {
     const Region& c = fips[cycle[corner]];
     const Region& a = fips[cycle[(corner + 1) % 3]];
     const Region& b = fips[cycle[(corner + 2) % 3]];
     const double px = a.cx + b.cx - c.cx, py = a.cy + b.cy - c.cy;
-    // The same with the perspective the squares' sizes show: a homography's
-    // denominator w is affine on the sheet, so w_AP = w_a + w_b - w_c, and a
-    // square's side in the image goes as w^(-3/2) (its area as w^-3).
-    const double wc = std::pow(std::max(c.side(), 1.0), -2.0 / 3), wa = std::pow(std::max(a.side(), 1.0), -2.0 / 3),
-                 wb = std::pow(std::max(b.side(), 1.0), -2.0 / 3);
+    const double wc = w[corner], wa = w[(corner + 1) % 3], wb = w[(corner + 2) % 3];
     const double w_ap = wa + wb - wc;
     const bool perspective = w_ap > 0.25 * std::min({wa, wb, wc});
     const double qx = perspective ? (wa * a.cx + wb * b.cx - wc * c.cx) / w_ap : px;
@@ -556,9 +562,8 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   for (int i = 0; i < 4; ++i)
     for (double t : {1.0 / 3, 0.5, 2.0 / 3}) {
       double sv, vv, mean;
-      const cv::Point2d q = P[i] + (P[(i + 1) % 4] - P[i]) * t;
       double c[3];
-      if (!sampleSV(bgr, q, sv, vv, &mean) || !sampleBgr(bgr, q, c)) return fail("outside the image");
+      if (!sampleSV(bgr, P[i] + (P[(i + 1) % 4] - P[i]) * t, sv, vv, &mean, c)) return fail("outside the image");
       for (int k = 0; k < 3; ++k) sheet_bgr[k] += c[k] / 12;
       if (sv > p.sheet_max_saturation) return fail("sheet saturated");
       if (vv < p.sheet_min_value * fip_value) return fail("sheet dark");
@@ -592,16 +597,15 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
     const cv::Point2d around[5] = {ctr, ctr + hx, ctr - hx, ctr + hy, ctr - hy};
     int saturated = 0;
     bool centre_saturated = false;
+    double c[3];  // the centre's colour
     for (int k = 0; k < 5; ++k) {
       double sv, vv;
-      if (!sampleSV(bgr, around[k], sv, vv)) return fail("outside the image");
+      if (!sampleSV(bgr, around[k], sv, vv, nullptr, k == 0 ? c : nullptr)) return fail("outside the image");
       const bool sat = vv >= p.value_min && sv > p.sheet_max_saturation;
       saturated += sat;
       if (k == 0) centre_saturated = sat;
     }
     if (saturated >= 3) return fail("centre saturated");
-    double c[3];
-    if (!sampleBgr(bgr, ctr, c)) return fail("outside the image");
     if (centre_saturated && (chroma(c, kBlue) - chroma(sheet_bgr, kBlue) > kCentreChroma ||
                              chroma(c, kRed) - chroma(sheet_bgr, kRed) > kCentreChroma))
       return fail("centre coloured");

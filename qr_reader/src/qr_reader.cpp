@@ -59,7 +59,7 @@ double projectedQrSide(const std::array<cv::Point2f, 4>& c) {
 struct QrReader::Impl {
   QrReaderParams params;
   zbar::ImageScanner scanner;
-  cv::Mat gray, view, work, blurred, map, sampled, samples, sharpened, bits, clean;
+  cv::Mat gray, view, work, blurred, map, sampled, samples, sharpened, grid8, bits, clean;
   std::vector<int8_t> known, grid;  // the equaliser's modules: -1 unknown, 0 light, 1 dark
   std::vector<double> fit_a, fit_b;
 
@@ -108,26 +108,29 @@ struct QrReader::Impl {
       sampleModules(best, n, 1);
       if (equalise(n))
         if (auto r = scanBits(n)) return std::pair{*r, 0};
-      // The camera's blur spreads each module over its neighbours: undo some
-      // of it on the grid (a module minus k times its neighbours' mean
-      // deviation), then threshold globally (Otsu) and locally.
-      for (double k : {0.0, 1.4, 2.5}) {
-        cv::Mat grid = samples;
-        if (k > 0) {
-          cv::blur(samples, sharpened, {3, 3}, {-1, -1}, cv::BORDER_REPLICATE);
-          sharpened = samples + k * (samples - sharpened);
-          grid = sharpened;
+      // Without the model: sharpened by fixed amounts, thresholded globally
+      // (Otsu) and locally.
+      for (double k : {0.0, 1.4, 2.5})
+        for (bool local : {false, true}) {
+          thresholdModules(n, k, local);
+          if (auto r = scanBits(n)) return std::pair{*r, 1};
         }
-        cv::Mat s8;
-        grid.convertTo(s8, CV_8U);
-        cv::threshold(s8, bits, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
-        if (auto r = scanBits(n)) return std::pair{*r, 1};
-        cv::adaptiveThreshold(s8, bits, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY,
-                              std::min(n | 1, 9), 0);
-        if (auto r = scanBits(n)) return std::pair{*r, 1};
-      }
     }
     return std::nullopt;
+  }
+
+  // `bits` (dark 0, light 255) from `samples`: the camera's blur spreads each
+  // module over its neighbours, so some of it is undone first (a module
+  // minus k times its neighbours' mean deviation), then the grid is
+  // thresholded globally (Otsu) or locally (the mean of 9 x 9 modules).
+  void thresholdModules(int n, double k, bool local) {
+    cv::blur(samples, sharpened, {3, 3}, {-1, -1}, cv::BORDER_REPLICATE);
+    sharpened = samples + k * (samples - sharpened);
+    sharpened.convertTo(grid8, CV_8U);
+    if (local)
+      cv::adaptiveThreshold(grid8, bits, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY, std::min(n | 1, 9), 0);
+    else
+      cv::threshold(grid8, bits, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
   }
 
   // `bits` (dark 0, light 255) from `samples` by a decision-feedback
@@ -177,11 +180,7 @@ struct QrReader::Impl {
     const double own = w.at<double>(5);  // the module itself (f[5]: dr = dc = 0)
     if (!(own < -8.0)) return false;     // a dark module must read darker
     // Start from the sharpened grid's Otsu threshold.
-    cv::blur(samples, sharpened, {3, 3}, {-1, -1}, cv::BORDER_REPLICATE);
-    sharpened = samples + 2.5 * (samples - sharpened);
-    cv::Mat s8;
-    sharpened.convertTo(s8, CV_8U);
-    cv::threshold(s8, bits, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
+    thresholdModules(n, 2.5, false);
     grid = known;
     for (int r = 0; r < n; ++r)
       for (int c = 0; c < n; ++c)

@@ -98,7 +98,7 @@ int main(int argc, char** argv) {
      << side_m << " m at 0.8-2.5 m, yaw within +-45 deg, any roll, random lighting, noise and JPEG; "
      << "AprilTag (tag36h11) and ArUco (4x4) markers of the same printed size at the same poses.\n\n";
   md << "| resolution | backend | front end | upload | blur | saturation | edges | readback | contours | colour | geometry | second look | corners | total | FPS | AprilTag 3 | x ours | ArUco | x ours | found: ours / AprilTag / ArUco |\n";
-  md << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  md << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   std::vector<std::string> table1, table2, notes, adaptive_rows;
   // GLES availability, once (a context made and dropped).
   std::string gles_why;

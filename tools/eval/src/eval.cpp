@@ -2,11 +2,10 @@
 
 #include <algorithm>
 #include <array>
-#include <stdexcept>
 #include <cmath>
 #include <memory>
-#include <optional>
 #include <random>
+#include <stdexcept>
 
 #include <opencv2/imgproc.hpp>
 
