@@ -6,7 +6,7 @@ BUILD_DIR ?= build
 BUILD_TYPE ?= Release
 JOBS ?= $(shell nproc)
 
-.PHONY: all deps configure build test demo clean asan-test fuzz
+.PHONY: all deps configure build test demo clean asan-test fuzz install package
 
 all: build
 
@@ -43,6 +43,15 @@ fuzz: deps
 # The main job on the embedded default (no camera needed).
 demo: build
 	bash scripts/demo.sh $(BUILD_DIR)
+
+# Install the build (run `make build` first; as root for a system prefix).
+PREFIX ?= /usr/local
+install:
+	cmake --install $(BUILD_DIR) --prefix $(PREFIX)
+
+# The Debian package (build/package/landmark_<version>_<arch>.deb, /usr prefix).
+package: build
+	cd $(BUILD_DIR) && cpack --config CPackConfig.cmake -B package
 
 clean:
 	rm -rf $(BUILD_DIR)

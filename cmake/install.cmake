@@ -1,0 +1,93 @@
+# Installation (`cmake --install build [--prefix DIR]`, `make install`) and
+# the Debian package (`make package`: cpack -G DEB).
+#
+#   bin/                         the processes and tools (ld-*)
+#   include/ld/                  the libraries' public headers and the
+#                                lcm-gen'd message headers
+#   lib/                         the libraries (static), and
+#   lib/cmake/landmark/          their CMake package: find_package(landmark)
+#                                gives landmark::detector, landmark::qr_reader,
+#                                landmark::landmark_msg, landmark::msgs,
+#                                landmark::lcmtypes, landmark::core
+#   lib/systemd/system/          the units of tools/systemd
+#   lib/sysctl.d/                the socket receive buffer setting
+#   share/landmark/              the message definitions (lcmtypes/*.lcm), the
+#                                types jar for lcm-spy (java/), the example
+#                                ld-run config and /etc/default/landmark
+#                                template (examples/)
+#   share/doc/landmark/          README and docs/
+include(CMakePackageConfigHelpers)
+
+# Programs a user runs (test-only helpers such as ld-publish-garbage stay out).
+set(LD_INSTALL_PROGRAMS
+  ld-camera ld-detector ld-tracker ld-qr-reader ld-run ld-play ld-view ld-dump
+  ld-log-images ld-detect ld-generate ld-synth ld-eval ld-bench ld-bench-tracker ld-soak)
+install(TARGETS ${LD_INSTALL_PROGRAMS} RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+install(PROGRAMS ${CMAKE_BINARY_DIR}/bin/ld-spy ${CMAKE_BINARY_DIR}/bin/ld-bench-e2e
+        DESTINATION ${CMAKE_INSTALL_BINDIR})
+
+# Libraries, with the names they have in the package.
+set_target_properties(ld_core PROPERTIES EXPORT_NAME core)
+set_target_properties(ld_detector PROPERTIES EXPORT_NAME detector)
+set_target_properties(ld_qr_reader PROPERTIES EXPORT_NAME qr_reader)
+set_target_properties(ld_landmark_msg PROPERTIES EXPORT_NAME landmark_msg)
+set_target_properties(ld_msgs PROPERTIES EXPORT_NAME msgs)
+set_target_properties(ld_lcmtypes PROPERTIES EXPORT_NAME lcmtypes)
+install(TARGETS ld_core ld_detector ld_qr_reader ld_landmark_msg ld_msgs ld_lcmtypes
+        EXPORT landmarkTargets
+        ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+        INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+# The command-line options header needs CLI11 and is the programs' own.
+install(DIRECTORY detector/include/ld qr_reader/include/ld lcmtypes/include/ld
+        DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
+        FILES_MATCHING PATTERN "*.hpp" PATTERN "detector_options.hpp" EXCLUDE)
+# lcm-gen's headers (lcmtypes/CMakeLists.txt writes them to cpp/ld/).
+install(DIRECTORY ${CMAKE_BINARY_DIR}/lcmtypes/cpp/ld DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
+        FILES_MATCHING PATTERN "*.hpp")
+install(EXPORT landmarkTargets NAMESPACE landmark::
+        DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/landmark)
+set(LD_PACKAGE_HAS_GLES ${LD_GLES_FOUND})
+set(LD_PACKAGE_HAS_GBM ${LD_GBM_FOUND})
+configure_package_config_file(cmake/landmarkConfig.cmake.in
+                              ${CMAKE_BINARY_DIR}/cmake/landmarkConfig.cmake
+                              INSTALL_DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/landmark)
+write_basic_package_version_file(${CMAKE_BINARY_DIR}/cmake/landmarkConfigVersion.cmake
+                                 COMPATIBILITY SameMinorVersion)
+install(FILES ${CMAKE_BINARY_DIR}/cmake/landmarkConfig.cmake
+              ${CMAKE_BINARY_DIR}/cmake/landmarkConfigVersion.cmake
+        DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/landmark)
+
+# Message definitions and the types jar (ld-spy finds it from bin/).
+install(DIRECTORY lcmtypes/ DESTINATION ${CMAKE_INSTALL_DATADIR}/landmark/lcmtypes
+        FILES_MATCHING PATTERN "*.lcm" PATTERN "include" EXCLUDE PATTERN "src" EXCLUDE)
+install(FILES ${CMAKE_BINARY_DIR}/java/ld_lcmtypes.jar DESTINATION ${CMAKE_INSTALL_DATADIR}/landmark/java)
+
+# systemd units, the sysctl setting, the site templates.
+install(FILES tools/systemd/landmark.target tools/systemd/ld-camera.service
+              tools/systemd/ld-detector.service tools/systemd/ld-tracker.service
+              tools/systemd/ld-qr-reader.service tools/systemd/ld-run@.service
+        DESTINATION lib/systemd/system)
+install(FILES tools/systemd/99-landmark-rmem.conf DESTINATION lib/sysctl.d)
+install(FILES tools/systemd/landmark.default tools/run/ld-run.example.json
+        DESTINATION ${CMAKE_INSTALL_DATADIR}/landmark/examples)
+install(FILES README.md DESTINATION ${CMAKE_INSTALL_DATADIR}/doc/landmark)
+install(DIRECTORY docs/ DESTINATION ${CMAKE_INSTALL_DATADIR}/doc/landmark/docs)
+
+# The Debian package: everything above under /usr, its dependencies found by
+# dpkg-shlibdeps from the programs' shared libraries.
+set(CPACK_GENERATOR DEB)
+set(CPACK_PACKAGE_NAME landmark)
+set(CPACK_PACKAGE_VERSION ${PROJECT_VERSION})
+set(CPACK_PACKAGING_INSTALL_PREFIX /usr)
+set(CPACK_PACKAGE_CONTACT "landmark maintainers <landmark@localhost>")
+set(CPACK_PACKAGE_DESCRIPTION_SUMMARY
+    "Colour landmark detection, tracking and QR reading for mobile robots over LCM")
+set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
+set(CPACK_DEBIAN_PACKAGE_SECTION science)
+set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
+# ld-spy runs lcm-spy's Java classes; ld-bench-e2e uses jq. The GLES backend
+# needs an EGL driver (Mesa's, or a GPU vendor's).
+set(CPACK_DEBIAN_PACKAGE_DEPENDS
+    "default-jre-headless | java-runtime-headless, liblcm-java, libjchart2d-java, jq")
+set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "libegl-mesa0, libgl1-mesa-dri, liblcm-bin")
+include(CPack)

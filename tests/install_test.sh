@@ -1,0 +1,83 @@
+#!/usr/bin/env bash
+# The installed project works outside the build tree:
+#   1. `cmake --install` puts programs, libraries, headers, the CMake package,
+#      systemd units, the types jar and the message definitions where
+#      cmake/install.cmake says (into a staging DESTDIR, prefix /opt/landmark);
+#   2. the installed programs run: ld-synth renders a landmark with a payload,
+#      ld-detect --decode finds it and reads the payload;
+#   3. the installed ld-spy uses the installed types jar, also after the
+#      prefix is moved, and lcm-spy's class discovery finds every type in it;
+#   4. a separate CMake project finds the package (find_package(landmark)),
+#      builds against it and detects and decodes the same landmark;
+#   5. the Debian package (cpack) holds the same files under /usr and has
+#      dependencies found from the programs' libraries.
+# usage: install_test.sh BUILD_DIR SOURCE_DIR
+set -euo pipefail
+build=$(cd "$1" && pwd); src=$(cd "$2" && pwd)
+T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+DESTDIR=$T/stage cmake --install "$build" --prefix /opt/landmark >"$T/install.log"
+P=$T/stage/opt/landmark
+for f in bin/ld-camera bin/ld-detector bin/ld-tracker bin/ld-qr-reader bin/ld-run bin/ld-play bin/ld-view \
+         bin/ld-detect bin/ld-synth bin/ld-generate bin/ld-eval bin/ld-bench bin/ld-spy bin/ld-bench-e2e \
+         include/ld/detector.hpp include/ld/qr_reader.hpp include/ld/landmark_list_t.hpp include/ld/image_t.hpp \
+         lib/libld_detector.a lib/cmake/landmark/landmarkConfig.cmake lib/cmake/landmark/landmarkTargets.cmake \
+         lib/systemd/system/landmark.target lib/systemd/system/ld-run@.service lib/sysctl.d/99-landmark-rmem.conf \
+         share/landmark/java/ld_lcmtypes.jar share/landmark/lcmtypes/landmark_list_t.lcm \
+         share/landmark/examples/ld-run.example.json share/landmark/examples/landmark.default \
+         share/doc/landmark/README.md; do
+  [ -e "$P/$f" ] || fail "not installed: $f"
+done
+for f in bin/ld-publish-garbage bin/ld-tracker-testlog include/ld/detector_options.hpp; do
+  [ ! -e "$P/$f" ] || fail "installed but only for the build's own use: $f"
+done
+[ -x "$P/bin/ld-detector" ] || fail "ld-detector not executable"
+echo "layout: ok"
+
+# 2. The installed programs, on a rendered landmark with a known payload.
+"$P/bin/ld-synth" scene --out "$T/scene" --seed 3 --size 0.15 --distance 0.5 --yaw 10 --roll 30 \
+  --x 0 --y 0 --payload installed-ok --lighting normal --degrade none --distractors 2 >/dev/null
+"$P/bin/ld-detect" --decode "$T/scene/000000.png" >"$T/detect.jsonl"
+payload=$(jq -r '.landmarks[0].payload' "$T/detect.jsonl")
+[ "$payload" = installed-ok ] || fail "installed ld-detect read '$payload', not installed-ok"
+echo "programs: ok (payload $payload)"
+
+# 3. ld-spy and the jar, in place and moved.
+jar=$("$P/bin/ld-spy" --types-jar)
+[ "$jar" -ef "$P/share/landmark/java/ld_lcmtypes.jar" ] || fail "installed ld-spy uses $jar"
+mv "$T/stage/opt/landmark" "$T/moved"
+P=$T/moved
+jar=$("$P/bin/ld-spy" --types-jar)
+[ "$jar" -ef "$P/share/landmark/java/ld_lcmtypes.jar" ] || fail "moved ld-spy uses $jar"
+bash "$src/tests/spy_types_test.sh" "$P/bin/ld-spy" "$P/share/landmark/lcmtypes" >/dev/null \
+  || fail "lcm-spy's discovery misses a type in the installed jar"
+echo "ld-spy: ok ($jar)"
+
+# 4. A project of the user's own against the installed package (moved prefix:
+#    the package's paths are relative to where it lies).
+cmake -S "$src/tests/install_consumer" -B "$T/consumer" -DCMAKE_PREFIX_PATH="$P" \
+  -DCMAKE_BUILD_TYPE=Release >"$T/consumer.log" 2>&1 || { cat "$T/consumer.log"; fail "consumer configure"; }
+cmake --build "$T/consumer" >>"$T/consumer.log" 2>&1 || { cat "$T/consumer.log"; fail "consumer build"; }
+out=$("$T/consumer/consumer" "$T/scene/000000.png")
+[ "$(wc -l <<<"$out")" -eq 1 ] || fail "consumer found not one landmark: $out"
+[ "$(cut -d' ' -f1 <<<"$out")" = installed-ok ] || fail "consumer read: $out"
+want=$(jq -r '.landmarks[0].corners[0] | "\(.[0]) \(.[1])"' "$T/detect.jsonl")
+awk -v a="$out" -v b="$want" 'BEGIN { split(a, x, " "); split(b, y, " ");
+  exit !((x[2] - y[1])^2 + (x[3] - y[2])^2 < 0.01) }' || fail "consumer corner $out, ld-detect $want"
+echo "find_package(landmark): ok ($out)"
+
+# 5. The Debian package.
+(cd "$build" && cpack --config CPackConfig.cmake -B "$T/pkg" >"$T/cpack.log" 2>&1) \
+  || { cat "$T/cpack.log"; fail "cpack"; }
+deb=$(ls "$T"/pkg/landmark_*.deb)
+dpkg-deb -c "$deb" >"$T/deb.list"
+for f in ./usr/bin/ld-detector ./usr/bin/ld-spy ./usr/lib/systemd/system/landmark.target \
+         ./usr/share/landmark/java/ld_lcmtypes.jar ./usr/lib/cmake/landmark/landmarkConfig.cmake; do
+  grep -q " $f\$" "$T/deb.list" || fail "package lacks $f"
+done
+depends=$(dpkg-deb -f "$deb" Depends)
+for d in liblcm libopencv-core libzbar libjchart2d-java; do
+  grep -q "$d" <<<"$depends" || fail "package Depends lacks $d: $depends"
+done
+echo "package: ok ($(basename "$deb"))"
