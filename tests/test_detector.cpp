@@ -845,6 +845,42 @@ TEST(Detector, BlankMiddleIsNoLandmark) {
   EXPECT_TRUE(det.detect(img).landmarks.empty());
 }
 
+// Glare clips a sheet's white: the QR's white modules clip with it, its dark
+// ones turn light grey where the veil is strongest and stay darker at its
+// edge, so the QR's mean is nearly the sheet's. Its grey modules still count
+// as a QR on a clipped sheet (the mean rule alone rejects it); a blank
+// middle on the same sheet still does not.
+TEST(Detector, WashedOutQrOnAClippedSheetStillCounts) {
+  auto washed = [](bool blank) {
+    cv::Mat art = artworkImage().clone();
+    const int u = art.cols / 9;
+    if (blank) art(cv::Rect(5 * u / 2, 5 * u / 2, 4 * u, 4 * u)).setTo(cv::Scalar(255, 255, 255));
+    art.forEach<cv::Vec3b>([&](cv::Vec3b& px, const int* pos) {
+      const int mx = std::max({px[0], px[1], px[2]}), mn = std::min({px[0], px[1], px[2]});
+      if (mx - mn > 40) return;  // the coloured squares keep their colour
+      // what is left of the ink's darkness: a veil strong on the right, weaker on the left
+      const int keep = pos[1] < art.cols / 2 ? 45 : 8;
+      for (int c = 0; c < 3; ++c) px[c] = cv::saturate_cast<uint8_t>(255 - (255 - px[c]) * keep / 100 + 4);
+    });
+    return art;
+  };
+  cv::Mat img = background(kCam.size, 23);
+  Placed p = place(0.6, 10, 20);
+  p.artwork = washed(false);
+  drawSheet(img, kCam, p);
+  ld::Detector det;
+  EXPECT_TRUE(onlyLandmark(det.detect(img), truthOf(kCam, p)));
+  ld::DetectorParams mean_only;
+  mean_only.qr_dark_samples = 26;
+  ld::Detector strict(mean_only);
+  EXPECT_TRUE(strict.detect(img).landmarks.empty()) << "the QR's mean passes: the test does not test the rule";
+
+  cv::Mat blank = background(kCam.size, 23);
+  p.artwork = washed(true);
+  drawSheet(blank, kCam, p);
+  EXPECT_TRUE(det.detect(blank).landmarks.empty());
+}
+
 // Hundreds of small blue and red dots: the graph is dense, the work bounded
 // (max_candidates, max_cycles), and the landmark's larger squares come first.
 TEST(Detector, DenseClutterStillFindsTheLandmark) {

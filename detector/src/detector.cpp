@@ -59,6 +59,8 @@ void forEachField(DetectorParams& p, F&& f) {
   f("sheet_min_value", p.sheet_min_value);
   f("sheet_uniformity", p.sheet_uniformity);
   f("qr_max_brightness", p.qr_max_brightness);
+  f("qr_dark_samples", p.qr_dark_samples);
+  f("qr_dark_sample", p.qr_dark_sample);
   f("cover_min", p.cover_min);
   f("cover_max", p.cover_max);
   f("complete_missing", p.complete_missing);
@@ -173,6 +175,8 @@ void DetectorParams::validate() const {
   if (!(cover_max > cover_min && cover_max <= 1)) bad("cover_max", "must be in (cover_min, 1]");
   if (!(sheet_uniformity >= 0 && sheet_uniformity <= 1)) bad("sheet_uniformity", "must be in [0, 1]");
   if (!(qr_max_brightness > 0 && qr_max_brightness <= 2)) bad("qr_max_brightness", "must be in (0, 2]");
+  if (qr_dark_samples < 1 || qr_dark_samples > 26) bad("qr_dark_samples", "must be in [1, 26]");
+  if (!(qr_dark_sample > 0 && qr_dark_sample <= 1)) bad("qr_dark_sample", "must be in (0, 1]");
   if (second_looks < 0 || second_looks > 64) bad("second_looks", "must be in [0, 64]");
   if (!(second_look_raise > 0 && second_look_raise < 1)) bad("second_look_raise", "must be in (0, 1)");
   if (max_candidates < 3 || max_candidates > 4096) bad("max_candidates", "must be in [3, 4096]");

@@ -92,6 +92,10 @@ double chroma(const double c[3], uint8_t colour) {
   return excess(c, colour) / std::max(1.0, (c[0] + c[1] + c[2]) / 3);
 }
 
+// A sheet this bright (mean of the channels, 0..255) is at or near the
+// sensor's white clip: glare, or the adapter's stretch of it.
+constexpr double kClippedSheet = 235;
+
 // How much more of a hue than the sheet's a saturated landmark centre may
 // have (printed blue and red have about 1 more).
 constexpr double kCentreChroma = 0.3;
@@ -578,14 +582,21 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   {
     const cv::Point2d ex = (P[1] - P[0]) * (1.0 / 6), ey = (P[3] - P[0]) * (1.0 / 6);
     double qr_mean = 0;
+    int dark = 0;
     for (int j = 0; j < 5; ++j)
       for (int i = 0; i < 5; ++i) {
         const double u = 3.1 + 0.7 * i - 1.5, v = 3.1 + 0.7 * j - 1.5;
         double c[3];
         if (!sampleBgr(bgr, P[0] + ex * u + ey * v, c)) return fail("outside the image");
-        qr_mean += (c[0] + c[1] + c[2]) / 75;
+        const double b = (c[0] + c[1] + c[2]) / 3;
+        qr_mean += b / 25;
+        const double mx = std::max({c[0], c[1], c[2]}), mn = std::min({c[0], c[1], c[2]});
+        dark += b < p.qr_dark_sample * sheet_mean && mx - mn <= p.sheet_max_saturation * mx;
       }
-    if (qr_mean > p.qr_max_brightness * sheet_mean) return fail("no QR");
+    // A sheet at the sensor's white clip (glare) hides the QR's white
+    // modules and lifts its mean: there its dark modules are the evidence.
+    const bool clipped = sheet_mean >= kClippedSheet;
+    if (qr_mean > p.qr_max_brightness * sheet_mean && !(clipped && dark >= p.qr_dark_samples)) return fail("no QR");
   }
   const cv::Point2d ctr = (P[0] + P[1] + P[2] + P[3]) * 0.25;
   {

@@ -174,6 +174,14 @@ struct DetectorParams {
   /// black modules (grey when too small to resolve) tell a landmark from
   /// squares of other things that happen to lie like one.
   double qr_max_brightness = 0.85;
+  /// ... or at least qr_dark_samples of the 25 points sampled over its middle
+  /// grey (no more saturated than the sheet may be) and darker than
+  /// qr_dark_sample times the sheet's brightness: a QR washed out by glare,
+  /// whose white modules clip with the sheet, still shows its dark ones (a
+  /// blank centre shows none, coloured squares are not grey).
+  /// qr_dark_samples = 26: the mean alone.
+  int qr_dark_samples = 4;
+  double qr_dark_sample = 0.8;
   /// Along each side of the quadrilateral (TL-TR, TR-AP, AP-BL, BL-TL) the
   /// two squares cover 1/3 of the distance between their centres, in any
   /// view; the colour profile's cover must lie in [cover_min, cover_max].
