@@ -4,9 +4,13 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <random>
 #include <set>
 
+#include "ld/detector.hpp"
 #include "ld/eval.hpp"
+#include "ld/qr_reader.hpp"
+#include "ld/synth.hpp"
 
 namespace {
 
@@ -73,4 +77,54 @@ TEST(QrDecodeRate, Landmark15cmPayloadsUpTo100BytesFrom30To60cm) {
   const auto t = sweep({0.3, 0.35, 0.4, 0.45, 0.5, 0.55, 0.6}, 0, 5, 2027);
   EXPECT_GE(t.decodeRate(), 0.95);
   EXPECT_EQ(t.wrong_payload, 0);
+}
+
+// ld-qr-reader's stack of an undecoded track's frames: 100-byte codes at 0.9
+// to 1 m (about one pixel per module), the same landmark in 8 frames a
+// fraction of a pixel apart, each with its own sensor noise and JPEG, read
+// at the detector's corners. Single frames do not resolve the modules;
+// their mean in the sheet's frame mostly does.
+TEST(QrStack, AveragedFramesReadWhatSingleFramesMiss) {
+  const ld::CameraModel cam = ld::CameraModel::defaultVga();
+  ld::Detector detector;
+  ld::QrReader reader;
+  std::mt19937_64 rng(77);
+  std::uniform_real_distribution<double> U(-1, 1);
+  int single = 0, singles = 0, stacked = 0, wrong = 0;
+  const int kPoses = 8, kFrames = 8;
+  for (int pose = 0; pose < kPoses; ++pose) {
+    std::string payload = ld::eval::payloadFor(5 * pose + 4);  // the 99-100-byte kind
+    const double distance = 0.9 + 0.05 * (pose % 3), yaw = 30 * U(rng), roll = 180 * U(rng);
+    const double nx = 0.3 * U(rng), ny = 0.3 * U(rng);
+    ld::QrStack stack;
+    for (int f = 0; f < kFrames; ++f) {
+      ld::synth::SceneSpec spec;
+      spec.camera = cam;
+      // a fraction of a pixel apart (2 / 640 of nx is one pixel)
+      spec.landmarks = {ld::synth::placeLandmark(cam, distance, yaw, 0, roll, nx + 0.002 * U(rng),
+                                                 ny + 0.002 * U(rng), 0.15, payload)};
+      spec.seed = 100 + pose;
+      spec.noise_seed = 1000 * pose + f + 1;
+      spec.degradation = {0.5, 0.0, 0.0, 4.0, 80};
+      const ld::synth::Frame frame = ld::synth::render(spec);
+      const auto& d = detector.detect(frame.bgr);
+      if (d.landmarks.size() != 1) continue;
+      ++singles;
+      if (auto r = reader.decode(frame.bgr, d.landmarks[0].corners)) {
+        single += r->payload == payload;
+        wrong += r->payload != payload;
+      }
+      stack.add(frame.bgr, d.landmarks[0].corners);
+    }
+    if (auto r = stack.decode(reader)) {
+      stacked += r->payload == payload;
+      wrong += r->payload != payload;
+    }
+    std::printf("pose %d (%.2f m, yaw %.0f): %d frames in the stack\n", pose, distance, yaw, stack.frames());
+  }
+  std::printf("single frames decoded %d/%d, stacks decoded %d/%d\n", single, singles, stacked, kPoses);
+  EXPECT_EQ(wrong, 0);
+  EXPECT_GE(singles, kPoses * kFrames * 9 / 10);      // the detector finds the landmark ...
+  EXPECT_LE(single, singles / 10);                    // ... but single frames do not read it
+  EXPECT_GE(stacked, kPoses * 5 / 8);                 // (measured: 0 / 61 frames, 6 / 8 stacks)
 }

@@ -318,4 +318,68 @@ std::optional<QrResult> QrReader::decode(const cv::Mat& image,
   return std::nullopt;
 }
 
+// ===================================================================== QrStack
+
+namespace {
+
+// The stack's view: the QR square and half a unit around it, at twice the
+// camera's resolution (at least 4 px a unit).
+constexpr double kStackMargin = 0.5;
+constexpr double kStackSpan = layout::kQrMax - layout::kQrMin + 2 * kStackMargin;
+int stackSide(double qr_px) {
+  return std::clamp(static_cast<int>(std::lround(2 * qr_px * kStackSpan / (layout::kQrMax - layout::kQrMin))),
+                    static_cast<int>(4 * kStackSpan), 600);
+}
+
+}  // namespace
+
+bool QrStack::add(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners) {
+  if (image.empty() || image.depth() != CV_8U) return false;
+  for (const auto& c : corners)
+    if (!std::isfinite(c.x) || !std::isfinite(c.y)) return false;
+  const double qr_px = projectedQrSide(corners);
+  if (!(qr_px >= 8.0)) return false;
+  if (n_ > 0 && std::abs(qr_px - qr_px_) > 0.25 * qr_px_) n_ = 0;
+  if (n_ == 0) qr_px_ = qr_px;
+
+  if (image.channels() == 3) cv::cvtColor(image, gray_, cv::COLOR_BGR2GRAY);
+  else if (image.channels() == 4) cv::cvtColor(image, gray_, cv::COLOR_BGRA2GRAY);
+  else gray_ = image;
+  const int side = stackSide(qr_px_);
+  cv::warpPerspective(gray_, view_, viewToImage(corners, side, kStackMargin), {side, side},
+                      cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
+  if (n_ == 0) {
+    view_.convertTo(mean_, CV_32F);
+  } else {
+    // mean += (view - mean) / min(n + 1, max_frames)
+    const double w = 1.0 / std::min(n_ + 1, std::max(1, max_frames_));
+    cv::Mat v;
+    view_.convertTo(v, CV_32F);
+    cv::addWeighted(mean_, 1 - w, v, w, 0, mean_);
+  }
+  ++n_;
+  return true;
+}
+
+cv::Mat QrStack::meanView() const {
+  cv::Mat out;
+  if (n_ > 0) mean_.convertTo(out, CV_8U);
+  return out;
+}
+
+std::optional<QrResult> QrStack::decode(QrReader& reader) const {
+  if (n_ == 0) return std::nullopt;
+  // The pattern square's corners in the view's pixels: the view maps sheet
+  // u = q0 + (x + 0.5) * span / side.
+  const int side = mean_.cols;
+  const double q0 = layout::kQrMin - kStackMargin, s = kStackSpan / side;
+  std::array<cv::Point2f, 4> corners;
+  for (int i = 0; i < 4; ++i) {
+    const auto& u = layout::kCornersU[static_cast<size_t>(i)];
+    corners[static_cast<size_t>(i)] = {static_cast<float>((u[0] - q0) / s - 0.5),
+                                       static_cast<float>((u[1] - q0) / s - 0.5)};
+  }
+  return reader.decode(meanView(), corners);
+}
+
 }  // namespace ld

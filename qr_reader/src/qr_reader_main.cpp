@@ -6,6 +6,7 @@
 #include <csignal>
 #include <cstdio>
 #include <iostream>
+#include <unordered_map>
 
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
@@ -73,6 +74,12 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--max-decodes", sched.max_decodes_per_frame, "decode attempts per frame")
       ->capture_default_str();
+  int stack_frames = 8;
+  app.add_option("--stack-frames", stack_frames,
+                 "frames of an undecoded track averaged in the sheet's frame and read when single "
+                 "frames fail (0: off)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 64));
   app.add_flag("-v,--verbose", verbose, "print each newly read payload");
   CLI11_PARSE(app, argc, argv);
 
@@ -95,7 +102,11 @@ int main(int argc, char** argv) {
   ld::qr_code_list_t out;
   cv::Mat bgr;
   std::vector<int64_t> ids;
-  int64_t frames = 0, decoded = 0;
+  // Undecoded tracks' frames, averaged (ld::QrStack); at most kMaxStacks.
+  constexpr size_t kMaxStacks = 32;
+  constexpr int kMinStackFrames = 3;
+  std::unordered_map<int64_t, ld::QrStack> stacks;
+  int64_t frames = 0, decoded = 0, decoded_stacked = 0;
   while (!g_stop) {
     // waits, then drains the queue: only the newest message is processed
     if (!ld::pumpLcm(lcm, 200, g_stop, "ld-qr-reader")) return 1;
@@ -109,6 +120,9 @@ int main(int argc, char** argv) {
     for (const auto& lm : list.landmarks)
       if (lm.visible && lm.track_id >= 0) ids.push_back(lm.track_id);
     const std::vector<int64_t> todo = book.schedule(ids, list.utime);
+    for (auto it = stacks.begin(); it != stacks.end();)  // tracks gone or read: their stacks go
+      it = std::find(ids.begin(), ids.end(), it->first) == ids.end() || book.payload(it->first)
+               ? stacks.erase(it) : std::next(it);
     if (!todo.empty()) {
       try {
         ld::imageToBgr(image, bgr);
@@ -126,15 +140,25 @@ int main(int argc, char** argv) {
         std::array<cv::Point2f, 4> corners;
         for (size_t i = 0; i < 4; ++i) corners[i] = {lm.corners[i][0], lm.corners[i][1]};
         const auto t0 = std::chrono::steady_clock::now();
-        const auto r = reader.decode(bgr, corners);
+        auto r = reader.decode(bgr, corners);
+        bool from_stack = false;
+        if (!r && stack_frames > 0 && !book.payload(lm.track_id) &&
+            (stacks.count(lm.track_id) || stacks.size() < kMaxStacks)) {
+          auto [it, made] = stacks.try_emplace(lm.track_id, stack_frames);
+          if (it->second.add(bgr, corners) && it->second.frames() >= kMinStackFrames)
+            from_stack = static_cast<bool>(r = it->second.decode(reader));
+        }
         ms = std::chrono::duration<float, std::milli>(std::chrono::steady_clock::now() - t0).count();
         const bool is_new = r && !book.payload(lm.track_id);
+        decoded_stacked += is_new && from_stack;
         book.record(lm.track_id, list.utime, list.seq,
                     r ? std::optional<std::string>(r->payload) : std::nullopt);
         if (is_new) {
           ++decoded;
+          stacks.erase(lm.track_id);
           if (verbose)
-            std::cerr << "ld-qr-reader: track " << lm.track_id << " reads \"" << r->payload << "\"\n";
+            std::cerr << "ld-qr-reader: track " << lm.track_id << " reads \"" << r->payload << "\""
+                      << (from_stack ? " (from its stacked frames)" : "") << "\n";
         }
       }
       if (const auto* k = book.payload(lm.track_id)) {
@@ -155,9 +179,10 @@ int main(int argc, char** argv) {
     lcm.publish(out_ch, &out);
   }
   std::fprintf(stderr,
-               "ld-qr-reader: stopped after %lld frames, %lld tracks read, %lld skipped, %lld "
-               "unmatched, %lld bad\n",
+               "ld-qr-reader: stopped after %lld frames, %lld tracks read (%lld from stacked frames), "
+               "%lld skipped, %lld unmatched, %lld bad\n",
                static_cast<long long>(frames), static_cast<long long>(decoded),
+               static_cast<long long>(decoded_stacked),
                static_cast<long long>(in.matcher.skipped()),
                static_cast<long long>(in.matcher.unmatchedDropped()), static_cast<long long>(in.bad));
   return 0;

@@ -58,4 +58,40 @@ class QrReader {
   std::unique_ptr<Impl> impl_;
 };
 
+/// Several frames of one landmark's QR averaged in the sheet's frame, for
+/// codes no single frame resolves: each frame is warped to the same upright
+/// view (the QR square and half a unit around it, at twice the camera's
+/// resolution), and the running mean of the views is decoded as an image of
+/// its own. Averaging lowers noise and JPEG blocks by the square root of
+/// the frames, and frames seen at different sub-pixel positions fill in
+/// detail one frame's pixels miss. ld-qr-reader keeps one per undecoded track.
+class QrStack {
+ public:
+  /// The mean is over the last `max_frames` frames (a running mean beyond).
+  explicit QrStack(int max_frames = 8) : max_frames_(max_frames) {}
+
+  /// Adds one frame (8-bit BGR or gray) with the landmark's pattern corners
+  /// (TL, TR, BR, BL). False, and nothing added, when the QR is too small to
+  /// read or a corner is not finite. A QR whose projected size differs from
+  /// the stack's by more than a quarter (the robot came closer) restarts it.
+  bool add(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners);
+
+  /// Frames in the mean.
+  int frames() const { return n_; }
+
+  /// Decodes the mean view with `reader` (every variation of QrReader::decode).
+  std::optional<QrResult> decode(QrReader& reader) const;
+
+  /// The mean view (8-bit gray), empty before the first frame.
+  cv::Mat meanView() const;
+
+  void clear() { n_ = 0; }
+
+ private:
+  int max_frames_;
+  int n_ = 0;
+  double qr_px_ = 0;  // the projected QR side of the stack's first frame
+  cv::Mat mean_, gray_, view_;
+};
+
 }  // namespace ld

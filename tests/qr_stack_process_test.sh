@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# ld-qr-reader reads a track's 100-byte code from its stacked frames where no
+# single frame reads it: ten frames of one 15 cm landmark at 0.9 m (about a
+# pixel per module), a fraction of a pixel apart, replayed through the whole
+# process set (ld-run --netns, real LCM multicast). With --stack-frames 0 the
+# same replay gives no payload.
+# usage: qr_stack_process_test.sh BIN_DIR
+set -euo pipefail
+BIN=$(cd "$1" && pwd)
+T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+payload=$(printf 'stacked-frames-%085d' 7)
+"$BIN/ld-synth" scene --out "$T/sc" --count 10 --seed 5 --size 0.15 --distance 0.9 --yaw 5 --roll 10 \
+  --x=-0.002:0.002 --y=-0.002:0.002 --payload "$payload" --lighting normal --background plain \
+  --distractors 0 --noise 4 --jpeg 80 --defocus 0.5 --motion 0 >/dev/null
+single=$("$BIN/ld-detect" --decode "$T/sc" | jq -r '.landmarks[0].payload' | grep -c stacked || true)
+[ "$single" -eq 0 ] || { echo "FAIL: single frames read the code ($single of 10): the test tests nothing"; exit 1; }
+"$BIN/ld-log-images" "$T/sc" "$T/sc.lcmlog" --fps 5 >/dev/null
+for frames in 8 0; do
+  echo "{\"qr_reader\": {\"args\": [\"--stack-frames\", \"$frames\"]}}" >"$T/cfg$frames.json"
+  timeout 60 "$BIN/ld-run" --config "$T/cfg$frames.json" --netns --replay "$T/sc.lcmlog" \
+    --exit-when-replay-done --summary "$T/sum$frames.json" --log-dir "$T/log$frames" --status-interval 0 -q
+  jq -r '.summary.tracks[] | "\(.id) \(.payload)"' "$T/sum$frames.json" >"$T/tracks$frames"
+  echo "--stack-frames $frames: $(cut -c1-40 "$T/tracks$frames")"
+done
+[ "$(wc -l <"$T/tracks8")" -eq 1 ] || { echo "FAIL: not one track"; exit 1; }
+[ "$(cut -d' ' -f2 "$T/tracks8")" = "$payload" ] || { echo "FAIL: stacked frames did not give the payload"; exit 1; }
+[ "$(cut -d' ' -f2 "$T/tracks0")" = null ] || { echo "FAIL: a payload without stacking"; exit 1; }
+echo "ok"
