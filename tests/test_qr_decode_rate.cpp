@@ -128,3 +128,21 @@ TEST(QrStack, AveragedFramesReadWhatSingleFramesMiss) {
   EXPECT_LE(single, singles / 10);                    // ... but single frames do not read it
   EXPECT_GE(stacked, kPoses * 5 / 8);                 // (measured: 0 / 61 frames, 6 / 8 stacks)
 }
+
+// ld-eval qr --stack: each trial read over several frames as ld-qr-reader
+// reads an undecoded track. 100-byte codes at 0.95 m: the frames' mean reads
+// codes no single frame does.
+TEST(QrDecodeRate, OverSeveralFramesAsTheProcessReads) {
+  ld::eval::SweepOptions o;
+  o.side_m = 0.15;
+  o.trials = 20;
+  o.seed = 31;
+  o.decode = true;
+  o.stack_frames = 8;
+  o.payload = [](int i) { return ld::eval::payloadFor(5 * i + 3 + i % 2); };
+  const auto p = ld::eval::measure(o, 0.95, 0, 30);
+  std::printf("0.95 m, 100 bytes: single frames %d/%d, over 8 frames %d/%d\n", p.decoded, p.trials,
+              p.decoded_stacked, p.trials);
+  EXPECT_EQ(p.wrong_payload, 0);
+  EXPECT_GE(p.decoded_stacked, p.decoded + 3);
+}

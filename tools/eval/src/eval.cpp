@@ -81,6 +81,40 @@ namespace {
 // The trials at one sweep point, every frame scored by each of `detectors`
 // (ours, one Point each), or by the options' marker detector when the target
 // is a marker (one Point).
+// A trial's QR over o.stack_frames frames, as ld-qr-reader reads an
+// undecoded track: the first frame (already rendered, its corners found)
+// and the scene rendered again with its own sensor noise, the landmark moved
+// by up to a third of a pixel, each found by the detector (frames where it
+// is not are left out); each frame read alone, and their mean (ld::QrStack).
+// The payloads read, the stack's last.
+std::vector<std::string> readOverFrames(const SweepOptions& o, synth::SceneSpec spec,
+                                        const synth::LandmarkPlacement& lm,
+                                        const std::array<cv::Point2f, 4>& corners, const cv::Mat& first,
+                                        AdaptiveDetector& detector, QrReader& reader) {
+  std::vector<std::string> reads;
+  QrStack stack(o.stack_frames);
+  stack.add(first, corners);
+  std::mt19937_64 rng(spec.seed * 0x9E3779B97F4A7C15ULL + 1);  // the trial's own: the sweep's draws stay as they are
+  std::uniform_real_distribution<double> U(-1, 1);
+  const cv::Vec3d t = lm.tvec;  // the sheet's centre in the camera frame
+  const double px = t[2] / o.camera.K(0, 0) / 3;  // a third of a pixel at the sheet's depth
+  for (int f = 1; f < o.stack_frames; ++f) {
+    spec.landmarks[0] = lm;
+    spec.landmarks[0].tvec = t + cv::Vec3d(px * U(rng), px * U(rng), 0);
+    spec.noise_seed = rng() | 1;
+    const synth::Frame frame = synth::render(spec);
+    const synth::LandmarkTruth& truth = frame.truth[0];
+    for (const Landmark& d : detectFresh(detector, frame.bgr).landmarks)
+      if (matchesTruth(d, {truth.fip_tl, truth.fip_tr, truth.fip_bl, truth.ap})) {
+        if (const auto r = reader.decode(frame.bgr, d.corners)) reads.push_back(r->payload);
+        stack.add(frame.bgr, d.corners);
+        break;
+      }
+  }
+  if (const auto r = stack.decode(reader)) reads.push_back(r->payload);
+  return reads;
+}
+
 std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector>& detectors, double distance_m,
                              double yaw_deg, double yaw_jitter_deg) {
   const bool marker = o.target != "landmark";
@@ -129,6 +163,13 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
           const auto r = reader.decode(frame.bgr, d.corners);
           if (r && r->payload == payload) ++p.decoded;
           if (r && r->payload != payload) ++p.wrong_payload;
+          if (o.stack_frames > 0) {
+            bool right = r && r->payload == payload, wrong = false;
+            for (const std::string& read : readOverFrames(o, spec, lm, d.corners, frame.bgr, detectors[i], reader))
+              (read == payload ? right : wrong) = true;
+            p.decoded_stacked += right;
+            p.wrong_payload += wrong;
+          }
         }
         break;
       }

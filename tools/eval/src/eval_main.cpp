@@ -177,6 +177,12 @@ int main(int argc, char** argv) {
   qr->add_option("--to", q_to)->capture_default_str();
   qr->add_option("--step", q_step)->capture_default_str();
   qr->add_option("--max-yaw", q_yaw, "yaw drawn within +-this, degrees")->capture_default_str();
+  int q_stack = 0;
+  qr->add_option("--stack", q_stack,
+                 "also read each trial's QR from this many frames averaged, as ld-qr-reader does for an "
+                 "undecoded track (the landmark moved a fraction of a pixel between frames); 0: single frames")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 64));
 
   Common sc;
   double s_detect = 3.0, s_read = 1.0, s_yaw = 30;
@@ -248,6 +254,7 @@ int main(int argc, char** argv) {
       auto o = qc.options();
       o.side_m = q_side;
       o.decode = true;
+      o.stack_frames = q_stack;
       const std::vector<double> ds = range(q_from, q_to, q_step);
       // payloadFor's kinds: 0-2 are 8-23 bytes, 3-4 are 99-100 bytes.
       struct Kind { std::string name; int first, count; };
@@ -261,15 +268,26 @@ int main(int argc, char** argv) {
         for (const auto& p : all.back()) s.points.emplace_back(p.distance_m, p.decodeRate());
         series.push_back(s);
       }
+      const std::string stacked = "over " + std::to_string(q_stack) + " frames";
+      if (q_stack > 0)
+        for (size_t k = 0; k < kinds.size(); ++k) {
+          Series s{kinds[k].name + ", " + stacked, {}};
+          for (const auto& p : all[k]) s.points.emplace_back(p.distance_m, p.stackedDecodeRate());
+          series.push_back(s);
+        }
       std::ostringstream t;
-      t << "| distance (m) | detected | decoded, " << kinds[0].name << " | decoded, " << kinds[1].name
-        << " | wrong payloads |\n|---|---|---|---|---|\n";
+      t << "| distance (m) | detected | decoded, " << kinds[0].name << " | decoded, " << kinds[1].name;
+      if (q_stack > 0)
+        t << " | " << stacked << ", " << kinds[0].name << " | " << stacked << ", " << kinds[1].name;
+      t << " | wrong payloads |\n|---|---|---|---|" << (q_stack > 0 ? "---|---|" : "") << "---|\n";
       for (size_t k = 0; k < ds.size(); ++k) {
         const auto& a = all[0][k];
         const auto& b = all[1][k];
         t << "| " << ds[k] << " | " << pct(a.detected + b.detected, a.trials + b.trials) << " % | "
-          << pct(a.decoded, a.trials) << " % | " << pct(b.decoded, b.trials) << " % | "
-          << a.wrong_payload + b.wrong_payload << " |\n";
+          << pct(a.decoded, a.trials) << " % | " << pct(b.decoded, b.trials) << " % | ";
+        if (q_stack > 0)
+          t << pct(a.decoded_stacked, a.trials) << " % | " << pct(b.decoded_stacked, b.trials) << " % | ";
+        t << a.wrong_payload + b.wrong_payload << " |\n";
       }
       emit(qc, t.str());
       if (!qc.png.empty()) plot(qc.png, "QR decode rate against distance (" + cm(q_side) + ")", "distance (m)", series);

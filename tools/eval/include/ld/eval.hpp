@@ -47,6 +47,12 @@ struct SweepOptions {
   double colour_temp_k = -1;  ///< 2700 tungsten .. 6500 daylight
   double gain = -1;           ///< 1 = well lit office
   double glare = -1;          ///< peak of a specular spot near the landmark
+  /// With decode: also read each trial's QR over this many frames as
+  /// ld-qr-reader reads an undecoded track: the same scene again with its
+  /// own sensor noise, the landmark moved by up to a third of a pixel each
+  /// time (a moving camera), found by the detector in each; read when any
+  /// frame alone or their mean (ld::QrStack) reads. 0: single frames only.
+  int stack_frames = 0;
 };
 
 /// One sweep point: the swept value and what happened in its trials.
@@ -56,8 +62,10 @@ struct Point {
   int detected = 0;       ///< the landmark was found (centres match the truth)
   int decoded = 0;        ///< ... and its QR read to exactly its payload
   int wrong_payload = 0;  ///< a payload other than the printed one (must stay 0)
+  int decoded_stacked = 0;  ///< read over stack_frames frames, alone or averaged (stack_frames > 0)
   double detectRate() const { return trials ? static_cast<double>(detected) / trials : 0; }
   double decodeRate() const { return trials ? static_cast<double>(decoded) / trials : 0; }
+  double stackedDecodeRate() const { return trials ? static_cast<double>(decoded_stacked) / trials : 0; }
 };
 
 /// The trials at one (distance, yaw), yaw drawn uniformly from
