@@ -195,6 +195,12 @@ int main(int argc, char** argv) {
   size->add_option("--max-yaw", s_yaw, "yaw drawn within +-this, degrees")->capture_default_str();
   size->add_option("--payload-bytes", s_payload, "payload length to read")->capture_default_str();
   size->add_option("--side", s_sides, "candidate sides, metres");
+  int s_stack = 0;
+  size->add_option("--stack", s_stack,
+                   "count a QR read when read over this many frames, as ld-qr-reader reads a track "
+                   "(a moving camera); 0: from single frames")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 64));
 
   Common lc;
   double l_side = 0.15, l_dist = 1.5, l_yaw = 40;
@@ -334,7 +340,9 @@ int main(int argc, char** argv) {
       auto o = sc.options();
       std::sort(s_sides.begin(), s_sides.end());
       std::ostringstream t;
-      t << "| side | detected at " << s_detect << " m | read at " << s_read << " m |\n|---|---|---|\n";
+      const std::string read_how = s_stack > 0 ? " over " + std::to_string(s_stack) + " frames" : "";
+      t << "| side | detected at " << s_detect << " m | read at " << s_read << " m" << read_how
+        << " |\n|---|---|---|\n";
       double answer = -1;
       for (double side : s_sides) {
         o.side_m = side;
@@ -346,16 +354,20 @@ int main(int argc, char** argv) {
           while (static_cast<int>(p.size()) < s_payload) p += static_cast<char>('a' + p.size() % 26);
           return p;
         };
+        o.stack_frames = s_stack;
         const auto rd = ld::eval::measure(o, s_read, 0, s_yaw);
+        o.stack_frames = 0;
+        const int read = s_stack > 0 ? rd.decoded_stacked : rd.decoded;
         t << "| " << cm(side) << " | " << pct(det.detected, det.trials) << " % | "
-          << pct(rd.decoded, rd.trials) << " % |\n";
-        if (det.detectRate() >= 0.95 && rd.decodeRate() >= 0.95) {
+          << pct(read, rd.trials) << " % |\n";
+        if (det.detectRate() >= 0.95 && read >= 0.95 * rd.trials) {
           answer = side;
           break;
         }
       }
       t << "\n" << (answer > 0 ? "smallest landmark: " + cm(answer) : std::string("no candidate side reaches 95 %"))
-        << " (detected at " << s_detect << " m and read at " << s_read << " m in 95 % of frames, yaw within +-"
+        << " (detected at " << s_detect << " m and read at " << s_read << " m" << read_how
+        << " in 95 % of frames, yaw within +-"
         << s_yaw << " deg)\n";
       emit(sc, t.str());
       return answer > 0 ? 0 : 3;

@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# ld-eval's command line: the size advisor's answer and exit codes, the QR
+# table with and without --stack, its plot, and a bad option refused.
+# usage: eval_cli_test.sh BIN_DIR
+set -euo pipefail
+BIN=$(cd "$1" && pwd)
+T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+# A 30 cm landmark is detected at 1 m and its short payload read at 0.5 m.
+"$BIN/ld-eval" size --detect-at 1 --read-at 0.5 --side 0.3 --trials 8 >"$T/size.md" 2>/dev/null \
+  || fail "size: exit $?"
+grep -q "^smallest landmark: 30 cm" "$T/size.md" || fail "size: $(cat "$T/size.md")"
+# No 5 cm landmark reads 100 bytes at 3 m: exit 3, and it says so.
+set +e
+"$BIN/ld-eval" size --detect-at 3 --read-at 3 --side 0.05 --payload-bytes 100 --trials 4 --stack 2 \
+  >"$T/none.md" 2>/dev/null
+rc=$?
+set -e
+[ $rc -eq 3 ] || fail "size with no answer: exit $rc, not 3"
+grep -q "no candidate side reaches 95 %" "$T/none.md" || fail "size with no answer: $(cat "$T/none.md")"
+grep -q "read at 3 m over 2 frames" "$T/none.md" || fail "size --stack: the table does not say so"
+
+# The QR table: 5 columns, 7 with --stack, and the plot.
+"$BIN/ld-eval" qr --trials 3 --from 0.3 --to 0.4 >"$T/qr.md" 2>/dev/null
+[ "$(grep -c '^| 0\.[34] ' "$T/qr.md")" -eq 2 ] || fail "qr: $(cat "$T/qr.md")"
+[ "$(head -1 "$T/qr.md" | tr -cd '|' | wc -c)" -eq 6 ] || fail "qr header: $(head -1 "$T/qr.md")"
+"$BIN/ld-eval" qr --trials 3 --from 0.3 --to 0.4 --stack 2 --png "$T/qr.png" >"$T/qrs.md" 2>/dev/null
+[ "$(head -1 "$T/qrs.md" | tr -cd '|' | wc -c)" -eq 8 ] || fail "qr --stack header: $(head -1 "$T/qrs.md")"
+grep -q "over 2 frames, 99-100 bytes" "$T/qrs.md" || fail "qr --stack: $(head -1 "$T/qrs.md")"
+awk -F'|' '/^\| 0\.3 / { exit !($5 ~ /100.0 %/ && $6 ~ /100.0 %/) }' "$T/qrs.md" \
+  || fail "qr --stack at 0.3 m: $(grep '^| 0.3 ' "$T/qrs.md")"
+[ -s "$T/qr.png" ] || fail "no plot"
+
+# A bad option is refused with a message naming it.
+if "$BIN/ld-eval" qr --stack 100 >/dev/null 2>"$T/err"; then fail "--stack 100 accepted"; fi
+grep -q -- "--stack" "$T/err" || fail "bad --stack: $(cat "$T/err")"
+echo ok
