@@ -80,6 +80,91 @@ TEST(CameraFile, NonFiniteAndNonCameraMatricesAreRefused) {
   }
 }
 
+// A user's existing calibration loads whichever tool wrote it: ROS's
+// camera_calibration (camera_info YAML: plain YAML, matrices as rows, cols
+// and data without OpenCV's type) and OpenCV's interactive calibration app
+// (cameraMatrix, dist_coeffs, cameraResolution), as well as OpenCV's
+// calibration sample (the tests above).
+TEST(CameraFile, RosAndInteractiveCalibrationFilesLoad) {
+  const std::string ros =
+      "image_width: 640\n"
+      "image_height: 480\n"
+      "camera_name: head_camera\n"
+      "camera_matrix:\n"
+      "  rows: 3\n"
+      "  cols: 3\n"
+      "  data: [438.783367, 0.000000, 305.593336, 0.000000, 437.302876, 243.738352, 0.000000, 0.000000, 1.000000]\n"
+      "distortion_model: plumb_bob\n"
+      "distortion_coefficients:\n"
+      "  rows: 1\n"
+      "  cols: 5\n"
+      "  data: [-0.361976, 0.110510, 0.001014, 0.000505, 0.000000]\n"
+      "rectification_matrix:\n"
+      "  rows: 3\n"
+      "  cols: 3\n"
+      "  data: [1, 0, 0, 0, 1, 0, 0, 0, 1]\n"
+      "projection_matrix:\n"
+      "  rows: 3\n"
+      "  cols: 4\n"
+      "  data: [300.0, 0, 306.0, 0, 0, 380.0, 241.0, 0, 0, 0, 1, 0]\n";
+  const ld::CameraModel r = ld::CameraModel::load(writeTemp("ost.yaml", ros));
+  EXPECT_EQ(r.size, cv::Size(640, 480));
+  EXPECT_DOUBLE_EQ(r.K(0, 0), 438.783367);
+  EXPECT_DOUBLE_EQ(r.K(1, 2), 243.738352);
+  ASSERT_EQ(r.dist.total(), 5u);
+  EXPECT_DOUBLE_EQ(r.dist.at<double>(0), -0.361976);
+  EXPECT_DOUBLE_EQ(r.dist.at<double>(3), 0.000505);
+
+  // A rectified camera: no coefficients at all.
+  std::string rectified = ros;
+  rectified.replace(rectified.find("  cols: 5\n  data: [-0.361976, 0.110510, 0.001014, 0.000505, 0.000000]"),
+                    std::string("  cols: 5\n  data: [-0.361976, 0.110510, 0.001014, 0.000505, 0.000000]").size(),
+                    "  cols: 0\n  data: []");
+  EXPECT_TRUE(ld::CameraModel::load(writeTemp("rect.yaml", rectified)).dist.empty());
+
+  auto loadError = [](const std::string& text) {
+    try {
+      ld::CameraModel::load(writeTemp("bad.yaml", text));
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  std::string fisheye = ros;
+  fisheye.replace(fisheye.find("plumb_bob"), 9, "equidistant");
+  EXPECT_NE(loadError(fisheye).find("distortion_model equidistant is not supported"), std::string::npos)
+      << loadError(fisheye);
+  std::string short_data = ros;
+  short_data.replace(short_data.find(", 0.000000, 0.000000, 1.000000]"), 31, "]");
+  EXPECT_NE(loadError(short_data).find("camera_matrix has 6 values, not 3x3"), std::string::npos)
+      << loadError(short_data);
+  std::string text_value = ros;
+  text_value.replace(text_value.find("438.783367"), 10, "fx");
+  EXPECT_NE(loadError(text_value).find("camera_matrix has a value that is not a number"), std::string::npos)
+      << loadError(text_value);
+
+  // What opencv_interactive-calibration writes (its saveCurrentCameraParameters keys).
+  for (const char* ext : {"xml", "yml"}) {
+    const std::string path = ::testing::TempDir() + "cameraParameters." + ext;
+    {
+      cv::FileStorage fs(path, cv::FileStorage::WRITE);
+      fs << "calibrationDate" << "Wed Dec  2 03:00:00 2026";
+      fs << "framesCount" << 20;
+      fs << "cameraResolution" << cv::Size(1280, 720);
+      fs << "cameraMatrix" << cv::Mat(cv::Matx33d(910, 0, 640.5, 0, 905, 361.25, 0, 0, 1));
+      fs << "cameraMatrix_std_dev" << cv::Mat(cv::Matx41d(1, 1, 0.5, 0.5));
+      fs << "dist_coeffs" << cv::Mat(cv::Matx<double, 1, 5>(0.1, -0.2, 0, 0, 0.05));
+      fs << "avg_reprojection_error" << 0.31;
+    }
+    const ld::CameraModel c = ld::CameraModel::load(path);
+    EXPECT_EQ(c.size, cv::Size(1280, 720)) << ext;
+    EXPECT_DOUBLE_EQ(c.K(0, 0), 910) << ext;
+    EXPECT_DOUBLE_EQ(c.K(1, 2), 361.25) << ext;
+    ASSERT_EQ(c.dist.total(), 5u) << ext;
+    EXPECT_DOUBLE_EQ(c.dist.at<double>(1), -0.2) << ext;
+  }
+}
+
 // p2 = 20 (tangential distortion): the distortion model does not invert
 // over the frame; the detector used to report NaN corners.
 TEST(CameraFile, DivergingDistortionGivesNoNonFiniteLandmark) {

@@ -24,10 +24,43 @@ cv::Mat readMatrix(const cv::FileNode& node, int max_elements, const std::string
       throw std::runtime_error("camera file " + path + ": " + name + " is " + std::to_string(r) +
                                "x" + std::to_string(c) + ", more than " +
                                std::to_string(max_elements) + " values");
+    if (node["dt"].empty()) {
+      // ROS camera_info (camera_calibration's files): rows, cols and data,
+      // without OpenCV's element type.
+      const cv::FileNode data = node["data"];
+      if (!data.isSeq())
+        throw std::runtime_error("camera file " + path + ": " + name + " has no data list");
+      if (static_cast<int64_t>(data.size()) != static_cast<int64_t>(r) * c)
+        throw std::runtime_error("camera file " + path + ": " + name + " has " + std::to_string(data.size()) +
+                                 " values, not " + std::to_string(r) + "x" + std::to_string(c));
+      if (r * c == 0) return {};
+      cv::Mat m(r, c, CV_64F);
+      int i = 0;
+      for (const cv::FileNode& v : data) {
+        if (!v.isReal() && !v.isInt())
+          throw std::runtime_error("camera file " + path + ": " + name + " has a value that is not a number");
+        m.at<double>(i++) = static_cast<double>(v);
+      }
+      return m;
+    }
   }
   cv::Mat m;
   node >> m;
   return m;
+}
+
+// The first of `names` the file has (calibration tools name the same thing
+// differently), and which one it was.
+cv::FileNode firstOf(const cv::FileStorage& fs, std::initializer_list<const char*> names, const char*& found) {
+  for (const char* n : names) {
+    const cv::FileNode node = fs[n];
+    if (!node.empty()) {
+      found = n;
+      return node;
+    }
+  }
+  found = *names.begin();
+  return {};
 }
 
 }  // namespace
@@ -46,8 +79,14 @@ CameraModel CameraModel::load(const std::string& path) {
   const cv::FileStorage fs = openConfigFile(path, "camera file");
   CameraModel c;
   try {
-    cv::Mat K = readMatrix(fs["camera_matrix"], 9, path, "camera_matrix");
-    if (K.empty()) throw std::runtime_error("camera file " + path + ": no camera_matrix");
+    // OpenCV's calibration sample and ROS camera_info: camera_matrix,
+    // distortion_coefficients, image_width, image_height; OpenCV's
+    // interactive calibration app: cameraMatrix, dist_coeffs,
+    // cameraResolution [w, h].
+    const char* k_name = nullptr;
+    const cv::FileNode k_node = firstOf(fs, {"camera_matrix", "cameraMatrix"}, k_name);
+    cv::Mat K = readMatrix(k_node, 9, path, k_name);
+    if (K.empty()) throw std::runtime_error("camera file " + path + ": no camera_matrix (or cameraMatrix)");
     if (K.rows != 3 || K.cols != 3)
       throw std::runtime_error("camera file " + path + ": camera_matrix is not 3x3");
     K.convertTo(K, CV_64F);
@@ -56,7 +95,17 @@ CameraModel CameraModel::load(const std::string& path) {
       throw std::runtime_error("camera file " + path + ": camera_matrix has a value that is not finite");
     if (!(c.K(0, 0) > 0) || !(c.K(1, 1) > 0))
       throw std::runtime_error("camera file " + path + ": focal lengths must be positive");
-    c.dist = readMatrix(fs["distortion_coefficients"], 14, path, "distortion_coefficients");
+    // ROS names its distortion model; only OpenCV's (plumb_bob, rational_polynomial) is this one.
+    const cv::FileNode model = fs["distortion_model"];
+    if (!model.empty()) {
+      const std::string m = model.isString() ? static_cast<std::string>(model) : std::string("?");
+      if (m != "plumb_bob" && m != "rational_polynomial")
+        throw std::runtime_error("camera file " + path + ": distortion_model " + m +
+                                 " is not supported (plumb_bob or rational_polynomial: OpenCV's pinhole model)");
+    }
+    const char* d_name = nullptr;
+    const cv::FileNode d_node = firstOf(fs, {"distortion_coefficients", "dist_coeffs"}, d_name);
+    c.dist = readMatrix(d_node, 14, path, d_name);
     if (!c.dist.empty()) {
       c.dist.convertTo(c.dist, CV_64F);
       c.dist = c.dist.reshape(1, 1);
@@ -71,8 +120,11 @@ CameraModel CameraModel::load(const std::string& path) {
     int w = 0, h = 0;
     if (!fs["image_width"].empty()) fs["image_width"] >> w;
     if (!fs["image_height"].empty()) fs["image_height"] >> h;
+    const cv::FileNode res = fs["cameraResolution"];
+    if (w <= 0 && h <= 0 && res.isSeq() && res.size() == 2 && res[0].isInt() && res[1].isInt())
+      w = static_cast<int>(res[0]), h = static_cast<int>(res[1]);
     if (w <= 0 || h <= 0)
-      throw std::runtime_error("camera file " + path + ": image_width/image_height missing");
+      throw std::runtime_error("camera file " + path + ": image_width/image_height (or cameraResolution) missing");
     c.size = {w, h};
     // a camera matrix: [fx s cx; 0 fy cy; 0 0 1], its principal point in the image
     if (c.K(1, 0) != 0 || c.K(2, 0) != 0 || c.K(2, 1) != 0 || c.K(2, 2) != 1)
