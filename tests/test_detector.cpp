@@ -470,6 +470,51 @@ TEST(ApChoiceRule, EveryApInTheGatesNearestFirst) {
   EXPECT_LT(choices[0].error, 1e-6);
 }
 
+// Of several APs in the gates the nearest is tried first, but the one kept
+// is the one whose landmark verifies: here a bar (three times as long as
+// wide, the AP's area) lies exactly where TR + BL - TL predicts, nearer than
+// the real AP, and verification refuses it.
+TEST(ApChoiceRule, TheApWhoseLandmarkVerifiesIsKept) {
+  cv::Mat img = background(kCam.size, 29, true);
+  const Placed placed = place(0.8, 0, 20);
+  drawSheet(img, kCam, placed);
+  const Truth t = truthOf(kCam, placed);
+  cv::Mat labels;
+  const ld::DetectorParams p;
+  ld::detail::saturationMask(img, {p.saturation_threshold_blue, p.saturation_threshold, p.value_min}, labels);
+  ld::detail::RunScratch scratch;
+  std::vector<Region> regions, fips, aps;
+  ld::detail::extractRegions(labels, img, kMt, 3, 100000, 0.0, scratch, regions);
+  for (const Region& r : regions) (r.colour == ld::detail::kBlue ? fips : aps).push_back(r);
+  ASSERT_EQ(fips.size(), 3u);
+  ASSERT_EQ(aps.size(), 1u);
+  auto nearest = [&](cv::Point2d c) {
+    int best = 0;
+    for (int i = 1; i < 3; ++i)
+      if (std::hypot(fips[i].cx - c.x, fips[i].cy - c.y) < std::hypot(fips[best].cx - c.x, fips[best].cy - c.y)) best = i;
+    return best;
+  };
+  const int tl = nearest(t.centres[0]), tr = nearest(t.centres[1]), bl = nearest(t.centres[2]);
+  Region bar = aps[0];
+  bar.cx = fips[tr].cx + fips[bl].cx - fips[tl].cx;
+  bar.cy = fips[tr].cy + fips[bl].cy - fips[tl].cy;
+  // the same determinant (so the same side()), three times as long as wide
+  const double l = std::sqrt(bar.sxx * bar.syy - bar.sxy * bar.sxy);
+  bar.sxx = 3 * l, bar.syy = l / 3, bar.sxy = 0;
+  aps.insert(aps.begin(), bar);  // index 0: the bar, 1: the real AP
+
+  std::vector<ld::detail::Candidate> choices;
+  ld::detail::apChoices({tl, tr, bl}, fips, aps, p, choices);
+  ASSERT_EQ(choices.size(), 2u);
+  ASSERT_EQ(choices[0].ap, 0) << "the bar is not the nearest choice: the test does not test the rule";
+  const char* why = nullptr;
+  EXPECT_FALSE(ld::detail::verify(choices[0], fips, aps, img, p, &why));
+  ld::detail::Candidate kept;
+  ASSERT_TRUE(ld::detail::bestVerifiedChoice({tl, tr, bl}, fips, aps, img, p, choices, kept));
+  EXPECT_EQ(kept.ap, 1) << "refused: " << (why ? why : "");
+  EXPECT_EQ(kept.tl, tl);
+}
+
 TEST(Overlaps, BestScoreWinsGreedily) {
   std::vector<ld::detail::Candidate> c(3);
   c[0] = {0, 1, 2, 0, 0.5, 0};

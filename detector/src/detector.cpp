@@ -492,12 +492,8 @@ void Detector::Impl::geometry(const cv::Mat& img) {
   for (const auto& cyc : cycles) {
     if (!whole || !detail::rightIsosceles(cyc, fips, kTriangleTolerance)) continue;
     // Of the APs that fit, the one whose landmark verifies best.
-    detail::apChoices(cyc, fips, aps, p, choices, &ap_index);
-    int best = -1;
-    for (int k = 0; k < static_cast<int>(choices.size()); ++k)
-      if (detail::verify(choices[k], fips, aps, img, p) && (best < 0 || choices[k].error < choices[best].error))
-        best = k;
-    if (best >= 0) candidates.push_back(choices[best]);
+    detail::Candidate c;
+    if (detail::bestVerifiedChoice(cyc, fips, aps, img, p, choices, c, &ap_index)) candidates.push_back(c);
   }
   if (completion) complete(img);
   detail::resolveOverlaps(candidates, static_cast<int>(fips.size()), static_cast<int>(aps.size()), used);

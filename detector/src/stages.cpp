@@ -506,6 +506,18 @@ bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
   return true;
 }
 
+bool bestVerifiedChoice(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
+                        const std::vector<Region>& aps, const cv::Mat& bgr, const DetectorParams& p,
+                        std::vector<Candidate>& choices, Candidate& out, const RegionIndex* ap_index) {
+  apChoices(cycle, fips, aps, p, choices, ap_index);
+  int best = -1;
+  for (int k = 0; k < static_cast<int>(choices.size()); ++k)
+    if (verify(choices[k], fips, aps, bgr, p) && (best < 0 || choices[k].error < choices[best].error)) best = k;
+  if (best < 0) return false;
+  out = choices[best];
+  return true;
+}
+
 bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Region>& aps,
             const cv::Mat& bgr, const DetectorParams& p, const char** why) {
   auto fail = [&](const char* reason) {

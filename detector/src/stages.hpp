@@ -179,6 +179,13 @@ bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
 bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Region>& aps,
             const cv::Mat& bgr, const DetectorParams& p, const char** why = nullptr);
 
+/// 7 and verification for one 3-cycle: of its AP choices (apChoices, into
+/// `choices`), the one whose landmark verifies with the least error, in
+/// `out`. False when none verifies.
+bool bestVerifiedChoice(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
+                        const std::vector<Region>& aps, const cv::Mat& bgr, const DetectorParams& p,
+                        std::vector<Candidate>& choices, Candidate& out, const RegionIndex* ap_index = nullptr);
+
 /// The fraction of the segment between two square centres a and b that the
 /// two squares cover, from the colour-excess profile along it (each end's
 /// hue: blue b - max(g, r), red r - max(g, b)) cut at half way between each
