@@ -353,21 +353,20 @@ bool QrStack::add(const cv::Mat& image, const std::array<cv::Point2f, 4>& corner
   } else {
     // mean += (view - mean) / min(n + 1, max_frames)
     const double w = 1.0 / std::min(n_ + 1, std::max(1, max_frames_));
-    cv::Mat v;
-    view_.convertTo(v, CV_32F);
-    cv::addWeighted(mean_, 1 - w, v, w, 0, mean_);
+    view_.convertTo(view_f_, CV_32F);
+    cv::addWeighted(mean_, 1 - w, view_f_, w, 0, mean_);
   }
   ++n_;
   return true;
 }
 
-cv::Mat QrStack::meanView() const {
-  cv::Mat out;
-  if (n_ > 0) mean_.convertTo(out, CV_8U);
-  return out;
+const cv::Mat& QrStack::meanView() {
+  if (n_ > 0) mean_.convertTo(mean8_, CV_8U);
+  else mean8_.release();
+  return mean8_;
 }
 
-std::optional<QrResult> QrStack::decode(QrReader& reader) const {
+std::optional<QrResult> QrStack::decode(QrReader& reader) {
   if (n_ == 0) return std::nullopt;
   // The pattern square's corners in the view's pixels: the view maps sheet
   // u = q0 + (x + 0.5) * span / side.

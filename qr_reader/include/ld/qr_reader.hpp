@@ -80,10 +80,12 @@ class QrStack {
   int frames() const { return n_; }
 
   /// Decodes the mean view with `reader` (every variation of QrReader::decode).
-  std::optional<QrResult> decode(QrReader& reader) const;
+  std::optional<QrResult> decode(QrReader& reader);
 
-  /// The mean view (8-bit gray), empty before the first frame.
-  cv::Mat meanView() const;
+  /// The mean view (8-bit gray), empty before the first frame. Valid until
+  /// the next call. Once warmed up, adding and decoding do not allocate for
+  /// a QR of the same size.
+  const cv::Mat& meanView();
 
   void clear() { n_ = 0; }
 
@@ -91,7 +93,7 @@ class QrStack {
   int max_frames_;
   int n_ = 0;
   double qr_px_ = 0;  // the projected QR side of the stack's first frame
-  cv::Mat mean_, gray_, view_;
+  cv::Mat mean_, gray_, view_, view_f_, mean8_;
 };
 
 }  // namespace ld
