@@ -28,7 +28,7 @@ grep -q "read at 3 m over 2 frames" "$T/none.md" || fail "size --stack: the tabl
 "$BIN/ld-eval" qr --trials 3 --from 0.3 --to 0.4 --stack 2 --png "$T/qr.png" >"$T/qrs.md" 2>/dev/null
 [ "$(head -1 "$T/qrs.md" | tr -cd '|' | wc -c)" -eq 8 ] || fail "qr --stack header: $(head -1 "$T/qrs.md")"
 grep -q "over 2 frames, 99-100 bytes" "$T/qrs.md" || fail "qr --stack: $(head -1 "$T/qrs.md")"
-awk -F'|' '/^\| 0\.3 / { exit !($5 ~ /100.0 %/ && $6 ~ /100.0 %/) }' "$T/qrs.md" \
+awk -F'|' '/^\| 0\.3 / { exit !($6 ~ /100.0 %/ && $7 ~ /100.0 %/) }' "$T/qrs.md" \
   || fail "qr --stack at 0.3 m: $(grep '^| 0.3 ' "$T/qrs.md")"
 [ -s "$T/qr.png" ] || fail "no plot"
 

@@ -50,6 +50,9 @@ mv "$T/stage/opt/landmark" "$T/moved"
 P=$T/moved
 jar=$("$P/bin/ld-spy" --types-jar)
 [ "$jar" -ef "$P/share/landmark/java/ld_lcmtypes.jar" ] || fail "moved ld-spy uses $jar"
+ln -s "$P/bin/ld-spy" "$T/ld-spy-link"  # as /usr/local/bin/ld-spy -> /opt/landmark/bin/ld-spy
+jar=$("$T/ld-spy-link" --types-jar)
+[ "$jar" -ef "$P/share/landmark/java/ld_lcmtypes.jar" ] || fail "ld-spy through a link uses $jar"
 bash "$src/tests/spy_types_test.sh" "$P/bin/ld-spy" "$P/share/landmark/lcmtypes" >/dev/null \
   || fail "lcm-spy's discovery misses a type in the installed jar"
 echo "ld-spy: ok ($jar)"
@@ -80,4 +83,11 @@ depends=$(dpkg-deb -f "$deb" Depends)
 for d in liblcm libopencv-core libzbar libjchart2d-java; do
   grep -q "$d" <<<"$depends" || fail "package Depends lacks $d: $depends"
 done
+dpkg-deb -e "$deb" "$T/control"
+for f in postinst postrm; do
+  [ -x "$T/control/$f" ] || fail "package has no executable $f"
+done
+grep -q "sysctl -q -p /usr/lib/sysctl.d/99-landmark-rmem.conf" "$T/control/postinst" \
+  || fail "postinst does not apply the installed sysctl file"
+grep -q " ./usr/lib/sysctl.d/99-landmark-rmem.conf\$" "$T/deb.list" || fail "package lacks the sysctl file"
 echo "package: ok ($(basename "$deb"))"

@@ -141,8 +141,9 @@ TEST(QrDecodeRate, OverSeveralFramesAsTheProcessReads) {
   o.stack_frames = 8;
   o.payload = [](int i) { return ld::eval::payloadFor(5 * i + 3 + i % 2); };
   const auto p = ld::eval::measure(o, 0.95, 0, 30);
-  std::printf("0.95 m, 100 bytes: single frames %d/%d, over 8 frames %d/%d\n", p.decoded, p.trials,
-              p.decoded_stacked, p.trials);
+  std::printf("0.95 m, 100 bytes: single frames %d/%d, over 8 frames %d/%d (the mean: %d)\n", p.decoded,
+              p.trials, p.decoded_stacked, p.trials, p.decoded_mean);
   EXPECT_EQ(p.wrong_payload, 0);
   EXPECT_GE(p.decoded_stacked, p.decoded + 3);
+  EXPECT_GE(p.decoded_mean, 3);  // the mean itself reads, not only one of the 8 frames alone
 }

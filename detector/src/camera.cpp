@@ -88,17 +88,17 @@ CameraModel CameraModel::load(const std::string& path) {
     cv::Mat K = readMatrix(k_node, 9, path, k_name);
     if (K.empty()) throw std::runtime_error("camera file " + path + ": no camera_matrix (or cameraMatrix)");
     if (K.rows != 3 || K.cols != 3)
-      throw std::runtime_error("camera file " + path + ": camera_matrix is not 3x3");
+      throw std::runtime_error("camera file " + path + ": " + k_name + " is not 3x3");
     K.convertTo(K, CV_64F);
     c.K = cv::Matx33d(K);
     if (!cv::checkRange(K))
-      throw std::runtime_error("camera file " + path + ": camera_matrix has a value that is not finite");
+      throw std::runtime_error("camera file " + path + ": " + k_name + " has a value that is not finite");
     if (!(c.K(0, 0) > 0) || !(c.K(1, 1) > 0))
       throw std::runtime_error("camera file " + path + ": focal lengths must be positive");
     // ROS names its distortion model; only OpenCV's (plumb_bob, rational_polynomial) is this one.
     const cv::FileNode model = fs["distortion_model"];
     if (!model.empty()) {
-      const std::string m = model.isString() ? static_cast<std::string>(model) : std::string("?");
+      const std::string m = model.isString() ? static_cast<std::string>(model) : std::string("that is not a name");
       if (m != "plumb_bob" && m != "rational_polynomial")
         throw std::runtime_error("camera file " + path + ": distortion_model " + m +
                                  " is not supported (plumb_bob or rational_polynomial: OpenCV's pinhole model)");
@@ -111,11 +111,9 @@ CameraModel CameraModel::load(const std::string& path) {
       c.dist = c.dist.reshape(1, 1);
       const int n = c.dist.cols;
       if (n != 4 && n != 5 && n != 8 && n != 12 && n != 14)
-        throw std::runtime_error("camera file " + path +
-                                 ": distortion_coefficients must have 4, 5, 8, 12 or 14 values");
+        throw std::runtime_error("camera file " + path + ": " + d_name + " must have 4, 5, 8, 12 or 14 values");
       if (!cv::checkRange(c.dist))
-        throw std::runtime_error("camera file " + path +
-                                 ": distortion_coefficients has a value that is not finite");
+        throw std::runtime_error("camera file " + path + ": " + d_name + " has a value that is not finite");
     }
     int w = 0, h = 0;
     if (!fs["image_width"].empty()) fs["image_width"] >> w;
@@ -128,8 +126,7 @@ CameraModel CameraModel::load(const std::string& path) {
     c.size = {w, h};
     // a camera matrix: [fx s cx; 0 fy cy; 0 0 1], its principal point in the image
     if (c.K(1, 0) != 0 || c.K(2, 0) != 0 || c.K(2, 1) != 0 || c.K(2, 2) != 1)
-      throw std::runtime_error("camera file " + path +
-                               ": camera_matrix is not of the form [fx s cx; 0 fy cy; 0 0 1]");
+      throw std::runtime_error("camera file " + path + ": " + k_name + " is not of the form [fx s cx; 0 fy cy; 0 0 1]");
     if (!(c.K(0, 2) >= -1 && c.K(0, 2) <= w) || !(c.K(1, 2) >= -1 && c.K(1, 2) <= h))
       throw std::runtime_error("camera file " + path + ": principal point (" +
                                std::to_string(c.K(0, 2)) + ", " + std::to_string(c.K(1, 2)) +

@@ -277,9 +277,11 @@ std::optional<QrResult> QrReader::decode(const cv::Mat& image,
   const double qr_px = projectedQrSide(corners);
   if (!(qr_px >= 8.0)) return std::nullopt;  // nothing to read
 
+  // (m.gray is always the reader's own buffer: a gray image is copied, not
+  // shared, so a later colour frame is never converted into the caller's.)
   if (image.channels() == 3) cv::cvtColor(image, m.gray, cv::COLOR_BGR2GRAY);
   else if (image.channels() == 4) cv::cvtColor(image, m.gray, cv::COLOR_BGRA2GRAY);
-  else m.gray = image;
+  else image.copyTo(m.gray);
 
   const int side = std::clamp(static_cast<int>(std::lround(p.upsample * qr_px)), p.min_side_px,
                               p.max_side_px);
@@ -344,7 +346,7 @@ bool QrStack::add(const cv::Mat& image, const std::array<cv::Point2f, 4>& corner
 
   if (image.channels() == 3) cv::cvtColor(image, gray_, cv::COLOR_BGR2GRAY);
   else if (image.channels() == 4) cv::cvtColor(image, gray_, cv::COLOR_BGRA2GRAY);
-  else gray_ = image;
+  else image.copyTo(gray_);
   const int side = stackSide(qr_px_);
   cv::warpPerspective(gray_, view_, viewToImage(corners, side, kStackMargin), {side, side},
                       cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);

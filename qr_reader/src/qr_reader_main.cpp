@@ -95,6 +95,7 @@ int main(int argc, char** argv) {
   std::signal(SIGTERM, onSignal);
 
   ld::QrReader reader;
+  ld::QrReader stack_reader;  // its own buffers: the stacks' views have their own size
   ld::QrTrackBook book(sched);
   ld::FrameMatcher::Pair pair;
   ld::image_t image;
@@ -120,9 +121,11 @@ int main(int argc, char** argv) {
     for (const auto& lm : list.landmarks)
       if (lm.visible && lm.track_id >= 0) ids.push_back(lm.track_id);
     const std::vector<int64_t> todo = book.schedule(ids, list.utime);
-    for (auto it = stacks.begin(); it != stacks.end();)  // tracks gone or read: their stacks go
-      it = std::find(ids.begin(), ids.end(), it->first) == ids.end() || book.payload(it->first)
-               ? stacks.erase(it) : std::next(it);
+    for (auto it = stacks.begin(); it != stacks.end();) {  // tracks gone or read: their stacks go
+      bool listed = false;  // visible or coasting
+      for (const auto& lm : list.landmarks) listed |= lm.track_id == it->first;
+      it = !listed || book.payload(it->first) ? stacks.erase(it) : std::next(it);
+    }
     if (!todo.empty()) {
       try {
         ld::imageToBgr(image, bgr);
@@ -146,7 +149,7 @@ int main(int argc, char** argv) {
             (stacks.count(lm.track_id) || stacks.size() < kMaxStacks)) {
           auto [it, made] = stacks.try_emplace(lm.track_id, stack_frames);
           if (it->second.add(bgr, corners) && it->second.frames() >= kMinStackFrames)
-            from_stack = static_cast<bool>(r = it->second.decode(reader));
+            from_stack = static_cast<bool>(r = it->second.decode(stack_reader));
         }
         ms = std::chrono::duration<float, std::milli>(std::chrono::steady_clock::now() - t0).count();
         const bool is_new = r && !book.payload(lm.track_id);

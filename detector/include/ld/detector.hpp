@@ -174,8 +174,9 @@ struct DetectorParams {
   /// black modules (grey when too small to resolve) tell a landmark from
   /// squares of other things that happen to lie like one.
   double qr_max_brightness = 0.85;
-  /// ... or at least qr_dark_samples of the 25 points sampled over its middle
-  /// grey (no more saturated than the sheet may be) and darker than
+  /// ... or, on a sheet at the sensor's white clip (its samples' mean of the
+  /// channels 235 or more), at least qr_dark_samples of the 25 points
+  /// sampled over its middle grey (no more saturated than the sheet may be) and darker than
   /// qr_dark_sample times the sheet's brightness: a QR washed out by glare,
   /// whose white modules clip with the sheet, still shows its dark ones (a
   /// blank centre shows none, coloured squares are not grey).

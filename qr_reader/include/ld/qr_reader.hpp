@@ -4,6 +4,7 @@
 // (QR only), retried with a few variations before giving up.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <memory>
 #include <optional>
@@ -67,7 +68,8 @@ class QrReader {
 /// detail one frame's pixels miss. ld-qr-reader keeps one per undecoded track.
 class QrStack {
  public:
-  /// The mean is over the last `max_frames` frames (a running mean beyond).
+  /// The first `max_frames` frames weigh the same; each later one weighs
+  /// 1 / max_frames (an exponential mean: older frames fade out).
   explicit QrStack(int max_frames = 8) : max_frames_(max_frames) {}
 
   /// Adds one frame (8-bit BGR or gray) with the landmark's pattern corners
@@ -76,8 +78,8 @@ class QrStack {
   /// the stack's by more than a quarter (the robot came closer) restarts it.
   bool add(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners);
 
-  /// Frames in the mean.
-  int frames() const { return n_; }
+  /// Frames in the mean (at most max_frames: older ones have faded).
+  int frames() const { return std::min(n_, std::max(1, max_frames_)); }
 
   /// Decodes the mean view with `reader` (every variation of QrReader::decode).
   std::optional<QrResult> decode(QrReader& reader);

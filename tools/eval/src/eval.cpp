@@ -78,19 +78,17 @@ const Detection& detectFresh(AdaptiveDetector& detector, const cv::Mat& bgr) {
 
 namespace {
 
-// The trials at one sweep point, every frame scored by each of `detectors`
-// (ours, one Point each), or by the options' marker detector when the target
-// is a marker (one Point).
 // A trial's QR over o.stack_frames frames, as ld-qr-reader reads an
 // undecoded track: the first frame (already rendered, its corners found)
 // and the scene rendered again with its own sensor noise, the landmark moved
 // by up to a third of a pixel, each found by the detector (frames where it
 // is not are left out); each frame read alone, and their mean (ld::QrStack).
-// The payloads read, the stack's last.
+// The payloads read, the mean's (if it read) last; `from_mean` says whether
+// the mean read.
 std::vector<std::string> readOverFrames(const SweepOptions& o, synth::SceneSpec spec,
                                         const synth::LandmarkPlacement& lm,
                                         const std::array<cv::Point2f, 4>& corners, const cv::Mat& first,
-                                        AdaptiveDetector& detector, QrReader& reader) {
+                                        AdaptiveDetector& detector, QrReader& reader, bool& from_mean) {
   std::vector<std::string> reads;
   QrStack stack(o.stack_frames);
   stack.add(first, corners);
@@ -111,9 +109,17 @@ std::vector<std::string> readOverFrames(const SweepOptions& o, synth::SceneSpec 
         break;
       }
   }
-  if (const auto r = stack.decode(reader)) reads.push_back(r->payload);
+  from_mean = false;
+  if (const auto r = stack.decode(reader)) {
+    reads.push_back(r->payload);
+    from_mean = true;
+  }
   return reads;
 }
+
+// The trials at one sweep point, every frame scored by each of `detectors`
+// (ours, one Point each), or by the options' marker detector when the target
+// is a marker (one Point).
 
 std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector>& detectors, double distance_m,
                              double yaw_deg, double yaw_jitter_deg) {
@@ -164,11 +170,13 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
           if (r && r->payload == payload) ++p.decoded;
           if (r && r->payload != payload) ++p.wrong_payload;
           if (o.stack_frames > 0) {
-            bool right = r && r->payload == payload, wrong = false;
-            for (const std::string& read : readOverFrames(o, spec, lm, d.corners, frame.bgr, detectors[i], reader))
-              (read == payload ? right : wrong) = true;
+            bool right = r && r->payload == payload, wrong = r && r->payload != payload, from_mean = false;
+            const auto reads = readOverFrames(o, spec, lm, d.corners, frame.bgr, detectors[i], reader, from_mean);
+            for (const std::string& read : reads) (read == payload ? right : wrong) = true;
             p.decoded_stacked += right;
-            p.wrong_payload += wrong;
+            p.decoded_mean += from_mean && reads.back() == payload;
+            // one wrong payload per trial, whichever frame or the mean gave it
+            p.wrong_payload += wrong && !(r && r->payload != payload);
           }
         }
         break;

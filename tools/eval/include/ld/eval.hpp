@@ -63,6 +63,7 @@ struct Point {
   int decoded = 0;        ///< ... and its QR read to exactly its payload
   int wrong_payload = 0;  ///< a payload other than the printed one (must stay 0)
   int decoded_stacked = 0;  ///< read over stack_frames frames, alone or averaged (stack_frames > 0)
+  int decoded_mean = 0;     ///< ... of which the frames' mean (ld::QrStack) read it
   double detectRate() const { return trials ? static_cast<double>(detected) / trials : 0; }
   double decodeRate() const { return trials ? static_cast<double>(decoded) / trials : 0; }
   double stackedDecodeRate() const { return trials ? static_cast<double>(decoded_stacked) / trials : 0; }
