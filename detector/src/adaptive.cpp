@@ -22,6 +22,7 @@ constexpr int kGlareBlock = 8;
 LightingAdapter::LightingAdapter(const AdaptiveParams& params)
     : params_(params),
       hist_(256),
+      level_sums_(256),
       // the window in blocks (odd), and the reach of a veiled block's smoothing
       window_kernel_(cv::getStructuringElement(
           cv::MORPH_RECT, cv::Size(1, 1) * (std::max(1, params.glare_window / kGlareBlock) | 1))),
@@ -180,25 +181,24 @@ const cv::Mat& LightingAdapter::correct(const cv::Mat& bgr_in) {
     // channel under any usual light; bright coloured ones (beige furniture,
     // yellow posters) are dark in one, so they do not pull the estimate.
     constexpr int kStep = 4;
+    // One pass: per weakest-channel level, the count and the channel sums.
     std::fill(hist_.begin(), hist_.end(), 0);
+    std::fill(level_sums_.begin(), level_sums_.end(), cv::Vec3d(0, 0, 0));
     int n = 0;
     for (int y = 0; y < bgr.rows; y += kStep) {
       const auto* row = bgr.ptr<cv::Vec3b>(y);
-      for (int x = 0; x < bgr.cols; x += kStep, ++n)
-        ++hist_[std::min({row[x][0], row[x][1], row[x][2]})];
+      for (int x = 0; x < bgr.cols; x += kStep, ++n) {
+        const int v = std::min({row[x][0], row[x][1], row[x][2]});
+        ++hist_[v];
+        level_sums_[v] += cv::Vec3d(row[x][0], row[x][1], row[x][2]);
+      }
     }
     const int want = std::max(1, static_cast<int>(params_.bright_fraction * n));
     int level = 249, count = 0;  // white clipped in every channel tells nothing
     for (; level > 0 && count + hist_[level] < want; --level) count += hist_[level];
     cv::Vec3d sum(0, 0, 0);
     int m = 0;
-    for (int y = 0; y < bgr.rows; y += kStep) {
-      const auto* row = bgr.ptr<cv::Vec3b>(y);
-      for (int x = 0; x < bgr.cols; x += kStep) {
-        const int v = std::min({row[x][0], row[x][1], row[x][2]});
-        if (v >= level && v < 250) sum += cv::Vec3d(row[x][0], row[x][1], row[x][2]), ++m;
-      }
-    }
+    for (int v = level; v < 250; ++v) sum += level_sums_[v], m += hist_[v];
     if (m > 0) update(sum / m);
   }
   if (white_[0] <= 0) return bgr;

@@ -90,6 +90,7 @@ class LightingAdapter {
   int frames_since_landmark_ = 1 << 20;
   cv::Mat corrected_;
   std::vector<int> hist_;
+  std::vector<cv::Vec3d> level_sums_;  // the frame estimate's channel sums per weakest-channel level
   bool glare_corrected_ = false;
   cv::Mat deglared_, row_min_, block_min_, block_white_, local_black_, local_white_, veil_coarse_, veiled_;
   cv::Mat window_kernel_, spread_kernel_;  // the glare pass's morphology
