@@ -6,7 +6,7 @@ namespace ld {
 
 void DetectorOptions::addTo(CLI::App& app) {
   app.add_option("--params", params_file, "detector parameters (YAML)");
-  app.add_option("--camera", camera_file, "camera calibration (OpenCV YAML/XML), for pose");
+  app.add_option("--camera", camera_file, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration), for pose");
   app.add_option("--size", side_m, "printed landmark side S in metres, for pose");
   app.add_option("--backend", backend,
                  "where the filters run: cpu; gles (OpenGL ES on a headless EGL context, an error when none "

@@ -112,7 +112,7 @@ struct Common {
 };
 
 void addCommon(CLI::App* app, Common& c) {
-  app->add_option("--camera", c.camera_file, "camera calibration (OpenCV YAML/XML); default 640x480, f = 600 px");
+  app->add_option("--camera", c.camera_file, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration); default 640x480, f = 600 px");
   app->add_option("--params", c.params_file, "detector parameters (YAML)");
   app->add_option("--trials", c.trials, "frames per sweep point")->check(CLI::PositiveNumber);
   app->add_option("--seed", c.seed, "scene seed");

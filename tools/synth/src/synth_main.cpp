@@ -298,7 +298,7 @@ int main(int argc, char** argv) {
   scene->add_option("--out,-o", sa.out, "output folder")->required();
   scene->add_option("--count,-n", sa.count, "number of frames")->capture_default_str();
   scene->add_option("--seed", sa.seed, "random seed (same seed, same bytes)")->capture_default_str();
-  scene->add_option("--camera", sa.camera, "OpenCV calibration file (default: 640x480, f = 600 px)");
+  scene->add_option("--camera", sa.camera, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration; default: 640x480, f = 600 px)");
   scene->add_option("--resolution", sa.resolution, "image size WxH (scales the camera; f = 600 px per 640 without --camera)");
   scene->add_option("--size", sa.size, "landmark side S in metres, or a range a:b")->capture_default_str();
   scene->add_option("--distance", sa.distance, "distance to the sheet's centre, metres")->capture_default_str();
@@ -337,7 +337,7 @@ int main(int argc, char** argv) {
   sequence->add_option("--size", qo.side_m, "landmark side S in metres")->capture_default_str();
   sequence->add_option("--seed", qo.seed, "random seed (same seed, same bytes)")->capture_default_str();
   sequence->add_option("--start-utime", qo.start_utime, "utime of the first frame, microseconds")->capture_default_str();
-  sequence->add_option("--camera", q_camera, "OpenCV calibration file (default: 640x480, f = 600 px)");
+  sequence->add_option("--camera", q_camera, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration; default: 640x480, f = 600 px)");
   sequence->add_option("--resolution", q_resolution, "image size WxH");
   bool no_png = false;
   sequence->add_flag("--no-png", no_png, "no PNG frames (truth.jsonl and the log only)");
