@@ -178,6 +178,20 @@ TEST(Artwork, SheetHoldsEveryLandmarkAndDecodes) {
                std::invalid_argument);
 }
 
+TEST(Artwork, LandmarksPerPage) {
+  // A4 less 10 mm margins, 8 mm gaps, a label under each (6 % of the side, at least 4 mm)
+  EXPECT_EQ(ld::artwork::landmarksPerPage(150.0), 1);
+  EXPECT_EQ(ld::artwork::landmarksPerPage(60.0), 6);                  // 2 across, 3 down
+  EXPECT_EQ(ld::artwork::landmarksPerPage(90.0, {297.0, 420.0}), 6);  // A3: 2 across, 3 down
+  EXPECT_EQ(ld::artwork::landmarksPerPage(40.0), 20);                 // 4 across, 5 down
+  EXPECT_THROW(ld::artwork::landmarksPerPage(300.0), std::invalid_argument);
+  // As many as the count says fit one page; one more does not.
+  const int n = ld::artwork::landmarksPerPage(60.0);
+  EXPECT_NO_THROW(ld::artwork::sheetSvg(std::vector<std::string>(static_cast<size_t>(n), "x"), 60.0));
+  EXPECT_THROW(ld::artwork::sheetSvg(std::vector<std::string>(static_cast<size_t>(n) + 1, "x"), 60.0),
+               std::invalid_argument);
+}
+
 TEST(Artwork, PixelsForDpi) {
   EXPECT_EQ(ld::artwork::sidePixels(0.0254, 300), 300);
   EXPECT_EQ(ld::artwork::sidePixels(0.15, 300), 1772);

@@ -108,6 +108,11 @@ Grid sheetGrid(size_t count, double side_mm, const SheetLayout& page) {
 
 }  // namespace
 
+int landmarksPerPage(double side_mm, const SheetLayout& page) {
+  const Grid g = sheetGrid(1, side_mm, page);
+  return g.cols * g.rows;
+}
+
 QrCode encodeQr(const std::string& payload) {
   std::unique_ptr<QRcode, decltype(&QRcode_free)> code(
       QRcode_encodeData(static_cast<int>(payload.size()),

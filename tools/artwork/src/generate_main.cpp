@@ -1,5 +1,6 @@
 // ld-generate: printable landmarks (PNG at a DPI, SVG at exact physical size)
 // and sheets of several landmarks.
+#include <algorithm>
 #include <fstream>
 #include <iostream>
 
@@ -14,6 +15,15 @@ bool writeText(const std::string& path, const std::string& text) {
   std::ofstream f(path, std::ios::binary);
   f << text;
   return static_cast<bool>(f);
+}
+
+// Page k (from 1) of a sheet that takes several: "sheet.svg" -> "sheet-2.svg".
+std::string pagePath(const std::string& path, int k, int pages) {
+  if (pages <= 1) return path;
+  const size_t slash = path.find_last_of('/');
+  const size_t dot = path.find_last_of('.');
+  const size_t at = dot != std::string::npos && (slash == std::string::npos || dot > slash) ? dot : path.size();
+  return path.substr(0, at) + "-" + std::to_string(k) + path.substr(at);
 }
 
 }  // namespace
@@ -32,7 +42,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--png", png, "write a PNG here");
   app.add_option("--svg", svg, "write an SVG here (vector, exact physical size)");
-  app.add_flag("--sheet", sheet, "lay the landmarks out on a page with their payloads as labels");
+  app.add_flag("--sheet", sheet,
+               "lay the landmarks out on pages with their payloads as labels (more than a page holds: "
+               "FILE-1.svg, FILE-2.svg, ...)");
   app.add_option("--page-width", page.page_w_mm, "page width in mm (sheet)")->capture_default_str();
   app.add_option("--page-height", page.page_h_mm, "page height in mm (sheet)")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
@@ -47,25 +59,37 @@ int main(int argc, char** argv) {
   }
   try {
     const double side_mm = side_m * 1000.0;
-    if (!svg.empty()) {
-      const std::string text = sheet ? ld::artwork::sheetSvg(payloads, side_mm, page)
-                                     : ld::artwork::landmarkSvg(payloads.front(), side_mm);
-      if (!writeText(svg, text)) {
-        std::cerr << "ld-generate: cannot write " << svg << "\n";
-        return 2;
+    // The pages: one payload alone, or as many per page as fit.
+    std::vector<std::vector<std::string>> pages;
+    const size_t per_page = sheet ? static_cast<size_t>(ld::artwork::landmarksPerPage(side_mm, page)) : 1;
+    for (size_t i = 0; i < payloads.size(); i += per_page)
+      pages.emplace_back(payloads.begin() + static_cast<std::ptrdiff_t>(i),
+                         payloads.begin() + static_cast<std::ptrdiff_t>(std::min(payloads.size(), i + per_page)));
+    const int n = static_cast<int>(pages.size());
+    for (int k = 1; k <= n; ++k) {
+      const auto& on_page = pages[static_cast<size_t>(k - 1)];
+      if (!svg.empty()) {
+        const std::string path = pagePath(svg, k, n);
+        const std::string text = sheet ? ld::artwork::sheetSvg(on_page, side_mm, page)
+                                       : ld::artwork::landmarkSvg(on_page.front(), side_mm);
+        if (!writeText(path, text)) {
+          std::cerr << "ld-generate: cannot write " << path << "\n";
+          return 2;
+        }
+        std::cout << "wrote " << path << (sheet ? " (" + std::to_string(on_page.size()) + (on_page.size() == 1 ? " landmark)" : " landmarks)") : "")
+                  << "\n";
       }
-      std::cout << "wrote " << svg << "\n";
-    }
-    if (!png.empty()) {
-      const cv::Mat img =
-          sheet ? ld::artwork::sheetImage(payloads, side_mm, dpi, page)
-                : ld::artwork::renderLandmark(payloads.front(), ld::artwork::sidePixels(side_m, dpi));
-      if (!cv::imwrite(png, img)) {
-        std::cerr << "ld-generate: cannot write " << png << "\n";
-        return 2;
+      if (!png.empty()) {
+        const std::string path = pagePath(png, k, n);
+        const cv::Mat img =
+            sheet ? ld::artwork::sheetImage(on_page, side_mm, dpi, page)
+                  : ld::artwork::renderLandmark(on_page.front(), ld::artwork::sidePixels(side_m, dpi));
+        if (!cv::imwrite(path, img)) {
+          std::cerr << "ld-generate: cannot write " << path << "\n";
+          return 2;
+        }
+        std::cout << "wrote " << path << " (" << img.cols << "x" << img.rows << " px at " << dpi << " dpi)\n";
       }
-      std::cout << "wrote " << png << " (" << img.cols << "x" << img.rows << " px at " << dpi
-                << " dpi)\n";
     }
   } catch (const std::exception& e) {
     std::cerr << "ld-generate: " << e.what() << "\n";

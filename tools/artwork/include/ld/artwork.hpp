@@ -64,6 +64,9 @@ struct SheetLayout {
 };
 std::string sheetSvg(const std::vector<std::string>& payloads, double side_mm,
                      const SheetLayout& page = {});
+/// How many landmarks of side_mm one page holds (throws std::invalid_argument
+/// when not even one fits): more payloads than that take several pages.
+int landmarksPerPage(double side_mm, const SheetLayout& page = {});
 /// The same page as a raster image at `dpi`.
 cv::Mat sheetImage(const std::vector<std::string>& payloads, double side_mm, double dpi,
                    const SheetLayout& page = {});

@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# ld-generate's command line: more landmarks than a page holds go on
+# numbered pages (each page's codes read back by zbarimg to their payloads),
+# what fits stays one file, and bad requests are refused with a reason.
+# usage: generate_cli_test.sh BIN_DIR
+set -euo pipefail
+BIN=$(cd "$1" && pwd)
+T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+# Three 15 cm landmarks: one per A4 page.
+"$BIN/ld-generate" --sheet --size 0.15 -p dock -p room-101 -p lift --png "$T/p.png" --svg "$T/p.svg" --dpi 150 \
+  >"$T/out"
+for k in 1 2 3; do
+  [ -s "$T/p-$k.svg" ] && [ -s "$T/p-$k.png" ] || fail "page $k missing: $(cat "$T/out")"
+done
+[ ! -e "$T/p-4.svg" ] && [ ! -e "$T/p.svg" ] || fail "pages beyond the third, or an unnumbered file"
+read_page() { zbarimg --quiet --raw -Sdisable -Sqrcode.enable "$1" | sort | tr '\n' ' '; }
+[ "$(read_page "$T/p-1.png")" = "dock " ] || fail "page 1 reads: $(read_page "$T/p-1.png")"
+[ "$(read_page "$T/p-3.png")" = "lift " ] || fail "page 3 reads: $(read_page "$T/p-3.png")"
+grep -q 'width="210mm" height="297mm"' "$T/p-2.svg" || fail "page 2 is not A4"
+
+# Seven 6 cm landmarks: six on the first page, one on the second.
+"$BIN/ld-generate" --sheet --size 0.06 -p a -p b -p c -p d -p e -p f -p g --png "$T/s.png" --dpi 150 >"$T/out"
+[ "$(read_page "$T/s-1.png")" = "a b c d e f " ] || fail "6 cm page 1 reads: $(read_page "$T/s-1.png")"
+[ "$(read_page "$T/s-2.png")" = "g " ] || fail "6 cm page 2 reads: $(read_page "$T/s-2.png")"
+# What fits one page stays one file.
+"$BIN/ld-generate" --sheet --size 0.06 -p a -p b --svg "$T/one.svg" >/dev/null
+[ -s "$T/one.svg" ] && [ ! -e "$T/one-1.svg" ] || fail "two 6 cm landmarks not on one unnumbered page"
+
+# Refused: a landmark larger than the page, several payloads without --sheet, no output.
+if "$BIN/ld-generate" --sheet --size 0.5 -p x --svg "$T/x.svg" 2>"$T/err"; then fail "50 cm on A4 accepted"; fi
+grep -q "does not fit on a 210x297 mm page" "$T/err" || fail "50 cm: $(cat "$T/err")"
+if "$BIN/ld-generate" -p x -p y --svg "$T/x.svg" 2>"$T/err"; then fail "two payloads without --sheet accepted"; fi
+grep -q "several payloads need --sheet" "$T/err" || fail "no --sheet: $(cat "$T/err")"
+if "$BIN/ld-generate" -p x 2>"$T/err"; then fail "no output accepted"; fi
+echo ok
