@@ -68,7 +68,7 @@ install(FILES tools/systemd/landmark.target tools/systemd/ld-camera.service
               tools/systemd/ld-qr-reader.service tools/systemd/ld-run@.service
         DESTINATION lib/systemd/system)
 install(FILES tools/systemd/99-landmark-rmem.conf DESTINATION lib/sysctl.d)
-install(FILES tools/systemd/landmark.default tools/run/ld-run.example.json
+install(FILES tools/systemd/landmark.default tools/run/ld-run.example.json tools/run/ld-run.example.yaml
         DESTINATION ${CMAKE_INSTALL_DATADIR}/landmark/examples)
 install(FILES README.md DESTINATION ${CMAKE_INSTALL_DATADIR}/doc/landmark)
 install(DIRECTORY docs/ DESTINATION ${CMAKE_INSTALL_DATADIR}/doc/landmark/docs)

@@ -13,7 +13,7 @@ PACKAGES=(
   libegl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri libgbm-dev
   libgtest-dev libgmock-dev
   default-jdk-headless libjchart2d-java
-  libqrencode-dev nlohmann-json3-dev libcli11-dev
+  libqrencode-dev nlohmann-json3-dev libcli11-dev libyaml-cpp-dev
   libapriltag-dev
   iproute2 jq
   clang libclang-rt-14-dev   # libFuzzer targets (tests/fuzz)

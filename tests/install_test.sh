@@ -25,7 +25,8 @@ for f in bin/ld-camera bin/ld-detector bin/ld-tracker bin/ld-qr-reader bin/ld-ru
          lib/libld_detector.a lib/cmake/landmark/landmarkConfig.cmake lib/cmake/landmark/landmarkTargets.cmake \
          lib/systemd/system/landmark.target lib/systemd/system/ld-run@.service lib/sysctl.d/99-landmark-rmem.conf \
          share/landmark/java/ld_lcmtypes.jar share/landmark/lcmtypes/landmark_list_t.lcm \
-         share/landmark/examples/ld-run.example.json share/landmark/examples/landmark.default \
+         share/landmark/examples/ld-run.example.json share/landmark/examples/ld-run.example.yaml \
+         share/landmark/examples/landmark.default \
          share/doc/landmark/README.md; do
   [ -e "$P/$f" ] || fail "not installed: $f"
 done

@@ -16,8 +16,9 @@ single=$("$BIN/ld-detect" --decode "$T/sc" | jq -r '.landmarks[0].payload' | gre
 [ "$single" -eq 0 ] || { echo "FAIL: single frames read the code ($single of 10): the test tests nothing"; exit 1; }
 "$BIN/ld-log-images" "$T/sc" "$T/sc.lcmlog" --fps 5 >/dev/null
 for frames in 8 0; do
-  echo "{\"qr_reader\": {\"args\": [\"--stack-frames\", \"$frames\"]}}" >"$T/cfg$frames.json"
-  timeout 60 "$BIN/ld-run" --config "$T/cfg$frames.json" --netns --replay "$T/sc.lcmlog" \
+  # (a YAML config, the number written as a number)
+  echo "qr_reader: {args: [--stack-frames, $frames]}" >"$T/cfg$frames.yaml"
+  timeout 60 "$BIN/ld-run" --config "$T/cfg$frames.yaml" --netns --replay "$T/sc.lcmlog" \
     --exit-when-replay-done --summary "$T/sum$frames.json" --log-dir "$T/log$frames" --status-interval 0 -q
   jq -r '.summary.tracks[] | "\(.id) \(.payload)"' "$T/sum$frames.json" >"$T/tracks$frames"
   echo "--stack-frames $frames: $(cut -c1-40 "$T/tracks$frames")"

@@ -2,9 +2,11 @@
 // lines), bus monitor (latency matching, skips, tracks, payloads), config.
 #include <chrono>
 #include <csignal>
+#include <fstream>
 #include <thread>
 
 #include <gtest/gtest.h>
+
 #include <unistd.h>
 
 #include "ld/bus_monitor.hpp"
@@ -277,6 +279,44 @@ TEST(RunConfig, ExampleConfigLoads) {
   const auto cfg = ld::RunConfig::load(std::string(LD_SOURCE_DIR) + "/tools/run/ld-run.example.json");
   EXPECT_EQ(cfg.source, "camera");
   EXPECT_FALSE(ld::buildProcessSpecs(cfg, "udpm://239.255.76.67:7667?ttl=0", "").empty());
+}
+
+// The YAML example says what the JSON one says: the same process table.
+TEST(RunConfig, YamlExampleIsTheJsonExample) {
+  const auto json = ld::RunConfig::load(std::string(LD_SOURCE_DIR) + "/tools/run/ld-run.example.json");
+  const auto yaml = ld::RunConfig::load(std::string(LD_SOURCE_DIR) + "/tools/run/ld-run.example.yaml");
+  const auto a = ld::buildProcessSpecs(json, "udpm://239.255.76.67:7667?ttl=0", "/opt/x");
+  const auto b = ld::buildProcessSpecs(yaml, "udpm://239.255.76.67:7667?ttl=0", "/opt/x");
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].name, b[i].name);
+    EXPECT_EQ(a[i].argv, b[i].argv) << a[i].name;
+  }
+  EXPECT_EQ(json.lcm_url, yaml.lcm_url);
+  EXPECT_EQ(yaml.camera_args.back(), "30");  // a number in args stays as written
+  EXPECT_DOUBLE_EQ(yaml.restart.initial_s, 0.2);
+  EXPECT_DOUBLE_EQ(yaml.restart.max_s, 5);
+}
+
+TEST(RunConfig, YamlErrorsNameTheKeyOrTheLine) {
+  auto loadError = [](const std::string& name, const std::string& text) {
+    const std::string path = ::testing::TempDir() + name;
+    std::ofstream(path) << text;
+    try {
+      ld::RunConfig::load(path);
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_EQ(loadError("empty.yaml", ""), "");  // every default
+  EXPECT_EQ(loadError("ok.yml", "source: {type: replay, log: run.lcmlog, speed: 2}\ntracker: {enabled: false}\n"), "");
+  EXPECT_NE(loadError("k.yaml", "detectr: {}\n").find("unknown key \"detectr\""), std::string::npos);
+  EXPECT_NE(loadError("n.yaml", "source: {type: replay, speed: fast}\n").find("source.speed: \"fast\" is not a number"),
+            std::string::npos);
+  EXPECT_NE(loadError("b.yaml", "tracker: {enabled: yes}\n").find("tracker.enabled: wrong type"), std::string::npos);
+  const std::string bad = loadError("bad.yaml", "source:\n  type: [camera\n");
+  EXPECT_NE(bad.find("bad.yaml: not valid YAML: line"), std::string::npos) << bad;
 }
 
 }  // namespace

@@ -1,8 +1,13 @@
 #include "ld/run_config.hpp"
 
+#include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <set>
 #include <stdexcept>
+#include <type_traits>
+
+#include <yaml-cpp/yaml.h>
 
 namespace ld {
 namespace {
@@ -18,11 +23,57 @@ void checkKeys(const Json& j, const std::string& where, const std::set<std::stri
 template <typename T>
 void get(const Json& j, const char* key, const std::string& where, T& out) {
   if (!j.contains(key)) return;
+  const Json& v = j.at(key);
+  if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
+    // a number written as text (YAML's scalars come as text)
+    if (v.is_string()) {
+      const std::string& text = v.get_ref<const std::string&>();
+      char* end = nullptr;
+      const double d = std::strtod(text.c_str(), &end);
+      if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(d))
+        throw std::runtime_error(where + "." + key + ": \"" + text + "\" is not a number");
+      out = static_cast<T>(d);
+      return;
+    }
+  }
   try {
-    out = j.at(key).get<T>();
+    out = v.get<T>();
   } catch (const Json::exception&) {
     throw std::runtime_error(where + "." + key + ": wrong type");
   }
+}
+
+// A YAML document as JSON: maps, sequences, and scalars as text, but for
+// plain true/false (booleans) and null/~ (null). Numbers stay text (get()
+// reads them where a number is expected), so args keep what was written.
+Json fromYaml(const YAML::Node& n) {
+  switch (n.Type()) {
+    case YAML::NodeType::Map: {
+      Json o = Json::object();
+      for (const auto& kv : n) o[kv.first.as<std::string>()] = fromYaml(kv.second);
+      return o;
+    }
+    case YAML::NodeType::Sequence: {
+      Json a = Json::array();
+      for (const auto& e : n) a.push_back(fromYaml(e));
+      return a;
+    }
+    case YAML::NodeType::Scalar: {
+      const std::string& text = n.Scalar();
+      if (n.Tag() != "!") {  // plain (not quoted)
+        if (text == "true") return true;
+        if (text == "false") return false;
+        if (text == "null" || text == "~") return nullptr;
+      }
+      return text;
+    }
+    default:
+      return nullptr;
+  }
+}
+
+bool endsWith(const std::string& s, const std::string& tail) {
+  return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
 }
 
 WorkerConfig worker(const Json& j, const std::string& where, WorkerConfig w) {
@@ -100,10 +151,20 @@ RunConfig RunConfig::load(const std::string& path) {
   std::ifstream f(path);
   if (!f) throw std::runtime_error("cannot read config " + path);
   Json j;
-  try {
-    j = Json::parse(f, nullptr, true, /*ignore_comments=*/true);
-  } catch (const Json::parse_error& e) {
-    throw std::runtime_error(path + ": not valid JSON: " + e.what());
+  if (endsWith(path, ".yaml") || endsWith(path, ".yml")) {
+    try {
+      j = fromYaml(YAML::Load(f));
+    } catch (const YAML::Exception& e) {
+      throw std::runtime_error(path + ": not valid YAML: line " + std::to_string(e.mark.line + 1) + ", column " +
+                               std::to_string(e.mark.column + 1) + ": " + e.msg);
+    }
+    if (j.is_null()) j = Json::object();  // an empty file: every default
+  } else {
+    try {
+      j = Json::parse(f, nullptr, true, /*ignore_comments=*/true);
+    } catch (const Json::parse_error& e) {
+      throw std::runtime_error(path + ": not valid JSON: " + e.what());
+    }
   }
   try {
     return fromJson(j);

@@ -179,7 +179,7 @@ int main(int argc, char** argv) {
   double play_fps = 0, play_duration = 0;
   std::string play_format;
   bool exit_when_done = false, netns = false, report = false, quiet = false;
-  app.add_option("-c,--config", config_file, "JSON config (see tools/run/ld-run.example.json)");
+  app.add_option("-c,--config", config_file, "config file: JSON, or YAML when it ends in .yaml/.yml (see tools/run/ld-run.example.json, .yaml)");
   app.add_option("--lcm-url", url, "LCM URL of every process (default: the project's, ttl=0)");
   app.add_option("--source", source, "camera, replay, play or none (default: the config's, or camera)")
       ->check(CLI::IsMember({"camera", "replay", "play", "none"}));

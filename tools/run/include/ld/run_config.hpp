@@ -1,6 +1,6 @@
 // ld-run's configuration: which processes to start, with which arguments.
-// A JSON file (see tools/run/ld-run.example.json) gives the defaults; the
-// command line overrides them.
+// A JSON or YAML file (tools/run/ld-run.example.json, .yaml: the same keys)
+// gives the defaults; the command line overrides them.
 #pragma once
 
 #include <string>
@@ -47,6 +47,10 @@ struct RunConfig {
   /// Reads a JSON config; unknown keys and wrong types are errors
   /// (std::runtime_error naming the key).
   static RunConfig fromJson(const nlohmann::json& j);
+  /// A file: YAML when it ends in .yaml or .yml, else JSON (// comments
+  /// allowed). YAML's plain true/false are booleans, null and ~ nothing,
+  /// every other scalar text: numbers are read from it where a number is
+  /// expected, and args may be written as numbers (--fps, 30).
   static RunConfig load(const std::string& path);
 };
 
