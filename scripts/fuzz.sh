@@ -17,7 +17,7 @@
 # cannot fix (the readers refuse the kinds of input they can recognise).
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
-TARGETS=(fuzz_image fuzz_messages fuzz_detector fuzz_params fuzz_camera)
+TARGETS=(fuzz_image fuzz_messages fuzz_detector fuzz_params fuzz_camera fuzz_run_config)
 
 build() {
   local dir=$1

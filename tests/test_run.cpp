@@ -317,6 +317,10 @@ TEST(RunConfig, YamlErrorsNameTheKeyOrTheLine) {
   EXPECT_NE(loadError("b.yaml", "tracker: {enabled: yes}\n").find("tracker.enabled: wrong type"), std::string::npos);
   const std::string bad = loadError("bad.yaml", "source:\n  type: [camera\n");
   EXPECT_NE(bad.find("bad.yaml: not valid YAML: line"), std::string::npos) << bad;
+  // JSON too: a number beyond a double threw nlohmann's out_of_range, not a
+  // parse error, past the reader (found by fuzz_run_config)
+  const std::string overflow = loadError("big.json", "{\"source\": {\"speed\": 3e333}}");
+  EXPECT_NE(overflow.find("big.json: not valid JSON"), std::string::npos) << overflow;
 }
 
 }  // namespace

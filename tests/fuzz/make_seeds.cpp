@@ -169,6 +169,17 @@ int main(int argc, char** argv) {
   write(root / "fuzz_camera", "wide8.xml", fileBytes(xml, 0, false));
   fs::remove(tmp);
   fs::remove(xml);
+
+  // fuzz_run_config: byte 0 even = YAML, odd = JSON
+  write(root / "fuzz_run_config", "replay.yaml",
+        textBytes(0, "source: {type: replay, log: run.lcmlog, speed: 2}\n"
+                     "tracker: {enabled: false}\nrecord: {file: out.lcmlog}\n"));
+  write(root / "fuzz_run_config", "camera.yaml",
+        textBytes(0, "source:\n  type: camera\n  args: [--device, /dev/video0, --fps, 30]\n"
+                     "restart: {initial_s: 0.2, max_s: 5}\n"));
+  write(root / "fuzz_run_config", "play.json",
+        textBytes(1, "{\"source\": {\"type\": \"play\", \"log\": \"a.lcmlog\", \"fps\": 15}, // comment\n"
+                     "\"qr_reader\": {\"args\": [\"-v\"]}}\n"));
   std::cout << "seeds written under " << root << "\n";
   return 0;
 }

@@ -162,7 +162,7 @@ RunConfig RunConfig::load(const std::string& path) {
   } else {
     try {
       j = Json::parse(f, nullptr, true, /*ignore_comments=*/true);
-    } catch (const Json::parse_error& e) {
+    } catch (const Json::exception& e) {  // parse_error, and out_of_range for a number like 3e333
       throw std::runtime_error(path + ": not valid JSON: " + e.what());
     }
   }
