@@ -90,9 +90,11 @@ set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
 set(CPACK_DEBIAN_PACKAGE_DEPENDS
     "default-jre-headless | java-runtime-headless, liblcm-java, libjchart2d-java, jq")
 set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "libegl-mesa0, libgl1-mesa-dri, liblcm-bin")
-# postinst: the receive-buffer setting applied now, systemctl daemon-reload;
-# postrm: daemon-reload.
+# postinst: the receive-buffer setting applied now (when it raises the
+# limit), daemon-reload, running units restarted on an upgrade; prerm: the
+# units stopped on removal; postrm: daemon-reload.
 set(CPACK_DEBIAN_PACKAGE_CONTROL_EXTRA ${PROJECT_SOURCE_DIR}/cmake/debian/postinst
+                                      ${PROJECT_SOURCE_DIR}/cmake/debian/prerm
                                       ${PROJECT_SOURCE_DIR}/cmake/debian/postrm)
 set(CPACK_DEBIAN_PACKAGE_CONTROL_STRICT_PERMISSION ON)
 include(CPack)

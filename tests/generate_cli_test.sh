@@ -34,4 +34,12 @@ grep -q "does not fit on a 210x297 mm page" "$T/err" || fail "50 cm: $(cat "$T/e
 if "$BIN/ld-generate" -p x -p y --svg "$T/x.svg" 2>"$T/err"; then fail "two payloads without --sheet accepted"; fi
 grep -q "several payloads need --sheet" "$T/err" || fail "no --sheet: $(cat "$T/err")"
 if "$BIN/ld-generate" -p x 2>"$T/err"; then fail "no output accepted"; fi
+grep -q "give --png and/or --svg" "$T/err" || fail "no output: $(cat "$T/err")"
+if "$BIN/ld-generate" -p x --png "$T/x" 2>"$T/err"; then fail "a PNG name without .png accepted"; fi
+grep -q "must end in .png" "$T/err" || fail "png name: $(cat "$T/err")"
+
+# Page names: a folder with a dot in its name, a file name without an extension.
+mkdir -p "$T/out.d"
+"$BIN/ld-generate" --sheet --size 0.15 -p a -p b --svg "$T/out.d/sheet" >/dev/null
+[ -s "$T/out.d/sheet-1" ] && [ -s "$T/out.d/sheet-2" ] || fail "pages of an extensionless name: $(ls "$T/out.d")"
 echo ok

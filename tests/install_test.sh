@@ -84,11 +84,37 @@ depends=$(dpkg-deb -f "$deb" Depends)
 for d in liblcm libopencv-core libzbar libjchart2d-java; do
   grep -q "$d" <<<"$depends" || fail "package Depends lacks $d: $depends"
 done
-dpkg-deb -e "$deb" "$T/control"
-for f in postinst postrm; do
-  [ -x "$T/control/$f" ] || fail "package has no executable $f"
-done
-grep -q "sysctl -q -p /usr/lib/sysctl.d/99-landmark-rmem.conf" "$T/control/postinst" \
-  || fail "postinst does not apply the installed sysctl file"
 grep -q " ./usr/lib/sysctl.d/99-landmark-rmem.conf\$" "$T/deb.list" || fail "package lacks the sysctl file"
 echo "package: ok ($(basename "$deb"))"
+
+# 6. Its maintainer scripts, run as dpkg runs them, against stub sysctl,
+#    systemd-sysctl and systemctl (a systemd root under DPKG_ROOT) that log
+#    their calls.
+dpkg-deb -e "$deb" "$T/control"
+for f in postinst prerm postrm; do
+  [ -x "$T/control/$f" ] || fail "package has no executable $f"
+done
+R=$T/root; mkdir -p "$R/run/systemd/system" "$R/usr/lib/systemd" "$T/stubs"
+printf '#!/bin/sh\necho "systemd-sysctl $*" >>"%s/calls"\n' "$T" >"$R/usr/lib/systemd/systemd-sysctl"
+printf '#!/bin/sh\necho "systemctl $*" >>"%s/calls"\n' "$T" >"$T/stubs/systemctl"
+printf '#!/bin/sh\n[ "$1" = -n ] && cat "%s/rmem_max"\n' "$T" >"$T/stubs/sysctl"
+chmod +x "$R/usr/lib/systemd/systemd-sysctl" "$T/stubs/systemctl" "$T/stubs/sysctl"
+script() {  # script args...: its calls, one line each
+  : >"$T/calls"
+  DPKG_ROOT=$R PATH="$T/stubs:$PATH" sh "$T/control/$1" "${@:2}" || fail "$1 $* failed"
+  cat "$T/calls"
+}
+echo 212992 >"$T/rmem_max"
+calls=$(script postinst configure "")
+grep -qx "systemd-sysctl 99-landmark-rmem.conf" <<<"$calls" || fail "postinst did not raise rmem_max: $calls"
+grep -qx "systemctl daemon-reload" <<<"$calls" || fail "postinst did not reload systemd: $calls"
+! grep -q try-restart <<<"$calls" || fail "postinst restarted units on a first install: $calls"
+echo 16777216 >"$T/rmem_max"
+calls=$(script postinst configure 0.0.9)
+! grep -q systemd-sysctl <<<"$calls" || fail "postinst lowered a higher rmem_max: $calls"
+grep -q "^systemctl try-restart ld-run@\*.service " <<<"$calls" || fail "postinst did not restart on upgrade: $calls"
+calls=$(script prerm remove)
+grep -q "^systemctl stop landmark.target ld-run@\*.service " <<<"$calls" || fail "prerm did not stop the units: $calls"
+[ -z "$(script prerm upgrade 0.1.1)" ] || fail "prerm stopped the units on an upgrade"
+[ "$(script postrm remove)" = "systemctl daemon-reload" ] || fail "postrm did not reload systemd"
+echo "maintainer scripts: ok"

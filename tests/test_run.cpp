@@ -2,6 +2,7 @@
 // lines), bus monitor (latency matching, skips, tracks, payloads), config.
 #include <chrono>
 #include <csignal>
+#include <filesystem>
 #include <fstream>
 #include <thread>
 
@@ -312,15 +313,67 @@ TEST(RunConfig, YamlErrorsNameTheKeyOrTheLine) {
   EXPECT_EQ(loadError("empty.yaml", ""), "");  // every default
   EXPECT_EQ(loadError("ok.yml", "source: {type: replay, log: run.lcmlog, speed: 2}\ntracker: {enabled: false}\n"), "");
   EXPECT_NE(loadError("k.yaml", "detectr: {}\n").find("unknown key \"detectr\""), std::string::npos);
-  EXPECT_NE(loadError("n.yaml", "source: {type: replay, speed: fast}\n").find("source.speed: \"fast\" is not a number"),
+  EXPECT_NE(loadError("n.yaml", "source: {type: replay, speed: fast}\n").find("source.speed: expected a number, got \"fast\""),
             std::string::npos);
-  EXPECT_NE(loadError("b.yaml", "tracker: {enabled: yes}\n").find("tracker.enabled: wrong type"), std::string::npos);
+  EXPECT_NE(loadError("x.yaml", "source: {type: replay, speed: 0x10}\n").find("expected a number"), std::string::npos);
+  EXPECT_NE(loadError("b.yaml", "tracker: {enabled: yes}\n").find("tracker.enabled: expected true or false, got \"yes\""),
+            std::string::npos);
+  // a quoted or tagged true is text, as YAML says
+  EXPECT_NE(loadError("q.yaml", "tracker: {enabled: \"true\"}\n").find("expected true or false"), std::string::npos);
+  EXPECT_NE(loadError("t.yaml", "tracker: {enabled: !!str true}\n").find("expected true or false"), std::string::npos);
+  EXPECT_EQ(loadError("s.yaml", "source: {type: replay, log: !!str null}\n"), "");  // a log named "null"
+  // args keep what was written; "args:" alone is none
+  EXPECT_EQ(loadError("a.yaml", "tracker: {args: [--x, true, 30, 1e3]}\ndetector: {args: }\n"), "");
+  EXPECT_NE(loadError("an.yaml", "tracker: {args: [--x, ~]}\n").find("tracker.args: expected text in the list, got null"),
+            std::string::npos);
+  // a key that is not text; aliases that would expand into millions of values
+  EXPECT_NE(loadError("k2.yaml", "{[a, b]: 1}\n").find("k2.yaml: line 1: a key must be text"), std::string::npos);
+  std::string bomb = "a: &a [x, x, x, x, x, x, x, x, x, x]\n";
+  for (char c = 'b'; c <= 'i'; ++c)
+    bomb += std::string(1, c) + ": &" + c + " [*" + static_cast<char>(c - 1) + ", *" + static_cast<char>(c - 1) +
+            ", *" + static_cast<char>(c - 1) + ", *" + static_cast<char>(c - 1) + ", *" + static_cast<char>(c - 1) +
+            ", *" + static_cast<char>(c - 1) + ", *" + static_cast<char>(c - 1) + ", *" + static_cast<char>(c - 1) +
+            ", *" + static_cast<char>(c - 1) + ", *" + static_cast<char>(c - 1) + "]\n";
+  EXPECT_NE(loadError("bomb.yaml", bomb).find("more than 100000 values"), std::string::npos) << loadError("bomb.yaml", bomb);
+  // bytes that are not UTF-8 (found by fuzz_run_config: the error message's JSON dump threw)
+  const std::string latin1 = "tracker:\n  args: [--x, \"a\xe4" "c\"]\n";
+  EXPECT_NE(loadError("u.yaml", latin1).find("u.yaml: line 2: text that is not UTF-8"), std::string::npos)
+      << loadError("u.yaml", latin1);
   const std::string bad = loadError("bad.yaml", "source:\n  type: [camera\n");
   EXPECT_NE(bad.find("bad.yaml: not valid YAML: line"), std::string::npos) << bad;
   // JSON too: a number beyond a double threw nlohmann's out_of_range, not a
   // parse error, past the reader (found by fuzz_run_config)
   const std::string overflow = loadError("big.json", "{\"source\": {\"speed\": 3e333}}");
   EXPECT_NE(overflow.find("big.json: not valid JSON"), std::string::npos) << overflow;
+  // JSON stays strict: a number written as text is refused
+  EXPECT_NE(loadError("str.json", "{\"source\": {\"speed\": \"2\"}}").find("source.speed: expected a number, got \"2\""),
+            std::string::npos);
+}
+
+// A config path without an extension (ld-run@.service's /etc/landmark/<instance>)
+// is the .yaml, .yml or .json of that name; two of them is an error.
+TEST(RunConfig, PathWithoutExtensionFindsTheFile) {
+  const std::string dir = ::testing::TempDir() + "ldrun-ext/";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir + "robot.yaml") << "source: {type: replay, log: a.lcmlog}\n";
+  EXPECT_EQ(ld::RunConfig::load(dir + "robot").log, "a.lcmlog");
+  std::ofstream(dir + "lab.json") << "{\"source\": {\"type\": \"none\"}}";
+  EXPECT_EQ(ld::RunConfig::load(dir + "lab").source, "none");
+  std::ofstream(dir + "robot.json") << "{}";
+  try {
+    ld::RunConfig::load(dir + "robot");
+    FAIL() << "loaded one of two";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("robot.yaml and " + dir + "robot.json exist"), std::string::npos) << e.what();
+  }
+  try {
+    ld::RunConfig::load(dir + "none");
+    FAIL() << "loaded nothing";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("(nor " + dir + "none.yaml, .yml or .json)"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

@@ -148,7 +148,7 @@ int main(int argc, char** argv) {
         if (!r && stack_frames > 0 && !book.payload(lm.track_id) &&
             (stacks.count(lm.track_id) || stacks.size() < kMaxStacks)) {
           auto [it, made] = stacks.try_emplace(lm.track_id, stack_frames);
-          if (it->second.add(bgr, corners) && it->second.frames() >= kMinStackFrames)
+          if (it->second.add(bgr, corners) && it->second.frames() >= std::min(kMinStackFrames, stack_frames))
             from_stack = static_cast<bool>(r = it->second.decode(stack_reader));
         }
         ms = std::chrono::duration<float, std::milli>(std::chrono::steady_clock::now() - t0).count();

@@ -45,12 +45,21 @@ int main(int argc, char** argv) {
   app.add_flag("--sheet", sheet,
                "lay the landmarks out on pages with their payloads as labels (more than a page holds: "
                "FILE-1.svg, FILE-2.svg, ...)");
-  app.add_option("--page-width", page.page_w_mm, "page width in mm (sheet)")->capture_default_str();
-  app.add_option("--page-height", page.page_h_mm, "page height in mm (sheet)")->capture_default_str();
+  app.add_option("--page-width", page.page_w_mm, "page width in mm (sheet)")
+      ->check(CLI::Range(10.0, 5000.0))
+      ->capture_default_str();
+  app.add_option("--page-height", page.page_h_mm, "page height in mm (sheet)")
+      ->check(CLI::Range(10.0, 5000.0))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   if (png.empty() && svg.empty()) {
     std::cerr << "ld-generate: give --png and/or --svg\n";
+    return 2;
+  }
+  // OpenCV picks the PNG writer by the extension
+  if (!png.empty() && (png.size() < 4 || png.compare(png.size() - 4, 4, ".png") != 0)) {
+    std::cerr << "ld-generate: --png " << png << ": the file name must end in .png\n";
     return 2;
   }
   if (payloads.size() > 1 && !sheet) {

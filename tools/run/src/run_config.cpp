@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <set>
 #include <stdexcept>
@@ -20,47 +21,111 @@ void checkKeys(const Json& j, const std::string& where, const std::set<std::stri
     if (!allowed.count(k)) throw std::runtime_error(where + ": unknown key \"" + k + "\"");
 }
 
-template <typename T>
-void get(const Json& j, const char* key, const std::string& where, T& out) {
-  if (!j.contains(key)) return;
-  const Json& v = j.at(key);
-  if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
-    // a number written as text (YAML's scalars come as text)
-    if (v.is_string()) {
-      const std::string& text = v.get_ref<const std::string&>();
-      char* end = nullptr;
-      const double d = std::strtod(text.c_str(), &end);
-      if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(d))
-        throw std::runtime_error(where + "." + key + ": \"" + text + "\" is not a number");
-      out = static_cast<T>(d);
-      return;
+// Reads the tree's values into RunConfig's fields. A YAML file's scalars
+// arrive as text (but for plain true, false and null), so from YAML a number
+// is read from its text and args keep what was written; JSON keeps its types
+// strict.
+struct Reader {
+  bool yaml = false;
+
+  static std::string shown(const Json& v) {
+    return v.is_string() ? "\"" + v.get<std::string>() + "\"" : v.dump(-1, ' ', false, Json::error_handler_t::replace);
+  }
+
+  template <typename T>
+  void get(const Json& j, const char* key, const std::string& where, T& out) const {
+    if (!j.contains(key)) return;
+    const Json& v = j.at(key);
+    const std::string name = where + "." + key;
+    if constexpr (std::is_same_v<T, bool>) {
+      if (!v.is_boolean()) throw std::runtime_error(name + ": expected true or false, got " + shown(v));
+      out = v.get<bool>();
+    } else if constexpr (std::is_arithmetic_v<T>) {
+      if (v.is_number()) {
+        out = v.get<T>();
+        return;
+      }
+      if (yaml && v.is_string()) {  // decimal text: 2, 0.5, 1e3 (not 0x10, not .inf)
+        const std::string& text = v.get_ref<const std::string&>();
+        char* end = nullptr;
+        const double d = std::strtod(text.c_str(), &end);
+        const bool decimal = !text.empty() && text.find_first_not_of("+-.0123456789eE") == std::string::npos;
+        if (decimal && end == text.c_str() + text.size() && std::isfinite(d)) {
+          out = static_cast<T>(d);
+          return;
+        }
+      }
+      throw std::runtime_error(name + ": expected a number, got " + shown(v));
+    } else if constexpr (std::is_same_v<T, std::string>) {
+      if (!v.is_string()) throw std::runtime_error(name + ": expected text, got " + shown(v));
+      out = v.get<std::string>();
+    } else {
+      static_assert(std::is_same_v<T, std::vector<std::string>>);
+      out.clear();
+      if (yaml && v.is_null()) return;  // "args:" with nothing after it
+      if (!v.is_array()) throw std::runtime_error(name + ": expected a list, got " + shown(v));
+      for (const Json& e : v) {
+        if (e.is_string()) out.push_back(e.get<std::string>());
+        else if (yaml && e.is_boolean()) out.push_back(e.get<bool>() ? "true" : "false");  // as written
+        else throw std::runtime_error(name + ": expected text in the list, got " + shown(e));
+      }
     }
   }
-  try {
-    out = v.get<T>();
-  } catch (const Json::exception&) {
-    throw std::runtime_error(where + "." + key + ": wrong type");
+
+  WorkerConfig worker(const Json& j, const std::string& where, WorkerConfig w) const {
+    checkKeys(j, where, {"enabled", "program", "args"});
+    get(j, "enabled", where, w.enabled);
+    get(j, "program", where, w.program);
+    get(j, "args", where, w.args);
+    return w;
   }
+};
+
+// A YAML document as JSON: maps (text keys), sequences, and scalars as text,
+// but for plain (untagged, unquoted) true, false, null and ~. Aliases are
+// followed: at most kMaxYamlValues values in all, so that a few lines of
+// nested aliases cannot expand into gigabytes.
+constexpr size_t kMaxYamlValues = 100000;
+
+// Whether `s` is UTF-8 (YAML is Unicode text, but yaml-cpp passes any bytes).
+bool validUtf8(const std::string& s) {
+  for (size_t i = 0; i < s.size();) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    const size_t n = c < 0x80 ? 1 : (c >> 5) == 6 ? 2 : (c >> 4) == 14 ? 3 : (c >> 3) == 30 ? 4 : 0;
+    if (n == 0 || i + n > s.size()) return false;
+    for (size_t k = 1; k < n; ++k)
+      if ((static_cast<unsigned char>(s[i + k]) >> 6) != 2) return false;
+    i += n;
+  }
+  return true;
 }
 
-// A YAML document as JSON: maps, sequences, and scalars as text, but for
-// plain true/false (booleans) and null/~ (null). Numbers stay text (get()
-// reads them where a number is expected), so args keep what was written.
-Json fromYaml(const YAML::Node& n) {
+std::string textOf(const YAML::Node& n) {
+  if (!validUtf8(n.Scalar()))
+    throw std::runtime_error("line " + std::to_string(n.Mark().line + 1) + ": text that is not UTF-8");
+  return n.Scalar();
+}
+Json fromYaml(const YAML::Node& n, size_t& count) {
+  if (++count > kMaxYamlValues)
+    throw std::runtime_error("more than " + std::to_string(kMaxYamlValues) + " values (aliases that expand?)");
   switch (n.Type()) {
     case YAML::NodeType::Map: {
       Json o = Json::object();
-      for (const auto& kv : n) o[kv.first.as<std::string>()] = fromYaml(kv.second);
+      for (const auto& kv : n) {
+        if (!kv.first.IsScalar())
+          throw std::runtime_error("line " + std::to_string(kv.first.Mark().line + 1) + ": a key must be text");
+        o[textOf(kv.first)] = fromYaml(kv.second, count);
+      }
       return o;
     }
     case YAML::NodeType::Sequence: {
       Json a = Json::array();
-      for (const auto& e : n) a.push_back(fromYaml(e));
+      for (const auto& e : n) a.push_back(fromYaml(e, count));
       return a;
     }
     case YAML::NodeType::Scalar: {
-      const std::string& text = n.Scalar();
-      if (n.Tag() != "!") {  // plain (not quoted)
+      const std::string text = textOf(n);
+      if (n.Tag() == "?") {  // plain: no quotes, no tag
         if (text == "true") return true;
         if (text == "false") return false;
         if (text == "null" || text == "~") return nullptr;
@@ -76,14 +141,6 @@ bool endsWith(const std::string& s, const std::string& tail) {
   return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
 }
 
-WorkerConfig worker(const Json& j, const std::string& where, WorkerConfig w) {
-  checkKeys(j, where, {"enabled", "program", "args"});
-  get(j, "enabled", where, w.enabled);
-  get(j, "program", where, w.program);
-  get(j, "args", where, w.args);
-  return w;
-}
-
 std::string quoteRegex(const std::string& s) {
   std::string out;
   for (char c : s) {
@@ -95,7 +152,16 @@ std::string quoteRegex(const std::string& s) {
 
 }  // namespace
 
-RunConfig RunConfig::fromJson(const Json& j) {
+RunConfig RunConfig::fromJson(const Json& j) { return fromTree(j, false); }
+
+RunConfig RunConfig::fromTree(const Json& j, bool yaml) {
+  const Reader reader{yaml};
+  const auto get = [&reader](const Json& tree, const char* key, const std::string& where, auto& out) {
+    reader.get(tree, key, where, out);
+  };
+  const auto worker = [&reader](const Json& tree, const std::string& where, WorkerConfig w) {
+    return reader.worker(tree, where, w);
+  };
   RunConfig c;
   checkKeys(j, "config", {"lcm_url", "channels", "source", "detector", "tracker", "qr_reader",
                           "record", "restart"});
@@ -147,16 +213,35 @@ RunConfig RunConfig::fromJson(const Json& j) {
   return c;
 }
 
-RunConfig RunConfig::load(const std::string& path) {
+RunConfig RunConfig::load(const std::string& given) {
+  // A path without an extension that names no file: the one of
+  // given.yaml, given.yml, given.json that exists (ld-run@.service passes
+  // /etc/landmark/<instance>).
+  std::string path = given;
+  const size_t slash = given.find_last_of('/');
+  if (!std::filesystem::exists(given) && given.find('.', slash == std::string::npos ? 0 : slash + 1) == std::string::npos) {
+    std::vector<std::string> found;
+    for (const char* ext : {".yaml", ".yml", ".json"})
+      if (std::filesystem::exists(given + ext)) found.push_back(given + ext);
+    if (found.empty())
+      throw std::runtime_error("cannot read config " + given + " (nor " + given + ".yaml, .yml or .json)");
+    if (found.size() > 1)
+      throw std::runtime_error("config " + given + ": both " + found[0] + " and " + found[1] + " exist; give one");
+    path = found[0];
+  }
   std::ifstream f(path);
   if (!f) throw std::runtime_error("cannot read config " + path);
   Json j;
-  if (endsWith(path, ".yaml") || endsWith(path, ".yml")) {
+  const bool yaml = endsWith(path, ".yaml") || endsWith(path, ".yml");
+  if (yaml) {
     try {
-      j = fromYaml(YAML::Load(f));
+      size_t count = 0;
+      j = fromYaml(YAML::Load(f), count);
     } catch (const YAML::Exception& e) {
       throw std::runtime_error(path + ": not valid YAML: line " + std::to_string(e.mark.line + 1) + ", column " +
                                std::to_string(e.mark.column + 1) + ": " + e.msg);
+    } catch (const std::runtime_error& e) {
+      throw std::runtime_error(path + ": " + e.what());
     }
     if (j.is_null()) j = Json::object();  // an empty file: every default
   } else {
@@ -167,7 +252,7 @@ RunConfig RunConfig::load(const std::string& path) {
     }
   }
   try {
-    return fromJson(j);
+    return fromTree(j, yaml);
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(path + ": " + e.what());
   }

@@ -48,10 +48,17 @@ struct RunConfig {
   /// (std::runtime_error naming the key).
   static RunConfig fromJson(const nlohmann::json& j);
   /// A file: YAML when it ends in .yaml or .yml, else JSON (// comments
-  /// allowed). YAML's plain true/false are booleans, null and ~ nothing,
-  /// every other scalar text: numbers are read from it where a number is
-  /// expected, and args may be written as numbers (--fps, 30).
+  /// allowed). A path with no extension that names no file is the one of
+  /// PATH.yaml, PATH.yml, PATH.json that exists. YAML's plain true/false
+  /// are booleans, null and ~ nothing, every other scalar text: numbers are
+  /// read from decimal text where a number is expected, and args keep what
+  /// was written (--fps, 30). Errors name the file and the key, or the line.
   static RunConfig load(const std::string& path);
+
+ private:
+  static RunConfig fromTree(const nlohmann::json& j, bool yaml);
+
+ public:
 };
 
 /// The processes to start, in order: recorder, workers, then the source.
