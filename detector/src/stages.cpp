@@ -598,12 +598,10 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
     for (int j = 0; j < 5; ++j)
       for (int i = 0; i < 5; ++i) {
         const double u = 3.1 + 0.7 * i - 1.5, v = 3.1 + 0.7 * j - 1.5;
-        double c[3];
-        if (!sampleBgr(bgr, P[0] + ex * u + ey * v, c)) return fail("outside the image");
-        const double b = (c[0] + c[1] + c[2]) / 3;
+        double sv, vv, b;
+        if (!sampleSV(bgr, P[0] + ex * u + ey * v, sv, vv, &b)) return fail("outside the image");
         qr_mean += b / 25;
-        const double mx = std::max({c[0], c[1], c[2]}), mn = std::min({c[0], c[1], c[2]});
-        dark += b < p.qr_dark_sample * sheet_mean && mx - mn <= p.sheet_max_saturation * mx;
+        dark += b < p.qr_dark_sample * sheet_mean && sv <= p.sheet_max_saturation;
       }
     // A sheet at the sensor's white clip (glare) hides the QR's white
     // modules and lifts its mean: there its dark modules are the evidence.

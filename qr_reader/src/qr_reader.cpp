@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -52,6 +53,27 @@ double projectedQrSide(const std::array<cv::Point2f, 4>& c) {
   for (size_t i = 0; i < 4; ++i) pattern += cv::norm(c[i] - c[(i + 1) % 4]);
   pattern /= 4;
   return pattern * (layout::kQrMax - layout::kQrMin) / (layout::kPatternMax - layout::kPatternMin);
+}
+
+// The projected side of the QR square, in pixels, when `image` is an 8-bit
+// image and the corners are finite and give it at least 8 px: nothing to
+// read otherwise.
+std::optional<double> readableQrSide(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners) {
+  if (image.empty() || image.depth() != CV_8U) return std::nullopt;
+  for (const auto& c : corners)
+    if (!std::isfinite(c.x) || !std::isfinite(c.y)) return std::nullopt;
+  const double qr_px = projectedQrSide(corners);
+  if (!(qr_px >= 8.0)) return std::nullopt;
+  return qr_px;
+}
+
+// `image` (gray, BGR or BGRA) as gray in `gray`, always `gray`'s own buffer
+// (a gray image is copied, not shared, so a later colour frame is never
+// converted into the caller's image).
+void toGray(const cv::Mat& image, cv::Mat& gray) {
+  if (image.channels() == 3) cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
+  else if (image.channels() == 4) cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY);
+  else image.copyTo(gray);
 }
 
 }  // namespace
@@ -271,17 +293,10 @@ std::optional<QrResult> QrReader::decode(const cv::Mat& image,
                                          const std::array<cv::Point2f, 4>& corners) {
   Impl& m = *impl_;
   const QrReaderParams& p = m.params;
-  if (image.empty() || image.depth() != CV_8U) return std::nullopt;
-  for (const auto& c : corners)
-    if (!std::isfinite(c.x) || !std::isfinite(c.y)) return std::nullopt;
-  const double qr_px = projectedQrSide(corners);
-  if (!(qr_px >= 8.0)) return std::nullopt;  // nothing to read
-
-  // (m.gray is always the reader's own buffer: a gray image is copied, not
-  // shared, so a later colour frame is never converted into the caller's.)
-  if (image.channels() == 3) cv::cvtColor(image, m.gray, cv::COLOR_BGR2GRAY);
-  else if (image.channels() == 4) cv::cvtColor(image, m.gray, cv::COLOR_BGRA2GRAY);
-  else image.copyTo(m.gray);
+  const auto readable = readableQrSide(image, corners);
+  if (!readable) return std::nullopt;  // nothing to read
+  const double qr_px = *readable;
+  toGray(image, m.gray);
 
   const int side = std::clamp(static_cast<int>(std::lround(p.upsample * qr_px)), p.min_side_px,
                               p.max_side_px);
@@ -338,17 +353,11 @@ int stackSide(double qr_px) {
 }  // namespace
 
 bool QrStack::add(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners) {
-  if (image.empty() || image.depth() != CV_8U) return false;
-  for (const auto& c : corners)
-    if (!std::isfinite(c.x) || !std::isfinite(c.y)) return false;
-  const double qr_px = projectedQrSide(corners);
-  if (!(qr_px >= 8.0)) return false;
-  if (n_ > 0 && std::abs(qr_px - qr_px_) > 0.25 * qr_px_) n_ = 0;
-  if (n_ == 0) qr_px_ = qr_px;
-
-  if (image.channels() == 3) cv::cvtColor(image, gray_, cv::COLOR_BGR2GRAY);
-  else if (image.channels() == 4) cv::cvtColor(image, gray_, cv::COLOR_BGRA2GRAY);
-  else image.copyTo(gray_);
+  const auto qr_px = readableQrSide(image, corners);
+  if (!qr_px) return false;
+  if (n_ > 0 && std::abs(*qr_px - qr_px_) > 0.25 * qr_px_) n_ = 0;
+  if (n_ == 0) qr_px_ = *qr_px;
+  toGray(image, gray_);
   const int side = stackSide(qr_px_);
   cv::warpPerspective(gray_, view_, viewToImage(corners, side, kStackMargin), {side, side},
                       cv::INTER_CUBIC | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);

@@ -147,9 +147,9 @@ int main(int argc, char** argv) {
         bool from_stack = false;
         if (!r && stack_frames > 0 && !book.payload(lm.track_id) &&
             (stacks.count(lm.track_id) || stacks.size() < kMaxStacks)) {
-          auto [it, made] = stacks.try_emplace(lm.track_id, stack_frames);
-          if (it->second.add(bgr, corners) && it->second.frames() >= std::min(kMinStackFrames, stack_frames))
-            from_stack = static_cast<bool>(r = it->second.decode(stack_reader));
+          ld::QrStack& stack = stacks.try_emplace(lm.track_id, stack_frames).first->second;
+          if (stack.add(bgr, corners) && stack.frames() >= std::min(kMinStackFrames, stack_frames))
+            from_stack = static_cast<bool>(r = stack.decode(stack_reader));
         }
         ms = std::chrono::duration<float, std::milli>(std::chrono::steady_clock::now() - t0).count();
         const bool is_new = r && !book.payload(lm.track_id);
@@ -157,8 +157,7 @@ int main(int argc, char** argv) {
         book.record(lm.track_id, list.utime, list.seq,
                     r ? std::optional<std::string>(r->payload) : std::nullopt);
         if (is_new) {
-          ++decoded;
-          stacks.erase(lm.track_id);
+          ++decoded;  // (its stack goes with the next frame's pruning)
           if (verbose)
             std::cerr << "ld-qr-reader: track " << lm.track_id << " reads \"" << r->payload << "\""
                       << (from_stack ? " (from its stacked frames)" : "") << "\n";

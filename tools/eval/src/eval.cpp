@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <random>
 #include <stdexcept>
 
@@ -78,18 +79,20 @@ const Detection& detectFresh(AdaptiveDetector& detector, const cv::Mat& bgr) {
 
 namespace {
 
-// A trial's QR over o.stack_frames frames, as ld-qr-reader reads an
-// undecoded track: the first frame (already rendered, its corners found)
+// What a trial's QR gave over o.stack_frames frames, as ld-qr-reader reads
+// an undecoded track: the first frame (already rendered, its corners found)
 // and the scene rendered again with its own sensor noise, the landmark moved
 // by up to a third of a pixel, each found by the detector (frames where it
-// is not are left out); each frame read alone, and their mean (ld::QrStack).
-// The payloads read, the mean's (if it read) last; `from_mean` says whether
-// the mean read.
-std::vector<std::string> readOverFrames(const SweepOptions& o, synth::SceneSpec spec,
-                                        const synth::LandmarkPlacement& lm,
-                                        const std::array<cv::Point2f, 4>& corners, const cv::Mat& first,
-                                        AdaptiveDetector& detector, QrReader& reader, bool& from_mean) {
-  std::vector<std::string> reads;
+// is not are left out); each further frame read alone, and their mean
+// (ld::QrStack).
+struct FramesRead {
+  std::vector<std::string> alone;
+  std::optional<std::string> mean;
+};
+FramesRead readOverFrames(const SweepOptions& o, synth::SceneSpec spec, const synth::LandmarkPlacement& lm,
+                          const std::array<cv::Point2f, 4>& corners, const cv::Mat& first,
+                          AdaptiveDetector& detector, QrReader& reader) {
+  FramesRead read;
   QrStack stack(o.stack_frames);
   stack.add(first, corners);
   std::mt19937_64 rng(spec.seed * 0x9E3779B97F4A7C15ULL + 1);  // the trial's own: the sweep's draws stay as they are
@@ -104,23 +107,18 @@ std::vector<std::string> readOverFrames(const SweepOptions& o, synth::SceneSpec 
     const synth::LandmarkTruth& truth = frame.truth[0];
     for (const Landmark& d : detectFresh(detector, frame.bgr).landmarks)
       if (matchesTruth(d, {truth.fip_tl, truth.fip_tr, truth.fip_bl, truth.ap})) {
-        if (const auto r = reader.decode(frame.bgr, d.corners)) reads.push_back(r->payload);
+        if (const auto r = reader.decode(frame.bgr, d.corners)) read.alone.push_back(r->payload);
         stack.add(frame.bgr, d.corners);
         break;
       }
   }
-  from_mean = false;
-  if (const auto r = stack.decode(reader)) {
-    reads.push_back(r->payload);
-    from_mean = true;
-  }
-  return reads;
+  if (const auto r = stack.decode(reader)) read.mean = r->payload;
+  return read;
 }
 
 // The trials at one sweep point, every frame scored by each of `detectors`
 // (ours, one Point each), or by the options' marker detector when the target
 // is a marker (one Point).
-
 std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector>& detectors, double distance_m,
                              double yaw_deg, double yaw_jitter_deg) {
   const bool marker = o.target != "landmark";
@@ -167,17 +165,16 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
         ++p.detected;
         if (o.decode) {
           const auto r = reader.decode(frame.bgr, d.corners);
-          if (r && r->payload == payload) ++p.decoded;
-          if (r && r->payload != payload) ++p.wrong_payload;
+          bool right = r && r->payload == payload, wrong = r && r->payload != payload;
+          p.decoded += right;
           if (o.stack_frames > 0) {
-            bool right = r && r->payload == payload, wrong = r && r->payload != payload, from_mean = false;
-            const auto reads = readOverFrames(o, spec, lm, d.corners, frame.bgr, detectors[i], reader, from_mean);
-            for (const std::string& read : reads) (read == payload ? right : wrong) = true;
+            const FramesRead more = readOverFrames(o, spec, lm, d.corners, frame.bgr, detectors[i], reader);
+            for (const std::string& s : more.alone) (s == payload ? right : wrong) = true;
+            if (more.mean) (*more.mean == payload ? right : wrong) = true;
             p.decoded_stacked += right;
-            p.decoded_mean += from_mean && reads.back() == payload;
-            // one wrong payload per trial, whichever frame or the mean gave it
-            p.wrong_payload += wrong && !(r && r->payload != payload);
+            p.decoded_mean += more.mean == payload;
           }
+          p.wrong_payload += wrong;  // once per trial, whichever frame or the mean gave it
         }
         break;
       }

@@ -120,6 +120,11 @@ void addCommon(CLI::App* app, Common& c) {
   app->add_option("--png", c.png, "write a plot");
 }
 
+// The QR sweeps' --stack: frames read as ld-qr-reader reads a track (0-64, as its --stack-frames).
+void addStack(CLI::App* app, int& frames, const std::string& what) {
+  app->add_option("--stack", frames, what)->capture_default_str()->check(CLI::Range(0, 64));
+}
+
 // The detection sweeps (yaw, distance) also measure the markers.
 void addCompare(CLI::App* app, Common& c) {
   app->add_flag("--compare", c.compare,
@@ -178,11 +183,9 @@ int main(int argc, char** argv) {
   qr->add_option("--step", q_step)->capture_default_str();
   qr->add_option("--max-yaw", q_yaw, "yaw drawn within +-this, degrees")->capture_default_str();
   int q_stack = 0;
-  qr->add_option("--stack", q_stack,
-                 "also read each trial's QR from this many frames averaged, as ld-qr-reader does for an "
-                 "undecoded track (the landmark moved a fraction of a pixel between frames); 0: single frames")
-      ->capture_default_str()
-      ->check(CLI::Range(0, 64));
+  addStack(qr, q_stack,
+           "also read each trial's QR from this many frames averaged, as ld-qr-reader does for an undecoded "
+           "track (the landmark moved a fraction of a pixel between frames); 0: single frames");
 
   Common sc;
   double s_detect = 3.0, s_read = 1.0, s_yaw = 30;
@@ -196,11 +199,9 @@ int main(int argc, char** argv) {
   size->add_option("--payload-bytes", s_payload, "payload length to read")->capture_default_str();
   size->add_option("--side", s_sides, "candidate sides, metres");
   int s_stack = 0;
-  size->add_option("--stack", s_stack,
-                   "count a QR read when read over this many frames, as ld-qr-reader reads a track "
-                   "(a moving camera); 0: from single frames")
-      ->capture_default_str()
-      ->check(CLI::Range(0, 64));
+  addStack(size, s_stack,
+           "count a QR read when read over this many frames, as ld-qr-reader reads a track (a moving camera); "
+           "0: from single frames");
 
   Common lc;
   double l_side = 0.15, l_dist = 1.5, l_yaw = 40;

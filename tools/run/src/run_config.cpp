@@ -81,30 +81,22 @@ struct Reader {
   }
 };
 
+// A scalar's text, which must be UTF-8 (YAML is Unicode text, but yaml-cpp
+// passes any bytes): nlohmann's serializer checks it.
+std::string textOf(const YAML::Node& n) {
+  try {
+    (void)Json(n.Scalar()).dump();
+  } catch (const Json::type_error&) {
+    throw std::runtime_error("line " + std::to_string(n.Mark().line + 1) + ": text that is not UTF-8");
+  }
+  return n.Scalar();
+}
+
 // A YAML document as JSON: maps (text keys), sequences, and scalars as text,
 // but for plain (untagged, unquoted) true, false, null and ~. Aliases are
 // followed: at most kMaxYamlValues values in all, so that a few lines of
 // nested aliases cannot expand into gigabytes.
 constexpr size_t kMaxYamlValues = 100000;
-
-// Whether `s` is UTF-8 (YAML is Unicode text, but yaml-cpp passes any bytes).
-bool validUtf8(const std::string& s) {
-  for (size_t i = 0; i < s.size();) {
-    const auto c = static_cast<unsigned char>(s[i]);
-    const size_t n = c < 0x80 ? 1 : (c >> 5) == 6 ? 2 : (c >> 4) == 14 ? 3 : (c >> 3) == 30 ? 4 : 0;
-    if (n == 0 || i + n > s.size()) return false;
-    for (size_t k = 1; k < n; ++k)
-      if ((static_cast<unsigned char>(s[i + k]) >> 6) != 2) return false;
-    i += n;
-  }
-  return true;
-}
-
-std::string textOf(const YAML::Node& n) {
-  if (!validUtf8(n.Scalar()))
-    throw std::runtime_error("line " + std::to_string(n.Mark().line + 1) + ": text that is not UTF-8");
-  return n.Scalar();
-}
 Json fromYaml(const YAML::Node& n, size_t& count) {
   if (++count > kMaxYamlValues)
     throw std::runtime_error("more than " + std::to_string(kMaxYamlValues) + " values (aliases that expand?)");
