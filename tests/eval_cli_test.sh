@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # ld-eval's command line: the size advisor's answer and exit codes, the QR
-# table with and without --stack, its plot, and a bad option refused.
+# table with and without --stack, its plot, and bad options refused.
 # usage: eval_cli_test.sh BIN_DIR
 set -euo pipefail
 BIN=$(cd "$1" && pwd)
@@ -35,4 +35,6 @@ awk -F'|' '/^\| 0\.3 / { exit !($6 ~ /100.0 %/ && $7 ~ /100.0 %/) }' "$T/qrs.md"
 # A bad option is refused with a message naming it.
 if "$BIN/ld-eval" qr --stack 100 >/dev/null 2>"$T/err"; then fail "--stack 100 accepted"; fi
 grep -q -- "--stack" "$T/err" || fail "bad --stack: $(cat "$T/err")"
+if "$BIN/ld-eval" size --ecc Z >/dev/null 2>"$T/err"; then fail "--ecc Z accepted"; fi
+grep -q -- "--ecc" "$T/err" || fail "bad --ecc: $(cat "$T/err")"
 echo ok

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# ld-generate's command line: more landmarks than a page holds go on
+# ld-generate's command line: the QR's error correction, more landmarks than a page holds go on
 # numbered pages (each page's codes read back by zbarimg to their payloads),
 # what fits stays one file, and bad requests are refused with a reason.
 # usage: generate_cli_test.sh BIN_DIR
@@ -37,6 +37,20 @@ if "$BIN/ld-generate" -p x 2>"$T/err"; then fail "no output accepted"; fi
 grep -q "give --png and/or --svg" "$T/err" || fail "no output: $(cat "$T/err")"
 if "$BIN/ld-generate" -p x --png "$T/x" 2>"$T/err"; then fail "a PNG name without .png accepted"; fi
 grep -q "must end in .png" "$T/err" || fail "png name: $(cat "$T/err")"
+
+# Error correction: auto says what it chose (100 bytes: level L's version 5; a
+# short payload keeps its version at a higher level); an explicit level is
+# used and read back; an unknown one is refused by name.
+long=$(printf 'x%.0s' $(seq 100))
+"$BIN/ld-generate" -p "$long" -p dock --sheet --svg "$T/e.svg" >"$T/out"
+grep -q "version 5 (37 modules), error correction L" "$T/out" || fail "auto, 100 bytes: $(cat "$T/out")"
+grep -q '"dock": version 1 (21 modules), error correction H' "$T/out" || fail "auto, dock: $(cat "$T/out")"
+"$BIN/ld-generate" -p "$long" --ecc h --png "$T/h.png" --dpi 200 >"$T/out"
+grep -q "version 10 (57 modules), error correction H" "$T/out" || fail "--ecc h: $(cat "$T/out")"
+[ "$(read_page "$T/h.png")" = "$long " ] || fail "--ecc h reads: $(read_page "$T/h.png")"
+grep -q "at 200 dpi" "$T/out" || fail "dpi: $(cat "$T/out")"
+if "$BIN/ld-generate" -p x --ecc Z --svg "$T/x.svg" 2>"$T/err"; then fail "--ecc Z accepted"; fi
+grep -q -- "--ecc: .*not 'Z'" "$T/err" || fail "--ecc Z: $(cat "$T/err")"
 
 # Page names: a folder with a dot in its name, a file name without an extension.
 mkdir -p "$T/out.d"

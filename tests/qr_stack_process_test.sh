@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # ld-qr-reader reads a track's 100-byte code from its stacked frames where no
-# single frame reads it: ten frames of one 15 cm landmark at 0.9 m (about a
+# single frame reads it: ten frames of one 15 cm landmark at 1 m (under a
 # pixel per module), a fraction of a pixel apart, replayed through the whole
 # process set (ld-run --netns, real LCM multicast). With --stack-frames 0 the
 # same replay gives no payload.
@@ -9,7 +9,7 @@ set -euo pipefail
 BIN=$(cd "$1" && pwd)
 T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
 payload=$(printf 'stacked-frames-%085d' 7)
-"$BIN/ld-synth" scene --out "$T/sc" --count 10 --seed 5 --size 0.15 --distance 0.9 --yaw 5 --roll 10 \
+"$BIN/ld-synth" scene --out "$T/sc" --count 10 --seed 5 --size 0.15 --distance 1.0 --yaw 5 --roll 10 \
   --x=-0.002:0.002 --y=-0.002:0.002 --payload "$payload" --lighting normal --background plain \
   --distractors 0 --noise 4 --jpeg 80 --defocus 0.5 --motion 0 >/dev/null
 single=$("$BIN/ld-detect" --decode "$T/sc" | jq -r '.landmarks[0].payload' | grep -c stacked || true)

@@ -118,6 +118,48 @@ TEST(Artwork, QrDecodesWithZbar) {
   }
 }
 
+// Auto error correction: level L's symbol (the largest modules the QR square
+// can have), at the highest level that still fits it; an explicit level is
+// used as given. Every level reads back with zbar.
+TEST(Artwork, ErrorCorrectionAsHighAsTheSmallestSymbolAllows) {
+  using ld::artwork::QrEcc;
+  using ld::artwork::encodeQr;
+  const QrEcc levels[] = {QrEcc::L, QrEcc::M, QrEcc::Q, QrEcc::H};
+  const char names[] = {'L', 'M', 'Q', 'H'};
+  for (size_t n : {1u, 13u, 20u, 23u, 60u, 100u, 300u}) {
+    const std::string p(n, 'a');
+    const auto autoqr = encodeQr(p);
+    const auto l = encodeQr(p, QrEcc::L);
+    EXPECT_EQ(autoqr.version, l.version) << n << " bytes";
+    int chosen = -1;
+    for (int k = 0; k < 4; ++k)
+      if (names[k] == autoqr.ecc) chosen = k;
+    ASSERT_GE(chosen, 0) << autoqr.ecc;
+    // the symbol is the one of that level, and every higher level needs a larger one
+    EXPECT_EQ(autoqr.modules, encodeQr(p, levels[chosen]).modules) << n << " bytes";
+    for (int k = chosen + 1; k < 4; ++k) EXPECT_GT(encodeQr(p, levels[k]).version, l.version) << n << " bytes";
+  }
+  EXPECT_EQ(encodeQr(std::string(100, 'a')).ecc, 'L');  // version 5 holds 106 bytes at L, 84 at M
+  EXPECT_EQ(encodeQr(std::string(100, 'a')).size, 37);
+  EXPECT_EQ(encodeQr(std::string(100, 'a'), QrEcc::M).size, 41);
+  EXPECT_EQ(encodeQr("room-214/door").ecc, 'M');  // version 1: 14 bytes at M, 11 at Q
+  EXPECT_EQ(encodeQr("dock").ecc, 'H');
+  for (int k = 0; k < 4; ++k) {
+    const std::string p = "level-" + std::string(1, names[k]) + " room-214/door";
+    const auto qr = encodeQr(p, levels[k]);
+    EXPECT_EQ(qr.ecc, names[k]);
+    const auto found = zbarDecode(ld::artwork::renderLandmark(qr, 540));
+    ASSERT_EQ(found.size(), 1u) << p;
+    EXPECT_EQ(found[0], p);
+  }
+  // 2000 bytes fit version 40 at L, not at H
+  EXPECT_NO_THROW(encodeQr(std::string(2000, 'x')));
+  EXPECT_THROW(encodeQr(std::string(2000, 'x'), QrEcc::H), std::invalid_argument);
+  EXPECT_EQ(ld::artwork::parseQrEcc("auto"), QrEcc::Auto);
+  EXPECT_EQ(ld::artwork::parseQrEcc("q"), QrEcc::Q);
+  EXPECT_THROW(ld::artwork::parseQrEcc("X"), std::invalid_argument);
+}
+
 TEST(Artwork, CustomColoursAreUsed) {
   Colours ink;
   ink.blue = {120, 50, 45};

@@ -82,7 +82,7 @@ TEST(QrReader, ReadsModuleByModuleWhereModulesAreUnderTwoPixels) {
   EXPECT_GE(r->attempt, 6) << "decoded by attempt " << r->attempt;  // the grid, after the views failed
 }
 
-// A 100-byte payload (version 6: 41 modules) at about 1.5 camera pixels per
+// A 100-byte payload at level M (version 6: 41 modules) at about 1.5 camera pixels per
 // module with motion blur across it: a fixed sharpening of the module grid
 // leaves too many modules wrong; the equaliser, its blur model fitted on the
 // code's function patterns, reads it.
@@ -90,8 +90,9 @@ TEST(QrReader, EqualisesBlurredModules) {
   ld::QrReader reader;
   std::string payload = "https://example.org/building-7/floor-2/corridor-B/landmark?id=42&v=";
   while (payload.size() < 100) payload += static_cast<char>('a' + payload.size() % 26);
-  ASSERT_EQ(ld::artwork::encodeQr(payload).size, 41);
-  const cv::Mat sheet = ld::artwork::renderLandmark(payload, 900);
+  const auto qr = ld::artwork::encodeQr(payload, ld::artwork::QrEcc::M);
+  ASSERT_EQ(qr.size, 41);
+  const cv::Mat sheet = ld::artwork::renderLandmark(qr, 900);
   // sheet side 150 px: QR square 67 px for 43 modules (code + quiet zone)
   Scene sc = warped(sheet, {{{250, 160}, {400, 166}, {397, 314}, {247, 310}}});
   const cv::Mat motion = cv::getGaussianKernel(5, 1.0, CV_32F).t();  // along x

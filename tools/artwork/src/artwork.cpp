@@ -1,5 +1,6 @@
 #include "ld/artwork.hpp"
 
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -86,6 +87,13 @@ void appendLandmark(std::ostringstream& os, const QrCode& qr, double x0, double 
   os << "\"/>\n";
 }
 
+// libqrencode's smallest symbol for `payload` at `level`, or null when none holds it.
+std::unique_ptr<QRcode, decltype(&QRcode_free)> encodeAt(const std::string& payload, QRecLevel level) {
+  return {QRcode_encodeData(static_cast<int>(payload.size()),
+                            reinterpret_cast<const unsigned char*>(payload.data()), 0, level),
+          &QRcode_free};
+}
+
 struct Grid {
   int cols, rows;
   double cell_w, cell_h;
@@ -113,15 +121,40 @@ int landmarksPerPage(double side_mm, const SheetLayout& page) {
   return g.cols * g.rows;
 }
 
-QrCode encodeQr(const std::string& payload) {
-  std::unique_ptr<QRcode, decltype(&QRcode_free)> code(
-      QRcode_encodeData(static_cast<int>(payload.size()),
-                        reinterpret_cast<const unsigned char*>(payload.data()), 0, QR_ECLEVEL_M),
-      &QRcode_free);
-  if (!code) throw std::invalid_argument("QR payload of " + std::to_string(payload.size()) +
-                                         " bytes cannot be encoded");
+QrEcc parseQrEcc(const std::string& text) {
+  std::string t;
+  for (char c : text) t += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  if (t == "AUTO") return QrEcc::Auto;
+  if (t == "L") return QrEcc::L;
+  if (t == "M") return QrEcc::M;
+  if (t == "Q") return QrEcc::Q;
+  if (t == "H") return QrEcc::H;
+  throw std::invalid_argument("QR error correction must be auto, L, M, Q or H, not '" + text + "'");
+}
+
+QrCode encodeQr(const std::string& payload, QrEcc ecc) {
+  static constexpr QRecLevel kLevel[] = {QR_ECLEVEL_L, QR_ECLEVEL_L, QR_ECLEVEL_M, QR_ECLEVEL_Q, QR_ECLEVEL_H};
+  static constexpr char kName[] = {'L', 'L', 'M', 'Q', 'H'};
+  int chosen = static_cast<int>(ecc);
+  auto code = encodeAt(payload, kLevel[chosen]);
+  if (code && ecc == QrEcc::Auto) {
+    // The highest level that keeps level L's symbol.
+    for (int level = static_cast<int>(QrEcc::H); level > static_cast<int>(QrEcc::L); --level) {
+      auto higher = encodeAt(payload, kLevel[level]);
+      if (higher && higher->version == code->version) {
+        code = std::move(higher);
+        chosen = level;
+        break;
+      }
+    }
+  }
+  if (!code)
+    throw std::invalid_argument("QR payload of " + std::to_string(payload.size()) + " bytes cannot be encoded" +
+                                (ecc == QrEcc::Auto ? "" : std::string(" at error correction ") + kName[chosen]));
   QrCode qr;
   qr.size = code->width;
+  qr.version = code->version;
+  qr.ecc = kName[chosen];
   qr.modules.resize(static_cast<size_t>(qr.size) * qr.size);
   for (size_t i = 0; i < qr.modules.size(); ++i) qr.modules[i] = code->data[i] & 1;
   return qr;
@@ -152,16 +185,16 @@ cv::Mat renderLandmark(const QrCode& qr, int side_px, const Colours& colours) {
   return img;
 }
 
-cv::Mat renderLandmark(const std::string& payload, int side_px, const Colours& colours) {
-  return renderLandmark(encodeQr(payload), side_px, colours);
+cv::Mat renderLandmark(const std::string& payload, int side_px, const Colours& colours, QrEcc ecc) {
+  return renderLandmark(encodeQr(payload, ecc), side_px, colours);
 }
 
 int sidePixels(double side_m, double dpi) {
   return static_cast<int>(std::lround(side_m / 0.0254 * dpi));
 }
 
-std::string landmarkSvg(const std::string& payload, double side_mm) {
-  const QrCode qr = encodeQr(payload);
+std::string landmarkSvg(const std::string& payload, double side_mm, QrEcc ecc) {
+  const QrCode qr = encodeQr(payload, ecc);
   std::ostringstream os;
   os << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
      << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << fmt(side_mm) << "mm\" height=\""
@@ -173,7 +206,7 @@ std::string landmarkSvg(const std::string& payload, double side_mm) {
 }
 
 std::string sheetSvg(const std::vector<std::string>& payloads, double side_mm,
-                     const SheetLayout& page) {
+                     const SheetLayout& page, QrEcc ecc) {
   const Grid g = sheetGrid(payloads.size(), side_mm, page);
   std::ostringstream os;
   os << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
@@ -188,7 +221,7 @@ std::string sheetSvg(const std::vector<std::string>& payloads, double side_mm,
     os << "<rect x=\"" << fmt(x0) << "\" y=\"" << fmt(y0) << "\" width=\"" << fmt(side_mm)
        << "\" height=\"" << fmt(side_mm)
        << "\" fill=\"none\" stroke=\"#c0c0c0\" stroke-width=\"0.1\"/>\n";
-    appendLandmark(os, encodeQr(payloads[i]), x0, y0, side_mm);
+    appendLandmark(os, encodeQr(payloads[i], ecc), x0, y0, side_mm);
     os << "<text x=\"" << fmt(x0) << "\" y=\"" << fmt(y0 + side_mm + 3.5)
        << "\" font-family=\"sans-serif\" font-size=\"3\" fill=\"#404040\">" << xmlEscape(payloads[i])
        << " (" << fmt(side_mm) << " mm)</text>\n";
@@ -198,7 +231,7 @@ std::string sheetSvg(const std::vector<std::string>& payloads, double side_mm,
 }
 
 cv::Mat sheetImage(const std::vector<std::string>& payloads, double side_mm, double dpi,
-                   const SheetLayout& page) {
+                   const SheetLayout& page, QrEcc ecc) {
   const Grid g = sheetGrid(payloads.size(), side_mm, page);
   const double px_per_mm = dpi / 25.4;
   cv::Mat img(static_cast<int>(std::lround(page.page_h_mm * px_per_mm)),
@@ -212,7 +245,7 @@ cv::Mat sheetImage(const std::vector<std::string>& payloads, double side_mm, dou
         std::lround((page.margin_mm + static_cast<double>(i / g.cols) * g.cell_h) * px_per_mm));
     const cv::Rect roi(x0, y0, side_px, side_px);
     cv::rectangle(img, roi, cv::Scalar(192, 192, 192), 1);
-    renderLandmark(payloads[i], side_px).copyTo(img(roi));
+    renderLandmark(payloads[i], side_px, {}, ecc).copyTo(img(roi));
     cv::putText(img, payloads[i], {x0, y0 + side_px + static_cast<int>(3.5 * px_per_mm)},
                 cv::FONT_HERSHEY_SIMPLEX, 0.1 * px_per_mm, cv::Scalar(64, 64, 64),
                 std::max(1, static_cast<int>(0.1 * px_per_mm)), cv::LINE_AA);

@@ -2,12 +2,15 @@
 // and sheets of several landmarks.
 #include <algorithm>
 #include <fstream>
+#include <iomanip>
 #include <iostream>
+#include <sstream>
 
 #include <CLI/CLI.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "ld/artwork.hpp"
+#include "ld/landmark_layout.hpp"
 
 namespace {
 
@@ -32,7 +35,7 @@ int main(int argc, char** argv) {
   CLI::App app{"Make printable landmarks (docs/landmark.md): PNG at a DPI, SVG at exact size."};
   std::vector<std::string> payloads;
   double side_m = 0.15, dpi = 300.0;
-  std::string png, svg;
+  std::string png, svg, ecc_text = "auto";
   bool sheet = false;
   ld::artwork::SheetLayout page;
   app.add_option("-p,--payload", payloads, "QR text; repeat with --sheet for several")->required();
@@ -42,6 +45,10 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--png", png, "write a PNG here");
   app.add_option("--svg", svg, "write an SVG here (vector, exact physical size)");
+  app.add_option("--ecc", ecc_text,
+                 "QR error correction: L, M, Q, H, or auto (the smallest symbol that holds the payload, at the "
+                 "highest level that keeps it: the largest modules)")
+      ->capture_default_str();
   app.add_flag("--sheet", sheet,
                "lay the landmarks out on pages with their payloads as labels (more than a page holds: "
                "FILE-1.svg, FILE-2.svg, ...)");
@@ -66,8 +73,25 @@ int main(int argc, char** argv) {
     std::cerr << "ld-generate: several payloads need --sheet\n";
     return 2;
   }
+  ld::artwork::QrEcc ecc;
+  try {
+    ecc = ld::artwork::parseQrEcc(ecc_text);
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "ld-generate: --ecc: " << e.what() << "\n";
+    return 2;
+  }
   try {
     const double side_mm = side_m * 1000.0;
+    // What each code became: its version and level, and its module on paper
+    // (what decides the distance it reads from: ld-eval size).
+    for (const auto& p : payloads) {
+      const ld::artwork::QrCode qr = ld::artwork::encodeQr(p, ecc);
+      const double module_mm = ld::artwork::qrPlacement(qr).module_u * side_mm / ld::layout::kUnits;
+      std::ostringstream mm;
+      mm << std::fixed << std::setprecision(2) << module_mm;
+      std::cout << "QR \"" << p << "\": version " << qr.version << " (" << qr.size
+                << " modules), error correction " << qr.ecc << ", modules of " << mm.str() << " mm\n";
+    }
     // The pages: one payload alone, or as many per page as fit.
     std::vector<std::vector<std::string>> pages;
     const size_t per_page = sheet ? static_cast<size_t>(ld::artwork::landmarksPerPage(side_mm, page)) : 1;
@@ -79,8 +103,8 @@ int main(int argc, char** argv) {
       const auto& on_page = pages[static_cast<size_t>(k - 1)];
       if (!svg.empty()) {
         const std::string path = pagePath(svg, k, n);
-        const std::string text = sheet ? ld::artwork::sheetSvg(on_page, side_mm, page)
-                                       : ld::artwork::landmarkSvg(on_page.front(), side_mm);
+        const std::string text = sheet ? ld::artwork::sheetSvg(on_page, side_mm, page, ecc)
+                                       : ld::artwork::landmarkSvg(on_page.front(), side_mm, ecc);
         if (!writeText(path, text)) {
           std::cerr << "ld-generate: cannot write " << path << "\n";
           return 2;
@@ -91,8 +115,8 @@ int main(int argc, char** argv) {
       if (!png.empty()) {
         const std::string path = pagePath(png, k, n);
         const cv::Mat img =
-            sheet ? ld::artwork::sheetImage(on_page, side_mm, dpi, page)
-                  : ld::artwork::renderLandmark(on_page.front(), ld::artwork::sidePixels(side_m, dpi));
+            sheet ? ld::artwork::sheetImage(on_page, side_mm, dpi, page, ecc)
+                  : ld::artwork::renderLandmark(on_page.front(), ld::artwork::sidePixels(side_m, dpi), {}, ecc);
         if (!cv::imwrite(path, img)) {
           std::cerr << "ld-generate: cannot write " << path << "\n";
           return 2;

@@ -142,6 +142,7 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
     auto lm = synth::placeLandmark(o.camera, distance_m, yaw, pitch, roll, nx, ny, o.side_m, payload);
     if (!synth::truthFor(o.camera, lm).in_view)
       lm = synth::placeLandmark(o.camera, distance_m, yaw, pitch, roll, 0, 0, o.side_m, payload);
+    lm.ecc = o.ecc;
     if (marker) lm.texture = marker_texture;
     synth::SceneSpec spec = synth::randomConditions(o.camera, {lm}, rng());
     applyLighting(o, spec);

@@ -125,6 +125,13 @@ void addStack(CLI::App* app, int& frames, const std::string& what) {
   app->add_option("--stack", frames, what)->capture_default_str()->check(CLI::Range(0, 64));
 }
 
+// The QR sweeps' --ecc: the error correction of the printed codes, as ld-generate's.
+void addEcc(CLI::App* app, std::string& level) {
+  app->add_option("--ecc", level, "QR error correction of the printed codes, as ld-generate's: auto, L, M, Q, H")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "L", "M", "Q", "H"}, CLI::ignore_case));
+}
+
 // The detection sweeps (yaw, distance) also measure the markers.
 void addCompare(CLI::App* app, Common& c) {
   app->add_flag("--compare", c.compare,
@@ -186,6 +193,8 @@ int main(int argc, char** argv) {
   addStack(qr, q_stack,
            "also read each trial's QR from this many frames averaged, as ld-qr-reader does for an undecoded "
            "track (the landmark moved a fraction of a pixel between frames); 0: single frames");
+  std::string q_ecc = "auto";
+  addEcc(qr, q_ecc);
 
   Common sc;
   double s_detect = 3.0, s_read = 1.0, s_yaw = 30;
@@ -202,6 +211,8 @@ int main(int argc, char** argv) {
   addStack(size, s_stack,
            "count a QR read when read over this many frames, as ld-qr-reader reads a track (a moving camera); "
            "0: from single frames");
+  std::string s_ecc = "auto";
+  addEcc(size, s_ecc);
 
   Common lc;
   double l_side = 0.15, l_dist = 1.5, l_yaw = 40;
@@ -262,6 +273,7 @@ int main(int argc, char** argv) {
       o.side_m = q_side;
       o.decode = true;
       o.stack_frames = q_stack;
+      o.ecc = ld::artwork::parseQrEcc(q_ecc);
       const std::vector<double> ds = range(q_from, q_to, q_step);
       // payloadFor's kinds: 0-2 are 8-23 bytes, 3-4 are 99-100 bytes.
       struct Kind { std::string name; int first, count; };
@@ -339,6 +351,7 @@ int main(int argc, char** argv) {
       emit(lc, t.str());
     } else if (size->parsed()) {
       auto o = sc.options();
+      o.ecc = ld::artwork::parseQrEcc(s_ecc);
       std::sort(s_sides.begin(), s_sides.end());
       std::ostringstream t;
       const std::string read_how = s_stack > 0 ? " over " + std::to_string(s_stack) + " frames" : "";

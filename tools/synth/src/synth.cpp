@@ -812,8 +812,8 @@ int textureSide(double side_px, int ss) {
 // a module is 8 pixels), so a larger texture is that one scaled up by a whole
 // factor with nearest neighbour: the same picture renderLandmark would draw,
 // for a fraction of the time.
-cv::Mat landmarkTexture(const std::string& payload, int n, const artwork::Colours& ink) {
-  const artwork::QrCode qr = artwork::encodeQr(payload);
+cv::Mat landmarkTexture(const std::string& payload, artwork::QrEcc ecc, int n, const artwork::Colours& ink) {
+  const artwork::QrCode qr = artwork::encodeQr(payload, ecc);
   const int base = 18 * (qr.size + 2);
   if (n <= base) return artwork::renderLandmark(qr, n, ink);
   const cv::Mat small = artwork::renderLandmark(qr, base, ink);
@@ -836,7 +836,7 @@ void drawLandmark(Canvas& c, const LandmarkPlacement& lm, const artwork::Colours
     if (tex.channels() == 4) cv::cvtColor(tex, tex, cv::COLOR_BGRA2BGR);
     if (tex.cols > 2 * n) cv::resize(tex, tex, cv::Size(n, n), 0, 0, cv::INTER_AREA);
   } else {
-    tex = landmarkTexture(lm.payload, n, ink);
+    tex = landmarkTexture(lm.payload, lm.ecc, n, ink);
   }
   drawPlanar(c, R, lm.tvec, {lm.side_m, lm.side_m}, tex, ss);
 }

@@ -20,16 +20,28 @@ struct Colours {
   cv::Vec3b black{0, 0, 0};
 };
 
+/// QR error correction: L, M, Q, H recover about 7, 15, 25, 30 % of the
+/// symbol's codewords. Auto takes the smallest symbol that holds the payload
+/// (level L's) and then the highest level that still fits that symbol: the
+/// largest modules for the QR square, so the longest reading distance, and
+/// all the error correction that costs no module size.
+enum class QrEcc { Auto, L, M, Q, H };
+/// "auto", "L", "M", "Q", "H" (either case); throws std::invalid_argument
+/// naming the text otherwise.
+QrEcc parseQrEcc(const std::string& text);
+
 /// A QR symbol as a square grid of modules (true = dark), no quiet zone.
 struct QrCode {
-  int size = 0;                 // modules per side
+  int size = 0;                 // modules per side (17 + 4 version)
+  int version = 0;              // 1..40
+  char ecc = 'M';               // the level used: 'L', 'M', 'Q' or 'H'
   std::vector<uint8_t> modules; // row-major, size*size
   bool dark(int x, int y) const { return modules[static_cast<size_t>(y) * size + x] != 0; }
 };
 
-/// Encodes `payload` (bytes, UTF-8 text as is) with libqrencode, error
-/// correction level M. Throws std::invalid_argument when it does not fit.
-QrCode encodeQr(const std::string& payload);
+/// Encodes `payload` (bytes, UTF-8 text as is) with libqrencode at the level
+/// `ecc` (Auto: see QrEcc). Throws std::invalid_argument when it does not fit.
+QrCode encodeQr(const std::string& payload, QrEcc ecc = QrEcc::Auto);
 
 /// Geometry of the QR inside the sheet, in units u: the symbol plus one
 /// module of quiet zone fills the QR square [2.5u, 6.5u].
@@ -44,14 +56,15 @@ QrPlacement qrPlacement(const QrCode& qr);
 /// pixel at any size (and a pixel-perfect copy of the layout when side_px is
 /// a multiple of 18).
 cv::Mat renderLandmark(const QrCode& qr, int side_px, const Colours& colours = {});
-cv::Mat renderLandmark(const std::string& payload, int side_px, const Colours& colours = {});
+cv::Mat renderLandmark(const std::string& payload, int side_px, const Colours& colours = {},
+                       QrEcc ecc = QrEcc::Auto);
 
 /// Pixel side of a sheet of `side_m` metres printed at `dpi`.
 int sidePixels(double side_m, double dpi);
 
 /// A standalone SVG of one landmark with width and height `side_mm`
 /// millimetres, so printing at 100% gives a sheet of exactly that side.
-std::string landmarkSvg(const std::string& payload, double side_mm);
+std::string landmarkSvg(const std::string& payload, double side_mm, QrEcc ecc = QrEcc::Auto);
 
 /// A page of several landmarks (side_mm each) laid out in a grid with the
 /// payload printed under each; page size in millimetres (A4 by default).
@@ -63,12 +76,12 @@ struct SheetLayout {
   double gap_mm = 8.0;
 };
 std::string sheetSvg(const std::vector<std::string>& payloads, double side_mm,
-                     const SheetLayout& page = {});
+                     const SheetLayout& page = {}, QrEcc ecc = QrEcc::Auto);
 /// How many landmarks of side_mm one page holds (throws std::invalid_argument
 /// when not even one fits): more payloads than that take several pages.
 int landmarksPerPage(double side_mm, const SheetLayout& page = {});
 /// The same page as a raster image at `dpi`.
 cv::Mat sheetImage(const std::vector<std::string>& payloads, double side_mm, double dpi,
-                   const SheetLayout& page = {});
+                   const SheetLayout& page = {}, QrEcc ecc = QrEcc::Auto);
 
 }  // namespace ld::artwork

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "ld/artwork.hpp"
 #include "ld/camera.hpp"
 #include "ld/detector.hpp"
 
@@ -34,6 +35,7 @@ struct SweepOptions {
   bool decode = false;  ///< also read the QR (from the detected corners)
   /// The payload printed on trial k's landmark (k drawn at random in [0, 1000)).
   std::function<std::string(int)> payload = payloadFor;
+  artwork::QrEcc ecc = artwork::QrEcc::Auto;  ///< its QR's error correction (ld-generate --ecc)
   DetectorParams params;
   /// Detect through ld::AdaptiveDetector (lighting adaptation) instead of the
   /// fixed defaults. Each trial is a fresh frame: the adapter has only the

@@ -26,6 +26,7 @@ namespace ld::synth {
 struct LandmarkPlacement {
   int id = 0;                 // ground-truth identity, carried to the truth
   std::string payload = "ld"; // QR text
+  artwork::QrEcc ecc = artwork::QrEcc::Auto;  // its error correction (as ld-generate's --ecc)
   double side_m = 0.15;       // printed sheet side S
   cv::Vec3d rvec{0, 0, 0};
   cv::Vec3d tvec{0, 0, 1};
