@@ -110,6 +110,30 @@ TEST(LightingAdapter, GlareVeilIsSubtracted) {
   EXPECT_EQ(out.at<cv::Vec3b>(235, 315), clean.at<cv::Vec3b>(235, 315));
 }
 
+// A warm lamp's hot spot lifts red most and blue least. Assumed neutral, the
+// veil would be under-subtracted in red and the blue square would come out
+// violet; measured on the veiled blocks, its colour is the lamp's and the
+// square comes out blue.
+TEST(LightingAdapter, VeilColourIsMeasuredOnTheVeil) {
+  ld::LightingAdapter a;
+  cv::Mat frame = checkerWithBluePatch();
+  cv::Mat spot = frame(cv::Rect(100, 60, 120, 120));
+  cv::add(spot, cv::Scalar(80, 125, 170), spot);  // B, G, R
+  const cv::Mat out = a.correct(frame).clone();
+  ASSERT_TRUE(a.glareCorrected());
+  const cv::Vec3d colour = a.veilColour();
+  EXPECT_NEAR(colour[2], 1.0, 0.02);  // red strongest
+  EXPECT_NEAR(colour[1], 125.0 / 170, 0.05);
+  EXPECT_NEAR(colour[0], 80.0 / 170, 0.05);
+  const cv::Vec3b blue = out.at<cv::Vec3b>(120, 160);
+  EXPECT_GT(saturation(blue), 0.45);
+  EXPECT_GT(blue[0], 1.5 * blue[2]) << blue;  // blue, not violet
+  std::printf("blue under a warm veil, corrected: %d %d %d\n", blue[0], blue[1], blue[2]);
+  // black under the veil is black again in every channel
+  const cv::Vec3b black = out.at<cv::Vec3b>(100 + 4, 104 + 8 * 4);
+  EXPECT_LT(std::max({black[0], black[1], black[2]}), 60) << black;
+}
+
 TEST(LightingAdapter, PaleOrColouredSurfacesAreNotAVeil) {
   ld::AdaptiveParams p;
   ld::LightingAdapter a(p);
@@ -207,6 +231,14 @@ TEST(AdaptiveDetection, HoldsUnderGlareOnTheLandmark) {
   const double fp = ld::eval::falsePositivesPerFrame(glare(true), 100);
   std::printf("glare 0.3: %.3f false landmarks per frame\n", fp);
   EXPECT_LE(fp, 0.01);
+  // Twice as strong: the sheet clips to white, the squares keep a trace of colour.
+  auto strong = glare(true);
+  strong.glare = 0.6;
+  const auto [fixed6, adaptive6] = ld::eval::measureFixedAndAdaptive(strong, 1.5, 0, 40);
+  std::printf("glare 0.6: fixed %d/%d, adaptive %d/%d\n", fixed6.detected, fixed6.trials, adaptive6.detected,
+              adaptive6.trials);
+  EXPECT_EQ(fixed6.detected, 0);
+  EXPECT_GE(adaptive6.detectRate(), 0.7);
 }
 
 // The command line: `ld-detect --adaptive` on frames under tungsten light,

@@ -12,8 +12,14 @@ namespace ld {
 
 namespace {
 
-// How far one channel's veil may exceed the common veil of the light's colour.
+// How far one channel's veil may exceed the common veil of the light's colour
+// when that colour is only assumed (no veiled blocks to measure it on).
 constexpr double kVeilSpread = 1.25;
+// The veil's colour is measured on this many veiled blocks at least.
+constexpr int kVeilColourBlocks = 8;
+// Under a veil that leaves less of the range than this above it, the stretch
+// would amplify noise and JPEG blocks into colours: left alone.
+constexpr int kMinHeadroom = 32;
 // The glare pass's statistics are per kGlareBlock x kGlareBlock pixels.
 constexpr int kGlareBlock = 8;
 
@@ -82,35 +88,97 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
   // Local black (per channel) and white levels over the window.
   cv::erode(block_min_, local_black_, window_kernel_, {-1, -1}, 1, cv::BORDER_REPLICATE);
   cv::dilate(block_white_, local_white_, window_kernel_, {-1, -1}, 1, cv::BORDER_REPLICATE);
+  // On a hot spot's slope the window's darkest thing sits where the veil is
+  // weakest, so the local black lies under the block's veil by up to the
+  // slope times the window's reach. The opening (the largest of the minima
+  // of the windows that hold the block) takes it back up, by no more than
+  // that: where the local black is flat, a larger opening is not the veil
+  // but the colour of something that fills a window (a square's own ink).
+  cv::dilate(local_black_, local_open_, window_kernel_, {-1, -1}, 1, cv::BORDER_REPLICATE);
+  const int reach = window_kernel_.cols / 2;
+  for (int y = 0; y < bh; ++y) {
+    const auto* up = local_black_.ptr<cv::Vec3b>(std::max(0, y - 1));
+    const auto* row = local_black_.ptr<cv::Vec3b>(y);
+    const auto* down = local_black_.ptr<cv::Vec3b>(std::min(bh - 1, y + 1));
+    const auto* open = local_open_.ptr<cv::Vec3b>(y);
+    auto* raised = local_open_.ptr<cv::Vec3b>(y);  // written in place: each block reads only its own
+    for (int x = 0; x < bw; ++x) {
+      const cv::Vec3b& left = row[std::max(0, x - 1)];
+      const cv::Vec3b& right = row[std::min(bw - 1, x + 1)];
+      for (int c = 0; c < 3; ++c) {
+        const int twice_slope = std::max(std::abs(right[c] - left[c]), std::abs(down[x][c] - up[x][c]));
+        raised[x][c] = static_cast<uint8_t>(std::min<int>(open[x][c], row[x][c] + twice_slope * reach / 2));
+      }
+    }
+  }
+  cv::swap(local_black_, local_open_);
+  // Veiled blocks: every channel's local black well above the frame's black
+  // in the light's colour (a veil lifts all of them; a coloured surface
+  // some), with white well above it in the same window (ink and paper under
+  // one veil, not a plain pale wall; near the clip, most of what is left of
+  // the range) and enough of the range left to stretch.
+  auto liftOf = [&](const cv::Vec3b& lb, const cv::Vec3d& light) {
+    double lift = 255;
+    for (int c = 0; c < 3; ++c) lift = std::min(lift, (lb[c] - black[c]) / light[c]);
+    return lift;
+  };
+  auto isVeiled = [&](int y, int x, double lift) {
+    const cv::Vec3b lb = local_black_.at<cv::Vec3b>(y, x);
+    const int lb_min = std::min({lb[0], lb[1], lb[2]});
+    const double contrast = std::min(params_.glare_min_contrast, 0.8 * (255 - lb_min));
+    return lift > params_.glare_min_lift && 255 - lb_min >= kMinHeadroom &&
+           local_white_.at<uint8_t>(y, x) - lb_min > contrast;
+  };
   // The light's colour relative to its strongest channel: the running
-  // white estimate, or neutral before there is one.
+  // white estimate, or neutral before there is one ...
   cv::Vec3d light(1, 1, 1);
   if (white_[0] > 0) {
     const double top = std::max({white_[0], white_[1], white_[2]});
     for (int c = 0; c < 3; ++c) light[c] = std::max(0.25, white_[c] / top);
   }
+  // ... or, better, the veil's own colour (the light's: a reflection of the
+  // lamp or window that lights the scene), measured on the veiled blocks as
+  // the median ratio of each channel's lift to green's. With the colour
+  // measured, each channel's veil is the common veil in that colour; with it
+  // assumed, each channel may go a little above (kVeilSpread).
+  veil_ratios_[0].clear();
+  veil_ratios_[1].clear();
+  for (int y = 0; y < bh; ++y)
+    for (int x = 0; x < bw; ++x) {
+      const cv::Vec3b lb = local_black_.at<cv::Vec3b>(y, x);
+      if (!isVeiled(y, x, liftOf(lb, light))) continue;
+      const double green = lb[1] - black[1];
+      veil_ratios_[0].push_back((lb[0] - black[0]) / green);
+      veil_ratios_[1].push_back((lb[2] - black[2]) / green);
+    }
+  double spread = kVeilSpread;
+  if (veil_ratios_[0].size() >= static_cast<size_t>(kVeilColourBlocks)) {
+    auto median = [](std::vector<double>& v) {
+      std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+      return v[v.size() / 2];
+    };
+    const cv::Vec3d colour(median(veil_ratios_[0]), 1.0, median(veil_ratios_[1]));
+    const double top = std::max({colour[0], colour[1], colour[2]});
+    for (int c = 0; c < 3; ++c) light[c] = std::max(0.25, colour[c] / top);
+    spread = 1.0;
+  }
+  veil_colour_ = light;
   veil_coarse_.create(bh, bw, CV_8UC3);
   veiled_.create(bh, bw, CV_8UC1);
   bool any = false;
   for (int y = 0; y < bh; ++y)
     for (int x = 0; x < bw; ++x) {
       const cv::Vec3b lb = local_black_.at<cv::Vec3b>(y, x);
-      // A veil lifts every channel in the light's colour (a coloured surface
-      // lifts some): the largest veil of that colour under every channel's
-      // local black. The window must still hold white well above its black
-      // (ink on paper, not a plain pale wall).
-      double lift = 255;
-      for (int c = 0; c < 3; ++c) lift = std::min(lift, (lb[c] - black[c]) / light[c]);
-      const int lb_min = std::min({lb[0], lb[1], lb[2]});
-      const bool veiled = lift > params_.glare_min_lift &&
-                          local_white_.at<uint8_t>(y, x) - lb_min > params_.glare_min_contrast;
-      // Each channel's veil: its own local black, but at most a quarter above
-      // the common veil (a window whose darkest thing in one channel is
-      // not dark, say a blue square's blue, would lift that channel too far).
+      // The largest veil of the light's colour under every channel's local
+      // black; each channel's veil at most `spread` times that (a window
+      // whose darkest thing in one channel is not dark, say a blue square's
+      // blue, would lift that channel too far).
+      const double lift = liftOf(lb, light);
+      const bool veiled = isVeiled(y, x, lift);
       cv::Vec3b& v = veil_coarse_.at<cv::Vec3b>(y, x);
       for (int c = 0; c < 3; ++c)
         v[c] = cv::saturate_cast<uint8_t>(
-            black[c] + (veiled ? std::min<double>(lb[c] - black[c], kVeilSpread * lift * light[c]) : 0.0));
+            black[c] + (veiled ? std::min<double>(lb[c] - black[c], spread * lift * light[c]) : 0.0));
       veiled_.at<uint8_t>(y, x) = veiled ? 255 : 0;
       any |= veiled;
     }

@@ -18,6 +18,8 @@
 // together.
 #pragma once
 
+#include <vector>
+
 #include <opencv2/core.hpp>
 
 #include "ld/detector.hpp"
@@ -49,8 +51,10 @@ struct AdaptiveParams {
   /// pixels within glare_window px) has risen more than glare_min_lift above
   /// the frame's own black level, while the same window still holds pixels
   /// glare_min_contrast brighter than that (dark ink and white paper under
-  /// one veil, not a plain pale wall), the veil is subtracted and the range
-  /// stretched back to white. glare_min_lift 0 turns it off.
+  /// one veil, not a plain pale wall; near the clip, most of the range left),
+  /// the veil is subtracted and the range stretched back to white. Its
+  /// colour is measured on the veiled blocks (the light's), its level taken
+  /// up the hot spot's slope. glare_min_lift 0 turns it off.
   double glare_min_lift = 60.0;
   double glare_min_contrast = 60.0;
   int glare_window = 40;
@@ -75,6 +79,10 @@ class LightingAdapter {
   cv::Vec3d gains() const { return gains_; }
   /// Whether the last correct() subtracted a glare veil somewhere.
   bool glareCorrected() const { return glare_corrected_; }
+  /// The colour (B, G, R over the strongest) of the veil the last correct()
+  /// looked for: measured on the veiled blocks when there were enough of
+  /// them, else the running white estimate's, else neutral.
+  const cv::Vec3d& veilColour() const { return veil_colour_; }
   /// Whether the last estimate came from a landmark's sheet.
   bool fromLandmarks() const { return frames_since_landmark_ < params_.landmark_memory_frames; }
 
@@ -92,8 +100,11 @@ class LightingAdapter {
   std::vector<int> hist_;
   std::vector<cv::Vec3d> level_sums_;  // the frame estimate's channel sums per weakest-channel level
   bool glare_corrected_ = false;
-  cv::Mat deglared_, row_min_, block_min_, block_white_, local_black_, local_white_, veil_coarse_, veiled_;
+  cv::Mat deglared_, row_min_, block_min_, block_white_, local_black_, local_open_, local_white_, veil_coarse_,
+      veiled_;
   cv::Mat window_kernel_, spread_kernel_;  // the glare pass's morphology
+  std::vector<double> veil_ratios_[2];     // veiled blocks' blue and red lifts over green's
+  cv::Vec3d veil_colour_{1, 1, 1};
   std::vector<cv::Vec3i> lerp_x_, lerp_y_;  // per column / row: lower and upper block, weight (of 256)
 };
 
