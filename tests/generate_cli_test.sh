@@ -24,6 +24,11 @@ grep -q 'width="210mm" height="297mm"' "$T/p-2.svg" || fail "page 2 is not A4"
 "$BIN/ld-generate" --sheet --size 0.06 -p a -p b -p c -p d -p e -p f -p g --png "$T/s.png" --dpi 150 >"$T/out"
 [ "$(read_page "$T/s-1.png")" = "a b c d e f " ] || fail "6 cm page 1 reads: $(read_page "$T/s-1.png")"
 [ "$(read_page "$T/s-2.png")" = "g " ] || fail "6 cm page 2 reads: $(read_page "$T/s-2.png")"
+# Fewer pages than an earlier run: the earlier run's last page is named as left over.
+"$BIN/ld-generate" --sheet --size 0.15 -p dock -p room-101 --svg "$T/p.svg" >/dev/null 2>"$T/err"
+grep -q "p-3.svg from an earlier run left in place" "$T/err" || fail "stale page not named: $(cat "$T/err")"
+"$BIN/ld-generate" --size 0.15 -p dock --svg "$T/p.svg" >/dev/null 2>"$T/err"
+grep -q "p-1.svg, .*p-2.svg, .*p-3.svg from an earlier run" "$T/err" || fail "stale pages of one: $(cat "$T/err")"
 # What fits one page stays one file.
 "$BIN/ld-generate" --sheet --size 0.06 -p a -p b --svg "$T/one.svg" >/dev/null
 [ -s "$T/one.svg" ] && [ ! -e "$T/one-1.svg" ] || fail "two 6 cm landmarks not on one unnumbered page"

@@ -1,6 +1,7 @@
 // ld-generate: printable landmarks (PNG at a DPI, SVG at exact physical size)
 // and sheets of several landmarks.
 #include <algorithm>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
@@ -123,6 +124,19 @@ int main(int argc, char** argv) {
         }
         std::cout << "wrote " << path << " (" << img.cols << "x" << img.rows << " px at " << dpi << " dpi)\n";
       }
+    }
+    // Pages an earlier run with more pages left beside these are not this
+    // sheet's: say so rather than delete what may be someone's file.
+    for (const std::string& base : {svg, png}) {
+      if (base.empty()) continue;
+      std::string stale;
+      for (int k = n == 1 ? 1 : n + 1;; ++k) {
+        const std::string path = pagePath(base, k, k + 1);
+        if (!std::filesystem::exists(path)) break;
+        stale += (stale.empty() ? "" : ", ") + path;
+      }
+      if (!stale.empty())
+        std::cerr << "ld-generate: note: " << stale << " from an earlier run left in place (not part of this sheet)\n";
     }
   } catch (const std::exception& e) {
     std::cerr << "ld-generate: " << e.what() << "\n";
