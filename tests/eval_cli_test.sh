@@ -36,5 +36,8 @@ awk -F'|' '/^\| 0\.3 / { exit !($6 ~ /100.0 %/ && $7 ~ /100.0 %/) }' "$T/qrs.md"
 if "$BIN/ld-eval" qr --stack 100 >/dev/null 2>"$T/err"; then fail "--stack 100 accepted"; fi
 grep -q -- "--stack" "$T/err" || fail "bad --stack: $(cat "$T/err")"
 if "$BIN/ld-eval" size --ecc Z >/dev/null 2>"$T/err"; then fail "--ecc Z accepted"; fi
-grep -q -- "--ecc" "$T/err" || fail "bad --ecc: $(cat "$T/err")"
+grep -q -- "--ecc.*not 'Z'" "$T/err" || fail "bad --ecc: $(cat "$T/err")"
+# A level given (any case) is taken: codes printed at M read at 0.3 m.
+"$BIN/ld-eval" qr --ecc m --trials 3 --from 0.3 --to 0.3 >"$T/qrm.md" 2>/dev/null || fail "qr --ecc m: exit $?"
+grep -q '^| 0\.3 | 100.0 % | 100.0 % | 100.0 % | 0 |' "$T/qrm.md" || fail "qr --ecc m: $(cat "$T/qrm.md")"
 echo ok

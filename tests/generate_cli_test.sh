@@ -29,6 +29,8 @@ grep -q 'width="210mm" height="297mm"' "$T/p-2.svg" || fail "page 2 is not A4"
 grep -q "p-3.svg from an earlier run left in place" "$T/err" || fail "stale page not named: $(cat "$T/err")"
 "$BIN/ld-generate" --size 0.15 -p dock --svg "$T/p.svg" >/dev/null 2>"$T/err"
 grep -q "p-1.svg, .*p-2.svg, .*p-3.svg from an earlier run" "$T/err" || fail "stale pages of one: $(cat "$T/err")"
+"$BIN/ld-generate" --sheet --size 0.15 -p dock -p room-101 --svg "$T/p.svg" >/dev/null 2>"$T/err"
+grep -q "p.svg, .*p-3.svg from an earlier run" "$T/err" || fail "stale unnumbered file: $(cat "$T/err")"
 # What fits one page stays one file.
 "$BIN/ld-generate" --sheet --size 0.06 -p a -p b --svg "$T/one.svg" >/dev/null
 [ -s "$T/one.svg" ] && [ ! -e "$T/one-1.svg" ] || fail "two 6 cm landmarks not on one unnumbered page"

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # ld-qr-reader reads a track's 100-byte code from its stacked frames where no
-# single frame reads it: ten frames of one 15 cm landmark at 1 m (under a
+# single frame reads it: ten frames of one 15 cm landmark at 1 m (about a
 # pixel per module), a fraction of a pixel apart, replayed through the whole
 # process set (ld-run --netns, real LCM multicast). With --stack-frames 0 the
 # same replay gives no payload.

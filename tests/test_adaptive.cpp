@@ -214,9 +214,10 @@ TEST(AdaptiveDetection, NoMoreFalseLandmarksOnDistractorScenes) {
   }
 }
 
-// A hot spot of glare on the landmark (peak 0.3 of white, in linear light):
-// the fixed defaults lose most frames, the adaptive detector's veil
-// subtraction keeps most, and no false landmark appears under it.
+// A hot spot of glare on the landmark (peak 0.3 of white, in linear light,
+// then 0.6, which clips the sheet): the fixed defaults lose most frames, the
+// adaptive detector's veil subtraction keeps most, and no false landmark
+// appears under it.
 TEST(AdaptiveDetection, HoldsUnderGlareOnTheLandmark) {
   auto glare = [](bool adaptive) {
     auto o = lit(-1, -1, adaptive);
@@ -237,7 +238,7 @@ TEST(AdaptiveDetection, HoldsUnderGlareOnTheLandmark) {
   const auto [fixed6, adaptive6] = ld::eval::measureFixedAndAdaptive(strong, 1.5, 0, 40);
   std::printf("glare 0.6: fixed %d/%d, adaptive %d/%d\n", fixed6.detected, fixed6.trials, adaptive6.detected,
               adaptive6.trials);
-  EXPECT_EQ(fixed6.detected, 0);
+  EXPECT_GE(adaptive6.detected, fixed6.detected + 10);  // (measured: 0 and 18 of 20)
   EXPECT_GE(adaptive6.detectRate(), 0.7);
 }
 

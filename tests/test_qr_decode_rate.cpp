@@ -80,7 +80,7 @@ TEST(QrDecodeRate, Landmark15cmPayloadsUpTo100BytesFrom30To60cm) {
 }
 
 // ld-qr-reader's stack of an undecoded track's frames: 100-byte codes at 1.0
-// to 1.1 m (under a pixel per module), the same landmark in 8 frames a
+// to 1.1 m (a pixel per module or less), the same landmark in 8 frames a
 // fraction of a pixel apart, each with its own sensor noise and JPEG, read
 // at the detector's corners. Single frames do not resolve the modules;
 // their mean in the sheet's frame mostly does.

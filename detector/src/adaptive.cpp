@@ -20,6 +20,18 @@ constexpr int kVeilColourBlocks = 8;
 // Under a veil that leaves less of the range than this above it, the stretch
 // would amplify noise and JPEG blocks into colours: left alone.
 constexpr int kMinHeadroom = 32;
+// Near the clip the white over a veil can rise no higher than 255: the
+// contrast asked for is at most this fraction of the range left.
+constexpr double kClipContrast = 0.8;
+
+// A colour (B, G, R) relative to its strongest channel, no channel under a quarter.
+cv::Vec3d relativeColour(const cv::Vec3d& c) {
+  const double top = std::max({c[0], c[1], c[2]});
+  cv::Vec3d out;
+  for (int k = 0; k < 3; ++k) out[k] = std::max(0.25, c[k] / top);
+  return out;
+}
+
 // The glare pass's statistics are per kGlareBlock x kGlareBlock pixels.
 constexpr int kGlareBlock = 8;
 
@@ -48,6 +60,7 @@ void LightingAdapter::update(const cv::Vec3d& white) {
 
 const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
   glare_corrected_ = false;
+  veil_colour_ = {1, 1, 1};
   if (!(params_.glare_min_lift > 0)) return bgr;
   // Per 8x8 block: each channel's darkest value, and the whitest pixel (by
   // its weakest channel).
@@ -125,24 +138,22 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
   auto isVeiled = [&](int y, int x, double lift) {
     const cv::Vec3b lb = local_black_.at<cv::Vec3b>(y, x);
     const int lb_min = std::min({lb[0], lb[1], lb[2]});
-    const double contrast = std::min(params_.glare_min_contrast, 0.8 * (255 - lb_min));
+    const double contrast = std::min(params_.glare_min_contrast, kClipContrast * (255 - lb_min));
     return lift > params_.glare_min_lift && 255 - lb_min >= kMinHeadroom &&
            local_white_.at<uint8_t>(y, x) - lb_min > contrast;
   };
   // The light's colour relative to its strongest channel: the running
   // white estimate, or neutral before there is one ...
-  cv::Vec3d light(1, 1, 1);
-  if (white_[0] > 0) {
-    const double top = std::max({white_[0], white_[1], white_[2]});
-    for (int c = 0; c < 3; ++c) light[c] = std::max(0.25, white_[c] / top);
-  }
+  cv::Vec3d light = white_[0] > 0 ? relativeColour(white_) : cv::Vec3d(1, 1, 1);
   // ... or, better, the veil's own colour (the light's: a reflection of the
   // lamp or window that lights the scene), measured on the veiled blocks as
   // the median ratio of each channel's lift to green's. With the colour
   // measured, each channel's veil is the common veil in that colour; with it
   // assumed, each channel may go a little above (kVeilSpread).
-  veil_ratios_[0].clear();
-  veil_ratios_[1].clear();
+  for (auto& v : veil_ratios_) {
+    v.clear();
+    v.reserve(static_cast<size_t>(bw) * bh);  // (once per frame size: no allocation after)
+  }
   for (int y = 0; y < bh; ++y)
     for (int x = 0; x < bw; ++x) {
       const cv::Vec3b lb = local_black_.at<cv::Vec3b>(y, x);
@@ -157,9 +168,7 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
       std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
       return v[v.size() / 2];
     };
-    const cv::Vec3d colour(median(veil_ratios_[0]), 1.0, median(veil_ratios_[1]));
-    const double top = std::max({colour[0], colour[1], colour[2]});
-    for (int c = 0; c < 3; ++c) light[c] = std::max(0.25, colour[c] / top);
+    light = relativeColour({median(veil_ratios_[0]), 1.0, median(veil_ratios_[1])});
     spread = 1.0;
   }
   veil_colour_ = light;
@@ -239,6 +248,7 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
 const cv::Mat& LightingAdapter::correct(const cv::Mat& bgr_in) {
   gains_ = {1, 1, 1};
   glare_corrected_ = false;
+  veil_colour_ = {1, 1, 1};
   if (bgr_in.empty() || bgr_in.type() != CV_8UC3) return bgr_in;
   const cv::Mat& bgr = deglare(bgr_in);
   if (frames_since_landmark_ < (1 << 20)) ++frames_since_landmark_;

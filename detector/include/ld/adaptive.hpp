@@ -81,7 +81,8 @@ class LightingAdapter {
   bool glareCorrected() const { return glare_corrected_; }
   /// The colour (B, G, R over the strongest) of the veil the last correct()
   /// looked for: measured on the veiled blocks when there were enough of
-  /// them, else the running white estimate's, else neutral.
+  /// them, else the running white estimate's, else neutral (also when the
+  /// glare pass is off or the frame was not corrected).
   const cv::Vec3d& veilColour() const { return veil_colour_; }
   /// Whether the last estimate came from a landmark's sheet.
   bool fromLandmarks() const { return frames_since_landmark_ < params_.landmark_memory_frames; }

@@ -125,18 +125,18 @@ int main(int argc, char** argv) {
         std::cout << "wrote " << path << " (" << img.cols << "x" << img.rows << " px at " << dpi << " dpi)\n";
       }
     }
-    // Pages an earlier run with more pages left beside these are not this
-    // sheet's: say so rather than delete what may be someone's file.
+    // Files an earlier run left beside these (more numbered pages, or the
+    // unnumbered file of a run of one page) are not this run's: say so
+    // rather than delete what may be someone's file.
     for (const std::string& base : {svg, png}) {
       if (base.empty()) continue;
       std::string stale;
-      for (int k = n == 1 ? 1 : n + 1;; ++k) {
-        const std::string path = pagePath(base, k, k + 1);
-        if (!std::filesystem::exists(path)) break;
-        stale += (stale.empty() ? "" : ", ") + path;
-      }
+      std::error_code ec;
+      if (n > 1 && std::filesystem::exists(base, ec)) stale = base;
+      for (int k = n == 1 ? 1 : n + 1; std::filesystem::exists(pagePath(base, k, k + 1), ec); ++k)
+        stale += (stale.empty() ? "" : ", ") + pagePath(base, k, k + 1);
       if (!stale.empty())
-        std::cerr << "ld-generate: note: " << stale << " from an earlier run left in place (not part of this sheet)\n";
+        std::cerr << "ld-generate: note: " << stale << " from an earlier run left in place (not written now)\n";
     }
   } catch (const std::exception& e) {
     std::cerr << "ld-generate: " << e.what() << "\n";

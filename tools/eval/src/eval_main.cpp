@@ -129,7 +129,16 @@ void addStack(CLI::App* app, int& frames, const std::string& what) {
 void addEcc(CLI::App* app, std::string& level) {
   app->add_option("--ecc", level, "QR error correction of the printed codes, as ld-generate's: auto, L, M, Q, H")
       ->capture_default_str()
-      ->check(CLI::IsMember({"auto", "L", "M", "Q", "H"}, CLI::ignore_case));
+      ->check(CLI::Validator(
+          [](std::string& text) {
+            try {
+              ld::artwork::parseQrEcc(text);
+              return std::string();
+            } catch (const std::invalid_argument& e) {
+              return std::string(e.what());
+            }
+          },
+          "LEVEL"));
 }
 
 // The detection sweeps (yaw, distance) also measure the markers.
