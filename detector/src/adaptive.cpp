@@ -106,7 +106,8 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
   // slope times the window's reach. The opening (the largest of the minima
   // of the windows that hold the block) takes it back up, by no more than
   // that: where the local black is flat, a larger opening is not the veil
-  // but the colour of something that fills a window (a square's own ink).
+  // but the colour of something that fills a window (a square's own ink),
+  // and where it steps on one side only, that is an object's edge.
   cv::dilate(local_black_, local_open_, window_kernel_, {-1, -1}, 1, cv::BORDER_REPLICATE);
   const int reach = window_kernel_.cols / 2;
   for (int y = 0; y < bh; ++y) {
@@ -119,8 +120,11 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
       const cv::Vec3b& left = row[std::max(0, x - 1)];
       const cv::Vec3b& right = row[std::min(bw - 1, x + 1)];
       for (int c = 0; c < 3; ++c) {
-        const int twice_slope = std::max(std::abs(right[c] - left[c]), std::abs(down[x][c] - up[x][c]));
-        raised[x][c] = static_cast<uint8_t>(std::min<int>(open[x][c], row[x][c] + twice_slope * reach / 2));
+        // the slope on both sides alike: a step (an object's edge) is no slope
+        const int e = row[x][c];
+        const int slope = std::max(std::min(std::abs(right[c] - e), std::abs(e - left[c])),
+                                   std::min(std::abs(down[x][c] - e), std::abs(e - up[x][c])));
+        raised[x][c] = static_cast<uint8_t>(std::min(static_cast<int>(open[x][c]), e + slope * reach));
       }
     }
   }
