@@ -103,6 +103,32 @@ TEST(QrReader, EqualisesBlurredModules) {
   EXPECT_EQ(r->attempt, 6) << "decoded by attempt " << r->attempt;
 }
 
+// A track's stack holds one landmark: frames of another (a tracker that
+// swapped two tracks' ids), a pattern side or more away, restart it, so the
+// mean is never a blend of two codes; the same landmark moving a little
+// between frames stays in it.
+TEST(QrStack, AnotherLandmarkRestartsTheStack) {
+  const cv::Mat a = ld::artwork::renderLandmark("room-101/door", 450);
+  const cv::Mat b = ld::artwork::renderLandmark("lift-B/floor-2", 450);
+  // 120 px sheets, side by side 200 px apart; A also nudged by 0.2 of its side
+  const auto at = [](float x, float y) {
+    return std::array<cv::Point2f, 4>{{{x, y}, {x + 120, y}, {x + 120, y + 120}, {x, y + 120}}};
+  };
+  ld::QrReader reader;
+  ld::QrStack stack;
+  for (float dx : {0.0f, 12.0f, 24.0f}) {
+    const Scene sa = warped(a, at(100 + dx, 180));
+    ASSERT_TRUE(stack.add(sa.image, sa.corners));
+  }
+  EXPECT_EQ(stack.frames(), 3);
+  const Scene sb = warped(b, at(320, 180));
+  ASSERT_TRUE(stack.add(sb.image, sb.corners));
+  EXPECT_EQ(stack.frames(), 1);  // restarted on the other landmark
+  const auto r = stack.decode(reader);
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(r->payload, "lift-B/floor-2");
+}
+
 TEST(QrReader, DamagedOrMissingQrGivesNothing) {
   ld::QrReader reader;
   cv::Mat sheet = ld::artwork::renderLandmark("damaged", 900);

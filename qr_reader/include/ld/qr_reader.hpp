@@ -75,7 +75,9 @@ class QrStack {
   /// Adds one frame (8-bit BGR or gray) with the landmark's pattern corners
   /// (TL, TR, BR, BL). False, and nothing added, when the QR is too small to
   /// read or a corner is not finite. A QR whose projected size differs from
-  /// the stack's by more than a quarter (the robot came closer) restarts it.
+  /// the stack's by more than a quarter (the robot came closer), or whose
+  /// pattern moved by more than its side since the last frame added (another
+  /// landmark: a tracker that swapped two tracks' ids), restarts it.
   bool add(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners);
 
   /// Frames in the mean (at most max_frames: older ones have faded).
@@ -94,7 +96,9 @@ class QrStack {
  private:
   int max_frames_;
   int n_ = 0;
+  static constexpr double kMaxJump = 1.0;  // in pattern sides, between frames added
   double qr_px_ = 0;  // the projected QR side of the stack's first frame
+  cv::Point2f centre_;  // the pattern's centre in the last frame added
   cv::Mat mean_, gray_, view_, view_f_, mean8_;
 };
 
