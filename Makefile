@@ -49,7 +49,7 @@ PREFIX ?= /usr/local
 install:
 	cmake --install $(BUILD_DIR) --prefix $(PREFIX)
 
-# The Debian package (build/package/landmark_<version>_<arch>.deb, /usr prefix).
+# The Debian packages (build/package/landmark_<version>_<arch>.deb and landmark-dev_..., /usr prefix).
 package: build
 	cd $(BUILD_DIR) && cpack --config CPackConfig.cmake -B package
 

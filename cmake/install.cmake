@@ -16,15 +16,20 @@
 #                                ld-run config and /etc/default/landmark
 #                                template (examples/)
 #   share/doc/landmark/          README and docs/
+#
+# Two components, two Debian packages: `runtime` (landmark: the programs and
+# everything they use at run time) and `dev` (landmark-dev: libraries,
+# headers and the CMake package, for building robot code of your own).
+# `cmake --install` without --component installs both.
 include(CMakePackageConfigHelpers)
 
 # Programs a user runs (test-only helpers such as ld-publish-garbage stay out).
 set(LD_INSTALL_PROGRAMS
   ld-camera ld-detector ld-tracker ld-qr-reader ld-run ld-play ld-view ld-dump
   ld-log-images ld-detect ld-generate ld-synth ld-eval ld-bench ld-bench-tracker ld-soak)
-install(TARGETS ${LD_INSTALL_PROGRAMS} RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+install(TARGETS ${LD_INSTALL_PROGRAMS} RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT runtime)
 install(PROGRAMS ${CMAKE_BINARY_DIR}/bin/ld-spy ${CMAKE_BINARY_DIR}/bin/ld-bench-e2e
-        DESTINATION ${CMAKE_INSTALL_BINDIR})
+        DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT runtime)
 
 # Libraries, with the names they have in the package.
 set_target_properties(ld_core PROPERTIES EXPORT_NAME core)
@@ -35,17 +40,17 @@ set_target_properties(ld_msgs PROPERTIES EXPORT_NAME msgs)
 set_target_properties(ld_lcmtypes PROPERTIES EXPORT_NAME lcmtypes)
 install(TARGETS ld_core ld_detector ld_qr_reader ld_landmark_msg ld_msgs ld_lcmtypes
         EXPORT landmarkTargets
-        ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+        ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT dev
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 # The command-line options header needs CLI11 and is the programs' own.
 install(DIRECTORY detector/include/ld qr_reader/include/ld lcmtypes/include/ld
-        DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
+        DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} COMPONENT dev
         FILES_MATCHING PATTERN "*.hpp" PATTERN "detector_options.hpp" EXCLUDE)
 # lcm-gen's headers (lcmtypes/CMakeLists.txt writes them to cpp/ld/).
-install(DIRECTORY ${CMAKE_BINARY_DIR}/lcmtypes/cpp/ld DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
+install(DIRECTORY ${CMAKE_BINARY_DIR}/lcmtypes/cpp/ld DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} COMPONENT dev
         FILES_MATCHING PATTERN "*.hpp")
 install(EXPORT landmarkTargets NAMESPACE landmark::
-        DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/landmark)
+        DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/landmark COMPONENT dev)
 set(LD_PACKAGE_HAS_GLES ${LD_GLES_FOUND})
 set(LD_PACKAGE_HAS_GBM ${LD_GBM_FOUND})
 configure_package_config_file(cmake/landmarkConfig.cmake.in
@@ -55,27 +60,33 @@ write_basic_package_version_file(${CMAKE_BINARY_DIR}/cmake/landmarkConfigVersion
                                  COMPATIBILITY SameMinorVersion)
 install(FILES ${CMAKE_BINARY_DIR}/cmake/landmarkConfig.cmake
               ${CMAKE_BINARY_DIR}/cmake/landmarkConfigVersion.cmake
-        DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/landmark)
+        DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/landmark COMPONENT dev)
 
 # Message definitions and the types jar (ld-spy finds it from bin/).
-install(DIRECTORY lcmtypes/ DESTINATION ${CMAKE_INSTALL_DATADIR}/landmark/lcmtypes
+install(DIRECTORY lcmtypes/ DESTINATION ${CMAKE_INSTALL_DATADIR}/landmark/lcmtypes COMPONENT runtime
         FILES_MATCHING PATTERN "*.lcm" PATTERN "include" EXCLUDE PATTERN "src" EXCLUDE)
-install(FILES ${CMAKE_BINARY_DIR}/java/ld_lcmtypes.jar DESTINATION ${CMAKE_INSTALL_DATADIR}/landmark/java)
+install(FILES ${CMAKE_BINARY_DIR}/java/ld_lcmtypes.jar DESTINATION ${CMAKE_INSTALL_DATADIR}/landmark/java
+        COMPONENT runtime)
 
 # systemd units, the sysctl setting, the site templates.
 install(FILES tools/systemd/landmark.target tools/systemd/ld-camera.service
               tools/systemd/ld-detector.service tools/systemd/ld-tracker.service
               tools/systemd/ld-qr-reader.service tools/systemd/ld-run@.service
-        DESTINATION lib/systemd/system)
-install(FILES tools/systemd/99-landmark-rmem.conf DESTINATION lib/sysctl.d)
+        DESTINATION lib/systemd/system COMPONENT runtime)
+install(FILES tools/systemd/99-landmark-rmem.conf DESTINATION lib/sysctl.d COMPONENT runtime)
 install(FILES tools/systemd/landmark.default tools/run/ld-run.example.json tools/run/ld-run.example.yaml
-        DESTINATION ${CMAKE_INSTALL_DATADIR}/landmark/examples)
-install(FILES README.md DESTINATION ${CMAKE_INSTALL_DATADIR}/doc/landmark)
-install(DIRECTORY docs/ DESTINATION ${CMAKE_INSTALL_DATADIR}/doc/landmark/docs)
+        DESTINATION ${CMAKE_INSTALL_DATADIR}/landmark/examples COMPONENT runtime)
+install(FILES README.md DESTINATION ${CMAKE_INSTALL_DATADIR}/doc/landmark COMPONENT runtime)
+install(DIRECTORY docs/ DESTINATION ${CMAKE_INSTALL_DATADIR}/doc/landmark/docs COMPONENT runtime)
 
-# The Debian package: everything above under /usr, its dependencies found by
-# dpkg-shlibdeps from the programs' shared libraries.
+# The Debian packages: the two components above under /usr; the runtime's
+# dependencies found by dpkg-shlibdeps from the programs' shared libraries,
+# the dev package's the development packages its CMake package finds.
 set(CPACK_GENERATOR DEB)
+set(CPACK_DEB_COMPONENT_INSTALL ON)
+set(CPACK_COMPONENTS_ALL runtime dev)
+set(CPACK_DEBIAN_ENABLE_COMPONENT_DEPENDS ON)
+set(CPACK_COMPONENT_DEV_DEPENDS runtime)  # landmark-dev: Depends landmark (= version)
 set(CPACK_PACKAGE_NAME landmark)
 set(CPACK_PACKAGE_VERSION ${PROJECT_VERSION})
 set(CPACK_PACKAGING_INSTALL_PREFIX /usr)
@@ -83,18 +94,34 @@ set(CPACK_PACKAGE_CONTACT "landmark maintainers <landmark@localhost>")
 set(CPACK_PACKAGE_DESCRIPTION_SUMMARY
     "Colour landmark detection, tracking and QR reading for mobile robots over LCM")
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
-set(CPACK_DEBIAN_PACKAGE_SECTION science)
-set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
+set(CPACK_DEBIAN_RUNTIME_PACKAGE_NAME landmark)
+set(CPACK_COMPONENT_RUNTIME_DESCRIPTION
+    "Colour landmark detection, tracking and QR reading for mobile robots over LCM: the processes and tools")
+set(CPACK_DEBIAN_RUNTIME_PACKAGE_SECTION science)
+set(CPACK_DEBIAN_RUNTIME_PACKAGE_SHLIBDEPS ON)
 # ld-spy runs lcm-spy's Java classes; ld-bench-e2e uses jq. The GLES backend
 # needs an EGL driver (Mesa's, or a GPU vendor's).
-set(CPACK_DEBIAN_PACKAGE_DEPENDS
+set(CPACK_DEBIAN_RUNTIME_PACKAGE_DEPENDS
     "default-jre-headless | java-runtime-headless, liblcm-java, libjchart2d-java, jq")
-set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "libegl-mesa0, libgl1-mesa-dri, liblcm-bin")
+set(CPACK_DEBIAN_RUNTIME_PACKAGE_RECOMMENDS "libegl-mesa0, libgl1-mesa-dri, liblcm-bin")
+set(CPACK_DEBIAN_DEV_PACKAGE_NAME landmark-dev)
+set(CPACK_DEBIAN_DEV_PACKAGE_SECTION libdevel)
+set(CPACK_COMPONENT_DEV_DESCRIPTION
+    "Colour landmark detection: static libraries, headers and CMake package (find_package(landmark))")
+# What landmarkConfig.cmake finds (find_dependency / pkg-config), and a compiler.
+set(LD_DEV_DEPENDS "libopencv-dev, liblcm-dev, libzbar-dev, pkg-config, g++ | c++-compiler")
+if(LD_GLES_FOUND)
+  string(APPEND LD_DEV_DEPENDS ", libegl-dev, libgles-dev")
+endif()
+if(LD_GBM_FOUND)
+  string(APPEND LD_DEV_DEPENDS ", libgbm-dev")
+endif()
+set(CPACK_DEBIAN_DEV_PACKAGE_DEPENDS "${LD_DEV_DEPENDS}")
 # postinst: the receive-buffer setting applied now (when it raises the
 # limit), daemon-reload, running units restarted on an upgrade; prerm: the
 # units stopped on removal; postrm: daemon-reload.
-set(CPACK_DEBIAN_PACKAGE_CONTROL_EXTRA ${PROJECT_SOURCE_DIR}/cmake/debian/postinst
-                                      ${PROJECT_SOURCE_DIR}/cmake/debian/prerm
-                                      ${PROJECT_SOURCE_DIR}/cmake/debian/postrm)
+set(CPACK_DEBIAN_RUNTIME_PACKAGE_CONTROL_EXTRA ${PROJECT_SOURCE_DIR}/cmake/debian/postinst
+                                              ${PROJECT_SOURCE_DIR}/cmake/debian/prerm
+                                              ${PROJECT_SOURCE_DIR}/cmake/debian/postrm)
 set(CPACK_DEBIAN_PACKAGE_CONTROL_STRICT_PERMISSION ON)
 include(CPack)

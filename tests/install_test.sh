@@ -9,8 +9,10 @@
 #      prefix is moved, and lcm-spy's class discovery finds every type in it;
 #   4. a separate CMake project finds the package (find_package(landmark)),
 #      builds against it and detects and decodes the same landmark;
-#   5. the Debian package (cpack) holds the same files under /usr and has
-#      dependencies found from the programs' libraries.
+#   5. the Debian packages (cpack): landmark holds the programs and what they
+#      use under /usr, with dependencies found from the programs' libraries;
+#      landmark-dev the libraries, headers and CMake package, depending on
+#      landmark of the same version and the development packages.
 # usage: install_test.sh BUILD_DIR SOURCE_DIR
 set -euo pipefail
 build=$(cd "$1" && pwd); src=$(cd "$2" && pwd)
@@ -71,21 +73,33 @@ awk -v a="$out" -v b="$want" 'BEGIN { split(a, x, " "); split(b, y, " ");
   exit !((x[2] - y[1])^2 + (x[3] - y[2])^2 < 0.01) }' || fail "consumer corner $out, ld-detect $want"
 echo "find_package(landmark): ok ($out)"
 
-# 5. The Debian package.
+# 5. The Debian packages.
 (cd "$build" && cpack --config CPackConfig.cmake -B "$T/pkg" >"$T/cpack.log" 2>&1) \
   || { cat "$T/cpack.log"; fail "cpack"; }
 deb=$(ls "$T"/pkg/landmark_*.deb)
+dev=$(ls "$T"/pkg/landmark-dev_*.deb)
 dpkg-deb -c "$deb" >"$T/deb.list"
+dpkg-deb -c "$dev" >"$T/dev.list"
 for f in ./usr/bin/ld-detector ./usr/bin/ld-spy ./usr/lib/systemd/system/landmark.target \
-         ./usr/share/landmark/java/ld_lcmtypes.jar ./usr/lib/cmake/landmark/landmarkConfig.cmake; do
+         ./usr/share/landmark/java/ld_lcmtypes.jar ./usr/lib/sysctl.d/99-landmark-rmem.conf; do
   grep -q " $f\$" "$T/deb.list" || fail "package lacks $f"
+  ! grep -q " $f\$" "$T/dev.list" || fail "landmark-dev has the runtime's $f"
+done
+for f in ./usr/lib/cmake/landmark/landmarkConfig.cmake ./usr/lib/libld_detector.a ./usr/include/ld/detector.hpp \
+         ./usr/include/ld/landmark_list_t.hpp; do
+  grep -q " $f\$" "$T/dev.list" || fail "landmark-dev lacks $f"
+  ! grep -q " $f\$" "$T/deb.list" || fail "the runtime package has landmark-dev's $f"
 done
 depends=$(dpkg-deb -f "$deb" Depends)
 for d in liblcm libopencv-core libzbar libjchart2d-java; do
   grep -q "$d" <<<"$depends" || fail "package Depends lacks $d: $depends"
 done
-grep -q " ./usr/lib/sysctl.d/99-landmark-rmem.conf\$" "$T/deb.list" || fail "package lacks the sysctl file"
-echo "package: ok ($(basename "$deb"))"
+version=$(dpkg-deb -f "$deb" Version)
+dev_depends=$(dpkg-deb -f "$dev" Depends)
+for d in "landmark (= $version)" libopencv-dev liblcm-dev libzbar-dev; do
+  grep -qF "$d" <<<"$dev_depends" || fail "landmark-dev Depends lacks $d: $dev_depends"
+done
+echo "packages: ok ($(basename "$deb"), $(basename "$dev"))"
 
 # 6. Its maintainer scripts, run as dpkg runs them, against stub sysctl,
 #    systemd-sysctl and systemctl (a systemd root under DPKG_ROOT) that log
@@ -94,6 +108,8 @@ dpkg-deb -e "$deb" "$T/control"
 for f in postinst prerm postrm; do
   [ -x "$T/control/$f" ] || fail "package has no executable $f"
 done
+dpkg-deb -e "$dev" "$T/dev-control"
+[ ! -e "$T/dev-control/postinst" ] || fail "landmark-dev has maintainer scripts"
 R=$T/root; mkdir -p "$R/run/systemd/system" "$R/usr/lib/systemd" "$T/stubs"
 printf '#!/bin/sh\necho "systemd-sysctl $*" >>"%s/calls"\n' "$T" >"$R/usr/lib/systemd/systemd-sysctl"
 printf '#!/bin/sh\necho "systemctl $*" >>"%s/calls"\n' "$T" >"$T/stubs/systemctl"
