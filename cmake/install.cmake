@@ -51,8 +51,15 @@ install(DIRECTORY ${CMAKE_BINARY_DIR}/lcmtypes/cpp/ld DESTINATION ${CMAKE_INSTAL
         FILES_MATCHING PATTERN "*.hpp")
 install(EXPORT landmarkTargets NAMESPACE landmark::
         DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/landmark COMPONENT dev)
-set(LD_PACKAGE_HAS_GLES ${LD_GLES_FOUND})
-set(LD_PACKAGE_HAS_GBM ${LD_GBM_FOUND})
+# (as detector/CMakeLists.txt links them: GBM only with the GLES backend)
+set(LD_PACKAGE_HAS_GLES OFF)
+set(LD_PACKAGE_HAS_GBM OFF)
+if(LD_WITH_GLES AND LD_GLES_FOUND)
+  set(LD_PACKAGE_HAS_GLES ON)
+  if(LD_GBM_FOUND)
+    set(LD_PACKAGE_HAS_GBM ON)
+  endif()
+endif()
 configure_package_config_file(cmake/landmarkConfig.cmake.in
                               ${CMAKE_BINARY_DIR}/cmake/landmarkConfig.cmake
                               INSTALL_DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/landmark)
@@ -108,12 +115,13 @@ set(CPACK_DEBIAN_DEV_PACKAGE_NAME landmark-dev)
 set(CPACK_DEBIAN_DEV_PACKAGE_SECTION libdevel)
 set(CPACK_COMPONENT_DEV_DESCRIPTION
     "Colour landmark detection: static libraries, headers and CMake package (find_package(landmark))")
-# What landmarkConfig.cmake finds (find_dependency / pkg-config), and a compiler.
-set(LD_DEV_DEPENDS "libopencv-dev, liblcm-dev, libzbar-dev, pkg-config, g++ | c++-compiler")
-if(LD_GLES_FOUND)
+# What landmarkConfig.cmake finds (find_dependency / pkg-config; lcm.pc
+# requires glib, which liblcm-dev does not pull in), and a compiler.
+set(LD_DEV_DEPENDS "libopencv-dev, liblcm-dev, libglib2.0-dev, libzbar-dev, pkg-config, g++ | c++-compiler")
+if(LD_PACKAGE_HAS_GLES)
   string(APPEND LD_DEV_DEPENDS ", libegl-dev, libgles-dev")
 endif()
-if(LD_GBM_FOUND)
+if(LD_PACKAGE_HAS_GBM)
   string(APPEND LD_DEV_DEPENDS ", libgbm-dev")
 endif()
 set(CPACK_DEBIAN_DEV_PACKAGE_DEPENDS "${LD_DEV_DEPENDS}")

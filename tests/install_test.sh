@@ -96,7 +96,7 @@ for d in liblcm libopencv-core libzbar libjchart2d-java; do
 done
 version=$(dpkg-deb -f "$deb" Version)
 dev_depends=$(dpkg-deb -f "$dev" Depends)
-for d in "landmark (= $version)" libopencv-dev liblcm-dev libzbar-dev; do
+for d in "landmark (= $version)" libopencv-dev liblcm-dev libglib2.0-dev libzbar-dev pkg-config; do
   grep -qF "$d" <<<"$dev_depends" || fail "landmark-dev Depends lacks $d: $dev_depends"
 done
 echo "packages: ok ($(basename "$deb"), $(basename "$dev"))"

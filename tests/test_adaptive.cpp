@@ -238,7 +238,7 @@ TEST(AdaptiveDetection, HoldsUnderGlareOnTheLandmark) {
   const auto [fixed6, adaptive6] = ld::eval::measureFixedAndAdaptive(strong, 1.5, 0, 40);
   std::printf("glare 0.6: fixed %d/%d, adaptive %d/%d\n", fixed6.detected, fixed6.trials, adaptive6.detected,
               adaptive6.trials);
-  EXPECT_GE(adaptive6.detected, fixed6.detected + 10);  // (measured: 0 and 18 of 20)
+  EXPECT_GE(adaptive6.detected, fixed6.detected + 10);  // (measured: 0 and 17 of 20)
   EXPECT_GE(adaptive6.detectRate(), 0.7);
 }
 

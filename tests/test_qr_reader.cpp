@@ -104,9 +104,9 @@ TEST(QrReader, EqualisesBlurredModules) {
 }
 
 // A track's stack holds one landmark: frames of another (a tracker that
-// swapped two tracks' ids), a pattern side or more away, restart it, so the
-// mean is never a blend of two codes; the same landmark moving a little
-// between frames stays in it.
+// swapped two tracks' ids), a pattern side or more away from where the track
+// was in the last frame seen, restart it, so the mean is never a blend of two
+// codes; the same landmark moving between frames stays in it.
 TEST(QrStack, AnotherLandmarkRestartsTheStack) {
   const cv::Mat a = ld::artwork::renderLandmark("room-101/door", 450);
   const cv::Mat b = ld::artwork::renderLandmark("lift-B/floor-2", 450);
@@ -127,6 +127,23 @@ TEST(QrStack, AnotherLandmarkRestartsTheStack) {
   const auto r = stack.decode(reader);
   ASSERT_TRUE(r.has_value());
   EXPECT_EQ(r->payload, "lift-B/floor-2");
+
+  // A camera turning: the landmark crosses the image by 1.5 sheets between
+  // tries, followed in the frames between (ld-qr-reader follows every frame
+  // of the track): the stack keeps its frames. A swap seen in a followed
+  // frame restarts it.
+  ld::QrStack turning;
+  for (int k = 0; k < 3; ++k) {
+    const float x = 60.0f + 180.0f * k;
+    for (float step = -150.0f; step < 0; step += 30.0f) turning.follow(at(x + step, 180));
+    const Scene sa = warped(a, at(x, 180));
+    ASSERT_TRUE(turning.add(sa.image, sa.corners));
+  }
+  EXPECT_EQ(turning.frames(), 3);
+  turning.follow(at(60, 180));  // the other landmark, a sheet and a half back
+  const Scene sa = warped(a, at(60, 180));
+  ASSERT_TRUE(turning.add(sa.image, sa.corners));
+  EXPECT_EQ(turning.frames(), 1);
 }
 
 TEST(QrReader, DamagedOrMissingQrGivesNothing) {

@@ -355,15 +355,11 @@ int stackSide(double qr_px) {
 bool QrStack::add(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners) {
   const auto qr_px = readableQrSide(image, corners);
   if (!qr_px) return false;
-  const cv::Point2f centre = (corners[0] + corners[1] + corners[2] + corners[3]) * 0.25f;
   // Another landmark (a tracker's ids swapped between two), not this one
-  // seen again: a QR of another size, or one that jumped by more than its
-  // pattern's side since the last frame.
-  const double pattern_px = *qr_px * (layout::kPatternMax - layout::kPatternMin) / (layout::kQrMax - layout::kQrMin);
-  if (n_ > 0 && (std::abs(*qr_px - qr_px_) > 0.25 * qr_px_ || cv::norm(centre - centre_) > kMaxJump * pattern_px))
-    n_ = 0;
+  // seen again: a QR of another size, or one that jumped.
+  if (n_ > 0 && std::abs(*qr_px - qr_px_) > 0.25 * qr_px_) n_ = 0;
+  checkJump(corners, *qr_px);
   if (n_ == 0) qr_px_ = *qr_px;
-  centre_ = centre;
   toGray(image, gray_);
   const int side = stackSide(qr_px_);
   cv::warpPerspective(gray_, view_, viewToImage(corners, side, kStackMargin), {side, side},
@@ -378,6 +374,19 @@ bool QrStack::add(const cv::Mat& image, const std::array<cv::Point2f, 4>& corner
   }
   ++n_;
   return true;
+}
+
+void QrStack::follow(const std::array<cv::Point2f, 4>& corners) {
+  for (const auto& c : corners)
+    if (!std::isfinite(c.x) || !std::isfinite(c.y)) return;
+  checkJump(corners, projectedQrSide(corners));
+}
+
+void QrStack::checkJump(const std::array<cv::Point2f, 4>& corners, double qr_px) {
+  const cv::Point2f centre = (corners[0] + corners[1] + corners[2] + corners[3]) * 0.25f;
+  const double pattern_px = qr_px * (layout::kPatternMax - layout::kPatternMin) / (layout::kQrMax - layout::kQrMin);
+  if (n_ > 0 && cv::norm(centre - centre_) > kMaxJump * pattern_px) n_ = 0;
+  centre_ = centre;
 }
 
 const cv::Mat& QrStack::meanView() {

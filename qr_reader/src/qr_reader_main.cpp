@@ -122,9 +122,18 @@ int main(int argc, char** argv) {
       if (lm.visible && lm.track_id >= 0) ids.push_back(lm.track_id);
     const std::vector<int64_t> todo = book.schedule(ids, list.utime);
     for (auto it = stacks.begin(); it != stacks.end();) {  // tracks gone or read: their stacks go
-      bool listed = false;  // visible or coasting
-      for (const auto& lm : list.landmarks) listed |= lm.track_id == it->first;
-      it = !listed || book.payload(it->first) ? stacks.erase(it) : std::next(it);
+      const ld::landmark_t* listed = nullptr;  // visible or coasting
+      for (const auto& lm : list.landmarks)
+        if (lm.track_id == it->first) listed = &lm;
+      if (!listed || book.payload(it->first)) {
+        it = stacks.erase(it);
+        continue;
+      }
+      // where the track is in every frame: a jump is another landmark
+      std::array<cv::Point2f, 4> corners;
+      for (size_t i = 0; i < 4; ++i) corners[i] = {listed->corners[i][0], listed->corners[i][1]};
+      it->second.follow(corners);
+      ++it;
     }
     if (!todo.empty()) {
       try {

@@ -76,9 +76,14 @@ class QrStack {
   /// (TL, TR, BR, BL). False, and nothing added, when the QR is too small to
   /// read or a corner is not finite. A QR whose projected size differs from
   /// the stack's by more than a quarter (the robot came closer), or whose
-  /// pattern moved by more than its side since the last frame added (another
+  /// pattern jumped by more than its side since the last frame seen (another
   /// landmark: a tracker that swapped two tracks' ids), restarts it.
   bool add(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners);
+
+  /// The track's landmark in a frame that is not added (not tried): only
+  /// where it is, so that a jump is told from a landmark moving across the
+  /// image between tries. Call it for every frame of the track.
+  void follow(const std::array<cv::Point2f, 4>& corners);
 
   /// Frames in the mean (at most max_frames: older ones have faded).
   int frames() const { return std::min(n_, std::max(1, max_frames_)); }
@@ -96,9 +101,12 @@ class QrStack {
  private:
   int max_frames_;
   int n_ = 0;
-  static constexpr double kMaxJump = 1.0;  // in pattern sides, between frames added
+  // Restarts the stack when the pattern (centre, QR side) jumped by more
+  // than kMaxJump pattern sides since the last frame seen; remembers it.
+  void checkJump(const std::array<cv::Point2f, 4>& corners, double qr_px);
+  static constexpr double kMaxJump = 1.0;  // in pattern sides, between frames seen
   double qr_px_ = 0;  // the projected QR side of the stack's first frame
-  cv::Point2f centre_;  // the pattern's centre in the last frame added
+  cv::Point2f centre_;  // the pattern's centre in the last frame seen
   cv::Mat mean_, gray_, view_, view_f_, mean8_;
 };
 
