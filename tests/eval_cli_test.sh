@@ -11,6 +11,9 @@ fail() { echo "FAIL: $*" >&2; exit 1; }
 "$BIN/ld-eval" size --detect-at 1 --read-at 0.5 --side 0.3 --trials 8 >"$T/size.md" 2>/dev/null \
   || fail "size: exit $?"
 grep -q "^smallest landmark: 30 cm" "$T/size.md" || fail "size: $(cat "$T/size.md")"
+# ... and says what code it measured: 20 bytes, version 2 at Q, 4.94 mm modules on 30 cm
+grep -q "^its QR: 20 bytes, version 2 (25 modules), error correction Q, modules of 4.94 mm on a 30 cm landmark" \
+  "$T/size.md" || fail "size, the code: $(cat "$T/size.md")"
 # No 5 cm landmark reads 100 bytes at 3 m: exit 3, and it says so.
 set +e
 "$BIN/ld-eval" size --detect-at 3 --read-at 3 --side 0.05 --payload-bytes 100 --trials 4 --stack 2 \
