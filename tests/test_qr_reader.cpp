@@ -140,7 +140,8 @@ TEST(QrStack, AnotherLandmarkRestartsTheStack) {
     ASSERT_TRUE(turning.add(sa.image, sa.corners));
   }
   EXPECT_EQ(turning.frames(), 3);
-  turning.follow(at(60, 180));  // the other landmark, a sheet and a half back
+  EXPECT_TRUE(turning.follow(at(60, 180)));  // the other landmark, a sheet and a half back
+  EXPECT_FALSE(turning.follow(at(70, 180)));  // (nothing left to drop)
   const Scene sa = warped(a, at(60, 180));
   ASSERT_TRUE(turning.add(sa.image, sa.corners));
   EXPECT_EQ(turning.frames(), 1);

@@ -376,17 +376,19 @@ bool QrStack::add(const cv::Mat& image, const std::array<cv::Point2f, 4>& corner
   return true;
 }
 
-void QrStack::follow(const std::array<cv::Point2f, 4>& corners) {
+bool QrStack::follow(const std::array<cv::Point2f, 4>& corners) {
   for (const auto& c : corners)
-    if (!std::isfinite(c.x) || !std::isfinite(c.y)) return;
-  checkJump(corners, projectedQrSide(corners));
+    if (!std::isfinite(c.x) || !std::isfinite(c.y)) return false;
+  return checkJump(corners, projectedQrSide(corners));
 }
 
-void QrStack::checkJump(const std::array<cv::Point2f, 4>& corners, double qr_px) {
+bool QrStack::checkJump(const std::array<cv::Point2f, 4>& corners, double qr_px) {
   const cv::Point2f centre = (corners[0] + corners[1] + corners[2] + corners[3]) * 0.25f;
   const double pattern_px = qr_px * (layout::kPatternMax - layout::kPatternMin) / (layout::kQrMax - layout::kQrMin);
-  if (n_ > 0 && cv::norm(centre - centre_) > kMaxJump * pattern_px) n_ = 0;
+  const bool jumped = n_ > 0 && cv::norm(centre - centre_) > kMaxJump * pattern_px;
+  if (jumped) n_ = 0;
   centre_ = centre;
+  return jumped;
 }
 
 const cv::Mat& QrStack::meanView() {

@@ -80,7 +80,8 @@ int main(int argc, char** argv) {
                  "frames fail (0: off)")
       ->capture_default_str()
       ->check(CLI::Range(0, 64));
-  app.add_flag("-v,--verbose", verbose, "print each newly read payload");
+  app.add_flag("-v,--verbose", verbose,
+               "print each newly read payload, and each track whose stacked frames a jump dropped");
   CLI11_PARSE(app, argc, argv);
 
   lcm::LCM lcm(url);
@@ -132,7 +133,9 @@ int main(int argc, char** argv) {
       // where the track is in every frame: a jump is another landmark
       std::array<cv::Point2f, 4> corners;
       for (size_t i = 0; i < 4; ++i) corners[i] = {listed->corners[i][0], listed->corners[i][1]};
-      it->second.follow(corners);
+      if (it->second.follow(corners) && verbose)
+        std::cerr << "ld-qr-reader: track " << it->first
+                  << " jumped by more than its landmark's side: its stacked frames start again (ids swapped?)\n";
       ++it;
     }
     if (!todo.empty()) {

@@ -82,8 +82,9 @@ class QrStack {
 
   /// The track's landmark in a frame that is not added (not tried): only
   /// where it is, so that a jump is told from a landmark moving across the
-  /// image between tries. Call it for every frame of the track.
-  void follow(const std::array<cv::Point2f, 4>& corners);
+  /// image between tries. Call it for every frame of the track. True when
+  /// the landmark jumped and the stack's frames were dropped.
+  bool follow(const std::array<cv::Point2f, 4>& corners);
 
   /// Frames in the mean (at most max_frames: older ones have faded).
   int frames() const { return std::min(n_, std::max(1, max_frames_)); }
@@ -102,8 +103,9 @@ class QrStack {
   int max_frames_;
   int n_ = 0;
   // Restarts the stack when the pattern (centre, QR side) jumped by more
-  // than kMaxJump pattern sides since the last frame seen; remembers it.
-  void checkJump(const std::array<cv::Point2f, 4>& corners, double qr_px);
+  // than kMaxJump pattern sides since the last frame seen (true then, with
+  // frames in the stack); remembers it.
+  bool checkJump(const std::array<cv::Point2f, 4>& corners, double qr_px);
   static constexpr double kMaxJump = 1.0;  // in pattern sides, between frames seen
   double qr_px_ = 0;  // the projected QR side of the stack's first frame
   cv::Point2f centre_;  // the pattern's centre in the last frame seen
