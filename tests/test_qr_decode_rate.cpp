@@ -26,6 +26,19 @@ bool validUtf8(const std::string& s) {
   return true;
 }
 
+// Sweep options reading the QR of 15 cm landmarks: `trials` per point, the
+// payloads of payloadFor's kinds first_kind .. first_kind + kinds - 1 (0-2:
+// 8-23 bytes, 3-4: 99-100 bytes).
+ld::eval::SweepOptions readingOptions(int trials, uint64_t seed, int first_kind, int kinds) {
+  ld::eval::SweepOptions o;
+  o.side_m = 0.15;
+  o.trials = trials;
+  o.seed = seed;
+  o.decode = true;
+  o.payload = [=](int i) { return ld::eval::payloadFor(5 * i + first_kind + i % kinds); };
+  return o;
+}
+
 }  // namespace
 
 TEST(QrPayloads, DistinctAsciiAndUtf8UpTo100Bytes) {
@@ -52,13 +65,7 @@ TEST(QrPayloads, DistinctAsciiAndUtf8UpTo100Bytes) {
 // have 1.5 px per module or more (to 0.6 m, read module by module there).
 // docs/benchmarks.md has the whole table (ld-eval qr).
 ld::eval::Point sweep(const std::vector<double>& distances, int first_kind, int kinds, uint64_t seed) {
-  ld::eval::SweepOptions o;
-  o.side_m = 0.15;
-  o.trials = 25;
-  o.seed = seed;
-  o.decode = true;
-  o.payload = [=](int i) { return ld::eval::payloadFor(5 * i + first_kind + i % kinds); };
-  const auto points = ld::eval::overDistance(o, distances, 40.0);
+  const auto points = ld::eval::overDistance(readingOptions(25, seed, first_kind, kinds), distances, 40.0);
   for (const auto& p : points)
     std::printf("%.2f m: detected %d/%d, decoded %d/%d (%.0f %%)\n", p.distance_m, p.detected,
                 p.trials, p.decoded, p.trials, 100 * p.decodeRate());
@@ -134,12 +141,7 @@ TEST(QrStack, AveragedFramesReadWhatSingleFramesMiss) {
 // so its modules are 10 % larger and read from further away; short payloads
 // keep their symbol at a higher level. Same scenes, 0.8-1.0 m.
 TEST(QrDecodeRate, AutoErrorCorrectionReadsLongPayloadsFurther) {
-  ld::eval::SweepOptions o;
-  o.side_m = 0.15;
-  o.trials = 40;
-  o.seed = 41;
-  o.decode = true;
-  o.payload = [](int i) { return ld::eval::payloadFor(5 * i + 3 + i % 2); };
+  ld::eval::SweepOptions o = readingOptions(40, 41, 3, 2);
   int read[2] = {0, 0};
   for (int k = 0; k < 2; ++k) {
     o.ecc = k == 0 ? ld::artwork::QrEcc::Auto : ld::artwork::QrEcc::M;
@@ -157,13 +159,8 @@ TEST(QrDecodeRate, AutoErrorCorrectionReadsLongPayloadsFurther) {
 // reads an undecoded track. 100-byte codes at 0.95 m: the frames' mean reads
 // codes no single frame does.
 TEST(QrDecodeRate, OverSeveralFramesAsTheProcessReads) {
-  ld::eval::SweepOptions o;
-  o.side_m = 0.15;
-  o.trials = 20;
-  o.seed = 31;
-  o.decode = true;
+  ld::eval::SweepOptions o = readingOptions(20, 31, 3, 2);
   o.stack_frames = 8;
-  o.payload = [](int i) { return ld::eval::payloadFor(5 * i + 3 + i % 2); };
   const auto p = ld::eval::measure(o, 0.95, 0, 30);
   std::printf("0.95 m, 100 bytes: single frames %d/%d, over 8 frames %d/%d (the mean: %d)\n", p.decoded,
               p.trials, p.decoded_stacked, p.trials, p.decoded_mean);

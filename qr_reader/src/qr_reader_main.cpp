@@ -24,6 +24,13 @@ namespace {
 std::atomic<bool> g_stop{false};
 void onSignal(int) { g_stop = true; }
 
+// A tracked landmark's pattern corners (TL, TR, BR, BL) as the reader takes them.
+std::array<cv::Point2f, 4> cornersOf(const ld::landmark_t& lm) {
+  std::array<cv::Point2f, 4> corners;
+  for (size_t i = 0; i < 4; ++i) corners[i] = {lm.corners[i][0], lm.corners[i][1]};
+  return corners;
+}
+
 // Reads the (utime, seq) of a message without decoding it whole: decoding
 // the list is cheap, the image's header is read by a full decode only later.
 struct Inputs {
@@ -131,9 +138,7 @@ int main(int argc, char** argv) {
         continue;
       }
       // where the track is in every frame: a jump is another landmark
-      std::array<cv::Point2f, 4> corners;
-      for (size_t i = 0; i < 4; ++i) corners[i] = {listed->corners[i][0], listed->corners[i][1]};
-      if (it->second.follow(corners) && verbose)
+      if (it->second.follow(cornersOf(*listed)) && verbose)
         std::cerr << "ld-qr-reader: track " << it->first
                   << " jumped by more than its landmark's side: its stacked frames start again (ids swapped?)\n";
       ++it;
@@ -152,8 +157,7 @@ int main(int argc, char** argv) {
       const bool try_now = std::find(todo.begin(), todo.end(), lm.track_id) != todo.end();
       float ms = 0;
       if (try_now) {
-        std::array<cv::Point2f, 4> corners;
-        for (size_t i = 0; i < 4; ++i) corners[i] = {lm.corners[i][0], lm.corners[i][1]};
+        const std::array<cv::Point2f, 4> corners = cornersOf(lm);
         const auto t0 = std::chrono::steady_clock::now();
         auto r = reader.decode(bgr, corners);
         bool from_stack = false;

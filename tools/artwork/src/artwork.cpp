@@ -165,6 +165,13 @@ QrPlacement qrPlacement(const QrCode& qr) {
   return {layout::kQrMin + module, module};
 }
 
+std::string describeQr(const QrCode& qr, double side_mm) {
+  char module_mm[32];
+  std::snprintf(module_mm, sizeof module_mm, "%.2f", qrPlacement(qr).module_u * side_mm / layout::kUnits);
+  return "version " + std::to_string(qr.version) + " (" + std::to_string(qr.size) + " modules), error correction " +
+         qr.ecc + ", modules of " + module_mm + " mm";
+}
+
 cv::Mat renderLandmark(const QrCode& qr, int side_px, const Colours& colours) {
   if (side_px < 9) throw std::invalid_argument("landmark side must be at least 9 px");
   const QrPlacement place = qrPlacement(qr);

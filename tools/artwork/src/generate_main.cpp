@@ -3,15 +3,12 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
-#include <iomanip>
 #include <iostream>
-#include <sstream>
 
 #include <CLI/CLI.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "ld/artwork.hpp"
-#include "ld/landmark_layout.hpp"
 
 namespace {
 
@@ -83,16 +80,9 @@ int main(int argc, char** argv) {
   }
   try {
     const double side_mm = side_m * 1000.0;
-    // What each code became: its version and level, and its module on paper
-    // (what decides the distance it reads from: ld-eval size).
-    for (const auto& p : payloads) {
-      const ld::artwork::QrCode qr = ld::artwork::encodeQr(p, ecc);
-      const double module_mm = ld::artwork::qrPlacement(qr).module_u * side_mm / ld::layout::kUnits;
-      std::ostringstream mm;
-      mm << std::fixed << std::setprecision(2) << module_mm;
-      std::cout << "QR \"" << p << "\": version " << qr.version << " (" << qr.size
-                << " modules), error correction " << qr.ecc << ", modules of " << mm.str() << " mm\n";
-    }
+    // What each code became (the distance it reads from: ld-eval size).
+    for (const auto& p : payloads)
+      std::cout << "QR \"" << p << "\": " << ld::artwork::describeQr(ld::artwork::encodeQr(p, ecc), side_mm) << "\n";
     // The pages: one payload alone, or as many per page as fit.
     std::vector<std::vector<std::string>> pages;
     const size_t per_page = sheet ? static_cast<size_t>(ld::artwork::landmarksPerPage(side_mm, page)) : 1;

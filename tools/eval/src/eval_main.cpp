@@ -12,7 +12,6 @@
 #include <opencv2/imgproc.hpp>
 
 #include "ld/eval.hpp"
-#include "ld/landmark_layout.hpp"
 #include "ld/markers.hpp"
 
 namespace {
@@ -395,12 +394,9 @@ int main(int argc, char** argv) {
         << s_yaw << " deg)\n";
       // What was printed on it: the code's size decides the reading distance.
       const std::string sample = o.payload(0);
-      const ld::artwork::QrCode qr = ld::artwork::encodeQr(sample, o.ecc);
       const double side = answer > 0 ? answer : s_sides.back();
-      char module[32];
-      std::snprintf(module, sizeof module, "%.2f", ld::artwork::qrPlacement(qr).module_u * side * 1000 / ld::layout::kUnits);
-      t << "its QR: " << sample.size() << " bytes, version " << qr.version << " (" << qr.size
-        << " modules), error correction " << qr.ecc << ", modules of " << module << " mm on a " << cm(side)
+      t << "its QR: " << sample.size() << " bytes, "
+        << ld::artwork::describeQr(ld::artwork::encodeQr(sample, o.ecc), side * 1000) << " on a " << cm(side)
         << " landmark\n";
       emit(sc, t.str());
       return answer > 0 ? 0 : 3;

@@ -51,6 +51,11 @@ struct QrPlacement {
 };
 QrPlacement qrPlacement(const QrCode& qr);
 
+/// What a code is on a landmark of side_mm, for people: "version 5 (37
+/// modules), error correction L, modules of 1.71 mm" (the module's size is
+/// what decides the distance the code reads from).
+std::string describeQr(const QrCode& qr, double side_mm);
+
 /// The landmark rendered to a side_px x side_px BGR image. Each pixel takes
 /// the colour of the element under its centre, so the artwork is exact to the
 /// pixel at any size (and a pixel-perfect copy of the layout when side_px is
