@@ -80,6 +80,7 @@ Sequence::Sequence(const SequenceOptions& options) : options_(options) {
     lm.id = k;
     lm.payload = o.payloads.empty() ? "room-" + std::to_string(101 + k) : o.payloads[static_cast<size_t>(k)];
     lm.side_m = o.side_m;
+    lm.ecc = o.ecc;
     lm.rvec = detail::toRvec(detail::rotZ(r.uni(-4, 4)));  // hung by hand
     lm.tvec = {x, y, wall_z_};
     world_landmarks_.push_back(lm);

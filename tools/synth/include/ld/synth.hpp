@@ -182,6 +182,7 @@ struct SequenceOptions {
   int landmarks = 3;                // on the wall, ids 0..K-1
   double side_m = 0.15;
   std::vector<std::string> payloads;  // per landmark; default "room-101", "room-102", ...
+  artwork::QrEcc ecc = artwork::QrEcc::Auto;  // the codes' error correction (as ld-generate's --ecc)
   CameraModel camera = CameraModel::defaultVga();
   uint64_t seed = 1;
 };

@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# ld-synth's command line: --ecc draws the codes at the level asked for (auto as
+# ld-generate picks it), frames at close range read back to their payload, the
+# same seed gives the same bytes, and bad options are refused with one line.
+# usage: synth_cli_test.sh BIN_DIR
+set -euo pipefail
+BIN=$(cd "$1" && pwd)
+T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+scene() {  # OUT PAYLOAD ECC
+  "$BIN/ld-synth" scene --out "$T/$1" --seed 5 --count 1 --distance 0.35 --yaw 10 --roll 0 --x 0 --y 0 \
+    --lighting normal --degrade none -p "$2" --ecc "$3" >/dev/null
+}
+long=$(printf 'ld-synth/%.0s0123456789' 1 2 3 4 5 6 7 8 9 | head -c 100)
+[ ${#long} -eq 100 ] || fail "payload of ${#long} bytes"
+# 100 bytes: the smallest symbol is level L's, so auto is L; H is another picture.
+scene long-auto "$long" auto
+scene long-L "$long" L
+scene long-H "$long" h
+cmp -s "$T/long-auto/000000.png" "$T/long-L/000000.png" || fail "100 bytes: auto differs from L"
+cmp -s "$T/long-auto/000000.png" "$T/long-H/000000.png" && fail "100 bytes: --ecc H drew the same code as L"
+# 4 bytes: H still fits the smallest symbol, so auto is H.
+scene short-auto dock auto
+scene short-H dock H
+scene short-L dock L
+cmp -s "$T/short-auto/000000.png" "$T/short-H/000000.png" || fail "4 bytes: auto differs from H"
+cmp -s "$T/short-auto/000000.png" "$T/short-L/000000.png" && fail "4 bytes: --ecc L drew the same code as H"
+# Each code reads back to its payload from the frame.
+for d in long-auto long-H short-L; do
+  want=$([ "${d%%-*}" = long ] && echo "$long" || echo dock)
+  got=$("$BIN/ld-detect" --decode "$T/$d/000000.png" | sed -n 's/.*"payload": *"\([^"]*\)".*/\1/p')
+  [ "$got" = "$want" ] || fail "$d reads '$got'"
+done
+# A sequence takes the level too.
+"$BIN/ld-synth" sequence --out "$T/seq" --frames 2 --landmarks 1 --ecc Q --no-png >/dev/null || fail "sequence --ecc Q"
+
+# Refused with one line naming the option, exit status 2.
+refused() {  # PATTERN ARGS...
+  local pat=$1; shift
+  set +e; "$BIN/ld-synth" "$@" >/dev/null 2>"$T/err"; local rc=$?; set -e
+  [ $rc -eq 2 ] || fail "ld-synth $* exited $rc"
+  [ "$(wc -l <"$T/err")" -eq 1 ] && grep -q -- "$pat" "$T/err" || fail "ld-synth $*: $(cat "$T/err")"
+}
+refused "--ecc: QR error correction must be auto, L, M, Q or H, not 'X'" scene --out "$T/x" --ecc X
+refused "--ecc: QR error correction" sequence --out "$T/x" --ecc 7
+refused "--yaw must lie within" scene --out "$T/x" --yaw 95
+refused "--count must be at least 1" scene --out "$T/x" --count 0
+refused "--lighting must be" scene --out "$T/x" --lighting sunset
+echo "ld-synth command line: ok"
