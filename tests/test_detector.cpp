@@ -1029,6 +1029,119 @@ TEST(Detector, CornersSubPixelOnFrontalViews) {
   EXPECT_LT(rms, 0.5);
 }
 
+// ====================================================================== explanation
+
+namespace {
+
+// The explanation's refused group that is the landmark `t` (its three FIPs
+// and, when tried, its AP, within 2 px), or null.
+const ld::Explanation::Refused* refusedAt(const ld::Explanation& e, const Truth& t) {
+  auto near = [](const cv::Point2f& a, const cv::Point2d& b) { return cv::norm(cv::Point2d(a) - b) < 2.0; };
+  for (const auto& r : e.refused)
+    if (near(r.fips[0], t.centres[0]) && near(r.fips[1], t.centres[1]) && near(r.fips[2], t.centres[2]) &&
+        (!r.ap || near(*r.ap, t.centres[3])))
+      return &r;
+  return nullptr;
+}
+
+}  // namespace
+
+// A landmark found: the explanation counts its squares and refuses none of
+// them, and the detection is the one detect() alone gives.
+TEST(Explain, FoundLandmarkIsCountedNotRefused) {
+  cv::Mat img = background(kCam.size, 31);
+  const Placed p = place(1.0, 20, 35);
+  drawSheet(img, kCam, p);
+  const Truth t = truthOf(kCam, p);
+  ld::Detector det;
+  const std::vector<ld::Landmark> alone = det.detect(img).landmarks;
+  ld::Explanation why;
+  const auto& d = det.detect(img, why);
+  ASSERT_TRUE(onlyLandmark(d, t));
+  ASSERT_EQ(alone.size(), 1u);
+  EXPECT_EQ(alone[0].corners, d.landmarks[0].corners);
+  EXPECT_GE(why.blue_regions, 3);
+  EXPECT_GE(why.fips, 3);
+  EXPECT_GE(why.aps, 1);
+  EXPECT_GE(why.fip_pairs, 3);
+  EXPECT_GE(why.right_isosceles, 1);
+  EXPECT_EQ(refusedAt(why, t), nullptr);
+  EXPECT_GT(why.ms, 0.0);
+}
+
+// Each way of losing a landmark is named: a blank middle by the QR check,
+// a look-alike card's centre, a tightened cover range by the cover check,
+// colour ratios out of reach by the off-colour count, with the parameters
+// that decide them in the text.
+TEST(Explain, NamesTheCheckThatRefusedTheLandmark) {
+  const Placed plain = place(1.0, 10, 20);
+  const Truth t = truthOf(kCam, plain);
+  auto explain = [&](const cv::Mat& artwork, const ld::DetectorParams& params) {
+    cv::Mat img = background(kCam.size, 17);
+    Placed p = plain;
+    p.artwork = artwork;
+    drawSheet(img, kCam, p);
+    ld::Detector det(params);
+    ld::Explanation why;
+    EXPECT_TRUE(det.detect(img, why).landmarks.empty());
+    return why;
+  };
+  {  // blank middle
+    cv::Mat art = artworkImage().clone();
+    const int u = art.cols / 9;
+    art(cv::Rect(5 * u / 2, 5 * u / 2, 4 * u, 4 * u)).setTo(cv::Scalar(225, 228, 230));
+    const auto why = explain(art, {});
+    const auto* r = refusedAt(why, t);
+    ASSERT_NE(r, nullptr) << ld::describe(why, {});
+    ASSERT_TRUE(r->ap.has_value());
+    EXPECT_EQ(r->check, "no QR");
+    EXPECT_NE(ld::describe(why, {}).find("no QR (qr_max_brightness"), std::string::npos) << ld::describe(why, {});
+  }
+  {  // a card with red in the middle and none at BR: no AP where the layout puts it
+    const auto why = explain(lookAlike(0), {});
+    const auto* r = refusedAt(why, t);
+    ASSERT_NE(r, nullptr) << ld::describe(why, {});
+    EXPECT_FALSE(r->ap.has_value());
+    EXPECT_EQ(r->check, "no AP");
+  }
+  {  // a cover range a landmark cannot meet
+    ld::DetectorParams q;
+    q.cover_max = 0.2;
+    const auto why = explain(artworkImage(), q);
+    const auto* r = refusedAt(why, t);
+    ASSERT_NE(r, nullptr) << ld::describe(why, q);
+    EXPECT_EQ(r->check, "cover");
+    bool counted = false;
+    for (const auto& [check, n] : why.refusals) counted |= check == "cover" && n >= 1;
+    EXPECT_TRUE(counted);
+    EXPECT_NE(ld::describe(why, q).find("cover (cover_min, cover_max)"), std::string::npos) << ld::describe(why, q);
+  }
+  {  // colour ratios no ink meets: the squares are labelled, then off colour
+    ld::DetectorParams q;
+    q.color_ratio_a = q.color_ratio_b = 20;
+    const auto why = explain(artworkImage(), q);
+    EXPECT_GE(why.blue_off_colour, 3);
+    EXPECT_GE(why.red_off_colour, 1);
+    EXPECT_EQ(why.fips, 0);
+    EXPECT_TRUE(why.refused.empty());
+    EXPECT_NE(ld::describe(why, q).find("off colour (color_ratio_a 20, color_ratio_b 20): "), std::string::npos)
+        << ld::describe(why, q);
+  }
+}
+
+// Gray and empty images: nothing counted, nothing refused.
+TEST(Explain, ImagesWithoutColourExplainNothing) {
+  ld::Detector det;
+  for (const cv::Mat& img : {cv::Mat(), cv::Mat(48, 64, CV_8UC1, cv::Scalar(128))}) {
+    ld::Explanation why;
+    why.fips = 7;  // cleared
+    EXPECT_TRUE(det.detect(img, why).landmarks.empty());
+    EXPECT_EQ(why.fips, 0);
+    EXPECT_EQ(why.blue_regions, 0);
+    EXPECT_TRUE(why.refused.empty());
+  }
+}
+
 // ====================================================================== pose
 
 TEST(Pose, FrontalSheetHasZeroRotation) {

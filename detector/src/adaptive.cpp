@@ -343,4 +343,11 @@ const Detection& AdaptiveDetector::detect(const cv::Mat& bgr) {
   return d;
 }
 
+const Detection& AdaptiveDetector::detect(const cv::Mat& bgr, Explanation& why) {
+  if (!enabled_) return detector_.detect(bgr, why);
+  const Detection& d = detector_.detect(adapter_.correct(bgr), why);
+  adapter_.observe(bgr, d);
+  return d;
+}
+
 }  // namespace ld

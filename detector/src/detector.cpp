@@ -202,6 +202,83 @@ bool matchesTruth(const Landmark& d, const std::array<cv::Point2d, 4>& truth, do
   return true;
 }
 
+namespace {
+
+// The checks a group of squares meets, in the order it meets them (a group
+// refused by a later one came further), and what decides each, for people.
+struct Check {
+  const char* name;
+  const char* hint;
+};
+constexpr Check kChecks[] = {
+    {"no AP", "no red square where TR + BL - TL puts it: ap_max_offset, ap_size_min, ap_size_max"},
+    {"not convex", ""},
+    {"degenerate moments", ""},
+    {"side length", "d_min, d_max"},
+    {"side ratio", "shape_tolerance"},
+    {"angle", "shape_tolerance"},
+    {"degenerate square", ""},
+    {"square anisotropic", "max_anisotropy"},
+    {"square scale", "square_scale_min, square_scale_max"},
+    {"square size", "ap_size_min, ap_size_max"},
+    {"outside the image", "part of the sheet is outside the image"},
+    {"sheet saturated", "sheet_max_saturation"},
+    {"sheet dark", "sheet_min_value"},
+    {"sheet uneven", "sheet_uniformity"},
+    {"no QR", "qr_max_brightness, qr_dark_samples, qr_dark_sample"},
+    {"centre saturated", "colour at the centre: a look-alike card"},
+    {"centre coloured", "colour at the centre: a look-alike card"},
+    {"cover", "cover_min, cover_max"},
+    {"square at the centre", "a coloured square at the centre: a look-alike card"},
+};
+constexpr int kNumChecks = static_cast<int>(sizeof kChecks / sizeof kChecks[0]);
+
+// A check's place in kChecks (kNumChecks for a name not there).
+int checkIndex(const std::string& check) {
+  for (int i = 0; i < kNumChecks; ++i)
+    if (check == kChecks[i].name) return i;
+  return kNumChecks;
+}
+
+}  // namespace
+
+std::string describe(const Explanation& e, const DetectorParams& p) {
+  auto num = [](double v) { return cv::format("%g", v); };
+  auto pt = [](const cv::Point2f& q) { return cv::format("(%.1f, %.1f)", q.x, q.y); };
+  std::string s = cv::format("regions: %d blue, %d red (min_area_px %d, max_area_frac_1000 %d)", e.blue_regions,
+                             e.red_regions, p.min_area_px, p.max_area_frac_1000);
+  if (e.blue_sparse + e.red_sparse > 0)
+    s += cv::format("\n  sparse, under min_fill %s: %d blue, %d red", num(p.min_fill).c_str(), e.blue_sparse, e.red_sparse);
+  if (e.blue_off_colour + e.red_off_colour > 0)
+    s += "\n  off colour (color_ratio_a " + num(p.color_ratio_a) + ", color_ratio_b " + num(p.color_ratio_b) +
+         cv::format("): %d blue, %d red", e.blue_off_colour, e.red_off_colour);
+  s += cv::format("\nsquares: %d FIP%s, %d AP%s", e.fips, e.fips == 1 ? "" : "s", e.aps, e.aps == 1 ? "" : "s");
+  s += "\nFIP graph (d_min " + num(p.d_min) + ", d_max " + num(p.d_max) + ", w " + num(p.w_min) + ".." +
+       num(p.w_max) + ", h " + num(p.h_min) + ".." + num(p.h_max) +
+       cv::format("): %d pair%s, %d triangle%s, %d right isosceles", e.fip_pairs, e.fip_pairs == 1 ? "" : "s",
+                  e.triangles, e.triangles == 1 ? "" : "s", e.right_isosceles);
+  if (!e.refusals.empty()) {
+    int total = 0;
+    std::string by;
+    for (const auto& [check, n] : e.refusals) {
+      total += n;
+      by += cv::format("%s%d %s", by.empty() ? "" : ", ", n, check.c_str());
+    }
+    s += cv::format("\nrefused: %d group%s of three FIPs (%s)", total, total == 1 ? "" : "s", by.c_str());
+    if (static_cast<size_t>(total) > e.refused.size())
+      s += cv::format("; the %zu that came furthest:", e.refused.size());
+  }
+  for (const auto& r : e.refused) {
+    s += "\n  FIPs " + pt(r.fips[0]) + " " + pt(r.fips[1]) + " " + pt(r.fips[2]);
+    if (r.ap) s += ", AP " + pt(*r.ap);
+    s += ": " + r.check;
+    const int i = checkIndex(r.check);
+    const bool first = &r == &e.refused.front() || (&r)[-1].check != r.check;  // each check's hint once
+    if (first && i < kNumChecks && *kChecks[i].hint) s += std::string(" (") + kChecks[i].hint + ")";
+  }
+  return s;
+}
+
 // ====================================================================== detector
 
 namespace {
@@ -313,7 +390,16 @@ struct Detector::Impl {
   }
 
   void run(const cv::Mat& input);
+  void explain(const cv::Mat& input, Explanation& e);
+  // The input as 8-bit BGR (`converted` when it had alpha); null when it is
+  // not an image with colour.
+  const cv::Mat* colourImage(const cv::Mat& input);
+  int maxArea(const cv::Mat& img) const {
+    return static_cast<int>(
+        std::min<int64_t>(INT32_MAX, static_cast<int64_t>(img.total()) * params.max_area_frac_1000 / 1000));
+  }
   void classify();
+  int graph();
   void geometry(const cv::Mat& img);
   void complete(const cv::Mat& img);
   void secondLook(const cv::Mat& img, const cv::Mat& filtered, int max_area);
@@ -471,6 +557,24 @@ void Detector::Impl::classify() {
   keepLargest(aps);
 }
 
+// 6. the FIP graph of `fips` (`adjacency`: the distance and size-ratio
+// constraints), its 3-cycles, and the index of `aps` for the AP choice.
+int Detector::Impl::graph() {
+  const DetectorParams& p = params;
+  const int n = static_cast<int>(fips.size());
+  int edges = 0;
+  adjacency.assign(static_cast<size_t>(n) * n, 0);
+  for (int i = 0; i < n; ++i)
+    for (int j = i + 1; j < n; ++j)
+      if (detail::fipEdge(fips[i], fips[j], p)) {
+        adjacency[static_cast<size_t>(i) * n + j] = adjacency[static_cast<size_t>(j) * n + i] = 1;
+        ++edges;
+      }
+  detail::threeCycles(adjacency, n, cycles, static_cast<size_t>(p.max_cycles));
+  ap_index.build(aps);
+  return edges;
+}
+
 // 6-7. geometry: the FIP graph of `fips`, its 3-cycles, the AP among `aps`,
 // verification, completion, overlaps: `candidates`.
 void Detector::Impl::geometry(const cv::Mat& img) {
@@ -482,13 +586,7 @@ void Detector::Impl::geometry(const cv::Mat& img) {
   const bool whole = n >= 3 && !aps.empty();
   const bool completion = !paper && p.complete_missing && (n >= 3 || (n >= 2 && !aps.empty()));
   if (!whole && !completion) return;
-  adjacency.assign(static_cast<size_t>(n) * n, 0);
-  for (int i = 0; i < n; ++i)
-    for (int j = i + 1; j < n; ++j)
-      if (detail::fipEdge(fips[i], fips[j], p))
-        adjacency[static_cast<size_t>(i) * n + j] = adjacency[static_cast<size_t>(j) * n + i] = 1;
-  detail::threeCycles(adjacency, n, cycles, static_cast<size_t>(p.max_cycles));
-  ap_index.build(aps);
+  graph();
   for (const auto& cyc : cycles) {
     if (!whole || !detail::rightIsosceles(cyc, fips, kTriangleTolerance)) continue;
     // Of the APs that fit, the one whose landmark verifies best.
@@ -636,23 +734,115 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
   all_candidates.clear();
 }
 
+const cv::Mat* Detector::Impl::colourImage(const cv::Mat& input) {
+  // Gray images have no colour: no landmarks. Other types are not images we know.
+  if (input.empty() || input.depth() != CV_8U || input.cols < 3 || input.rows < 3) return nullptr;
+  if (input.channels() == 3) return &input;
+  if (input.channels() != 4) return nullptr;
+  cv::cvtColor(input, converted, cv::COLOR_BGRA2BGR);
+  return &converted;
+}
+
+// The first pass again after run(), each stage counted, and the check that
+// refused each right-isosceles triangle of FIPs that is not part of a found
+// landmark (with the AP it was tried with: the nearest of its choices).
+void Detector::Impl::explain(const cv::Mat& input, Explanation& e) {
+  const auto t0 = std::chrono::steady_clock::now();
+  e = Explanation();
+  const cv::Mat* img = colourImage(input);
+  if (img) {
+    const DetectorParams& p = params;
+    std::vector<StageTime> stages;
+    StageTimer timer(stages);
+    const cv::Mat* src = runFilters(*img, timer);
+    if (!paper) detail::extractRegions(labels, *src, filter_settings.mask, p.min_area_px, maxArea(*img), p.min_fill, runs, regions);
+    else detail::contourRegions(edges, *img, p.min_area_px, maxArea(*img), contours, regions);
+    for (const auto& r : regions) {
+      const bool blue = r.colour == detail::kBlue;
+      if (!blue && r.colour != detail::kRed) continue;
+      (blue ? e.blue_regions : e.red_regions)++;
+      if (!paper && detail::fill(r) < p.min_fill) (blue ? e.blue_sparse : e.red_sparse)++;
+      else if (blue ? !detail::isFip(r, p.color_ratio_a, p.color_ratio_b) : !detail::isAp(r, p.color_ratio_a, p.color_ratio_b))
+        (blue ? e.blue_off_colour : e.red_off_colour)++;
+    }
+    classify();
+    e.fips = static_cast<int>(fips.size());
+    e.aps = static_cast<int>(aps.size());
+    e.fip_pairs = graph();
+    e.triangles = static_cast<int>(cycles.size());
+    // A square of a found landmark: within half its side of one of its centres.
+    auto found = [&](const detail::Region& r) {
+      for (const auto& lm : det.landmarks)
+        for (const cv::Point2f& q : {lm.fip_tl, lm.fip_tr, lm.fip_bl, lm.ap})
+          if (std::hypot(r.cx - q.x, r.cy - q.y) < std::max(2.0, 0.5 * detail::maxAxis(r))) return true;
+      return false;
+    };
+    auto at = [](const detail::Region& r) { return cv::Point2f(static_cast<float>(r.cx), static_cast<float>(r.cy)); };
+    struct RefusedGroup {
+      int check;      // its index in kChecks
+      double unlike;  // |log| of the triangle's size over a landmark's, in the squares' frame
+      Explanation::Refused group;
+    };
+    std::vector<RefusedGroup> refused;
+    for (const auto& cyc : cycles) {
+      int corner = 0;
+      if (!detail::rightIsosceles(cyc, fips, kTriangleTolerance, &corner)) continue;
+      ++e.right_isosceles;
+      if (found(fips[cyc[0]]) || found(fips[cyc[1]]) || found(fips[cyc[2]])) continue;
+      detail::apChoices(cyc, fips, aps, p, choices, &ap_index);
+      Explanation::Refused r;
+      if (choices.empty()) {
+        // As TL, TR, BL would be: the corner, then clockwise in the image.
+        const cv::Point2f tl = at(fips[cyc[corner]]), a = at(fips[cyc[(corner + 1) % 3]]),
+                          b = at(fips[cyc[(corner + 2) % 3]]);
+        const bool clockwise = (a - tl).cross(b - tl) > 0;
+        r.fips = {tl, clockwise ? a : b, clockwise ? b : a};
+        r.check = "no AP";
+      } else {
+        bool verified = false;
+        const char* first = "";
+        for (size_t k = 0; k < choices.size() && !verified; ++k) {
+          detail::Candidate c = choices[k];
+          const char* why = "";
+          verified = detail::verify(c, fips, aps, *img, p, &why);
+          if (k == 0) first = why;
+        }
+        if (verified) continue;  // a landmark that lost to an overlapping one
+        const detail::Candidate& c = choices[0];
+        r.fips = {at(fips[c.tl]), at(fips[c.tr]), at(fips[c.bl])};
+        r.ap = at(aps[c.ap]);
+        r.check = first;
+      }
+      // How like a landmark's the triangle is: neighbours 3 apart in the
+      // frame of the squares' moments (far-apart large things make triangles too).
+      double d = 0;
+      for (int k = 0; k < 3; ++k) d += detail::normalisedDistance(fips[cyc[k]], fips[cyc[(k + 1) % 3]]);
+      const double unlike = std::abs(std::log(d / (3 * (2 + std::sqrt(2.0)))));
+      refused.push_back({checkIndex(r.check), unlike, std::move(r)});
+    }
+    // Counts per check; the groups that came furthest first, then the most landmark-like.
+    for (int i = 0; i <= kNumChecks; ++i) {
+      int n = 0;
+      for (const auto& r : refused) n += r.check == i;
+      if (n > 0) e.refusals.emplace_back(i < kNumChecks ? kChecks[i].name : "other", n);
+    }
+    std::stable_sort(refused.begin(), refused.end(), [](const RefusedGroup& a, const RefusedGroup& b) {
+      return std::tie(b.check, a.unlike) < std::tie(a.check, b.unlike);
+    });
+    for (size_t k = 0; k < refused.size() && k < Explanation::kMaxRefused; ++k) e.refused.push_back(refused[k].group);
+  }
+  e.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
 void Detector::Impl::run(const cv::Mat& input) {
   det.landmarks.clear();
   det.stages.clear();
   det.total_ms = 0;
   StageTimer timer(det.stages);
-  // Gray images have no colour: no landmarks. Other types are not images we know.
-  if (input.empty() || input.depth() != CV_8U || input.cols < 3 || input.rows < 3) return;
-  const cv::Mat* img = &input;
-  if (input.channels() == 4) {
-    cv::cvtColor(input, converted, cv::COLOR_BGRA2BGR);
-    img = &converted;
-  } else if (input.channels() != 3) {
-    return;
-  }
+  const cv::Mat* img = colourImage(input);
+  if (!img) return;
   const DetectorParams& p = params;
-  const int max_area = static_cast<int>(
-      std::min<int64_t>(INT32_MAX, static_cast<int64_t>(img->total()) * p.max_area_frac_1000 / 1000));
+  const int max_area = maxArea(*img);
 
   // 1-3. BLUR, SATURATION, (EDGES): the backend's filters
   const cv::Mat* src = runFilters(*img, timer);
@@ -731,6 +921,12 @@ void Detector::setCamera(const CameraModel& camera, double side_m) {
 
 const Detection& Detector::detect(const cv::Mat& bgr) {
   impl_->run(bgr);
+  return impl_->det;
+}
+
+const Detection& Detector::detect(const cv::Mat& bgr, Explanation& why) {
+  impl_->run(bgr);
+  impl_->explain(bgr, why);
   return impl_->det;
 }
 

@@ -51,13 +51,15 @@ int main(int argc, char** argv) {
   CLI::App app{"ld-detect: find landmarks in images; JSON Lines on stdout (see README)."};
   std::vector<std::string> inputs;
   std::string draw_dir, out_file;
-  bool summary = false, decode = false;
+  bool summary = false, decode = false, explain = false;
   app.add_option("inputs", inputs, "image files or folders")->required();
   ld::DetectorOptions detector_options;
   detector_options.addTo(app);
   app.add_option("--draw", draw_dir, "write overlay images into this folder");
   app.add_option("-o,--output", out_file, "write JSON Lines here instead of stdout");
   app.add_flag("--decode", decode, "read each landmark's QR payload too (zbar)");
+  app.add_flag("--explain", explain,
+               "say on stderr, per image, what each stage kept and why groups of squares shaped as a landmark were refused");
   app.add_flag("--summary", summary, "print a summary (frames, landmarks, detect_ms) on stderr");
   CLI11_PARSE(app, argc, argv);
 
@@ -102,9 +104,12 @@ int main(int argc, char** argv) {
       ++failed;
       continue;
     }
+    ld::Explanation why;
     const auto t0 = std::chrono::steady_clock::now();
-    const ld::Detection& det = detector.detect(img);
-    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    const ld::Detection& det = explain ? detector.detect(img, why) : detector.detect(img);
+    // (what explaining took is not detection time)
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() - why.ms;
     found.assign(det.landmarks.begin(), det.landmarks.end());
     if (decode)
       for (auto& lm : found)
@@ -114,6 +119,19 @@ int main(int argc, char** argv) {
     j["landmarks"] = nlohmann::ordered_json::array();
     for (const auto& lm : found) j["landmarks"].push_back(ld::toJson(lm));
     out << j.dump() << "\n";
+    if (explain) {
+      out.flush();  // the explanation after its image's line when both go to the terminal
+      std::string text = path + ": " + std::to_string(found.size()) + (found.size() == 1 ? " landmark" : " landmarks");
+      if (detector.enabled()) {
+        const auto& a = detector.adapter();
+        text += cv::format("; adaptive gains B %.2f G %.2f R %.2f%s", a.gains()[0], a.gains()[1], a.gains()[2],
+                           a.glareCorrected() ? ", glare veil subtracted" : "");
+      }
+      text += "\n" + ld::describe(why, detector.detector().params());
+      // every line after the first indented under its image
+      for (size_t at = text.find('\n'); at != std::string::npos; at = text.find('\n', at + 1)) text.insert(at + 1, "  ");
+      std::cerr << text << "\n";
+    }
     times.push_back(ms);
     with_landmarks += !found.empty();
     total_landmarks += static_cast<int>(found.size());

@@ -118,6 +118,8 @@ class AdaptiveDetector {
   /// `detector` as it is (camera, backend), the adapter in front when `enabled`.
   AdaptiveDetector(Detector detector, bool enabled, const AdaptiveParams& adaptive = {});
   const Detection& detect(const cv::Mat& bgr);
+  /// detect() with Detector's explanation of the corrected frame.
+  const Detection& detect(const cv::Mat& bgr, Explanation& why);
   Detector& detector() { return detector_; }
   LightingAdapter& adapter() { return adapter_; }
   bool enabled() const { return enabled_; }

@@ -269,6 +269,38 @@ struct Detection {
   double stageMs(const std::string& name) const;  ///< 0 when the stage did not run
 };
 
+/// Why a frame gave the landmarks it gave: what the first pass kept at each
+/// stage and, for each group of squares shaped as a landmark's that gave
+/// none, the check that refused it (Detector::detect with an Explanation;
+/// `ld-detect --explain`). Counts are the first pass's: the completion of a
+/// missing square and the second look add squares of their own.
+struct Explanation {
+  int blue_regions = 0, red_regions = 0;        ///< labelled regions within min_area_px and max_area_frac_1000
+  int blue_sparse = 0, red_sparse = 0;          ///< of them, filling less than min_fill
+  int blue_off_colour = 0, red_off_colour = 0;  ///< of the rest, failing the colour ratios a and b
+  int fips = 0, aps = 0;                        ///< FIP and AP candidates
+  int fip_pairs = 0;                            ///< FIP graph edges (distance and size-ratio constraints)
+  int triangles = 0;                            ///< the graph's 3-cycles
+  int right_isosceles = 0;                      ///< of them, shaped as a landmark's three FIPs
+  /// Three FIPs shaped as a landmark's that made none (not part of a found
+  /// landmark), the AP tried with them, and the check that refused them.
+  struct Refused {
+    std::array<cv::Point2f, 3> fips;  ///< TL, TR, BL (with no AP: the right angle's, then clockwise)
+    std::optional<cv::Point2f> ap;    ///< empty: no red square where the AP belongs
+    std::string check;                ///< "no AP", or the name of verification's check
+  };
+  /// Those that came furthest through verification (its later checks
+  /// first), at most kMaxRefused.
+  std::vector<Refused> refused;
+  static constexpr size_t kMaxRefused = 10;
+  std::vector<std::pair<std::string, int>> refusals;  ///< how many groups each check refused, in check order
+  double ms = 0;  ///< what explaining took (not counted in the detection's times)
+};
+
+/// An explanation as lines for people (no trailing newline), each count and
+/// check with the parameters that decide it.
+std::string describe(const Explanation& explanation, const DetectorParams& params);
+
 class Detector {
  public:
   /// Throws std::invalid_argument on bad parameters, std::runtime_error
@@ -285,6 +317,10 @@ class Detector {
   /// Detects landmarks in an 8-bit BGR (or gray: no landmarks) image. The
   /// returned reference stays valid until the next call.
   const Detection& detect(const cv::Mat& bgr);
+  /// detect(), then the first pass again, counted and with each refused
+  /// group's check, into `why`: slower, for finding out why a landmark is
+  /// missed, not for the hot path. The detection's times are its own.
+  const Detection& detect(const cv::Mat& bgr, Explanation& why);
 
   const DetectorParams& params() const;
 

@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# ld-detect's command line: JSON Lines per image, --explain's account on
+# stderr (what each stage kept, the check that refused a landmark, with its
+# parameters), --adaptive's gains in it, unreadable files reported per file.
+# usage: detect_cli_test.sh BIN_DIR
+set -euo pipefail
+BIN=$(cd "$1" && pwd)
+T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+"$BIN/ld-synth" scene --out "$T/s" --seed 2 --count 2 --distance 1 --yaw 15 --lighting normal --degrade none \
+  --background plain --distractors 0 >/dev/null
+# Found: one landmark per image, counted in the explanation, nothing of it refused.
+"$BIN/ld-detect" --explain "$T/s" >"$T/out" 2>"$T/err"
+[ "$(grep -c '"landmarks":\[{' "$T/out")" -eq 2 ] || fail "defaults: $(cat "$T/out")"
+[ "$(grep -c ': 1 landmark$' "$T/err")" -eq 2 ] || fail "defaults, explanation: $(cat "$T/err")"
+grep -q '^  regions: [0-9]* blue, [0-9]* red (min_area_px 3' "$T/err" || fail "no region counts: $(cat "$T/err")"
+grep -q '^  FIP graph (d_min 1.6, d_max 11' "$T/err" || fail "no graph counts: $(cat "$T/err")"
+# A cover range no landmark meets: no landmark, and the explanation names the check and its parameters.
+printf 'cover_max: 0.2\n' >"$T/p.yaml"
+"$BIN/ld-detect" --explain --params "$T/p.yaml" "$T/s/000000.png" >"$T/out" 2>"$T/err"
+grep -q '"landmarks":\[\]' "$T/out" || fail "cover_max 0.2 still finds: $(cat "$T/out")"
+grep -q '000000.png: 0 landmarks$' "$T/err" || fail "cover: $(cat "$T/err")"
+grep -q 'refused: 1 group of three FIPs (1 cover)' "$T/err" || fail "cover count: $(cat "$T/err")"
+grep -q 'AP (.*): cover (cover_min, cover_max)$' "$T/err" || fail "cover check: $(cat "$T/err")"
+# JSON stays exactly one line per image on stdout; detect_ms is the detection alone.
+[ "$(wc -l <"$T/out")" -eq 1 ] && grep -q '"detect_ms":' "$T/out" || fail "stdout: $(cat "$T/out")"
+# --adaptive: the adapter's gains are part of the account.
+"$BIN/ld-detect" --explain --adaptive "$T/s/000001.png" >/dev/null 2>"$T/err"
+grep -q '000001.png: 1 landmark; adaptive gains B [0-9.]* G [0-9.]* R [0-9.]*' "$T/err" || fail "adaptive: $(cat "$T/err")"
+# An unreadable file: one line on stderr, an error object, the others still done, exit 1.
+echo "not an image" >"$T/s/broken.png"
+set +e; "$BIN/ld-detect" --explain "$T/s" >"$T/out" 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 1 ] || fail "broken file: exit $rc"
+grep -q 'broken.png: cannot read as an image' "$T/err" || fail "broken file: $(cat "$T/err")"
+[ "$(grep -c '"landmarks":\[{' "$T/out")" -eq 2 ] && grep -q '"error":"cannot read as an image"' "$T/out" ||
+  fail "broken file, output: $(cat "$T/out")"
+echo "ld-detect command line: ok"
