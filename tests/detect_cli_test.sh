@@ -2,9 +2,10 @@
 # ld-detect's command line: JSON Lines per image, --explain's account on
 # stderr (what each stage kept, the check that refused a landmark, with its
 # parameters), --adaptive's gains in it, unreadable files reported per file.
-# usage: detect_cli_test.sh BIN_DIR
+# usage: detect_cli_test.sh BIN_DIR SOURCE_DIR
 set -euo pipefail
 BIN=$(cd "$1" && pwd)
+SRC=$(cd "$2" && pwd)
 T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
 fail() { echo "FAIL: $*" >&2; exit 1; }
 
@@ -35,4 +36,13 @@ set +e; "$BIN/ld-detect" --explain "$T/s" >"$T/out" 2>"$T/err"; rc=$?; set -e
 grep -q 'broken.png: cannot read as an image' "$T/err" || fail "broken file: $(cat "$T/err")"
 [ "$(grep -c '"landmarks":\[{' "$T/out")" -eq 2 ] && grep -q '"error":"cannot read as an image"' "$T/out" ||
   fail "broken file, output: $(cat "$T/out")"
+# The README's parameters file, as printed there (comments after values included), loads.
+awk '/^### Parameters/{p=1} p&&/^```yaml/{y=1;next} y&&/^```/{exit} y' "$SRC/README.md" >"$T/readme.yaml"
+[ "$(wc -l <"$T/readme.yaml")" -gt 10 ] || fail "no YAML block under the README's Parameters"
+"$BIN/ld-detect" --params "$T/readme.yaml" "$T/s/000000.png" >/dev/null 2>"$T/err" || fail "README's YAML: $(cat "$T/err")"
+# A bad value names the file, the key and the value.
+printf 'front_end: papr   # typo\n' >"$T/typo.yaml"
+set +e; "$BIN/ld-detect" --params "$T/typo.yaml" "$T/s/000000.png" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && [ "$(wc -l <"$T/err")" -eq 1 ] || fail "typo: exit $rc, $(cat "$T/err")"
+grep -q "typo.yaml: front_end must be \"fast\" or \"paper\", not \"papr\"" "$T/err" || fail "typo: $(cat "$T/err")"
 echo "ld-detect command line: ok"

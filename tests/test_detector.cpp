@@ -1266,6 +1266,26 @@ TEST(Params, BadFilesGiveClearErrors) {
             std::string::npos);
   EXPECT_NE(loadError("%YAML:1.0\n---\n{ [ unbalanced").find("detector params"), std::string::npos);
   EXPECT_THROW(ld::DetectorParams::load("/nonexistent/dir/params.yaml"), std::runtime_error);
+  // Values are checked on loading, with the file's name and the value read.
+  const std::string bad_front_end = loadError("%YAML:1.0\n---\nfront_end: papr\n");
+  EXPECT_NE(bad_front_end.find("detector params "), std::string::npos) << bad_front_end;
+  EXPECT_NE(bad_front_end.find(".yaml: front_end must be \"fast\" or \"paper\", not \"papr\""), std::string::npos)
+      << bad_front_end;
+  EXPECT_NE(loadError("%YAML:1.0\n---\nd_min: -5\n").find(".yaml: d_min must be > 0"), std::string::npos);
+}
+
+// A comment after a string value is a comment (OpenCV's parser keeps it in
+// the string), as after a number.
+TEST(Params, CommentsAfterValues) {
+  const std::string path = tempPath("comments.yaml");
+  std::ofstream(path) << "front_end: paper          # fast (default) | paper\n"
+                         "backend: cpu\t# cpu | gles | auto\n"
+                         "d_min: 1.7   # centre distance\n";
+  const ld::DetectorParams q = ld::DetectorParams::load(path);
+  EXPECT_EQ(q.front_end, "paper");
+  EXPECT_EQ(q.backend, "cpu");
+  EXPECT_DOUBLE_EQ(q.d_min, 1.7);
+  std::remove(path.c_str());
 }
 
 // Every configuration reader opens its file the same way (openConfigFile):

@@ -77,7 +77,7 @@ void forEachField(DetectorParams& p, F&& f) {
 
 void readField(const std::string& path, const cv::FileNode& n, const char* key, std::string& v) {
   if (!n.isString()) badFile(path, std::string("key '") + key + "' must be a string");
-  v = static_cast<std::string>(n);
+  v = configString(n);
 }
 void readField(const std::string& path, const cv::FileNode& n, const char* key, int& v) {
   if (!n.isInt()) badFile(path, std::string("key '") + key + "' must be an integer");
@@ -118,6 +118,14 @@ DetectorParams DetectorParams::load(const std::string& path) {
     });
     if (!known) badFile(path, "unknown key '" + key + "'");
   }
+  try {
+    p.validate();
+  } catch (const std::invalid_argument& e) {  // named with the file
+    std::string why = e.what();
+    const std::string prefix = "detector params: ";
+    if (why.compare(0, prefix.size(), prefix) == 0) why.erase(0, prefix.size());
+    badFile(path, why);
+  }
   return p;
 }
 
@@ -140,8 +148,10 @@ void DetectorParams::validate() const {
   auto bad = [](const char* field, const std::string& why) {
     throw std::invalid_argument(std::string("detector params: ") + field + " " + why);
   };
-  if (front_end != "fast" && front_end != "paper") bad("front_end", "must be \"fast\" or \"paper\"");
-  if (backend != "cpu" && backend != "gles" && backend != "auto") bad("backend", "must be \"cpu\", \"gles\" or \"auto\"");
+  if (front_end != "fast" && front_end != "paper")
+    bad("front_end", "must be \"fast\" or \"paper\", not \"" + front_end + "\"");
+  if (backend != "cpu" && backend != "gles" && backend != "auto")
+    bad("backend", "must be \"cpu\", \"gles\" or \"auto\", not \"" + backend + "\"");
   if (blur_kernel != -1 && blur_kernel != 0 && (blur_kernel < 1 || blur_kernel % 2 == 0 || blur_kernel > 31))
     bad("blur_kernel", "must be -1, 0 or an odd number from 1 to 31");
   if (!(blur_sigma >= 0 && blur_sigma <= 20)) bad("blur_sigma", "must be in [0, 20]");

@@ -35,9 +35,7 @@ bool readBool(const cv::FileNode& n, const std::string& path) {
     const int v = static_cast<int>(n);
     if (v == 0 || v == 1) return v == 1;
   } else if (n.isString()) {
-    std::string s = static_cast<std::string>(n);
-    s = s.substr(0, s.find('#'));  // OpenCV keeps a trailing comment in a plain string
-    s = s.substr(0, s.find_last_not_of(" \t") + 1);
+    const std::string s = configString(n);
     if (s == "true" || s == "True" || s == "TRUE") return true;
     if (s == "false" || s == "False" || s == "FALSE") return false;
   }

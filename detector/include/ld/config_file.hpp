@@ -10,6 +10,7 @@
 // own, and comments (after '#') are not looked at.
 #pragma once
 
+#include <algorithm>
 #include <exception>
 #include <filesystem>
 #include <fstream>
@@ -66,6 +67,20 @@ inline std::optional<std::string> unsafeForOpenCv(const std::string& text) {
   return std::nullopt;
 }
 
+/// A string value of a configuration file as written: OpenCV's YAML parser
+/// keeps a trailing comment (`front_end: paper   # or fast`) and the spaces
+/// before it in a plain string; they are cut here.
+inline std::string configString(const cv::FileNode& n) {
+  std::string s = static_cast<std::string>(n);
+  for (size_t hash = s.find('#'); hash != std::string::npos; hash = s.find('#', hash + 1))
+    if (hash > 0 && (s[hash - 1] == ' ' || s[hash - 1] == '\t')) {
+      s.erase(hash);
+      break;
+    }
+  const size_t end = s.find_last_not_of(" \t\r");
+  return end == std::string::npos ? std::string() : s.substr(0, end + 1);
+}
+
 /// A configuration file (YAML, XML or JSON) opened for reading, the way every
 /// reader of the project opens one: the file read once, its text checked by
 /// unsafeForOpenCv, plain YAML given the "%YAML:1.0" header OpenCV wants, and
@@ -89,6 +104,9 @@ inline cv::FileStorage openConfigFile(const std::string& path, const std::string
   } else if (text[first] != '<' && text[first] != '{' && text.compare(first, 5, "%YAML") != 0) {
     text = "%YAML:1.0\n---\n" + text;
   }
+  // OpenCV's YAML parser fails on a tab anywhere ("skipSpaces"), where YAML
+  // allows one between a value and its comment: spaces do as well.
+  if (text[text.find_first_not_of(" \t\r\n")] == '%') std::replace(text.begin(), text.end(), '\t', ' ');
   cv::FileStorage fs;
   bool opened = false;
   std::string error;
