@@ -45,4 +45,17 @@ printf 'front_end: papr   # typo\n' >"$T/typo.yaml"
 set +e; "$BIN/ld-detect" --params "$T/typo.yaml" "$T/s/000000.png" >/dev/null 2>"$T/err"; rc=$?; set -e
 [ $rc -eq 2 ] && [ "$(wc -l <"$T/err")" -eq 1 ] || fail "typo: exit $rc, $(cat "$T/err")"
 grep -q "typo.yaml: front_end must be \"fast\" or \"paper\", not \"papr\"" "$T/err" || fail "typo: $(cat "$T/err")"
+# Overlays: one per image, same-named images of two folders included (the second gets -2).
+mkdir -p "$T/other"; cp "$T/s/000000.png" "$T/other/000000.png"
+"$BIN/ld-detect" --draw "$T/ov" "$T/s/000000.png" "$T/other" >/dev/null
+[ -s "$T/ov/000000.png" ] && [ -s "$T/ov/000000-2.png" ] || fail "overlays: $(ls "$T/ov")"
+# One line each, naming what is wrong: a missing file, --size 0, --size without --camera, an unwritable --draw.
+set +e; "$BIN/ld-detect" "$T/nothere.png" >"$T/out" 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 1 ] && [ "$(cat "$T/err")" = "ld-detect: $T/nothere.png: no such file" ] || fail "missing: $rc $(cat "$T/err")"
+for args in "--size 0|ld-detect: --size: must be > 0, not 0 (--help lists the options)" \
+            "--size 0.15|ld-detect: --size without --camera: pose needs both" \
+            "--draw /proc/no/such|ld-detect: --draw: cannot create folder /proc/no/such: No such file or directory"; do
+  set +e; "$BIN/ld-detect" ${args%%|*} "$T/s/000000.png" >/dev/null 2>"$T/err"; rc=$?; set -e
+  [ $rc -eq 2 ] && [ "$(cat "$T/err")" = "${args#*|}" ] || fail "${args%%|*}: exit $rc, $(cat "$T/err")"
+done
 echo "ld-detect command line: ok"

@@ -59,6 +59,17 @@ grep -q "at 200 dpi" "$T/out" || fail "dpi: $(cat "$T/out")"
 if "$BIN/ld-generate" -p x --ecc Z --svg "$T/x.svg" 2>"$T/err"; then fail "--ecc Z accepted"; fi
 grep -q -- "--ecc: .*not 'Z'" "$T/err" || fail "--ecc Z: $(cat "$T/err")"
 
+# A payload that cannot be encoded: refused with one line, nothing half-written on stdout.
+if "$BIN/ld-generate" -p "" --svg "$T/e.svg" >"$T/out" 2>"$T/err"; then fail "empty payload accepted"; fi
+[ ! -s "$T/out" ] && [ "$(wc -l <"$T/err")" -eq 1 ] || fail "empty payload: '$(cat "$T/out")' $(cat "$T/err")"
+big=$(head -c 3000 /dev/zero | tr '\0' a)
+if "$BIN/ld-generate" -p "$big" --svg "$T/e.svg" >"$T/out" 2>"$T/err"; then fail "3000 bytes accepted"; fi
+[ ! -s "$T/out" ] && grep -q "payload of 3000 bytes cannot be encoded" "$T/err" || fail "3000 bytes: $(cat "$T/err")"
+# Beyond version 5 (100 bytes): written, with a note; a long payload shown shortened.
+"$BIN/ld-generate" -p "$(head -c 500 /dev/zero | tr '\0' b)" --svg "$T/v.svg" >"$T/out" 2>"$T/err"
+grep -q '^QR "b\{32\}... (500 bytes)": version 15' "$T/out" || fail "500 bytes: $(cat "$T/out")"
+grep -q "needs QR version 15 (77 modules, more than the 37 of version 5" "$T/err" || fail "500 bytes, note: $(cat "$T/err")"
+
 # Page names: a folder with a dot in its name, a file name without an extension.
 mkdir -p "$T/out.d"
 "$BIN/ld-generate" --sheet --size 0.15 -p a -p b --svg "$T/out.d/sheet" >/dev/null

@@ -14,6 +14,7 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include "lcm_bytes.hpp"
+#include "ld/cli.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/landmark_list_t.hpp"
 #include "ld/lcm_url.hpp"
@@ -30,7 +31,7 @@ int main(int argc, char** argv) {
   app.add_option("--channel", channel);
   app.add_option("--interval-ms", interval_ms, "pause between messages (receivers that keep only "
                                                "the newest message then see each one)");
-  CLI11_PARSE(app, argc, argv);
+  LD_CLI_PARSE(app, argc, argv);
   lcm::LCM lcm(url);
   if (!lcm.good()) return 2;
 

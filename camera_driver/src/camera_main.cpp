@@ -15,6 +15,7 @@
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
 
+#include "ld/cli.hpp"
 #include "ld/fake_v4l2.hpp"
 #include "ld/frame_image.hpp"
 #include "ld/image_convert.hpp"
@@ -79,10 +80,10 @@ int main(int argc, char** argv) {
           "WxH"))
       ->capture_default_str();
   app.add_option("--fps", fps, "frame rate; the nearest rate the device offers is used")
-      ->check(CLI::PositiveNumber)
+      ->check(ld::cli::Positive)
       ->capture_default_str();
   app.add_option("--buffers", buffers, "mmap buffers to request")
-      ->check(CLI::Range(4u, 32u))
+      ->check(ld::cli::Between(4, 32))
       ->capture_default_str();
   app.add_option("--channel", channel, "LCM channel of the images")->capture_default_str();
   app.add_option("--lcm-url", url, "LCM URL")->capture_default_str();
@@ -103,11 +104,7 @@ int main(int argc, char** argv) {
                  "with --fake-unplug-after: plug it back after this many seconds")
       ->group("Test aids")
       ->capture_default_str();
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
+  LD_CLI_PARSE(app, argc, argv);
 
   ld::CaptureRequest request;
   ld::ImageConversion conversion;

@@ -9,6 +9,7 @@
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
 
+#include "ld/cli.hpp"
 #include "ld/adaptive.hpp"
 #include "ld/detector.hpp"
 #include "ld/detector_options.hpp"
@@ -49,7 +50,7 @@ int main(int argc, char** argv) {
   ld::DetectorOptions detector_options;
   detector_options.addTo(app);
   app.add_flag("-v,--verbose", verbose, "print a status line every 5 s");
-  CLI11_PARSE(app, argc, argv);
+  LD_CLI_PARSE(app, argc, argv);
 
   ld::AdaptiveDetector detector;  // with --adaptive: frames are corrected before detection
   try {

@@ -2,12 +2,14 @@
 
 #include <stdexcept>
 
+#include "ld/cli.hpp"
+
 namespace ld {
 
 void DetectorOptions::addTo(CLI::App& app) {
   app.add_option("--params", params_file, "detector parameters (YAML)");
   app.add_option("--camera", camera_file, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration), for pose");
-  app.add_option("--size", side_m, "printed landmark side S in metres, for pose");
+  app.add_option("--size", side_m, "printed landmark side S in metres, for pose")->check(cli::Positive);
   app.add_option("--backend", backend,
                  "where the filters run: cpu; gles (OpenGL ES on a headless EGL context, an error when none "
                  "can be made; Mesa's llvmpipe counts); auto (a GPU when there is one, else the CPU with one "
@@ -25,7 +27,8 @@ Detector DetectorOptions::make() const {
   params.validate();
   Detector detector(params);
   if (!camera_file.empty() || side_m > 0) {
-    if (camera_file.empty() || side_m <= 0) throw std::invalid_argument("pose needs both --camera and --size");
+    if (camera_file.empty()) throw std::invalid_argument("--size without --camera: pose needs both");
+    if (side_m <= 0) throw std::invalid_argument("--camera without --size: pose needs both");
     detector.setCamera(CameraModel::load(camera_file), side_m);
   }
   return detector;

@@ -11,6 +11,7 @@
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
 
+#include "ld/cli.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/landmark_list_t.hpp"
 #include "ld/lcm_url.hpp"
@@ -86,10 +87,10 @@ int main(int argc, char** argv) {
                  "frames of an undecoded track averaged in the sheet's frame and read when single "
                  "frames fail (0: off)")
       ->capture_default_str()
-      ->check(CLI::Range(0, 64));
+      ->check(ld::cli::Between(0, 64));
   app.add_flag("-v,--verbose", verbose,
                "print each newly read payload, and each track whose stacked frames a jump dropped");
-  CLI11_PARSE(app, argc, argv);
+  LD_CLI_PARSE(app, argc, argv);
 
   lcm::LCM lcm(url);
   if (!lcm.good()) {

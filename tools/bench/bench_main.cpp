@@ -20,6 +20,7 @@
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "ld/cli.hpp"
 #include "ld/adaptive.hpp"
 #include "ld/detector.hpp"
 #include "ld/markers.hpp"
@@ -86,7 +87,7 @@ int main(int argc, char** argv) {
   int tracker_repeats = 100;
   app.add_option("--tracker-landmarks", tracker_counts, "landmark counts of the tracker rows")->capture_default_str();
   app.add_option("--tracker-repeats", tracker_repeats, "timed runs per tracker row")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  LD_CLI_PARSE(app, argc, argv);
 
   cv::setNumThreads(1);
   ld::markers::Detector tag_detector(ld::markers::Kind::AprilTag);  // one thread, default decimation

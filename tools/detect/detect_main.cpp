@@ -5,10 +5,13 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <set>
 
 #include <CLI/CLI.hpp>
+#include <opencv2/core/utils/logger.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "ld/cli.hpp"
 #include "ld/adaptive.hpp"
 #include "ld/detector.hpp"
 #include "ld/detector_options.hpp"
@@ -61,15 +64,23 @@ int main(int argc, char** argv) {
   app.add_flag("--explain", explain,
                "say on stderr, per image, what each stage kept and why groups of squares shaped as a landmark were refused");
   app.add_flag("--summary", summary, "print a summary (frames, landmarks, detect_ms) on stderr");
-  CLI11_PARSE(app, argc, argv);
+  LD_CLI_PARSE(app, argc, argv);
+  cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);  // our own one-line errors
 
   ld::AdaptiveDetector detector;  // with --adaptive: frames are corrected before detection
   try {
     detector = detector_options.makeAdaptive();
-    if (!draw_dir.empty()) fs::create_directories(draw_dir);
   } catch (const std::exception& e) {
     std::cerr << "ld-detect: " << e.what() << "\n";
     return 2;
+  }
+  if (!draw_dir.empty()) {
+    std::error_code ec;
+    fs::create_directories(draw_dir, ec);
+    if (!fs::is_directory(draw_dir)) {
+      std::cerr << "ld-detect: --draw: cannot create folder " << draw_dir << (ec ? ": " + ec.message() : "") << "\n";
+      return 2;
+    }
   }
 
   std::ofstream file;
@@ -86,6 +97,7 @@ int main(int argc, char** argv) {
   std::vector<ld::Landmark> found;
   int failed = 0, with_landmarks = 0, total_landmarks = 0;
   std::vector<double> times;
+  std::set<std::string> drawn;  // overlay names written
   const auto files = expandInputs(inputs);
   if (files.empty()) {
     std::cerr << "ld-detect: no image files found\n";
@@ -99,8 +111,10 @@ int main(int argc, char** argv) {
       img.release();
     }
     if (img.empty()) {
-      std::cerr << "ld-detect: " << path << ": cannot read as an image\n";
-      out << nlohmann::ordered_json{{"image", path}, {"error", "cannot read as an image"}}.dump() << "\n";
+      std::error_code ec;
+      const char* why = !fs::exists(path, ec) ? "no such file" : "cannot read as an image";
+      std::cerr << "ld-detect: " << path << ": " << why << "\n";
+      out << nlohmann::ordered_json{{"image", path}, {"error", why}}.dump() << "\n";
       ++failed;
       continue;
     }
@@ -137,7 +151,11 @@ int main(int argc, char** argv) {
     total_landmarks += static_cast<int>(found.size());
     if (!draw_dir.empty()) {
       ld::drawLandmarks(img, found);
-      const fs::path dst = fs::path(draw_dir) / (fs::path(path).stem().string() + ".png");
+      // One overlay per image: a name already written in this run (frames/1.png
+      // and other/1.png) gets the next free -N.
+      std::string name = fs::path(path).stem().string();
+      for (int k = 2; !drawn.insert(name).second; ++k) name = fs::path(path).stem().string() + "-" + std::to_string(k);
+      const fs::path dst = fs::path(draw_dir) / (name + ".png");
       if (!cv::imwrite(dst.string(), img)) std::cerr << "ld-detect: cannot write " << dst << "\n";
     }
   }

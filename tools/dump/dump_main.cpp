@@ -9,6 +9,7 @@
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
 
+#include "ld/cli.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/landmark_json.hpp"
 #include "ld/landmark_msg.hpp"
@@ -119,7 +120,7 @@ int main(int argc, char** argv) {
   app.add_option("-c,--channel", channels, "only channels matching this regex (repeatable)");
   app.add_flag("--live", live, "read the live bus instead of files (Ctrl-C to stop)");
   app.add_option("--lcm-url", url, "LCM URL for --live")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  LD_CLI_PARSE(app, argc, argv);
 
   Printer printer;
   try {

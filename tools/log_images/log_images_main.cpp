@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 
+#include "ld/cli.hpp"
 #include "ld/image_convert.hpp"
 
 namespace fs = std::filesystem;
@@ -33,15 +34,15 @@ int main(int argc, char** argv) {
   int quality = 90;
   app.add_option("input", input, "image folder (name order) or video file")->required();
   app.add_option("output", output, "LCM log to write")->required();
-  app.add_option("--fps", fps, "frame rate of the timestamps")->check(CLI::Range(0.1, 1000.0))
+  app.add_option("--fps", fps, "frame rate of the timestamps")->check(ld::cli::Between(0.1, 1000.0))
       ->capture_default_str();
   app.add_option("--start-utime", start_utime, "utime of the first frame (default: now)");
   app.add_option("--format", format, "pixel format: gray, rgb, bgr, yuyv, uyvy, mjpeg")
       ->capture_default_str();
-  app.add_option("--quality", quality, "JPEG quality for mjpeg")->check(CLI::Range(1, 100))
+  app.add_option("--quality", quality, "JPEG quality for mjpeg")->check(ld::cli::Between(1, 100))
       ->capture_default_str();
   app.add_option("--channel", channel, "channel name")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  LD_CLI_PARSE(app, argc, argv);
 
   int32_t pixelformat = 0;
   try {

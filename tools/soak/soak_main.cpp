@@ -28,6 +28,7 @@
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
 
+#include "ld/cli.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/lcm_url.hpp"
 #include "ld/message_decode.hpp"
@@ -204,7 +205,7 @@ int main(int argc, char** argv) {
   app.add_option("--bin", o.bin_dir, "folder of ld-detector, ld-tracker, ld-qr-reader (default: ld-soak's)");
   app.add_option("--log-dir", o.log_dir, "where the processes' stderr goes (default: a temporary folder)");
   app.add_option("--csv", o.csv, "also write the samples to this CSV file");
-  CLI11_PARSE(app, argc, argv);
+  LD_CLI_PARSE(app, argc, argv);
 
   if (!ld::inPrivateNetns()) {
     std::cerr << "ld-soak: run me in a private network namespace, so that LCM stays on this "

@@ -19,6 +19,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
+#include "ld/cli.hpp"
 #include "ld/camera.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/landmark_json.hpp"
@@ -251,7 +252,7 @@ int main(int argc, char** argv) {
   app.add_option("--image", image_ch, "image channel")->capture_default_str();
   app.add_option("--tracks", tracked_ch, "tracked landmarks channel")->capture_default_str();
   app.add_option("--codes", codes_ch, "QR codes channel")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  LD_CLI_PARSE(app, argc, argv);
 
   const bool display = std::getenv("DISPLAY") || std::getenv("WAYLAND_DISPLAY");
   o.window = force_window || (display && o.out_dir.empty() && o.video.empty());

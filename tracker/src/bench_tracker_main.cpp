@@ -4,6 +4,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "ld/cli.hpp"
 #include "ld/tracker_bench.hpp"
 
 int main(int argc, char** argv) {
@@ -12,8 +13,8 @@ int main(int argc, char** argv) {
   int repeats = 200;
   app.add_option("--landmarks", counts, "landmark counts")->capture_default_str();
   app.add_option("--repeats", repeats, "timed runs per count (median reported)")
-      ->check(CLI::PositiveNumber)->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+      ->check(ld::cli::Positive)->capture_default_str();
+  LD_CLI_PARSE(app, argc, argv);
 
   std::printf("| landmarks | assignment ms (Hungarian, dense n x n) | tracker update ms |\n");
   std::printf("|---:|---:|---:|\n");

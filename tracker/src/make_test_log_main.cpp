@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
 
+#include "ld/cli.hpp"
 #include "ld/landmark_list_t.hpp"
 #include "ld/landmark_msg.hpp"
 
@@ -34,8 +35,8 @@ int main(int argc, char** argv) {
   int frames = 40;
   app.add_option("--out", out, "log file to write")->required();
   app.add_option("--channel", channel, "channel")->capture_default_str();
-  app.add_option("--frames", frames, "frames")->check(CLI::PositiveNumber)->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  app.add_option("--frames", frames, "frames")->check(ld::cli::Positive)->capture_default_str();
+  LD_CLI_PARSE(app, argc, argv);
 
   lcm::LogFile log(out, "w");
   if (!log.good()) {

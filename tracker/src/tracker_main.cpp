@@ -14,6 +14,7 @@
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
 
+#include "ld/cli.hpp"
 #include "ld/lcm_url.hpp"
 #include "ld/message_decode.hpp"
 #include "ld/tracker.hpp"
@@ -63,7 +64,7 @@ int main(int argc, char** argv) {
   app.add_flag("--no-coasting", no_coasting, "publish only the landmarks detected in each frame");
   app.add_flag("--print-params", print_params, "print the effective parameters as YAML and exit");
   app.add_flag("-v,--verbose", verbose, "print a status line every 5 s");
-  CLI11_PARSE(app, argc, argv);
+  LD_CLI_PARSE(app, argc, argv);
 
   ld::TrackerParams params;
   try {

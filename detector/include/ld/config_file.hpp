@@ -117,8 +117,8 @@ inline cv::FileStorage openConfigFile(const std::string& path, const std::string
   } catch (const std::exception& e) {
     error = e.what();
   }
-  if (!error.empty()) fail("cannot parse (" + error + ")");
-  if (!opened) fail("cannot parse");
+  if (!error.empty()) fail("cannot parse as YAML, XML or JSON (OpenCV: " + error + ")");
+  if (!opened) fail("cannot parse as YAML, XML or JSON");
   return fs;
 }
 

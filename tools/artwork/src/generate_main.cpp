@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "ld/cli.hpp"
 #include "ld/artwork.hpp"
 
 namespace {
@@ -37,9 +38,9 @@ int main(int argc, char** argv) {
   bool sheet = false;
   ld::artwork::SheetLayout page;
   app.add_option("-p,--payload", payloads, "QR text; repeat with --sheet for several")->required();
-  app.add_option("-s,--size", side_m, "printed sheet side S in metres")->check(CLI::Range(0.01, 2.0))
+  app.add_option("-s,--size", side_m, "printed sheet side S in metres")->check(ld::cli::Between(0.01, 2.0))
       ->capture_default_str();
-  app.add_option("--dpi", dpi, "resolution of the PNG")->check(CLI::Range(10.0, 2400.0))
+  app.add_option("--dpi", dpi, "resolution of the PNG")->check(ld::cli::Between(10.0, 2400.0))
       ->capture_default_str();
   app.add_option("--png", png, "write a PNG here");
   app.add_option("--svg", svg, "write an SVG here (vector, exact physical size)");
@@ -51,12 +52,12 @@ int main(int argc, char** argv) {
                "lay the landmarks out on pages with their payloads as labels (more than a page holds: "
                "FILE-1.svg, FILE-2.svg, ...)");
   app.add_option("--page-width", page.page_w_mm, "page width in mm (sheet)")
-      ->check(CLI::Range(10.0, 5000.0))
+      ->check(ld::cli::Between(10.0, 5000.0))
       ->capture_default_str();
   app.add_option("--page-height", page.page_h_mm, "page height in mm (sheet)")
-      ->check(CLI::Range(10.0, 5000.0))
+      ->check(ld::cli::Between(10.0, 5000.0))
       ->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  LD_CLI_PARSE(app, argc, argv);
 
   if (png.empty() && svg.empty()) {
     std::cerr << "ld-generate: give --png and/or --svg\n";
@@ -81,8 +82,17 @@ int main(int argc, char** argv) {
   try {
     const double side_mm = side_m * 1000.0;
     // What each code became (the distance it reads from: ld-eval size).
-    for (const auto& p : payloads)
-      std::cout << "QR \"" << p << "\": " << ld::artwork::describeQr(ld::artwork::encodeQr(p, ecc), side_mm) << "\n";
+    // (each line whole before it is printed: a payload that does not fit leaves no half line)
+    for (const auto& p : payloads) {
+      const ld::artwork::QrCode qr = ld::artwork::encodeQr(p, ecc);
+      const std::string shown = p.size() <= 40 ? p : p.substr(0, 32) + "... (" + std::to_string(p.size()) + " bytes)";
+      std::cout << "QR \"" << shown << "\": " << ld::artwork::describeQr(qr, side_mm) << "\n";
+      if (qr.size > 37)
+        std::cerr << "ld-generate: note: \"" << shown << "\" needs QR version " << qr.version << " ("
+                  << qr.size << " modules, more than the 37 of version 5, which holds 100 bytes at level L): "
+                  << "its modules are small and read only from close by (ld-eval size --payload-bytes " << p.size()
+                  << " says how close)\n";
+    }
     // The pages: one payload alone, or as many per page as fit.
     std::vector<std::vector<std::string>> pages;
     const size_t per_page = sheet ? static_cast<size_t>(ld::artwork::landmarksPerPage(side_mm, page)) : 1;

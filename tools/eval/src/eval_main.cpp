@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -10,9 +11,13 @@
 #include <CLI/CLI.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <unistd.h>
 
+#include "ld/cli.hpp"
 #include "ld/eval.hpp"
 #include "ld/markers.hpp"
+
+namespace fs = std::filesystem;
 
 namespace {
 
@@ -114,15 +119,15 @@ struct Common {
 void addCommon(CLI::App* app, Common& c) {
   app->add_option("--camera", c.camera_file, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration); default 640x480, f = 600 px");
   app->add_option("--params", c.params_file, "detector parameters (YAML)");
-  app->add_option("--trials", c.trials, "frames per sweep point")->check(CLI::PositiveNumber);
-  app->add_option("--seed", c.seed, "scene seed");
+  app->add_option("--trials", c.trials, "frames per sweep point")->check(ld::cli::Positive)->capture_default_str();
+  app->add_option("--seed", c.seed, "scene seed")->capture_default_str();
   app->add_option("--markdown", c.markdown, "also write the table to this file");
   app->add_option("--png", c.png, "write a plot");
 }
 
 // The QR sweeps' --stack: frames read as ld-qr-reader reads a track (0-64, as its --stack-frames).
 void addStack(CLI::App* app, int& frames, const std::string& what) {
-  app->add_option("--stack", frames, what)->capture_default_str()->check(CLI::Range(0, 64));
+  app->add_option("--stack", frames, what)->capture_default_str()->check(ld::cli::Between(0, 64));
 }
 
 // The QR sweeps' --ecc: the error correction of the printed codes, as ld-generate's.
@@ -145,6 +150,20 @@ void addEcc(CLI::App* app, std::string& level) {
 void addCompare(CLI::App* app, Common& c) {
   app->add_flag("--compare", c.compare,
                 "also AprilTag 3 (tag36h11) and ArUco (4x4) markers of the same printed size at the same poses");
+}
+
+// Yaw within a quarter turn: at 90 degrees the sheet is seen edge on.
+const CLI::Validator kYaw = ld::cli::Between(0, 89);
+
+// An output file can be written where it is asked for: its folder exists and is writable.
+void requireWritable(const std::string& path, const char* option) {
+  if (path.empty()) return;
+  const fs::path folder = fs::path(path).parent_path().empty() ? fs::path(".") : fs::path(path).parent_path();
+  std::error_code ec;
+  if (!fs::is_directory(folder, ec)) throw std::runtime_error(std::string(option) + ": no folder " + folder.string());
+  if (::access(folder.c_str(), W_OK) != 0)
+    throw std::runtime_error(std::string(option) + ": cannot write in " + folder.string());
+  if (fs::is_directory(path, ec)) throw std::runtime_error(std::string(option) + ": " + path + " is a folder");
 }
 
 void emit(const Common& c, const std::string& table) {
@@ -172,10 +191,10 @@ int main(int argc, char** argv) {
   auto* yaw = app.add_subcommand("yaw", "detection rate against horizontal viewing angle (paper, Fig. 8)");
   addCommon(yaw, yc);
   addCompare(yaw, yc);
-  yaw->add_option("--side", y_sides, "printed sides S, metres (one per series)");
-  yaw->add_option("--distance", y_dists, "distance per side, metres");
-  yaw->add_option("--max-yaw", y_max, "degrees");
-  yaw->add_option("--step", y_step, "degrees");
+  yaw->add_option("--side", y_sides, "printed sides S, metres (one per series; default 0.09 0.15)")->check(ld::cli::Positive);
+  yaw->add_option("--distance", y_dists, "distance per side, metres (default 1.5 2.5)")->check(ld::cli::Positive);
+  yaw->add_option("--max-yaw", y_max, "sweep from -this to +this, degrees")->capture_default_str()->check(kYaw);
+  yaw->add_option("--step", y_step, "degrees between sweep points")->capture_default_str()->check(ld::cli::Positive);
 
   Common dc;
   std::vector<double> d_sides{0.09, 0.15};
@@ -183,21 +202,21 @@ int main(int argc, char** argv) {
   auto* dist = app.add_subcommand("distance", "detection rate against distance for several sizes");
   addCommon(dist, dc);
   addCompare(dist, dc);
-  dist->add_option("--side", d_sides, "printed sides S, metres");
-  dist->add_option("--from", d_from)->capture_default_str();
-  dist->add_option("--to", d_to)->capture_default_str();
-  dist->add_option("--step", d_step)->capture_default_str();
-  dist->add_option("--max-yaw", d_yaw, "yaw drawn within +-this, degrees")->capture_default_str();
+  dist->add_option("--side", d_sides, "printed sides S, metres (default 0.09 0.15)")->check(ld::cli::Positive);
+  dist->add_option("--from", d_from, "first distance, metres")->capture_default_str()->check(ld::cli::Positive);
+  dist->add_option("--to", d_to, "last distance, metres")->capture_default_str()->check(ld::cli::Positive);
+  dist->add_option("--step", d_step, "metres between sweep points")->capture_default_str()->check(ld::cli::Positive);
+  dist->add_option("--max-yaw", d_yaw, "yaw drawn within +-this, degrees")->capture_default_str()->check(kYaw);
 
   Common qc;
   double q_side = 0.15, q_from = 0.3, q_to = 1.2, q_step = 0.1, q_yaw = 40;
   auto* qr = app.add_subcommand("qr", "QR decode rate against distance, short and long payloads");
   addCommon(qr, qc);
-  qr->add_option("--side", q_side, "printed side S, metres")->capture_default_str();
-  qr->add_option("--from", q_from)->capture_default_str();
-  qr->add_option("--to", q_to)->capture_default_str();
-  qr->add_option("--step", q_step)->capture_default_str();
-  qr->add_option("--max-yaw", q_yaw, "yaw drawn within +-this, degrees")->capture_default_str();
+  qr->add_option("--side", q_side, "printed side S, metres")->capture_default_str()->check(ld::cli::Positive);
+  qr->add_option("--from", q_from, "first distance, metres")->capture_default_str()->check(ld::cli::Positive);
+  qr->add_option("--to", q_to, "last distance, metres")->capture_default_str()->check(ld::cli::Positive);
+  qr->add_option("--step", q_step, "metres between sweep points")->capture_default_str()->check(ld::cli::Positive);
+  qr->add_option("--max-yaw", q_yaw, "yaw drawn within +-this, degrees")->capture_default_str()->check(kYaw);
   int q_stack = 0;
   addStack(qr, q_stack,
            "also read each trial's QR from this many frames averaged, as ld-qr-reader does for an undecoded "
@@ -211,11 +230,17 @@ int main(int argc, char** argv) {
   int s_payload = 20;
   auto* size = app.add_subcommand("size", "the smallest landmark detected at X m and read at Y m (>= 95 %)");
   addCommon(size, sc);
-  size->add_option("--detect-at", s_detect, "distance the landmark must be detected at, metres")->capture_default_str();
-  size->add_option("--read-at", s_read, "distance its QR must be read at, metres")->capture_default_str();
-  size->add_option("--max-yaw", s_yaw, "yaw drawn within +-this, degrees")->capture_default_str();
-  size->add_option("--payload-bytes", s_payload, "payload length to read")->capture_default_str();
-  size->add_option("--side", s_sides, "candidate sides, metres");
+  size->add_option("--detect-at", s_detect, "distance the landmark must be detected at, metres")
+      ->capture_default_str()
+      ->check(ld::cli::Positive);
+  size->add_option("--read-at", s_read, "distance its QR must be read at, metres")
+      ->capture_default_str()
+      ->check(ld::cli::Positive);
+  size->add_option("--max-yaw", s_yaw, "yaw drawn within +-this, degrees")->capture_default_str()->check(kYaw);
+  size->add_option("--payload-bytes", s_payload, "payload length to read")
+      ->capture_default_str()
+      ->check(ld::cli::Between(1, 1000));
+  size->add_option("--side", s_sides, "candidate sides, metres (default 5 to 40 cm)")->check(ld::cli::Positive);
   int s_stack = 0;
   addStack(size, s_stack,
            "count a QR read when read over this many frames, as ld-qr-reader reads a track (a moving camera); "
@@ -228,13 +253,24 @@ int main(int argc, char** argv) {
   int l_fp_frames = 100;
   auto* light = app.add_subcommand("lighting", "fixed defaults against adaptive lighting: colour temperature, level, glare");
   addCommon(light, lc);
-  light->add_option("--side", l_side, "printed side S, metres")->capture_default_str();
-  light->add_option("--distance", l_dist, "metres")->capture_default_str();
-  light->add_option("--max-yaw", l_yaw, "yaw drawn within +-this, degrees")->capture_default_str();
-  light->add_option("--fp-frames", l_fp_frames, "distractor frames per condition for false positives")->capture_default_str();
+  light->add_option("--side", l_side, "printed side S, metres")->capture_default_str()->check(ld::cli::Positive);
+  light->add_option("--distance", l_dist, "metres")->capture_default_str()->check(ld::cli::Positive);
+  light->add_option("--max-yaw", l_yaw, "yaw drawn within +-this, degrees")->capture_default_str()->check(kYaw);
+  light->add_option("--fp-frames", l_fp_frames, "distractor frames per condition for false positives")
+      ->capture_default_str()
+      ->check(ld::cli::NonNegative);
+  light->get_option("--png")->description(
+      "write three plots: FILE's name with _temperature, _gain and _glare before .png");
 
-  CLI11_PARSE(app, argc, argv);
+  LD_CLI_PARSE(app, argc, argv);
   try {
+    // Where the results go, checked before the sweep (minutes) rather than after it.
+    for (const Common* c : {&yc, &dc, &qc, &sc, &lc}) {
+      requireWritable(c->markdown, "--markdown");
+      requireWritable(c->png, "--png");
+    }
+    if ((dist->parsed() && d_from > d_to) || (qr->parsed() && q_from > q_to))
+      throw std::invalid_argument("--from must not be beyond --to");
     if (yaw->parsed() || dist->parsed()) {
       // One column and one plotted series per (side, target).
       const bool by_yaw = yaw->parsed();
@@ -395,7 +431,7 @@ int main(int argc, char** argv) {
       // What was printed on it: the code's size decides the reading distance.
       const std::string sample = o.payload(0);
       const double side = answer > 0 ? answer : s_sides.back();
-      t << "its QR: " << sample.size() << " bytes, "
+      t << (answer > 0 ? "its QR: " : "the QR of the largest candidate: ") << sample.size() << " bytes, "
         << ld::artwork::describeQr(ld::artwork::encodeQr(sample, o.ecc), side * 1000) << " on a " << cm(side)
         << " landmark\n";
       emit(sc, t.str());

@@ -13,6 +13,7 @@
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
 
+#include "ld/cli.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/lcm_url.hpp"
 
@@ -39,15 +40,15 @@ int main(int argc, char** argv) {
   app.add_option("--lcm-url", url, "LCM URL")->capture_default_str();
   app.add_option("--channel", channel, "image channel in the log (and on the bus)")->capture_default_str();
   app.add_option("--out-channel", out_channel, "publish on this channel instead");
-  app.add_option("--fps", fps, "frames per second")->check(CLI::PositiveNumber)->capture_default_str();
-  app.add_option("--frames", frames, "frames to publish (looping the log)")->check(CLI::NonNegativeNumber);
+  app.add_option("--fps", fps, "frames per second")->check(ld::cli::Positive)->capture_default_str();
+  app.add_option("--frames", frames, "frames to publish (looping the log)")->check(ld::cli::NonNegative);
   app.add_option("--duration", duration, "seconds to publish (looping the log)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(ld::cli::NonNegative);
   app.add_option("--format", format, "keep, or convert to bgr, rgb, gray, yuyv, uyvy, mjpeg")
       ->capture_default_str();
   app.add_option("--quality", quality, "JPEG quality for mjpeg")->capture_default_str();
   app.add_option("--first-seq", first_seq, "sequence number of the first frame")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  LD_CLI_PARSE(app, argc, argv);
   if (out_channel.empty()) out_channel = channel;
 
   int32_t pixelformat = -1;

@@ -16,6 +16,7 @@
 #include <poll.h>
 #include <unistd.h>
 
+#include "ld/cli.hpp"
 #include "ld/bus_monitor.hpp"
 #include "ld/lcm_url.hpp"
 #include "ld/netns.hpp"
@@ -215,7 +216,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--stop-grace", grace_s, "seconds a process gets to stop before SIGKILL")
       ->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  LD_CLI_PARSE(app, argc, argv);
 
   ld::RunConfig cfg;
   try {

@@ -20,6 +20,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "ld/cli.hpp"
 #include "ld/synth.hpp"
 
 namespace fs = std::filesystem;
@@ -356,16 +357,7 @@ int main(int argc, char** argv) {
   bool no_png = false;
   sequence->add_flag("--no-png", no_png, "no PNG frames (truth.jsonl and the log only)");
 
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::CallForHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::CallForAllHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    std::cerr << "ld-synth: " << e.what() << "\n";
-    return 2;
-  }
+  LD_CLI_PARSE(app, argc, argv);
 
   try {
     if (scene->parsed()) {

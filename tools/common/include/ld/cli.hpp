@@ -1,0 +1,90 @@
+// Every program's command line: CLI11, with the project's errors. A bad
+// command line gives one line on stderr, "<program>: <what> (--help lists
+// the options)", and exit status 2, as the programs' own errors do; --help
+// prints the help and exits 0.
+//
+//   CLI::App app{"ld-x: ..."};
+//   app.add_option("--fps", fps, "frames per second")->check(ld::cli::Positive);
+//   LD_CLI_PARSE(app, argc, argv);
+#pragma once
+
+#include <cmath>
+#include <iostream>
+#include <sstream>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+namespace ld::cli {
+
+/// The program's name: argv[0] without its folder.
+inline std::string programName(const char* argv0) {
+  const std::string s = argv0 ? argv0 : "";
+  const size_t slash = s.rfind('/');
+  return slash == std::string::npos ? s : s.substr(slash + 1);
+}
+
+/// Parses; -1 when the program goes on, else the status to exit with (0
+/// after --help, 2 after a bad command line, reported on one line).
+inline int parse(CLI::App& app, int argc, char** argv) {
+  try {
+    app.parse(argc, argv);
+    return -1;
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::string what = e.what();
+    for (char& c : what)
+      if (c == '\n') c = ' ';
+    std::cerr << programName(argc > 0 ? argv[0] : nullptr) << ": " << what << " (--help lists the options)\n";
+    return 2;
+  }
+}
+
+namespace detail {
+template <class Ok>
+CLI::Validator numberCheck(const std::string& name, Ok ok, const std::string& rule) {
+  return CLI::Validator(
+      [ok, rule](std::string& text) {
+        double v = 0;
+        size_t used = 0;
+        try {
+          v = std::stod(text, &used);
+        } catch (const std::exception&) {
+          used = 0;
+        }
+        if (used != text.size() || text.empty() || !std::isfinite(v)) return "'" + text + "' is not a number";
+        return ok(v) ? std::string() : rule + ", not " + text;
+      },
+      name, name);
+}
+}  // namespace detail
+
+/// A number above 0 ("must be > 0, not -1"; CLI11's own PositiveNumber
+/// prints its range up to the largest double, digit by digit).
+inline const CLI::Validator Positive =
+    detail::numberCheck("POSITIVE", [](double v) { return v > 0; }, "must be > 0");
+/// A number of 0 or more.
+inline const CLI::Validator NonNegative =
+    detail::numberCheck("NONNEGATIVE", [](double v) { return v >= 0; }, "must be >= 0");
+/// A number in [lo, hi] ("must be in [0.01, 2], not 5"; "'abc' is not a number").
+inline CLI::Validator Between(double lo, double hi) {
+  std::ostringstream rule;
+  rule << "must be in [" << lo << ", " << hi << "]";
+  std::ostringstream name;
+  name << "[" << lo << " - " << hi << "]";
+  return detail::numberCheck(name.str(), [lo, hi](double v) { return v >= lo && v <= hi; }, rule.str());
+}
+
+}  // namespace ld::cli
+
+/// In main(): parse the command line, returning from main on --help or an error.
+#define LD_CLI_PARSE(app, argc, argv)                                               \
+  do {                                                                              \
+    if (const int ld_cli_status = ::ld::cli::parse(app, argc, argv); ld_cli_status >= 0) \
+      return ld_cli_status;                                                         \
+  } while (false)
