@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
+#include <opencv2/core/utils/logger.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 
@@ -32,7 +33,7 @@ int main(int argc, char** argv) {
   double fps = 30.0;
   int64_t start_utime = 0;
   int quality = 90;
-  app.add_option("input", input, "image folder (name order) or video file")->required();
+  app.add_option("input", input, "image folder (name order), one image, or a video file")->required();
   app.add_option("output", output, "LCM log to write")->required();
   app.add_option("--fps", fps, "frame rate of the timestamps")->check(ld::cli::Between(0.1, 1000.0))
       ->capture_default_str();
@@ -43,6 +44,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--channel", channel, "channel name")->capture_default_str();
   LD_CLI_PARSE(app, argc, argv);
+  cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);  // our own one-line errors
 
   int32_t pixelformat = 0;
   try {
@@ -69,6 +71,12 @@ int main(int argc, char** argv) {
   } else if (!fs::exists(input, ec)) {
     std::cerr << "ld-log-images: " << input << " does not exist\n";
     return 2;
+  } else if (isImageFile(input)) {  // one image: a log of one frame
+    if (cv::imread(input, cv::IMREAD_COLOR).empty()) {
+      std::cerr << "ld-log-images: " << input << ": cannot read as an image\n";
+      return 2;
+    }
+    files.push_back(input);
   } else if (!video.open(input)) {
     std::cerr << "ld-log-images: cannot open " << input << " as a video\n";
     return 2;
@@ -113,8 +121,13 @@ int main(int argc, char** argv) {
     }
     ++seq;
   }
+  if (seq == 0) {  // no empty log left behind
+    fs::remove(output, ec);
+    std::cerr << "ld-log-images: no frame could be read from " << input << "; " << output << " not written\n";
+    return 1;
+  }
   std::cout << "wrote " << seq << " frames to " << output << " (" << format << ", " << fps
             << " fps)" << (skipped ? ", " + std::to_string(skipped) + " unreadable skipped" : "")
             << "\n";
-  return seq > 0 ? 0 : 1;
+  return 0;
 }

@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# ld-log-images' command line: a folder (unreadable files skipped and
+# counted), a single image, refusals with one line, and no empty log left
+# behind when nothing could be read.
+# usage: log_images_cli_test.sh BIN_DIR
+set -euo pipefail
+BIN=$(cd "$1" && pwd)
+T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+"$BIN/ld-synth" scene --out "$T/f" --count 2 --seed 3 >/dev/null
+echo "not an image" >"$T/f/000002.png"
+"$BIN/ld-log-images" "$T/f" "$T/a.lcmlog" --fps 10 >"$T/out" 2>"$T/err"
+grep -q "wrote 2 frames to $T/a.lcmlog (mjpeg, 10 fps), 1 unreadable skipped" "$T/out" || fail "folder: $(cat "$T/out")"
+grep -q "000002.png: cannot read as an image, skipped" "$T/err" || fail "folder, skipped: $(cat "$T/err")"
+[ "$("$BIN/ld-dump" "$T/a.lcmlog" -c IMAGE | wc -l)" -eq 2 ] || fail "the log does not hold 2 images"
+"$BIN/ld-log-images" "$T/f/000001.png" "$T/one.lcmlog" --format bgr >"$T/out"
+grep -q "wrote 1 frames" "$T/out" || fail "one image: $(cat "$T/out")"
+
+refused() {  # STATUS LOG PATTERN ARGS...
+  local want=$1 log=$2 pat=$3; shift 3
+  set +e; "$BIN/ld-log-images" "$@" "$log" >/dev/null 2>"$T/err"; local rc=$?; set -e
+  [ $rc -eq "$want" ] || fail "$*: exit $rc, $(cat "$T/err")"
+  grep -q -- "$pat" "$T/err" || fail "$*: $(cat "$T/err")"
+  [ ! -e "$log" ] || fail "$*: $log left behind"
+}
+refused 2 "$T/b.lcmlog" "^ld-log-images: $T/f/000002.png: cannot read as an image$" "$T/f/000002.png"
+head -c 2000 /dev/urandom >"$T/noise.mp4"
+refused 2 "$T/c.lcmlog" "^ld-log-images: cannot open $T/noise.mp4 as a video$" "$T/noise.mp4"
+refused 2 "$T/d.lcmlog" "^ld-log-images: $T/missing does not exist$" "$T/missing"
+mkdir "$T/bad"; cp "$T/f/000002.png" "$T/bad/"
+refused 1 "$T/e.lcmlog" "no frame could be read from $T/bad; $T/e.lcmlog not written" "$T/bad"
+refused 2 "$T/g.lcmlog" "ld-log-images: --fps: must be in \[0.1, 1000\], not 0" "$T/f" --fps 0
+echo "ld-log-images command line: ok"
