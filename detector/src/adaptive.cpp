@@ -202,46 +202,35 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
   cv::dilate(veiled_, veiled_, spread_kernel_);
   // Subtract it and stretch what is above it back to [black, 255], per
   // channel: out = black + (in - veil) * (255 - black) / (255 - veil), with
-  // the veil interpolated between block centres (bilinear) in the blocks
-  // that need it.
+  // the veil interpolated between block centres (bilinear: one resize of the
+  // block map) in the blocks that need it.
   int stretch[3][256];
   for (int c = 0; c < 3; ++c)
     for (int v = 0; v < 256; ++v) stretch[c][v] = ((255 - black[c]) << 8) / std::max(1, 255 - v);
-  auto lerpAxis = [](int n, int blocks, std::vector<cv::Vec3i>& out) {  // (lower, upper, weight 0..256)
-    if (out.size() == static_cast<size_t>(n)) return;  // the frame size's, from an earlier frame
-    out.resize(static_cast<size_t>(n));
-    for (int i = 0; i < n; ++i) {
-      const double g = (i + 0.5) / kGlareBlock - 0.5;
-      const int lo = static_cast<int>(std::floor(g));
-      const int w = static_cast<int>(std::lround((g - lo) * 256));
-      out[static_cast<size_t>(i)] = {std::clamp(lo, 0, blocks - 1), std::clamp(lo + 1, 0, blocks - 1), w};
-    }
-  };
-  lerpAxis(bgr.cols, bw, lerp_x_);
-  lerpAxis(bgr.rows, bh, lerp_y_);
+  cv::resize(veil_coarse_, veil_full_, cv::Size(bw * kGlareBlock, bh * kGlareBlock), 0, 0, cv::INTER_LINEAR);
   bgr.copyTo(deglared_);
   for (int by = 0; by < bh; ++by) {
     const int y0 = by * kGlareBlock, y1 = std::min(bgr.rows, y0 + kGlareBlock);
-    for (int bx = 0; bx < bw; ++bx) {
-      if (!veiled_.at<uint8_t>(by, bx)) continue;
-      const int x0 = bx * kGlareBlock, x1 = std::min(bgr.cols, x0 + kGlareBlock);
+    const uint8_t* veiled = veiled_.ptr<uint8_t>(by);
+    for (int bx = 0; bx < bw;) {
+      if (!veiled[bx]) {
+        ++bx;
+        continue;
+      }
+      // a run of veiled blocks along the row, corrected in one pass per pixel row
+      const int first = bx;
+      while (bx < bw && veiled[bx]) ++bx;
+      const int x0 = 3 * first * kGlareBlock, x1 = 3 * std::min(bgr.cols, bx * kGlareBlock);
       for (int y = y0; y < y1; ++y) {
-        const cv::Vec3i ly = lerp_y_[static_cast<size_t>(y)];
-        const auto* top = veil_coarse_.ptr<cv::Vec3b>(ly[0]);
-        const auto* bottom = veil_coarse_.ptr<cv::Vec3b>(ly[1]);
+        const uint8_t* veil = veil_full_.ptr<uint8_t>(y);
         const uint8_t* src = bgr.ptr<uint8_t>(y);
         uint8_t* dst = deglared_.ptr<uint8_t>(y);
-        for (int x = x0; x < x1; ++x) {
-          const cv::Vec3i lx = lerp_x_[static_cast<size_t>(x)];
+        for (int i = x0; i < x1; i += 3)
           for (int c = 0; c < 3; ++c) {
-            const int t = top[lx[0]][c] * (256 - lx[2]) + top[lx[1]][c] * lx[2];
-            const int b = bottom[lx[0]][c] * (256 - lx[2]) + bottom[lx[1]][c] * lx[2];
-            const int v = (t * (256 - ly[2]) + b * ly[2] + (1 << 15)) >> 16;
+            const int v = veil[i + c];
             if (v > black[c] + 2)
-              dst[3 * x + c] =
-                  cv::saturate_cast<uint8_t>(black[c] + (((src[3 * x + c] - v) * stretch[c][v]) >> 8));
+              dst[i + c] = cv::saturate_cast<uint8_t>(black[c] + (((src[i + c] - v) * stretch[c][v]) >> 8));
           }
-        }
       }
     }
   }

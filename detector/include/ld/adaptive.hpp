@@ -106,7 +106,7 @@ class LightingAdapter {
   cv::Mat window_kernel_, spread_kernel_;  // the glare pass's morphology
   std::vector<double> veil_ratios_[2];     // veiled blocks' blue and red lifts over green's
   cv::Vec3d veil_colour_{1, 1, 1};
-  std::vector<cv::Vec3i> lerp_x_, lerp_y_;  // per column / row: lower and upper block, weight (of 256)
+  cv::Mat veil_full_;  // the block veil interpolated to every pixel
 };
 
 /// A Detector with a LightingAdapter in front: detect() corrects the frame,
