@@ -276,6 +276,29 @@ TEST(RunConfig, RejectsUnknownKeysAndBadValues) {
   EXPECT_THROW(ld::buildProcessSpecs(cfg, "udpm://", ""), std::runtime_error);  // no log
 }
 
+// --play-format and source.format take what ld-play's --format takes (keep,
+// or a pixel format of ld::pixelFormatFromName), so that ld-run refuses a
+// bad one at once instead of restarting ld-play on it again and again.
+TEST(RunConfig, PlayFormatIsOneLdPlayTakes) {
+  for (const char* f : {"keep", "bgr", "YUYV", "mjpg", "gray", "rgba"}) EXPECT_NO_THROW(ld::checkPlayFormat(f)) << f;
+  for (const char* f : {"foo", "", "Keep"}) EXPECT_THROW(ld::checkPlayFormat(f), std::runtime_error) << f;
+  try {
+    ld::checkPlayFormat("foo");
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("'foo'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("keep"), std::string::npos) << e.what();
+  }
+  const auto cfg = ld::RunConfig::fromJson(
+      nlohmann::json::parse(R"({"source": {"type": "play", "log": "x.lcmlog", "format": "uyvy"}})"));
+  EXPECT_EQ(cfg.play_format, "uyvy");
+  try {
+    ld::RunConfig::fromJson(nlohmann::json::parse(R"({"source": {"type": "play", "log": "x", "format": "foo"}})"));
+    ADD_FAILURE() << "source.format foo accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("source.format: unknown pixel format 'foo'", 0), 0u) << e.what();
+  }
+}
+
 TEST(RunConfig, ExampleConfigLoads) {
   const auto cfg = ld::RunConfig::load(std::string(LD_SOURCE_DIR) + "/tools/run/ld-run.example.json");
   EXPECT_EQ(cfg.source, "camera");

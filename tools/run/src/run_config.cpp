@@ -10,6 +10,8 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "ld/image_convert.hpp"
+
 namespace ld {
 namespace {
 
@@ -202,7 +204,21 @@ RunConfig RunConfig::fromTree(const Json& j, bool yaml) {
   }
   if (!(c.speed > 0)) throw std::runtime_error("source.speed: must be > 0");
   if (!(c.play_fps > 0)) throw std::runtime_error("source.fps: must be > 0");
+  try {
+    checkPlayFormat(c.play_format);
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(std::string("source.format: ") + e.what());
+  }
   return c;
+}
+
+void checkPlayFormat(const std::string& format) {
+  if (format == "keep") return;
+  try {
+    (void)pixelFormatFromName(format);  // ld-play's own test of --format
+  } catch (const ImageFormatError& e) {
+    throw std::runtime_error(std::string(e.what()) + ", or keep");
+  }
 }
 
 RunConfig RunConfig::load(const std::string& given) {

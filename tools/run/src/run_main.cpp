@@ -18,6 +18,7 @@
 
 #include "ld/cli.hpp"
 #include "ld/bus_monitor.hpp"
+#include "ld/file_checks.hpp"
 #include "ld/lcm_url.hpp"
 #include "ld/netns.hpp"
 #include "ld/run_config.hpp"
@@ -185,11 +186,12 @@ int main(int argc, char** argv) {
   app.add_option("--source", source, "camera, replay, play or none (default: the config's, or camera)")
       ->check(CLI::IsMember({"camera", "replay", "play", "none"}));
   app.add_option("--replay", replay, "replay this LCM log with lcm-logplayer (implies --source replay)");
-  app.add_option("--speed", speed, "replay speed factor (lcm-logplayer -s)");
+  app.add_option("--speed", speed, "replay speed factor (lcm-logplayer -s)")->check(ld::cli::Positive);
   app.add_option("--play", play,
                  "loop this log's images with ld-play, fresh utime and seq (implies --source play)");
-  app.add_option("--fps", play_fps, "--play: frames per second");
-  app.add_option("--duration", play_duration, "--play: seconds to publish (default: the log once)");
+  app.add_option("--fps", play_fps, "--play: frames per second")->check(ld::cli::Positive);
+  app.add_option("--duration", play_duration, "--play: seconds to publish (default: the log once)")
+      ->check(ld::cli::NonNegative);
   app.add_option("--play-format", play_format, "--play: keep, bgr, rgb, gray, yuyv, uyvy or mjpeg");
   app.add_option("--camera-arg", camera_args, "an argument for ld-camera (repeatable)")
       ->allow_extra_args(false);
@@ -218,6 +220,25 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   LD_CLI_PARSE(app, argc, argv);
 
+  // Sources a child would refuse (and be restarted for, again and again).
+  if (!replay.empty() && !play.empty()) {
+    std::cerr << "ld-run: --replay and --play name two sources; give one\n";
+    return 2;
+  }
+  if (!source.empty() && ((!replay.empty() && source != "replay") || (!play.empty() && source != "play"))) {
+    std::cerr << "ld-run: --source " << source << " and " << (replay.empty() ? "--play" : "--replay")
+              << " name two sources; give one\n";
+    return 2;
+  }
+  if (!play_format.empty()) {
+    try {
+      ld::checkPlayFormat(play_format);
+    } catch (const std::exception& e) {
+      std::cerr << "ld-run: --play-format: " << e.what() << "\n";
+      return 2;
+    }
+  }
+
   ld::RunConfig cfg;
   try {
     if (!config_file.empty()) cfg = ld::RunConfig::load(config_file);
@@ -235,9 +256,9 @@ int main(int argc, char** argv) {
     cfg.log = play;
   }
   if (!source.empty()) cfg.source = source;
-  if (speed > 0) cfg.speed = speed;
-  if (play_fps > 0) cfg.play_fps = play_fps;
-  if (play_duration > 0) cfg.play_duration_s = play_duration;
+  if (app.count("--speed")) cfg.speed = speed;
+  if (app.count("--fps")) cfg.play_fps = play_fps;
+  if (app.count("--duration")) cfg.play_duration_s = play_duration;
   if (!play_format.empty()) cfg.play_format = play_format;
   cfg.camera_args.insert(cfg.camera_args.end(), camera_args.begin(), camera_args.end());
   if (!record.empty()) cfg.record = record;
@@ -276,9 +297,27 @@ int main(int argc, char** argv) {
     std::cerr << "ld-run: " << e.what() << "\n";
     return 2;
   }
-  if (!cfg.log.empty() && ::access(cfg.log.c_str(), R_OK) != 0) {
-    std::cerr << "ld-run: cannot read log " << cfg.log << ": " << std::strerror(errno) << "\n";
-    return 2;
+  // What lcm-logplayer, ld-play or lcm-logger would fail on at once, and
+  // be restarted for: refused here, in one line.
+  if (!cfg.log.empty() && (cfg.source == "replay" || cfg.source == "play")) {
+    const ld::LcmLogCheck log = ld::checkLcmLogStart(cfg.log);
+    if (log.start == ld::LcmLogStart::Unreadable) {
+      std::cerr << "ld-run: cannot read log " << cfg.log << ": " << log.error << "\n";
+      return 2;
+    }
+    if (log.start != ld::LcmLogStart::Events) {
+      std::cerr << "ld-run: " << cfg.source << " log " << cfg.log << " " << log.problem << "\n";
+      return 2;
+    }
+  }
+  using OutputFile = std::pair<const char*, std::string>;
+  for (const auto& [what, path] : std::initializer_list<OutputFile>{{"recording", cfg.record}, {"summary", summary_file}}) {
+    if (path.empty()) continue;
+    const std::string problem = ld::prepareOutputFile(path);  // creates missing folders
+    if (!problem.empty()) {
+      std::cerr << "ld-run: " << what << " " << path << ": " << problem << "\n";
+      return 2;
+    }
   }
 
   const bool tty = ::isatty(STDERR_FILENO);

@@ -61,6 +61,10 @@ struct RunConfig {
  public:
 };
 
+/// Throws std::runtime_error unless `format` is one ld-play's --format
+/// takes: keep, or a pixel format it converts to (ld::pixelFormatFromName's).
+void checkPlayFormat(const std::string& format);
+
 /// The processes to start, in order: recorder, workers, then the source.
 /// `url` is the LCM URL every process gets; `self_dir` is where ld-run's
 /// sibling programs are looked for.

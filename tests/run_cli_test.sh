@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# ld-run refuses what its source or recorder would fail on, at once, in one
+# line with status 2, instead of restarting that process again and again: a
+# replay or play file that is not an LCM log (or is empty), an unknown
+# --play-format, a recording or summary whose folder cannot be made, two
+# sources, a non-positive --speed or --fps. Missing folders of --record and
+# --summary are created. Every ld-run here has --netns: nothing reaches a
+# real network even if a refusal were missed.
+# usage: run_cli_test.sh BIN_DIR
+set -euo pipefail
+BIN=$(cd "$1" && pwd)
+T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+"$BIN/ld-synth" sequence --out "$T/seq" --frames 3 --fps 10 --landmarks 1 --seed 3 --size 0.3 \
+  --format mjpeg --log "$T/in.lcmlog" --no-png >/dev/null
+printf '\x89PNG\r\n\x1a\n an image, not a log' >"$T/lm.png"
+: >"$T/empty.lcmlog"
+
+# refused ERROR_PATTERN ARGS...: ld-run exits 2 within 10 s (no restart
+# loop), with exactly one line on stderr that starts "ld-run: " and matches.
+refused() {
+  local pattern=$1; shift
+  local rc=0
+  timeout 10 "$BIN/ld-run" --netns --status-interval 0 "$@" >"$T/out" 2>"$T/err" || rc=$?
+  [ $rc -eq 2 ] || fail "ld-run $*: exit $rc, not 2: $(cat "$T/err")"
+  [ "$(wc -l <"$T/err")" -eq 1 ] || fail "ld-run $*: not one line: $(cat "$T/err")"
+  grep -q "^ld-run: $pattern" "$T/err" || fail "ld-run $*: $(cat "$T/err")"
+  echo "refused: ld-run $* -> $(cat "$T/err")"
+}
+
+refused "replay log $T/lm.png is not an LCM log (it starts with 89 50 4e 47" \
+  --replay "$T/lm.png" --exit-when-replay-done
+refused "play log $T/lm.png is not an LCM log" --play "$T/lm.png" --exit-when-replay-done
+refused "replay log $T/empty.lcmlog is empty" --replay "$T/empty.lcmlog" --exit-when-replay-done
+refused "cannot read log $T/missing.lcmlog: No such file" --replay "$T/missing.lcmlog"
+refused "--play-format: unknown pixel format 'foo' (expected GRAY.*), or keep" \
+  --play "$T/in.lcmlog" --play-format foo
+printf '{"source": {"type": "play", "log": "%s", "format": "foo"}}\n' "$T/in.lcmlog" >"$T/run.json"
+refused ".*run.json: source.format: unknown pixel format 'foo'" --config "$T/run.json"
+refused "recording /proc/x/r.lcmlog: cannot create folder /proc/x" --replay "$T/in.lcmlog" --record /proc/x/r.lcmlog
+refused "summary /proc/x/s.json: cannot create folder /proc/x" --replay "$T/in.lcmlog" --summary /proc/x/s.json
+refused "recording $T: is a folder" --replay "$T/in.lcmlog" --record "$T"
+refused "--replay and --play name two sources; give one" --replay "$T/in.lcmlog" --play "$T/in.lcmlog"
+refused "--source camera and --replay name two sources; give one" --replay "$T/in.lcmlog" --source camera
+refused "--speed: must be > 0, not -1" --replay "$T/in.lcmlog" --speed -1
+refused "--speed: must be > 0, not 0" --replay "$T/in.lcmlog" --speed 0
+refused "--fps: must be > 0, not 0" --play "$T/in.lcmlog" --fps 0
+refused "--fps: 'nan' is not a number" --play "$T/in.lcmlog" --fps nan
+refused "--duration: must be >= 0, not -2" --play "$T/in.lcmlog" --duration -2
+
+# What is accepted: a pixel format in any case, and missing folders of the
+# recording and the summary, which ld-run creates.
+timeout 60 "$BIN/ld-run" --netns --processes none --play "$T/in.lcmlog" --play-format Mjpg --fps 30 \
+  --exit-when-replay-done --record "$T/new/a/r.lcmlog" --summary "$T/new/b/s.json" --status-interval 0 -q \
+  2>"$T/err" || fail "accepted run: $(cat "$T/err")"
+[ -f "$T/new/a/r.lcmlog" ] || fail "no recording in a created folder"
+[ "$(jq .summary.frames.images "$T/new/b/s.json")" -eq 3 ] || fail "summary: $(cat "$T/new/b/s.json")"
+echo "ld-run command line: ok"

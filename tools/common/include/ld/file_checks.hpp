@@ -1,0 +1,48 @@
+// Checks the tools make on their files before they start, so that a wrong
+// path gets one clear line at once instead of a child process failing (and
+// being restarted) or a library printing its own warnings.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+namespace ld {
+
+/// LCM's log format (lcm-logger, lcm_eventlog): each event starts with this
+/// magic, big-endian, then the event number and the timestamp (8 bytes
+/// each), the channel's and the data's lengths (4 bytes each).
+constexpr uint32_t kLcmLogMagic = 0xEDA1DA01;
+constexpr size_t kLcmLogHeaderBytes = 28;
+
+/// What the start of a file says about it as an LCM log.
+enum class LcmLogStart {
+  Events,       ///< a whole first event header with the magic
+  Empty,        ///< no bytes at all (a logger that recorded nothing)
+  Unreadable,   ///< cannot be opened or read
+  NotALog,      ///< does not start with the magic
+  CutInHeader,  ///< starts with the magic but ends inside the first header
+};
+
+struct LcmLogCheck {
+  LcmLogStart start = LcmLogStart::Unreadable;
+  /// Empty for Events; otherwise why, to follow the path in a message:
+  /// "cannot be read: No such file or directory", "is empty",
+  /// "is not an LCM log (it starts with 89 50 4e 47, not LCM's event magic ed a1 da 01)",
+  /// "ends inside its first event header (10 of 28 bytes)".
+  std::string problem;
+  std::string error;  ///< Unreadable: the system's reason ("No such file or directory")
+};
+
+/// Reads the first event header of `path` (nothing more).
+LcmLogCheck checkLcmLogStart(const std::string& path);
+
+/// Makes sure a file can be created at `path`: creates its missing parent
+/// folders, then creates and removes a temporary file in its folder (and
+/// checks an existing file is writable). Empty when it can; otherwise why,
+/// to follow the path in a message: "is a folder", "cannot create folder
+/// /proc/x: No such file or directory", "cannot write in folder /x:
+/// Read-only file system".
+std::string prepareOutputFile(const std::string& path);
+
+}  // namespace ld

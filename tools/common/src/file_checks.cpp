@@ -1,0 +1,69 @@
+#include "ld/file_checks.hpp"
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+
+#include <unistd.h>
+
+namespace ld {
+
+LcmLogCheck checkLcmLogStart(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const auto unreadable = [](const std::string& error) {
+    return LcmLogCheck{LcmLogStart::Unreadable, "cannot be read: " + error, error};
+  };
+  if (fs::is_directory(path, ec)) return unreadable("it is a folder");
+  std::ifstream f(path, std::ios::binary);
+  if (!f) return unreadable(std::strerror(errno));
+  unsigned char head[kLcmLogHeaderBytes];
+  f.read(reinterpret_cast<char*>(head), sizeof head);
+  const size_t got = static_cast<size_t>(f.gcount());
+  if (got == 0) {
+    if (f.bad()) return unreadable(std::strerror(errno));
+    return {LcmLogStart::Empty, "is empty", ""};
+  }
+  uint32_t magic = 0;
+  for (size_t i = 0; i < 4 && i < got; ++i) magic = (magic << 8) | head[i];
+  if (got < 4 || magic != kLcmLogMagic) {
+    std::string start;
+    char hex[4];
+    for (size_t i = 0; i < 4 && i < got; ++i) {
+      std::snprintf(hex, sizeof hex, "%02x", head[i]);
+      start += (i ? " " : "") + std::string(hex);
+    }
+    return {LcmLogStart::NotALog,
+            "is not an LCM log (it starts with " + start + ", not LCM's event magic ed a1 da 01)", ""};
+  }
+  if (got < kLcmLogHeaderBytes)
+    return {LcmLogStart::CutInHeader, "ends inside its first event header (" + std::to_string(got) + " of " +
+                                          std::to_string(kLcmLogHeaderBytes) + " bytes)", ""};
+  return {LcmLogStart::Events, "", ""};
+}
+
+std::string prepareOutputFile(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (path.empty()) return "is an empty path";
+  if (fs::is_directory(path, ec)) return "is a folder";
+  fs::path folder = fs::path(path).parent_path();
+  if (folder.empty()) folder = ".";
+  if (!fs::is_directory(folder, ec)) {
+    fs::create_directories(folder, ec);
+    if (ec) return "cannot create folder " + folder.string() + ": " + ec.message();
+  }
+  // access() says yes to root on any folder; creating a file is the test.
+  std::string probe = (folder / ".ld-write-test-XXXXXX").string();
+  const int fd = ::mkstemp(probe.data());
+  if (fd < 0) return "cannot write in folder " + folder.string() + ": " + std::strerror(errno);
+  ::close(fd);
+  ::unlink(probe.c_str());
+  if (fs::exists(path, ec) && ::access(path.c_str(), W_OK) != 0)
+    return std::string("cannot be written: ") + std::strerror(errno);
+  return "";
+}
+
+}  // namespace ld
