@@ -2,7 +2,10 @@
 // Lines, one object per message. Image payloads are summarised.
 #include <atomic>
 #include <csignal>
+#include <cerrno>
+#include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <iostream>
 #include <regex>
 
@@ -10,6 +13,7 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include "ld/cli.hpp"
+#include "ld/file_checks.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/landmark_json.hpp"
 #include "ld/landmark_msg.hpp"
@@ -93,6 +97,76 @@ nlohmann::ordered_json toJson(const std::string& channel, int64_t log_utime, con
   return j;
 }
 
+// An LCM log read event by event (lcm_eventlog's format, see
+// ld/file_checks.hpp). LCM's own reader ends the same way at the end of the
+// file, at an event cut off by it and at bytes that are no event (then it
+// also drops the whole event before them, with a line of its own); this one
+// says which.
+class LogReader {
+ public:
+  explicit LogReader(const std::string& path) : f_(path, std::ios::binary) {
+    f_.seekg(0, std::ios::end);
+    size_ = static_cast<int64_t>(f_.tellg());
+    f_.seekg(0);
+  }
+  bool good() const { return static_cast<bool>(f_); }
+  /// The next event, or false at the end of the file or at a problem
+  /// (then problem() says what, naming the messages read).
+  bool next() {
+    const int64_t left = size_ - offset_;
+    if (left == 0) return false;
+    uint8_t h[ld::kLcmLogHeaderBytes];
+    const size_t got = read(h, std::min<int64_t>(left, sizeof h));
+    const auto be = [&h](size_t at, int bytes) {
+      uint64_t v = 0;
+      for (int i = 0; i < bytes; ++i) v = (v << 8) | h[at + i];
+      return v;
+    };
+    const uint8_t magic[4] = {ld::kLcmLogMagic >> 24, (ld::kLcmLogMagic >> 16) & 0xff,
+                              (ld::kLcmLogMagic >> 8) & 0xff, ld::kLcmLogMagic & 0xff};
+    if (std::memcmp(h, magic, std::min<size_t>(got, 4)) != 0)  // (a cut magic is the start of one)
+      return fail("unreadable data", "at byte " + std::to_string(offset_) + " no LCM event starts");
+    if (got < sizeof h)
+      return fail("the log ends mid-event", std::to_string(left) + " bytes of an event header");
+    timestamp = static_cast<int64_t>(be(12, 8));
+    const int32_t channel_len = static_cast<int32_t>(be(20, 4)), data_len = static_cast<int32_t>(be(24, 4));
+    if (channel_len <= 0 || channel_len > 1024 || data_len < 0)
+      return fail("unreadable data", "at byte " + std::to_string(offset_) + " an event header with a channel of " +
+                                         std::to_string(channel_len) + " bytes and " + std::to_string(data_len) +
+                                         " bytes of data");
+    const int64_t need = static_cast<int64_t>(sizeof h) + channel_len + data_len;
+    if (need > left)
+      return fail("the log ends mid-event", std::to_string(left) + " of the event's " + std::to_string(need) + " bytes");
+    channel.resize(static_cast<size_t>(channel_len));
+    data.resize(static_cast<size_t>(data_len));
+    if (read(reinterpret_cast<uint8_t*>(channel.data()), channel.size()) != channel.size() ||
+        read(data.data(), data.size()) != data.size())
+      return fail("cannot read the log", std::strerror(errno));
+    offset_ += need;
+    ++messages_;
+    return true;
+  }
+  const std::string& problem() const { return problem_; }
+
+  int64_t timestamp = 0;
+  std::string channel;
+  std::vector<uint8_t> data;
+
+ private:
+  size_t read(uint8_t* to, size_t n) {
+    f_.read(reinterpret_cast<char*>(to), static_cast<std::streamsize>(n));
+    return static_cast<size_t>(f_.gcount());
+  }
+  bool fail(const std::string& what, const std::string& detail) {
+    problem_ = what + " after " + std::to_string(messages_) + (messages_ == 1 ? " message" : " messages") + " (" +
+               detail + ")";
+    return false;
+  }
+  std::ifstream f_;
+  int64_t size_ = 0, offset_ = 0, messages_ = 0;
+  std::string problem_;
+};
+
 struct Printer {
   std::vector<std::regex> filters;
   bool wanted(const std::string& channel) const {
@@ -146,20 +220,34 @@ int main(int argc, char** argv) {
     }
     return 0;
   }
+  // Exit status: 2 when a file is not an LCM log, else 1 when a log could
+  // not be read or was read only in part, else 0.
   int status = 0;
   for (const auto& path : logs) {
-    lcm::LogFile log(path, "r");
-    if (!log.good()) {
-      std::cerr << "ld-dump: cannot read log " << path << "\n";
-      status = 1;
+    const ld::LcmLogCheck start = ld::checkLcmLogStart(path);
+    if (start.start == ld::LcmLogStart::NotALog) {
+      std::cerr << "ld-dump: " << path << " " << start.problem << "\n";
+      status = 2;
       continue;
     }
-    while (const lcm::LogEvent* ev = log.readNextEvent()) {
-      if (!printer.wanted(ev->channel)) continue;
-      std::cout << toJson(ev->channel, ev->timestamp, static_cast<const uint8_t*>(ev->data),
-                          static_cast<size_t>(ev->datalen))
+    if (start.start == ld::LcmLogStart::Empty) continue;  // a recorder that recorded nothing
+    LogReader log(path);
+    if (start.start == ld::LcmLogStart::Unreadable || !log.good()) {
+      std::cerr << "ld-dump: cannot read log " << path << ": "
+                << (start.error.empty() ? std::strerror(errno) : start.error) << "\n";
+      status = std::max(status, 1);
+      continue;
+    }
+    while (log.next()) {
+      if (!printer.wanted(log.channel)) continue;
+      std::cout << toJson(log.channel, log.timestamp, log.data.data(), log.data.size())
                        .dump(-1, ' ', false, nlohmann::ordered_json::error_handler_t::replace)
                 << "\n";
+    }
+    if (!log.problem().empty()) {
+      std::cout << std::flush;
+      std::cerr << "ld-dump: " << path << ": " << log.problem() << "\n";
+      status = std::max(status, 1);
     }
   }
   return status;

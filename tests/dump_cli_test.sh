@@ -1,0 +1,67 @@
+#!/usr/bin/env bash
+# ld-dump on files: a whole log prints one JSON object per message; a file
+# that is not an LCM log is refused in one line (status 2); a log cut off
+# mid-event prints the messages before the cut, then says in one line where
+# it ends (status 1), wherever the cut is; bytes that are no event, likewise;
+# an empty log (a recorder that recorded nothing) is no error.
+# usage: dump_cli_test.sh BIN_DIR
+set -euo pipefail
+BIN=$(cd "$1" && pwd)
+T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+"$BIN/ld-synth" sequence --out "$T/seq" --frames 3 --fps 10 --landmarks 1 --seed 3 --size 0.3 \
+  --format mjpeg --log "$T/in.lcmlog" --no-png >/dev/null
+size=$(stat -c %s "$T/in.lcmlog")
+
+# dump FILE...: runs ld-dump; sets rc, out (lines on stdout), err (stderr)
+dump() {
+  rc=0
+  "$BIN/ld-dump" "$@" >"$T/out" 2>"$T/err" || rc=$?
+  out=$(wc -l <"$T/out")
+  err=$(cat "$T/err")
+}
+
+dump "$T/in.lcmlog"
+[ $rc -eq 0 ] && [ "$out" -eq 3 ] && [ -z "$err" ] || fail "whole log: exit $rc, $out lines, $err"
+# where each event starts: its magic (the MJPEG frames do not contain it here)
+mapfile -t starts < <(LC_ALL=C grep -obUaP '\xed\xa1\xda\x01' "$T/in.lcmlog" | cut -d: -f1)
+[ "${#starts[@]}" -eq 3 ] || fail "cannot find the events in the log"
+[ "${starts[0]}" -eq 0 ] || fail "the log does not start with an event"
+
+printf '\x89PNG\r\n\x1a\n an image, not a log' >"$T/lm.png"
+dump "$T/lm.png"
+[ $rc -eq 2 ] && [ "$out" -eq 0 ] || fail "not a log: exit $rc, $out lines"
+[ "$err" = "ld-dump: $T/lm.png is not an LCM log (it starts with 89 50 4e 47, not LCM's event magic ed a1 da 01)" ] ||
+  fail "not a log: $err"
+
+# cut CUT_AT EXPECTED_MESSAGES PATTERN: the log's first CUT_AT bytes
+cut_at() {
+  head -c "$1" "$T/in.lcmlog" >"$T/cut.lcmlog"
+  dump "$T/cut.lcmlog"
+  [ $rc -eq 1 ] || fail "cut at $1: exit $rc"
+  [ "$out" -eq "$2" ] || fail "cut at $1: $out messages printed, not $2"
+  [ "$(wc -l <"$T/err")" -eq 1 ] && grep -q "^ld-dump: $T/cut.lcmlog: $3" "$T/err" || fail "cut at $1: $err"
+  echo "cut at $1: $out messages, $err"
+}
+cut_at $((size - 100)) 2 "the log ends mid-event after 2 messages ([0-9]* of the event's [0-9]* bytes)$"
+cut_at $((starts[2] + 2)) 2 "the log ends mid-event after 2 messages (2 bytes of an event header)$"
+cut_at $((starts[1] + 20)) 1 "the log ends mid-event after 1 message (20 bytes of an event header)$"
+cut_at 10 0 "the log ends mid-event after 0 messages (10 bytes of an event header)$"
+
+{ cat "$T/in.lcmlog"; printf 'trailing junk'; } >"$T/junk.lcmlog"
+dump "$T/junk.lcmlog"
+[ $rc -eq 1 ] && [ "$out" -eq 3 ] || fail "junk: exit $rc, $out lines"
+[ "$err" = "ld-dump: $T/junk.lcmlog: unreadable data after 3 messages (at byte $size no LCM event starts)" ] ||
+  fail "junk: $err"
+
+: >"$T/empty.lcmlog"
+dump "$T/empty.lcmlog"
+[ $rc -eq 0 ] && [ "$out" -eq 0 ] && [ -z "$err" ] || fail "empty log: exit $rc, $out lines, $err"
+
+# several files: each is dumped or reported; the worst status wins
+dump "$T/in.lcmlog" "$T/cut.lcmlog" "$T/in.lcmlog"
+[ $rc -eq 1 ] && [ "$out" -eq 6 ] || fail "several: exit $rc, $out lines"
+dump "$T/cut.lcmlog" "$T/lm.png" "$T/in.lcmlog"
+[ $rc -eq 2 ] && [ "$out" -eq 3 ] && [ "$(wc -l <"$T/err")" -eq 2 ] || fail "several: exit $rc, $out lines, $err"
+echo "ld-dump on files: ok"
