@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# ld-spy's own command line: --help prints the wrapper's usage (its options,
+# then that the others go to lcm-spy) and exits 0; without a display it
+# refuses in one line that says what to do on a headless robot (instead of
+# Java's HeadlessException), and --list-types still works there.
+# usage: spy_cli_test.sh LD_SPY
+set -euo pipefail
+spy=$1
+T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+for h in --help -h; do
+  rc=0; "$spy" $h >"$T/out" 2>"$T/err" || rc=$?
+  [ $rc -eq 0 ] || fail "$h: exit $rc"
+  [ ! -s "$T/err" ] || fail "$h: stderr: $(cat "$T/err")"
+  grep -q '^usage: ld-spy' "$T/out" && grep -q -- '--list-types' "$T/out" && grep -q -- '--types-jar' "$T/out" &&
+    grep -q 'lcm-spy' "$T/out" || fail "$h: $(cat "$T/out")"
+done
+
+# headless: no DISPLAY (WAYLAND_DISPLAY alone does not give Java a display);
+# in a private network namespace, should lcm-spy start after all
+netns=$(dirname "$0")/../scripts/netns-run.sh
+for env in "env -u DISPLAY -u WAYLAND_DISPLAY" "env -u DISPLAY WAYLAND_DISPLAY=wayland-0"; do
+  rc=0; timeout 20 "$netns" $env "$spy" --lcm-url 'udpm://239.255.76.67:7667?ttl=0' >"$T/out" 2>"$T/err" || rc=$?
+  [ $rc -eq 2 ] || fail "$env: exit $rc: $(cat "$T/err")"
+  [ "$(wc -l <"$T/err")" -eq 1 ] || fail "$env: not one line: $(cat "$T/err")"
+  grep -q "^ld-spy: lcm-spy needs a display.*robot's LAN.*ld-dump --live" "$T/err" || fail "$env: $(cat "$T/err")"
+done
+echo "headless: $(cat "$T/err")"
+env -u DISPLAY -u WAYLAND_DISPLAY "$spy" --list-types | grep -qx ld.image_t || fail "--list-types headless"
+echo "ld-spy command line: ok"
