@@ -3,8 +3,11 @@
 // bus (IMAGE, LANDMARKS_TRACKED, LANDMARK_CODES) or LCM logs, and shows the
 // result in a window or writes PNGs / a video.
 #include <atomic>
+#include <cerrno>
+#include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <deque>
 #include <filesystem>
 #include <iostream>
@@ -14,13 +17,20 @@
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
 #include <opencv2/calib3d.hpp>
+#include <opencv2/core/utils/logger.hpp>
 #include <opencv2/highgui.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
+#include <fcntl.h>
+#include <poll.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include "ld/cli.hpp"
 #include "ld/camera.hpp"
+#include "ld/file_checks.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/landmark_json.hpp"
 #include "ld/landmark_msg.hpp"
@@ -230,6 +240,76 @@ class Live {
   std::map<int64_t, std::string> payloads_;
 };
 
+// Whether a window can be opened here, found out in a child process: the
+// Qt highgui aborts the whole process when its display does not answer
+// (DISPLAY=:99 with no server there). Empty when it can; otherwise why (the
+// child's first line on stderr, or how it ended). Call before any thread
+// exists.
+std::string probeWindow() {
+  std::signal(SIGCHLD, SIG_DFL);  // so that the child can be waited for (an ignored SIGCHLD is inherited)
+  int err[2];
+  if (::pipe2(err, O_CLOEXEC) != 0) return std::string("pipe: ") + std::strerror(errno);
+  const pid_t pid = ::fork();
+  if (pid < 0) return std::string("fork: ") + std::strerror(errno);
+  if (pid == 0) {
+    const rlimit no_core{0, 0};
+    ::setrlimit(RLIMIT_CORE, &no_core);  // an abort here is an answer, not a crash to keep
+    ::dup2(err[1], STDERR_FILENO);
+    const int null = ::open("/dev/null", O_WRONLY);
+    if (null >= 0) ::dup2(null, STDOUT_FILENO);
+    try {
+      cv::namedWindow("ld-view");
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "%s\n", e.what());
+      ::_exit(1);
+    }
+    ::_exit(0);
+  }
+  ::close(err[1]);
+  // Its stderr until it ends (not until the pipe closes: a helper Qt started
+  // may hold it), at most 10 s.
+  std::string text;
+  char buf[4096];
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  pollfd pfd{err[0], POLLIN, 0};
+  int ws = 0;
+  bool ended = false;
+  while (true) {
+    if (!ended) ended = ::waitpid(pid, &ws, WNOHANG) == pid;
+    const int r = ::poll(&pfd, 1, ended ? 0 : 20);
+    if (r > 0) {
+      const ssize_t n = ::read(err[0], buf, sizeof buf);
+      if (n > 0) {
+        if (text.size() < 65536) text.append(buf, static_cast<size_t>(n));
+        continue;  // more may be waiting
+      }
+      if (!ended) pfd.fd = -1;  // closed: only the child's end is left to wait for
+    }
+    if (ended || std::chrono::steady_clock::now() > deadline) break;
+  }
+  ::close(err[0]);
+  if (!ended) {
+    ::kill(pid, SIGKILL);
+    while (::waitpid(pid, &ws, 0) < 0 && errno == EINTR) {
+    }
+    return "no answer in 10 s";
+  }
+  if (WIFEXITED(ws) && WEXITSTATUS(ws) == 0) return "";
+  std::string first;  // the first line that says something
+  size_t at = 0;
+  while (first.empty() && at < text.size()) {
+    size_t end = text.find('\n', at);
+    if (end == std::string::npos) end = text.size();
+    first = text.substr(at, end - at);
+    first.erase(0, first.find_first_not_of(" \t\r"));
+    first.erase(first.find_last_not_of(" \t\r") + 1);
+    at = end + 1;
+  }
+  const std::string how = WIFSIGNALED(ws) ? "killed by " + std::string(strsignal(WTERMSIG(ws)))
+                                          : "exit status " + std::to_string(WEXITSTATUS(ws));
+  return first.empty() ? how : first;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -253,12 +333,26 @@ int main(int argc, char** argv) {
   app.add_option("--tracks", tracked_ch, "tracked landmarks channel")->capture_default_str();
   app.add_option("--codes", codes_ch, "QR codes channel")->capture_default_str();
   LD_CLI_PARSE(app, argc, argv);
+  cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);  // our own one-line errors
 
-  const bool display = std::getenv("DISPLAY") || std::getenv("WAYLAND_DISPLAY");
+  const char* x_display = std::getenv("DISPLAY");
+  const char* wayland_display = std::getenv("WAYLAND_DISPLAY");
+  const bool display = x_display || wayland_display;
   o.window = force_window || (display && o.out_dir.empty() && o.video.empty());
   if (!o.window && o.out_dir.empty() && o.video.empty()) {
     std::cerr << "ld-view: no display: give --out DIR or --video FILE\n";
     return 2;
+  }
+  if (o.window) {
+    const std::string why = probeWindow();
+    if (!why.empty()) {
+      const std::string where = x_display         ? std::string(" on display ") + x_display
+                                : wayland_display ? std::string(" on Wayland display ") + wayland_display
+                                                  : ": DISPLAY and WAYLAND_DISPLAY are unset";
+      std::cerr << "ld-view: cannot open a window" << where << " (" << why
+                << "); give --out DIR or --video FILE\n";
+      return 2;
+    }
   }
   if (!camera_file.empty()) {
     try {
@@ -268,11 +362,24 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  if (!o.out_dir.empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(o.out_dir, ec);
-    if (ec) {
-      std::cerr << "ld-view: cannot create " << o.out_dir << ": " << ec.message() << "\n";
+  if (!o.out_dir.empty()) {  // created when missing, and written in (a frame's name tried)
+    const std::string problem = ld::prepareOutputFile((std::filesystem::path(o.out_dir) / "000000.png").string());
+    if (!problem.empty()) {
+      std::cerr << "ld-view: --out " << o.out_dir << ": " << problem << "\n";
+      return 2;
+    }
+  }
+  if (!o.video.empty()) {
+    const std::string problem = ld::prepareOutputFile(o.video);  // creates missing folders, as --out does
+    if (!problem.empty()) {
+      std::cerr << "ld-view: --video " << o.video << ": " << problem << "\n";
+      return 2;
+    }
+  }
+  for (const auto& path : logs) {
+    const ld::LcmLogCheck start = ld::checkLcmLogStart(path);
+    if (start.start == ld::LcmLogStart::NotALog || start.start == ld::LcmLogStart::Unreadable) {
+      std::cerr << "ld-view: log " << path << " " << start.problem << "\n";
       return 2;
     }
   }

@@ -1,0 +1,60 @@
+#!/usr/bin/env bash
+# ld-view's refusals, headless: a window on a display that does not answer
+# is found out before ld-view opens one (a child process tries; Qt would
+# abort ld-view itself) and refused in one line; a --video that cannot be
+# written, and a --log that is not an LCM log, likewise, without OpenCV's
+# own warnings. A window system that works is let through; a --video in a
+# missing folder is written there.
+# usage: view_cli_test.sh BIN_DIR
+set -euo pipefail
+BIN=$(cd "$1" && pwd)
+T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+unset QT_QPA_PLATFORM   # offscreen would open a "window" anywhere
+
+"$BIN/ld-synth" sequence --out "$T/seq" --frames 3 --fps 10 --landmarks 1 --seed 3 --size 0.3 \
+  --format mjpeg --log "$T/in.lcmlog" --no-png >/dev/null
+
+# refused ERROR_PATTERN COMMAND...: exit 2 within 30 s, one line on stderr matching
+refused() {
+  local pattern=$1; shift
+  local rc=0
+  timeout 30 "$@" >"$T/out" 2>"$T/err" || rc=$?
+  [ $rc -eq 2 ] || fail "$*: exit $rc, not 2: $(cat "$T/err")"
+  [ "$(wc -l <"$T/err")" -eq 1 ] || fail "$*: not one line: $(cat "$T/err")"
+  grep -q "^ld-view: $pattern" "$T/err" || fail "$*: $(cat "$T/err")"
+  echo "refused: $(cat "$T/err")"
+}
+
+# A display with no server: a number with no X socket here, and in a private
+# network namespace (no abstract or TCP X socket reachable either).
+n=99
+while [ -e "/tmp/.X11-unix/X$n" ]; do n=$((n + 1)); done
+netns=$(dirname "$0")/../scripts/netns-run.sh
+refused "cannot open a window on display :$n (.*); give --out DIR or --video FILE$" \
+  "$netns" env DISPLAY=:$n "$BIN/ld-view" --window --all --log "$T/in.lcmlog"
+# the window is the default with a display and no --out/--video: the same
+refused "cannot open a window on display :$n " "$netns" env DISPLAY=:$n "$BIN/ld-view" --all --log "$T/in.lcmlog"
+refused "cannot open a window: DISPLAY and WAYLAND_DISPLAY are unset" \
+  "$netns" env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --window --all --log "$T/in.lcmlog"
+
+# a window system that works (Qt's offscreen one, no display needed): the probe lets it through
+QT_QPA_PLATFORM=offscreen timeout 30 "$BIN/ld-view" --window --all --log "$T/in.lcmlog" 2>"$T/err" ||
+  fail "offscreen window: $(cat "$T/err")"
+grep -q '^ld-view: 3 images, 0 tracked lists, 3 frames written$' "$T/err" || fail "offscreen window: $(cat "$T/err")"
+
+refused "--video /proc/x/x.avi: cannot create folder /proc/x" \
+  env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --video /proc/x/x.avi
+refused "--video $T: is a folder" env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --video "$T"
+refused "--out /proc/x: cannot create folder /proc/x" \
+  env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --out /proc/x
+printf '\x89PNG\r\n\x1a\n an image, not a log' >"$T/lm.png"
+refused "log $T/lm.png is not an LCM log" \
+  env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/lm.png" --all --out "$T/frames"
+
+# a video in a folder that does not exist yet: written, and only ld-view's own line
+env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --video "$T/new/v.avi" 2>"$T/err" ||
+  fail "video in a new folder: $(cat "$T/err")"
+[ "$(stat -c %s "$T/new/v.avi")" -gt 1000 ] || fail "no video"
+[ "$(cat "$T/err")" = "ld-view: 3 images, 0 tracked lists, 3 frames written" ] || fail "video: $(cat "$T/err")"
+echo "ld-view command line: ok"
