@@ -49,6 +49,17 @@ refused "--fps: must be > 0, not 0" --play "$T/in.lcmlog" --fps 0
 refused "--fps: 'nan' is not a number" --play "$T/in.lcmlog" --fps nan
 refused "--duration: must be >= 0, not -2" --play "$T/in.lcmlog" --duration -2
 
+# A source that fails on its input after starting (ld-play: a log without
+# images, exit 2) ends a run with --exit-when-replay-done (status 1) instead
+# of being restarted again and again.
+"$BIN/ld-synth" sequence --frames 3 --landmarks 1 --channel OTHER --log "$T/noimg.lcmlog" --no-png >/dev/null
+rc=0
+timeout 20 "$BIN/ld-run" --netns --status-interval 0 --play "$T/noimg.lcmlog" --exit-when-replay-done \
+  >"$T/out" 2>&1 || rc=$?
+[ $rc -eq 1 ] || fail "a source failing with exit 2: ld-run exit $rc: $(cat "$T/out")"
+grep -q "the source play failed (exit 2; its error is above); stopping" "$T/out" || fail "source failure: $(cat "$T/out")"
+grep -q "ld-play: no IMAGE images in" "$T/out" || fail "the source's own error: $(cat "$T/out")"
+
 # What is accepted: a pixel format in any case, and missing folders of the
 # recording and the summary, which ld-run creates.
 timeout 60 "$BIN/ld-run" --netns --processes none --play "$T/in.lcmlog" --play-format Mjpg --fps 30 \

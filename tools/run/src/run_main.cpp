@@ -445,6 +445,19 @@ int main(int argc, char** argv) {
       console.status(monitor.statusLine(wallMicros()) + " | restarts " + std::to_string(sup.restarts()));
       next_status = now + std::chrono::milliseconds(static_cast<int64_t>(status_interval * 1000));
     }
+    // A replay that cannot be done (its source exits 2: an argument or an
+    // input a restart will not mend, such as a log without images) ends the
+    // run instead of restarting it again and again.
+    if (exit_when_done) {
+      const ld::ProcessState* failed = nullptr;
+      for (const auto& p : sup.processes())
+        if (p.spec.role == ld::ProcessRole::Source && p.pid < 0 && p.exit_status == 2) failed = &p;
+      if (failed) {
+        end_reason = "the source " + failed->spec.name + " failed (exit 2; its error is above)";
+        exit_code = 1;
+        break;
+      }
+    }
     if (exit_when_done && sup.sourcesDone()) {
       // Drain: wait until no tracked frame came for 0.5 s (or --drain passed).
       if (done_at == Clock::time_point{}) {

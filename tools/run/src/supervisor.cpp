@@ -214,6 +214,7 @@ void Supervisor::onExit(ProcessState& p, int status, SteadyClock::time_point now
   drainOutput(p, true);
   p.pid = -1;
   p.last_exit = describeWaitStatus(status);
+  p.exit_status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   if (stopping_) return;
   if (p.spec.role == ProcessRole::Source && WIFEXITED(status) && WEXITSTATUS(status) == 0) {
     p.done = true;

@@ -60,6 +60,7 @@ struct ProcessState {
   bool done = false;                ///< a Source that finished (exit 0)
   bool failed_to_start = false;     ///< the last exec failed
   std::string last_exit;            ///< describeWaitStatus of the last end, "" if none
+  int exit_status = -1;             ///< the last end's exit status when it exited, else -1
   SteadyClock::time_point started{};
   SteadyClock::time_point restart_at{};  ///< when pid == -1 and not done: next start
   int out_fd = -1;                  ///< read end of the child's stdout+stderr
