@@ -41,12 +41,14 @@ int main(int argc, char** argv) {
   app.add_option("--channel", channel, "image channel in the log (and on the bus)")->capture_default_str();
   app.add_option("--out-channel", out_channel, "publish on this channel instead");
   app.add_option("--fps", fps, "frames per second")->check(ld::cli::Positive)->capture_default_str();
-  app.add_option("--frames", frames, "frames to publish (looping the log)")->check(ld::cli::NonNegative);
+  auto* frames_opt =
+      app.add_option("--frames", frames, "frames to publish (looping the log)")->check(ld::cli::NonNegative);
   app.add_option("--duration", duration, "seconds to publish (looping the log)")
-      ->check(ld::cli::NonNegative);
+      ->check(ld::cli::NonNegative)
+      ->excludes(frames_opt);
   app.add_option("--format", format, "keep, or convert to bgr, rgb, gray, yuyv, uyvy, mjpeg")
       ->capture_default_str();
-  app.add_option("--quality", quality, "JPEG quality for mjpeg")->capture_default_str();
+  app.add_option("--quality", quality, "JPEG quality for mjpeg")->capture_default_str()->check(ld::cli::Between(1, 100));
   app.add_option("--first-seq", first_seq, "sequence number of the first frame")->capture_default_str();
   LD_CLI_PARSE(app, argc, argv);
   if (out_channel.empty()) out_channel = channel;
