@@ -2,7 +2,8 @@
 # ld-dump on files: a whole log prints one JSON object per message; a file
 # that is not an LCM log is refused in one line (status 2); a log cut off
 # mid-event prints the messages before the cut, then says in one line where
-# it ends (status 1), wherever the cut is; bytes that are no event, likewise;
+# it ends (status 1), wherever the cut is; bytes that are no event, likewise
+# at the end, and skipped with the whole events after them read elsewhere;
 # an empty log (a recorder that recorded nothing) is no error.
 # usage: dump_cli_test.sh BIN_DIR
 set -euo pipefail
@@ -54,6 +55,21 @@ dump "$T/junk.lcmlog"
 [ $rc -eq 1 ] && [ "$out" -eq 3 ] || fail "junk: exit $rc, $out lines"
 [ "$err" = "ld-dump: $T/junk.lcmlog: unreadable data after 3 messages (at byte $size no LCM event starts)" ] ||
   fail "junk: $err"
+
+# A cut event with more appended after it (a recorder killed mid-write and
+# restarted with lcm-logger -a): the cut event is skipped, every whole one
+# before and after it printed, and one line says what was skipped (status 1).
+{ head -c $((starts[1] + 100)) "$T/in.lcmlog"; cat "$T/in.lcmlog"; } >"$T/mid.lcmlog"
+dump "$T/mid.lcmlog"
+[ $rc -eq 1 ] && [ "$out" -eq 4 ] || fail "cut in the middle: exit $rc, $out lines, $err"
+[ "$err" = "ld-dump: $T/mid.lcmlog: skipped 100 bytes that are no whole LCM event (at byte ${starts[1]}), read 4 messages" ] ||
+  fail "cut in the middle: $err"
+# Junk between events, likewise.
+{ head -c "${starts[1]}" "$T/in.lcmlog"; printf 'junk!'; tail -c +$((starts[1] + 1)) "$T/in.lcmlog"; } >"$T/junk2.lcmlog"
+dump "$T/junk2.lcmlog"
+[ $rc -eq 1 ] && [ "$out" -eq 3 ] || fail "junk between events: exit $rc, $out lines, $err"
+[ "$err" = "ld-dump: $T/junk2.lcmlog: skipped 5 bytes that are no whole LCM event (at byte ${starts[1]}), read 3 messages" ] ||
+  fail "junk between events: $err"
 
 : >"$T/empty.lcmlog"
 dump "$T/empty.lcmlog"

@@ -32,8 +32,16 @@ for d in long-auto long-H short-L; do
   got=$("$BIN/ld-detect" --decode "$T/$d/000000.png" | sed -n 's/.*"payload": *"\([^"]*\)".*/\1/p')
   [ "$got" = "$want" ] || fail "$d reads '$got'"
 done
-# A sequence takes the level too.
-"$BIN/ld-synth" sequence --out "$T/seq" --frames 2 --landmarks 1 --ecc Q --no-png >/dev/null || fail "sequence --ecc Q"
+# A sequence takes the level too: the same drive with a 100-byte code at
+# auto draws L's code, at H another.
+seq() {  # OUT ECC
+  "$BIN/ld-synth" sequence --out "$T/$1" --frames 24 --landmarks 1 --seed 4 -p "$long" --ecc "$2" >/dev/null
+}
+seq seq-auto auto
+seq seq-L L
+seq seq-H H
+diff -rq "$T/seq-auto" "$T/seq-L" >/dev/null || fail "sequence: auto differs from L"
+diff -rq "$T/seq-auto" "$T/seq-H" >/dev/null && fail "sequence: --ecc H drew the same frames as L"
 
 # Refused with one line naming the option, exit status 2.
 refused() {  # PATTERN ARGS...

@@ -1116,6 +1116,18 @@ TEST(Explain, NamesTheCheckThatRefusedTheLandmark) {
     EXPECT_TRUE(counted);
     EXPECT_NE(ld::describe(why, q).find("cover (cover_min, cover_max)"), std::string::npos) << ld::describe(why, q);
   }
+  {  // hollow squares (rings): labelled, then too sparse for min_fill
+    cv::Mat art = artworkImage().clone();
+    const int u = art.cols / 9;
+    for (const cv::Point2d c : {cv::Point2d(1.5, 1.5), cv::Point2d(7.5, 1.5), cv::Point2d(1.5, 7.5), cv::Point2d(7.5, 7.5)})
+      art(cv::Rect(cvRound((c.x - 0.6) * u), cvRound((c.y - 0.6) * u), cvRound(1.2 * u), cvRound(1.2 * u)))
+          .setTo(cv::Scalar(225, 228, 230));
+    const ld::DetectorParams q;
+    const auto why = explain(art, q);
+    EXPECT_GE(why.blue_sparse, 3);
+    EXPECT_GE(why.red_sparse, 1);
+    EXPECT_NE(ld::describe(why, q).find("sparse, under min_fill 0.5: "), std::string::npos) << ld::describe(why, q);
+  }
   {  // colour ratios no ink meets: the squares are labelled, then off colour
     ld::DetectorParams q;
     q.color_ratio_a = q.color_ratio_b = 20;

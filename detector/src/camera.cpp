@@ -98,7 +98,7 @@ CameraModel CameraModel::load(const std::string& path) {
     // ROS names its distortion model; only OpenCV's (plumb_bob, rational_polynomial) is this one.
     const cv::FileNode model = fs["distortion_model"];
     if (!model.empty()) {
-      const std::string m = model.isString() ? static_cast<std::string>(model) : std::string("that is not a name");
+      const std::string m = model.isString() ? configString(model) : std::string("that is not a name");
       if (m != "plumb_bob" && m != "rational_polynomial")
         throw std::runtime_error("camera file " + path + ": distortion_model " + m +
                                  " is not supported (plumb_bob or rational_polynomial: OpenCV's pinhole model)");

@@ -765,7 +765,8 @@ void Detector::Impl::explain(const cv::Mat& input, Explanation& e) {
     std::vector<StageTime> stages;
     StageTimer timer(stages);
     const cv::Mat* src = runFilters(*img, timer);
-    if (!paper) detail::extractRegions(labels, *src, filter_settings.mask, p.min_area_px, maxArea(*img), p.min_fill, runs, regions);
+    // (every region, sparse ones included, to count them: classify() drops them as detection does)
+    if (!paper) detail::extractRegions(labels, *src, filter_settings.mask, p.min_area_px, maxArea(*img), 0.0, runs, regions);
     else detail::contourRegions(edges, *img, p.min_area_px, maxArea(*img), contours, regions);
     for (const auto& r : regions) {
       const bool blue = r.colour == detail::kBlue;

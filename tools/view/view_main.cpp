@@ -281,7 +281,7 @@ std::string probeWindow() {
       const ssize_t n = ::read(err[0], buf, sizeof buf);
       if (n > 0) {
         if (text.size() < 65536) text.append(buf, static_cast<size_t>(n));
-        continue;  // more may be waiting
+        if (std::chrono::steady_clock::now() <= deadline) continue;  // more may be waiting
       }
       if (!ended) pfd.fd = -1;  // closed: only the child's end is left to wait for
     }

@@ -67,9 +67,10 @@ inline std::optional<std::string> unsafeForOpenCv(const std::string& text) {
   return std::nullopt;
 }
 
-/// A string value of a configuration file as written: OpenCV's YAML parser
-/// keeps a trailing comment (`front_end: paper   # or fast`) and the spaces
-/// before it in a plain string; they are cut here.
+/// A name-like string value of a configuration file as written: OpenCV's
+/// YAML parser keeps a trailing comment (`front_end: paper   # or fast`) and
+/// the spaces before it in a plain string; they are cut here. For names
+/// only: a quoted value with " #" in it (a path, say) would be cut too.
 inline std::string configString(const cv::FileNode& n) {
   std::string s = static_cast<std::string>(n);
   for (size_t hash = s.find('#'); hash != std::string::npos; hash = s.find('#', hash + 1))

@@ -47,7 +47,8 @@ int main(int argc, char** argv) {
   app.add_option("--ecc", ecc_text,
                  "QR error correction: L, M, Q, H, or auto (the smallest symbol that holds the payload, at the "
                  "highest level that keeps it: the largest modules)")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(ld::cli::Parses("LEVEL", ld::artwork::parseQrEcc));
   app.add_flag("--sheet", sheet,
                "lay the landmarks out on pages with their payloads as labels (more than a page holds: "
                "FILE-1.svg, FILE-2.svg, ...)");
@@ -72,13 +73,7 @@ int main(int argc, char** argv) {
     std::cerr << "ld-generate: several payloads need --sheet\n";
     return 2;
   }
-  ld::artwork::QrEcc ecc;
-  try {
-    ecc = ld::artwork::parseQrEcc(ecc_text);
-  } catch (const std::invalid_argument& e) {
-    std::cerr << "ld-generate: --ecc: " << e.what() << "\n";
-    return 2;
-  }
+  const ld::artwork::QrEcc ecc = ld::artwork::parseQrEcc(ecc_text);  // (checked on parsing)
   try {
     const double side_mm = side_m * 1000.0;
     // What each code became (the distance it reads from: ld-eval size).

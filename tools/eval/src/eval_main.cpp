@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -11,13 +10,11 @@
 #include <CLI/CLI.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <unistd.h>
 
 #include "ld/cli.hpp"
 #include "ld/eval.hpp"
+#include "ld/file_checks.hpp"
 #include "ld/markers.hpp"
-
-namespace fs = std::filesystem;
 
 namespace {
 
@@ -134,16 +131,7 @@ void addStack(CLI::App* app, int& frames, const std::string& what) {
 void addEcc(CLI::App* app, std::string& level) {
   app->add_option("--ecc", level, "QR error correction of the printed codes, as ld-generate's: auto, L, M, Q, H")
       ->capture_default_str()
-      ->check(CLI::Validator(
-          [](std::string& text) {
-            try {
-              ld::artwork::parseQrEcc(text);
-              return std::string();
-            } catch (const std::invalid_argument& e) {
-              return std::string(e.what());
-            }
-          },
-          "LEVEL"));
+      ->check(ld::cli::Parses("LEVEL", ld::artwork::parseQrEcc));
 }
 
 // The detection sweeps (yaw, distance) also measure the markers.
@@ -155,15 +143,11 @@ void addCompare(CLI::App* app, Common& c) {
 // Yaw within a quarter turn: at 90 degrees the sheet is seen edge on.
 const CLI::Validator kYaw = ld::cli::Between(0, 89);
 
-// An output file can be written where it is asked for: its folder exists and is writable.
+// An output file can be written where it is asked for (its missing folders made).
 void requireWritable(const std::string& path, const char* option) {
   if (path.empty()) return;
-  const fs::path folder = fs::path(path).parent_path().empty() ? fs::path(".") : fs::path(path).parent_path();
-  std::error_code ec;
-  if (!fs::is_directory(folder, ec)) throw std::runtime_error(std::string(option) + ": no folder " + folder.string());
-  if (::access(folder.c_str(), W_OK) != 0)
-    throw std::runtime_error(std::string(option) + ": cannot write in " + folder.string());
-  if (fs::is_directory(path, ec)) throw std::runtime_error(std::string(option) + ": " + path + " is a folder");
+  const std::string why = ld::prepareOutputFile(path);
+  if (!why.empty()) throw std::runtime_error(std::string(option) + " " + path + ": " + why);
 }
 
 void emit(const Common& c, const std::string& table) {

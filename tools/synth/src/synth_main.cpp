@@ -101,15 +101,6 @@ ld::CameraModel makeCamera(const std::string& file, const std::string& resolutio
   return cam;
 }
 
-// --ecc's text, with ld-generate's error line.
-ld::artwork::QrEcc eccFrom(const std::string& text) {
-  try {
-    return ld::artwork::parseQrEcc(text);
-  } catch (const std::invalid_argument& e) {
-    throw UsageError(std::string("--ecc: ") + e.what());
-  }
-}
-
 void makeFolder(const std::string& dir) {
   std::error_code ec;
   fs::create_directories(dir, ec);
@@ -322,7 +313,9 @@ int main(int argc, char** argv) {
   scene->add_option("--landmarks,-k", sa.landmarks, "landmarks per frame")->capture_default_str();
   scene->add_option("--payload,-p", sa.payload, "QR text (with several landmarks: TEXT-0, TEXT-1, ...; default room-101, ...)");
   std::string ecc_text = "auto", q_ecc_text = "auto";
-  scene->add_option("--ecc", ecc_text, "QR error correction of the landmarks' codes, as ld-generate's: auto, L, M, Q, H")->capture_default_str();
+  scene->add_option("--ecc", ecc_text, "QR error correction of the landmarks' codes, as ld-generate's: auto, L, M, Q, H")
+      ->capture_default_str()
+      ->check(ld::cli::Parses("LEVEL", ld::artwork::parseQrEcc));
   scene->add_option("--background", sa.background, "plain, office or clutter (default: office or clutter at random)");
   scene->add_option("--distractors", sa.distractors, "colourful distractors (default: 3..10 at random)");
   scene->add_option("--cards", sa.cards, "landmark-like cards (red square in the middle / next to TL, colours swapped)")->capture_default_str();
@@ -348,7 +341,9 @@ int main(int argc, char** argv) {
   sequence->add_option("--quality", qo.jpeg_quality, "JPEG quality for mjpeg")->capture_default_str();
   sequence->add_option("--landmarks,-k", qo.landmarks, "landmarks on the wall (ids 0..K-1)")->capture_default_str();
   sequence->add_option("--payload,-p", qo.payloads, "QR text of each landmark (repeat; default room-101, room-102, ...)");
-  sequence->add_option("--ecc", q_ecc_text, "QR error correction of the landmarks' codes, as ld-generate's: auto, L, M, Q, H")->capture_default_str();
+  sequence->add_option("--ecc", q_ecc_text, "QR error correction of the landmarks' codes, as ld-generate's: auto, L, M, Q, H")
+      ->capture_default_str()
+      ->check(ld::cli::Parses("LEVEL", ld::artwork::parseQrEcc));
   sequence->add_option("--size", qo.side_m, "landmark side S in metres")->capture_default_str();
   sequence->add_option("--seed", qo.seed, "random seed (same seed, same bytes)")->capture_default_str();
   sequence->add_option("--start-utime", qo.start_utime, "utime of the first frame, microseconds")->capture_default_str();
@@ -361,10 +356,10 @@ int main(int argc, char** argv) {
 
   try {
     if (scene->parsed()) {
-      sa.ecc = eccFrom(ecc_text);
+      sa.ecc = ld::artwork::parseQrEcc(ecc_text);
       return runScene(sa);
     }
-    qo.ecc = eccFrom(q_ecc_text);
+    qo.ecc = ld::artwork::parseQrEcc(q_ecc_text);
     if (qo.out_dir.empty() && qo.log_path.empty()) throw UsageError("sequence: give --out, --log or both");
     qo.camera = makeCamera(q_camera, q_resolution);
     qo.write_png = !no_png;

@@ -80,6 +80,22 @@ inline CLI::Validator Between(double lo, double hi) {
   return detail::numberCheck(name.str(), [lo, hi](double v) { return v >= lo && v <= hi; }, rule.str());
 }
 
+/// A text that `parse` accepts (it throws std::exception with the reason
+/// otherwise): `->check(ld::cli::Parses("LEVEL", ld::artwork::parseQrEcc))`.
+template <class Parse>
+CLI::Validator Parses(const std::string& name, Parse parse) {
+  return CLI::Validator(
+      [parse](std::string& text) {
+        try {
+          parse(text);
+          return std::string();
+        } catch (const std::exception& e) {
+          return std::string(e.what());
+        }
+      },
+      name, name);
+}
+
 }  // namespace ld::cli
 
 /// In main(): parse the command line, returning from main on --help or an error.
