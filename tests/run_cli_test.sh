@@ -41,6 +41,8 @@ refused ".*run.json: source.format: unknown pixel format 'foo'" --config "$T/run
 refused "recording /proc/x/r.lcmlog: cannot create folder /proc/x" --replay "$T/in.lcmlog" --record /proc/x/r.lcmlog
 refused "summary /proc/x/s.json: cannot create folder /proc/x" --replay "$T/in.lcmlog" --summary /proc/x/s.json
 refused "recording $T: is a folder" --replay "$T/in.lcmlog" --record "$T"
+refused "state file /proc/x/st.json: cannot create folder /proc/x" --replay "$T/in.lcmlog" --state-file /proc/x/st.json
+refused "--log-dir /proc/x: cannot create folder /proc/x" --replay "$T/in.lcmlog" --log-dir /proc/x
 refused "--replay and --play name two sources; give one" --replay "$T/in.lcmlog" --play "$T/in.lcmlog"
 refused "--source camera and --replay name two sources; give one" --replay "$T/in.lcmlog" --source camera
 refused "--speed: must be > 0, not -1" --replay "$T/in.lcmlog" --speed -1

@@ -311,7 +311,8 @@ int main(int argc, char** argv) {
     }
   }
   using OutputFile = std::pair<const char*, std::string>;
-  for (const auto& [what, path] : std::initializer_list<OutputFile>{{"recording", cfg.record}, {"summary", summary_file}}) {
+  for (const auto& [what, path] : std::initializer_list<OutputFile>{
+           {"recording", cfg.record}, {"summary", summary_file}, {"state file", state_file}}) {
     if (path.empty()) continue;
     const std::string problem = ld::prepareOutputFile(path);  // creates missing folders
     if (!problem.empty()) {
@@ -320,6 +321,13 @@ int main(int argc, char** argv) {
     }
   }
 
+  if (!log_dir.empty()) {  // the processes' NAME.log files go there
+    const std::string problem = ld::prepareOutputFile(log_dir + "/ld-run.log");
+    if (!problem.empty()) {
+      std::cerr << "ld-run: --log-dir " << log_dir << ": " << problem << "\n";
+      return 2;
+    }
+  }
   const bool tty = ::isatty(STDERR_FILENO);
   if (status_interval < 0) status_interval = tty ? 1 : 5;
   Console console(tty, quiet, log_dir);
