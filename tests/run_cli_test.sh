@@ -69,6 +69,10 @@ timeout 60 "$BIN/ld-run" --netns --processes none --play "$T/in.lcmlog" --play-f
   2>"$T/err" || fail "accepted run: $(cat "$T/err")"
 [ -f "$T/new/a/r.lcmlog" ] || fail "no recording in a created folder"
 [ "$(jq .summary.frames.images "$T/new/b/s.json")" -eq 3 ] || fail "summary: $(cat "$T/new/b/s.json")"
+# ld-play alone: a file that is not a log is named as such (not "no IMAGE images").
+rc=0; "$BIN/ld-play" "$T/lm.png" 2>"$T/err" || rc=$?
+[ $rc -eq 2 ] && [ "$(cat "$T/err")" = "ld-play: log $T/lm.png is not an LCM log (it starts with 89 50 4e 47, not LCM's event magic ed a1 da 01)" ] ||
+  fail "ld-play on a PNG: $rc $(cat "$T/err")"
 # ld-play takes --frames or --duration, not both.
 rc=0; "$BIN/ld-play" "$T/in.lcmlog" --frames 3 --duration 2 2>"$T/err" || rc=$?
 [ $rc -eq 2 ] && grep -q "^ld-play: --frames excludes --duration" "$T/err" || fail "ld-play --frames --duration: $rc $(cat "$T/err")"

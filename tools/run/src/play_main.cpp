@@ -14,6 +14,7 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include "ld/cli.hpp"
+#include "ld/file_checks.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/lcm_url.hpp"
 
@@ -64,6 +65,11 @@ int main(int argc, char** argv) {
   }
   std::vector<ld::image_t> images;
   {
+    const ld::LcmLogCheck start = ld::checkLcmLogStart(log_path);
+    if (start.start != ld::LcmLogStart::Events) {
+      std::cerr << "ld-play: log " << log_path << " " << start.problem << "\n";
+      return 2;
+    }
     lcm::LogFile log(log_path, "r");
     if (!log.good()) {
       std::cerr << "ld-play: cannot read log " << log_path << "\n";
