@@ -27,5 +27,11 @@ for env in "env -u DISPLAY -u WAYLAND_DISPLAY" "env -u DISPLAY WAYLAND_DISPLAY=w
   grep -q "^ld-spy: lcm-spy needs a display.*robot's LAN.*ld-dump --live" "$T/err" || fail "$env: $(cat "$T/err")"
 done
 echo "headless: $(cat "$T/err")"
+# a local display with no X server behind it (a stale DISPLAY): one line too
+rc=0; timeout 20 "$netns" env DISPLAY=:97 "$spy" --lcm-url 'udpm://239.255.76.67:7667?ttl=0' >"$T/out" 2>"$T/err" || rc=$?
+if [ ! -S /tmp/.X11-unix/X97 ]; then
+  [ $rc -eq 2 ] && [ "$(wc -l <"$T/err")" -eq 1 ] || fail "DISPLAY=:97: exit $rc: $(cat "$T/err")"
+  grep -q "^ld-spy: no X server on display :97 (no /tmp/.X11-unix/X97)" "$T/err" || fail "DISPLAY=:97: $(cat "$T/err")"
+fi
 env -u DISPLAY -u WAYLAND_DISPLAY "$spy" --list-types | grep -qx ld.image_t || fail "--list-types headless"
 echo "ld-spy command line: ok"
