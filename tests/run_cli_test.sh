@@ -73,6 +73,10 @@ timeout 60 "$BIN/ld-run" --netns --processes none --play "$T/in.lcmlog" --play-f
 rc=0; "$BIN/ld-play" "$T/lm.png" 2>"$T/err" || rc=$?
 [ $rc -eq 2 ] && [ "$(cat "$T/err")" = "ld-play: log $T/lm.png is not an LCM log (it starts with 89 50 4e 47, not LCM's event magic ed a1 da 01)" ] ||
   fail "ld-play on a PNG: $rc $(cat "$T/err")"
+# ld-play on a log cut off mid-event: plays what it holds, with one warning line.
+head -c $(( $(stat -c %s "$T/in.lcmlog") - 100 )) "$T/in.lcmlog" >"$T/cut.lcmlog"
+"$BIN/ld-play" "$T/cut.lcmlog" --lcm-url memq:// --fps 100 >"$T/out" 2>"$T/err" || fail "ld-play cut log: $(cat "$T/err")"
+grep -q "^ld-play: warning: $T/cut.lcmlog: the log ends mid-event after 2 messages" "$T/err" || fail "ld-play cut log: $(cat "$T/err")"
 # ld-play takes --frames or --duration, not both.
 rc=0; "$BIN/ld-play" "$T/in.lcmlog" --frames 3 --duration 2 2>"$T/err" || rc=$?
 [ $rc -eq 2 ] && grep -q "^ld-play: --frames excludes --duration" "$T/err" || fail "ld-play --frames --duration: $rc $(cat "$T/err")"

@@ -57,4 +57,10 @@ env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --vi
   fail "video in a new folder: $(cat "$T/err")"
 [ "$(stat -c %s "$T/new/v.avi")" -gt 1000 ] || fail "no video"
 [ "$(cat "$T/err")" = "ld-view: 3 images, 0 tracked lists, 3 frames written" ] || fail "video: $(cat "$T/err")"
+# a log cut off mid-event: what it holds is drawn, with one warning line
+head -c $(( $(stat -c %s "$T/in.lcmlog") - 100 )) "$T/in.lcmlog" >"$T/cut.lcmlog"
+env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/cut.lcmlog" --all --out "$T/cutframes" 2>"$T/err" ||
+  fail "cut log: $(cat "$T/err")"
+grep -q "^ld-view: warning: $T/cut.lcmlog: the log ends mid-event after 2 messages" "$T/err" || fail "cut log: $(cat "$T/err")"
+grep -q "^ld-view: 2 images, 0 tracked lists, 2 frames written" "$T/err" || fail "cut log: $(cat "$T/err")"
 echo "ld-view command line: ok"

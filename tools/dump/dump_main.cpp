@@ -14,6 +14,7 @@
 
 #include "ld/cli.hpp"
 #include "ld/file_checks.hpp"
+#include "ld/lcm_log_reader.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/landmark_json.hpp"
 #include "ld/landmark_msg.hpp"
@@ -97,123 +98,6 @@ nlohmann::ordered_json toJson(const std::string& channel, int64_t log_utime, con
   return j;
 }
 
-// An LCM log read event by event (lcm_eventlog's format, see
-// ld/file_checks.hpp). Where no whole event starts (an event cut off by a
-// recorder killed mid-write, then more appended: lcm-logger -a; damaged
-// bytes) it skips to the next event magic and goes on, as LCM's own reader
-// does, and says what it skipped; at the end of the file it says whether the
-// last event was cut off.
-class LogReader {
- public:
-  explicit LogReader(const std::string& path) : f_(path, std::ios::binary) {
-    f_.seekg(0, std::ios::end);
-    size_ = static_cast<int64_t>(f_.tellg());
-    f_.seekg(0);
-  }
-  bool good() const { return static_cast<bool>(f_); }
-  /// The next event, or false at the end of the file or at a problem that
-  /// ends it (problem() then says what, naming the messages read).
-  bool next() {
-    for (;;) {
-      const int64_t left = size_ - offset_;
-      if (left == 0) return false;
-      uint8_t h[ld::kLcmLogHeaderBytes];
-      const size_t got = readAt(offset_, h, static_cast<size_t>(std::min<int64_t>(left, sizeof h)));
-      const auto be = [&h](size_t at, int bytes) {
-        uint64_t v = 0;
-        for (int i = 0; i < bytes; ++i) v = (v << 8) | h[at + i];
-        return v;
-      };
-      if (std::memcmp(h, kMagic, std::min<size_t>(got, 4)) != 0) {  // (a cut magic is the start of one)
-        if (skipToNextEvent()) continue;
-        return fail("unreadable data", "at byte " + std::to_string(offset_) + " no LCM event starts");
-      }
-      if (got < sizeof h) return fail("the log ends mid-event", std::to_string(left) + " bytes of an event header");
-      const int32_t channel_len = static_cast<int32_t>(be(20, 4)), data_len = static_cast<int32_t>(be(24, 4));
-      if (channel_len <= 0 || channel_len > 1024 || data_len < 0) {
-        if (skipToNextEvent()) continue;
-        return fail("unreadable data", "at byte " + std::to_string(offset_) + " an event header with a channel of " +
-                                           std::to_string(channel_len) + " bytes and " + std::to_string(data_len) +
-                                           " bytes of data");
-      }
-      const int64_t need = static_cast<int64_t>(sizeof h) + channel_len + data_len;
-      // A whole event ends at the end of the file or where the next one
-      // starts; one that does not was cut off, when another starts inside it.
-      const bool whole = need == left || (need < left && magicAt(offset_ + need));
-      if (!whole && skipToNextEvent(offset_ + need)) continue;
-      if (need > left)
-        return fail("the log ends mid-event", std::to_string(left) + " of the event's " + std::to_string(need) + " bytes");
-      timestamp = static_cast<int64_t>(be(12, 8));
-      channel.resize(static_cast<size_t>(channel_len));
-      data.resize(static_cast<size_t>(data_len));
-      if (readAt(offset_ + static_cast<int64_t>(sizeof h), reinterpret_cast<uint8_t*>(channel.data()), channel.size()) !=
-              channel.size() ||
-          readAt(offset_ + static_cast<int64_t>(sizeof h) + channel_len, data.data(), data.size()) != data.size())
-        return fail("cannot read the log", std::strerror(errno));
-      offset_ += need;
-      ++messages_;
-      return true;
-    }
-  }
-  /// What went wrong, or "" for a whole log: bytes skipped and how the file ended.
-  std::string problem() const {
-    std::string p;
-    if (skipped_bytes_ > 0)
-      p = "skipped " + std::to_string(skipped_bytes_) + " bytes that are no whole LCM event (" +
-          (skips_ == 1 ? "at byte " : std::to_string(skips_) + " places, the first at byte ") +
-          std::to_string(first_skip_) + "), read " + std::to_string(messages_) +
-          (messages_ == 1 ? " message" : " messages");
-    if (!end_problem_.empty()) p += (p.empty() ? "" : "; ") + end_problem_;
-    return p;
-  }
-
-  int64_t timestamp = 0;
-  std::string channel;
-  std::vector<uint8_t> data;
-
- private:
-  static constexpr uint8_t kMagic[4] = {ld::kLcmLogMagic >> 24, (ld::kLcmLogMagic >> 16) & 0xff,
-                                        (ld::kLcmLogMagic >> 8) & 0xff, ld::kLcmLogMagic & 0xff};
-  size_t readAt(int64_t at, uint8_t* to, size_t n) {
-    f_.clear();
-    f_.seekg(at);
-    f_.read(reinterpret_cast<char*>(to), static_cast<std::streamsize>(n));
-    return static_cast<size_t>(f_.gcount());
-  }
-  bool magicAt(int64_t at) {
-    uint8_t m[4];
-    return readAt(at, m, 4) == 4 && std::memcmp(m, kMagic, 4) == 0;
-  }
-  // Moves to the next event magic after the current position (before
-  // `before` when given), counting the bytes passed over; false when there is none.
-  bool skipToNextEvent(int64_t before = -1) {
-    const int64_t end = before < 0 ? size_ : std::min(before, size_);
-    std::vector<uint8_t> buf(1 << 16);
-    for (int64_t at = offset_ + 1; at < end;) {
-      const size_t got = readAt(at, buf.data(), static_cast<size_t>(std::min<int64_t>(end - at + 3, buf.size())));
-      if (got < 4) break;
-      const auto* hit = std::search(buf.data(), buf.data() + got, kMagic, kMagic + 4);
-      if (hit != buf.data() + got && at + (hit - buf.data()) < end) {
-        const int64_t pos = at + (hit - buf.data());
-        if (skips_++ == 0) first_skip_ = offset_;
-        skipped_bytes_ += pos - offset_;
-        offset_ = pos;
-        return true;
-      }
-      at += static_cast<int64_t>(got) - 3;  // a magic may straddle two reads
-    }
-    return false;
-  }
-  bool fail(const std::string& what, const std::string& detail) {
-    end_problem_ = what + " after " + std::to_string(messages_) + (messages_ == 1 ? " message" : " messages") + " (" +
-                   detail + ")";
-    return false;
-  }
-  std::ifstream f_;
-  int64_t size_ = 0, offset_ = 0, messages_ = 0, skipped_bytes_ = 0, skips_ = 0, first_skip_ = 0;
-  std::string end_problem_;
-};
-
 struct Printer {
   std::vector<std::regex> filters;
   bool wanted(const std::string& channel) const {
@@ -278,7 +162,7 @@ int main(int argc, char** argv) {
       continue;
     }
     if (start.start == ld::LcmLogStart::Empty) continue;  // a recorder that recorded nothing
-    LogReader log(path);
+    ld::LcmLogReader log(path);
     if (start.start == ld::LcmLogStart::Unreadable || !log.good()) {
       std::cerr << "ld-dump: cannot read log " << path << ": "
                 << (start.error.empty() ? std::strerror(errno) : start.error) << "\n";

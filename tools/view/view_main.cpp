@@ -34,6 +34,7 @@
 #include "ld/image_convert.hpp"
 #include "ld/landmark_json.hpp"
 #include "ld/landmark_msg.hpp"
+#include "ld/lcm_log_reader.hpp"
 #include "ld/lcm_url.hpp"
 #include "ld/message_decode.hpp"
 #include "ld/qr_code_list_t.hpp"
@@ -138,20 +139,22 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
   std::map<Key, ld::landmark_list_t> lists;
   std::map<Key, ld::qr_code_list_t> codes;
   for (const auto& path : logs) {
-    lcm::LogFile log(path, "r");
+    ld::LcmLogReader log(path);
     if (!log.good()) {
       std::cerr << "ld-view: cannot read log " << path << "\n";
       return 2;
     }
-    while (const lcm::LogEvent* ev = log.readNextEvent()) {
-      if (ev->channel == tracked_ch) {
+    while (log.next()) {
+      if (log.channel == tracked_ch) {
         ld::landmark_list_t l;
-        if (ld::decodeMessage(ev->data, static_cast<size_t>(ev->datalen), l)) lists[{l.utime, l.seq}] = std::move(l);
-      } else if (ev->channel == codes_ch) {
+        if (ld::decodeMessage(log.data.data(), log.data.size(), l)) lists[{l.utime, l.seq}] = std::move(l);
+      } else if (log.channel == codes_ch) {
         ld::qr_code_list_t c;
-        if (ld::decodeMessage(ev->data, static_cast<size_t>(ev->datalen), c)) codes[{c.utime, c.seq}] = std::move(c);
+        if (ld::decodeMessage(log.data.data(), log.data.size(), c)) codes[{c.utime, c.seq}] = std::move(c);
       }
     }
+    if (!log.problem().empty())  // a cut log: what it holds is drawn
+      std::cerr << "ld-view: warning: " << path << ": " << log.problem() << "\n";
   }
   Sink sink(o);
   std::map<int64_t, std::string> payloads;  // what was known up to the frame drawn
@@ -159,12 +162,10 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
   cv::Mat bgr;
   int64_t images = 0, bad = 0;
   for (const auto& path : logs) {
-    lcm::LogFile log(path, "r");
-    while (!g_stop) {
-      const lcm::LogEvent* ev = log.readNextEvent();
-      if (!ev) break;
-      if (ev->channel != image_ch) continue;
-      if (!ld::decodeMessage(ev->data, static_cast<size_t>(ev->datalen), img)) {
+    ld::LcmLogReader log(path);
+    while (!g_stop && log.next()) {
+      if (log.channel != image_ch) continue;
+      if (!ld::decodeMessage(log.data.data(), log.data.size(), img)) {
         ++bad;
         continue;
       }

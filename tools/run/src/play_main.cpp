@@ -15,6 +15,7 @@
 
 #include "ld/cli.hpp"
 #include "ld/file_checks.hpp"
+#include "ld/lcm_log_reader.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/lcm_url.hpp"
 
@@ -70,16 +71,17 @@ int main(int argc, char** argv) {
       std::cerr << "ld-play: log " << log_path << " " << start.problem << "\n";
       return 2;
     }
-    lcm::LogFile log(log_path, "r");
+    ld::LcmLogReader log(log_path);
     if (!log.good()) {
       std::cerr << "ld-play: cannot read log " << log_path << "\n";
       return 2;
     }
-    while (const lcm::LogEvent* ev = log.readNextEvent()) {
-      if (ev->channel != channel) continue;
+    while (log.next()) {
+      if (log.channel != channel) continue;
       ld::image_t img;
-      if (img.decode(ev->data, 0, ev->datalen) != ev->datalen) {
-        std::cerr << "ld-play: skipping event " << ev->eventnum << ": not an ld.image_t\n";
+      const int size = static_cast<int>(log.data.size());
+      if (img.decode(log.data.data(), 0, size) != size) {
+        std::cerr << "ld-play: skipping message " << log.messages() << ": not an ld.image_t\n";
         continue;
       }
       if (pixelformat != -1 && img.pixelformat != pixelformat) {
@@ -87,12 +89,14 @@ int main(int argc, char** argv) {
           const cv::Mat bgr = ld::imageToBgr(img);
           img = ld::matToImage(bgr, pixelformat, img.utime, -1, quality);
         } catch (const std::exception& e) {
-          std::cerr << "ld-play: skipping event " << ev->eventnum << ": " << e.what() << "\n";
+          std::cerr << "ld-play: skipping message " << log.messages() << ": " << e.what() << "\n";
           continue;
         }
       }
       images.push_back(std::move(img));
     }
+    if (!log.problem().empty())  // a cut log: what it holds is played
+      std::cerr << "ld-play: warning: " << log_path << ": " << log.problem() << "\n";
   }
   if (images.empty()) {
     std::cerr << "ld-play: no " << channel << " images in " << log_path << "\n";

@@ -1,0 +1,41 @@
+// An LCM log read event by event (lcm_eventlog's format, ld/file_checks.hpp),
+// saying what LCM's own reader does not: where a log was cut off, and what
+// it skipped. Where no whole event starts (an event cut off by a recorder
+// killed mid-write, then more appended: lcm-logger -a; damaged bytes) it
+// skips to the next event magic and goes on, as LCM's reader does.
+#pragma once
+
+#include <cstdint>
+#include <fstream>
+#include <string>
+#include <vector>
+
+namespace ld {
+
+class LcmLogReader {
+ public:
+  explicit LcmLogReader(const std::string& path);
+  bool good() const { return static_cast<bool>(f_); }
+  /// The next event (timestamp, channel, data), or false at the end of the
+  /// file or at a problem that ends it.
+  bool next();
+  /// What went wrong, or "" for a whole log: the bytes skipped and how the
+  /// file ended ("the log ends mid-event after 2 messages (...)").
+  std::string problem() const;
+  int64_t messages() const { return messages_; }
+
+  int64_t timestamp = 0;
+  std::string channel;
+  std::vector<uint8_t> data;
+
+ private:
+  size_t readAt(int64_t at, uint8_t* to, size_t n);
+  bool magicAt(int64_t at);
+  bool skipToNextEvent(int64_t before = -1);
+  bool fail(const std::string& what, const std::string& detail);
+  std::ifstream f_;
+  int64_t size_ = 0, offset_ = 0, messages_ = 0, skipped_bytes_ = 0, skips_ = 0, first_skip_ = 0;
+  std::string end_problem_;
+};
+
+}  // namespace ld
