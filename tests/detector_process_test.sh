@@ -19,7 +19,7 @@ FRAMES=30
   URL="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608"
   lcm-logger --lcm-url="$URL" -c LANDMARKS -f "$T/out.lcmlog" >/dev/null 2>&1 &
   logger=$!
-  "$BIN/ld-detector" --lcm-url "$URL" --backend "$BACKEND" 2> "$T/detector.err" &
+  "$BIN/ld-detector" --lcm-url "$URL" --backend "$BACKEND" --explain 0.5 2> "$T/detector.err" &
   det=$!
   sleep 1
   "$BIN/ld-publish-garbage" --lcm-url "$URL" --channel IMAGE
@@ -38,6 +38,10 @@ with=$(jq -c 'select(.landmarks | length > 0)' "$T/out.jsonl" | wc -l)
 echo "frames in: $FRAMES, LANDMARKS out: $n_out, with landmarks: $with"
 cat "$T/detector.err"
 diff "$T/in.keys" "$T/out.keys"                      # each frame once, same utime and seq
+# --explain 0.5: now and then a frame's explanation, and every frame still published
+[ "$(grep -c "^ld-detector: frame [0-9]* (utime [0-9]*): [0-9]* landmarks\?$" "$T/detector.err")" -ge 2 ]
+grep -q "^  regions: [0-9]* blue, [0-9]* red (min_area_px" "$T/detector.err"
+grep -q "^  FIP graph (d_min" "$T/detector.err"
 [ "$(jq -r .backend "$T/out.jsonl" | sort -u)" = "$BACKEND" ]
 [ "$(jq -r '.stage_ms | has("saturation")' "$T/out.jsonl" | sort -u)" = true ]
 if [ "$BACKEND" = gles ]; then

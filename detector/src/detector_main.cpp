@@ -50,6 +50,11 @@ int main(int argc, char** argv) {
   ld::DetectorOptions detector_options;
   detector_options.addTo(app);
   app.add_flag("-v,--verbose", verbose, "print a status line every 5 s");
+  double explain_s = 0;
+  app.add_option("--explain", explain_s,
+                 "every this many seconds, explain one frame on stderr as ld-detect --explain does (what each "
+                 "stage kept, why groups of squares were refused); 0: never")
+      ->check(ld::cli::NonNegative);
   LD_CLI_PARSE(app, argc, argv);
 
   ld::AdaptiveDetector detector;  // with --adaptive: frames are corrected before detection
@@ -76,6 +81,8 @@ int main(int argc, char** argv) {
   ld::landmark_list_t out;
   int64_t processed = 0, bad = 0, last_processed = 0;
   auto last_status = std::chrono::steady_clock::now();
+  auto next_explain = last_status;
+  ld::Explanation why_frame;
   while (!g_stop) {
     // waits, then drains the queue: only the newest message is processed
     if (!ld::pumpLcm(lcm, 200, g_stop, "ld-detector")) return 1;
@@ -87,7 +94,20 @@ int main(int argc, char** argv) {
         if (!ld::decodeMessage(latest.bytes_.data(), latest.bytes_.size(), image, &why))
           throw ld::ImageFormatError("message on " + in_channel + " is " + why);
         ld::imageToBgr(image, bgr);
-        const ld::Detection& det = detector.detect(bgr);
+        // Now and then, on --explain, the frame's explanation (it costs about
+        // a detection more, and is not counted in the published timings).
+        const bool explain = explain_s > 0 && std::chrono::steady_clock::now() >= next_explain;
+        const ld::Detection& det = explain ? detector.detect(bgr, why_frame) : detector.detect(bgr);
+        if (explain) {
+          next_explain = std::chrono::steady_clock::now() +
+                         std::chrono::microseconds(static_cast<int64_t>(explain_s * 1e6));
+          std::string text = ld::describe(why_frame, detector.detector().params());
+          for (size_t at = text.find('\n'); at != std::string::npos; at = text.find('\n', at + 1))
+            text.insert(at + 1, "  ");
+          std::fprintf(stderr, "ld-detector: frame %lld (utime %lld): %zu landmark%s\n  %s\n",  // (one block per frame)
+                       static_cast<long long>(ld::imageSeq(image).value_or(-1)), static_cast<long long>(image.utime),
+                       det.landmarks.size(), det.landmarks.size() == 1 ? "" : "s", text.c_str());
+        }
         ld::toListMessage(det, image.utime, ld::imageSeq(image).value_or(-1), bgr.cols, bgr.rows,
                           detector.detector().backend(), latest.skipped_, out);
         lcm.publish(out_channel, &out);
