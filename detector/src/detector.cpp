@@ -103,6 +103,60 @@ DetectorParams DetectorParams::paper() {
   return p;
 }
 
+namespace {
+
+// Every value in its range, else `Error(prefix + "<field> <why>")`.
+template <class Error>
+void checkValues(const DetectorParams& p, const std::string& prefix) {
+  auto bad = [&prefix](const char* field, const std::string& why) { throw Error(prefix + field + " " + why); };
+  if (p.front_end != "fast" && p.front_end != "paper")
+    bad("front_end", "must be \"fast\" or \"paper\", not \"" + p.front_end + "\"");
+  if (p.backend != "cpu" && p.backend != "gles" && p.backend != "auto")
+    bad("backend", "must be \"cpu\", \"gles\" or \"auto\", not \"" + p.backend + "\"");
+  if (p.blur_kernel != -1 && p.blur_kernel != 0 && (p.blur_kernel < 1 || p.blur_kernel % 2 == 0 || p.blur_kernel > 31))
+    bad("blur_kernel", "must be -1, 0 or an odd number from 1 to 31");
+  if (!(p.blur_sigma >= 0 && p.blur_sigma <= 20)) bad("blur_sigma", "must be in [0, 20]");
+  if (!(p.saturation_threshold > 0 && p.saturation_threshold < 1)) bad("saturation_threshold", "must be in (0, 1)");
+  if (!(p.saturation_threshold_blue > 0 && p.saturation_threshold_blue < 1))
+    bad("saturation_threshold_blue", "must be in (0, 1)");
+  if (p.value_min < 0 || p.value_min > 255) bad("value_min", "must be in [0, 255]");
+  if (!(p.canny_low >= 0)) bad("canny_low", "must be >= 0");
+  if (!(p.canny_high >= p.canny_low)) bad("canny_high", "must be >= canny_low");
+  if (p.min_area_px < 1) bad("min_area_px", "must be >= 1");
+  if (p.max_area_frac_1000 < 1 || p.max_area_frac_1000 > 1000) bad("max_area_frac_1000", "must be in [1, 1000]");
+  if (!(p.color_ratio_a > 0)) bad("color_ratio_a", "must be > 0");
+  if (!(p.color_ratio_b > 0)) bad("color_ratio_b", "must be > 0");
+  if (!(p.min_fill >= 0 && p.min_fill <= 1)) bad("min_fill", "must be in [0, 1]");
+  if (!(p.d_min > 0)) bad("d_min", "must be > 0");
+  if (!(p.d_max > p.d_min)) bad("d_max", "must be > d_min");
+  if (!(p.w_min > 0 && p.w_min <= 1)) bad("w_min", "must be in (0, 1]");
+  if (!(p.w_max >= 1)) bad("w_max", "must be >= 1");
+  if (!(p.h_min > 0 && p.h_min <= 1)) bad("h_min", "must be in (0, 1]");
+  if (!(p.h_max >= 1)) bad("h_max", "must be >= 1");
+  if (!(p.ap_max_offset > 0)) bad("ap_max_offset", "must be > 0");
+  if (!(p.ap_size_min > 0 && p.ap_size_min <= 1)) bad("ap_size_min", "must be in (0, 1]");
+  if (!(p.ap_size_max >= 1)) bad("ap_size_max", "must be >= 1");
+  if (!(p.shape_tolerance > 0 && p.shape_tolerance <= 1)) bad("shape_tolerance", "must be in (0, 1]");
+  if (!(p.max_anisotropy >= 1)) bad("max_anisotropy", "must be >= 1");
+  if (!(p.square_scale_min > 0 && p.square_scale_min <= 1)) bad("square_scale_min", "must be in (0, 1]");
+  if (!(p.square_scale_max >= 1)) bad("square_scale_max", "must be >= 1");
+  if (!(p.sheet_max_saturation > 0 && p.sheet_max_saturation <= 1)) bad("sheet_max_saturation", "must be in (0, 1]");
+  if (!(p.sheet_min_value >= 0 && p.sheet_min_value <= 2)) bad("sheet_min_value", "must be in [0, 2]");
+  if (!(p.cover_min >= 0 && p.cover_min < 1)) bad("cover_min", "must be in [0, 1)");
+  if (!(p.cover_max > p.cover_min && p.cover_max <= 1)) bad("cover_max", "must be in (cover_min, 1]");
+  if (!(p.sheet_uniformity >= 0 && p.sheet_uniformity <= 1)) bad("sheet_uniformity", "must be in [0, 1]");
+  if (!(p.qr_max_brightness > 0 && p.qr_max_brightness <= 2)) bad("qr_max_brightness", "must be in (0, 2]");
+  if (p.qr_dark_samples < 1 || p.qr_dark_samples > 26) bad("qr_dark_samples", "must be in [1, 26]");
+  if (!(p.qr_dark_sample > 0 && p.qr_dark_sample <= 1)) bad("qr_dark_sample", "must be in (0, 1]");
+  if (p.second_looks < 0 || p.second_looks > 64) bad("second_looks", "must be in [0, 64]");
+  if (!(p.second_look_raise > 0 && p.second_look_raise < 1)) bad("second_look_raise", "must be in (0, 1)");
+  if (p.max_candidates < 3 || p.max_candidates > 4096) bad("max_candidates", "must be in [3, 4096]");
+  if (p.max_cycles < 1) bad("max_cycles", "must be >= 1");
+  if (p.centre_iterations < 0 || p.centre_iterations > 10) bad("centre_iterations", "must be in [0, 10]");
+}
+
+}  // namespace
+
 DetectorParams DetectorParams::load(const std::string& path) {
   const cv::FileStorage fs = openConfigFile(path, "detector params");
   const cv::FileNode root = fs.root();
@@ -118,14 +172,7 @@ DetectorParams DetectorParams::load(const std::string& path) {
     });
     if (!known) badFile(path, "unknown key '" + key + "'");
   }
-  try {
-    p.validate();
-  } catch (const std::invalid_argument& e) {  // named with the file
-    std::string why = e.what();
-    const std::string prefix = "detector params: ";
-    if (why.compare(0, prefix.size(), prefix) == 0) why.erase(0, prefix.size());
-    badFile(path, why);
-  }
+  checkValues<std::runtime_error>(p, "detector params " + path + ": ");  // named with the file
   return p;
 }
 
@@ -144,55 +191,7 @@ void DetectorParams::save(const std::string& path) const {
   });
 }
 
-void DetectorParams::validate() const {
-  auto bad = [](const char* field, const std::string& why) {
-    throw std::invalid_argument(std::string("detector params: ") + field + " " + why);
-  };
-  if (front_end != "fast" && front_end != "paper")
-    bad("front_end", "must be \"fast\" or \"paper\", not \"" + front_end + "\"");
-  if (backend != "cpu" && backend != "gles" && backend != "auto")
-    bad("backend", "must be \"cpu\", \"gles\" or \"auto\", not \"" + backend + "\"");
-  if (blur_kernel != -1 && blur_kernel != 0 && (blur_kernel < 1 || blur_kernel % 2 == 0 || blur_kernel > 31))
-    bad("blur_kernel", "must be -1, 0 or an odd number from 1 to 31");
-  if (!(blur_sigma >= 0 && blur_sigma <= 20)) bad("blur_sigma", "must be in [0, 20]");
-  if (!(saturation_threshold > 0 && saturation_threshold < 1)) bad("saturation_threshold", "must be in (0, 1)");
-  if (!(saturation_threshold_blue > 0 && saturation_threshold_blue < 1))
-    bad("saturation_threshold_blue", "must be in (0, 1)");
-  if (value_min < 0 || value_min > 255) bad("value_min", "must be in [0, 255]");
-  if (!(canny_low >= 0)) bad("canny_low", "must be >= 0");
-  if (!(canny_high >= canny_low)) bad("canny_high", "must be >= canny_low");
-  if (min_area_px < 1) bad("min_area_px", "must be >= 1");
-  if (max_area_frac_1000 < 1 || max_area_frac_1000 > 1000) bad("max_area_frac_1000", "must be in [1, 1000]");
-  if (!(color_ratio_a > 0)) bad("color_ratio_a", "must be > 0");
-  if (!(color_ratio_b > 0)) bad("color_ratio_b", "must be > 0");
-  if (!(min_fill >= 0 && min_fill <= 1)) bad("min_fill", "must be in [0, 1]");
-  if (!(d_min > 0)) bad("d_min", "must be > 0");
-  if (!(d_max > d_min)) bad("d_max", "must be > d_min");
-  if (!(w_min > 0 && w_min <= 1)) bad("w_min", "must be in (0, 1]");
-  if (!(w_max >= 1)) bad("w_max", "must be >= 1");
-  if (!(h_min > 0 && h_min <= 1)) bad("h_min", "must be in (0, 1]");
-  if (!(h_max >= 1)) bad("h_max", "must be >= 1");
-  if (!(ap_max_offset > 0)) bad("ap_max_offset", "must be > 0");
-  if (!(ap_size_min > 0 && ap_size_min <= 1)) bad("ap_size_min", "must be in (0, 1]");
-  if (!(ap_size_max >= 1)) bad("ap_size_max", "must be >= 1");
-  if (!(shape_tolerance > 0 && shape_tolerance <= 1)) bad("shape_tolerance", "must be in (0, 1]");
-  if (!(max_anisotropy >= 1)) bad("max_anisotropy", "must be >= 1");
-  if (!(square_scale_min > 0 && square_scale_min <= 1)) bad("square_scale_min", "must be in (0, 1]");
-  if (!(square_scale_max >= 1)) bad("square_scale_max", "must be >= 1");
-  if (!(sheet_max_saturation > 0 && sheet_max_saturation <= 1)) bad("sheet_max_saturation", "must be in (0, 1]");
-  if (!(sheet_min_value >= 0 && sheet_min_value <= 2)) bad("sheet_min_value", "must be in [0, 2]");
-  if (!(cover_min >= 0 && cover_min < 1)) bad("cover_min", "must be in [0, 1)");
-  if (!(cover_max > cover_min && cover_max <= 1)) bad("cover_max", "must be in (cover_min, 1]");
-  if (!(sheet_uniformity >= 0 && sheet_uniformity <= 1)) bad("sheet_uniformity", "must be in [0, 1]");
-  if (!(qr_max_brightness > 0 && qr_max_brightness <= 2)) bad("qr_max_brightness", "must be in (0, 2]");
-  if (qr_dark_samples < 1 || qr_dark_samples > 26) bad("qr_dark_samples", "must be in [1, 26]");
-  if (!(qr_dark_sample > 0 && qr_dark_sample <= 1)) bad("qr_dark_sample", "must be in (0, 1]");
-  if (second_looks < 0 || second_looks > 64) bad("second_looks", "must be in [0, 64]");
-  if (!(second_look_raise > 0 && second_look_raise < 1)) bad("second_look_raise", "must be in (0, 1)");
-  if (max_candidates < 3 || max_candidates > 4096) bad("max_candidates", "must be in [3, 4096]");
-  if (max_cycles < 1) bad("max_cycles", "must be >= 1");
-  if (centre_iterations < 0 || centre_iterations > 10) bad("centre_iterations", "must be in [0, 10]");
-}
+void DetectorParams::validate() const { checkValues<std::invalid_argument>(*this, "detector params: "); }
 
 // ====================================================================== results
 

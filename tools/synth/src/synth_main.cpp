@@ -51,16 +51,9 @@ struct Range {
 
 Range parseRange(const std::string& name, const std::string& text) {
   const auto num = [&](const std::string& s) {
-    size_t used = 0;
-    double v = 0;
-    try {
-      v = std::stod(s, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used != s.size() || s.empty() || !std::isfinite(v))
-      throw UsageError("--" + name + ": '" + text + "' is not a number or a range a:b");
-    return v;
+    const std::optional<double> v = ld::cli::parseNumber(s);
+    if (!v) throw UsageError("--" + name + ": '" + text + "' is not a number or a range a:b");
+    return *v;
   };
   const size_t colon = text.find(':');
   Range r;

@@ -10,6 +10,7 @@
 
 #include <cmath>
 #include <iostream>
+#include <optional>
 #include <sstream>
 #include <string>
 
@@ -45,20 +46,27 @@ inline int parse(CLI::App& app, int argc, char** argv) {
   }
 }
 
+/// `text` as a finite number, all of it ("2", "0.5", "1e3"), or nothing.
+inline std::optional<double> parseNumber(const std::string& text) {
+  size_t used = 0;
+  double v = 0;
+  try {
+    v = std::stod(text, &used);
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+  if (used != text.size() || !std::isfinite(v)) return std::nullopt;
+  return v;
+}
+
 namespace detail {
 template <class Ok>
 CLI::Validator numberCheck(const std::string& name, Ok ok, const std::string& rule) {
   return CLI::Validator(
       [ok, rule](std::string& text) {
-        double v = 0;
-        size_t used = 0;
-        try {
-          v = std::stod(text, &used);
-        } catch (const std::exception&) {
-          used = 0;
-        }
-        if (used != text.size() || text.empty() || !std::isfinite(v)) return "'" + text + "' is not a number";
-        return ok(v) ? std::string() : rule + ", not " + text;
+        const std::optional<double> v = parseNumber(text);
+        if (!v) return "'" + text + "' is not a number";
+        return ok(*v) ? std::string() : rule + ", not " + text;
       },
       name, name);
 }
