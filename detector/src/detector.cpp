@@ -251,7 +251,7 @@ int checkIndex(const std::string& check) {
 
 }  // namespace
 
-std::string describe(const Explanation& e, const DetectorParams& p) {
+std::string describe(const Explanation& e, const DetectorParams& p, const std::string& indent) {
   auto num = [](double v) { return cv::format("%g", v); };
   auto pt = [](const cv::Point2f& q) { return cv::format("(%.1f, %.1f)", q.x, q.y); };
   std::string s = cv::format("regions: %d blue, %d red (min_area_px %d, max_area_frac_1000 %d)", e.blue_regions,
@@ -285,6 +285,9 @@ std::string describe(const Explanation& e, const DetectorParams& p) {
     const bool first = &r == &e.refused.front() || (&r)[-1].check != r.check;  // each check's hint once
     if (first && i < kNumChecks && *kChecks[i].hint) s += std::string(" (") + kChecks[i].hint + ")";
   }
+  if (indent.empty()) return s;
+  s.insert(0, indent);
+  for (size_t at = s.find('\n'); at != std::string::npos; at = s.find('\n', at + 1)) s.insert(at + 1, indent);
   return s;
 }
 

@@ -101,12 +101,10 @@ int main(int argc, char** argv) {
         if (explain) {
           next_explain = std::chrono::steady_clock::now() +
                          std::chrono::microseconds(static_cast<int64_t>(explain_s * 1e6));
-          std::string text = ld::describe(why_frame, detector.detector().params());
-          for (size_t at = text.find('\n'); at != std::string::npos; at = text.find('\n', at + 1))
-            text.insert(at + 1, "  ");
-          std::fprintf(stderr, "ld-detector: frame %lld (utime %lld): %zu landmark%s\n  %s\n",  // (one block per frame)
+          std::fprintf(stderr, "ld-detector: frame %lld (utime %lld): %zu landmark%s\n%s\n",  // (one block per frame)
                        static_cast<long long>(ld::imageSeq(image).value_or(-1)), static_cast<long long>(image.utime),
-                       det.landmarks.size(), det.landmarks.size() == 1 ? "" : "s", text.c_str());
+                       det.landmarks.size(), det.landmarks.size() == 1 ? "" : "s",
+                       ld::describe(why_frame, detector.detector().params(), "  ").c_str());
         }
         ld::toListMessage(det, image.utime, ld::imageSeq(image).value_or(-1), bgr.cols, bgr.rows,
                           detector.detector().backend(), latest.skipped_, out);

@@ -15,6 +15,7 @@
 #include "ld/adaptive.hpp"
 #include "ld/detector.hpp"
 #include "ld/detector_options.hpp"
+#include "ld/file_checks.hpp"
 #include "ld/landmark_json.hpp"
 #include "ld/qr_reader.hpp"
 
@@ -74,11 +75,10 @@ int main(int argc, char** argv) {
     std::cerr << "ld-detect: " << e.what() << "\n";
     return 2;
   }
-  if (!draw_dir.empty()) {
-    std::error_code ec;
-    fs::create_directories(draw_dir, ec);
-    if (!fs::is_directory(draw_dir)) {
-      std::cerr << "ld-detect: --draw: cannot create folder " << draw_dir << (ec ? ": " + ec.message() : "") << "\n";
+  if (!draw_dir.empty()) {  // created when missing, and written in (an overlay's name tried), as ld-view's --out
+    const std::string problem = ld::prepareOutputFile((fs::path(draw_dir) / "overlay.png").string());
+    if (!problem.empty()) {
+      std::cerr << "ld-detect: --draw: " << problem << "\n";
       return 2;
     }
   }
@@ -141,10 +141,7 @@ int main(int argc, char** argv) {
         text += cv::format("; adaptive gains B %.2f G %.2f R %.2f%s", a.gains()[0], a.gains()[1], a.gains()[2],
                            a.glareCorrected() ? ", glare veil subtracted" : "");
       }
-      text += "\n" + ld::describe(why, detector.detector().params());
-      // every line after the first indented under its image
-      for (size_t at = text.find('\n'); at != std::string::npos; at = text.find('\n', at + 1)) text.insert(at + 1, "  ");
-      std::cerr << text << "\n";
+      std::cerr << text << "\n" << ld::describe(why, detector.detector().params(), "  ") << "\n";
     }
     times.push_back(ms);
     with_landmarks += !found.empty();

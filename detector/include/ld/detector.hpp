@@ -298,8 +298,8 @@ struct Explanation {
 };
 
 /// An explanation as lines for people (no trailing newline), each count and
-/// check with the parameters that decide it.
-std::string describe(const Explanation& explanation, const DetectorParams& params);
+/// check with the parameters that decide it, each line after `indent`.
+std::string describe(const Explanation& explanation, const DetectorParams& params, const std::string& indent = "");
 
 class Detector {
  public:
