@@ -194,10 +194,10 @@ TEST(AdaptiveDetection, BothDetectorsOnOneRenderingCountAsApart) {
   loose.params.qr_max_brightness = 2;
   loose.params.cover_min = 0;
   loose.params.cover_max = 1;
-  const auto fp = ld::eval::falsePositivesFixedAndAdaptive(loose, 10);
-  const double adaptive_fp = ld::eval::falsePositivesPerFrame(loose, 10);
+  const auto fp = ld::eval::falsePositivesFixedAndAdaptive(loose, 20);
+  const double adaptive_fp = ld::eval::falsePositivesPerFrame(loose, 20);
   loose.adaptive = false;
-  EXPECT_DOUBLE_EQ(fp[0], ld::eval::falsePositivesPerFrame(loose, 10));
+  EXPECT_DOUBLE_EQ(fp[0], ld::eval::falsePositivesPerFrame(loose, 20));
   EXPECT_DOUBLE_EQ(fp[1], adaptive_fp);
   EXPECT_NE(fp[0], fp[1]);
 }

@@ -1116,6 +1116,21 @@ TEST(Explain, NamesTheCheckThatRefusedTheLandmark) {
     EXPECT_TRUE(counted);
     EXPECT_NE(ld::describe(why, q).find("cover (cover_min, cover_max)"), std::string::npos) << ld::describe(why, q);
   }
+  {  // a fifth blue square on the sheet, between TL and TR (off the line
+     // between their centres that the cover check follows): a pattern, not
+     // a landmark
+    cv::Mat art = artworkImage().clone();
+    const int u = art.cols / 9;
+    const cv::Vec3b blue = art.at<cv::Vec3b>(3 * u / 2, 3 * u / 2);
+    art(cv::Rect(cvRound(3.95 * u), cvRound(0.3 * u), cvRound(1.1 * u), cvRound(1.1 * u)))
+        .setTo(cv::Scalar(blue[0], blue[1], blue[2]));
+    const auto why = explain(art, {});
+    const auto* r = refusedAt(why, t);
+    ASSERT_NE(r, nullptr) << ld::describe(why, {});
+    EXPECT_EQ(r->check, "other squares");
+    EXPECT_NE(ld::describe(why, {}).find("other squares (a coloured square on the sheet"), std::string::npos)
+        << ld::describe(why, {});
+  }
   {  // hollow squares (rings): labelled, then too sparse for min_fill
     cv::Mat art = artworkImage().clone();
     const int u = art.cols / 9;

@@ -239,6 +239,7 @@ constexpr Check kChecks[] = {
     {"centre coloured", "colour at the centre: a look-alike card"},
     {"cover", "cover_min, cover_max"},
     {"square at the centre", "a coloured square at the centre: a look-alike card"},
+    {"other squares", "a coloured square on the sheet besides the four: a pattern, not a landmark"},
 };
 constexpr int kNumChecks = static_cast<int>(sizeof kChecks / sizeof kChecks[0]);
 

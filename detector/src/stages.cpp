@@ -647,6 +647,31 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
     if (inCentre(r)) return fail("square at the centre");
   for (const Region& r : aps)
     if (inCentre(r)) return fail("square at the centre");
+  // No other coloured squares of the squares' size on the sheet: a landmark
+  // has four, a patterned surface (stripes that noise and JPEG blocks cut
+  // into pieces, a grid of dots) has more between them. Placed by the
+  // homography of the four centres (at 0 and 3 in units of a square's side,
+  // the pattern square reaching half a side beyond them, the QR square from
+  // 0.5 to 2.5); a piece within 0.8 sides of one of the four centres is that
+  // square's own fragment. Around the QR none may be; in the QR one is
+  // tolerated (warm light and JPEG colour a module's edges: 2000 K does).
+  {
+    static const std::array<cv::Point2d, 4> kCentres = {cv::Point2d(0, 0), {3, 0}, {3, 3}, {0, 3}};
+    cv::Matx33d to_sheet;
+    if (!homography4({P[0], P[1], P[2], P[3]}, kCentres, to_sheet)) return fail("degenerate square");
+    int around_qr = 0, in_qr = 0;
+    for (const auto* list : {&fips, &aps})
+      for (const Region& r : *list) {
+        if (r.side() <= 0.5 * side) continue;
+        const cv::Point2d q = applyH(to_sheet, {r.cx, r.cy});
+        if (!(q.x > -0.5 && q.x < 3.5 && q.y > -0.5 && q.y < 3.5)) continue;
+        bool fragment = false;
+        for (const cv::Point2d& k : kCentres) fragment |= cv::norm(q - k) < 0.8;
+        if (fragment) continue;
+        ++(q.x > 0.35 && q.x < 2.65 && q.y > 0.35 && q.y < 2.65 ? in_qr : around_qr);
+      }
+    if (around_qr > 0 || in_qr > 1) return fail("other squares");
+  }
 
   const double shape_err = (lmax / lmin - 1) + std::abs(cosang);
   c.error += shape_err / tol + cover_err / 0.15;
