@@ -24,6 +24,8 @@
 #include "ld/landmark_layout.hpp"
 #include "ld/synth.hpp"
 
+#include "../tools/synth/src/synth_detail.hpp"
+
 namespace fs = std::filesystem;
 using namespace ld::synth;
 namespace layout = ld::layout;
@@ -434,6 +436,35 @@ TEST(SynthRender, CardsAndDistractorsBringBlueAndRed) {
     cv::Canny(gray, edges, 40, 100);
     EXPECT_GT(cv::countNonZero(edges), 2000);
   }
+}
+
+// The light of a colour temperature is a black body's: undo the camera's
+// partial white balance (70 % of the cast kept, relative to 6500 K) and the
+// illuminant's chromaticity must be the CIE 1931 Planckian locus' (reference
+// values from CIE tables, not from the fit the renderer uses). The old fit of
+// display colours had 2.8 times too little blue at 2000 K.
+TEST(SynthLighting, IlluminantIsOnThePlanckianLocus) {
+  const auto rgbOf = [](double x, double y) {  // linear sRGB of chromaticity (x, y), Y = 1
+    const double X = x / y, Z = (1 - x - y) / y;
+    return cv::Vec3d(3.2406 * X - 1.5372 - 0.4986 * Z, -0.9689 * X + 1.8758 + 0.0415 * Z,
+                     0.0557 * X - 0.2040 + 1.0570 * Z);
+  };
+  const cv::Vec3d d65 = rgbOf(0.3135, 0.3237);  // the 6500 K black body
+  const struct { double k, x, y; } locus[] = {
+      {2000, 0.5267, 0.4133}, {2700, 0.4599, 0.4106}, {4000, 0.3805, 0.3768}, {10000, 0.2807, 0.2884}};
+  for (const auto& p : locus) {
+    const cv::Vec3d wb = ld::synth::detail::whiteBalance(p.k);  // BGR
+    EXPECT_NEAR(0.2126 * wb[2] + 0.7152 * wb[1] + 0.0722 * wb[0], 1.0, 1e-9) << p.k;
+    cv::Vec3d rgb;
+    for (int c = 0; c < 3; ++c) rgb[c] = d65[c] * std::pow(wb[2 - c], 1 / 0.7);
+    const double X = 0.4124 * rgb[0] + 0.3576 * rgb[1] + 0.1805 * rgb[2];
+    const double Y = 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+    const double Z = 0.0193 * rgb[0] + 0.1192 * rgb[1] + 0.9505 * rgb[2];
+    EXPECT_NEAR(X / (X + Y + Z), p.x, 0.002) << p.k;
+    EXPECT_NEAR(Y / (X + Y + Z), p.y, 0.002) << p.k;
+  }
+  const cv::Vec3d d = ld::synth::detail::whiteBalance(6500);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(d[c], 1.0, 1e-9);
 }
 
 TEST(SynthRender, LightingAndDegradation) {

@@ -958,21 +958,24 @@ const std::array<uint8_t, kLinLevels + 1>& linearToSrgb() {
   return lut;
 }
 
-// Black-body colour (sRGB 0..255) at temperature K (Tanner Helland's fit).
+// Linear-light sRGB colour (R, G, B) of a black body at temperature K: its
+// chromaticity on the Planckian locus (Kim et al.'s cubic fit of the CIE 1931
+// locus, 1667-25000 K), as XYZ with Y = 1, through the sRGB (D65) matrix.
+// Below ~1900 K the locus leaves the sRGB gamut (blue < 0): clamped.
 cv::Vec3d blackBody(double kelvin) {
-  const double t = std::max(1000.0, std::min(40000.0, kelvin)) / 100.0;
-  double r, g, b;
-  if (t <= 66) {
-    r = 255;
-    g = 99.4708025861 * std::log(t) - 161.1195681661;
-    b = t <= 19 ? 0 : 138.5177312231 * std::log(t - 10) - 305.0447927307;
-  } else {
-    r = 329.698727446 * std::pow(t - 60, -0.1332047592);
-    g = 288.1221695283 * std::pow(t - 60, -0.0755148492);
-    b = 255;
-  }
-  const auto c = [](double v) { return std::max(1.0, std::min(255.0, v)) / 255.0; };
-  return {c(r), c(g), c(b)};
+  const double T = std::max(1667.0, std::min(25000.0, kelvin));
+  const double t1 = 1e3 / T, t2 = t1 * t1, t3 = t2 * t1;
+  const double x = T < 4000 ? -0.2661239 * t3 - 0.2343589 * t2 + 0.8776956 * t1 + 0.179910
+                            : -3.0258469 * t3 + 2.1070379 * t2 + 0.2226347 * t1 + 0.240390;
+  const double x2 = x * x, x3 = x2 * x;
+  const double y = T < 2222   ? -1.1063814 * x3 - 1.34811020 * x2 + 2.18555832 * x - 0.20219683
+                   : T < 4000 ? -0.9549476 * x3 - 1.37418593 * x2 + 2.09137015 * x - 0.16748867
+                              : 3.0817580 * x3 - 5.87338670 * x2 + 3.75112997 * x - 0.37001483;
+  const double X = x / y, Z = (1 - x - y) / y;
+  const double r = 3.2406 * X - 1.5372 - 0.4986 * Z;
+  const double g = -0.9689 * X + 1.8758 + 0.0415 * Z;
+  const double b = 0.0557 * X - 0.2040 + 1.0570 * Z;
+  return {std::max(r, 1e-4), std::max(g, 1e-4), std::max(b, 1e-4)};
 }
 
 }  // namespace
@@ -986,7 +989,7 @@ cv::Vec3d whiteBalance(double kelvin) {
   // gain stays the brightness control. Returned in BGR order.
   const cv::Vec3d a = blackBody(kelvin), d = blackBody(6500);
   cv::Vec3d f;
-  for (int i = 0; i < 3; ++i) f[i] = std::pow(std::pow(a[i], 2.2) / std::pow(d[i], 2.2), 0.7);
+  for (int i = 0; i < 3; ++i) f[i] = std::pow(a[i] / d[i], 0.7);
   const double y = 0.2126 * f[0] + 0.7152 * f[1] + 0.0722 * f[2];
   return {f[2] / y, f[1] / y, f[0] / y};
 }

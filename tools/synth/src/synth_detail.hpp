@@ -49,8 +49,9 @@ cv::Matx33d rotZ(double deg);
 cv::Matx33d fromRvec(const cv::Vec3d& r);
 cv::Vec3d toRvec(const cv::Matx33d& R);
 
-/// Linear-light multipliers (BGR) for an illuminant of `kelvin` on a camera
-/// balanced for 6500 K, luminance kept.
+/// Linear-light multipliers (BGR) for a black body of `kelvin` (its CIE 1931
+/// Planckian-locus colour) on a camera balanced for 6500 K whose auto white
+/// balance leaves 70 % of the cast (in log terms), luminance kept.
 cv::Vec3d whiteBalance(double kelvin);
 
 /// A wall: paint colour, slow unevenness, fine grain. `ppm`: pixels per metre.
