@@ -639,21 +639,14 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
     if (f < p.cover_min || f > p.cover_max) return fail("cover");
     cover_err += std::abs(f - 1.0 / 3) / 4;
   }
-  // No coloured square inside the QR square (within one FIP side of the centre).
-  auto inCentre = [&](const Region& r) {
-    return std::sqrt(quad(m, r.cx - ctr.x, r.cy - ctr.y)) < 1.0 && r.side() > 0.5 * side;
-  };
-  for (const Region& r : fips)
-    if (inCentre(r)) return fail("square at the centre");
-  for (const Region& r : aps)
-    if (inCentre(r)) return fail("square at the centre");
-  // No other coloured squares of the squares' size on the sheet: a landmark
-  // has four, a patterned surface (stripes that noise and JPEG blocks cut
-  // into pieces, a grid of dots) has more between them. Placed by the
-  // homography of the four centres (at 0 and 3 in units of a square's side,
-  // the pattern square reaching half a side beyond them, the QR square from
-  // 0.5 to 2.5); a piece within 0.8 sides of one of the four centres is that
-  // square's own fragment. Around the QR none may be; in the QR one is
+  // Coloured squares of the squares' size besides the four: none at the
+  // centre (within one side of it: a look-alike card's square), and none
+  // elsewhere on the sheet either, where a patterned surface (stripes that
+  // noise and JPEG blocks cut into pieces, a grid of dots) has them between
+  // its "squares". Placed by the homography of the four centres (at 0 and 3
+  // in units of a square's side, the pattern square reaching half a side
+  // beyond them, the QR square from 0.5 to 2.5); a piece within 0.8 sides of
+  // one of the four centres is that square's own fragment. In the QR one is
   // tolerated (warm light and JPEG colour a module's edges: 2000 K does).
   {
     static const std::array<cv::Point2d, 4> kCentres = {cv::Point2d(0, 0), {3, 0}, {3, 3}, {0, 3}};
@@ -663,6 +656,7 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
     for (const auto* list : {&fips, &aps})
       for (const Region& r : *list) {
         if (r.side() <= 0.5 * side) continue;
+        if (std::sqrt(quad(m, r.cx - ctr.x, r.cy - ctr.y)) < 1.0) return fail("square at the centre");
         const cv::Point2d q = applyH(to_sheet, {r.cx, r.cy});
         if (!(q.x > -0.5 && q.x < 3.5 && q.y > -0.5 && q.y < 3.5)) continue;
         bool fragment = false;
