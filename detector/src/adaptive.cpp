@@ -59,7 +59,6 @@ void LightingAdapter::update(const cv::Vec3d& white) {
 }
 
 const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
-  glare_corrected_ = false;
   if (!(params_.glare_min_lift > 0)) return bgr;
   // Per 8x8 block: each channel's darkest value, and the whitest pixel (by
   // its weakest channel).

@@ -75,8 +75,8 @@ int main(int argc, char** argv) {
     std::cerr << "ld-detect: " << e.what() << "\n";
     return 2;
   }
-  if (!draw_dir.empty()) {  // created when missing, and written in (an overlay's name tried), as ld-view's --out
-    const std::string problem = ld::prepareOutputFile((fs::path(draw_dir) / "overlay.png").string());
+  if (!draw_dir.empty()) {  // created when missing, and written in, as ld-view's --out
+    const std::string problem = ld::prepareOutputFolder(draw_dir);
     if (!problem.empty()) {
       std::cerr << "ld-detect: --draw: " << problem << "\n";
       return 2;

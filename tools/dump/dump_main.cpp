@@ -3,9 +3,7 @@
 #include <atomic>
 #include <csignal>
 #include <cerrno>
-#include <cstdio>
 #include <cstring>
-#include <fstream>
 #include <iostream>
 #include <regex>
 

@@ -363,8 +363,8 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  if (!o.out_dir.empty()) {  // created when missing, and written in (a frame's name tried)
-    const std::string problem = ld::prepareOutputFile((std::filesystem::path(o.out_dir) / "000000.png").string());
+  if (!o.out_dir.empty()) {  // created when missing, and written in
+    const std::string problem = ld::prepareOutputFolder(o.out_dir);
     if (!problem.empty()) {
       std::cerr << "ld-view: --out " << o.out_dir << ": " << problem << "\n";
       return 2;

@@ -44,23 +44,30 @@ LcmLogCheck checkLcmLogStart(const std::string& path) {
   return {LcmLogStart::Events, "", ""};
 }
 
+std::string prepareOutputFolder(const std::string& folder) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::is_directory(folder, ec)) {
+    fs::create_directories(folder, ec);
+    if (ec) return "cannot create folder " + folder + ": " + ec.message();
+  }
+  // access() says yes to root on any folder; creating a file is the test.
+  std::string probe = (fs::path(folder) / ".ld-write-test-XXXXXX").string();
+  const int fd = ::mkstemp(probe.data());
+  if (fd < 0) return "cannot write in folder " + folder + ": " + std::strerror(errno);
+  ::close(fd);
+  ::unlink(probe.c_str());
+  return "";
+}
+
 std::string prepareOutputFile(const std::string& path) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (path.empty()) return "is an empty path";
   if (fs::is_directory(path, ec)) return "is a folder";
-  fs::path folder = fs::path(path).parent_path();
-  if (folder.empty()) folder = ".";
-  if (!fs::is_directory(folder, ec)) {
-    fs::create_directories(folder, ec);
-    if (ec) return "cannot create folder " + folder.string() + ": " + ec.message();
-  }
-  // access() says yes to root on any folder; creating a file is the test.
-  std::string probe = (folder / ".ld-write-test-XXXXXX").string();
-  const int fd = ::mkstemp(probe.data());
-  if (fd < 0) return "cannot write in folder " + folder.string() + ": " + std::strerror(errno);
-  ::close(fd);
-  ::unlink(probe.c_str());
+  const fs::path folder = fs::path(path).parent_path();
+  if (std::string problem = prepareOutputFolder(folder.empty() ? "." : folder.string()); !problem.empty())
+    return problem;
   if (fs::exists(path, ec) && ::access(path.c_str(), W_OK) != 0)
     return std::string("cannot be written: ") + std::strerror(errno);
   return "";

@@ -192,7 +192,8 @@ int main(int argc, char** argv) {
   app.add_option("--fps", play_fps, "--play: frames per second")->check(ld::cli::Positive);
   app.add_option("--duration", play_duration, "--play: seconds to publish (default: the log once)")
       ->check(ld::cli::NonNegative);
-  app.add_option("--play-format", play_format, "--play: keep, bgr, rgb, gray, yuyv, uyvy or mjpeg");
+  app.add_option("--play-format", play_format, "--play: keep, bgr, rgb, gray, yuyv, uyvy or mjpeg")
+      ->check(ld::cli::Parses("FORMAT", ld::checkPlayFormat));
   app.add_option("--camera-arg", camera_args, "an argument for ld-camera (repeatable)")
       ->allow_extra_args(false);
   app.add_option("--processes", processes,
@@ -230,15 +231,6 @@ int main(int argc, char** argv) {
               << " name two sources; give one\n";
     return 2;
   }
-  if (!play_format.empty()) {
-    try {
-      ld::checkPlayFormat(play_format);
-    } catch (const std::exception& e) {
-      std::cerr << "ld-run: --play-format: " << e.what() << "\n";
-      return 2;
-    }
-  }
-
   ld::RunConfig cfg;
   try {
     if (!config_file.empty()) cfg = ld::RunConfig::load(config_file);
@@ -322,7 +314,7 @@ int main(int argc, char** argv) {
   }
 
   if (!log_dir.empty()) {  // the processes' NAME.log files go there
-    const std::string problem = ld::prepareOutputFile(log_dir + "/ld-run.log");
+    const std::string problem = ld::prepareOutputFolder(log_dir);
     if (!problem.empty()) {
       std::cerr << "ld-run: --log-dir " << log_dir << ": " << problem << "\n";
       return 2;

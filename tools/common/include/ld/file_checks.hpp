@@ -37,9 +37,14 @@ struct LcmLogCheck {
 /// Reads the first event header of `path` (nothing more).
 LcmLogCheck checkLcmLogStart(const std::string& path);
 
-/// Makes sure a file can be created at `path`: creates its missing parent
-/// folders, then creates and removes a temporary file in its folder (and
-/// checks an existing file is writable). Empty when it can; otherwise why,
+/// Makes sure files can be created in `folder`: creates it (and its parents)
+/// when missing, then creates and removes a temporary file in it. Empty when
+/// they can; otherwise why, as prepareOutputFile says it.
+std::string prepareOutputFolder(const std::string& folder);
+
+/// Makes sure a file can be created at `path`: prepareOutputFolder on its
+/// folder (the working folder for a bare name), and an existing file must
+/// be writable. Empty when it can; otherwise why,
 /// to follow the path in a message: "is a folder", "cannot create folder
 /// /proc/x: No such file or directory", "cannot write in folder /x:
 /// Read-only file system".
