@@ -403,7 +403,11 @@ struct Detector::Impl {
   }
 
   void run(const cv::Mat& input);
-  void explain(const cv::Mat& input, Explanation& e);
+  void explain(Explanation& e);
+  // The last run()'s colour image and filtered image (nullptr when it had
+  // no colour image), for explain() to count the same frame's regions on.
+  const cv::Mat* last_img = nullptr;
+  const cv::Mat* last_src = nullptr;
   // The input as 8-bit BGR (`converted` when it had alpha); null when it is
   // not an image with colour.
   const cv::Mat* colourImage(const cv::Mat& input);
@@ -759,15 +763,12 @@ const cv::Mat* Detector::Impl::colourImage(const cv::Mat& input) {
 // The first pass again after run(), each stage counted, and the check that
 // refused each right-isosceles triangle of FIPs that is not part of a found
 // landmark (with the AP it was tried with: the nearest of its choices).
-void Detector::Impl::explain(const cv::Mat& input, Explanation& e) {
+void Detector::Impl::explain(Explanation& e) {
   const auto t0 = std::chrono::steady_clock::now();
   e = Explanation();
-  const cv::Mat* img = colourImage(input);
-  if (img) {
+  if (const cv::Mat* img = last_img) {
     const DetectorParams& p = params;
-    std::vector<StageTime> stages;
-    StageTimer timer(stages);
-    const cv::Mat* src = runFilters(*img, timer);
+    const cv::Mat* src = last_src;
     // (every region, sparse ones included, to count them: classify() drops them as detection does)
     if (!paper) detail::extractRegions(labels, *src, filter_settings.mask, p.min_area_px, maxArea(*img), 0.0, runs, regions);
     else detail::contourRegions(edges, *img, p.min_area_px, maxArea(*img), contours, regions);
@@ -853,6 +854,7 @@ void Detector::Impl::run(const cv::Mat& input) {
   det.stages.clear();
   det.total_ms = 0;
   StageTimer timer(det.stages);
+  last_img = last_src = nullptr;
   const cv::Mat* img = colourImage(input);
   if (!img) return;
   const DetectorParams& p = params;
@@ -860,6 +862,8 @@ void Detector::Impl::run(const cv::Mat& input) {
 
   // 1-3. BLUR, SATURATION, (EDGES): the backend's filters
   const cv::Mat* src = runFilters(*img, timer);
+  last_img = img;
+  last_src = src;
 
   // 4. CONTOURS: candidate regions
   if (!paper) detail::extractRegions(labels, *src, filter_settings.mask, p.min_area_px, max_area, p.min_fill, runs, regions);
@@ -940,7 +944,7 @@ const Detection& Detector::detect(const cv::Mat& bgr) {
 
 const Detection& Detector::detect(const cv::Mat& bgr, Explanation& why) {
   impl_->run(bgr);
-  impl_->explain(bgr, why);
+  impl_->explain(why);
   return impl_->det;
 }
 
