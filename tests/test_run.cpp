@@ -104,6 +104,32 @@ TEST(Supervisor, SourceThatFinishesIsDoneNotRestarted) {
   EXPECT_TRUE(lines.has("replay", "finished"));
 }
 
+// A source's usage error (exit 2) is final only when the policy says so
+// (ld-run --exit-when-replay-done); otherwise it is restarted as any death.
+TEST(Supervisor, SourceUsageErrorIsFinalWhenThePolicySaysSo) {
+  for (const bool final_error : {true, false}) {
+    Lines lines;
+    ld::RestartPolicy policy{0.05, 0.1, 10};
+    policy.source_usage_error_is_final = final_error;
+    ld::Supervisor sup(policy, lines.sink());
+    const size_t i = sup.add({"play", {"sh", "-c", "echo bad file >&2; exit 2"}, ld::ProcessRole::Source});
+    ASSERT_TRUE(sup.start(i));
+    pollUntil(sup, [] { return false; }, 400ms);
+    if (final_error) {
+      ASSERT_NE(sup.failedSource(), nullptr);
+      EXPECT_EQ(sup.failedSource()->spec.name, "play");
+      EXPECT_EQ(sup.processes()[i].starts, 1);
+      EXPECT_TRUE(lines.has("play", "failed (exit 2); not restarted"));
+    } else {
+      EXPECT_EQ(sup.failedSource(), nullptr);
+      EXPECT_GE(sup.processes()[i].starts, 2);
+      EXPECT_TRUE(lines.has("play", "died (exit 2); restarting"));
+    }
+    EXPECT_FALSE(sup.sourcesDone());
+    sup.stopAll(0.5);
+  }
+}
+
 TEST(Supervisor, MissingProgramIsReportedAndRetried) {
   Lines lines;
   ld::Supervisor sup({0.05, 0.1, 10}, lines.sink());

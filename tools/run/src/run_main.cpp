@@ -339,6 +339,7 @@ int main(int argc, char** argv) {
   std::signal(SIGHUP, onSignal);
   std::signal(SIGPIPE, SIG_IGN);
 
+  cfg.restart.source_usage_error_is_final = exit_when_done;
   ld::Supervisor sup(cfg.restart, [&](const std::string& n, const std::string& l) { console.line(n, l); });
   std::vector<size_t> early, late;  // late: the image source, started once the rest listens
   for (auto& s : specs) {
@@ -448,15 +449,10 @@ int main(int argc, char** argv) {
     // A replay that cannot be done (its source exits 2: an argument or an
     // input a restart will not mend, such as a log without images) ends the
     // run instead of restarting it again and again.
-    if (exit_when_done) {
-      const ld::ProcessState* failed = nullptr;
-      for (const auto& p : sup.processes())
-        if (p.spec.role == ld::ProcessRole::Source && p.pid < 0 && p.exit_status == 2) failed = &p;
-      if (failed) {
-        end_reason = "the source " + failed->spec.name + " failed (exit 2; its error is above)";
-        exit_code = 1;
-        break;
-      }
+    if (const ld::ProcessState* failed = sup.failedSource()) {
+      end_reason = "the source " + failed->spec.name + " failed (exit 2; its error is above)";
+      exit_code = 1;
+      break;
     }
     if (exit_when_done && sup.sourcesDone()) {
       // Drain: wait until no tracked frame came for 0.5 s (or --drain passed).

@@ -175,6 +175,7 @@ bool Supervisor::start(size_t i) {
   p.pid = pid;
   p.failed_to_start = false;
   p.done = false;
+  p.failed = false;
   sink_(p.spec.name, (p.starts > 1 ? "restarted, pid " : "started, pid ") + std::to_string(pid));
   return true;
 }
@@ -214,11 +215,16 @@ void Supervisor::onExit(ProcessState& p, int status, SteadyClock::time_point now
   drainOutput(p, true);
   p.pid = -1;
   p.last_exit = describeWaitStatus(status);
-  p.exit_status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   if (stopping_) return;
   if (p.spec.role == ProcessRole::Source && WIFEXITED(status) && WEXITSTATUS(status) == 0) {
     p.done = true;
     sink_(p.spec.name, "finished (exit 0)");
+    return;
+  }
+  if (p.spec.role == ProcessRole::Source && WIFEXITED(status) && WEXITSTATUS(status) == 2 &&
+      policy_.source_usage_error_is_final) {
+    p.failed = true;
+    sink_(p.spec.name, "failed (exit 2); not restarted");
     return;
   }
   const double ran = std::chrono::duration<double>(now - p.started).count();
@@ -242,7 +248,7 @@ void Supervisor::poll(SteadyClock::time_point now) {
   if (stopping_) return;
   for (size_t i = 0; i < procs_.size(); ++i) {
     ProcessState& p = procs_[i];
-    if (p.pid < 0 && !p.done && p.starts > 0 && now >= p.restart_at) start(i);
+    if (p.pid < 0 && !p.done && !p.failed && p.starts > 0 && now >= p.restart_at) start(i);
   }
 }
 
@@ -309,6 +315,12 @@ bool Supervisor::sourcesDone() const {
     if (!p.done) return false;
   }
   return any;
+}
+
+const ProcessState* Supervisor::failedSource() const {
+  for (const auto& p : procs_)
+    if (p.spec.role == ProcessRole::Source && p.failed) return &p;
+  return nullptr;
 }
 
 int Supervisor::restarts() const {

@@ -36,6 +36,10 @@ struct RestartPolicy {
   double initial_s = 0.2;
   double max_s = 5.0;
   double stable_after_s = 10.0;
+  /// A Source that exits with status 2 (a usage error: a file or option it
+  /// refuses) is not restarted, as it would fail the same way again; ld-run
+  /// sets it with --exit-when-replay-done.
+  bool source_usage_error_is_final = false;
 };
 
 /// Delay before a restart after `consecutive_failures` (>= 1) quick deaths.
@@ -60,7 +64,7 @@ struct ProcessState {
   bool done = false;                ///< a Source that finished (exit 0)
   bool failed_to_start = false;     ///< the last exec failed
   std::string last_exit;            ///< describeWaitStatus of the last end, "" if none
-  int exit_status = -1;             ///< the last end's exit status when it exited, else -1
+  bool failed = false;              ///< a Source that ended with a usage error (RestartPolicy)
   SteadyClock::time_point started{};
   SteadyClock::time_point restart_at{};  ///< when pid == -1 and not done: next start
   int out_fd = -1;                  ///< read end of the child's stdout+stderr
@@ -99,6 +103,8 @@ class Supervisor {
   const std::vector<ProcessState>& processes() const { return procs_; }
   /// A Source exists and all sources are done.
   bool sourcesDone() const;
+  /// A Source that ended with a usage error and is not restarted, or nullptr.
+  const ProcessState* failedSource() const;
   /// Number of restarts so far, all processes.
   int restarts() const;
 
