@@ -507,11 +507,11 @@ TEST(ApChoiceRule, TheApWhoseLandmarkVerifiesIsKept) {
   ld::detail::apChoices({tl, tr, bl}, fips, aps, p, choices);
   ASSERT_EQ(choices.size(), 2u);
   ASSERT_EQ(choices[0].ap, 0) << "the bar is not the nearest choice: the test does not test the rule";
-  const char* why = nullptr;
+  ld::detail::Check why = ld::detail::Check::kNoAp;
   EXPECT_FALSE(ld::detail::verify(choices[0], fips, aps, img, p, &why));
   ld::detail::Candidate kept;
   ASSERT_TRUE(ld::detail::bestVerifiedChoice({tl, tr, bl}, fips, aps, img, p, choices, kept));
-  EXPECT_EQ(kept.ap, 1) << "refused: " << (why ? why : "");
+  EXPECT_EQ(kept.ap, 1) << "the bar was refused by: " << ld::detail::checkName(why);
   EXPECT_EQ(kept.tl, tl);
 }
 
@@ -1166,6 +1166,17 @@ TEST(Explain, ImagesWithoutColourExplainNothing) {
     EXPECT_EQ(why.fips, 0);
     EXPECT_EQ(why.blue_regions, 0);
     EXPECT_TRUE(why.refused.empty());
+  }
+}
+
+// Every check has a name of its own (explanations count refusals by it and
+// describe() finds each check's hint by it).
+TEST(Explain, EveryCheckHasItsOwnName) {
+  std::set<std::string> names;
+  for (int i = 0; i < ld::detail::kNumChecks; ++i) {
+    const std::string name = ld::detail::checkName(static_cast<ld::detail::Check>(i));
+    EXPECT_FALSE(name.empty() || name == "?") << "check " << i;
+    EXPECT_TRUE(names.insert(name).second) << "two checks are called '" << name << "'";
   }
 }
 

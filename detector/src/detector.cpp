@@ -213,41 +213,40 @@ bool matchesTruth(const Landmark& d, const std::array<cv::Point2d, 4>& truth, do
 
 namespace {
 
-// The checks a group of squares meets, in the order it meets them (a group
-// refused by a later one came further), and what decides each, for people.
-struct Check {
-  const char* name;
-  const char* hint;
-};
-constexpr Check kChecks[] = {
-    {"no AP", "no red square where TR + BL - TL puts it: ap_max_offset, ap_size_min, ap_size_max"},
-    {"not convex", ""},
-    {"degenerate moments", ""},
-    {"side length", "d_min, d_max"},
-    {"side ratio", "shape_tolerance"},
-    {"angle", "shape_tolerance"},
-    {"degenerate square", ""},
-    {"square anisotropic", "max_anisotropy"},
-    {"square scale", "square_scale_min, square_scale_max"},
-    {"square size", "ap_size_min, ap_size_max"},
-    {"outside the image", "part of the sheet is outside the image"},
-    {"sheet saturated", "sheet_max_saturation"},
-    {"sheet dark", "sheet_min_value"},
-    {"sheet uneven", "sheet_uniformity"},
-    {"no QR", "qr_max_brightness, qr_dark_samples, qr_dark_sample"},
-    {"centre saturated", "colour at the centre: a look-alike card"},
-    {"centre coloured", "colour at the centre: a look-alike card"},
-    {"cover", "cover_min, cover_max"},
-    {"square at the centre", "a coloured square at the centre: a look-alike card"},
-    {"other squares", "a coloured square on the sheet besides the four: a pattern, not a landmark"},
-};
-constexpr int kNumChecks = static_cast<int>(sizeof kChecks / sizeof kChecks[0]);
+// What decides each check (detail::Check), for people: the parameters, or
+// what the refusal means.
+const char* checkHint(detail::Check check) {
+  using detail::Check;
+  switch (check) {
+    case Check::kNoAp: return "no red square where TR + BL - TL puts it: ap_max_offset, ap_size_min, ap_size_max";
+    case Check::kSideLength: return "d_min, d_max";
+    case Check::kSideRatio:
+    case Check::kAngle: return "shape_tolerance";
+    case Check::kSquareAnisotropic: return "max_anisotropy";
+    case Check::kSquareScale: return "square_scale_min, square_scale_max";
+    case Check::kSquareSize: return "ap_size_min, ap_size_max";
+    case Check::kOutsideImage: return "part of the sheet is outside the image";
+    case Check::kSheetSaturated: return "sheet_max_saturation";
+    case Check::kSheetDark: return "sheet_min_value";
+    case Check::kSheetUneven: return "sheet_uniformity";
+    case Check::kNoQr: return "qr_max_brightness, qr_dark_samples, qr_dark_sample";
+    case Check::kCentreSaturated:
+    case Check::kCentreColoured: return "colour at the centre: a look-alike card";
+    case Check::kCover: return "cover_min, cover_max";
+    case Check::kSquareAtCentre: return "a coloured square at the centre: a look-alike card";
+    case Check::kOtherSquares: return "a coloured square on the sheet besides the four: a pattern, not a landmark";
+    case Check::kNotConvex:
+    case Check::kDegenerateMoments:
+    case Check::kDegenerateSquare: return "";
+  }
+  return "";
+}
 
-// A check's place in kChecks (kNumChecks for a name not there).
-int checkIndex(const std::string& check) {
-  for (int i = 0; i < kNumChecks; ++i)
-    if (check == kChecks[i].name) return i;
-  return kNumChecks;
+// A check's place in detail::Check by its name (kNumChecks for a name not there).
+int checkIndex(const std::string& name) {
+  for (int i = 0; i < detail::kNumChecks; ++i)
+    if (name == detail::checkName(static_cast<detail::Check>(i))) return i;
+  return detail::kNumChecks;
 }
 
 }  // namespace
@@ -284,7 +283,8 @@ std::string describe(const Explanation& e, const DetectorParams& p, const std::s
     s += ": " + r.check;
     const int i = checkIndex(r.check);
     const bool first = &r == &e.refused.front() || (&r)[-1].check != r.check;  // each check's hint once
-    if (first && i < kNumChecks && *kChecks[i].hint) s += std::string(" (") + kChecks[i].hint + ")";
+    const char* hint = i < detail::kNumChecks ? checkHint(static_cast<detail::Check>(i)) : "";
+    if (first && *hint) s += std::string(" (") + hint + ")";
   }
   if (indent.empty()) return s;
   s.insert(0, indent);
@@ -794,7 +794,7 @@ void Detector::Impl::explain(Explanation& e) {
     };
     auto at = [](const detail::Region& r) { return cv::Point2f(static_cast<float>(r.cx), static_cast<float>(r.cy)); };
     struct RefusedGroup {
-      int check;      // its index in kChecks
+      int check;      // its place in detail::Check
       double unlike;  // |log| of the triangle's size over a landmark's, in the squares' frame
       Explanation::Refused group;
     };
@@ -806,19 +806,20 @@ void Detector::Impl::explain(Explanation& e) {
       if (found(fips[cyc[0]]) || found(fips[cyc[1]]) || found(fips[cyc[2]])) continue;
       detail::apChoices(cyc, fips, aps, p, choices, &ap_index);
       Explanation::Refused r;
+      detail::Check check = detail::Check::kNoAp;
       if (choices.empty()) {
         // As TL, TR, BL would be: the corner, then clockwise in the image.
         const cv::Point2f tl = at(fips[cyc[corner]]), a = at(fips[cyc[(corner + 1) % 3]]),
                           b = at(fips[cyc[(corner + 2) % 3]]);
         const bool clockwise = (a - tl).cross(b - tl) > 0;
         r.fips = {tl, clockwise ? a : b, clockwise ? b : a};
-        r.check = "no AP";
+        r.check = detail::checkName(check);
       } else {
         bool verified = false;
-        const char* first = "";
+        detail::Check first = detail::Check::kNoAp;
         for (size_t k = 0; k < choices.size() && !verified; ++k) {
           detail::Candidate c = choices[k];
-          const char* why = "";
+          detail::Check why = detail::Check::kNoAp;
           verified = detail::verify(c, fips, aps, *img, p, &why);
           if (k == 0) first = why;
         }
@@ -826,20 +827,21 @@ void Detector::Impl::explain(Explanation& e) {
         const detail::Candidate& c = choices[0];
         r.fips = {at(fips[c.tl]), at(fips[c.tr]), at(fips[c.bl])};
         r.ap = at(aps[c.ap]);
-        r.check = first;
+        check = first;
+        r.check = detail::checkName(check);
       }
       // How like a landmark's the triangle is: neighbours 3 apart in the
       // frame of the squares' moments (far-apart large things make triangles too).
       double d = 0;
       for (int k = 0; k < 3; ++k) d += detail::normalisedDistance(fips[cyc[k]], fips[cyc[(k + 1) % 3]]);
       const double unlike = std::abs(std::log(d / (3 * (2 + std::sqrt(2.0)))));
-      refused.push_back({checkIndex(r.check), unlike, std::move(r)});
+      refused.push_back({static_cast<int>(check), unlike, std::move(r)});
     }
     // Counts per check; the groups that came furthest first, then the most landmark-like.
-    for (int i = 0; i <= kNumChecks; ++i) {
+    for (int i = 0; i < detail::kNumChecks; ++i) {
       int n = 0;
       for (const auto& r : refused) n += r.check == i;
-      if (n > 0) e.refusals.emplace_back(i < kNumChecks ? kChecks[i].name : "other", n);
+      if (n > 0) e.refusals.emplace_back(detail::checkName(static_cast<detail::Check>(i)), n);
     }
     std::stable_sort(refused.begin(), refused.end(), [](const RefusedGroup& a, const RefusedGroup& b) {
       return std::tie(b.check, a.unlike) < std::tie(a.check, b.unlike);

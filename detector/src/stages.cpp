@@ -518,9 +518,35 @@ bool bestVerifiedChoice(const std::array<int, 3>& cycle, const std::vector<Regio
   return true;
 }
 
+const char* checkName(Check check) {
+  switch (check) {
+    case Check::kNoAp: return "no AP";
+    case Check::kNotConvex: return "not convex";
+    case Check::kDegenerateMoments: return "degenerate moments";
+    case Check::kSideLength: return "side length";
+    case Check::kSideRatio: return "side ratio";
+    case Check::kAngle: return "angle";
+    case Check::kDegenerateSquare: return "degenerate square";
+    case Check::kSquareAnisotropic: return "square anisotropic";
+    case Check::kSquareScale: return "square scale";
+    case Check::kSquareSize: return "square size";
+    case Check::kOutsideImage: return "outside the image";
+    case Check::kSheetSaturated: return "sheet saturated";
+    case Check::kSheetDark: return "sheet dark";
+    case Check::kSheetUneven: return "sheet uneven";
+    case Check::kNoQr: return "no QR";
+    case Check::kCentreSaturated: return "centre saturated";
+    case Check::kCentreColoured: return "centre coloured";
+    case Check::kCover: return "cover";
+    case Check::kSquareAtCentre: return "square at the centre";
+    case Check::kOtherSquares: return "other squares";
+  }
+  return "?";
+}
+
 bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Region>& aps,
-            const cv::Mat& bgr, const DetectorParams& p, const char** why) {
-  auto fail = [&](const char* reason) {
+            const cv::Mat& bgr, const DetectorParams& p, Check* why) {
+  auto fail = [&](Check reason) {
     if (why) *why = reason;
     return false;
   };
@@ -528,7 +554,7 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   const cv::Point2d P[4] = {centre(*sq[0]), centre(*sq[1]), centre(*sq[2]), centre(*sq[3])};
   // Convex, clockwise in the image.
   for (int i = 0; i < 4; ++i)
-    if (!(cross(P[(i + 1) % 4] - P[i], P[(i + 2) % 4] - P[(i + 1) % 4]) > 0)) return fail("not convex");
+    if (!(cross(P[(i + 1) % 4] - P[i], P[(i + 2) % 4] - P[(i + 1) % 4]) > 0)) return fail(Check::kNotConvex);
 
   // Layout in the frame of the squares' moments: a square of side 3.
   Sym2 s;
@@ -538,7 +564,7 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
     s.yy += r->syy / 4;
   }
   Sym2 m;
-  if (!metric(s, m)) return fail("degenerate moments");
+  if (!metric(s, m)) return fail(Check::kDegenerateMoments);
   const cv::Point2d e1 = P[1] - P[0], e2 = P[3] - P[0];
   const cv::Point2d e3 = P[2] - P[1], e4 = P[2] - P[3];
   const double l1 = std::sqrt(quad(m, e1.x, e1.y)), l2 = std::sqrt(quad(m, e2.x, e2.y));
@@ -546,23 +572,23 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   const double cosang = bilin(m, e1.x, e1.y, e2.x, e2.y) / (l1 * l2);
   const double tol = p.shape_tolerance;
   const double lmin = std::min({l1, l2, l3, l4}), lmax = std::max({l1, l2, l3, l4});
-  if (lmin < p.d_min || lmax > p.d_max) return fail("side length");
-  if (lmax > lmin * (1 + tol)) return fail("side ratio");
-  if (std::abs(cosang) > tol) return fail("angle");
+  if (lmin < p.d_min || lmax > p.d_max) return fail(Check::kSideLength);
+  if (lmax > lmin * (1 + tol)) return fail(Check::kSideRatio);
+  if (std::abs(cosang) > tol) return fail(Check::kAngle);
 
   // Each square as the centres predict it: a square of the landmark's frame
   // (not a bar or a stripe), of a plausible size.
   for (const Region* r : sq) {
     double scale, aniso;
-    if (!squareConsistency(*r, e1, e2, scale, aniso)) return fail("degenerate square");
-    if (aniso > anisotropyLimit(p.max_anisotropy, r->area)) return fail("square anisotropic");
-    if (scale < p.square_scale_min || scale > p.square_scale_max) return fail("square scale");
+    if (!squareConsistency(*r, e1, e2, scale, aniso)) return fail(Check::kDegenerateSquare);
+    if (aniso > anisotropyLimit(p.max_anisotropy, r->area)) return fail(Check::kSquareAnisotropic);
+    if (scale < p.square_scale_min || scale > p.square_scale_max) return fail(Check::kSquareScale);
   }
   // Sizes: every square within the AP size gates of the FIPs' mean side.
   const double side = std::sqrt(12.0 * std::sqrt(s.det()));
   for (const Region* r : sq) {
     const double ratio = r->side() / side;
-    if (ratio < p.ap_size_min || ratio > p.ap_size_max) return fail("square size");
+    if (ratio < p.ap_size_min || ratio > p.ap_size_max) return fail(Check::kSquareSize);
   }
 
   // White, unsaturated sheet between the squares, and no colour at the centre.
@@ -579,15 +605,15 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
     for (double t : {1.0 / 3, 0.5, 2.0 / 3}) {
       double sv, vv, mean;
       double c[3];
-      if (!sampleSV(bgr, P[i] + (P[(i + 1) % 4] - P[i]) * t, sv, vv, &mean, c)) return fail("outside the image");
+      if (!sampleSV(bgr, P[i] + (P[(i + 1) % 4] - P[i]) * t, sv, vv, &mean, c)) return fail(Check::kOutsideImage);
       for (int k = 0; k < 3; ++k) sheet_bgr[k] += c[k] / 12;
-      if (sv > p.sheet_max_saturation) return fail("sheet saturated");
-      if (vv < p.sheet_min_value * fip_value) return fail("sheet dark");
+      if (sv > p.sheet_max_saturation) return fail(Check::kSheetSaturated);
+      if (vv < p.sheet_min_value * fip_value) return fail(Check::kSheetDark);
       sheet_mean += mean / 12;
       sheet_lo = std::min(sheet_lo, mean);
       sheet_hi = std::max(sheet_hi, mean);
     }
-  if (sheet_lo < p.sheet_uniformity * sheet_hi) return fail("sheet uneven");
+  if (sheet_lo < p.sheet_uniformity * sheet_hi) return fail(Check::kSheetUneven);
   // The QR: its square is darker than the sheet (black modules, or grey when
   // they are too small to resolve). A 5 x 5 grid over its middle, placed by
   // the affine frame of TL, TR, BL.
@@ -599,14 +625,14 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
       for (int i = 0; i < 5; ++i) {
         const double u = 3.1 + 0.7 * i - 1.5, v = 3.1 + 0.7 * j - 1.5;
         double sv, vv, b;
-        if (!sampleSV(bgr, P[0] + ex * u + ey * v, sv, vv, &b)) return fail("outside the image");
+        if (!sampleSV(bgr, P[0] + ex * u + ey * v, sv, vv, &b)) return fail(Check::kOutsideImage);
         qr_mean += b / 25;
         dark += b < p.qr_dark_sample * sheet_mean && sv <= p.sheet_max_saturation;
       }
     // A sheet at the sensor's white clip (glare) hides the QR's white
     // modules and lifts its mean: there its dark modules are the evidence.
     const bool clipped = sheet_mean >= kClippedSheet;
-    if (qr_mean > p.qr_max_brightness * sheet_mean && !(clipped && dark >= p.qr_dark_samples)) return fail("no QR");
+    if (qr_mean > p.qr_max_brightness * sheet_mean && !(clipped && dark >= p.qr_dark_samples)) return fail(Check::kNoQr);
   }
   const cv::Point2d ctr = (P[0] + P[1] + P[2] + P[3]) * 0.25;
   {
@@ -621,22 +647,22 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
     double c[3];  // the centre's colour
     for (int k = 0; k < 5; ++k) {
       double sv, vv;
-      if (!sampleSV(bgr, around[k], sv, vv, nullptr, k == 0 ? c : nullptr)) return fail("outside the image");
+      if (!sampleSV(bgr, around[k], sv, vv, nullptr, k == 0 ? c : nullptr)) return fail(Check::kOutsideImage);
       const bool sat = vv >= p.value_min && sv > p.sheet_max_saturation;
       saturated += sat;
       if (k == 0) centre_saturated = sat;
     }
-    if (saturated >= 3) return fail("centre saturated");
+    if (saturated >= 3) return fail(Check::kCentreSaturated);
     if (centre_saturated && (chroma(c, kBlue) - chroma(sheet_bgr, kBlue) > kCentreChroma ||
                              chroma(c, kRed) - chroma(sheet_bgr, kRed) > kCentreChroma))
-      return fail("centre coloured");
+      return fail(Check::kCentreColoured);
   }
   // Each side: the squares cover a third of it.
   const uint8_t colours[4] = {kBlue, kBlue, kRed, kBlue};
   double cover_err = 0;
   for (int i = 0; i < 4; ++i) {
     const double f = coverFraction(bgr, P[i], colours[i], P[(i + 1) % 4], colours[(i + 1) % 4]);
-    if (f < p.cover_min || f > p.cover_max) return fail("cover");
+    if (f < p.cover_min || f > p.cover_max) return fail(Check::kCover);
     cover_err += std::abs(f - 1.0 / 3) / 4;
   }
   // Coloured squares of the squares' size besides the four: none at the
@@ -651,12 +677,12 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   {
     static const std::array<cv::Point2d, 4> kCentres = {cv::Point2d(0, 0), {3, 0}, {3, 3}, {0, 3}};
     cv::Matx33d to_sheet;
-    if (!homography4({P[0], P[1], P[2], P[3]}, kCentres, to_sheet)) return fail("degenerate square");
+    if (!homography4({P[0], P[1], P[2], P[3]}, kCentres, to_sheet)) return fail(Check::kDegenerateSquare);
     int around_qr = 0, in_qr = 0;
     for (const auto* list : {&fips, &aps})
       for (const Region& r : *list) {
         if (r.side() <= 0.5 * side) continue;
-        if (std::sqrt(quad(m, r.cx - ctr.x, r.cy - ctr.y)) < 1.0) return fail("square at the centre");
+        if (std::sqrt(quad(m, r.cx - ctr.x, r.cy - ctr.y)) < 1.0) return fail(Check::kSquareAtCentre);
         const cv::Point2d q = applyH(to_sheet, {r.cx, r.cy});
         if (!(q.x > -0.5 && q.x < 3.5 && q.y > -0.5 && q.y < 3.5)) continue;
         bool fragment = false;
@@ -664,7 +690,7 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
         if (fragment) continue;
         ++(q.x > 0.35 && q.x < 2.65 && q.y > 0.35 && q.y < 2.65 ? in_qr : around_qr);
       }
-    if (around_qr > 0 || in_qr > 1) return fail("other squares");
+    if (around_qr > 0 || in_qr > 1) return fail(Check::kOtherSquares);
   }
 
   const double shape_err = (lmax / lmin - 1) + std::abs(cosang);

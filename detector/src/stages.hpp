@@ -172,12 +172,41 @@ bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
               const std::vector<Region>& aps, const DetectorParams& p, Candidate& out,
               const RegionIndex* ap_index = nullptr);
 
+/// The checks a group of three FIPs meets, in the order it meets them (a
+/// group refused by a later one came further): an AP where the layout puts
+/// one (apChoices), then verify's.
+enum class Check : uint8_t {
+  kNoAp,
+  kNotConvex,
+  kDegenerateMoments,
+  kSideLength,
+  kSideRatio,
+  kAngle,
+  kDegenerateSquare,
+  kSquareAnisotropic,
+  kSquareScale,
+  kSquareSize,
+  kOutsideImage,
+  kSheetSaturated,
+  kSheetDark,
+  kSheetUneven,
+  kNoQr,
+  kCentreSaturated,
+  kCentreColoured,
+  kCover,
+  kSquareAtCentre,
+  kOtherSquares,
+};
+constexpr int kNumChecks = static_cast<int>(Check::kOtherSquares) + 1;
+/// The check's name as explanations give it ("no AP", "cover", ...).
+const char* checkName(Check check);
+
 /// Verification against look-alikes: convex quadrilateral, consistent sizes,
 /// a square layout in the frame of the squares' moments, white unsaturated
 /// sheet between the squares and at the centre, no coloured region at the
 /// centre. Sets the candidate's score. `why`, when given, names the failed check.
 bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Region>& aps,
-            const cv::Mat& bgr, const DetectorParams& p, const char** why = nullptr);
+            const cv::Mat& bgr, const DetectorParams& p, Check* why = nullptr);
 
 /// 7 and verification for one 3-cycle: of its AP choices (apChoices, into
 /// `choices`), the one whose landmark verifies with the least error, in
