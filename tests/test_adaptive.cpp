@@ -202,13 +202,21 @@ TEST(AdaptiveDetection, BothDetectorsOnOneRenderingCountAsApart) {
   EXPECT_NE(fp[0], fp[1]);
 }
 
+// Warm light: the fixed defaults lose a candle's 2000 K and a household
+// bulb's 2700 K (at 3200 K, a halogen's, they keep most frames since the
+// squares' cover is measured on the light the inks absorb where their colour
+// is smeared); the adaptive detector keeps them.
 TEST(AdaptiveDetection, HoldsUnderTungstenWhereTheDefaultsDrop) {
-  for (double temp : {2700.0, 3200.0}) {
+  for (double temp : {2000.0, 2700.0, 3200.0}) {
     const auto [fixed, adaptive] = ld::eval::measureFixedAndAdaptive(lit(temp, -1, true), 1.5, 0, 40);
     std::printf("%.0f K: fixed %d/%d, adaptive %d/%d\n", temp, fixed.detected, fixed.trials,
                 adaptive.detected, adaptive.trials);
-    EXPECT_LE(fixed.detectRate(), 0.5);
-    EXPECT_GE(adaptive.detectRate(), 0.95);
+    if (temp < 3000) {
+      EXPECT_LE(fixed.detectRate(), 0.5);
+    }
+    EXPECT_GE(adaptive.detected, fixed.detected);
+    // (2000 K: 92 of 100 frames in ld-eval lighting --trials 100)
+    EXPECT_GE(adaptive.detectRate(), temp < 2500 ? 0.85 : 0.95);
   }
 }
 

@@ -585,6 +585,50 @@ TEST(Geometry, CoverFractionOfTheSides) {
   drawSheet(card, kCam, pc);
   const cv::Point2d mid = (t.centres[0] + t.centres[3]) * 0.5;
   EXPECT_NEAR(ld::detail::coverFraction(card, t.centres[0], ld::detail::kBlue, mid, ld::detail::kRed), 2.0 / 3, 0.07);
+  // The light the inks absorb gives the same.
+  const auto absorbed = ld::detail::CoverProfile::kAbsorbed;
+  for (int i = 0; i < 4; ++i)
+    EXPECT_NEAR(ld::detail::coverFraction(img, P[i], C[i], P[(i + 1) % 4], C[(i + 1) % 4], absorbed), 1.0 / 3, 0.05)
+        << i;
+  // (more: the QR's black modules between them absorb too)
+  EXPECT_GT(ld::detail::coverFraction(card, t.centres[0], ld::detail::kBlue, mid, ld::detail::kRed, absorbed),
+            ld::DetectorParams().cover_max);
+}
+
+// Colour at a fraction of the brightness's resolution (JPEG's and the
+// sensor mosaic's, strong here, on squares 8 px across): the squares'
+// colour spreads over the sheet and its profile covers more of the sides
+// than a landmark's squares can; the light the inks absorb keeps the
+// brightness's edges, and verification takes that.
+TEST(Geometry, CoverOfSmearedColourFromTheAbsorbedLight) {
+  cv::Mat img = background(kCam.size, 15, true);
+  const Placed p = place(2.5, 10, 20);
+  drawSheet(img, kCam, p);
+  cv::Mat ycc;
+  cv::cvtColor(img, ycc, cv::COLOR_BGR2YCrCb);
+  std::vector<cv::Mat> ch;
+  cv::split(ycc, ch);
+  for (int k : {1, 2}) cv::GaussianBlur(ch[k], ch[k], cv::Size(), 6.0);
+  cv::merge(ch, ycc);
+  cv::cvtColor(ycc, img, cv::COLOR_YCrCb2BGR);
+  const Truth t = truthOf(kCam, p);
+  const cv::Point2d P[4] = {t.centres[0], t.centres[1], t.centres[3], t.centres[2]};  // TL, TR, AP, BL
+  const uint8_t C[4] = {ld::detail::kBlue, ld::detail::kBlue, ld::detail::kRed, ld::detail::kBlue};
+  const ld::DetectorParams params;
+  int out_of_bounds = 0;
+  for (int i = 0; i < 4; ++i) {
+    const double colour = ld::detail::coverFraction(img, P[i], C[i], P[(i + 1) % 4], C[(i + 1) % 4]);
+    out_of_bounds += colour < params.cover_min || colour > params.cover_max;
+    const double absorbed = ld::detail::coverFraction(img, P[i], C[i], P[(i + 1) % 4], C[(i + 1) % 4],
+                                                      ld::detail::CoverProfile::kAbsorbed);
+    std::printf("side %d: colour's cover %.3f, absorbed light's %.3f\n", i, colour, absorbed);
+    EXPECT_NEAR(absorbed, 1.0 / 3, 0.06) << i;
+  }
+  ASSERT_GT(out_of_bounds, 0) << "the colour's cover is within bounds: the test does not test the rule";
+  ld::Detector det(params);
+  const auto& d = det.detect(img);
+  ASSERT_EQ(d.landmarks.size(), 1u);
+  EXPECT_LT(cv::norm(cv::Point2d(d.landmarks[0].fip_tl) - t.centres[0]), 1.5);
 }
 
 // ====================================================================== corners

@@ -87,11 +87,14 @@ TEST(DetectionRate, Landmark9cmAt1m5) {
 }
 
 // The issue's target for the 9 cm landmark (95 % within +-70 degrees at
-// 1.5 m): not met (93.9 % on this sweep, 92.0 % on docs/evaluation.md's
-// table); at 70 degrees the FIPs are 3 px wide. Run with
-// --gtest_also_run_disabled_tests.
+// 1.5 m): not met. The sweep above reaches it (172 of 180, 95.6 %), but over
+// more frames it is 92-93 % (this test's 900: 92.6 %; docs/evaluation.md's
+// table 92.3 %, and 92.3 % over 1500 frames); at 70 degrees the FIPs are
+// 3 px wide. Run with --gtest_also_run_disabled_tests.
 TEST(DetectionRate, DISABLED_IssueTargetAtExtremeYaw9cm) {
-  EXPECT_GE(sweep(0.09, 1.5, 70, 10, 12, 9015).rate(70), 0.95);
+  const Sweep s = sweep(0.09, 1.5, 70, 10, 60, 9070);
+  s.print("9 cm at 1.5 m, 60 frames per step");
+  EXPECT_GE(s.rate(70), 0.95);
 }
 
 // A 15 cm landmark at 2.5 m: FIPs of 8 px, 1.4 px wide at 80 degrees.

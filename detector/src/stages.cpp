@@ -86,11 +86,25 @@ double excessAt(const cv::Mat& bgr, const cv::Point2d& p, uint8_t colour) {
   return sampleBgr(bgr, p, c) ? excess(c, colour) : 0;
 }
 
+// How much of the light a colour's ink absorbs that the paper reflects: the
+// larger of the other two channels, negated (blue ink takes green and red,
+// red ink green and blue; the paper reflects all three).
+double absorbedAt(const cv::Mat& bgr, const cv::Point2d& p, uint8_t colour) {
+  double c[3];
+  if (!sampleBgr(bgr, p, c)) return 0;
+  return colour == kBlue ? -std::max(c[1], c[2]) : -std::max(c[0], c[1]);
+}
+
 // A hue's excess over the brightness: a colour's strength whatever the
 // light's level.
 double chroma(const double c[3], uint8_t colour) {
   return excess(c, colour) / std::max(1.0, (c[0] + c[1] + c[2]) / 3);
 }
+
+// The light the inks absorb measures a side's cover sharply: a third within
+// about a quarter of itself (0.27 to 0.42 on landmarks whose colour's
+// profile failed, in the yaw and 2000 K sweeps).
+constexpr double kAbsorbedCoverMin = 0.25, kAbsorbedCoverMax = 0.42;
 
 // A sheet this bright (mean of the channels, 0..255) is at or near the
 // sensor's white clip: glare, or the adapter's stretch of it.
@@ -657,13 +671,32 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
                              chroma(c, kRed) - chroma(sheet_bgr, kRed) > kCentreChroma))
       return fail(Check::kCentreColoured);
   }
-  // Each side: the squares cover a third of it.
+  // Each side: the squares cover a third of it. Their colour's profile says
+  // so unless the camera smeared that colour (JPEG and the sensor's colour
+  // mosaic keep colour at half the brightness's resolution): a dark square's
+  // colour, printed blue under very warm light, then peaks in its middle and
+  // fades before its edges, and a square a few pixels wide, seen steeply,
+  // spreads its colour over the sheet around it. Where the colour's cover of
+  // a side is out of bounds, the light the inks absorb, whose edges are the
+  // brightness's and sharp, measures all four sides again, each near a
+  // third (a striped surface's "squares" pass one side's measure more easily
+  // than four).
   const uint8_t colours[4] = {kBlue, kBlue, kRed, kBlue};
+  double f[4];
+  bool smeared = false;
+  for (int i = 0; i < 4; ++i) {
+    f[i] = coverFraction(bgr, P[i], colours[i], P[(i + 1) % 4], colours[(i + 1) % 4]);
+    smeared |= f[i] < p.cover_min || f[i] > p.cover_max;
+  }
+  if (smeared)
+    for (int i = 0; i < 4; ++i) {
+      f[i] = coverFraction(bgr, P[i], colours[i], P[(i + 1) % 4], colours[(i + 1) % 4], CoverProfile::kAbsorbed);
+      if (f[i] < kAbsorbedCoverMin || f[i] > kAbsorbedCoverMax) return fail(Check::kCover);
+    }
   double cover_err = 0;
   for (int i = 0; i < 4; ++i) {
-    const double f = coverFraction(bgr, P[i], colours[i], P[(i + 1) % 4], colours[(i + 1) % 4]);
-    if (f < p.cover_min || f > p.cover_max) return fail(Check::kCover);
-    cover_err += std::abs(f - 1.0 / 3) / 4;
+    if (f[i] < p.cover_min || f[i] > p.cover_max) return fail(Check::kCover);
+    cover_err += std::abs(f[i] - 1.0 / 3) / 4;
   }
   // Coloured squares of the squares' size besides the four: none at the
   // centre (within one side of it: a look-alike card's square), and none
@@ -699,7 +732,8 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   return true;
 }
 
-double coverFraction(const cv::Mat& bgr, cv::Point2d a, uint8_t ca, cv::Point2d b, uint8_t cb) {
+double coverFraction(const cv::Mat& bgr, cv::Point2d a, uint8_t ca, cv::Point2d b, uint8_t cb, CoverProfile profile) {
+  const auto at = profile == CoverProfile::kAbsorbed ? absorbedAt : excessAt;
   constexpr int kMax = 64;
   const double len = cv::norm(b - a);
   if (!(len > 1)) return -1;
@@ -708,8 +742,8 @@ double coverFraction(const cv::Mat& bgr, cv::Point2d a, uint8_t ca, cv::Point2d 
   double lo = 1e9;
   for (int i = 0; i <= n; ++i) {
     const cv::Point2d q = a + (b - a) * (static_cast<double>(i) / n);
-    ea[i] = excessAt(bgr, q, ca);
-    eb[i] = ca == cb ? ea[i] : excessAt(bgr, q, cb);
+    ea[i] = at(bgr, q, ca);
+    eb[i] = ca == cb ? ea[i] : at(bgr, q, cb);
   }
   // The gap: the lowest point of the middle of the profile, in both hues.
   for (int i = n / 4; i <= 3 * n / 4; ++i) lo = std::min(lo, std::max(ea[i], eb[i]));

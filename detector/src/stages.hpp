@@ -222,8 +222,13 @@ bool bestVerifiedChoice(const std::array<int, 3>& cycle, const std::vector<Regio
 /// a landmark (a square's half extent along any line through its centre over
 /// the distance of two centres), whatever the view, blur or threshold; 2/3
 /// between a corner square and one in the middle of a card. Negative when
-/// the profile shows no gap.
-double coverFraction(const cv::Mat& bgr, cv::Point2d a, uint8_t colour_a, cv::Point2d b, uint8_t colour_b);
+/// the profile shows no gap. With CoverProfile::kAbsorbed the profile is
+/// the light each end's ink absorbs instead (blue: -max(g, r), red:
+/// -max(g, b)): the brightness's edges, sharp where the camera smeared the
+/// colour.
+enum class CoverProfile { kExcess, kAbsorbed };
+double coverFraction(const cv::Mat& bgr, cv::Point2d a, uint8_t colour_a, cv::Point2d b, uint8_t colour_b,
+                     CoverProfile profile = CoverProfile::kExcess);
 
 /// A square of `colour` around `guess` where the layout predicts one but the
 /// mask has no region of its own for it (it merged with a same-coloured
