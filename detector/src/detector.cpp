@@ -66,6 +66,7 @@ void forEachField(DetectorParams& p, F&& f) {
   f("complete_missing", p.complete_missing);
   f("second_looks", p.second_looks);
   f("second_look_raise", p.second_look_raise);
+  f("faint_looks", p.faint_looks);
   f("max_candidates", p.max_candidates);
   f("max_cycles", p.max_cycles);
   f("centre_iterations", p.centre_iterations);
@@ -150,6 +151,7 @@ void checkValues(const DetectorParams& p, const std::string& prefix) {
   if (!(p.qr_dark_sample > 0 && p.qr_dark_sample <= 1)) bad("qr_dark_sample", "must be in (0, 1]");
   if (p.second_looks < 0 || p.second_looks > 64) bad("second_looks", "must be in [0, 64]");
   if (!(p.second_look_raise > 0 && p.second_look_raise < 1)) bad("second_look_raise", "must be in (0, 1)");
+  if (p.faint_looks < 0 || p.faint_looks > 64) bad("faint_looks", "must be in [0, 64]");
   if (p.max_candidates < 3 || p.max_candidates > 4096) bad("max_candidates", "must be in [3, 4096]");
   if (p.max_cycles < 1) bad("max_cycles", "must be >= 1");
   if (p.centre_iterations < 0 || p.centre_iterations > 10) bad("centre_iterations", "must be in [0, 10]");
@@ -315,6 +317,12 @@ constexpr double kSecondLookMaxSide = 16.0;
 // Pairs of unused squares the second look ranks, at most (its windows are
 // fewer still: second_looks, an eighth of the frame).
 constexpr size_t kMaxAnchors = 256;
+// Red squares the faint look starts from have at least this many pixels (a
+// 9 cm landmark's AP at 1.5 m and 70 degrees of yaw has about 20).
+constexpr int kFaintLookMinArea = 6;
+// ... and windows whose white is this much stronger in one channel than in
+// another (a colour cast) are looked at.
+constexpr double kFaintLookMinCast = 1.08;
 
 // One warning per process about the GPU not being used (whether it could
 // not be started or failed later).
@@ -361,6 +369,9 @@ struct Detector::Impl {
   std::vector<std::pair<cv::Rect, int64_t>> blobs;  // the first pass's larger regions: bbox, area
   detail::RegionIndex fip_index;
   std::vector<cv::Rect> looked;
+  cv::Mat look_labels_buf;                 // look_labels is a window-sized view of it
+  cv::Mat faint_src_buf, faint_img_buf;    // the faint look's white-balanced windows
+  int white_hist[766];                     // the faint look's histogram of b + g + r
   std::vector<detail::Region> all_fips, all_aps;
   std::vector<detail::Candidate> all_candidates;
   Detection det;
@@ -417,23 +428,26 @@ struct Detector::Impl {
   }
   void classify();
   int graph();
-  void geometry(const cv::Mat& img);
-  void complete(const cv::Mat& img);
+  void geometry(const cv::Mat& img, const cv::Mat& label_map);
+  void complete(const cv::Mat& img, const cv::Mat& label_map);
   void secondLook(const cv::Mat& img, const cv::Mat& filtered, int max_area);
+  void faintLook(const cv::Mat& img, const cv::Mat& filtered, int max_area);
+  void look(const cv::Rect& win, const cv::Mat& src, const cv::Mat& img, const detail::MaskThresholds& t, int max_area,
+            bool in_window);
 };
 
 // Landmarks with one square merged into a same-coloured background (the
 // sheet's margin is a quarter of a square: at steep angles or with blur the
 // mask joins them) or too faint for the mask: three squares found, the fourth
 // measured where the layout puts it.
-void Detector::Impl::complete(const cv::Mat& img) {
+void Detector::Impl::complete(const cv::Mat& img, const cv::Mat& label_map) {
   const DetectorParams& p = params;
   const int n0 = static_cast<int>(fips.size()), a0 = static_cast<int>(aps.size());
   used.assign(static_cast<size_t>(n0 + a0), 0);
   for (const auto& c : candidates) used[c.tl] = used[c.tr] = used[c.bl] = used[n0 + c.ap] = 1;
   auto labelAt = [&](const cv::Point2d& q) -> int {
     const int x = static_cast<int>(std::lround(q.x)), y = static_cast<int>(std::lround(q.y));
-    return x >= 0 && y >= 0 && x < labels.cols && y < labels.rows ? labels.at<uint8_t>(y, x) : -1;
+    return x >= 0 && y >= 0 && x < label_map.cols && y < label_map.rows ? label_map.at<uint8_t>(y, x) : -1;
   };
   auto mean = [](std::initializer_list<const detail::Region*> rs) {
     detail::Region m = **rs.begin();
@@ -594,7 +608,7 @@ int Detector::Impl::graph() {
 
 // 6-7. geometry: the FIP graph of `fips`, its 3-cycles, the AP among `aps`,
 // verification, completion, overlaps: `candidates`.
-void Detector::Impl::geometry(const cv::Mat& img) {
+void Detector::Impl::geometry(const cv::Mat& img, const cv::Mat& label_map) {
   const DetectorParams& p = params;
   const int n = static_cast<int>(fips.size());
   candidates.clear();
@@ -610,7 +624,7 @@ void Detector::Impl::geometry(const cv::Mat& img) {
     detail::Candidate c;
     if (detail::bestVerifiedChoice(cyc, fips, aps, img, p, choices, c, &ap_index)) candidates.push_back(c);
   }
-  if (completion) complete(img);
+  if (completion) complete(img, label_map);
   detail::resolveOverlaps(candidates, static_cast<int>(fips.size()), static_cast<int>(aps.size()), used);
 }
 
@@ -715,33 +729,7 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
     pixels_left -= win.area();
     ++looks;
     looked.push_back(win);
-    detail::saturationMask(filtered(win), strict, look_labels);
-    detail::extractRegions(look_labels, filtered(win), strict, p.min_area_px, max_area, p.min_fill, runs, regions);
-    for (auto& q : regions) {
-      q.x0 += win.x, q.x1 += win.x, q.cx += win.x;
-      q.y0 += win.y, q.y1 += win.y, q.cy += win.y;
-    }
-    classify();
-    geometry(img);
-    const int of = static_cast<int>(all_fips.size()), oa = static_cast<int>(all_aps.size());
-    for (auto c : candidates) {
-      // The same landmark again (found by the first pass or an earlier
-      // look): a square of it where a square of one already is. The first
-      // finding stays.
-      const detail::Region* mine[4] = {&fips[c.tl], &fips[c.tr], &fips[c.bl], &aps[c.ap]};
-      bool again = false;
-      for (const auto& k : all_candidates) {
-        const detail::Region* theirs[4] = {&all_fips[k.tl], &all_fips[k.tr], &all_fips[k.bl], &all_aps[k.ap]};
-        for (const auto* m : mine)
-          for (const auto* t : theirs)
-            again |= std::hypot(m->cx - t->cx, m->cy - t->cy) < std::max(2.0, 0.5 * detail::maxAxis(*m));
-      }
-      if (again) continue;
-      c.tl += of, c.tr += of, c.bl += of, c.ap += oa;
-      all_candidates.push_back(c);
-    }
-    all_fips.insert(all_fips.end(), fips.begin(), fips.end());
-    all_aps.insert(all_aps.end(), aps.begin(), aps.end());
+    look(win, filtered(win), img, strict, max_area, false);
   }
   std::swap(fips, all_fips);
   std::swap(aps, all_aps);
@@ -749,6 +737,145 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
   all_fips.clear();
   all_aps.clear();
   all_candidates.clear();
+}
+
+// The faint look: around a red square that no landmark took, the window
+// white-balanced by its own white (the mean of its brightest fifth: the
+// sheet, or whatever white lies near), labelled at the usual thresholds and
+// run through the same regions, colour, geometry and verification. A
+// steeply seen landmark's blue squares are a few pixels wide, their colour
+// mixed with the paper's: under warm light the mix is violet or grey in the
+// frame's colours, and blue again against the paper beside it. Printed red
+// stays red (it is bright), so the AP is where to look: from the smaller
+// red squares (a steep or distant landmark's) up, windows reaching 5 of the
+// square's longest axes (the FIPs lie within 4.24 sides of the AP), at most
+// faint_looks of them and an eighth of the frame in all.
+void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int max_area) {
+  const DetectorParams& p = params;
+  const int nf = static_cast<int>(fips.size()), na = static_cast<int>(aps.size());
+  used.assign(static_cast<size_t>(nf + na), 0);
+  for (const auto& c : candidates) used[c.tl] = used[c.tr] = used[c.bl] = used[nf + c.ap] = 1;
+  anchors.clear();
+  const double max_radius = 0.3 * std::min(img.cols, img.rows);
+  for (int k = 0; k < na; ++k) {
+    const double side = detail::maxAxis(aps[k]);
+    if (used[nf + k] || side > kSecondLookMaxSide || aps[k].area < kFaintLookMinArea) continue;
+    const double radius = std::max(12.0, 5.0 * side);
+    if (radius <= max_radius) anchors.push_back({{aps[k].cx, aps[k].cy}, radius, 0, aps[k].area});
+  }
+  if (anchors.empty()) return;
+  std::sort(anchors.begin(), anchors.end(), [](const Anchor& a, const Anchor& b) {
+    return std::tie(a.area, a.centre.x, a.centre.y) < std::tie(b.area, b.centre.x, b.centre.y);
+  });
+  std::swap(fips, all_fips);
+  std::swap(aps, all_aps);
+  std::swap(candidates, all_candidates);
+  const cv::Rect frame(0, 0, img.cols, img.rows);
+  int64_t pixels_left = static_cast<int64_t>(img.total()) / 8;
+  int looks = 0;
+  looked.clear();
+  const bool blurred = filtered.data != img.data;
+  for (const auto& a : anchors) {
+    if (looks >= p.faint_looks || pixels_left < 25 * 25) break;
+    const cv::Point centre(static_cast<int>(std::lround(a.centre.x)), static_cast<int>(std::lround(a.centre.y)));
+    bool seen = false;
+    for (const auto& w : looked) seen |= w.contains(centre);
+    if (seen) continue;
+    const int r = static_cast<int>(std::ceil(a.radius));
+    const cv::Rect win = cv::Rect(centre.x - r, centre.y - r, 2 * r + 1, 2 * r + 1) & frame;
+    if (win.area() > pixels_left) continue;
+    looked.push_back(win);
+    // The white: the mean colour of the brightest fifth (by the sum of the
+    // channels) of every other pixel of every other row.
+    const cv::Mat f = filtered(win);
+    std::fill(std::begin(white_hist), std::end(white_hist), 0);
+    int samples = 0;
+    for (int y = 0; y < f.rows; y += 2) {
+      const uint8_t* q = f.ptr<uint8_t>(y);
+      for (int x = 0; x < f.cols; x += 2, q += 6, ++samples) ++white_hist[q[0] + q[1] + q[2]];
+    }
+    int cut = 765;
+    for (int n = 0; cut > 0 && n + white_hist[cut] < samples / 5; --cut) n += white_hist[cut];
+    double white[3] = {0, 0, 0};
+    for (int y = 0; y < f.rows; y += 2) {
+      const uint8_t* q = f.ptr<uint8_t>(y);
+      for (int x = 0; x < f.cols; x += 2, q += 6)
+        if (q[0] + q[1] + q[2] >= cut)
+          for (int c = 0; c < 3; ++c) white[c] += q[c];
+    }
+    const double top = std::max({white[0], white[1], white[2]}), low = std::min({white[0], white[1], white[2]});
+    // A white already white: the first pass saw this window as the look would.
+    if (!(low > 0) || top < kFaintLookMinCast * low) continue;
+    pixels_left -= win.area();
+    ++looks;
+    const cv::Scalar gain(top / white[0], top / white[1], top / white[2]);
+    // Window-sized views of buffers as large as the largest window (no allocation per look).
+    const int side = 2 * static_cast<int>(std::ceil(max_radius)) + 1;
+    faint_src_buf.create(side, side, CV_8UC3);
+    faint_img_buf.create(side, side, CV_8UC3);
+    cv::Mat src = faint_src_buf(cv::Rect(0, 0, win.width, win.height));
+    cv::multiply(f, gain, src);
+    cv::Mat balanced = src;
+    if (blurred) {
+      balanced = faint_img_buf(cv::Rect(0, 0, win.width, win.height));
+      cv::multiply(img(win), gain, balanced);
+    }
+    look(win, src, balanced, filter_settings.mask, max_area, true);
+  }
+  std::swap(fips, all_fips);
+  std::swap(aps, all_aps);
+  std::swap(candidates, all_candidates);
+  all_fips.clear();
+  all_aps.clear();
+  all_candidates.clear();
+}
+
+// One look of the second or the faint look: `src` (the window `win` of the
+// filtered frame, or its white-balanced copy) labelled at thresholds `t`,
+// its regions through colour, geometry and verification on `img`: the whole
+// frame (`in_window` false), or the window's own image (true: geometry
+// works in the window's coordinates, then its squares move to the frame's).
+// Its squares and landmarks join all_fips, all_aps and all_candidates unless
+// a landmark of them is there already.
+void Detector::Impl::look(const cv::Rect& win, const cv::Mat& src, const cv::Mat& img, const detail::MaskThresholds& t,
+                          int max_area, bool in_window) {
+  const DetectorParams& p = params;
+  look_labels_buf.create(std::max(look_labels_buf.rows, src.rows), std::max(look_labels_buf.cols, src.cols), CV_8UC1);
+  look_labels = look_labels_buf(cv::Rect(0, 0, src.cols, src.rows));
+  detail::saturationMask(src, t, look_labels);
+  detail::extractRegions(look_labels, src, t, p.min_area_px, max_area, p.min_fill, runs, regions);
+  auto toFrame = [&win](std::vector<detail::Region>& v) {
+    for (auto& q : v) {
+      q.x0 += win.x, q.x1 += win.x, q.cx += win.x;
+      q.y0 += win.y, q.y1 += win.y, q.cy += win.y;
+    }
+  };
+  if (!in_window) toFrame(regions);
+  classify();
+  geometry(img, in_window ? look_labels : labels);
+  if (in_window) {
+    toFrame(fips);
+    toFrame(aps);
+  }
+  const int of = static_cast<int>(all_fips.size()), oa = static_cast<int>(all_aps.size());
+  for (auto c : candidates) {
+    // The same landmark again (found by the first pass or an earlier
+    // look): a square of it where a square of one already is. The first
+    // finding stays.
+    const detail::Region* mine[4] = {&fips[c.tl], &fips[c.tr], &fips[c.bl], &aps[c.ap]};
+    bool again = false;
+    for (const auto& k : all_candidates) {
+      const detail::Region* theirs[4] = {&all_fips[k.tl], &all_fips[k.tr], &all_fips[k.bl], &all_aps[k.ap]};
+      for (const auto* m : mine)
+        for (const auto* q : theirs)
+          again |= std::hypot(m->cx - q->cx, m->cy - q->cy) < std::max(2.0, 0.5 * detail::maxAxis(*m));
+    }
+    if (again) continue;
+    c.tl += of, c.tr += of, c.bl += of, c.ap += oa;
+    all_candidates.push_back(c);
+  }
+  all_fips.insert(all_fips.end(), fips.begin(), fips.end());
+  all_aps.insert(all_aps.end(), aps.begin(), aps.end());
 }
 
 const cv::Mat* Detector::Impl::colourImage(const cv::Mat& input) {
@@ -877,13 +1004,17 @@ void Detector::Impl::run(const cv::Mat& input) {
   timer.stamp("colour");
 
   // 6-7. GEOMETRY: FIP graph, its 3-cycles, the AP, verification, overlaps
-  geometry(*img);
+  geometry(*img, labels);
   timer.stamp("geometry");
 
   // 7c. SECOND LOOK around the squares no landmark took
   if (!paper && p.second_looks > 0) {
     secondLook(*img, *src, max_area);
     timer.stamp("second look");
+  }
+  if (!paper && p.faint_looks > 0) {
+    faintLook(*img, *src, max_area);
+    timer.stamp("faint look");
   }
 
   // 8. CORNERS (through the undistorted image when the camera distorts: the

@@ -207,6 +207,17 @@ struct DetectorParams {
   /// frames and cost more time (stage "second look").
   int second_looks = 8;
   double second_look_raise = 0.1;  ///< higher parts more merges and loses fainter squares
+  /// Fast front end, the faint look: windows per frame (0: none) around red
+  /// squares (up to 16 px, 6 px or more) that no landmark took, smaller
+  /// squares first, each white-balanced by its own white (the mean of its
+  /// brightest fifth) and labelled again at the usual thresholds. A steeply
+  /// seen landmark's blue squares, a few pixels wide and mixed with the
+  /// paper's colour, are violet or grey under warm light and blue again
+  /// against the paper beside them; printed red stays red. Windows whose
+  /// white has no colour cast are skipped (the first pass saw them so). Found
+  /// landmarks pass the same verification; the windows cover at most an
+  /// eighth of the frame (stage "faint look").
+  int faint_looks = 16;
   /// FIP and AP candidates kept (largest first), and 3-cycles of the FIP
   /// graph examined (those among the largest squares first): what bounds the
   /// time of frames cluttered with hundreds of small blue and red things.
