@@ -23,7 +23,7 @@ printf 'cover_max: 0.2\n' >"$T/p.yaml"
 grep -q '"landmarks":\[\]' "$T/out" || fail "cover_max 0.2 still finds: $(cat "$T/out")"
 grep -q '000000.png: 0 landmarks$' "$T/err" || fail "cover: $(cat "$T/err")"
 grep -q 'refused: 1 group of three FIPs (1 cover)' "$T/err" || fail "cover count: $(cat "$T/err")"
-grep -q 'AP (.*): cover (cover_min, cover_max)$' "$T/err" || fail "cover check: $(cat "$T/err")"
+grep -q 'AP (.*): cover (cover_min, cover_max; where the colour is smeared, the absorbed light.s 0.25-0.42)$' "$T/err" || fail "cover check: $(cat "$T/err")"
 # JSON stays exactly one line per image on stdout; detect_ms is the detection alone.
 [ "$(wc -l <"$T/out")" -eq 1 ] && grep -q '"detect_ms":' "$T/out" || fail "stdout: $(cat "$T/out")"
 # --adaptive: the adapter's gains are part of the account.

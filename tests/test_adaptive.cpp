@@ -174,7 +174,8 @@ ld::eval::SweepOptions lit(double temp_k, double gain, bool adaptive) {
 // ld-eval lighting scores both detectors on one rendering of each scene:
 // the same counts as measuring each on its own.
 TEST(AdaptiveDetection, BothDetectorsOnOneRenderingCountAsApart) {
-  auto o = lit(2700, -1, true);
+  auto o = lit(-1, -1, true);
+  o.glare = 0.3;
   o.trials = 8;
   const auto [fixed, adaptive] = ld::eval::measureFixedAndAdaptive(o, 1.5, 0, 40);
   const auto alone = ld::eval::measure(o, 1.5, 0, 40);
@@ -183,7 +184,7 @@ TEST(AdaptiveDetection, BothDetectorsOnOneRenderingCountAsApart) {
   EXPECT_EQ(fixed.trials, 8);
   EXPECT_EQ(adaptive.detected, alone.detected);
   EXPECT_EQ(fixed.detected, fixed_alone.detected);
-  EXPECT_NE(fixed.detected, adaptive.detected);  // 2700 K: the two differ, so the order is checked too
+  EXPECT_NE(fixed.detected, adaptive.detected);  // glare: the two differ, so the order is checked too
   // False landmarks: with the defaults both counts are 0 on so few frames,
   // so the sheet, QR and cover checks are switched off to let look-alike
   // cards through, at rates that differ between the two detectors.
@@ -202,22 +203,33 @@ TEST(AdaptiveDetection, BothDetectorsOnOneRenderingCountAsApart) {
   EXPECT_NE(fp[0], fp[1]);
 }
 
-// Warm light: the fixed defaults lose a candle's 2000 K and a household
-// bulb's 2700 K (at 3200 K, a halogen's, they keep most frames since the
-// squares' cover is measured on the light the inks absorb where their colour
-// is smeared); the adaptive detector keeps them.
-TEST(AdaptiveDetection, HoldsUnderTungstenWhereTheDefaultsDrop) {
+// Warm light: the adaptive detector keeps a candle's 2000 K, a household
+// bulb's 2700 K and a halogen's 3200 K. The fixed defaults lose frames there
+// (over 100 frames of ld-eval lighting: 75, 71 and 86 %; the faint look's
+// windows, white-balanced by their own white, keep that many: without them
+// 0, 0 and 74 %), fewer than before on this test's 20.
+TEST(AdaptiveDetection, HoldsUnderWarmLight) {
+  int fixed_all = 0, adaptive_all = 0;
   for (double temp : {2000.0, 2700.0, 3200.0}) {
     const auto [fixed, adaptive] = ld::eval::measureFixedAndAdaptive(lit(temp, -1, true), 1.5, 0, 40);
     std::printf("%.0f K: fixed %d/%d, adaptive %d/%d\n", temp, fixed.detected, fixed.trials,
                 adaptive.detected, adaptive.trials);
-    if (temp < 3000) {
-      EXPECT_LE(fixed.detectRate(), 0.5);
-    }
+    fixed_all += fixed.detected;
+    adaptive_all += adaptive.detected;
     EXPECT_GE(adaptive.detected, fixed.detected);
-    // (2000 K: 92 of 100 frames in ld-eval lighting --trials 100)
-    EXPECT_GE(adaptive.detectRate(), temp < 2500 ? 0.85 : 0.95);
+    // (2000 K: 97 of 100 frames in ld-eval lighting --trials 100)
+    EXPECT_GE(adaptive.detectRate(), temp < 2500 ? 0.9 : 0.95);
   }
+  EXPECT_GT(adaptive_all, fixed_all);
+}
+
+// Without the faint look the fixed defaults lose warm light altogether.
+TEST(AdaptiveDetection, FixedDefaultsWithoutTheFaintLookDropUnderTungsten) {
+  auto o = lit(2700, -1, false);
+  o.params.faint_looks = 0;
+  const auto fixed = ld::eval::measure(o, 1.5, 0, 40);
+  std::printf("2700 K, no faint look: fixed %d/%d\n", fixed.detected, fixed.trials);
+  EXPECT_LE(fixed.detectRate(), 0.5);
 }
 
 TEST(AdaptiveDetection, NoLossInDaylightAndDimLight) {

@@ -234,12 +234,13 @@ const char* checkHint(detail::Check check) {
     case Check::kNoQr: return "qr_max_brightness, qr_dark_samples, qr_dark_sample";
     case Check::kCentreSaturated:
     case Check::kCentreColoured: return "colour at the centre: a look-alike card";
-    case Check::kCover: return "cover_min, cover_max";
+    case Check::kCover: return "cover_min, cover_max; where the colour is smeared, the absorbed light's 0.25-0.42";
     case Check::kSquareAtCentre: return "a coloured square at the centre: a look-alike card";
     case Check::kOtherSquares: return "a coloured square on the sheet besides the four: a pattern, not a landmark";
     case Check::kNotConvex:
     case Check::kDegenerateMoments:
-    case Check::kDegenerateSquare: return "";
+    case Check::kDegenerateSquare:
+    case Check::kCount: return "";
   }
   return "";
 }
@@ -312,13 +313,15 @@ constexpr int kMaxCompletionPairs = 20000;
 
 // Squares the second look starts from are at most this long (pixels, the
 // longest axis): a landmark with larger ones has a sheet margin of 4 px or
-// more, which neither blur nor JPEG's colour tints across.
+// more, which neither blur nor JPEG's colour tints across. The faint look
+// starts from red squares up to this long too: larger landmarks' blue
+// squares are wide enough to keep their colour.
 constexpr double kSecondLookMaxSide = 16.0;
 // Pairs of unused squares the second look ranks, at most (its windows are
 // fewer still: second_looks, an eighth of the frame).
 constexpr size_t kMaxAnchors = 256;
-// Red squares the faint look starts from have at least this many pixels (a
-// 9 cm landmark's AP at 1.5 m and 70 degrees of yaw has about 20).
+// Red squares the faint look starts from cover at least this many pixels
+// (a 9 cm landmark's AP at 1.5 m and 70 degrees of yaw covers about 20).
 constexpr int kFaintLookMinArea = 6;
 // ... and windows whose white is this much stronger in one channel than in
 // another (a colour cast) are looked at.
@@ -357,13 +360,13 @@ struct Detector::Impl {
   detail::RegionIndex ap_index;
   std::vector<std::array<int, 3>> cycles;
   std::vector<detail::Candidate> candidates, choices;
-  // the second look's
+  // the second and the faint look's
   cv::Mat look_labels;
   struct Anchor {
     cv::Point2d centre;
     double radius;
-    int rank;  // 0: an AP and a FIP, 1: two FIPs
-    int area;  // the larger square's
+    int rank;  // second look: 0 an AP and a FIP, 1 two FIPs; faint look: 0 (an AP alone)
+    int area;  // the larger square's (faint look: the AP's)
   };
   std::vector<Anchor> anchors;
   std::vector<std::pair<cv::Rect, int64_t>> blobs;  // the first pass's larger regions: bbox, area
@@ -371,7 +374,8 @@ struct Detector::Impl {
   std::vector<cv::Rect> looked;
   cv::Mat look_labels_buf;                 // look_labels is a window-sized view of it
   cv::Mat faint_src_buf, faint_img_buf;    // the faint look's white-balanced windows
-  int white_hist[766];                     // the faint look's histogram of b + g + r
+  int white_hist[766];                     // the faint look's histogram of b + g + r ...
+  cv::Vec3i white_sums[766];               // ... and its pixels' channel sums per bin
   std::vector<detail::Region> all_fips, all_aps;
   std::vector<detail::Candidate> all_candidates;
   Detection det;
@@ -432,6 +436,12 @@ struct Detector::Impl {
   void complete(const cv::Mat& img, const cv::Mat& label_map);
   void secondLook(const cv::Mat& img, const cv::Mat& filtered, int max_area);
   void faintLook(const cv::Mat& img, const cv::Mat& filtered, int max_area);
+  // `used`: the FIPs (then the APs, after fips.size()) some candidate takes.
+  void markUsed() {
+    const size_t nf = fips.size();
+    used.assign(nf + aps.size(), 0);
+    for (const auto& c : candidates) used[c.tl] = used[c.tr] = used[c.bl] = used[nf + c.ap] = 1;
+  }
   void look(const cv::Rect& win, const cv::Mat& src, const cv::Mat& img, const detail::MaskThresholds& t, int max_area,
             bool in_window);
 };
@@ -442,9 +452,8 @@ struct Detector::Impl {
 // measured where the layout puts it.
 void Detector::Impl::complete(const cv::Mat& img, const cv::Mat& label_map) {
   const DetectorParams& p = params;
-  const int n0 = static_cast<int>(fips.size()), a0 = static_cast<int>(aps.size());
-  used.assign(static_cast<size_t>(n0 + a0), 0);
-  for (const auto& c : candidates) used[c.tl] = used[c.tr] = used[c.bl] = used[n0 + c.ap] = 1;
+  const int n0 = static_cast<int>(fips.size());
+  markUsed();
   auto labelAt = [&](const cv::Point2d& q) -> int {
     const int x = static_cast<int>(std::lround(q.x)), y = static_cast<int>(std::lround(q.y));
     return x >= 0 && y >= 0 && x < label_map.cols && y < label_map.rows ? label_map.at<uint8_t>(y, x) : -1;
@@ -639,8 +648,7 @@ void Detector::Impl::geometry(const cv::Mat& img, const cv::Mat& label_map) {
 void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int max_area) {
   const DetectorParams& p = params;
   const int nf = static_cast<int>(fips.size()), na = static_cast<int>(aps.size());
-  used.assign(static_cast<size_t>(nf + na), 0);
-  for (const auto& c : candidates) used[c.tl] = used[c.tr] = used[c.bl] = used[nf + c.ap] = 1;
+  markUsed();
   // Where a landmark may lie: an AP and a FIP, or two FIPs, that no
   // landmark took and that could be two squares of one (the graph's
   // distance and size constraints). Around the pair's midpoint, the other
@@ -746,15 +754,15 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
 // steeply seen landmark's blue squares are a few pixels wide, their colour
 // mixed with the paper's: under warm light the mix is violet or grey in the
 // frame's colours, and blue again against the paper beside it. Printed red
-// stays red (it is bright), so the AP is where to look: from the smaller
-// red squares (a steep or distant landmark's) up, windows reaching 5 of the
-// square's longest axes (the FIPs lie within 4.24 sides of the AP), at most
-// faint_looks of them and an eighth of the frame in all.
+// stays red (it is bright), so the AP is where to look: from the larger
+// red squares down (a nearer landmark's, whose window is the likelier to
+// hold one whole), windows reaching 5 of the square's longest axes (the FIPs
+// lie within 4.24 sides of the AP), at most faint_looks of them and an
+// eighth of the frame in all.
 void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int max_area) {
   const DetectorParams& p = params;
   const int nf = static_cast<int>(fips.size()), na = static_cast<int>(aps.size());
-  used.assign(static_cast<size_t>(nf + na), 0);
-  for (const auto& c : candidates) used[c.tl] = used[c.tr] = used[c.bl] = used[nf + c.ap] = 1;
+  markUsed();
   anchors.clear();
   const double max_radius = 0.3 * std::min(img.cols, img.rows);
   for (int k = 0; k < na; ++k) {
@@ -765,16 +773,22 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   }
   if (anchors.empty()) return;
   std::sort(anchors.begin(), anchors.end(), [](const Anchor& a, const Anchor& b) {
-    return std::tie(a.area, a.centre.x, a.centre.y) < std::tie(b.area, b.centre.x, b.centre.y);
+    return std::tie(b.area, a.centre.x, a.centre.y) < std::tie(a.area, b.centre.x, b.centre.y);
   });
   std::swap(fips, all_fips);
   std::swap(aps, all_aps);
   std::swap(candidates, all_candidates);
   const cv::Rect frame(0, 0, img.cols, img.rows);
-  int64_t pixels_left = static_cast<int64_t>(img.total()) / 8;
+  // An eighth of the frame for the looks, and as many pixels again for
+  // measuring windows' white (a quarter of each window's pixels are sampled).
+  int64_t pixels_left = static_cast<int64_t>(img.total()) / 8, samples_left = pixels_left;
   int looks = 0;
   looked.clear();
   const bool blurred = filtered.data != img.data;
+  // Window-sized views of buffers as large as the largest window (no allocation per look).
+  const int buf_side = 2 * static_cast<int>(std::ceil(max_radius)) + 1;
+  faint_src_buf.create(buf_side, buf_side, CV_8UC3);
+  if (blurred) faint_img_buf.create(buf_side, buf_side, CV_8UC3);
   for (const auto& a : anchors) {
     if (looks >= p.faint_looks || pixels_left < 25 * 25) break;
     const cv::Point centre(static_cast<int>(std::lround(a.centre.x)), static_cast<int>(std::lround(a.centre.y)));
@@ -783,25 +797,29 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
     if (seen) continue;
     const int r = static_cast<int>(std::ceil(a.radius));
     const cv::Rect win = cv::Rect(centre.x - r, centre.y - r, 2 * r + 1, 2 * r + 1) & frame;
-    if (win.area() > pixels_left) continue;
+    if (win.area() > pixels_left || win.area() / 4 > samples_left) continue;
+    samples_left -= win.area() / 4;
+    // (a window measured, cast or not, stands for the red squares in it)
     looked.push_back(win);
     // The white: the mean colour of the brightest fifth (by the sum of the
-    // channels) of every other pixel of every other row.
+    // channels) of every other pixel of every other row, from one pass that
+    // counts and sums the pixels per sum of channels.
     const cv::Mat f = filtered(win);
     std::fill(std::begin(white_hist), std::end(white_hist), 0);
+    std::fill(std::begin(white_sums), std::end(white_sums), cv::Vec3i(0, 0, 0));
     int samples = 0;
     for (int y = 0; y < f.rows; y += 2) {
       const uint8_t* q = f.ptr<uint8_t>(y);
-      for (int x = 0; x < f.cols; x += 2, q += 6, ++samples) ++white_hist[q[0] + q[1] + q[2]];
+      for (int x = 0; x < f.cols; x += 2, q += 6, ++samples) {
+        const int v = q[0] + q[1] + q[2];
+        ++white_hist[v];
+        white_sums[v] += cv::Vec3i(q[0], q[1], q[2]);
+      }
     }
-    int cut = 765;
-    for (int n = 0; cut > 0 && n + white_hist[cut] < samples / 5; --cut) n += white_hist[cut];
-    double white[3] = {0, 0, 0};
-    for (int y = 0; y < f.rows; y += 2) {
-      const uint8_t* q = f.ptr<uint8_t>(y);
-      for (int x = 0; x < f.cols; x += 2, q += 6)
-        if (q[0] + q[1] + q[2] >= cut)
-          for (int c = 0; c < 3; ++c) white[c] += q[c];
+    cv::Vec3d white(0, 0, 0);
+    for (int v = 765, n = 0; v >= 0 && n < std::max(1, samples / 5); --v) {
+      n += white_hist[v];
+      white += cv::Vec3d(white_sums[v]);
     }
     const double top = std::max({white[0], white[1], white[2]}), low = std::min({white[0], white[1], white[2]});
     // A white already white: the first pass saw this window as the look would.
@@ -809,10 +827,6 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
     pixels_left -= win.area();
     ++looks;
     const cv::Scalar gain(top / white[0], top / white[1], top / white[2]);
-    // Window-sized views of buffers as large as the largest window (no allocation per look).
-    const int side = 2 * static_cast<int>(std::ceil(max_radius)) + 1;
-    faint_src_buf.create(side, side, CV_8UC3);
-    faint_img_buf.create(side, side, CV_8UC3);
     cv::Mat src = faint_src_buf(cv::Rect(0, 0, win.width, win.height));
     cv::multiply(f, gain, src);
     cv::Mat balanced = src;
@@ -1012,6 +1026,7 @@ void Detector::Impl::run(const cv::Mat& input) {
     secondLook(*img, *src, max_area);
     timer.stamp("second look");
   }
+  // 7d. FAINT LOOK around the red squares no landmark took
   if (!paper && p.faint_looks > 0) {
     faintLook(*img, *src, max_area);
     timer.stamp("faint look");

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <tuple>
 
 #include <opencv2/calib3d.hpp>
@@ -88,10 +89,11 @@ double excessAt(const cv::Mat& bgr, const cv::Point2d& p, uint8_t colour) {
 
 // How much of the light a colour's ink absorbs that the paper reflects: the
 // larger of the other two channels, negated (blue ink takes green and red,
-// red ink green and blue; the paper reflects all three).
+// red ink green and blue; the paper reflects all three). NaN outside the
+// image (no value there would be neutral).
 double absorbedAt(const cv::Mat& bgr, const cv::Point2d& p, uint8_t colour) {
   double c[3];
-  if (!sampleBgr(bgr, p, c)) return 0;
+  if (!sampleBgr(bgr, p, c)) return std::numeric_limits<double>::quiet_NaN();
   return colour == kBlue ? -std::max(c[1], c[2]) : -std::max(c[0], c[1]);
 }
 
@@ -100,11 +102,6 @@ double absorbedAt(const cv::Mat& bgr, const cv::Point2d& p, uint8_t colour) {
 double chroma(const double c[3], uint8_t colour) {
   return excess(c, colour) / std::max(1.0, (c[0] + c[1] + c[2]) / 3);
 }
-
-// The light the inks absorb measures a side's cover sharply: a third within
-// about a quarter of itself (0.27 to 0.42 on landmarks whose colour's
-// profile failed, in the yaw and 2000 K sweeps).
-constexpr double kAbsorbedCoverMin = 0.25, kAbsorbedCoverMax = 0.42;
 
 // A sheet this bright (mean of the channels, 0..255) is at or near the
 // sensor's white clip: glare, or the adapter's stretch of it.
@@ -554,6 +551,7 @@ const char* checkName(Check check) {
     case Check::kCover: return "cover";
     case Check::kSquareAtCentre: return "square at the centre";
     case Check::kOtherSquares: return "other squares";
+    case Check::kCount: break;
   }
   return "?";
 }
@@ -679,8 +677,8 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   // spreads its colour over the sheet around it. Where the colour's cover of
   // a side is out of bounds, the light the inks absorb, whose edges are the
   // brightness's and sharp, measures all four sides again, each near a
-  // third (a striped surface's "squares" pass one side's measure more easily
-  // than four).
+  // third (kAbsorbedCoverMin..Max, and within cover_min..cover_max: a striped
+  // surface's "squares" pass one side's measure more easily than four).
   const uint8_t colours[4] = {kBlue, kBlue, kRed, kBlue};
   double f[4];
   bool smeared = false;
@@ -688,16 +686,15 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
     f[i] = coverFraction(bgr, P[i], colours[i], P[(i + 1) % 4], colours[(i + 1) % 4]);
     smeared |= f[i] < p.cover_min || f[i] > p.cover_max;
   }
-  if (smeared)
+  if (smeared) {
+    const double lo = std::max(kAbsorbedCoverMin, p.cover_min), hi = std::min(kAbsorbedCoverMax, p.cover_max);
     for (int i = 0; i < 4; ++i) {
       f[i] = coverFraction(bgr, P[i], colours[i], P[(i + 1) % 4], colours[(i + 1) % 4], CoverProfile::kAbsorbed);
-      if (f[i] < kAbsorbedCoverMin || f[i] > kAbsorbedCoverMax) return fail(Check::kCover);
+      if (!(f[i] >= lo && f[i] <= hi)) return fail(Check::kCover);
     }
-  double cover_err = 0;
-  for (int i = 0; i < 4; ++i) {
-    if (f[i] < p.cover_min || f[i] > p.cover_max) return fail(Check::kCover);
-    cover_err += std::abs(f[i] - 1.0 / 3) / 4;
   }
+  double cover_err = 0;
+  for (int i = 0; i < 4; ++i) cover_err += std::abs(f[i] - 1.0 / 3) / 4;
   // Coloured squares of the squares' size besides the four: none at the
   // centre (within one side of it: a look-alike card's square), and none
   // elsewhere on the sheet either, where a patterned surface (stripes that
@@ -744,6 +741,7 @@ double coverFraction(const cv::Mat& bgr, cv::Point2d a, uint8_t ca, cv::Point2d 
     const cv::Point2d q = a + (b - a) * (static_cast<double>(i) / n);
     ea[i] = at(bgr, q, ca);
     eb[i] = ca == cb ? ea[i] : at(bgr, q, cb);
+    if (std::isnan(ea[i]) || std::isnan(eb[i])) return -1;  // (the absorbed light, outside the image)
   }
   // The gap: the lowest point of the middle of the profile, in both hues.
   for (int i = n / 4; i <= 3 * n / 4; ++i) lo = std::min(lo, std::max(ea[i], eb[i]));

@@ -196,8 +196,9 @@ enum class Check : uint8_t {
   kCover,
   kSquareAtCentre,
   kOtherSquares,
+  kCount  ///< not a check: how many there are
 };
-constexpr int kNumChecks = static_cast<int>(Check::kOtherSquares) + 1;
+constexpr int kNumChecks = static_cast<int>(Check::kCount);
 /// The check's name as explanations give it ("no AP", "cover", ...).
 const char* checkName(Check check);
 
@@ -227,6 +228,11 @@ bool bestVerifiedChoice(const std::array<int, 3>& cycle, const std::vector<Regio
 /// -max(g, b)): the brightness's edges, sharp where the camera smeared the
 /// colour.
 enum class CoverProfile { kExcess, kAbsorbed };
+/// Verification holds the absorbed light's cover of every side within
+/// these (within cover_min and cover_max too): a third within about a
+/// quarter of itself (0.27 to 0.42 on landmarks whose colour's profile
+/// failed, in the yaw and 2000 K sweeps).
+constexpr double kAbsorbedCoverMin = 0.25, kAbsorbedCoverMax = 0.42;
 double coverFraction(const cv::Mat& bgr, cv::Point2d a, uint8_t colour_a, cv::Point2d b, uint8_t colour_b,
                      CoverProfile profile = CoverProfile::kExcess);
 

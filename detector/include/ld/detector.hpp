@@ -29,6 +29,9 @@
 //   7c. second look (fast front end) windows around pairs of squares no
 //                  landmark took, where a larger region lies, labelled again
 //                  at raised saturation thresholds and put through 4-7
+//   7d. faint look (fast front end) windows around red squares no landmark
+//                  took, white-balanced by their own white, labelled again
+//                  and put through 4-7
 //   8. corners     the homography from the four square centres, each
 //                  corrected for the perspective shift of a projected square's
 //                  centroid, gives the pattern's outer corners (through the
@@ -36,8 +39,8 @@
 //   9. pose        cv::solvePnP (IPPE square) when intrinsics and side are set
 //
 // Each stage is stamped by name into Detection::stages: "blur", "saturation",
-// "edges", "contours", "colour", "geometry", "second look", "corners", "pose"
-// (those that ran).
+// "edges", "contours", "colour", "geometry", "second look", "faint look",
+// "corners", "pose" (those that ran).
 //
 // Backends (DetectorParams::backend): stages 1-3, the per-pixel filters, run
 // on the CPU or on the GPU through OpenGL ES shaders on a headless EGL
@@ -208,7 +211,7 @@ struct DetectorParams {
   int second_looks = 8;
   double second_look_raise = 0.1;  ///< higher parts more merges and loses fainter squares
   /// Fast front end, the faint look: windows per frame (0: none) around red
-  /// squares (up to 16 px, 6 px or more) that no landmark took, smaller
+  /// squares (up to 16 px long, of 6 pixels or more) that no landmark took, larger
   /// squares first, each white-balanced by its own white (the mean of its
   /// brightest fifth) and labelled again at the usual thresholds. A steeply
   /// seen landmark's blue squares, a few pixels wide and mixed with the
@@ -284,7 +287,7 @@ struct Detection {
 /// stage and, for each group of squares shaped as a landmark's that gave
 /// none, the check that refused it (Detector::detect with an Explanation;
 /// `ld-detect --explain`). Counts are the first pass's: the completion of a
-/// missing square and the second look add squares of their own.
+/// missing square, the second look and the faint look add squares of their own.
 struct Explanation {
   int blue_regions = 0, red_regions = 0;        ///< labelled regions within min_area_px and max_area_frac_1000
   int blue_sparse = 0, red_sparse = 0;          ///< of them, filling less than min_fill
