@@ -361,7 +361,6 @@ struct Detector::Impl {
   std::vector<std::array<int, 3>> cycles;
   std::vector<detail::Candidate> candidates, choices;
   // the second and the faint look's
-  cv::Mat look_labels;
   struct Anchor {
     cv::Point2d centre;
     double radius;
@@ -372,7 +371,7 @@ struct Detector::Impl {
   std::vector<std::pair<cv::Rect, int64_t>> blobs;  // the first pass's larger regions: bbox, area
   detail::RegionIndex fip_index;
   std::vector<cv::Rect> looked;
-  cv::Mat look_labels_buf;                 // look_labels is a window-sized view of it
+  cv::Mat look_labels_buf;                 // look()'s labels are a window-sized view of it
   cv::Mat faint_src_buf, faint_img_buf;    // the faint look's white-balanced windows
   int white_hist[766];                     // the faint look's histogram of b + g + r ...
   cv::Vec3i white_sums[766];               // ... and its pixels' channel sums per bin
@@ -437,6 +436,29 @@ struct Detector::Impl {
   void secondLook(const cv::Mat& img, const cv::Mat& filtered, int max_area);
   void faintLook(const cv::Mat& img, const cv::Mat& filtered, int max_area);
   // `used`: the FIPs (then the APs, after fips.size()) some candidate takes.
+  // The looks: the first pass's squares and landmarks go aside into all_*,
+  // each look's join them there (look()), and endLooks() brings all back.
+  void swapLooksLists() {
+    std::swap(fips, all_fips);
+    std::swap(aps, all_aps);
+    std::swap(candidates, all_candidates);
+  }
+  void endLooks() {
+    swapLooksLists();
+    all_fips.clear();
+    all_aps.clear();
+    all_candidates.clear();
+  }
+  // An anchor's window (clipped to `frame`), unless its centre lies in a
+  // window already looked at.
+  bool freshWindow(const Anchor& a, const cv::Rect& frame, cv::Rect& win) const {
+    const cv::Point centre(static_cast<int>(std::lround(a.centre.x)), static_cast<int>(std::lround(a.centre.y)));
+    for (const auto& w : looked)
+      if (w.contains(centre)) return false;
+    const int r = static_cast<int>(std::ceil(a.radius));
+    win = cv::Rect(centre.x - r, centre.y - r, 2 * r + 1, 2 * r + 1) & frame;
+    return true;
+  }
   void markUsed() {
     const size_t nf = fips.size();
     used.assign(nf + aps.size(), 0);
@@ -708,9 +730,7 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
   strict.blue = std::min(0.95, strict.blue + p.second_look_raise);
   strict.red = std::min(0.95, strict.red + p.second_look_raise);
   // The first pass's lists stay aside; each look's squares and landmarks join them.
-  std::swap(fips, all_fips);
-  std::swap(aps, all_aps);
-  std::swap(candidates, all_candidates);
+  swapLooksLists();
   const cv::Rect frame(0, 0, img.cols, img.rows);
   // Windows cover at most an eighth of the frame in all (cluttered frames have many unused squares).
   int64_t pixels_left = static_cast<int64_t>(img.total()) / 8;
@@ -718,12 +738,8 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
   looked.clear();
   for (const auto& a : anchors) {
     if (looks >= p.second_looks || pixels_left < 25 * 25) break;  // 25 x 25: the smallest window
-    const cv::Point centre(static_cast<int>(std::lround(a.centre.x)), static_cast<int>(std::lround(a.centre.y)));
-    bool seen = false;
-    for (const auto& w : looked) seen |= w.contains(centre);
-    if (seen) continue;
-    const int r = static_cast<int>(std::ceil(a.radius));
-    const cv::Rect win = cv::Rect(centre.x - r, centre.y - r, 2 * r + 1, 2 * r + 1) & frame;
+    cv::Rect win;
+    if (!freshWindow(a, frame, win)) continue;
     if (win.area() > pixels_left) continue;
     bool merged = false;
     for (const auto& b : blobs) {
@@ -739,12 +755,7 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
     looked.push_back(win);
     look(win, filtered(win), img, strict, max_area, false);
   }
-  std::swap(fips, all_fips);
-  std::swap(aps, all_aps);
-  std::swap(candidates, all_candidates);
-  all_fips.clear();
-  all_aps.clear();
-  all_candidates.clear();
+  endLooks();
 }
 
 // The faint look: around a red square that no landmark took, the window
@@ -775,9 +786,7 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   std::sort(anchors.begin(), anchors.end(), [](const Anchor& a, const Anchor& b) {
     return std::tie(b.area, a.centre.x, a.centre.y) < std::tie(a.area, b.centre.x, b.centre.y);
   });
-  std::swap(fips, all_fips);
-  std::swap(aps, all_aps);
-  std::swap(candidates, all_candidates);
+  swapLooksLists();
   const cv::Rect frame(0, 0, img.cols, img.rows);
   // An eighth of the frame for the looks, and as many pixels again for
   // measuring windows' white (a quarter of each window's pixels are sampled).
@@ -791,12 +800,8 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   if (blurred) faint_img_buf.create(buf_side, buf_side, CV_8UC3);
   for (const auto& a : anchors) {
     if (looks >= p.faint_looks || pixels_left < 25 * 25) break;
-    const cv::Point centre(static_cast<int>(std::lround(a.centre.x)), static_cast<int>(std::lround(a.centre.y)));
-    bool seen = false;
-    for (const auto& w : looked) seen |= w.contains(centre);
-    if (seen) continue;
-    const int r = static_cast<int>(std::ceil(a.radius));
-    const cv::Rect win = cv::Rect(centre.x - r, centre.y - r, 2 * r + 1, 2 * r + 1) & frame;
+    cv::Rect win;
+    if (!freshWindow(a, frame, win)) continue;
     if (win.area() > pixels_left || win.area() / 4 > samples_left) continue;
     samples_left -= win.area() / 4;
     // (a window measured, cast or not, stands for the red squares in it)
@@ -836,12 +841,7 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
     }
     look(win, src, balanced, filter_settings.mask, max_area, true);
   }
-  std::swap(fips, all_fips);
-  std::swap(aps, all_aps);
-  std::swap(candidates, all_candidates);
-  all_fips.clear();
-  all_aps.clear();
-  all_candidates.clear();
+  endLooks();
 }
 
 // One look of the second or the faint look: `src` (the window `win` of the
@@ -855,7 +855,7 @@ void Detector::Impl::look(const cv::Rect& win, const cv::Mat& src, const cv::Mat
                           int max_area, bool in_window) {
   const DetectorParams& p = params;
   look_labels_buf.create(std::max(look_labels_buf.rows, src.rows), std::max(look_labels_buf.cols, src.cols), CV_8UC1);
-  look_labels = look_labels_buf(cv::Rect(0, 0, src.cols, src.rows));
+  cv::Mat look_labels = look_labels_buf(cv::Rect(0, 0, src.cols, src.rows));
   detail::saturationMask(src, t, look_labels);
   detail::extractRegions(look_labels, src, t, p.min_area_px, max_area, p.min_fill, runs, regions);
   auto toFrame = [&win](std::vector<detail::Region>& v) {
