@@ -908,6 +908,48 @@ TEST(Detector, FaintLookFindsBlueSquaresTheLightTurnedViolet) {
   EXPECT_GE(found, tried - 1);
 }
 
+// Inside a faint look's window the completion measures the square the
+// window's labels miss where the other three put it, with the window's own
+// labels (in the window's coordinates). TR printed in a cyan-leaning blue
+// (a printer short of magenta): after the window's white balance the mask
+// takes it for cyan, not blue, yet its blue stands out where the layout puts
+// it. A red poster in the frame's top-left corner, where the window's
+// coordinates would fall in the frame's labels, does not stop it (with the
+// frame's labels nothing is found). Without the completion, or without the
+// faint look, nothing is found.
+TEST(Detector, FaintLookCompletesACyanSquareInItsWindow) {
+  cv::Mat art = artworkImage().clone();
+  const int u = art.cols / 9;
+  art(cv::Rect(13 * u / 2, u / 2, 2 * u, 2 * u)).setTo(cv::Scalar(230, 170, 60));  // TR: sRGB (60, 170, 230)
+  int found = 0, found_without_completion = 0, found_without_faint = 0, tried = 0;
+  for (double roll : {0.0, 60.0, 150.0, -100.0}) {
+    cv::Mat img = background(kCam.size, 25, true);
+    img(cv::Rect(0, 0, 200, 200)).setTo(cv::Scalar(40, 60, 210));  // the red poster
+    Placed p = place(1.5, 68, roll, 0.09, 0.35, 0.2);  // the frame's lower right
+    p.artwork = art;
+    drawSheet(img, kCam, p);
+    cv::GaussianBlur(img, img, cv::Size(), 0.7);
+    const Truth t = truthOf(kCam, p);
+    std::vector<cv::Mat> ch;  // the warm light, as above
+    cv::split(img, ch);
+    ch[0] *= 0.5;
+    ch[1] *= 0.8;
+    cv::merge(ch, img);
+    ld::DetectorParams no_completion, no_faint;
+    no_completion.complete_missing = false;
+    no_faint.faint_looks = 0;
+    ++tried;
+    found += onlyLandmark(ld::Detector().detect(img), t);
+    found_without_completion += onlyLandmark(ld::Detector(no_completion).detect(img), t);
+    found_without_faint += onlyLandmark(ld::Detector(no_faint).detect(img), t);
+  }
+  std::printf("found %d of %d; without the completion %d, without the faint look %d\n", found, tried,
+              found_without_completion, found_without_faint);
+  EXPECT_EQ(found_without_faint, 0) << "the first pass finds it: the test does not test the faint look";
+  EXPECT_EQ(found_without_completion, 0) << "the faint look finds all four squares: the test does not test the completion";
+  EXPECT_GE(found, tried - 1);
+}
+
 // Close up, at an angle, perspective moves the AP well off TR + BL - TL,
 // where a red thing just off the sheet can lie nearer: it is not taken for
 // the AP (the perspective prediction and, where both are in the gate, the
