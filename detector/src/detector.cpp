@@ -326,8 +326,6 @@ constexpr int kFaintLookMinArea = 6;
 // ... and windows whose white is this much stronger in one channel than in
 // another (a colour cast) are looked at.
 constexpr double kFaintLookMinCast = 1.08;
-// Its windows cover at most this share of the frame (1 / this) in all.
-constexpr int kFaintLookFrameShare = 4;
 
 // One warning per process about the GPU not being used (whether it could
 // not be started or failed later).
@@ -770,8 +768,8 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
 // stays red (it is bright), so the AP is where to look: from the larger
 // red squares down (a nearer landmark's, whose window is the likelier to
 // hold one whole), windows reaching 5 of the square's longest axes (the FIPs
-// lie within 4.24 sides of the AP), at most faint_looks of them and a
-// quarter of the frame in all.
+// lie within 4.24 sides of the AP), at most faint_looks of them and an
+// eighth of the frame in all.
 void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int max_area) {
   const DetectorParams& p = params;
   const int nf = static_cast<int>(fips.size()), na = static_cast<int>(aps.size());
@@ -790,10 +788,9 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   });
   swapLooksLists();
   const cv::Rect frame(0, 0, img.cols, img.rows);
-  // A quarter of the frame for the looks (a window around a 16 px square
-  // alone takes a twelfth of a 640x480 frame), and as many pixels again for
+  // An eighth of the frame for the looks, and as many pixels again for
   // measuring windows' white (a quarter of each window's pixels are sampled).
-  int64_t pixels_left = static_cast<int64_t>(img.total()) / kFaintLookFrameShare, samples_left = pixels_left;
+  int64_t pixels_left = static_cast<int64_t>(img.total()) / 8, samples_left = pixels_left;
   int looks = 0;
   looked.clear();
   const bool blurred = filtered.data != img.data;

@@ -218,8 +218,8 @@ struct DetectorParams {
   /// paper's colour, are violet or grey under warm light and blue again
   /// against the paper beside them; printed red stays red. Windows whose
   /// white has no colour cast are skipped (the first pass saw them so). Found
-  /// landmarks pass the same verification; the windows cover at most a
-  /// quarter of the frame (stage "faint look").
+  /// landmarks pass the same verification; the windows cover at most an
+  /// eighth of the frame (stage "faint look").
   int faint_looks = 16;
   /// FIP and AP candidates kept (largest first), and 3-cycles of the FIP
   /// graph examined (those among the largest squares first): what bounds the
