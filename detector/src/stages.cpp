@@ -793,16 +793,39 @@ bool completeSquare(const cv::Mat& bgr, cv::Point2d guess, uint8_t colour, cv::P
     const double dx = x - guess.x, dy = y - guess.y;
     return std::abs(i00 * dx + i01 * dy) <= kReach && std::abs(i10 * dx + i11 * dy) <= kReach;
   };
+  // Row y's pixels that may be inside: the parallelogram's span on the row
+  // (each of its two strips |i * dx + c| <= kReach an interval of dx), a
+  // pixel wider on either side against rounding; inside() decides.
+  auto span = [&](int y, int& xa, int& xb) {
+    const double dy = y - guess.y;
+    double lo = x0 - guess.x, hi = x1 - guess.x;
+    for (const auto& [i, c] : {std::pair<double, double>{i00, i01 * dy}, {i10, i11 * dy}}) {
+      if (std::abs(i) > 1e-12) {
+        const double u = (-kReach - c) / i, v = (kReach - c) / i;
+        lo = std::max(lo, std::min(u, v));
+        hi = std::min(hi, std::max(u, v));
+      } else if (std::abs(c) > kReach) {
+        hi = lo - 1;
+      }
+    }
+    xa = std::max(x0, static_cast<int>(std::floor(guess.x + lo)) - 1);
+    xb = std::min(x1, static_cast<int>(std::ceil(guess.x + hi)) + 1);
+  };
   int peak = -255;
-  for (int y = y0; y <= y1; ++y)
-    for (int x = x0; x <= x1; ++x)
+  for (int y = y0; y <= y1; ++y) {
+    int xa, xb;
+    span(y, xa, xb);
+    for (int x = xa; x <= xb; ++x)
       if (inside(x, y)) peak = std::max(peak, hueExcess(bgr.ptr<uint8_t>(y) + 3 * x, colour));
+  }
   if (peak < min_peak) return false;
   const int half = peak / 2;
   double sw = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, sb = 0, sg = 0, sr = 0;
   int n = 0;
-  for (int y = y0; y <= y1; ++y)
-    for (int x = x0; x <= x1; ++x) {
+  for (int y = y0; y <= y1; ++y) {
+    int xa, xb;
+    span(y, xa, xb);
+    for (int x = xa; x <= xb; ++x) {
       if (!inside(x, y)) continue;
       const uint8_t* px = bgr.ptr<uint8_t>(y) + 3 * x;
       const int w = hueExcess(px, colour) - half;
@@ -812,6 +835,7 @@ bool completeSquare(const cv::Mat& bgr, cv::Point2d guess, uint8_t colour, cv::P
       sb += px[0], sg += px[1], sr += px[2];
       ++n;
     }
+  }
   if (sw <= 0) return false;
   out = Region();
   out.colour = colour;
