@@ -950,6 +950,26 @@ TEST(Detector, FaintLookCompletesACyanSquareInItsWindow) {
   EXPECT_GE(found, tried - 1);
 }
 
+// A landmark stuck on a blue door or a red poster smaller than the frame:
+// the coloured surface around the sheet is one region whose centre lies on
+// the sheet. It is no square of the landmark's size and stops nothing (it
+// was taken for a square at the sheet's centre, or elsewhere on it).
+TEST(Detector, LandmarkOnAColouredPosterAroundIt) {
+  for (const cv::Scalar& poster : {cv::Scalar(150, 60, 40), cv::Scalar(40, 50, 190)}) {
+    for (double roll : {0.0, 35.0, 160.0}) {
+      for (double yaw : {0.0, 40.0}) {
+        cv::Mat img = background(kCam.size, 31, true);
+        const Placed p = place(1.5, yaw, roll, 0.15, 0, 0);
+        const Truth t = truthOf(kCam, p);
+        const cv::Point2d c = (t.corners[0] + t.corners[2]) / 2;
+        cv::rectangle(img, cv::Rect(cvRound(c.x) - 75, cvRound(c.y) - 75, 150, 150), poster, cv::FILLED);
+        drawSheet(img, kCam, p);
+        EXPECT_TRUE(onlyLandmark(ld::Detector().detect(img), t)) << poster << " roll " << roll << " yaw " << yaw;
+      }
+    }
+  }
+}
+
 // Close up, at an angle, perspective moves the AP well off TR + BL - TL,
 // where a red thing just off the sheet can lie nearer: it is not taken for
 // the AP (the perspective prediction and, where both are in the gate, the

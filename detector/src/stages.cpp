@@ -695,23 +695,28 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   }
   double cover_err = 0;
   for (int i = 0; i < 4; ++i) cover_err += std::abs(f[i] - 1.0 / 3) / 4;
-  // Coloured squares of the squares' size besides the four: none at the
-  // centre (within one side of it: a look-alike card's square), and none
-  // elsewhere on the sheet either, where a patterned surface (stripes that
-  // noise and JPEG blocks cut into pieces, a grid of dots) has them between
-  // its "squares". Placed by the homography of the four centres (at 0 and 3
-  // in units of a square's side, the pattern square reaching half a side
-  // beyond them, the QR square from 0.5 to 2.5); a piece within 0.8 sides of
-  // one of the four centres is that square's own fragment. In the QR one is
-  // tolerated (warm light and JPEG colour a module's edges: 2000 K does).
+  // Coloured squares of the squares' size (from half their measured side to
+  // twice their printed one) besides the four: none at the centre (within
+  // one side of it: a look-alike card's square), and none elsewhere on the
+  // sheet either, where a patterned surface (stripes that noise and JPEG
+  // blocks cut into pieces, a grid of dots) has them between its "squares".
+  // Placed by the homography of the four centres (at 0 and 3 in units of a
+  // square's side, the pattern square reaching half a side beyond them, the
+  // QR square from 0.5 to 2.5); a piece within 0.8 sides of one of the four
+  // centres is that square's own fragment. In the QR one is tolerated (warm
+  // light and JPEG colour a module's edges: 2000 K does). Larger regions are
+  // other things: a blue door or a red poster the sheet is stuck on is one
+  // region around it, whose centre lies on the sheet.
   {
     static const std::array<cv::Point2d, 4> kCentres = {cv::Point2d(0, 0), {3, 0}, {3, 3}, {0, 3}};
     cv::Matx33d to_sheet;
     if (!homography4({P[0], P[1], P[2], P[3]}, kCentres, to_sheet)) return fail(Check::kDegenerateSquare);
     int around_qr = 0, in_qr = 0;
+    // (the measured squares may be thresholded small: the side the centres give)
+    const double printed_side = std::max(side, std::sqrt(std::abs(cross(e1, e2))) / 3);
     for (const auto* list : {&fips, &aps})
       for (const Region& r : *list) {
-        if (r.side() <= 0.5 * side) continue;
+        if (r.side() <= 0.5 * side || r.side() > 2.0 * printed_side) continue;
         if (std::sqrt(quad(m, r.cx - ctr.x, r.cy - ctr.y)) < 1.0) return fail(Check::kSquareAtCentre);
         const cv::Point2d q = applyH(to_sheet, {r.cx, r.cy});
         if (!(q.x > -0.5 && q.x < 3.5 && q.y > -0.5 && q.y < 3.5)) continue;
