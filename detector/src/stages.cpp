@@ -556,6 +556,40 @@ const char* checkName(Check check) {
   return "?";
 }
 
+// Under a shadow across the sheet, the paper beside each FIP is at least
+// this much brighter than the FIP (the sheet's evenness no longer says much).
+constexpr double kShadedPaperOverInk = 1.3;
+
+// The sheet's samples `m` (in order around it) even (every one at least
+// `uniformity` of the brightest: none shaded), or in a light part and a
+// dark part, each even, the dark one a run of neighbours around the sheet
+// (a shadow's edge crosses the sheet's outline twice; a stripe across the
+// sheet crosses it four times), with a sample on the edge itself, between
+// the two, allowed at either end of the run: the run's samples are shaded.
+bool sheetLight(const std::array<double, 12>& m, double uniformity, std::array<bool, 12>& shaded) {
+  shaded.fill(false);
+  const auto [lo, hi] = std::minmax_element(m.begin(), m.end());
+  if (*lo >= uniformity * *hi) return true;
+  enum { kLight, kDark, kEdge };
+  std::array<int, 12> part;
+  for (int j = 0; j < 12; ++j) part[j] = m[j] >= uniformity * *hi ? kLight : m[j] * uniformity <= *lo ? kDark : kEdge;
+  // One run of samples that are not light, edge samples only at its ends.
+  int start = -1, runs = 0;
+  for (int j = 0; j < 12; ++j)
+    if (part[j] != kLight && part[(j + 11) % 12] == kLight) start = j, ++runs;
+  if (runs != 1) return false;
+  int len = 0;
+  while (part[(start + len) % 12] != kLight) ++len;
+  bool dark = false;
+  for (int k = 0; k < len; ++k) {
+    const int j = (start + k) % 12;
+    if (part[j] == kEdge && k > 0 && k + 1 < len) return false;
+    dark |= part[j] == kDark;
+    shaded[j] = true;
+  }
+  return dark;
+}
+
 bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Region>& aps,
             const cv::Mat& bgr, const DetectorParams& p, Check* why) {
   auto fail = [&](Check reason) {
@@ -604,28 +638,54 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   }
 
   // White, unsaturated sheet between the squares, and no colour at the centre.
-  double fip_value = 0;
-  for (int i : {0, 1, 3}) {
+  double fip_value = 0, square_value[4];
+  for (int i = 0; i < 4; ++i) {
     const Region& r = *sq[i];
-    fip_value += std::max({r.sum_b, r.sum_g, r.sum_r}) / std::max(1.0, r.n_sum) / 3;
+    square_value[i] = std::max({r.sum_b, r.sum_g, r.sum_r}) / std::max(1.0, r.n_sum);
+    if (i != 2) fip_value += square_value[i] / 3;
   }
   // Three points on each side between the squares (a third, half and two
   // thirds of the way from one centre to the next: white paper between the
   // squares' edges at a sixth and five sixths).
-  double sheet_mean = 0, sheet_lo = 1e9, sheet_hi = 0, sheet_bgr[3] = {0, 0, 0};
+  double sheet_mean = 0, sheet_bgr[3] = {0, 0, 0};
+  std::array<double, 12> means, values;  // around the sheet, side by side
   for (int i = 0; i < 4; ++i)
-    for (double t : {1.0 / 3, 0.5, 2.0 / 3}) {
+    for (int k = 0; k < 3; ++k) {
       double sv, vv, mean;
       double c[3];
-      if (!sampleSV(bgr, P[i] + (P[(i + 1) % 4] - P[i]) * t, sv, vv, &mean, c)) return fail(Check::kOutsideImage);
-      for (int k = 0; k < 3; ++k) sheet_bgr[k] += c[k] / 12;
+      if (!sampleSV(bgr, P[i] + (P[(i + 1) % 4] - P[i]) * ((k + 2) / 6.0), sv, vv, &mean, c))
+        return fail(Check::kOutsideImage);
+      for (int ch = 0; ch < 3; ++ch) sheet_bgr[ch] += c[ch] / 12;
       if (sv > p.sheet_max_saturation) return fail(Check::kSheetSaturated);
-      if (vv < p.sheet_min_value * fip_value) return fail(Check::kSheetDark);
+      means[3 * i + k] = mean;
+      values[3 * i + k] = vv;
       sheet_mean += mean / 12;
-      sheet_lo = std::min(sheet_lo, mean);
-      sheet_hi = std::max(sheet_hi, mean);
     }
-  if (sheet_lo < p.sheet_uniformity * sheet_hi) return fail(Check::kSheetUneven);
+  // Even, or in two even parts, the darker one a shadow's: a run of
+  // neighbouring samples around the sheet (a straight shadow edge crosses
+  // the sheet's outline twice; a stripe across it four times). The paper is
+  // brighter than the blue ink in the same light: every sample than the
+  // FIPs, or under a shadow, each FIP's two nearest samples (the brighter of
+  // them where the shadow's edge runs between) clearly brighter than the FIP
+  // (kShadedPaperOverInk: printed blue's brightest channel is about half the
+  // paper's), with at least one FIP in the shadow (a dark surface half under
+  // a look-alike's squares, none of them on it, is not one; nor are a
+  // letter's strokes with pieces of them for squares).
+  std::array<bool, 12> shaded;
+  if (!sheetLight(means, p.sheet_uniformity, shaded)) return fail(Check::kSheetUneven);
+  if (std::none_of(shaded.begin(), shaded.end(), [](bool v) { return v; })) {
+    for (double v : values)
+      if (v < p.sheet_min_value * fip_value) return fail(Check::kSheetDark);
+  } else {
+    bool fip_in_shadow = false;
+    for (int i : {0, 1, 3}) {
+      const int a = 3 * i, b = (3 * i + 11) % 12;  // its two nearest samples
+      fip_in_shadow |= shaded[a] && shaded[b];
+      const double paper = shaded[a] == shaded[b] ? std::min(values[a], values[b]) : std::max(values[a], values[b]);
+      if (paper < std::max(p.sheet_min_value, kShadedPaperOverInk) * square_value[i]) return fail(Check::kSheetDark);
+    }
+    if (!fip_in_shadow) return fail(Check::kSheetUneven);
+  }
   // The QR: its square is darker than the sheet (black modules, or grey when
   // they are too small to resolve). A 5 x 5 grid over its middle, placed by
   // the affine frame of TL, TR, BL.
