@@ -975,10 +975,12 @@ TEST(Detector, LandmarkOnAColouredPosterAroundIt) {
 // and three places: each part of the sheet is white in its own light. The
 // sheet's samples come in two even parts, the darker a run around the
 // sheet, and the paper check compares the shaded paper with the shaded
-// squares (all 24 were refused before, as an uneven or dark sheet). Deeper
-// shadows (0.2) lose the shaded squares in the mask (value_min).
+// squares (all 24 were refused before, as an uneven or dark sheet). The
+// same squares on a two-tone board (only the paper darkened there, the
+// squares left in full light: a look-alike) are refused. Deeper shadows
+// (0.2) lose the shaded squares in the mask (value_min).
 TEST(Detector, ShadowAcrossTheSheet) {
-  int found = 0, tried = 0;
+  int found = 0, found_painted = 0, tried = 0;
   for (double depth : {0.3, 0.45}) {
     for (double edge_deg : {0.0, 50.0, 100.0, 150.0}) {
       for (double offset : {-0.25, 0.0, 0.3}) {
@@ -990,21 +992,32 @@ TEST(Detector, ShadowAcrossTheSheet) {
         const double half = cv::norm(t.corners[2] - t.corners[0]) / 2;  // the pattern square's half diagonal
         const double a = edge_deg * CV_PI / 180;
         const cv::Point2d n(std::cos(a), std::sin(a));  // in the shadow: (x - c) . n < offset * half
+        cv::Mat shadow = img.clone(), painted = img.clone();
         for (int y = 0; y < img.rows; ++y)
-          for (int x = 0; x < img.cols; ++x)
-            if ((cv::Point2d(x, y) - c).dot(n) < offset * half) {
-              auto& px = img.at<cv::Vec3b>(y, x);
-              for (int k = 0; k < 3; ++k) px[k] = cv::saturate_cast<uint8_t>(px[k] * depth);
+          for (int x = 0; x < img.cols; ++x) {
+            if ((cv::Point2d(x, y) - c).dot(n) >= offset * half) continue;
+            auto& s = shadow.at<cv::Vec3b>(y, x);
+            auto& q = painted.at<cv::Vec3b>(y, x);
+            const int mx = std::max({q[0], q[1], q[2]}), mn = std::min({q[0], q[1], q[2]});
+            const bool paper = mx > 150 && mn > 0.7 * mx;
+            for (int k = 0; k < 3; ++k) {
+              s[k] = cv::saturate_cast<uint8_t>(s[k] * depth);
+              if (paper) q[k] = cv::saturate_cast<uint8_t>(q[k] * depth);
             }
-        addNoise(img, 2, 7);
+          }
+        addNoise(shadow, 2, 7);
+        addNoise(painted, 2, 7);
         ++tried;
-        const bool ok = onlyLandmark(ld::Detector().detect(img), t);
+        const bool ok = onlyLandmark(ld::Detector().detect(shadow), t);
         found += ok;
         EXPECT_TRUE(ok) << "depth " << depth << ", edge at " << edge_deg << " deg, offset " << offset;
+        const bool look_alike = !ld::Detector().detect(painted).landmarks.empty();
+        found_painted += look_alike;
+        EXPECT_FALSE(look_alike) << "two-tone board: depth " << depth << ", edge at " << edge_deg << " deg, offset " << offset;
       }
     }
   }
-  std::printf("found %d of %d\n", found, tried);
+  std::printf("found %d of %d; on the two-tone board %d\n", found, tried, found_painted);
 }
 
 // Close up, at an angle, perspective moves the AP well off TR + BL - TL,

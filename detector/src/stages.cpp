@@ -560,12 +560,16 @@ const char* checkName(Check check) {
 // this much brighter than the FIP (the sheet's evenness no longer says much).
 constexpr double kShadedPaperOverInk = 1.3;
 
+namespace {
+
 // The sheet's samples `m` (in order around it) even (every one at least
 // `uniformity` of the brightest: none shaded), or in a light part and a
-// dark part, each even, the dark one a run of neighbours around the sheet
-// (a shadow's edge crosses the sheet's outline twice; a stripe across the
-// sheet crosses it four times), with a sample on the edge itself, between
-// the two, allowed at either end of the run: the run's samples are shaded.
+// dark part, each even, the dark one a single run of neighbours around the
+// sheet, as a straight shadow edge makes (it crosses the sheet's outline
+// twice; a stripe across the sheet, crossing it four times, makes two runs
+// and is refused), with a sample on the edge itself, between the two,
+// allowed at either end of the run: the run's samples are shaded. (The
+// darkest sample is never light, so a run holds a dark one.)
 bool sheetLight(const std::array<double, 12>& m, double uniformity, std::array<bool, 12>& shaded) {
   shaded.fill(false);
   const auto [lo, hi] = std::minmax_element(m.begin(), m.end());
@@ -580,15 +584,15 @@ bool sheetLight(const std::array<double, 12>& m, double uniformity, std::array<b
   if (runs != 1) return false;
   int len = 0;
   while (part[(start + len) % 12] != kLight) ++len;
-  bool dark = false;
   for (int k = 0; k < len; ++k) {
     const int j = (start + k) % 12;
     if (part[j] == kEdge && k > 0 && k + 1 < len) return false;
-    dark |= part[j] == kDark;
     shaded[j] = true;
   }
-  return dark;
+  return true;
 }
+
+}  // namespace
 
 bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Region>& aps,
             const cv::Mat& bgr, const DetectorParams& p, Check* why) {
@@ -661,9 +665,8 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
       values[3 * i + k] = vv;
       sheet_mean += mean / 12;
     }
-  // Even, or in two even parts, the darker one a shadow's: a run of
-  // neighbouring samples around the sheet (a straight shadow edge crosses
-  // the sheet's outline twice; a stripe across it four times). The paper is
+  // Even, or in two even parts, the darker one a shadow's: a single run of
+  // neighbouring samples around the sheet (sheetLight). The paper is
   // brighter than the blue ink in the same light: every sample than the
   // FIPs, or under a shadow, each FIP's two nearest samples (the brighter of
   // them where the shadow's edge runs between) clearly brighter than the FIP
@@ -872,6 +875,10 @@ bool completeSquare(const cv::Mat& bgr, cv::Point2d guess, uint8_t colour, cv::P
       } else if (std::abs(c) > kReach) {
         hi = lo - 1;
       }
+    }
+    if (!(lo <= hi)) {  // (also keeps the far bounds of nearly parallel strips out of the casts)
+      xa = x0 + 1, xb = x0;
+      return;
     }
     xa = std::max(x0, static_cast<int>(std::floor(guess.x + lo)) - 1);
     xb = std::min(x1, static_cast<int>(std::ceil(guess.x + hi)) + 1);
