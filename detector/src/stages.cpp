@@ -559,6 +559,9 @@ const char* checkName(Check check) {
 // Under a shadow across the sheet, the paper beside each FIP is at least
 // this much brighter than the FIP (the sheet's evenness no longer says much).
 constexpr double kShadedPaperOverInk = 1.3;
+// ... unless the paper is at the sensor's clip, where the ratio is lost
+// (the adaptive gains lift lit paper and ink alike): there, brighter at all.
+constexpr double kClippedValue = 250;
 
 namespace {
 
@@ -685,7 +688,8 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
       const int a = 3 * i, b = (3 * i + 11) % 12;  // its two nearest samples
       fip_in_shadow |= shaded[a] && shaded[b];
       const double paper = shaded[a] == shaded[b] ? std::min(values[a], values[b]) : std::max(values[a], values[b]);
-      if (paper < std::max(p.sheet_min_value, kShadedPaperOverInk) * square_value[i]) return fail(Check::kSheetDark);
+      const double over = paper >= kClippedValue ? p.sheet_min_value : std::max(p.sheet_min_value, kShadedPaperOverInk);
+      if (paper < over * square_value[i]) return fail(Check::kSheetDark);
     }
     if (!fip_in_shadow) return fail(Check::kSheetUneven);
   }
