@@ -873,6 +873,20 @@ TEST(Detector, SecondLookReportsALandmarkOnce) {
   EXPECT_TRUE(onlyLandmark(det.detect(img), t));
 }
 
+namespace {
+
+// Warm light: blue and green fall off (2000-2500 K after a camera's partial
+// white balance).
+void warmLight(cv::Mat& img) {
+  std::vector<cv::Mat> ch;
+  cv::split(img, ch);
+  ch[0] *= 0.5;
+  ch[1] *= 0.8;
+  cv::merge(ch, img);
+}
+
+}  // namespace
+
 // A steeply seen 9 cm landmark (68 degrees of yaw) under warm light: blue
 // and green fall off, the paper turns orange and the blue squares, 3 px
 // wide and mixed with the paper, violet; the first pass finds nothing. The
@@ -887,12 +901,7 @@ TEST(Detector, FaintLookFindsBlueSquaresTheLightTurnedViolet) {
     drawSheet(img, kCam, p);
     cv::GaussianBlur(img, img, cv::Size(), 0.7);
     const Truth t = truthOf(kCam, p);
-    // the warm light: blue and green fall off (2000-2500 K after a camera's partial white balance)
-    std::vector<cv::Mat> ch;
-    cv::split(img, ch);
-    ch[0] *= 0.5;
-    ch[1] *= 0.8;
-    cv::merge(ch, img);
+    warmLight(img);
     for (int blur : {-1, 3}) {  // the front end's own (none), and a blurred frame to label
       ld::DetectorParams with, without;
       with.blur_kernel = without.blur_kernel = blur;
@@ -931,11 +940,7 @@ TEST(Detector, FaintLookCompletesACyanSquareInItsWindow) {
     drawSheet(img, kCam, p);
     cv::GaussianBlur(img, img, cv::Size(), 0.7);
     const Truth t = truthOf(kCam, p);
-    std::vector<cv::Mat> ch;  // the warm light, as above
-    cv::split(img, ch);
-    ch[0] *= 0.5;
-    ch[1] *= 0.8;
-    cv::merge(ch, img);
+    warmLight(img);
     ld::DetectorParams no_completion, no_faint;
     no_completion.complete_missing = false;
     no_faint.faint_looks = 0;
@@ -1012,11 +1017,8 @@ TEST(Detector, ShadowAcrossTheSheet) {
         ++tried;
         const bool ok = onlyLandmark(ld::Detector().detect(shadow), t);
         found += ok;
-        {
-          ld::AdaptiveDetector adaptive(ld::Detector(), true);
-          const bool ok_adaptive = onlyLandmark(adaptive.detect(shadow), t);
-          found_adaptive += ok_adaptive;
-        }
+        ld::AdaptiveDetector adaptive(ld::Detector(), true);
+        found_adaptive += onlyLandmark(adaptive.detect(shadow), t);
         EXPECT_TRUE(ok) << "depth " << depth << ", edge at " << edge_deg << " deg, offset " << offset;
         const bool look_alike = !ld::Detector().detect(painted).landmarks.empty();
         found_painted += look_alike;

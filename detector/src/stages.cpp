@@ -556,14 +556,14 @@ const char* checkName(Check check) {
   return "?";
 }
 
+namespace {
+
 // Under a shadow across the sheet, the paper beside each FIP is at least
 // this much brighter than the FIP (the sheet's evenness no longer says much).
 constexpr double kShadedPaperOverInk = 1.3;
 // ... unless the paper is at the sensor's clip, where the ratio is lost
 // (the adaptive gains lift lit paper and ink alike): there, brighter at all.
 constexpr double kClippedValue = 250;
-
-namespace {
 
 // The sheet's samples `m` (in order around it) even (every one at least
 // `uniformity` of the brightest: none shaded), or in a light part and a
@@ -654,7 +654,7 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   // Three points on each side between the squares (a third, half and two
   // thirds of the way from one centre to the next: white paper between the
   // squares' edges at a sixth and five sixths).
-  double sheet_mean = 0, sheet_bgr[3] = {0, 0, 0};
+  double sheet_bgr[3] = {0, 0, 0};
   std::array<double, 12> means, values;  // around the sheet, side by side
   for (int i = 0; i < 4; ++i)
     for (int k = 0; k < 3; ++k) {
@@ -666,8 +666,9 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
       if (sv > p.sheet_max_saturation) return fail(Check::kSheetSaturated);
       means[3 * i + k] = mean;
       values[3 * i + k] = vv;
-      sheet_mean += mean / 12;
     }
+  double sheet_mean = 0;
+  for (double v : means) sheet_mean += v / 12;
   // Even, or in two even parts, the darker one a shadow's: a single run of
   // neighbouring samples around the sheet (sheetLight). The paper is
   // brighter than the blue ink in the same light: every sample than the
