@@ -866,9 +866,9 @@ bool completeSquare(const cv::Mat& bgr, cv::Point2d guess, uint8_t colour, cv::P
     const double dx = x - guess.x, dy = y - guess.y;
     return std::abs(i00 * dx + i01 * dy) <= kReach && std::abs(i10 * dx + i11 * dy) <= kReach;
   };
-  // Row y's pixels that may be inside: the parallelogram's span on the row
-  // (each of its two strips |i * dx + c| <= kReach an interval of dx), a
-  // pixel wider on either side against rounding; inside() decides.
+  // Row y's pixels inside: the parallelogram's span on the row (each of its
+  // two strips |i * dx + c| <= kReach an interval of dx), a pixel wider on
+  // either side against rounding, then trimmed at both ends by inside().
   auto span = [&](int y, int& xa, int& xb) {
     const double dy = y - guess.y;
     double lo = x0 - guess.x, hi = x1 - guess.x;
@@ -887,13 +887,16 @@ bool completeSquare(const cv::Mat& bgr, cv::Point2d guess, uint8_t colour, cv::P
     }
     xa = std::max(x0, static_cast<int>(std::floor(guess.x + lo)) - 1);
     xb = std::min(x1, static_cast<int>(std::ceil(guess.x + hi)) + 1);
+    // the pixels inside are one run (the parallelogram is convex)
+    while (xa <= xb && !inside(xa, y)) ++xa;
+    while (xb >= xa && !inside(xb, y)) --xb;
   };
   int peak = -255;
   for (int y = y0; y <= y1; ++y) {
     int xa, xb;
     span(y, xa, xb);
-    for (int x = xa; x <= xb; ++x)
-      if (inside(x, y)) peak = std::max(peak, hueExcess(bgr.ptr<uint8_t>(y) + 3 * x, colour));
+    const uint8_t* row = bgr.ptr<uint8_t>(y);
+    for (int x = xa; x <= xb; ++x) peak = std::max(peak, hueExcess(row + 3 * x, colour));
   }
   if (peak < min_peak) return false;
   const int half = peak / 2;
@@ -903,7 +906,6 @@ bool completeSquare(const cv::Mat& bgr, cv::Point2d guess, uint8_t colour, cv::P
     int xa, xb;
     span(y, xa, xb);
     for (int x = xa; x <= xb; ++x) {
-      if (!inside(x, y)) continue;
       const uint8_t* px = bgr.ptr<uint8_t>(y) + 3 * x;
       const int w = hueExcess(px, colour) - half;
       if (w <= 0) continue;
