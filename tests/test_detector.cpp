@@ -1588,3 +1588,46 @@ TEST(Params, ValidateNamesTheField) {
   bad.front_end = "x";
   EXPECT_THROW(ld::Detector{bad}, std::invalid_argument);
 }
+
+// A sticker on the sheet (an inventory label, a highlighter's mark) where
+// the sheet is sampled between two squares: one spot of a colour that no
+// ink, poster or look-alike shows here (yellow to cyan) is let through; a
+// red or blue one (the colours look-alikes bring onto the "sheet") and two
+// spots are refused, as before.
+TEST(Detector, ASpotOfColourOnTheSheet) {
+  const auto withSpots = [](std::initializer_list<std::pair<cv::Point2d, cv::Scalar>> spots) {
+    cv::Mat art = artworkImage().clone();
+    const double u = art.cols / 9.0;
+    for (const auto& [at, colour] : spots)
+      cv::circle(art, at * u, static_cast<int>(0.7 * u), colour, -1, cv::LINE_AA);
+    return art;
+  };
+  const cv::Point2d top(4.5, 1.5), left(1.5, 4.5);  // between TL and TR, between TL and BL
+  const cv::Scalar yellow(40, 200, 230), green(60, 170, 60), red(50, 60, 210), blue(170, 90, 40);
+  struct Case {
+    const char* what;
+    cv::Mat art;
+    bool found;
+  };
+  const Case cases[] = {{"yellow", withSpots({{top, yellow}}), true},
+                        {"green", withSpots({{top, green}}), true},
+                        {"red", withSpots({{top, red}}), false},
+                        {"blue", withSpots({{top, blue}}), false},
+                        {"two yellow", withSpots({{top, yellow}, {left, yellow}}), false}};
+  for (const Case& c : cases) {
+    int found = 0, n = 0;
+    for (double dist : {1.0, 1.5})
+      for (double yaw : {-40.0, 0.0, 40.0})
+        for (double roll : {0.0, 120.0}) {
+          cv::Mat img = background(kCam.size, 11 + n);
+          Placed p = place(dist, yaw, roll, 0.15, 0.05, -0.02);
+          p.artwork = c.art;
+          drawSheet(img, kCam, p);
+          cv::GaussianBlur(img, img, {0, 0}, 0.7);
+          addNoise(img, 2, 5 + n);
+          ++n;
+          found += onlyLandmark(ld::Detector().detect(img), truthOf(kCam, p));
+        }
+    EXPECT_EQ(found, c.found ? n : 0) << c.what << " spot";
+  }
+}

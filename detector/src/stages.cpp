@@ -558,6 +558,20 @@ const char* checkName(Check check) {
 
 namespace {
 
+// A hue in degrees (0 red, 120 green, 240 blue) of a BGR colour.
+double hueDegrees(const double c[3]) {
+  const double b = c[0], g = c[1], r = c[2];
+  const double mx = std::max({b, g, r}), mn = std::min({b, g, r});
+  if (!(mx > mn)) return 0;
+  double h = mx == r ? 60 * (g - b) / (mx - mn) : mx == g ? 120 + 60 * (b - r) / (mx - mn) : 240 + 60 * (r - g) / (mx - mn);
+  return h < 0 ? h + 360 : h;
+}
+
+// One saturated spot on the sheet is tolerated in these hues (yellow to
+// cyan: a sticker, a highlighter's mark), none that printed or lit inks,
+// posters and look-alikes take (blue, violet, magenta, red, orange).
+constexpr double kSpotHueMin = 40, kSpotHueMax = 180;
+
 // Under a shadow across the sheet, the paper beside each FIP is at least
 // this much brighter than the FIP (the sheet's evenness no longer says much).
 constexpr double kShadedPaperOverInk = 1.3;
@@ -656,17 +670,33 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   // squares' edges at a sixth and five sixths).
   double sheet_bgr[3] = {0, 0, 0};
   std::array<double, 12> means, values;  // around the sheet, side by side
+  int saturated_at = -1;
   for (int i = 0; i < 4; ++i)
     for (int k = 0; k < 3; ++k) {
       double sv, vv, mean;
       double c[3];
       if (!sampleSV(bgr, P[i] + (P[(i + 1) % 4] - P[i]) * ((k + 2) / 6.0), sv, vv, &mean, c))
         return fail(Check::kOutsideImage);
+      const int j = 3 * i + k;
+      if (sv > p.sheet_max_saturation) {
+        // One spot of colour on the sheet (a sticker, a highlighter's mark)
+        // stands aside, its neighbours speak for it; not in the inks' hues,
+        // which look-alikes on coloured surfaces bring onto their "sheet".
+        const double hue = hueDegrees(c);
+        if (saturated_at >= 0 || hue < kSpotHueMin || hue > kSpotHueMax) return fail(Check::kSheetSaturated);
+        saturated_at = j;
+        continue;
+      }
       for (int ch = 0; ch < 3; ++ch) sheet_bgr[ch] += c[ch] / 12;
-      if (sv > p.sheet_max_saturation) return fail(Check::kSheetSaturated);
-      means[3 * i + k] = mean;
-      values[3 * i + k] = vv;
+      means[j] = mean;
+      values[j] = vv;
     }
+  if (saturated_at >= 0) {
+    for (double& v : sheet_bgr) v *= 12.0 / 11;
+    const int a = (saturated_at + 11) % 12, b = (saturated_at + 1) % 12;
+    means[saturated_at] = (means[a] + means[b]) / 2;
+    values[saturated_at] = (values[a] + values[b]) / 2;
+  }
   double sheet_mean = 0;
   for (double v : means) sheet_mean += v / 12;
   // Even, or in two even parts, the darker one a shadow's: a single run of
