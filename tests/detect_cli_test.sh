@@ -49,11 +49,14 @@ grep -q "typo.yaml: front_end must be \"fast\" or \"paper\", not \"papr\"" "$T/e
 mkdir -p "$T/other"; cp "$T/s/000000.png" "$T/other/000000.png"
 "$BIN/ld-detect" --draw "$T/ov" "$T/s/000000.png" "$T/other" >/dev/null
 [ -s "$T/ov/000000.png" ] && [ -s "$T/ov/000000-2.png" ] || fail "overlays: $(ls "$T/ov")"
-# One line each, naming what is wrong: a missing file, --size 0, --size without --camera, an unwritable --draw.
+# One line each, naming what is wrong: a missing file, --size 0, --size without --camera (and the
+# other way round), an unwritable -o or --draw.
 set +e; "$BIN/ld-detect" "$T/nothere.png" >"$T/out" 2>"$T/err"; rc=$?; set -e
 [ $rc -eq 1 ] && [ "$(cat "$T/err")" = "ld-detect: $T/nothere.png: no such file" ] || fail "missing: $rc $(cat "$T/err")"
 for args in "--size 0|ld-detect: --size: must be > 0, not 0 (--help lists the options)" \
-            "--size 0.15|ld-detect: --size without --camera: pose needs both" \
+            "--size 0.15|ld-detect: --size requires --camera (--help lists the options)" \
+            "--camera $T/cam.yaml|ld-detect: --camera requires --size (--help lists the options)" \
+            "-o /proc/no/such.jsonl|ld-detect: cannot write /proc/no/such.jsonl: cannot create folder /proc/no: No such file or directory" \
             "--draw /proc/no/such|ld-detect: --draw: cannot create folder /proc/no/such: No such file or directory"; do
   set +e; "$BIN/ld-detect" ${args%%|*} "$T/s/000000.png" >/dev/null 2>"$T/err"; rc=$?; set -e
   [ $rc -eq 2 ] && [ "$(cat "$T/err")" = "${args#*|}" ] || fail "${args%%|*}: exit $rc, $(cat "$T/err")"

@@ -37,11 +37,18 @@ grep -q "p.svg, .*p-3.svg from an earlier run" "$T/err" || fail "stale unnumbere
 
 # Refused: a landmark larger than the page, several payloads without --sheet, no output.
 if "$BIN/ld-generate" --sheet --size 0.5 -p x --svg "$T/x.svg" 2>"$T/err"; then fail "50 cm on A4 accepted"; fi
-grep -q "does not fit on a 210x297 mm page" "$T/err" || fail "50 cm: $(cat "$T/err")"
+grep -q "does not fit on a 210x297 mm page (at most 190 mm with its label and 10 mm margins; --page-width" "$T/err" ||
+  fail "50 cm: $(cat "$T/err")"
+# README's deployment example: 20 cm needs A3 pages.
+"$BIN/ld-generate" --sheet --size 0.20 --page-width 297 --page-height 420 -p room-214/door -p room-215/door \
+  --svg "$T/deploy/landmarks.svg" >/dev/null
+[ -s "$T/deploy/landmarks-1.svg" ] && [ -s "$T/deploy/landmarks-2.svg" ] || fail "20 cm on A3: $(ls "$T/deploy")"
 if "$BIN/ld-generate" -p x -p y --svg "$T/x.svg" 2>"$T/err"; then fail "two payloads without --sheet accepted"; fi
 grep -q "several payloads need --sheet" "$T/err" || fail "no --sheet: $(cat "$T/err")"
 if "$BIN/ld-generate" -p x 2>"$T/err"; then fail "no output accepted"; fi
-grep -q "give --png and/or --svg" "$T/err" || fail "no output: $(cat "$T/err")"
+grep -q "give --png and/or --svg (--help lists the options)" "$T/err" || fail "no output: $(cat "$T/err")"
+if "$BIN/ld-generate" -p x --svg /proc/no/x.svg 2>"$T/err"; then fail "unwritable --svg accepted"; fi
+grep -q "cannot write /proc/no/x.svg: cannot create folder /proc/no" "$T/err" || fail "unwritable: $(cat "$T/err")"
 if "$BIN/ld-generate" -p x --png "$T/x" 2>"$T/err"; then fail "a PNG name without .png accepted"; fi
 grep -q "must end in .png" "$T/err" || fail "png name: $(cat "$T/err")"
 

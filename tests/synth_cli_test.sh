@@ -52,7 +52,8 @@ refused() {  # PATTERN ARGS...
 }
 refused "--ecc: QR error correction must be auto, L, M, Q or H, not 'X'" scene --out "$T/x" --ecc X
 refused "--ecc: QR error correction" sequence --out "$T/x" --ecc 7
-refused "--yaw must lie within" scene --out "$T/x" --yaw 95
+refused "--yaw must lie within -89.9:89.9 (--help lists the options)" scene --out "$T/x" --yaw 95
+refused "--quality: must be in \[1, 100\], not 500" sequence --out "$T/x" --quality 500
 refused "--count must be at least 1" scene --out "$T/x" --count 0
 refused "--lighting must be" scene --out "$T/x" --lighting sunset
 echo "ld-synth command line: ok"

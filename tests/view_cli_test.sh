@@ -63,4 +63,10 @@ env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/cut.lcmlog" --all --o
   fail "cut log: $(cat "$T/err")"
 grep -q "^ld-view: warning: $T/cut.lcmlog: the log ends mid-event after 2 messages" "$T/err" || fail "cut log: $(cat "$T/err")"
 grep -q "^ld-view: 2 images, 0 tracked lists, 2 frames written" "$T/err" || fail "cut log: $(cat "$T/err")"
+# bad numbers, and a log whose images no tracked list matches (without --all): said why
+refused "--fps: must be > 0, not 0" env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --video "$T/v0.avi" --fps 0
+refused "--axis-length: must be > 0, not -1" env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --axis-length -1 --out "$T/f"
+rc=0; env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --out "$T/none" 2>"$T/err" || rc=$?
+[ $rc -eq 1 ] && grep -q "^ld-view: no tracked lists on LANDMARKS_TRACKED; --all draws every image$" "$T/err" ||
+  fail "nothing to draw: exit $rc, $(cat "$T/err")"
 echo "ld-view command line: ok"

@@ -8,8 +8,14 @@ namespace ld {
 
 void DetectorOptions::addTo(CLI::App& app) {
   app.add_option("--params", params_file, "detector parameters (YAML)");
-  app.add_option("--camera", camera_file, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration), for pose");
-  app.add_option("--size", side_m, "printed landmark side S in metres, for pose")->check(cli::Positive);
+  CLI::Option* camera = app.add_option(
+      "--camera", camera_file,
+      "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration), for pose");
+  CLI::Option* size =
+      app.add_option("--size", side_m, "printed landmark side S in metres, for pose")->check(cli::Positive);
+  // pose needs both
+  size->needs(camera);
+  camera->needs(size);
   app.add_option("--backend", backend,
                  "where the filters run: cpu; gles (OpenGL ES on a headless EGL context, an error when none "
                  "can be made; Mesa's llvmpipe counts); auto (a GPU when there is one, else the CPU with one "

@@ -23,6 +23,7 @@
 #include "ld/cli.hpp"
 #include "ld/adaptive.hpp"
 #include "ld/detector.hpp"
+#include "ld/file_checks.hpp"
 #include "ld/markers.hpp"
 #include "ld/synth.hpp"
 #include "ld/tracker_bench.hpp"
@@ -70,11 +71,25 @@ int main(int argc, char** argv) {
   std::vector<std::string> resolutions{"640x480", "1280x720", "1920x1080"};
   bool with_paper = true;
   std::vector<std::string> backends{"cpu", "gles"};
-  app.add_option("--frames", frames, "scenes per resolution")->capture_default_str();
-  app.add_option("--repeats", repeats, "timed runs per scene (the median is kept)")->capture_default_str();
+  app.add_option("--frames", frames, "scenes per resolution")->check(ld::cli::Positive)->capture_default_str();
+  app.add_option("--repeats", repeats, "timed runs per scene (the median is kept)")
+      ->check(ld::cli::Positive)
+      ->capture_default_str();
   app.add_option("--seed", seed, "scene seed")->capture_default_str();
-  app.add_option("--size", side_m, "printed side S of landmarks and markers, metres")->capture_default_str();
-  app.add_option("--resolutions", resolutions, "WxH list")->delimiter(',')->capture_default_str();
+  app.add_option("--size", side_m, "printed side S of landmarks and markers, metres")
+      ->check(ld::cli::Between(0.01, 2.0))
+      ->capture_default_str();
+  const CLI::Validator wxh(
+      [](std::string& text) {
+        int w = 0, h = 0;
+        char x = 0, rest = 0;
+        if (std::sscanf(text.c_str(), "%d%c%d%c", &w, &x, &h, &rest) != 3 || (x != 'x' && x != 'X'))
+          return "'" + text + "' is not WIDTHxHEIGHT";
+        return w >= 64 && h >= 48 && w <= 8192 && h <= 8192 ? std::string()
+                                                          : "'" + text + "' is out of 64x48 .. 8192x8192";
+      },
+      "WxH");
+  app.add_option("--resolutions", resolutions, "WxH list")->delimiter(',')->check(wxh)->capture_default_str();
   app.add_option("--markdown", markdown, "also write the tables to this file");
   app.add_flag("!--no-paper", with_paper, "skip the paper front-end row");
   app.add_option("--backend", backends,
@@ -85,9 +100,21 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   std::vector<int> tracker_counts{10, 50, 200};
   int tracker_repeats = 100;
-  app.add_option("--tracker-landmarks", tracker_counts, "landmark counts of the tracker rows")->capture_default_str();
-  app.add_option("--tracker-repeats", tracker_repeats, "timed runs per tracker row")->capture_default_str();
+  app.add_option("--tracker-landmarks", tracker_counts, "landmark counts of the tracker rows")
+      ->check(ld::cli::Positive)
+      ->capture_default_str();
+  app.add_option("--tracker-repeats", tracker_repeats, "timed runs per tracker row")
+      ->check(ld::cli::Positive)
+      ->capture_default_str();
   LD_CLI_PARSE(app, argc, argv);
+  // Where the tables go, checked before the run (minutes) rather than after it.
+  if (!markdown.empty()) {
+    const std::string problem = ld::prepareOutputFile(markdown);
+    if (!problem.empty()) {
+      std::cerr << "ld-bench: --markdown " << markdown << ": " << problem << "\n";
+      return 2;
+    }
+  }
 
   cv::setNumThreads(1);
   ld::markers::Detector tag_detector(ld::markers::Kind::AprilTag);  // one thread, default decimation
@@ -116,10 +143,7 @@ int main(int argc, char** argv) {
 
   for (const auto& res : resolutions) {
     int w = 0, h = 0;
-    if (std::sscanf(res.c_str(), "%dx%d", &w, &h) != 2 || w < 64 || h < 48) {
-      std::cerr << "ld-bench: bad resolution " << res << "\n";
-      return 2;
-    }
+    std::sscanf(res.c_str(), "%d%*c%d", &w, &h);  // (checked by the option)
     const ld::CameraModel camera = ld::CameraModel::pinhole({w, h}, 600.0 * w / 640.0);
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> U(0, 1);

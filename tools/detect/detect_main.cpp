@@ -1,5 +1,6 @@
 // ld-detect: landmarks in image files, as JSON Lines (LANDMARK.md).
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -85,6 +86,10 @@ int main(int argc, char** argv) {
 
   std::ofstream file;
   if (!out_file.empty()) {
+    if (const std::string problem = ld::prepareOutputFile(out_file); !problem.empty()) {
+      std::cerr << "ld-detect: cannot write " << out_file << ": " << problem << "\n";
+      return 2;
+    }
     file.open(out_file);
     if (!file) {
       std::cerr << "ld-detect: cannot write " << out_file << "\n";
@@ -159,7 +164,11 @@ int main(int argc, char** argv) {
   out.flush();
   if (summary && !times.empty()) {
     std::sort(times.begin(), times.end());
-    const auto pct = [&](double q) { return times[static_cast<size_t>(q * (times.size() - 1))]; };
+    // nearest rank: the smallest time that q of the images take at most
+    const auto pct = [&](double q) {
+      const auto rank = static_cast<size_t>(std::ceil(q * static_cast<double>(times.size())));
+      return times[std::clamp<size_t>(rank, 1, times.size()) - 1];
+    };
     std::fprintf(stderr,
                  "ld-detect: %zu images, %d with landmarks, %d landmarks, %.2f per image; "
                  "detect_ms median %.3f, p95 %.3f, max %.3f; %d unreadable; backend %s\n",

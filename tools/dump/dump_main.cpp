@@ -129,12 +129,10 @@ int main(int argc, char** argv) {
   try {
     for (const auto& c : channels) printer.filters.emplace_back(c);
   } catch (const std::regex_error& e) {
-    std::cerr << "ld-dump: bad channel pattern: " << e.what() << "\n";
-    return 2;
+    return ld::cli::usage(argv[0], std::string("bad channel pattern: ") + e.what());
   }
   if (live == !logs.empty()) {
-    std::cerr << "ld-dump: give log files or --live\n";
-    return 2;
+    return ld::cli::usage(argv[0], "give log files or --live");
   }
   if (live) {
     lcm::LCM lcm(url);

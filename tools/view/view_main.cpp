@@ -190,6 +190,10 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
   std::fprintf(stderr, "ld-view: %lld images, %zu tracked lists, %lld frames written%s\n",
                static_cast<long long>(images), lists.size(), static_cast<long long>(sink.count()),
                bad ? (", " + std::to_string(bad) + " bad").c_str() : "");
+  if (sink.count() == 0 && images > 0 && !all_frames)
+    std::fprintf(stderr, "ld-view: %s; --all draws every image\n",
+                 lists.empty() ? ("no tracked lists on " + tracked_ch).c_str()
+                               : "no tracked list has an image's utime and seq (logs of different runs?)");
   return sink.count() > 0 ? 0 : 1;
 }
 
@@ -325,9 +329,9 @@ int main(int argc, char** argv) {
   app.add_option("--out", o.out_dir, "write annotated frames as DIR/SEQ.png");
   app.add_option("--video", o.video, "write annotated frames to this video (MJPG, e.g. .avi)");
   app.add_flag("--window", force_window, "show a window (default when a display exists and no --out/--video)");
-  app.add_option("--fps", o.fps, "frame rate of --video")->capture_default_str();
+  app.add_option("--fps", o.fps, "frame rate of --video")->check(ld::cli::Positive)->capture_default_str();
   app.add_option("--camera", camera_file, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration): draws pose axes");
-  app.add_option("--axis-length", o.axis_m, "pose axis length, metres")->capture_default_str();
+  app.add_option("--axis-length", o.axis_m, "pose axis length, metres")->check(ld::cli::Positive)->capture_default_str();
   app.add_flag("--all", all_frames, "logs: also frames without tracked landmarks");
   app.add_option("--lcm-url", url, "LCM URL (live)")->capture_default_str();
   app.add_option("--image", image_ch, "image channel")->capture_default_str();

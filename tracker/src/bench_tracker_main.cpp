@@ -11,7 +11,7 @@ int main(int argc, char** argv) {
   CLI::App app{"ld-bench-tracker: assignment and tracker update time by landmark count."};
   std::vector<int> counts{10, 50, 200};
   int repeats = 200;
-  app.add_option("--landmarks", counts, "landmark counts")->capture_default_str();
+  app.add_option("--landmarks", counts, "landmark counts")->check(ld::cli::Positive)->capture_default_str();
   app.add_option("--repeats", repeats, "timed runs per count (median reported)")
       ->check(ld::cli::Positive)->capture_default_str();
   LD_CLI_PARSE(app, argc, argv);
@@ -19,7 +19,6 @@ int main(int argc, char** argv) {
   std::printf("| landmarks | assignment ms (Hungarian, dense n x n) | tracker update ms |\n");
   std::printf("|---:|---:|---:|\n");
   for (int n : counts) {
-    if (n < 1) continue;
     const ld::TrackerTiming t = ld::timeTracker(n, repeats);
     std::printf("| %d | %.4f | %.4f |\n", t.landmarks, t.assignment_ms, t.update_ms);
   }

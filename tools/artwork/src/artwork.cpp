@@ -104,9 +104,17 @@ Grid sheetGrid(size_t count, double side_mm, const SheetLayout& page) {
   const double cell_w = side_mm + page.gap_mm, cell_h = side_mm + label + page.gap_mm;
   const int cols = static_cast<int>((page.page_w_mm - 2 * page.margin_mm + page.gap_mm) / cell_w);
   const int rows = static_cast<int>((page.page_h_mm - 2 * page.margin_mm + page.gap_mm) / cell_h);
-  if (cols < 1 || rows < 1)
-    throw std::invalid_argument("a " + fmt(side_mm) + " mm landmark does not fit on a " +
-                                fmt(page.page_w_mm) + "x" + fmt(page.page_h_mm) + " mm page");
+  if (cols < 1 || rows < 1) {
+    // the largest that fits: within the margins across, and with its label down
+    const double across = page.page_w_mm - 2 * page.margin_mm, down = page.page_h_mm - 2 * page.margin_mm;
+    const double largest = std::min(across, down / 1.06 >= 4 / 0.06 ? down / 1.06 : down - 4);  // label: max(4, 0.06 side)
+    throw std::invalid_argument("a " + fmt(side_mm) + " mm landmark does not fit on a " + fmt(page.page_w_mm) +
+                                "x" + fmt(page.page_h_mm) + " mm page (" +
+                                (largest > 0 ? "at most " + fmt(std::floor(largest)) + " mm with its label and " +
+                                                   fmt(page.margin_mm) + " mm margins"
+                                             : "no room within its margins") +
+                                "; --page-width and --page-height for larger paper, A3 is 297 x 420)");
+  }
   if (count > static_cast<size_t>(cols * rows))
     throw std::invalid_argument(std::to_string(count) + " landmarks of " + fmt(side_mm) +
                                 " mm do not fit on one page (at most " +

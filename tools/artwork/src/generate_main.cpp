@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "ld/cli.hpp"
+#include "ld/file_checks.hpp"
 #include "ld/artwork.hpp"
 
 namespace {
@@ -61,8 +62,14 @@ int main(int argc, char** argv) {
   LD_CLI_PARSE(app, argc, argv);
 
   if (png.empty() && svg.empty()) {
-    std::cerr << "ld-generate: give --png and/or --svg\n";
-    return 2;
+    return ld::cli::usage(argv[0], "give --png and/or --svg");
+  }
+  for (const std::string& path : {svg, png}) {
+    if (path.empty()) continue;
+    if (const std::string problem = ld::prepareOutputFile(path); !problem.empty()) {
+      std::cerr << "ld-generate: cannot write " << path << ": " << problem << "\n";
+      return 2;
+    }
   }
   // OpenCV picks the PNG writer by the extension
   if (!png.empty() && (png.size() < 4 || png.compare(png.size() - 4, 4, ".png") != 0)) {

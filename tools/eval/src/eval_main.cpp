@@ -254,14 +254,14 @@ int main(int argc, char** argv) {
       requireWritable(c->png, "--png");
     }
     if ((dist->parsed() && d_from > d_to) || (qr->parsed() && q_from > q_to))
-      throw std::invalid_argument("--from must not be beyond --to");
+      throw ld::cli::UsageError("--from must not be beyond --to");
     if (yaw->parsed() || dist->parsed()) {
       // One column and one plotted series per (side, target).
       const bool by_yaw = yaw->parsed();
       const Common& c = by_yaw ? yc : dc;
       const std::vector<double>& sides = by_yaw ? y_sides : d_sides;
       if (by_yaw && y_dists.size() != y_sides.size())
-        throw std::invalid_argument("give one --distance per --side");
+        throw ld::cli::UsageError("give one --distance per --side");
       const std::vector<double> xs = by_yaw ? range(-y_max, y_max, y_step) : range(d_from, d_to, d_step);
       std::vector<std::string> targets{"landmark"};
       if (c.compare) targets.insert(targets.end(), {"apriltag", "aruco"});
@@ -421,6 +421,8 @@ int main(int argc, char** argv) {
       emit(sc, t.str());
       return answer > 0 ? 0 : 3;
     }
+  } catch (const ld::cli::UsageError& e) {
+    return ld::cli::usage(argv[0], e.what());
   } catch (const std::exception& e) {
     std::cerr << "ld-eval: " << e.what() << "\n";
     return 2;

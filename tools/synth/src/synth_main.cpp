@@ -13,6 +13,7 @@
 #include <optional>
 #include <random>
 #include <stdexcept>
+#include <sstream>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -28,9 +29,7 @@ using namespace ld::synth;
 
 namespace {
 
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+using ld::cli::UsageError;
 
 class Random {
  public:
@@ -68,8 +67,11 @@ Range parseRange(const std::string& name, const std::string& text) {
 }
 
 void requireWithin(const std::string& name, const Range& r, double lo, double hi) {
-  if (r.lo < lo || r.hi > hi)
-    throw UsageError("--" + name + " must lie within " + std::to_string(lo) + ":" + std::to_string(hi));
+  if (r.lo < lo || r.hi > hi) {
+    std::ostringstream range;
+    range << lo << ":" << hi;
+    throw UsageError("--" + name + " must lie within " + range.str());
+  }
 }
 
 ld::CameraModel makeCamera(const std::string& file, const std::string& resolution) {
@@ -331,7 +333,9 @@ int main(int argc, char** argv) {
   sequence->add_option("--log", qo.log_path, "LCM log of ld.image_t to write");
   sequence->add_option("--channel", qo.channel, "channel in the log")->capture_default_str();
   sequence->add_option("--format", qo.pixel_format, "pixel format in the log: bgr, rgb, gray, yuyv, uyvy, mjpeg")->capture_default_str();
-  sequence->add_option("--quality", qo.jpeg_quality, "JPEG quality for mjpeg")->capture_default_str();
+  sequence->add_option("--quality", qo.jpeg_quality, "JPEG quality for mjpeg")
+      ->check(ld::cli::Between(1, 100))
+      ->capture_default_str();
   sequence->add_option("--landmarks,-k", qo.landmarks, "landmarks on the wall (ids 0..K-1)")->capture_default_str();
   sequence->add_option("--payload,-p", qo.payloads, "QR text of each landmark (repeat; default room-101, room-102, ...)");
   sequence->add_option("--ecc", q_ecc_text, "QR error correction of the landmarks' codes, as ld-generate's: auto, L, M, Q, H")
@@ -363,8 +367,10 @@ int main(int argc, char** argv) {
     std::cout << "wrote " << st.frames << " frames";
     if (!qo.out_dir.empty()) std::cout << " to " << qo.out_dir;
     if (!qo.log_path.empty()) std::cout << " and " << qo.log_path << " (" << qo.pixel_format << ")";
-    std::cout << "; a landmark fully in view in " << st.frames_with_landmark_in_view << "\n";
+    std::cout << "; a landmark fully in view in " << st.frames_with_landmark_in_view << " of them\n";
     return 0;
+  } catch (const UsageError& e) {
+    return ld::cli::usage(argv[0], e.what());
   } catch (const std::exception& e) {
     std::cerr << "ld-synth: " << e.what() << "\n";
     return 2;

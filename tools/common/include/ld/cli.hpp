@@ -12,6 +12,7 @@
 #include <iostream>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -40,6 +41,20 @@ inline int parse(CLI::App& app, int argc, char** argv) {
     std::cerr << programName(argc > 0 ? argv[0] : nullptr) << ": " << what << " (--help lists the options)\n";
     return 2;
   }
+}
+
+/// A command line that parses but does not hold together ("give --png
+/// and/or --svg"), found by a program's own checks after parse(): thrown
+/// where convenient, reported by usage() as parse() reports CLI11's errors.
+struct UsageError : std::invalid_argument {
+  using std::invalid_argument::invalid_argument;
+};
+
+/// Reports a bad command line as parse() does: one line, "<program>: <what>
+/// (--help lists the options)"; returns 2, the status to exit with.
+inline int usage(const char* argv0, const std::string& what) {
+  std::cerr << programName(argv0) << ": " << what << " (--help lists the options)\n";
+  return 2;
 }
 
 /// `text` as a finite number, all of it ("2", "0.5", "1e3"), or nothing.

@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# ld-bench, ld-bench-tracker and ld-bench-e2e on their command lines: bad
+# numbers and sizes are refused in one line before anything runs; a tiny
+# ld-bench run prints its tables and writes --markdown; ld-bench-e2e's help
+# is its header alone.
+# usage: bench_cli_test.sh BIN_DIR
+set -euo pipefail
+BIN=$(cd "$1" && pwd)
+T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+refused() {  # PATTERN COMMAND...: exit 2 within 20 s, one line on stderr matching
+  local pat=$1; shift
+  local rc=0
+  timeout 20 "$@" >"$T/out" 2>"$T/err" || rc=$?
+  [ $rc -eq 2 ] || fail "$*: exit $rc, not 2: $(cat "$T/err")"
+  [ "$(wc -l <"$T/err")" -eq 1 ] && grep -q -- "$pat" "$T/err" || fail "$*: $(cat "$T/err")"
+}
+refused "^ld-bench: --frames: must be > 0, not 0 (--help lists the options)$" "$BIN/ld-bench" --frames 0
+refused "^ld-bench: --repeats: must be > 0, not 0" "$BIN/ld-bench" --repeats 0
+refused "^ld-bench: --size: must be in \[0.01, 2\], not -1" "$BIN/ld-bench" --size -1
+refused "^ld-bench: --resolutions: '640' is not WIDTHxHEIGHT" "$BIN/ld-bench" --resolutions 640
+refused "^ld-bench: --resolutions: '32x32' is out of 64x48 .. 8192x8192" "$BIN/ld-bench" --resolutions 640x480,32x32
+refused "^ld-bench: --markdown $T: is a folder$" "$BIN/ld-bench" --markdown "$T"
+refused "^ld-bench-tracker: --landmarks: must be > 0, not -5" "$BIN/ld-bench-tracker" --landmarks -5
+refused "^ld-bench-e2e: unknown option --bogus (--help lists the options)$" "$BIN/ld-bench-e2e" --bogus
+refused "^ld-bench-e2e: --seconds must be a number of seconds, not x" "$BIN/ld-bench-e2e" --seconds x
+"$BIN/ld-bench-e2e" --help >"$T/help"
+head -1 "$T/help" | grep -q "^ld-bench-e2e: end-to-end latency" || fail "e2e help: $(head -2 "$T/help")"
+! grep -q "set -euo" "$T/help" || fail "e2e help shows the script: $(cat "$T/help")"
+
+# A tiny run: every table, and the same tables in --markdown (a new folder).
+timeout 120 "$BIN/ld-bench" --frames 1 --repeats 1 --resolutions 320x240 --backend cpu --no-paper \
+  --tracker-landmarks 10 --tracker-repeats 1 --markdown "$T/new/bench.md" >"$T/out" 2>"$T/err" ||
+  fail "tiny run: $(cat "$T/err")"
+grep -q "^| 320x240 | cpu | fast | " "$T/out" || fail "no detector row: $(cat "$T/out")"
+grep -q "^| 10 | " "$T/out" || fail "no tracker row: $(cat "$T/out")"
+grep -q "^| 320x240 | cpu | fast | " "$T/new/bench.md" || fail "no --markdown"
+echo "bench command lines: ok"
