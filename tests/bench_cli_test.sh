@@ -21,10 +21,12 @@ refused "^ld-bench: --repeats: must be > 0, not 0" "$BIN/ld-bench" --repeats 0
 refused "^ld-bench: --size: must be in \[0.01, 2\], not -1" "$BIN/ld-bench" --size -1
 refused "^ld-bench: --resolutions: '640' is not WIDTHxHEIGHT" "$BIN/ld-bench" --resolutions 640
 refused "^ld-bench: --resolutions: '32x32' is out of 64x48 .. 8192x8192" "$BIN/ld-bench" --resolutions 640x480,32x32
-refused "^ld-bench: --markdown $T: is a folder$" "$BIN/ld-bench" --markdown "$T"
+refused "^ld-bench: cannot write $T: is a folder$" "$BIN/ld-bench" --markdown "$T"
 refused "^ld-bench-tracker: --landmarks: must be > 0, not -5" "$BIN/ld-bench-tracker" --landmarks -5
 refused "^ld-bench-e2e: unknown option --bogus (--help lists the options)$" "$BIN/ld-bench-e2e" --bogus
 refused "^ld-bench-e2e: --seconds must be a number of seconds, not x" "$BIN/ld-bench-e2e" --seconds x
+refused "^ld-bench-e2e: --seconds must be above 0" "$BIN/ld-bench-e2e" --seconds 0.0
+refused "^ld-bench-e2e: --format must be keep, bgr, rgb, gray, yuyv, uyvy or mjpeg, not foo" "$BIN/ld-bench-e2e" --format foo
 "$BIN/ld-bench-e2e" --help >"$T/help"
 head -1 "$T/help" | grep -q "^ld-bench-e2e: end-to-end latency" || fail "e2e help: $(head -2 "$T/help")"
 ! grep -q "set -euo" "$T/help" || fail "e2e help shows the script: $(cat "$T/help")"

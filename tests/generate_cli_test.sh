@@ -37,7 +37,7 @@ grep -q "p.svg, .*p-3.svg from an earlier run" "$T/err" || fail "stale unnumbere
 
 # Refused: a landmark larger than the page, several payloads without --sheet, no output.
 if "$BIN/ld-generate" --sheet --size 0.5 -p x --svg "$T/x.svg" 2>"$T/err"; then fail "50 cm on A4 accepted"; fi
-grep -q "does not fit on a 210x297 mm page (at most 190 mm with its label and 10 mm margins; --page-width" "$T/err" ||
+grep -q "does not fit on a 210x297 mm page (at most 190 mm with its label and 10 mm margins: --size 0.19; --page-width" "$T/err" ||
   fail "50 cm: $(cat "$T/err")"
 # README's deployment example: 20 cm needs A3 pages.
 "$BIN/ld-generate" --sheet --size 0.20 --page-width 297 --page-height 420 -p room-214/door -p room-215/door \

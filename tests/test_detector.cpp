@@ -1630,4 +1630,88 @@ TEST(Detector, ASpotOfColourOnTheSheet) {
         }
     EXPECT_EQ(found, c.found ? n : 0) << c.what << " spot";
   }
+  // The adaptive detector's white balance is learnt on the same samples: the
+  // sticker's colour is not taken for the light's (it pulled blue up by a
+  // quarter, kept over frames).
+  cv::Mat img = background(kCam.size, 3);
+  Placed p = place(1.0, 20, 0, 0.15, 0.05, -0.02);
+  p.artwork = cases[0].art;
+  drawSheet(img, kCam, p);
+  addNoise(img, 2, 5);
+  ld::AdaptiveDetector adaptive(ld::Detector(), true);
+  for (int frame = 0; frame < 10; ++frame) EXPECT_TRUE(onlyLandmark(adaptive.detect(img), truthOf(kCam, p))) << frame;
+  const cv::Vec3d g = adaptive.adapter().gains();
+  EXPECT_LT(std::max({g[0], g[1], g[2]}) / std::min({g[0], g[1], g[2]}), 1.08) << g;
+}
+
+// A landmark wrapped round a pillar (its vertical axis along the sheet's y):
+// the sheet is no longer a plane and the squares' layout bends, more the
+// thinner the pillar. Rendered by casting each (supersampled) pixel's ray
+// on to the cylinder.
+namespace {
+cv::Point3d onPillar(double xf, double yf, double R) {
+  if (R <= 0) return {xf, yf, 0};
+  const double th = xf / R;
+  return {R * std::sin(th), yf, R * (1 - std::cos(th))};
+}
+void drawPillarSheet(cv::Mat& img, const ld::CameraModel& cam, const Placed& p, double R) {
+  const int ss = 3;
+  const cv::Mat& art = p.artwork;
+  const double n = art.cols, S = p.side_m;
+  const cv::Matx33d Kinv = cam.K.inv(), Rt = p.R.t();
+  const cv::Vec3d C = -(Rt * p.t);
+  cv::Mat mapx(img.rows * ss, img.cols * ss, CV_32F, cv::Scalar(-1)), mapy = mapx.clone();
+  for (int v = 0; v < mapx.rows; ++v)
+    for (int u = 0; u < mapx.cols; ++u) {
+      const cv::Vec3d ray = Rt * (Kinv * cv::Vec3d((u + 0.5) / ss - 0.5, (v + 0.5) / ss - 0.5, 1.0));
+      double lam;
+      if (R <= 0) {
+        if (std::abs(ray[2]) < 1e-12) continue;
+        lam = -C[2] / ray[2];
+      } else {
+        // (Cx + l dx)^2 + (Cz + l dz - R)^2 = R^2
+        const double a = ray[0] * ray[0] + ray[2] * ray[2];
+        const double b = 2 * (C[0] * ray[0] + (C[2] - R) * ray[2]);
+        const double c = C[0] * C[0] + (C[2] - R) * (C[2] - R) - R * R;
+        const double disc = b * b - 4 * a * c;
+        if (disc < 0) continue;
+        lam = (-b - std::sqrt(disc)) / (2 * a);
+      }
+      if (lam <= 0) continue;
+      const cv::Vec3d X = C + lam * ray;
+      const double s = R <= 0 ? X[0] : R * std::atan2(X[0], R - X[2]);
+      const double tx = (s / S + 0.5) * n - 0.5, ty = (X[1] / S + 0.5) * n - 0.5;
+      if (tx < 0 || ty < 0 || tx > n - 1 || ty > n - 1) continue;
+      mapx.at<float>(v, u) = static_cast<float>(tx);
+      mapy.at<float>(v, u) = static_cast<float>(ty);
+    }
+  cv::Mat big, mask;
+  cv::remap(art, big, mapx, mapy, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+  cv::Mat inside = (mapx >= 0);
+  cv::Mat bg;
+  cv::resize(img, bg, big.size(), 0, 0, cv::INTER_NEAREST);
+  big.copyTo(bg, inside);
+  cv::resize(bg, img, img.size(), 0, 0, cv::INTER_AREA);
+}
+}  // namespace
+
+TEST(Detector, LandmarkWrappedRoundAPillar) {
+  for (double R : {0.3, 0.15, 0.1}) {  // pillars of 60, 30 and 20 cm across, for a 15 cm sheet
+    int found_here = 0, n = 0;
+    for (double dist : {0.5, 1.0, 1.5})
+      for (double yaw : {-30.0, 0.0, 30.0})
+        for (double roll : {0.0, 10.0}) {
+          cv::Mat img = background(kCam.size, 11 + n);
+          const Placed p = place(dist, yaw, roll, 0.15, 0.05, -0.02);
+          drawPillarSheet(img, kCam, p, R);
+          cv::GaussianBlur(img, img, {0, 0}, 0.7);
+          addNoise(img, 2, 5 + n);
+          Truth t;
+          const auto cs = layout::objectCentres(0.15);
+          for (int i = 0; i < 4; ++i) t.centres[i] = project(kCam, p, onPillar(cs[i].x, cs[i].y, R));
+          found_here += found(ld::Detector().detect(img), t);
+          ++n;
+        }
+    EXPECT_EQ(found_here, n) << "pillar radius " << R;
+  }
 }

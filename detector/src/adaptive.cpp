@@ -1,6 +1,7 @@
 #include "ld/adaptive.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <utility>
 
@@ -11,6 +12,11 @@
 namespace ld {
 
 namespace {
+
+// A sheet sample whose chromaticity (b, g, r over their sum) lies this far
+// from the landmark's samples' median in a channel is not the light's
+// (white paper under any light has the light's; a yellow sticker is 0.25 off).
+constexpr double kOddSampleChroma = 0.06;
 
 // How far one channel's veil may exceed the common veil of the light's colour
 // when that colour is only assumed (no veiled blocks to measure it on).
@@ -301,6 +307,8 @@ void LightingAdapter::observe(const cv::Mat& original, const Detection& detectio
   int m = 0;
   for (const Landmark& lm : detection.landmarks) {
     const cv::Matx33d H = layout::sheetToImage(lm.corners);
+    std::array<cv::Vec3d, 4> white;
+    int k = 0;
     for (const auto& w : kWhite) {
       const cv::Vec3d p = H * cv::Vec3d(w.x, w.y, 1.0);
       if (!(p[2] > 0)) continue;
@@ -309,7 +317,25 @@ void LightingAdapter::observe(const cv::Mat& original, const Detection& detectio
       if (r.area() == 0) continue;
       const cv::Scalar mean = cv::mean(original(r));
       if (std::max({mean[0], mean[1], mean[2]}) >= 250) continue;  // clipped: no colour information
-      sum += cv::Vec3d(mean[0], mean[1], mean[2]);
+      white[static_cast<size_t>(k++)] = cv::Vec3d(mean[0], mean[1], mean[2]);
+    }
+    // A sample unlike the others in colour (a sticker where the detector
+    // allows one spot, kSpotHue*) is not the light's: its chromaticity far
+    // from the samples' median one. (Brightness may differ: a shadow.)
+    std::array<cv::Vec3d, 4> chroma;
+    for (int i = 0; i < k; ++i) chroma[static_cast<size_t>(i)] = white[static_cast<size_t>(i)] * (1.0 / std::max(1.0, cv::sum(white[static_cast<size_t>(i)])[0]));
+    for (int i = 0; i < k; ++i) {
+      bool odd = false;
+      if (k >= 3)
+        for (int c = 0; c < 3; ++c) {
+          std::array<double, 4> v;
+          for (int j = 0; j < k; ++j) v[static_cast<size_t>(j)] = chroma[static_cast<size_t>(j)][c];
+          std::sort(v.begin(), v.begin() + k);
+          const double median = k % 2 ? v[static_cast<size_t>(k / 2)] : (v[static_cast<size_t>(k / 2 - 1)] + v[static_cast<size_t>(k / 2)]) / 2;
+          odd |= std::abs(chroma[static_cast<size_t>(i)][c] - median) > kOddSampleChroma;
+        }
+      if (odd) continue;
+      sum += white[static_cast<size_t>(i)];
       ++m;
     }
   }

@@ -111,7 +111,7 @@ int main(int argc, char** argv) {
   if (!markdown.empty()) {
     const std::string problem = ld::prepareOutputFile(markdown);
     if (!problem.empty()) {
-      std::cerr << "ld-bench: --markdown " << markdown << ": " << problem << "\n";
+      std::cerr << "ld-bench: cannot write " << markdown << ": " << problem << "\n";
       return 2;
     }
   }

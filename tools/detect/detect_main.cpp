@@ -1,4 +1,4 @@
-// ld-detect: landmarks in image files, as JSON Lines (LANDMARK.md).
+// ld-detect: landmarks in image files, as JSON Lines (docs/landmark.md).
 #include <algorithm>
 #include <cmath>
 #include <chrono>

@@ -160,7 +160,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
   std::map<int64_t, std::string> payloads;  // what was known up to the frame drawn
   ld::image_t img;
   cv::Mat bgr;
-  int64_t images = 0, bad = 0;
+  int64_t images = 0, bad = 0, matched = 0;
   for (const auto& path : logs) {
     ld::LcmLogReader log(path);
     while (!g_stop && log.next()) {
@@ -173,6 +173,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
       const Key key{img.utime, ld::imageSeq(img).value_or(-1)};
       const auto l = lists.find(key);
       if (l == lists.end() && !all_frames) continue;
+      matched += l != lists.end();
       const auto c = codes.find(key);
       if (c != codes.end())
         for (const auto& code : c->second.codes) payloads[code.track_id] = code.payload;
@@ -190,7 +191,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
   std::fprintf(stderr, "ld-view: %lld images, %zu tracked lists, %lld frames written%s\n",
                static_cast<long long>(images), lists.size(), static_cast<long long>(sink.count()),
                bad ? (", " + std::to_string(bad) + " bad").c_str() : "");
-  if (sink.count() == 0 && images > 0 && !all_frames)
+  if (sink.count() == 0 && images > 0 && matched == 0 && !all_frames)
     std::fprintf(stderr, "ld-view: %s; --all draws every image\n",
                  lists.empty() ? ("no tracked lists on " + tracked_ch).c_str()
                                : "no tracked list has an image's utime and seq (logs of different runs?)");

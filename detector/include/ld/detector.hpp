@@ -166,7 +166,8 @@ struct DetectorParams {
   double square_scale_min = 0.25;
   double square_scale_max = 1.6;
   /// The sheet between the squares and at the centre must be less saturated
-  /// than this (0..1)...
+  /// than this (0..1), but for one spot between the squares in a hue no ink
+  /// or look-alike shows (40-180 degrees, yellow to cyan: a sticker) ...
   double sheet_max_saturation = 0.45;
   /// ... and at least this bright relative to the FIPs' brightest channel
   /// (printed blue is dark: about half the paper's brightness) ...

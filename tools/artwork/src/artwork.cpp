@@ -110,8 +110,8 @@ Grid sheetGrid(size_t count, double side_mm, const SheetLayout& page) {
     const double largest = std::min(across, down / 1.06 >= 4 / 0.06 ? down / 1.06 : down - 4);  // label: max(4, 0.06 side)
     throw std::invalid_argument("a " + fmt(side_mm) + " mm landmark does not fit on a " + fmt(page.page_w_mm) +
                                 "x" + fmt(page.page_h_mm) + " mm page (" +
-                                (largest > 0 ? "at most " + fmt(std::floor(largest)) + " mm with its label and " +
-                                                   fmt(page.margin_mm) + " mm margins"
+                                (largest > 0 ? "at most " + fmt(std::floor(largest)) + " mm with its label and " + fmt(page.margin_mm) +
+                                                   " mm margins: --size " + fmt(std::floor(largest) / 1000)
                                              : "no room within its margins") +
                                 "; --page-width and --page-height for larger paper, A3 is 297 x 420)");
   }

@@ -64,21 +64,16 @@ int main(int argc, char** argv) {
   if (png.empty() && svg.empty()) {
     return ld::cli::usage(argv[0], "give --png and/or --svg");
   }
+  // OpenCV picks the PNG writer by the extension
+  if (!png.empty() && (png.size() < 4 || png.compare(png.size() - 4, 4, ".png") != 0))
+    return ld::cli::usage(argv[0], "--png " + png + ": the file name must end in .png");
+  if (payloads.size() > 1 && !sheet) return ld::cli::usage(argv[0], "several payloads need --sheet");
   for (const std::string& path : {svg, png}) {
     if (path.empty()) continue;
     if (const std::string problem = ld::prepareOutputFile(path); !problem.empty()) {
       std::cerr << "ld-generate: cannot write " << path << ": " << problem << "\n";
       return 2;
     }
-  }
-  // OpenCV picks the PNG writer by the extension
-  if (!png.empty() && (png.size() < 4 || png.compare(png.size() - 4, 4, ".png") != 0)) {
-    std::cerr << "ld-generate: --png " << png << ": the file name must end in .png\n";
-    return 2;
-  }
-  if (payloads.size() > 1 && !sheet) {
-    std::cerr << "ld-generate: several payloads need --sheet\n";
-    return 2;
   }
   const ld::artwork::QrEcc ecc = ld::artwork::parseQrEcc(ecc_text);  // (checked on parsing)
   try {
