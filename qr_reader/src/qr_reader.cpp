@@ -84,6 +84,10 @@ struct QrReader::Impl {
   cv::Mat gray, view, work, blurred, map, sampled, samples, sharpened, grid8, bits, clean;
   std::vector<int8_t> known, grid;  // the equaliser's modules: -1 unknown, 0 light, 1 dark
   std::vector<double> fit_a, fit_b;
+  cv::Mat profile;                        // followTiming's samples along a line
+  std::vector<double> col_at, row_at;     // the modules' middles it found (empty: evenly spaced)
+  cv::Matx23d bend{1, 0, 0, 0, 1, 0};     // readBent's move of the grid onto the finders (modules)
+  cv::Vec2d bent(double x, double y) const { return bend * cv::Vec3d(x, y, 1.0); }
 
   // The QR read module by module: where the camera gives about a pixel per
   // module, zbar cannot find the finder patterns in the view, but the sheet
@@ -128,17 +132,193 @@ struct QrReader::Impl {
       // each (as for the finders above) takes in more of the neighbours'
       // blur, which costs modules from about 1.5 px per module down.
       sampleModules(best, n, 1);
-      if (equalise(n))
-        if (auto r = scanBits(n)) return std::pair{*r, 0};
-      // Without the model: sharpened by fixed amounts, thresholded globally
-      // (Otsu) and locally.
-      for (double k : {0.0, 1.4, 2.5})
-        for (bool local : {false, true}) {
-          thresholdModules(n, k, local);
-          if (auto r = scanBits(n)) return std::pair{*r, 1};
-        }
+      if (auto r = readSamples(n)) return r;
+    }
+    return readBent(sheet_to_image, qr_px);
+  }
+
+  // A sheet that is not flat (curled, or round a pillar) moves its QR off
+  // where the pattern's corners put it, by a module or two, and stretches
+  // the modules unevenly: no homography follows them. Each finder is looked
+  // for on its own within 2.5 modules, for each version whose modules are
+  // 1.5 px or more; where all three look like finders, the grid is moved
+  // onto them (the affine map of their centres), and then follows the QR's
+  // own timing row and column (followTiming) before it is read.
+  std::optional<std::pair<std::string, int>> readBent(const cv::Matx33d& sheet_to_image, double qr_px) {
+    struct Fit {
+      double score;
+      int n;
+      cv::Matx23d bend;
+    };
+    std::vector<Fit> fits;
+    for (int version = 1; version <= 15; ++version) {
+      const int n = 17 + 4 * version;
+      if (qr_px / (n + 2) < 1.5) break;
+      const double c = 3.5, f = n - 3.5;
+      const cv::Point2f ideal[3] = {{static_cast<float>(c), static_cast<float>(c)},
+                                    {static_cast<float>(f), static_cast<float>(c)},
+                                    {static_cast<float>(c), static_cast<float>(f)}};
+      cv::Point2f at[3];
+      double score = 1;
+      for (int k = 0; k < 3; ++k) score = std::min(score, findFinder(sheet_to_image, n, ideal[k], at[k]));
+      if (score < 0.6) continue;
+      fits.push_back({score, n, cv::Matx23d(cv::getAffineTransform(ideal, at))});
+    }
+    std::sort(fits.begin(), fits.end(), [](const Fit& a, const Fit& b) { return a.score > b.score; });
+    for (size_t k = 0; k < fits.size() && k < 2; ++k) {
+      const int n = fits[k].n;
+      bend = fits[k].bend;
+      std::optional<std::pair<std::string, int>> r;
+      if (followTiming(sheet_to_image, n)) {
+        sampleModules(sheet_to_image, n, 1);
+        r = readSamples(n);
+      }
+      bend = cv::Matx23d(1, 0, 0, 0, 1, 0);
+      col_at.clear();
+      row_at.clear();
+      if (r) return r;
     }
     return std::nullopt;
+  }
+
+  // The finder whose centre the grid puts at `ideal` (modules from the
+  // symbol's edge): where within 2.5 modules its 7 x 7 modules look most
+  // like one (`at`), and how much (correlation, -1..1).
+  double findFinder(const cv::Matx33d& sheet_to_image, int n, cv::Point2f ideal, cv::Point2f& at) {
+    constexpr int kReach = 10;  // offsets of a quarter module, each way
+    const int offsets = 2 * kReach + 1;
+    const double module = (layout::kQrMax - layout::kQrMin) / (n + 2);
+    map.create(offsets * offsets, 49, CV_32FC2);
+    for (int o = 0; o < offsets * offsets; ++o) {
+      const double dx = 0.25 * (o % offsets - kReach), dy = 0.25 * (o / offsets - kReach);
+      for (int q = 0; q < 49; ++q) {
+        const double x = ideal.x + dx + (q % 7 - 3), y = ideal.y + dy + (q / 7 - 3);
+        const cv::Vec3d p = sheet_to_image * cv::Vec3d(layout::kQrMin + module * (1 + x), layout::kQrMin + module * (1 + y), 1.0);
+        map.at<cv::Vec2f>(o, q) = {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
+      }
+    }
+    cv::remap(gray, sampled, map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    double best = -2;
+    for (int o = 0; o < offsets * offsets; ++o) {
+      double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+      for (int q = 0; q < 49; ++q) {
+        const int d = std::max(std::abs(q % 7 - 3), std::abs(q / 7 - 3));
+        const double x = d == 2 ? 0.0 : 1.0, y = 255.0 - sampled.at<uint8_t>(o, q);
+        sx += x, sy += y, sxx += x * x, syy += y * y, sxy += x * y;
+      }
+      const double cov = sxy - sx * sy / 49, vx = sxx - sx * sx / 49, vy = syy - sy * sy / 49;
+      const double score = vx > 0 && vy > 0 ? cov / std::sqrt(vx * vy) : -1.0;
+      if (score > best) {
+        best = score;
+        at = {static_cast<float>(ideal.x + 0.25 * (o % offsets - kReach)),
+              static_cast<float>(ideal.y + 0.25 * (o / offsets - kReach))};
+      }
+    }
+    return best;
+  }
+
+  // The payload from `samples` (readGrid's pair): equalised, else sharpened
+  // by fixed amounts and thresholded globally (Otsu) and locally.
+  std::optional<std::pair<std::string, int>> readSamples(int n) {
+    if (equalise(n))
+      if (auto r = scanBits(n)) return std::pair{*r, 0};
+    for (double k : {0.0, 1.4, 2.5})
+      for (bool local : {false, true}) {
+        thresholdModules(n, k, local);
+        if (auto r = scanBits(n)) return std::pair{*r, 1};
+      }
+    return std::nullopt;
+  }
+
+  // Where each module column's and row's middle lies (in modules, from the
+  // symbol's edge), as the QR's row 6 and column 6 show it: finder, timing
+  // pattern, finder, a known sequence of dark and light modules with an
+  // edge at 0, 7, 8, 9, ..., n - 8, n - 7 and n. Each edge is looked for
+  // where the last two found predict it (a bend stretches the modules
+  // gradually), and a cubic through the edges found gives col_at / row_at.
+  // False (and both empty) when too few edges are found.
+  bool followTiming(const cv::Matx33d& sheet_to_image, int n) {
+    const bool ok = followLine(sheet_to_image, n, true, col_at) && followLine(sheet_to_image, n, false, row_at);
+    if (!ok) col_at.clear(), row_at.clear();
+    return ok;
+  }
+
+  bool followLine(const cv::Matx33d& sheet_to_image, int n, bool across, std::vector<double>& at) {
+    constexpr int kStep = 8;  // profile samples per module
+    const double module = (layout::kQrMax - layout::kQrMin) / (n + 2);
+    // the profile along row 6 (across) or column 6, from 1.5 modules before the symbol to 1.5 after
+    const int len = (n + 3) * kStep;
+    map.create(1, len, CV_32FC2);
+    for (int i = 0; i < len; ++i) {
+      const double along = -1.5 + static_cast<double>(i) / kStep;  // modules from the symbol's edge
+      const cv::Vec2d m = bent(across ? along : 6.5, across ? 6.5 : along);
+      const cv::Vec3d p = sheet_to_image * cv::Vec3d(layout::kQrMin + module * (1 + m[0]), layout::kQrMin + module * (1 + m[1]), 1.0);
+      map.at<cv::Vec2f>(0, i) = {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
+    }
+    cv::remap(gray, sampled, map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    sampled.convertTo(profile, CV_32F);
+    std::vector<float> sorted(profile.begin<float>(), profile.end<float>());
+    std::sort(sorted.begin(), sorted.end());
+    const double dark = sorted[sorted.size() / 10], light = sorted[sorted.size() * 9 / 10];
+    if (!(light - dark > 30)) return false;
+    const double mid = (dark + light) / 2;
+    auto value = [&](double along) {  // the profile at a position in modules (linear)
+      const double f = (along + 1.5) * kStep;
+      const int i = std::clamp(static_cast<int>(std::floor(f)), 0, len - 2);
+      const double t = std::clamp(f - i, 0.0, 1.0);
+      return (1 - t) * profile.at<float>(0, i) + t * profile.at<float>(0, i + 1);
+    };
+    // the edges, in order, and whether the profile goes dark there
+    std::vector<std::pair<int, bool>> edges{{0, true}, {7, false}};
+    for (int e = 8; e <= n - 8; ++e) edges.emplace_back(e, e % 2 == 0);
+    edges.emplace_back(n - 7, true);
+    edges.emplace_back(n, false);
+    std::vector<std::pair<double, double>> found;  // (expected, found) in modules
+    double scale = 1;
+    for (const auto& [e, to_dark] : edges) {
+      double predict = e;
+      if (!found.empty()) predict = found.back().second + (e - found.back().first) * scale;
+      // the crossing of `mid` in the right direction nearest the prediction, within 0.6 modules
+      double best = 1e9;
+      for (double x = predict - 0.6; x <= predict + 0.6; x += 1.0 / kStep) {
+        const double v0 = value(x), v1 = value(x + 1.0 / kStep);
+        if (to_dark ? !(v0 >= mid && v1 < mid) : !(v0 < mid && v1 >= mid)) continue;
+        const double cross = x + (v0 - mid) / (v0 - v1) / kStep;
+        if (std::abs(cross - predict) < std::abs(best - predict)) best = cross;
+      }
+      if (best > 1e8) continue;
+      if (!found.empty() && e - found.back().first <= 8) {
+        const double s = (best - found.back().second) / (e - found.back().first);
+        if (s > 0.6 && s < 1.6) scale = 0.5 * scale + 0.5 * s;
+      }
+      found.emplace_back(e, best);
+    }
+    if (static_cast<int>(found.size()) < std::max(8, static_cast<int>(edges.size()) * 2 / 3)) return false;
+    // a cubic through them (least squares, in the symbol's half-widths for
+    // conditioning), again without the edges it misses by over 0.25 modules
+    const double h = n / 2.0;
+    cv::Mat c;
+    auto cubicAt = [&](double e) {
+      const double t = (e - h) / h;
+      return c.at<double>(0) + t * (c.at<double>(1) + t * (c.at<double>(2) + t * c.at<double>(3)));
+    };
+    for (int round = 0; round < 2; ++round) {
+      if (found.size() < 6) return false;
+      cv::Mat A(static_cast<int>(found.size()), 4, CV_64F), y(static_cast<int>(found.size()), 1, CV_64F);
+      for (int i = 0; i < A.rows; ++i) {
+        const double t = (found[static_cast<size_t>(i)].first - h) / h;
+        for (int k = 0; k < 4; ++k) A.at<double>(i, k) = std::pow(t, k);
+        y.at<double>(i) = found[static_cast<size_t>(i)].second;
+      }
+      if (!cv::solve(A, y, c, cv::DECOMP_SVD)) return false;
+      if (round == 0)
+        found.erase(std::remove_if(found.begin(), found.end(),
+                                   [&](const auto& f) { return std::abs(cubicAt(f.first) - f.second) > 0.25; }),
+                    found.end());
+    }
+    at.resize(static_cast<size_t>(n));
+    for (int k = 0; k < n; ++k) at[static_cast<size_t>(k)] = cubicAt(k + 0.5);
+    return true;
   }
 
   // `bits` (dark 0, light 255) from `samples`: the camera's blur spreads each
@@ -234,12 +414,14 @@ struct QrReader::Impl {
   void sampleModules(const cv::Matx33d& sheet_to_image, int n, int kSub = 3) {
     const double module = (layout::kQrMax - layout::kQrMin) / (n + 2);
     map.create(n * kSub, n * kSub, CV_32FC2);
+    // (the middles of the modules' columns and rows: followTiming's, or evenly spaced)
+    auto middle = [](const std::vector<double>& at, int k) { return at.empty() ? k + 0.5 : at[static_cast<size_t>(k)]; };
     for (int r = 0; r < n * kSub; ++r) {
       auto* row = map.ptr<cv::Vec2f>(r);
-      const double v = layout::kQrMin + module * (1 + (r / kSub) + 0.5 + ((r % kSub) - kSub / 2) * 0.25);
+      const double y = middle(row_at, r / kSub) + ((r % kSub) - kSub / 2) * 0.25;
       for (int c = 0; c < n * kSub; ++c) {
-        const double u = layout::kQrMin + module * (1 + (c / kSub) + 0.5 + ((c % kSub) - kSub / 2) * 0.25);
-        const cv::Vec3d p = sheet_to_image * cv::Vec3d(u, v, 1.0);
+        const cv::Vec2d m = bent(middle(col_at, c / kSub) + ((c % kSub) - kSub / 2) * 0.25, y);
+        const cv::Vec3d p = sheet_to_image * cv::Vec3d(layout::kQrMin + module * (1 + m[0]), layout::kQrMin + module * (1 + m[1]), 1.0);
         row[c] = {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
       }
     }
