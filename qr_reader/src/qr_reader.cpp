@@ -16,6 +16,10 @@
 namespace ld {
 namespace {
 
+// How like a finder pattern (correlation of its 7 x 7 modules with the
+// ideal) each of the three must look for the bent-sheet path to read a grid.
+constexpr double kBentFinderMin = 0.6;
+
 // Homography from the upright view (side px, QR square plus margin) to the image.
 cv::Matx33d viewToImage(const std::array<cv::Point2f, 4>& corners, int side, double margin_u) {
   const cv::Matx33d sheet_to_image = layout::sheetToImage(corners);
@@ -160,8 +164,13 @@ struct QrReader::Impl {
                                     {static_cast<float>(c), static_cast<float>(f)}};
       cv::Point2f at[3];
       double score = 1;
-      for (int k = 0; k < 3; ++k) score = std::min(score, findFinder(sheet_to_image, n, ideal[k], at[k]));
-      if (score < 0.6) continue;
+      for (int k = 0; k < 3 && score >= kBentFinderMin; ++k) {
+        // within 2.5 modules by half modules, then within a quarter by eighths
+        cv::Point2f coarse;
+        findFinder(sheet_to_image, n, ideal[k], 0.5, 5, coarse);
+        score = std::min(score, findFinder(sheet_to_image, n, coarse, 0.125, 2, at[k]));
+      }
+      if (score < kBentFinderMin) continue;
       fits.push_back({score, n, cv::Matx23d(cv::getAffineTransform(ideal, at))});
     }
     std::sort(fits.begin(), fits.end(), [](const Fit& a, const Fit& b) { return a.score > b.score; });
@@ -181,16 +190,17 @@ struct QrReader::Impl {
     return std::nullopt;
   }
 
-  // The finder whose centre the grid puts at `ideal` (modules from the
-  // symbol's edge): where within 2.5 modules its 7 x 7 modules look most
-  // like one (`at`), and how much (correlation, -1..1).
-  double findFinder(const cv::Matx33d& sheet_to_image, int n, cv::Point2f ideal, cv::Point2f& at) {
-    constexpr int kReach = 10;  // offsets of a quarter module, each way
-    const int offsets = 2 * kReach + 1;
+  // The finder whose centre the grid puts near `ideal` (modules from the
+  // symbol's edge): where within `reach` steps of `step` modules each way
+  // its 7 x 7 modules look most like one (`at`), and how much (correlation,
+  // -1..1).
+  double findFinder(const cv::Matx33d& sheet_to_image, int n, cv::Point2f ideal, double step, int reach,
+                    cv::Point2f& at) {
+    const int offsets = 2 * reach + 1;
     const double module = (layout::kQrMax - layout::kQrMin) / (n + 2);
     map.create(offsets * offsets, 49, CV_32FC2);
     for (int o = 0; o < offsets * offsets; ++o) {
-      const double dx = 0.25 * (o % offsets - kReach), dy = 0.25 * (o / offsets - kReach);
+      const double dx = step * (o % offsets - reach), dy = step * (o / offsets - reach);
       for (int q = 0; q < 49; ++q) {
         const double x = ideal.x + dx + (q % 7 - 3), y = ideal.y + dy + (q / 7 - 3);
         const cv::Vec3d p = sheet_to_image * cv::Vec3d(layout::kQrMin + module * (1 + x), layout::kQrMin + module * (1 + y), 1.0);
@@ -210,8 +220,8 @@ struct QrReader::Impl {
       const double score = vx > 0 && vy > 0 ? cov / std::sqrt(vx * vy) : -1.0;
       if (score > best) {
         best = score;
-        at = {static_cast<float>(ideal.x + 0.25 * (o % offsets - kReach)),
-              static_cast<float>(ideal.y + 0.25 * (o / offsets - kReach))};
+        at = {static_cast<float>(ideal.x + step * (o % offsets - reach)),
+              static_cast<float>(ideal.y + step * (o / offsets - reach))};
       }
     }
     return best;
