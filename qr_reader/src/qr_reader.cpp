@@ -174,18 +174,22 @@ struct QrReader::Impl {
       fits.push_back({score, n, cv::Matx23d(cv::getAffineTransform(ideal, at))});
     }
     std::sort(fits.begin(), fits.end(), [](const Fit& a, const Fit& b) { return a.score > b.score; });
+    // (the grid flat and even again however this returns, a throw included)
+    struct Flat {
+      Impl& m;
+      ~Flat() {
+        m.bend = cv::Matx23d(1, 0, 0, 0, 1, 0);
+        m.col_at.clear();
+        m.row_at.clear();
+      }
+    } flat{*this};
     for (size_t k = 0; k < fits.size() && k < 2; ++k) {
       const int n = fits[k].n;
       bend = fits[k].bend;
-      std::optional<std::pair<std::string, int>> r;
       if (followTiming(sheet_to_image, n)) {
         sampleModules(sheet_to_image, n, 1);
-        r = readSamples(n);
+        if (auto r = readSamples(n)) return r;
       }
-      bend = cv::Matx23d(1, 0, 0, 0, 1, 0);
-      col_at.clear();
-      row_at.clear();
-      if (r) return r;
     }
     return std::nullopt;
   }
