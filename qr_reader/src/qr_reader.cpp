@@ -265,7 +265,9 @@ struct QrReader::Impl {
     map.create(1, len, CV_32FC2);
     for (int i = 0; i < len; ++i) {
       const double along = -1.5 + static_cast<double>(i) / kStep;  // modules from the symbol's edge
-      const cv::Vec2d m = bent(across ? along : 6.5, across ? 6.5 : along);
+      // (column 6 where row 6's edges put it, when they have)
+      const double line = across || col_at.size() < 7 ? 6.5 : col_at[6];
+      const cv::Vec2d m = bent(across ? along : line, across ? 6.5 : along);
       const cv::Vec3d p = sheet_to_image * cv::Vec3d(layout::kQrMin + module * (1 + m[0]), layout::kQrMin + module * (1 + m[1]), 1.0);
       map.at<cv::Vec2f>(0, i) = {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
     }
@@ -330,8 +332,19 @@ struct QrReader::Impl {
                                    [&](const auto& f) { return std::abs(cubicAt(f.first) - f.second) > 0.25; }),
                     found.end());
     }
+    // edges kept near both ends (the cubic is not stretched over a finder),
+    // and modules in order, none under half or over 1.6 of its width
+    const bool ends = std::any_of(found.begin(), found.end(), [](const auto& f) { return f.first <= 7; }) &&
+                      std::any_of(found.begin(), found.end(), [n](const auto& f) { return f.first >= n - 7; });
+    if (!ends) return false;
     at.resize(static_cast<size_t>(n));
-    for (int k = 0; k < n; ++k) at[static_cast<size_t>(k)] = cubicAt(k + 0.5);
+    for (int k = 0; k < n; ++k) {
+      at[static_cast<size_t>(k)] = cubicAt(k + 0.5);
+      if (k > 0) {
+        const double step = at[static_cast<size_t>(k)] - at[static_cast<size_t>(k - 1)];
+        if (!(step > 0.5 && step < 1.6)) return false;
+      }
+    }
     return true;
   }
 
