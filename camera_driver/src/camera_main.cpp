@@ -28,13 +28,10 @@ std::atomic<bool> g_stop{false};
 void onSignal(int) { g_stop = true; }
 
 bool parseSize(const std::string& text, uint32_t& w, uint32_t& h) {
-  unsigned long a = 0, b = 0;
-  char x = 0, extra = 0;
-  if (std::sscanf(text.c_str(), "%lu%c%lu%c", &a, &x, &b, &extra) != 3 || (x != 'x' && x != 'X'))
-    return false;
-  if (a == 0 || b == 0 || a > 16384 || b > 16384) return false;
-  w = static_cast<uint32_t>(a);
-  h = static_cast<uint32_t>(b);
+  const auto wh = ld::cli::parseSize(text);
+  if (!wh || wh->first < 1 || wh->second < 1 || wh->first > 16384 || wh->second > 16384) return false;
+  w = static_cast<uint32_t>(wh->first);
+  h = static_cast<uint32_t>(wh->second);
   return true;
 }
 

@@ -81,10 +81,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   const CLI::Validator wxh(
       [](std::string& text) {
-        int w = 0, h = 0;
-        char x = 0, rest = 0;
-        if (std::sscanf(text.c_str(), "%d%c%d%c", &w, &x, &h, &rest) != 3 || (x != 'x' && x != 'X'))
-          return "'" + text + "' is not WIDTHxHEIGHT";
+        const auto wh = ld::cli::parseSize(text);
+        if (!wh) return "'" + text + "' is not WIDTHxHEIGHT";
+        const auto [w, h] = *wh;
         return w >= 64 && h >= 48 && w <= 8192 && h <= 8192 ? std::string()
                                                           : "'" + text + "' is out of 64x48 .. 8192x8192";
       },
@@ -142,8 +141,8 @@ int main(int argc, char** argv) {
   }
 
   for (const auto& res : resolutions) {
-    int w = 0, h = 0;
-    std::sscanf(res.c_str(), "%d%*c%d", &w, &h);  // (checked by the option)
+    const auto wh = *ld::cli::parseSize(res);  // (checked by the option)
+    const int w = static_cast<int>(wh.first), h = static_cast<int>(wh.second);
     const ld::CameraModel camera = ld::CameraModel::pinhole({w, h}, 600.0 * w / 640.0);
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> U(0, 1);

@@ -77,12 +77,10 @@ void requireWithin(const std::string& name, const Range& r, double lo, double hi
 ld::CameraModel makeCamera(const std::string& file, const std::string& resolution) {
   std::optional<cv::Size> size;
   if (!resolution.empty()) {
-    int w = 0, h = 0;
-    char x = 0;
-    if (std::sscanf(resolution.c_str(), "%d%c%d", &w, &x, &h) != 3 || (x != 'x' && x != 'X') ||
-        w < 16 || h < 16 || w > 16384 || h > 16384)
+    const auto wh = ld::cli::parseSize(resolution);
+    if (!wh || wh->first < 16 || wh->second < 16 || wh->first > 16384 || wh->second > 16384)
       throw UsageError("--resolution: '" + resolution + "' is not WIDTHxHEIGHT");
-    size = cv::Size(w, h);
+    size = cv::Size(static_cast<int>(wh->first), static_cast<int>(wh->second));
   }
   ld::CameraModel cam;
   if (!file.empty()) {

@@ -9,11 +9,13 @@
 #pragma once
 
 #include <cmath>
+#include <cstdio>
 #include <iostream>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include <CLI/CLI.hpp>
 
@@ -41,6 +43,15 @@ inline int parse(CLI::App& app, int argc, char** argv) {
     std::cerr << programName(argc > 0 ? argv[0] : nullptr) << ": " << what << " (--help lists the options)\n";
     return 2;
   }
+}
+
+/// A size "WIDTHxHEIGHT" ("640x480", x or X), all of it, or nothing; the
+/// callers check its range.
+inline std::optional<std::pair<long, long>> parseSize(const std::string& text) {
+  long w = 0, h = 0;
+  char x = 0, extra = 0;
+  if (std::sscanf(text.c_str(), "%ld%c%ld%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X')) return std::nullopt;
+  return std::pair{w, h};
 }
 
 /// A command line that parses but does not hold together ("give --png
