@@ -34,23 +34,42 @@ cv::Matx33d viewToImage(const std::array<cv::Point2f, 4>& corners, int side, dou
 // How well the three finder patterns of an n-module grid of samples (values
 // 0..255, dark = low) look like finder patterns: the correlation of their
 // 7x7 samples with the ideal pattern, -1..1.
-double finderScore(const cv::Mat& samples, int n) {
-  static const auto ideal = [](int r, int c) {
-    const int d = std::max(std::abs(r - 3), std::abs(c - 3));
-    return d == 2 ? 0.0 : 1.0;  // 1 = dark: rings at distance 0, 1 (centre 3x3) and 3
-  };
+struct FinderCorrelation {
   double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
   int count = 0;
+  // module (r, c) of a finder (0..6) sampled as `sample`
+  void add(int r, int c, double sample) {
+    const int d = std::max(std::abs(r - 3), std::abs(c - 3));
+    const double x = d == 2 ? 0.0 : 1.0;  // 1 = dark: rings at distance 0, 1 (centre 3x3) and 3
+    const double y = 255.0 - sample;
+    sx += x; sy += y; sxx += x * x; syy += y * y; sxy += x * y;
+    ++count;
+  }
+  double value() const {
+    const double cov = sxy - sx * sy / count, vx = sxx - sx * sx / count, vy = syy - sy * sy / count;
+    return vx > 0 && vy > 0 ? cov / std::sqrt(vx * vy) : -1.0;
+  }
+};
+
+double finderScore(const cv::Mat& samples, int n) {
+  FinderCorrelation corr;
   for (const auto& [r0, c0] : {std::pair{0, 0}, {0, n - 7}, {n - 7, 0}})
     for (int r = 0; r < 7; ++r)
-      for (int c = 0; c < 7; ++c) {
-        const double x = ideal(r, c), y = 255.0 - samples.at<float>(r0 + r, c0 + c);
-        sx += x; sy += y; sxx += x * x; syy += y * y; sxy += x * y;
-        ++count;
-      }
-  const double cov = sxy - sx * sy / count, vx = sxx - sx * sx / count, vy = syy - sy * sy / count;
-  return vx > 0 && vy > 0 ? cov / std::sqrt(vx * vy) : -1.0;
+      for (int c = 0; c < 7; ++c) corr.add(r, c, samples.at<float>(r0 + r, c0 + c));
+  return corr.value();
 }
+
+// A point of an n-module symbol, in modules from its edge (`module`: a
+// module's side in sheet units; the QR square holds the symbol and one
+// module of quiet zone), in the image.
+cv::Vec2f moduleToImage(const cv::Matx33d& sheet_to_image, double module, double x, double y) {
+  const cv::Vec3d p =
+      sheet_to_image * cv::Vec3d(layout::kQrMin + module * (1 + x), layout::kQrMin + module * (1 + y), 1.0);
+  return {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
+}
+
+// The grid as the corners put it: not moved (readBent moves it).
+const cv::Matx23d kFlatGrid(1, 0, 0, 0, 1, 0);
 
 double projectedQrSide(const std::array<cv::Point2f, 4>& c) {
   double pattern = 0;
@@ -90,7 +109,7 @@ struct QrReader::Impl {
   std::vector<double> fit_a, fit_b;
   cv::Mat profile;                        // followTiming's samples along a line
   std::vector<double> col_at, row_at;     // the modules' middles it found (empty: evenly spaced)
-  cv::Matx23d bend{1, 0, 0, 0, 1, 0};     // readBent's move of the grid onto the finders (modules)
+  cv::Matx23d bend = kFlatGrid;           // readBent's move of the grid onto the finders (modules)
   cv::Vec2d bent(double x, double y) const { return bend * cv::Vec3d(x, y, 1.0); }
 
   // The QR read module by module: where the camera gives about a pixel per
@@ -178,7 +197,7 @@ struct QrReader::Impl {
     struct Flat {
       Impl& m;
       ~Flat() {
-        m.bend = cv::Matx23d(1, 0, 0, 0, 1, 0);
+        m.bend = kFlatGrid;
         m.col_at.clear();
         m.row_at.clear();
       }
@@ -205,23 +224,16 @@ struct QrReader::Impl {
     map.create(offsets * offsets, 49, CV_32FC2);
     for (int o = 0; o < offsets * offsets; ++o) {
       const double dx = step * (o % offsets - reach), dy = step * (o / offsets - reach);
-      for (int q = 0; q < 49; ++q) {
-        const double x = ideal.x + dx + (q % 7 - 3), y = ideal.y + dy + (q / 7 - 3);
-        const cv::Vec3d p = sheet_to_image * cv::Vec3d(layout::kQrMin + module * (1 + x), layout::kQrMin + module * (1 + y), 1.0);
-        map.at<cv::Vec2f>(o, q) = {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
-      }
+      for (int q = 0; q < 49; ++q)
+        map.at<cv::Vec2f>(o, q) =
+            moduleToImage(sheet_to_image, module, ideal.x + dx + (q % 7 - 3), ideal.y + dy + (q / 7 - 3));
     }
     cv::remap(gray, sampled, map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
     double best = -2;
     for (int o = 0; o < offsets * offsets; ++o) {
-      double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
-      for (int q = 0; q < 49; ++q) {
-        const int d = std::max(std::abs(q % 7 - 3), std::abs(q / 7 - 3));
-        const double x = d == 2 ? 0.0 : 1.0, y = 255.0 - sampled.at<uint8_t>(o, q);
-        sx += x, sy += y, sxx += x * x, syy += y * y, sxy += x * y;
-      }
-      const double cov = sxy - sx * sy / 49, vx = sxx - sx * sx / 49, vy = syy - sy * sy / 49;
-      const double score = vx > 0 && vy > 0 ? cov / std::sqrt(vx * vy) : -1.0;
+      FinderCorrelation corr;
+      for (int q = 0; q < 49; ++q) corr.add(q / 7, q % 7, sampled.at<uint8_t>(o, q));
+      const double score = corr.value();
       if (score > best) {
         best = score;
         at = {static_cast<float>(ideal.x + step * (o % offsets - reach)),
@@ -263,13 +275,12 @@ struct QrReader::Impl {
     // the profile along row 6 (across) or column 6, from 1.5 modules before the symbol to 1.5 after
     const int len = (n + 3) * kStep;
     map.create(1, len, CV_32FC2);
+    // (column 6 where row 6's edges put it, when they have)
+    const double line = across || col_at.size() < 7 ? 6.5 : col_at[6];
     for (int i = 0; i < len; ++i) {
       const double along = -1.5 + static_cast<double>(i) / kStep;  // modules from the symbol's edge
-      // (column 6 where row 6's edges put it, when they have)
-      const double line = across || col_at.size() < 7 ? 6.5 : col_at[6];
       const cv::Vec2d m = bent(across ? along : line, across ? 6.5 : along);
-      const cv::Vec3d p = sheet_to_image * cv::Vec3d(layout::kQrMin + module * (1 + m[0]), layout::kQrMin + module * (1 + m[1]), 1.0);
-      map.at<cv::Vec2f>(0, i) = {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
+      map.at<cv::Vec2f>(0, i) = moduleToImage(sheet_to_image, module, m[0], m[1]);
     }
     cv::remap(gray, sampled, map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
     sampled.convertTo(profile, CV_32F);
@@ -448,8 +459,7 @@ struct QrReader::Impl {
       const double y = middle(row_at, r / kSub) + ((r % kSub) - kSub / 2) * 0.25;
       for (int c = 0; c < n * kSub; ++c) {
         const cv::Vec2d m = bent(middle(col_at, c / kSub) + ((c % kSub) - kSub / 2) * 0.25, y);
-        const cv::Vec3d p = sheet_to_image * cv::Vec3d(layout::kQrMin + module * (1 + m[0]), layout::kQrMin + module * (1 + m[1]), 1.0);
-        row[c] = {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
+        row[c] = moduleToImage(sheet_to_image, module, m[0], m[1]);
       }
     }
     cv::remap(gray, sampled, map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
