@@ -308,7 +308,7 @@ void LightingAdapter::observe(const cv::Mat& original, const Detection& detectio
   for (const Landmark& lm : detection.landmarks) {
     const cv::Matx33d H = layout::sheetToImage(lm.corners);
     std::array<cv::Vec3d, 4> white;
-    int k = 0;
+    size_t k = 0;
     for (const auto& w : kWhite) {
       const cv::Vec3d p = H * cv::Vec3d(w.x, w.y, 1.0);
       if (!(p[2] > 0)) continue;
@@ -317,25 +317,23 @@ void LightingAdapter::observe(const cv::Mat& original, const Detection& detectio
       if (r.area() == 0) continue;
       const cv::Scalar mean = cv::mean(original(r));
       if (std::max({mean[0], mean[1], mean[2]}) >= 250) continue;  // clipped: no colour information
-      white[static_cast<size_t>(k++)] = cv::Vec3d(mean[0], mean[1], mean[2]);
+      white[k++] = cv::Vec3d(mean[0], mean[1], mean[2]);
     }
     // A sample unlike the others in colour (a sticker where the detector
     // allows one spot, kSpotHue*) is not the light's: its chromaticity far
     // from the samples' median one. (Brightness may differ: a shadow.)
     std::array<cv::Vec3d, 4> chroma;
-    for (int i = 0; i < k; ++i) chroma[static_cast<size_t>(i)] = white[static_cast<size_t>(i)] * (1.0 / std::max(1.0, cv::sum(white[static_cast<size_t>(i)])[0]));
-    for (int i = 0; i < k; ++i) {
-      bool odd = false;
-      if (k >= 3)
-        for (int c = 0; c < 3; ++c) {
-          std::array<double, 4> v;
-          for (int j = 0; j < k; ++j) v[static_cast<size_t>(j)] = chroma[static_cast<size_t>(j)][c];
-          std::sort(v.begin(), v.begin() + k);
-          const double median = k % 2 ? v[static_cast<size_t>(k / 2)] : (v[static_cast<size_t>(k / 2 - 1)] + v[static_cast<size_t>(k / 2)]) / 2;
-          odd |= std::abs(chroma[static_cast<size_t>(i)][c] - median) > kOddSampleChroma;
-        }
-      if (odd) continue;
-      sum += white[static_cast<size_t>(i)];
+    for (size_t i = 0; i < k; ++i) chroma[i] = white[i] * (1.0 / std::max(1.0, cv::sum(white[i])[0]));
+    cv::Vec3d median;  // per channel, of three samples or more
+    for (int c = 0; c < 3 && k >= 3; ++c) {
+      std::array<double, 4> v;
+      for (size_t j = 0; j < k; ++j) v[j] = chroma[j][c];
+      std::sort(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k));
+      median[c] = k % 2 ? v[k / 2] : (v[k / 2 - 1] + v[k / 2]) / 2;
+    }
+    for (size_t i = 0; i < k; ++i) {
+      if (k >= 3 && cv::norm(chroma[i] - median, cv::NORM_INF) > kOddSampleChroma) continue;
+      sum += white[i];
       ++m;
     }
   }
