@@ -332,6 +332,72 @@ TEST(Regions, MergesThroughLaterRows) {
   EXPECT_EQ(regions[0].area, 3 * 20 + 28);
 }
 
+// Every region of a random image (runs of every length, at both edges of
+// the rows, in blocks of coloured noise) against OpenCV's own 4-connected
+// components of each colour: the same area and bounding box, and the
+// channel sums and saturation-weighted centroid summed pixel by pixel here
+// (extractRegions sums whole vectors of a run at once where it can).
+TEST(Regions, SumsAndCentroidsAreThoseOfThePixels) {
+  cv::Mat img(61, 203, CV_8UC3);
+  cv::RNG rng(11);
+  rng.fill(img, cv::RNG::UNIFORM, 0, 256);
+  // long runs too: coloured bars of random lengths, some to the row's end
+  for (int k = 0; k < 60; ++k) {
+    const int y = rng.uniform(0, img.rows), x0 = rng.uniform(0, img.cols - 2);
+    const int len = rng.uniform(2, 90), x1 = std::min(img.cols, x0 + len);
+    const cv::Scalar ink = k % 2 ? cv::Scalar(rng.uniform(150, 256), rng.uniform(0, 60), rng.uniform(0, 50))
+                                 : cv::Scalar(rng.uniform(0, 60), rng.uniform(0, 50), rng.uniform(150, 256));
+    img(cv::Range(y, std::min(img.rows, y + rng.uniform(1, 4))), cv::Range(x0, x1)).setTo(ink);
+  }
+  const ld::detail::MaskThresholds t{0.3, 0.4, 25};
+  cv::Mat labels;
+  ld::detail::saturationMask(img, t, labels);
+  ld::detail::RunScratch scratch;
+  std::vector<Region> regions;
+  ld::detail::extractRegions(labels, img, t, 1, 1 << 30, 0.0, scratch, regions);
+  const int thr[3] = {0, static_cast<int>(std::lround(t.blue * 256)), static_cast<int>(std::lround(t.red * 256))};
+  size_t expected = 0, long_rows = 0;
+  for (uint8_t colour : {ld::detail::kBlue, ld::detail::kRed}) {
+    cv::Mat comp;
+    const int n = cv::connectedComponents(labels == colour, comp, 4, CV_32S);
+    for (int c = 1; c < n; ++c) {
+      int area = 0, x0 = INT32_MAX, y0 = INT32_MAX, x1 = -1, y1 = -1;
+      int64_t w = 0, wx = 0, wy = 0, sb = 0, sg = 0, sr = 0;
+      for (int y = 0; y < img.rows; ++y) {
+        int run = 0;
+        for (int x = 0; x < img.cols; ++x) {
+          if (comp.at<int>(y, x) != c) {
+            run = 0;
+            continue;
+          }
+          long_rows += ++run == 20;
+          const auto p = img.at<cv::Vec3b>(y, x);
+          const int mx = std::max({p[0], p[1], p[2]}), mn = std::min({p[0], p[1], p[2]});
+          const int wt = std::max(1, (mx - mn) - ((mx * thr[colour]) >> 8));
+          ++area, w += wt, wx += int64_t(wt) * x, wy += int64_t(wt) * y;
+          sb += p[0], sg += p[1], sr += p[2];
+          x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
+        }
+      }
+      ++expected;
+      int found = 0;
+      for (const Region& r : regions) {
+        if (r.colour != colour || r.x0 != x0 || r.y0 != y0 || r.x1 != x1 || r.y1 != y1 || r.area != area) continue;
+        ++found;
+        EXPECT_EQ(r.sum_b, double(sb));
+        EXPECT_EQ(r.sum_g, double(sg));
+        EXPECT_EQ(r.sum_r, double(sr));
+        EXPECT_NEAR(r.cx, double(wx) / double(w), 1e-9);
+        EXPECT_NEAR(r.cy, double(wy) / double(w), 1e-9);
+      }
+      EXPECT_EQ(found, 1) << "component at " << x0 << "," << y0 << " of " << area << " pixels";
+    }
+  }
+  EXPECT_EQ(regions.size(), expected);
+  EXPECT_GT(expected, 500u);
+  EXPECT_GT(long_rows, 20u);  // runs long enough for whole vectors
+}
+
 // ====================================================================== colour
 
 TEST(Colour, PaperRatioRule) {
