@@ -623,6 +623,40 @@ constexpr double kShadedPaperOverInk = 1.3;
 // (the adaptive gains lift lit paper and ink alike): there, brighter at all.
 constexpr double kClippedValue = 250;
 
+// A light that falls off across the sheet (a lamp beside a pillar the
+// landmark is wrapped round, or close to the wall): the samples' brightness
+// `v` at image positions `at` lies on a plane over the image, every sample
+// within this fraction of the plane's brightest ...
+constexpr double kSmoothLightFit = 0.1;
+// ... and the plane over the samples never under this fraction of its
+// brightest.
+constexpr double kSmoothLightMin = 0.25;
+
+// The least-squares plane (v = a + b x + c y, in `plane`) of the samples
+// when they lie on one as above.
+bool smoothLight(const std::array<cv::Point2d, 12>& at, const std::array<double, 12>& v, cv::Vec3d& plane) {
+  // the normal equations, about the samples' mean position (well conditioned)
+  cv::Point2d mid(0, 0);
+  for (const auto& q : at) mid += q * (1.0 / 12);
+  cv::Matx33d AtA = cv::Matx33d::zeros();
+  cv::Vec3d Atb(0, 0, 0);
+  for (int j = 0; j < 12; ++j) {
+    const cv::Vec3d row(1, at[j].x - mid.x, at[j].y - mid.y);
+    AtA += row * row.t();
+    Atb += row * v[j];
+  }
+  cv::Vec3d x;
+  if (!cv::solve(AtA, Atb, x, cv::DECOMP_LU)) return false;
+  plane = cv::Vec3d(x[0] - x[1] * mid.x - x[2] * mid.y, x[1], x[2]);
+  double lo = HUGE_VAL, hi = -HUGE_VAL, worst = 0;
+  for (int j = 0; j < 12; ++j) {
+    const double fit = plane[0] + plane[1] * at[j].x + plane[2] * at[j].y;
+    lo = std::min(lo, fit), hi = std::max(hi, fit);
+    worst = std::max(worst, std::abs(v[j] - fit));
+  }
+  return hi > 0 && lo >= kSmoothLightMin * hi && worst <= kSmoothLightFit * hi;
+}
+
 // The sheet's samples `m` (in order around it) even (every one at least
 // `uniformity` of the brightest: none shaded), or in a light part and a
 // dark part, each even, the dark one a single run of neighbours around the
@@ -651,6 +685,30 @@ bool sheetLight(const std::array<double, 12>& m, double uniformity, std::array<b
     shaded[j] = true;
   }
   return true;
+}
+
+// The sheet's light by its samples' means and values (brightest channels)
+// against the squares' values (`fip_value` the FIPs' mean): even, or a
+// shadow's two parts (sheetLight). Check::kCount where it passes, else the
+// check that refuses it.
+Check sheetLit(const std::array<double, 12>& means, const std::array<double, 12>& values, const double square_value[4],
+               double fip_value, const DetectorParams& p) {
+  std::array<bool, 12> shaded;
+  if (!sheetLight(means, p.sheet_uniformity, shaded)) return Check::kSheetUneven;
+  if (std::none_of(shaded.begin(), shaded.end(), [](bool v) { return v; })) {
+    for (double v : values)
+      if (v < p.sheet_min_value * fip_value) return Check::kSheetDark;
+    return Check::kCount;
+  }
+  bool fip_in_shadow = false;
+  for (int i : {0, 1, 3}) {
+    const int a = 3 * i, b = (3 * i + 11) % 12;  // its two nearest samples
+    fip_in_shadow |= shaded[a] && shaded[b];
+    const double paper = shaded[a] == shaded[b] ? std::min(values[a], values[b]) : std::max(values[a], values[b]);
+    const double over = paper >= kClippedValue ? p.sheet_min_value : std::max(p.sheet_min_value, kShadedPaperOverInk);
+    if (paper < over * square_value[i]) return Check::kSheetDark;
+  }
+  return fip_in_shadow ? Check::kCount : Check::kSheetUneven;
 }
 
 }  // namespace
@@ -714,14 +772,15 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   // squares' edges at a sixth and five sixths).
   double sheet_bgr[3] = {0, 0, 0};
   std::array<double, 12> means, values;  // around the sheet, side by side
+  std::array<cv::Point2d, 12> sample_at;
   int saturated_at = -1;
   for (int i = 0; i < 4; ++i)
     for (int k = 0; k < 3; ++k) {
       double sv, vv, mean;
       double c[3];
-      if (!sampleSV(bgr, P[i] + (P[(i + 1) % 4] - P[i]) * ((k + 2) / 6.0), sv, vv, &mean, c))
-        return fail(Check::kOutsideImage);
       const int j = 3 * i + k;
+      sample_at[j] = P[i] + (P[(i + 1) % 4] - P[i]) * ((k + 2) / 6.0);
+      if (!sampleSV(bgr, sample_at[j], sv, vv, &mean, c)) return fail(Check::kOutsideImage);
       if (sv > p.sheet_max_saturation) {
         // One spot of colour on the sheet (a sticker, a highlighter's mark)
         // stands aside, its neighbours speak for it; not in the inks' hues,
@@ -752,21 +811,15 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   // paper's), with at least one FIP in the shadow (a dark surface half under
   // a look-alike's squares, none of them on it, is not one; nor are a
   // letter's strokes with pieces of them for squares).
-  std::array<bool, 12> shaded;
-  if (!sheetLight(means, p.sheet_uniformity, shaded)) return fail(Check::kSheetUneven);
-  if (std::none_of(shaded.begin(), shaded.end(), [](bool v) { return v; })) {
-    for (double v : values)
-      if (v < p.sheet_min_value * fip_value) return fail(Check::kSheetDark);
-  } else {
-    bool fip_in_shadow = false;
-    for (int i : {0, 1, 3}) {
-      const int a = 3 * i, b = (3 * i + 11) % 12;  // its two nearest samples
-      fip_in_shadow |= shaded[a] && shaded[b];
-      const double paper = shaded[a] == shaded[b] ? std::min(values[a], values[b]) : std::max(values[a], values[b]);
-      const double over = paper >= kClippedValue ? p.sheet_min_value : std::max(p.sheet_min_value, kShadedPaperOverInk);
-      if (paper < over * square_value[i]) return fail(Check::kSheetDark);
-    }
-    if (!fip_in_shadow) return fail(Check::kSheetUneven);
+  // A light falling off smoothly across the sheet (smoothLight) is neither:
+  // where those refuse it, the paper where each FIP lies, by the light's
+  // plane, is as clearly brighter than the FIP.
+  const Check lit = sheetLit(means, values, square_value, fip_value, p);
+  if (lit != Check::kCount) {
+    cv::Vec3d plane;
+    if (!smoothLight(sample_at, values, plane)) return fail(lit);
+    for (int i : {0, 1, 3})
+      if (plane[0] + plane[1] * P[i].x + plane[2] * P[i].y < kShadedPaperOverInk * square_value[i]) return fail(lit);
   }
   // The QR: its square is darker than the sheet (black modules, or grey when
   // they are too small to resolve). A 5 x 5 grid over its middle, placed by
