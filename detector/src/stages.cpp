@@ -106,6 +106,10 @@ double chroma(const double c[3], uint8_t colour) {
 // A sheet this bright (mean of the channels, 0..255) is at or near the
 // sensor's white clip: glare, or the adapter's stretch of it.
 constexpr double kClippedSheet = 235;
+// A reflection on the QR alone: this many of its 25 points brighter than
+// the sheet's brightest sample by this ratio.
+constexpr int kGlaredSamples = 3;
+constexpr double kGlaredOverSheet = 1.1;
 
 // How much more of a hue than the sheet's a saturated landmark centre may
 // have (printed blue and red have about 1 more).
@@ -826,8 +830,9 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   // the affine frame of TL, TR, BL.
   {
     const cv::Point2d ex = (P[1] - P[0]) * (1.0 / 6), ey = (P[3] - P[0]) * (1.0 / 6);
+    const double sheet_max = *std::max_element(means.begin(), means.end());
     double qr_mean = 0;
-    int dark = 0;
+    int dark = 0, glared = 0;
     for (int j = 0; j < 5; ++j)
       for (int i = 0; i < 5; ++i) {
         const double u = 3.1 + 0.7 * i - 1.5, v = 3.1 + 0.7 * j - 1.5;
@@ -835,10 +840,13 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
         if (!sampleSV(bgr, P[0] + ex * u + ey * v, sv, vv, &b)) return fail(Check::kOutsideImage);
         qr_mean += b / 25;
         dark += b < p.qr_dark_sample * sheet_mean && sv <= p.sheet_max_saturation;
+        glared += b > kGlaredOverSheet * sheet_max && sv <= p.sheet_max_saturation;
       }
     // A sheet at the sensor's white clip (glare) hides the QR's white
-    // modules and lifts its mean: there its dark modules are the evidence.
-    const bool clipped = sheet_mean >= kClippedSheet;
+    // modules and lifts its mean: there its dark modules are the evidence;
+    // so they are where a reflection lies on the QR alone (a glossy sheet's:
+    // points of it brighter than any of the sheet's).
+    const bool clipped = sheet_mean >= kClippedSheet || glared >= kGlaredSamples;
     if (qr_mean > p.qr_max_brightness * sheet_mean && !(clipped && dark >= p.qr_dark_samples)) return fail(Check::kNoQr);
   }
   const cv::Point2d ctr = (P[0] + P[1] + P[2] + P[3]) * 0.25;
