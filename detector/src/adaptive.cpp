@@ -327,8 +327,13 @@ void LightingAdapter::observe(const cv::Mat& original, const Detection& detectio
     cv::Vec3d median;  // per channel, of three samples or more
     for (int c = 0; c < 3 && k >= 3; ++c) {
       std::array<double, 4> v;
-      for (size_t j = 0; j < k; ++j) v[j] = chroma[j][c];
-      std::sort(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k));
+      // Insertion sort of the k <= 4 values (std::sort over part of a
+      // std::array trips GCC 12's -Warray-bounds in the sanitizer build).
+      for (size_t j = 0; j < k; ++j) {
+        size_t i = j;
+        for (; i > 0 && v[i - 1] > chroma[j][c]; --i) v[i] = v[i - 1];
+        v[i] = chroma[j][c];
+      }
       median[c] = k % 2 ? v[k / 2] : (v[k / 2 - 1] + v[k / 2]) / 2;
     }
     for (size_t i = 0; i < k; ++i) {
