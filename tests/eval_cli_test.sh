@@ -35,6 +35,20 @@ awk -F'|' '/^\| 0\.3 / { exit !($6 ~ /100.0 %/ && $7 ~ /100.0 %/) }' "$T/qrs.md"
   || fail "qr --stack at 0.3 m: $(grep '^| 0.3 ' "$T/qrs.md")"
 [ -s "$T/qr.png" ] || fail "no plot"
 
+# The motion blur table: one row per blur length, a column per side and
+# marker with --compare; no blur finds every landmark, 20 px none of the 9 cm
+# ones (their squares are 8 px), the plot written.
+"$BIN/ld-eval" motion --trials 4 --to 20 --step 10 --compare --png "$T/motion.png" >"$T/motion.md" 2>/dev/null \
+  || fail "motion: exit $?"
+[ "$(grep -c '^| [0-9]' "$T/motion.md")" -eq 3 ] || fail "motion rows: $(cat "$T/motion.md")"
+head -1 "$T/motion.md" | grep -q '^| motion blur (px) | 9 cm at 1.5 m | 9 cm at 1.5 m AprilTag 3 | 9 cm at 1.5 m ArUco | 15 cm at 1.5 m |' \
+  || fail "motion header: $(head -1 "$T/motion.md")"
+awk -F'|' '/^\| 0 / { exit !($3 ~ /100.0 %/ && $6 ~ /100.0 %/) }' "$T/motion.md" || fail "motion at 0: $(grep '^| 0 ' "$T/motion.md")"
+awk -F'|' '/^\| 20 / { exit !($3 ~ / 0.0 %/) }' "$T/motion.md" || fail "motion at 20: $(grep '^| 20 ' "$T/motion.md")"
+[ -s "$T/motion.png" ] || fail "no motion plot"
+if "$BIN/ld-eval" motion --side 0.1 --side 0.2 --distance 1 >/dev/null 2>"$T/err"; then fail "motion: 2 sides, 1 distance accepted"; fi
+grep -q "one --distance per --side" "$T/err" || fail "motion sides/distances: $(cat "$T/err")"
+
 # A bad option is refused with a message naming it.
 if "$BIN/ld-eval" qr --stack 100 >/dev/null 2>"$T/err"; then fail "--stack 100 accepted"; fi
 grep -q -- "--stack" "$T/err" || fail "bad --stack: $(cat "$T/err")"

@@ -67,6 +67,7 @@ void forEachField(DetectorParams& p, F&& f) {
   f("second_looks", p.second_looks);
   f("second_look_raise", p.second_look_raise);
   f("faint_looks", p.faint_looks);
+  f("faint_look_blue", p.faint_look_blue);
   f("max_candidates", p.max_candidates);
   f("max_cycles", p.max_cycles);
   f("centre_iterations", p.centre_iterations);
@@ -152,6 +153,7 @@ void checkValues(const DetectorParams& p, const std::string& prefix) {
   if (p.second_looks < 0 || p.second_looks > 64) bad("second_looks", "must be in [0, 64]");
   if (!(p.second_look_raise > 0 && p.second_look_raise < 1)) bad("second_look_raise", "must be in (0, 1)");
   if (p.faint_looks < 0 || p.faint_looks > 64) bad("faint_looks", "must be in [0, 64]");
+  if (!(p.faint_look_blue > 0 && p.faint_look_blue < 1)) bad("faint_look_blue", "must be in (0, 1)");
   if (p.max_candidates < 3 || p.max_candidates > 4096) bad("max_candidates", "must be in [3, 4096]");
   if (p.max_cycles < 1) bad("max_cycles", "must be >= 1");
   if (p.centre_iterations < 0 || p.centre_iterations > 10) bad("centre_iterations", "must be in [0, 10]");
@@ -760,11 +762,13 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
 
 // The faint look: around a red square that no landmark took, the window
 // white-balanced by its own white (the mean of its brightest fifth: the
-// sheet, or whatever white lies near), labelled at the usual thresholds and
-// run through the same regions, colour, geometry and verification. A
-// steeply seen landmark's blue squares are a few pixels wide, their colour
-// mixed with the paper's: under warm light the mix is violet or grey in the
-// frame's colours, and blue again against the paper beside it. Printed red
+// sheet, or whatever white lies near), labelled with blue from
+// faint_look_blue and run through the same regions, colour, geometry and
+// verification. A steeply seen landmark's blue squares are a few pixels
+// wide, their colour mixed with the paper's: under warm light the mix is
+// violet or grey in the frame's colours, and blue again against the paper
+// beside it; motion blur mixes a square's blue with the paper around it,
+// paler than the first pass's threshold. Printed red
 // stays red (it is bright), so the AP is where to look: from the larger
 // red squares down (a nearer landmark's, whose window is the likelier to
 // hold one whole), windows reaching 5 of the square's longest axes (the FIPs
@@ -827,10 +831,17 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
       white += cv::Vec3d(white_sums[v]);
     }
     const double top = std::max({white[0], white[1], white[2]}), low = std::min({white[0], white[1], white[2]});
-    // A white already white: the first pass saw this window as the look would.
-    if (!(low > 0) || top < kFaintLookMinCast * low) continue;
     pixels_left -= win.area();
     ++looks;
+    // Labelled with blue from faint_look_blue: a thin or blurred square's
+    // blue mixed with the paper's is paler than the first pass's threshold.
+    detail::MaskThresholds pale = filter_settings.mask;
+    pale.blue = p.faint_look_blue;
+    if (!(low > 0) || top < kFaintLookMinCast * low) {
+      // A white already white: the window as it is.
+      look(win, f, img(win), pale, max_area, true);
+      continue;
+    }
     const cv::Scalar gain(top / white[0], top / white[1], top / white[2]);
     cv::Mat src = faint_src_buf(cv::Rect(0, 0, win.width, win.height));
     cv::multiply(f, gain, src);
@@ -839,7 +850,7 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
       balanced = faint_img_buf(cv::Rect(0, 0, win.width, win.height));
       cv::multiply(img(win), gain, balanced);
     }
-    look(win, src, balanced, filter_settings.mask, max_area, true);
+    look(win, src, balanced, pale, max_area, true);
   }
   endLooks();
 }

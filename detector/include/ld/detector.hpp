@@ -214,14 +214,18 @@ struct DetectorParams {
   /// Fast front end, the faint look: windows per frame (0: none) around red
   /// squares (up to 16 px long, of 6 pixels or more) that no landmark took, larger
   /// squares first, each white-balanced by its own white (the mean of its
-  /// brightest fifth) and labelled again at the usual thresholds. A steeply
-  /// seen landmark's blue squares, a few pixels wide and mixed with the
-  /// paper's colour, are violet or grey under warm light and blue again
-  /// against the paper beside them; printed red stays red. Windows whose
-  /// white has no colour cast are skipped (the first pass saw them so). Found
-  /// landmarks pass the same verification; the windows cover at most an
-  /// eighth of the frame (stage "faint look").
+  /// brightest fifth; a white with no colour cast is left as it is) and
+  /// labelled again, blue from faint_look_blue. A steeply seen landmark's
+  /// blue squares, a few pixels wide and mixed with the paper's colour, are
+  /// violet or grey under warm light and blue again against the paper beside
+  /// them; motion blur spreads a square's blue over the paper and pales it;
+  /// printed red stays red. Found landmarks pass the same verification; the
+  /// windows cover at most an eighth of the frame (stage "faint look").
   int faint_looks = 16;
+  /// The faint look's blue saturation threshold (the first pass's is
+  /// saturation_threshold_blue). Lower finds paler (more blurred, thinner)
+  /// squares near a red one and more bluish background there.
+  double faint_look_blue = 0.15;
   /// FIP and AP candidates kept (largest first), and 3-cycles of the FIP
   /// graph examined (those among the largest squares first): what bounds the
   /// time of frames cluttered with hundreds of small blue and red things.

@@ -146,6 +146,10 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
     if (marker) lm.texture = marker_texture;
     synth::SceneSpec spec = synth::randomConditions(o.camera, {lm}, rng());
     applyLighting(o, spec);
+    if (o.motion_px >= 0) {  // (drawn only then: the other sweeps' scenes stay as they were)
+      spec.degradation.motion_px = o.motion_px;
+      spec.degradation.motion_angle_deg = 180 * U(rng);
+    }
     const synth::Frame frame = synth::render(spec);
     const synth::LandmarkTruth& t = frame.truth[0];
     for (Point& p : points) ++p.trials;

@@ -246,23 +246,39 @@ int main(int argc, char** argv) {
   light->get_option("--png")->description(
       "write three plots: FILE's name with _temperature, _gain and _glare before .png");
 
+  Common mc;
+  std::vector<double> m_sides{0.09, 0.15}, m_dists{1.5, 1.5};
+  double m_to = 20, m_step = 2.5, m_yaw = 30;
+  auto* motion = app.add_subcommand("motion", "detection rate against motion blur (a robot turning or driving)");
+  addCommon(motion, mc);
+  addCompare(motion, mc);
+  motion->add_option("--side", m_sides, "printed sides S, metres (one per series; default 0.09 0.15)")
+      ->check(ld::cli::Positive);
+  motion->add_option("--distance", m_dists, "distance per side, metres (default 1.5 1.5)")->check(ld::cli::Positive);
+  motion->add_option("--to", m_to, "longest blur, pixels (from 0)")->capture_default_str()->check(ld::cli::Positive);
+  motion->add_option("--step", m_step, "pixels between sweep points")->capture_default_str()->check(ld::cli::Positive);
+  motion->add_option("--max-yaw", m_yaw, "yaw drawn within +-this, degrees")->capture_default_str()->check(kYaw);
+
   LD_CLI_PARSE(app, argc, argv);
   try {
     // Where the results go, checked before the sweep (minutes) rather than after it.
-    for (const Common* c : {&yc, &dc, &qc, &sc, &lc}) {
+    for (const Common* c : {&yc, &dc, &qc, &sc, &lc, &mc}) {
       requireWritable(c->markdown, "--markdown");
       requireWritable(c->png, "--png");
     }
     if ((dist->parsed() && d_from > d_to) || (qr->parsed() && q_from > q_to))
       throw ld::cli::UsageError("--from must not be beyond --to");
-    if (yaw->parsed() || dist->parsed()) {
+    if (yaw->parsed() || dist->parsed() || motion->parsed()) {
       // One column and one plotted series per (side, target).
-      const bool by_yaw = yaw->parsed();
-      const Common& c = by_yaw ? yc : dc;
-      const std::vector<double>& sides = by_yaw ? y_sides : d_sides;
-      if (by_yaw && y_dists.size() != y_sides.size())
+      const bool by_yaw = yaw->parsed(), by_motion = motion->parsed();
+      const Common& c = by_yaw ? yc : by_motion ? mc : dc;
+      const std::vector<double>& sides = by_yaw ? y_sides : by_motion ? m_sides : d_sides;
+      const std::vector<double>& dists = by_motion ? m_dists : y_dists;
+      if ((by_yaw || by_motion) && dists.size() != sides.size())
         throw ld::cli::UsageError("give one --distance per --side");
-      const std::vector<double> xs = by_yaw ? range(-y_max, y_max, y_step) : range(d_from, d_to, d_step);
+      const std::vector<double> xs = by_yaw      ? range(-y_max, y_max, y_step)
+                                     : by_motion ? range(0, m_to, m_step)
+                                                 : range(d_from, d_to, d_step);
       std::vector<std::string> targets{"landmark"};
       if (c.compare) targets.insert(targets.end(), {"apriltag", "aruco"});
       std::vector<Series> series;
@@ -272,18 +288,31 @@ int main(int argc, char** argv) {
           auto o = c.options();
           o.side_m = sides[i];
           o.target = target;
-          all.push_back(by_yaw ? ld::eval::overYaw(o, y_dists[i], xs, progress)
-                               : ld::eval::overDistance(o, xs, d_yaw, progress));
+          if (by_motion) {
+            all.emplace_back();
+            for (double px : xs) {
+              o.motion_px = px;
+              all.back().push_back(ld::eval::measure(o, dists[i], 0, m_yaw));
+              std::fprintf(stderr, "  %s, blur %g px: detected %d/%d\n", cm(sides[i]).c_str(), px,
+                           all.back().back().detected, all.back().back().trials);
+            }
+          } else {
+            all.push_back(by_yaw ? ld::eval::overYaw(o, y_dists[i], xs, progress)
+                                 : ld::eval::overDistance(o, xs, d_yaw, progress));
+          }
           std::ostringstream name;
           name << cm(sides[i]);
-          if (by_yaw) name << " at " << y_dists[i] << " m";
+          if (by_yaw || by_motion) name << " at " << dists[i] << " m";
           if (target != "landmark") name << " " << ld::markers::name(ld::markers::parse(target));
           Series sr{name.str(), {}};
-          for (const auto& p : all.back()) sr.points.emplace_back(by_yaw ? p.yaw_deg : p.distance_m, p.detectRate());
+          for (size_t k = 0; k < xs.size(); ++k) {
+            const auto& p = all.back()[k];
+            sr.points.emplace_back(by_yaw ? p.yaw_deg : by_motion ? xs[k] : p.distance_m, p.detectRate());
+          }
           series.push_back(sr);
         }
       std::ostringstream t;
-      t << (by_yaw ? "| yaw (deg) |" : "| distance (m) |");
+      t << (by_yaw ? "| yaw (deg) |" : by_motion ? "| motion blur (px) |" : "| distance (m) |");
       for (const auto& sr : series) t << " " << sr.name << " |";
       t << "\n|---|";
       for (size_t i = 0; i < series.size(); ++i) t << "---|";
@@ -295,8 +324,11 @@ int main(int argc, char** argv) {
       }
       emit(c, t.str());
       if (!c.png.empty())
-        plot(c.png, by_yaw ? "Detection rate against yaw" : "Detection rate against distance",
-             by_yaw ? "yaw (degrees)" : "distance (m)", series);
+        plot(c.png,
+             by_yaw      ? "Detection rate against yaw"
+             : by_motion ? "Detection rate against motion blur"
+                         : "Detection rate against distance",
+             by_yaw ? "yaw (degrees)" : by_motion ? "blur length (pixels)" : "distance (m)", series);
     } else if (qr->parsed()) {
       auto o = qc.options();
       o.side_m = q_side;

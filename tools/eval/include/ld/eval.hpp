@@ -49,6 +49,10 @@ struct SweepOptions {
   double colour_temp_k = -1;  ///< 2700 tungsten .. 6500 daylight
   double gain = -1;           ///< 1 = well lit office
   double glare = -1;          ///< peak of a specular spot near the landmark
+  /// Motion blur of this length (pixels; a camera turning or driving during
+  /// the exposure), along a direction drawn per trial; negative: keep
+  /// randomConditions' mild degradation.
+  double motion_px = -1;
   /// With decode: also read each trial's QR over this many frames as
   /// ld-qr-reader reads an undecoded track: the same scene again with its
   /// own sensor noise, the landmark moved by up to a third of a pixel each
