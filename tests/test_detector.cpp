@@ -583,6 +583,60 @@ TEST(ApChoiceRule, TheApWhoseLandmarkVerifiesIsKept) {
   EXPECT_EQ(kept.tl, tl);
 }
 
+// A coloured square in the QR beside the centre, as large as the landmark's
+// squares (a look-alike card's square, where pale fragments made a landmark
+// around it: their small measured size shrinks the circle the centre's
+// check looks in), is refused; a small coloured piece there (a module's
+// edge tinted by warm light or JPEG) is tolerated, as before.
+TEST(Verification, ASquareInTheQrAsLargeAsTheLandmarksIsRefused) {
+  cv::Mat img = background(kCam.size, 29, true);
+  const Placed placed = place(0.8, 0, 20);
+  drawSheet(img, kCam, placed);
+  const Truth t = truthOf(kCam, placed);
+  cv::Mat labels;
+  const ld::DetectorParams p;
+  ld::detail::saturationMask(img, {p.saturation_threshold_blue, p.saturation_threshold, p.value_min}, labels);
+  ld::detail::RunScratch scratch;
+  std::vector<Region> regions, fips, aps;
+  ld::detail::extractRegions(labels, img, kMt, 3, 100000, 0.0, scratch, regions);
+  for (const Region& r : regions) (r.colour == ld::detail::kBlue ? fips : aps).push_back(r);
+  ASSERT_EQ(fips.size(), 3u);
+  ASSERT_EQ(aps.size(), 1u);
+  auto nearest = [&](cv::Point2d c) {
+    int best = 0;
+    for (int i = 1; i < 3; ++i)
+      if (std::hypot(fips[i].cx - c.x, fips[i].cy - c.y) < std::hypot(fips[best].cx - c.x, fips[best].cy - c.y)) best = i;
+    return best;
+  };
+  ld::detail::Candidate c;
+  c.tl = nearest(t.centres[0]), c.tr = nearest(t.centres[1]), c.bl = nearest(t.centres[2]), c.ap = 0;
+  ld::detail::Check why = ld::detail::Check::kCount;
+  ld::detail::Candidate plain = c;
+  ASSERT_TRUE(ld::detail::verify(plain, fips, aps, img, p, &why)) << ld::detail::checkName(why);
+  // In the QR, beside the centre: 1.05 square sides from it, a quarter of
+  // the way from the TL-BL side to TR-AP (the centres 3 sides apart).
+  const Region& tl = fips[c.tl];
+  const Region& tr = fips[c.tr];
+  const Region& bl = fips[c.bl];
+  for (double scale : {1.0, 0.3}) {
+    Region extra = tl;
+    extra.cx = tl.cx + (tr.cx - tl.cx) * (0.45 / 3) + (bl.cx - tl.cx) * 0.5;
+    extra.cy = tl.cy + (tr.cy - tl.cy) * (0.45 / 3) + (bl.cy - tl.cy) * 0.5;
+    extra.sxx *= scale * scale, extra.syy *= scale * scale, extra.sxy *= scale * scale;
+    std::vector<Region> more = fips;
+    more.push_back(extra);
+    ld::detail::Candidate k = c;
+    why = ld::detail::Check::kCount;
+    const bool ok = ld::detail::verify(k, more, aps, img, p, &why);
+    if (scale == 1.0) {
+      EXPECT_FALSE(ok);
+      EXPECT_EQ(why, ld::detail::Check::kOtherSquares) << ld::detail::checkName(why);
+    } else {
+      EXPECT_TRUE(ok) << "a small piece in the QR refused by: " << ld::detail::checkName(why);
+    }
+  }
+}
+
 TEST(Overlaps, BestScoreWinsGreedily) {
   std::vector<ld::detail::Candidate> c(3);
   c[0] = {0, 1, 2, 0, 0.5, 0};

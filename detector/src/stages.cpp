@@ -907,7 +907,10 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   // square's side, the pattern square reaching half a side beyond them, the
   // QR square from 0.5 to 2.5); a piece within 0.8 sides of one of the four
   // centres is that square's own fragment. In the QR one is tolerated (warm
-  // light and JPEG colour a module's edges: 2000 K does). Larger regions are
+  // light and JPEG colour a module's edges: 2000 K does), but not one as
+  // large as a printed square: a look-alike card's square beside the centre,
+  // where the four squares measure small (faint fragments, the faint look's
+  // pale ones: the centre's one-side circle is then small). Larger regions are
   // other things: a blue door or a red poster the sheet is stuck on is one
   // region around it, whose centre lies on the sheet.
   {
@@ -926,7 +929,9 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
         bool fragment = false;
         for (const cv::Point2d& k : kCentres) fragment |= cv::norm(q - k) < 0.8;
         if (fragment) continue;
-        ++(q.x > 0.35 && q.x < 2.65 && q.y > 0.35 && q.y < 2.65 ? in_qr : around_qr);
+        const bool qr = q.x > 0.35 && q.x < 2.65 && q.y > 0.35 && q.y < 2.65;
+        if (qr && r.side() >= printed_side) return fail(Check::kOtherSquares);
+        ++(qr ? in_qr : around_qr);
       }
     if (around_qr > 0 || in_qr > 1) return fail(Check::kOtherSquares);
   }
