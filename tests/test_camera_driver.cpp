@@ -200,6 +200,77 @@ TEST_F(Formats, DriverSubstitutionIsDetected) {
   expectNoLeaks(dev);
 }
 
+// A manual exposure: automatic exposure off (V4L2_CID_EXPOSURE_AUTO, which
+// must come first: the fake, as uvcvideo, refuses the time while it is on),
+// then the time in the control's 100 us, clamped to its range, read back and
+// reported; 0 leaves the device's automatic exposure alone.
+using Exposure = Fixture;
+
+TEST_F(Exposure, ManualTimeIsSetClampedAndReported) {
+  ld::V4l2Capture cap(dev, clock);
+  auto r = request(V4L2_PIX_FMT_YUYV, 640, 480);
+  cap.open("/dev/video0", r);
+  EXPECT_EQ(dev.exposure().mode, V4L2_EXPOSURE_APERTURE_PRIORITY);  // not asked for: untouched
+  EXPECT_DOUBLE_EQ(cap.format().exposure_ms, 0);
+  struct Case { double ms, set_ms; int32_t units; };
+  for (const Case& c : {Case{5, 5, 50}, Case{2.54, 2.5, 25}, Case{500, 204.7, 2047}, Case{0.01, 0.3, 3}}) {
+    r.exposure_ms = c.ms;
+    const auto& f = cap.open("/dev/video0", r);
+    EXPECT_EQ(dev.exposure().mode, V4L2_EXPOSURE_MANUAL) << c.ms;
+    EXPECT_EQ(dev.exposure().time, c.units) << c.ms;
+    EXPECT_DOUBLE_EQ(f.exposure_ms, c.set_ms) << c.ms;
+  }
+  r.exposure_ms = 5;
+  EXPECT_EQ(cap.open("/dev/video0", r).describe(), "YUYV 640x480 @ 30 fps, exposure 5 ms, 4 buffers");
+  cap.start();
+  ld::Frame f;
+  ASSERT_TRUE(cap.grab(f, 1000));
+  cap.requeue(f);
+  cap.close();
+  expectNoLeaks(dev);
+}
+
+TEST(ExposureMissing, ADeviceWithoutTheControlIsRefused) {
+  ld::FakeClock clock;
+  auto spec = ld::FakeCameraSpec::webcam();
+  spec.exposure_control = false;
+  ld::FakeV4l2Device dev(clock, {spec});
+  ld::V4l2Capture cap(dev, clock);
+  auto r = request(V4L2_PIX_FMT_YUYV, 640, 480);
+  r.exposure_ms = 5;
+  EXPECT_EQ(captureError([&] { cap.open("/dev/video0", r); }, Kind::ControlRefused),
+            "/dev/video0 (Fake UVC Camera) has no manual exposure control (V4L2_CID_EXPOSURE_ABSOLUTE): leave out "
+            "the exposure");
+  EXPECT_FALSE(cap.isOpen());
+  expectNoLeaks(dev);
+  r.exposure_ms = 0;  // not asked for: no control needed
+  EXPECT_NO_THROW(cap.open("/dev/video0", r));
+  cap.close();
+}
+
+TEST_F(Exposure, SetAgainAfterTheDeviceCameBack) {
+  // A camera unplugged and plugged back powers on with automatic exposure:
+  // the reconnecting capture sets the manual time again.
+  auto r = request(V4L2_PIX_FMT_YUYV, 640, 480);
+  r.exposure_ms = 4;
+  ld::ReconnectingCapture rc(dev, clock, "/dev/video0", r, {}, [](const std::string&) {});
+  rc.start();
+  ld::Frame f;
+  ASSERT_TRUE(rc.grab(f, 1000));
+  rc.requeue(f);
+  dev.unplug();
+  EXPECT_FALSE(rc.grab(f, 200));
+  dev.replug();
+  EXPECT_EQ(dev.exposure().mode, V4L2_EXPOSURE_APERTURE_PRIORITY);
+  int polls = 0;
+  while (!rc.grab(f, 200)) ASSERT_LT(++polls, 50);
+  rc.requeue(f);
+  EXPECT_EQ(dev.exposure().mode, V4L2_EXPOSURE_MANUAL);
+  EXPECT_EQ(dev.exposure().time, 40);
+  rc.stop();
+  expectNoLeaks(dev);
+}
+
 TEST(FormatNames, RoundTrip) {
   EXPECT_EQ(ld::captureFormatFromName("yuyv"), static_cast<uint32_t>(V4L2_PIX_FMT_YUYV));
   EXPECT_EQ(ld::captureFormatFromName("MJPG"), static_cast<uint32_t>(V4L2_PIX_FMT_MJPEG));
@@ -782,6 +853,16 @@ TEST(Process, ErrorsAndExitCodes) {
   EXPECT_EQ(runCamera("--format h264", dir).status, 2);
   EXPECT_EQ(runCamera("--size 640by480", dir).status, 2);
   EXPECT_EQ(runCamera("--no-such-option", dir).status, 2);
+  r = runCamera("--exposure -1", dir);
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--exposure: must be >= 0, not -1"), std::string::npos) << r.err;
+  // A manual exposure: said at start, with the device's own value when it
+  // differs and a word when it is longer than a frame.
+  r = runCamera("--fake --exposure 500 --lcm-url memq://", dir, 1.0);
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("YUYV 640x480 @ 30 fps, exposure 204.7 ms, 4 buffers"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("asked for an exposure of 500 ms; the device set 204.7 ms"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("is longer than a frame at 30 fps"), std::string::npos) << r.err;
   r = runCamera("--fake --list", dir);
   EXPECT_EQ(r.status, 0);
   std::ifstream out(dir + "/stdout.txt");

@@ -59,7 +59,7 @@ int main(int argc, char** argv) {
       "Frames go out as captured (YUYV, MJPEG, GREY) unless --convert is given."};
   std::string device = "/dev/video0", format = "yuyv", size = "640x480", channel = "IMAGE";
   std::string url = ld::defaultLcmUrl(), convert = "none";
-  double fps = 30;
+  double fps = 30, exposure_ms = 0;
   unsigned buffers = 4;
   bool list = false, verbose = false, fake = false;
   int64_t fake_unplug_after = -1;
@@ -78,6 +78,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--fps", fps, "frame rate; the nearest rate the device offers is used")
       ->check(ld::cli::Positive)
+      ->capture_default_str();
+  app.add_option("--exposure", exposure_ms,
+                 "manual exposure time, milliseconds (automatic exposure off; short keeps a moving robot's "
+                 "frames sharp); 0: the device's own")
+      ->check(ld::cli::NonNegative)
       ->capture_default_str();
   app.add_option("--buffers", buffers, "mmap buffers to request")
       ->check(ld::cli::Between(4, 32))
@@ -109,6 +114,7 @@ int main(int argc, char** argv) {
     request.fourcc = ld::captureFormatFromName(format);
     parseSize(size, request.width, request.height);
     request.fps = fps;
+    request.exposure_ms = exposure_ms;
     request.buffers = buffers;
     conversion = ld::imageConversionFromName(convert);
   } catch (const std::exception& e) {
@@ -145,6 +151,11 @@ int main(int argc, char** argv) {
              : ", converted to " + ld::imageConversionName(conversion)));
     if (f.fps > 0 && std::fabs(f.fps - fps) > 0.01)
       say("asked for " + number(fps) + " fps; the device runs at " + number(f.fps) + " fps");
+    if (exposure_ms > 0 && std::fabs(f.exposure_ms - exposure_ms) > 0.05)
+      say("asked for an exposure of " + number(exposure_ms) + " ms; the device set " + number(f.exposure_ms) + " ms");
+    if (f.fps > 0 && f.exposure_ms > 1000 / f.fps)
+      say("an exposure of " + number(f.exposure_ms) + " ms is longer than a frame at " + number(f.fps) +
+          " fps: the device may lower its rate");
   } catch (const ld::CaptureError& e) {
     say(e.what());
     return 1;

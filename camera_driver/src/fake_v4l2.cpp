@@ -17,6 +17,8 @@ namespace ld {
 namespace {
 
 constexpr uint32_t kPage = 4096;
+// A UVC webcam's exposure time control, in 100 us: its range and power-on value.
+constexpr int32_t kExposureMin = 3, kExposureMax = 2047, kExposureDefault = 156;
 
 template <size_t N>
 void copyText(uint8_t (&dst)[N], const std::string& src) {
@@ -73,6 +75,7 @@ struct FakeV4l2Device::Node {
   v4l2_pix_format fmt{};
   uint32_t fps = 30;
   int owner_fd = -1;
+  int32_t exposure_mode = V4L2_EXPOSURE_APERTURE_PRIORITY, exposure_time = kExposureDefault;
 
   enum class State { Dequeued, Queued, Done };
   struct Buf {
@@ -153,6 +156,8 @@ struct FakeV4l2Device::Node {
   void powerOn() {
     fmt = {};
     fps = 30;
+    exposure_mode = V4L2_EXPOSURE_APERTURE_PRIORITY;
+    exposure_time = kExposureDefault;
     if (captures() && !spec.formats.empty()) {
       v4l2_pix_format want{};
       want.pixelformat = spec.formats.front().fourcc;
@@ -274,6 +279,11 @@ FakeV4l2Device::Stats FakeV4l2Device::stats(const std::string& path) const {
 v4l2_pix_format FakeV4l2Device::currentFormat(const std::string& path) const {
   const Node* n = findNode(path);
   return n ? n->fmt : v4l2_pix_format{};
+}
+
+FakeV4l2Device::Exposure FakeV4l2Device::exposure(const std::string& path) const {
+  const Node* n = findNode(path);
+  return n ? Exposure{n->exposure_mode, n->exposure_time} : Exposure{};
 }
 
 // ---------------------------------------------------------------------------
@@ -483,6 +493,47 @@ int FakeV4l2Device::doIoctl(Node& n, int fd, unsigned long request, void* arg) {
         n.fps = n.nearestFps(n.fps);
       }
       f->fmt.pix = adjusted;
+      return 0;
+    }
+    case VIDIOC_QUERYCTRL: {
+      auto* q = static_cast<v4l2_queryctrl*>(arg);
+      const uint32_t id = q->id;
+      if (!n.spec.exposure_control || (id != V4L2_CID_EXPOSURE_AUTO && id != V4L2_CID_EXPOSURE_ABSOLUTE))
+        return fail(EINVAL);
+      *q = {};
+      q->id = id;
+      if (id == V4L2_CID_EXPOSURE_AUTO) {
+        q->type = V4L2_CTRL_TYPE_MENU;
+        copyText(q->name, "Auto Exposure");
+        q->minimum = V4L2_EXPOSURE_AUTO, q->maximum = V4L2_EXPOSURE_APERTURE_PRIORITY, q->step = 1;
+        q->default_value = V4L2_EXPOSURE_APERTURE_PRIORITY;
+      } else {
+        q->type = V4L2_CTRL_TYPE_INTEGER;
+        copyText(q->name, "Exposure Time, Absolute");
+        q->minimum = kExposureMin, q->maximum = kExposureMax, q->step = 1;
+        q->default_value = kExposureDefault;
+        if (n.exposure_mode != V4L2_EXPOSURE_MANUAL) q->flags = V4L2_CTRL_FLAG_INACTIVE;
+      }
+      return 0;
+    }
+    case VIDIOC_G_CTRL:
+    case VIDIOC_S_CTRL: {
+      auto* c = static_cast<v4l2_control*>(arg);
+      if (!n.spec.exposure_control || (c->id != V4L2_CID_EXPOSURE_AUTO && c->id != V4L2_CID_EXPOSURE_ABSOLUTE))
+        return fail(EINVAL);
+      int32_t& v = c->id == V4L2_CID_EXPOSURE_AUTO ? n.exposure_mode : n.exposure_time;
+      if (request == VIDIOC_G_CTRL) {
+        c->value = v;
+        return 0;
+      }
+      if (c->id == V4L2_CID_EXPOSURE_AUTO) {
+        // a UVC webcam's menu: manual and aperture priority only
+        if (c->value != V4L2_EXPOSURE_MANUAL && c->value != V4L2_EXPOSURE_APERTURE_PRIORITY) return fail(EINVAL);
+      } else {
+        if (n.exposure_mode != V4L2_EXPOSURE_MANUAL) return fail(EACCES);
+        c->value = std::clamp(c->value, kExposureMin, kExposureMax);
+      }
+      v = c->value;
       return 0;
     }
     case VIDIOC_G_PARM:

@@ -325,6 +325,7 @@ std::string offeredFormatsText(const std::vector<V4l2FormatDesc>& formats) {
 std::string CaptureFormat::describe() const {
   std::string s = captureFormatName(fourcc) + " " + sizeText(width, height);
   if (fps > 0) s += " @ " + fpsNumber(fps) + " fps";
+  if (exposure_ms > 0) s += ", exposure " + fpsNumber(exposure_ms) + " ms";
   return s + ", " + std::to_string(buffers) + " buffers";
 }
 
@@ -384,6 +385,7 @@ const CaptureFormat& V4l2Capture::open(const std::string& device, const CaptureR
     offered_ = enumerateFormats(io_, fd_, device);
     negotiate(request);
     setFrameRate(request.fps);
+    if (request.exposure_ms > 0) setExposure(request.exposure_ms);
 
     // 4. Buffers.
     allocateBuffers(std::max(4u, request.buffers));
@@ -491,6 +493,36 @@ void V4l2Capture::setFrameRate(double fps) {
     }
   }
   format_.fps = fractionFps(p.parm.capture.timeperframe);
+}
+
+void V4l2Capture::setExposure(double ms) {
+  v4l2_queryctrl q{};
+  q.id = V4L2_CID_EXPOSURE_ABSOLUTE;
+  if (xioctl(io_, fd_, VIDIOC_QUERYCTRL, &q) < 0 || (q.flags & V4L2_CTRL_FLAG_DISABLED)) {
+    const int err = errno;
+    if (deviceGone(err)) fail("VIDIOC_QUERYCTRL", err);
+    throw CaptureError(CaptureError::Kind::ControlRefused,
+                       device_ + " (" + format_.card +
+                           ") has no manual exposure control (V4L2_CID_EXPOSURE_ABSOLUTE): leave out the exposure");
+  }
+  // Automatic exposure off first: while it is on, drivers refuse the time
+  // (uvcvideo: EACCES) or overwrite it. A device without the switch (EINVAL)
+  // has only the manual time.
+  v4l2_control mode{};
+  mode.id = V4L2_CID_EXPOSURE_AUTO;
+  mode.value = V4L2_EXPOSURE_MANUAL;
+  if (xioctl(io_, fd_, VIDIOC_S_CTRL, &mode) < 0 && errno != EINVAL) fail("VIDIOC_S_CTRL (automatic exposure off)", errno);
+  // In the control's unit (100 us), on its steps, within its range.
+  const int64_t step = std::max(1, q.step);
+  int64_t units = std::llround(ms * 10);
+  units = q.minimum + (units - q.minimum + step / 2) / step * step;
+  units = std::clamp<int64_t>(units, q.minimum, q.maximum);
+  v4l2_control c{};
+  c.id = V4L2_CID_EXPOSURE_ABSOLUTE;
+  c.value = static_cast<int32_t>(units);
+  if (xioctl(io_, fd_, VIDIOC_S_CTRL, &c) < 0) fail("VIDIOC_S_CTRL (exposure time)", errno);
+  if (xioctl(io_, fd_, VIDIOC_G_CTRL, &c) < 0) fail("VIDIOC_G_CTRL (exposure time)", errno);
+  format_.exposure_ms = c.value / 10.0;
 }
 
 void V4l2Capture::allocateBuffers(unsigned count) {

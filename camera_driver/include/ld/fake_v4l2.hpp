@@ -87,6 +87,12 @@ struct FakeCameraSpec {
   uint32_t row_padding = 0;
   uint32_t max_buffers = 32;
   bool timeperframe = true;  ///< supports S_PARM
+  /// Has the exposure controls of a UVC webcam: V4L2_CID_EXPOSURE_AUTO (a
+  /// menu: manual or aperture priority, the default) and
+  /// V4L2_CID_EXPOSURE_ABSOLUTE (3-2047 in 100 us, default 156), which
+  /// refuses to be set (EACCES) while automatic exposure is on; both reset
+  /// at power-on. VIDIOC_QUERYCTRL, G_CTRL and S_CTRL (values clamped).
+  bool exposure_control = true;
   uint32_t timestamp_flags = V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC | V4L2_BUF_FLAG_TSTAMP_SRC_SOE;
 
   /// A webcam offering YUYV 640x480 (30, 15 fps), 320x240 (30, 15 fps),
@@ -148,6 +154,12 @@ class FakeV4l2Device final : public V4l2Io {
   const std::vector<OpenAttempt>& openAttempts() const { return open_attempts_; }
   /// The node's current format (as G_FMT reports it).
   v4l2_pix_format currentFormat(const std::string& path = "/dev/video0") const;
+  /// The node's exposure controls now: V4L2_CID_EXPOSURE_AUTO's value and
+  /// V4L2_CID_EXPOSURE_ABSOLUTE's (100 us).
+  struct Exposure {
+    int32_t mode = 0, time = 0;
+  };
+  Exposure exposure(const std::string& path = "/dev/video0") const;
 
   /// The BGR test pattern of frame `sequence`: colour gradients, a white
   /// square moving 8 px per frame, and the sequence number written on it.
