@@ -505,8 +505,8 @@ void V4l2Capture::setExposure(double ms) {
                        device_ + " (" + format_.card +
                            ") has no manual exposure control (V4L2_CID_EXPOSURE_ABSOLUTE): leave out the exposure");
   }
-  // Automatic exposure off first: while it is on, drivers refuse the time
-  // (uvcvideo: EACCES) or overwrite it. A device without the switch (EINVAL)
+  // Automatic exposure off first: while it is on, drivers may refuse the time
+  // (EACCES, as the fake does) or overwrite it. A device without the switch (EINVAL)
   // has only the manual time.
   v4l2_control mode{};
   mode.id = V4L2_CID_EXPOSURE_AUTO;
