@@ -201,9 +201,8 @@ TEST_F(Formats, DriverSubstitutionIsDetected) {
 }
 
 // A manual exposure: automatic exposure off (V4L2_CID_EXPOSURE_AUTO, which
-// must come first: the fake refuses the time while it is on, as some
-// drivers do),
-// then the time in the control's 100 us, clamped to its range, read back and
+// must come first: the fake refuses the time while it is on, as some drivers
+// do), then the time in the control's 100 us, clamped to its range, read back and
 // reported; 0 leaves the device's automatic exposure alone.
 using Exposure = Fixture;
 
