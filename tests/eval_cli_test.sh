@@ -43,8 +43,10 @@ awk -F'|' '/^\| 0\.3 / { exit !($6 ~ /100.0 %/ && $7 ~ /100.0 %/) }' "$T/qrs.md"
 [ "$(grep -c '^| [0-9]' "$T/motion.md")" -eq 3 ] || fail "motion rows: $(cat "$T/motion.md")"
 head -1 "$T/motion.md" | grep -q '^| motion blur (px) | 9 cm at 1.5 m | 9 cm at 1.5 m AprilTag 3 | 9 cm at 1.5 m ArUco | 15 cm at 1.5 m |' \
   || fail "motion header: $(head -1 "$T/motion.md")"
-awk -F'|' '/^\| 0 / { exit !($3 ~ /100.0 %/ && $6 ~ /100.0 %/) }' "$T/motion.md" || fail "motion at 0: $(grep '^| 0 ' "$T/motion.md")"
-awk -F'|' '/^\| 20 / { exit !($3 ~ / 0.0 %/) }' "$T/motion.md" || fail "motion at 20: $(grep '^| 20 ' "$T/motion.md")"
+awk -F'|' '/^\| 0 / { ok = ($3 ~ /100.0 %/ && $6 ~ /100.0 %/) } END { exit !ok }' "$T/motion.md" \
+  || fail "motion at 0: $(grep '^| 0 ' "$T/motion.md")"
+awk -F'|' '/^\| 20 / { ok = ($3 ~ / 0.0 %/) } END { exit !ok }' "$T/motion.md" \
+  || fail "motion at 20: $(grep '^| 20 ' "$T/motion.md")"
 [ -s "$T/motion.png" ] || fail "no motion plot"
 if "$BIN/ld-eval" motion --side 0.1 --side 0.2 --distance 1 >/dev/null 2>"$T/err"; then fail "motion: 2 sides, 1 distance accepted"; fi
 grep -q "one --distance per --side" "$T/err" || fail "motion sides/distances: $(cat "$T/err")"

@@ -220,6 +220,8 @@ TEST_F(Exposure, ManualTimeIsSetClampedAndReported) {
     EXPECT_EQ(dev.exposure().time, c.units) << c.ms;
     EXPECT_DOUBLE_EQ(f.exposure_ms, c.set_ms) << c.ms;
   }
+  r.exposure_ms = 1e300;  // any finite time the command line takes: the longest
+  EXPECT_DOUBLE_EQ(cap.open("/dev/video0", r).exposure_ms, 204.7);
   r.exposure_ms = 5;
   EXPECT_EQ(cap.open("/dev/video0", r).describe(), "YUYV 640x480 @ 30 fps, exposure 5 ms, 4 buffers");
   cap.start();
@@ -227,7 +229,43 @@ TEST_F(Exposure, ManualTimeIsSetClampedAndReported) {
   ASSERT_TRUE(cap.grab(f, 1000));
   cap.requeue(f);
   cap.close();
+  // Closed: the camera's exposure as it was found (automatic).
+  EXPECT_EQ(dev.exposure().mode, V4L2_EXPOSURE_APERTURE_PRIORITY);
+  EXPECT_EQ(dev.exposure().time, 156);
   expectNoLeaks(dev);
+}
+
+// Devices unlike the usual webcam: no automatic exposure switch (the time
+// alone, set at once), a coarser step (the nearest step, within the range),
+// and a switch without a manual setting, which leaves the time refused: a
+// clear error saying so, not a permissions one.
+TEST(ExposureDevices, NoSwitchCoarseStepsAndNoManualMode) {
+  ld::FakeClock clock;
+  auto r = request(V4L2_PIX_FMT_YUYV, 640, 480);
+  r.exposure_ms = 5;
+  {
+    auto spec = ld::FakeCameraSpec::webcam();
+    spec.exposure_auto_control = false;
+    spec.exposure_step = 5;
+    ld::FakeV4l2Device dev(clock, {spec});
+    ld::V4l2Capture cap(dev, clock);
+    EXPECT_DOUBLE_EQ(cap.open("/dev/video0", r).exposure_ms, 4.8);  // 3 + 5 k nearest 50: 48
+    r.exposure_ms = 500;
+    EXPECT_DOUBLE_EQ(cap.open("/dev/video0", r).exposure_ms, 204.3);  // the last step in range: 2043
+    cap.close();
+    EXPECT_EQ(dev.exposure().time, 153);  // 156 put back, on the device's steps
+  }
+  {
+    auto spec = ld::FakeCameraSpec::webcam();
+    spec.exposure_manual_mode = false;
+    ld::FakeV4l2Device dev(clock, {spec});
+    ld::V4l2Capture cap(dev, clock);
+    EXPECT_EQ(captureError([&] { cap.open("/dev/video0", r); }, Kind::ControlRefused),
+              "/dev/video0 (Fake UVC Camera) refused the exposure time (Permission denied): its automatic "
+              "exposure could not be turned off");
+    EXPECT_FALSE(cap.isOpen());
+    expectNoLeaks(dev);
+  }
 }
 
 TEST(ExposureMissing, ADeviceWithoutTheControlIsRefused) {
@@ -239,8 +277,8 @@ TEST(ExposureMissing, ADeviceWithoutTheControlIsRefused) {
   auto r = request(V4L2_PIX_FMT_YUYV, 640, 480);
   r.exposure_ms = 5;
   EXPECT_EQ(captureError([&] { cap.open("/dev/video0", r); }, Kind::ControlRefused),
-            "/dev/video0 (Fake UVC Camera) has no manual exposure control (V4L2_CID_EXPOSURE_ABSOLUTE): leave out "
-            "the exposure");
+            "/dev/video0 (Fake UVC Camera) has no manual exposure control (V4L2_CID_EXPOSURE_ABSOLUTE; v4l2-ctl -d "
+            "/dev/video0 -l lists its controls): run without the exposure");
   EXPECT_FALSE(cap.isOpen());
   expectNoLeaks(dev);
   r.exposure_ms = 0;  // not asked for: no control needed

@@ -618,17 +618,21 @@ TEST(Verification, ASquareInTheQrAsLargeAsTheLandmarksIsRefused) {
   const Region& tl = fips[c.tl];
   const Region& tr = fips[c.tr];
   const Region& bl = fips[c.bl];
-  for (double scale : {1.0, 0.3}) {
+  // Sized against the printed square's side (a third of the centres' distance).
+  const double printed = std::hypot(tr.cx - tl.cx, tr.cy - tl.cy) / 3;
+  for (double scale : {1.1, 0.7}) {
     Region extra = tl;
     extra.cx = tl.cx + (tr.cx - tl.cx) * (0.45 / 3) + (bl.cx - tl.cx) * 0.5;
     extra.cy = tl.cy + (tr.cy - tl.cy) * (0.45 / 3) + (bl.cy - tl.cy) * 0.5;
-    extra.sxx *= scale * scale, extra.syy *= scale * scale, extra.sxy *= scale * scale;
+    const double f = scale * printed / tl.side();
+    extra.sxx *= f * f, extra.syy *= f * f, extra.sxy *= f * f;
+    ASSERT_NEAR(extra.side(), scale * printed, 0.01 * printed);
     std::vector<Region> more = fips;
     more.push_back(extra);
     ld::detail::Candidate k = c;
     why = ld::detail::Check::kCount;
     const bool ok = ld::detail::verify(k, more, aps, img, p, &why);
-    if (scale == 1.0) {
+    if (scale > 1) {
       EXPECT_FALSE(ok);
       EXPECT_EQ(why, ld::detail::Check::kOtherSquares) << ld::detail::checkName(why);
     } else {
@@ -1705,6 +1709,7 @@ TEST(Params, ValidateNamesTheField) {
   EXPECT_NE(err([](auto& p) { p.d_max = p.d_min; }).find("d_max"), std::string::npos);
   EXPECT_NE(err([](auto& p) { p.canny_high = 1; }).find("canny_high"), std::string::npos);
   EXPECT_NE(err([](auto& p) { p.ap_size_min = 0; }).find("ap_size_min"), std::string::npos);
+  EXPECT_NE(err([](auto& p) { p.faint_look_blue = 0; }).find("faint_look_blue"), std::string::npos);
   ld::DetectorParams bad;
   bad.front_end = "x";
   EXPECT_THROW(ld::Detector{bad}, std::invalid_argument);

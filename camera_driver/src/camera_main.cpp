@@ -81,7 +81,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--exposure", exposure_ms,
                  "manual exposure time, milliseconds (automatic exposure off; short keeps a moving robot's "
-                 "frames sharp); 0: the device's own")
+                 "frames sharp; put back as it was when ld-camera stops); 0: leave the device's exposure as it is")
       ->check(ld::cli::NonNegative)
       ->capture_default_str();
   app.add_option("--buffers", buffers, "mmap buffers to request")

@@ -20,6 +20,11 @@ constexpr uint32_t kPage = 4096;
 // A UVC webcam's exposure time control, in 100 us: its range and power-on value.
 constexpr int32_t kExposureMin = 3, kExposureMax = 2047, kExposureDefault = 156;
 
+bool hasExposureControl(const FakeCameraSpec& spec, uint32_t id) {
+  if (!spec.exposure_control) return false;
+  return id == V4L2_CID_EXPOSURE_ABSOLUTE || (id == V4L2_CID_EXPOSURE_AUTO && spec.exposure_auto_control);
+}
+
 template <size_t N>
 void copyText(uint8_t (&dst)[N], const std::string& src) {
   std::memset(dst, 0, N);
@@ -498,8 +503,7 @@ int FakeV4l2Device::doIoctl(Node& n, int fd, unsigned long request, void* arg) {
     case VIDIOC_QUERYCTRL: {
       auto* q = static_cast<v4l2_queryctrl*>(arg);
       const uint32_t id = q->id;
-      if (!n.spec.exposure_control || (id != V4L2_CID_EXPOSURE_AUTO && id != V4L2_CID_EXPOSURE_ABSOLUTE))
-        return fail(EINVAL);
+      if (!hasExposureControl(n.spec, id)) return fail(EINVAL);
       *q = {};
       q->id = id;
       if (id == V4L2_CID_EXPOSURE_AUTO) {
@@ -510,7 +514,7 @@ int FakeV4l2Device::doIoctl(Node& n, int fd, unsigned long request, void* arg) {
       } else {
         q->type = V4L2_CTRL_TYPE_INTEGER;
         copyText(q->name, "Exposure Time, Absolute");
-        q->minimum = kExposureMin, q->maximum = kExposureMax, q->step = 1;
+        q->minimum = kExposureMin, q->maximum = kExposureMax, q->step = n.spec.exposure_step;
         q->default_value = kExposureDefault;
         if (n.exposure_mode != V4L2_EXPOSURE_MANUAL) q->flags = V4L2_CTRL_FLAG_INACTIVE;
       }
@@ -519,8 +523,7 @@ int FakeV4l2Device::doIoctl(Node& n, int fd, unsigned long request, void* arg) {
     case VIDIOC_G_CTRL:
     case VIDIOC_S_CTRL: {
       auto* c = static_cast<v4l2_control*>(arg);
-      if (!n.spec.exposure_control || (c->id != V4L2_CID_EXPOSURE_AUTO && c->id != V4L2_CID_EXPOSURE_ABSOLUTE))
-        return fail(EINVAL);
+      if (!hasExposureControl(n.spec, c->id)) return fail(EINVAL);
       int32_t& v = c->id == V4L2_CID_EXPOSURE_AUTO ? n.exposure_mode : n.exposure_time;
       if (request == VIDIOC_G_CTRL) {
         c->value = v;
@@ -528,10 +531,12 @@ int FakeV4l2Device::doIoctl(Node& n, int fd, unsigned long request, void* arg) {
       }
       if (c->id == V4L2_CID_EXPOSURE_AUTO) {
         // a UVC webcam's menu: manual and aperture priority only
-        if (c->value != V4L2_EXPOSURE_MANUAL && c->value != V4L2_EXPOSURE_APERTURE_PRIORITY) return fail(EINVAL);
+        const bool manual_ok = c->value == V4L2_EXPOSURE_MANUAL && n.spec.exposure_manual_mode;
+        if (!manual_ok && c->value != V4L2_EXPOSURE_APERTURE_PRIORITY) return fail(EINVAL);
       } else {
-        if (n.exposure_mode != V4L2_EXPOSURE_MANUAL) return fail(EACCES);
-        c->value = std::clamp(c->value, kExposureMin, kExposureMax);
+        if (n.spec.exposure_auto_control && n.exposure_mode != V4L2_EXPOSURE_MANUAL) return fail(EACCES);
+        const int32_t step = std::max(1, n.spec.exposure_step);
+        c->value = kExposureMin + (std::clamp(c->value, kExposureMin, kExposureMax) - kExposureMin) / step * step;
       }
       v = c->value;
       return 0;

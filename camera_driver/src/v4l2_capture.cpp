@@ -496,33 +496,60 @@ void V4l2Capture::setFrameRate(double fps) {
 }
 
 void V4l2Capture::setExposure(double ms) {
+  using K = CaptureError::Kind;
+  const std::string named = device_ + " (" + format_.card + ")";
   v4l2_queryctrl q{};
   q.id = V4L2_CID_EXPOSURE_ABSOLUTE;
-  if (xioctl(io_, fd_, VIDIOC_QUERYCTRL, &q) < 0 || (q.flags & V4L2_CTRL_FLAG_DISABLED)) {
-    const int err = errno;
-    if (deviceGone(err)) fail("VIDIOC_QUERYCTRL", err);
-    throw CaptureError(CaptureError::Kind::ControlRefused,
-                       device_ + " (" + format_.card +
-                           ") has no manual exposure control (V4L2_CID_EXPOSURE_ABSOLUTE): leave out the exposure");
-  }
-  // Automatic exposure off first: while it is on, drivers may refuse the time
-  // (EACCES, as the fake does) or overwrite it. A device without the switch (EINVAL)
-  // has only the manual time.
-  v4l2_control mode{};
+  const int rc = xioctl(io_, fd_, VIDIOC_QUERYCTRL, &q);
+  const int err = rc < 0 ? errno : 0;
+  if (deviceGone(err)) fail("VIDIOC_QUERYCTRL", err);
+  if (rc < 0 || (q.flags & V4L2_CTRL_FLAG_DISABLED))
+    throw CaptureError(K::ControlRefused, named + " has no manual exposure control (V4L2_CID_EXPOSURE_ABSOLUTE; "
+                                                  "v4l2-ctl -d " + device_ + " -l lists its controls): run without the exposure");
+  // What close() puts back: the camera is left as it was found.
+  v4l2_control mode{}, time{};
   mode.id = V4L2_CID_EXPOSURE_AUTO;
+  time.id = V4L2_CID_EXPOSURE_ABSOLUTE;
+  saved_exposure_mode_ = xioctl(io_, fd_, VIDIOC_G_CTRL, &mode) == 0 ? mode.value : -1;
+  saved_exposure_time_ = xioctl(io_, fd_, VIDIOC_G_CTRL, &time) == 0 ? time.value : -1;
+  // Automatic exposure off first: while it is on, drivers may refuse the time
+  // (EACCES, as the fake does) or overwrite it. A device without the switch
+  // (EINVAL) has only the manual time.
   mode.value = V4L2_EXPOSURE_MANUAL;
-  if (xioctl(io_, fd_, VIDIOC_S_CTRL, &mode) < 0 && errno != EINVAL) fail("VIDIOC_S_CTRL (automatic exposure off)", errno);
-  // In the control's unit (100 us), on its steps, within its range.
+  if (xioctl(io_, fd_, VIDIOC_S_CTRL, &mode) < 0 && errno != EINVAL)
+    fail("VIDIOC_S_CTRL (automatic exposure off)", errno);
+  // In the control's unit (100 us), within its range (clamped as a double:
+  // any finite time the command line takes), on its steps.
   const int64_t step = std::max(1, q.step);
-  int64_t units = std::llround(ms * 10);
-  units = q.minimum + (units - q.minimum + step / 2) / step * step;
-  units = std::clamp<int64_t>(units, q.minimum, q.maximum);
+  const double want = std::clamp(ms * 10, static_cast<double>(q.minimum), static_cast<double>(q.maximum));
+  int64_t units = q.minimum + (std::llround(want) - q.minimum + step / 2) / step * step;
+  if (units > q.maximum) units -= step;
+  time.value = static_cast<int32_t>(units);
+  if (xioctl(io_, fd_, VIDIOC_S_CTRL, &time) < 0) {
+    const int e = errno;
+    if (e == EACCES || e == EPERM || e == EBUSY)
+      throw CaptureError(K::ControlRefused, named + " refused the exposure time (" + std::strerror(e) +
+                                                "): its automatic exposure could not be turned off");
+    fail("VIDIOC_S_CTRL (exposure time)", e);
+  }
+  if (xioctl(io_, fd_, VIDIOC_G_CTRL, &time) < 0) fail("VIDIOC_G_CTRL (exposure time)", errno);
+  format_.exposure_ms = time.value / 10.0;
+}
+
+void V4l2Capture::restoreExposure() noexcept {
+  if (saved_exposure_mode_ < 0 && saved_exposure_time_ < 0) return;
   v4l2_control c{};
-  c.id = V4L2_CID_EXPOSURE_ABSOLUTE;
-  c.value = static_cast<int32_t>(units);
-  if (xioctl(io_, fd_, VIDIOC_S_CTRL, &c) < 0) fail("VIDIOC_S_CTRL (exposure time)", errno);
-  if (xioctl(io_, fd_, VIDIOC_G_CTRL, &c) < 0) fail("VIDIOC_G_CTRL (exposure time)", errno);
-  format_.exposure_ms = c.value / 10.0;
+  if (saved_exposure_time_ >= 0) {
+    c.id = V4L2_CID_EXPOSURE_ABSOLUTE;
+    c.value = saved_exposure_time_;
+    xioctl(io_, fd_, VIDIOC_S_CTRL, &c);
+  }
+  if (saved_exposure_mode_ >= 0) {
+    c.id = V4L2_CID_EXPOSURE_AUTO;
+    c.value = saved_exposure_mode_;
+    xioctl(io_, fd_, VIDIOC_S_CTRL, &c);
+  }
+  saved_exposure_mode_ = saved_exposure_time_ = -1;
 }
 
 void V4l2Capture::allocateBuffers(unsigned count) {
@@ -715,6 +742,7 @@ void V4l2Capture::close() noexcept {
     rb.memory = V4L2_MEMORY_MMAP;
     xioctl(io_, fd_, VIDIOC_REQBUFS, &rb);
   }
+  restoreExposure();
   io_.close(fd_);
   fd_ = -1;
 }

@@ -836,7 +836,7 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
     // Labelled with blue from faint_look_blue: a thin or blurred square's
     // blue mixed with the paper's is paler than the first pass's threshold.
     detail::MaskThresholds pale = filter_settings.mask;
-    pale.blue = p.faint_look_blue;
+    pale.blue = std::min(pale.blue, p.faint_look_blue);
     if (!(low > 0) || top < kFaintLookMinCast * low) {
       // A white already white: the window as it is.
       look(win, f, img(win), pale, max_area, true);

@@ -93,6 +93,9 @@ struct FakeCameraSpec {
   /// refuses to be set (EACCES) while automatic exposure is on; both reset
   /// at power-on. VIDIOC_QUERYCTRL, G_CTRL and S_CTRL (values clamped).
   bool exposure_control = true;
+  bool exposure_auto_control = true;  ///< has V4L2_CID_EXPOSURE_AUTO (without it the time is always settable)
+  bool exposure_manual_mode = true;   ///< its menu has manual (without it: EINVAL, and the time stays refused)
+  int32_t exposure_step = 1;          ///< the time's step, in 100 us
   uint32_t timestamp_flags = V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC | V4L2_BUF_FLAG_TSTAMP_SRC_SOE;
 
   /// A webcam offering YUYV 640x480 (30, 15 fps), 320x240 (30, 15 fps),

@@ -153,7 +153,8 @@ struct CaptureRequest {
   /// frames sharp (the image moves less during one) and darker. Set in the
   /// control's unit (V4L2_CID_EXPOSURE_ABSOLUTE: 100 microseconds), clamped
   /// to its range; the time set is reported. A device without the control
-  /// is refused (CaptureError::Kind::ControlRefused).
+  /// is refused (CaptureError::Kind::ControlRefused). close() puts the
+  /// device's exposure back as open() found it.
   double exposure_ms = 0;
 };
 
@@ -213,7 +214,8 @@ class V4l2Capture {
   void requeue(const Frame& frame);
   /// VIDIOC_STREAMOFF; buffers stay mapped, start() streams again.
   void stop();
-  /// Stops, unmaps every buffer, frees them and closes. Never throws.
+  /// Stops, unmaps every buffer, frees them, puts back an exposure open()
+  /// changed, and closes. Never throws.
   void close() noexcept;
 
   bool isOpen() const { return fd_ >= 0; }
@@ -235,6 +237,7 @@ class V4l2Capture {
   void negotiate(const CaptureRequest& request);
   void setFrameRate(double fps);
   void setExposure(double ms);
+  void restoreExposure() noexcept;
   void allocateBuffers(unsigned count);
   void queue(uint32_t index);
 
@@ -251,6 +254,7 @@ class V4l2Capture {
   CaptureStats stats_;
   bool have_sequence_ = false;
   uint32_t last_sequence_ = 0;
+  int32_t saved_exposure_mode_ = -1, saved_exposure_time_ = -1;  // put back by close(); -1: nothing
 };
 
 // ---------------------------------------------------------------------------

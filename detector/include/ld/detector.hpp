@@ -222,9 +222,10 @@ struct DetectorParams {
   /// printed red stays red. Found landmarks pass the same verification; the
   /// windows cover at most an eighth of the frame (stage "faint look").
   int faint_looks = 16;
-  /// The faint look's blue saturation threshold (the first pass's is
-  /// saturation_threshold_blue). Lower finds paler (more blurred, thinner)
-  /// squares near a red one and more bluish background there.
+  /// The faint look's blue saturation threshold (the first pass's,
+  /// saturation_threshold_blue, where that is lower). Lower finds paler
+  /// (more blurred, thinner) squares near a red one and more bluish
+  /// background there.
   double faint_look_blue = 0.15;
   /// FIP and AP candidates kept (largest first), and 3-cycles of the FIP
   /// graph examined (those among the largest squares first): what bounds the

@@ -293,7 +293,7 @@ int main(int argc, char** argv) {
             for (double px : xs) {
               o.motion_px = px;
               all.back().push_back(ld::eval::measure(o, dists[i], 0, m_yaw));
-              std::fprintf(stderr, "  %s, blur %g px: detected %d/%d\n", cm(sides[i]).c_str(), px,
+              std::fprintf(stderr, "  %s %s, blur %g px: detected %d/%d\n", cm(sides[i]).c_str(), target.c_str(), px,
                            all.back().back().detected, all.back().back().trials);
             }
           } else {
