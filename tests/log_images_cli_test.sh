@@ -16,6 +16,10 @@ grep -q "000002.png: cannot read as an image, skipped" "$T/err" || fail "folder,
 [ "$("$BIN/ld-dump" "$T/a.lcmlog" -c IMAGE | wc -l)" -eq 2 ] || fail "the log does not hold 2 images"
 "$BIN/ld-log-images" "$T/f/000001.png" "$T/one.lcmlog" --format bgr >"$T/out"
 grep -q "wrote 1 frames" "$T/out" || fail "one image: $(cat "$T/out")"
+# A video (MJPG .avi, written by ld-view from the first log): every frame.
+"$BIN/ld-view" --log "$T/a.lcmlog" --all --video "$T/v.avi" >/dev/null 2>&1 || fail "ld-view --video"
+"$BIN/ld-log-images" "$T/v.avi" "$T/v.lcmlog" >"$T/out" 2>"$T/err" || fail "video: $(cat "$T/err")"
+grep -q "wrote 2 frames to $T/v.lcmlog" "$T/out" || fail "video: $(cat "$T/out")"
 
 refused() {  # STATUS LOG PATTERN ARGS...
   local want=$1 log=$2 pat=$3; shift 3

@@ -77,7 +77,9 @@ int main(int argc, char** argv) {
       return 2;
     }
     files.push_back(input);
-  } else if (!video.open(input)) {
+  } else if (!video.open(input, cv::CAP_FFMPEG) && !video.open(input, cv::CAP_GSTREAMER)) {
+    // (files' backends only: OpenCV's default order also asks gPhoto2, which
+    // enumerates every USB device for a camera to open instead of the file)
     std::cerr << "ld-log-images: cannot open " << input << " as a video\n";
     return 2;
   }
