@@ -538,31 +538,55 @@ TEST(ApChoiceRule, EveryApInTheGatesNearestFirst) {
   EXPECT_LT(choices[0].error, 1e-6);
 }
 
+namespace {
+
+// A landmark at 0.8 m on a plain background, labelled and cut into regions
+// as the first pass does: its three FIPs and its AP, and which FIP is which.
+struct LabelledLandmark {
+  cv::Mat img;
+  ld::DetectorParams p;
+  std::vector<Region> fips, aps;
+  int tl = -1, tr = -1, bl = -1;
+};
+
+void labelLandmark(LabelledLandmark& l) {
+  l.img = background(kCam.size, 29, true);
+  const Placed placed = place(0.8, 0, 20);
+  drawSheet(l.img, kCam, placed);
+  const Truth t = truthOf(kCam, placed);
+  cv::Mat labels;
+  const ld::DetectorParams& p = l.p;
+  ld::detail::saturationMask(l.img, {p.saturation_threshold_blue, p.saturation_threshold, p.value_min}, labels);
+  ld::detail::RunScratch scratch;
+  std::vector<Region> regions;
+  ld::detail::extractRegions(labels, l.img, kMt, 3, 100000, 0.0, scratch, regions);
+  for (const Region& r : regions) (r.colour == ld::detail::kBlue ? l.fips : l.aps).push_back(r);
+  ASSERT_EQ(l.fips.size(), 3u);
+  ASSERT_EQ(l.aps.size(), 1u);
+  auto nearest = [&](cv::Point2d c) {
+    int best = 0;
+    for (int i = 1; i < 3; ++i)
+      if (std::hypot(l.fips[i].cx - c.x, l.fips[i].cy - c.y) < std::hypot(l.fips[best].cx - c.x, l.fips[best].cy - c.y))
+        best = i;
+    return best;
+  };
+  l.tl = nearest(t.centres[0]), l.tr = nearest(t.centres[1]), l.bl = nearest(t.centres[2]);
+}
+
+}  // namespace
+
 // Of several APs in the gates the nearest is tried first, but the one kept
 // is the one whose landmark verifies: here a bar (three times as long as
 // wide, the AP's area) lies exactly where TR + BL - TL predicts, nearer than
 // the real AP, and verification refuses it.
 TEST(ApChoiceRule, TheApWhoseLandmarkVerifiesIsKept) {
-  cv::Mat img = background(kCam.size, 29, true);
-  const Placed placed = place(0.8, 0, 20);
-  drawSheet(img, kCam, placed);
-  const Truth t = truthOf(kCam, placed);
-  cv::Mat labels;
-  const ld::DetectorParams p;
-  ld::detail::saturationMask(img, {p.saturation_threshold_blue, p.saturation_threshold, p.value_min}, labels);
-  ld::detail::RunScratch scratch;
-  std::vector<Region> regions, fips, aps;
-  ld::detail::extractRegions(labels, img, kMt, 3, 100000, 0.0, scratch, regions);
-  for (const Region& r : regions) (r.colour == ld::detail::kBlue ? fips : aps).push_back(r);
-  ASSERT_EQ(fips.size(), 3u);
-  ASSERT_EQ(aps.size(), 1u);
-  auto nearest = [&](cv::Point2d c) {
-    int best = 0;
-    for (int i = 1; i < 3; ++i)
-      if (std::hypot(fips[i].cx - c.x, fips[i].cy - c.y) < std::hypot(fips[best].cx - c.x, fips[best].cy - c.y)) best = i;
-    return best;
-  };
-  const int tl = nearest(t.centres[0]), tr = nearest(t.centres[1]), bl = nearest(t.centres[2]);
+  LabelledLandmark lm;
+  ASSERT_NO_FATAL_FAILURE(labelLandmark(lm));
+  const cv::Mat& img = lm.img;
+  const ld::DetectorParams& p = lm.p;
+  std::vector<Region>& fips = lm.fips;
+  std::vector<Region>& aps = lm.aps;
+  const int tl = lm.tl, tr = lm.tr, bl = lm.bl;
   Region bar = aps[0];
   bar.cx = fips[tr].cx + fips[bl].cx - fips[tl].cx;
   bar.cy = fips[tr].cy + fips[bl].cy - fips[tl].cy;
@@ -589,27 +613,14 @@ TEST(ApChoiceRule, TheApWhoseLandmarkVerifiesIsKept) {
 // check looks in), is refused; a small coloured piece there (a module's
 // edge tinted by warm light or JPEG) is tolerated, as before.
 TEST(Verification, ASquareInTheQrAsLargeAsTheLandmarksIsRefused) {
-  cv::Mat img = background(kCam.size, 29, true);
-  const Placed placed = place(0.8, 0, 20);
-  drawSheet(img, kCam, placed);
-  const Truth t = truthOf(kCam, placed);
-  cv::Mat labels;
-  const ld::DetectorParams p;
-  ld::detail::saturationMask(img, {p.saturation_threshold_blue, p.saturation_threshold, p.value_min}, labels);
-  ld::detail::RunScratch scratch;
-  std::vector<Region> regions, fips, aps;
-  ld::detail::extractRegions(labels, img, kMt, 3, 100000, 0.0, scratch, regions);
-  for (const Region& r : regions) (r.colour == ld::detail::kBlue ? fips : aps).push_back(r);
-  ASSERT_EQ(fips.size(), 3u);
-  ASSERT_EQ(aps.size(), 1u);
-  auto nearest = [&](cv::Point2d c) {
-    int best = 0;
-    for (int i = 1; i < 3; ++i)
-      if (std::hypot(fips[i].cx - c.x, fips[i].cy - c.y) < std::hypot(fips[best].cx - c.x, fips[best].cy - c.y)) best = i;
-    return best;
-  };
+  LabelledLandmark lm;
+  ASSERT_NO_FATAL_FAILURE(labelLandmark(lm));
+  const cv::Mat& img = lm.img;
+  const ld::DetectorParams& p = lm.p;
+  std::vector<Region>& fips = lm.fips;
+  std::vector<Region>& aps = lm.aps;
   ld::detail::Candidate c;
-  c.tl = nearest(t.centres[0]), c.tr = nearest(t.centres[1]), c.bl = nearest(t.centres[2]), c.ap = 0;
+  c.tl = lm.tl, c.tr = lm.tr, c.bl = lm.bl, c.ap = 0;
   ld::detail::Check why = ld::detail::Check::kCount;
   ld::detail::Candidate plain = c;
   ASSERT_TRUE(ld::detail::verify(plain, fips, aps, img, p, &why)) << ld::detail::checkName(why);

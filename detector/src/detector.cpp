@@ -802,6 +802,10 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   const int buf_side = 2 * static_cast<int>(std::ceil(max_radius)) + 1;
   faint_src_buf.create(buf_side, buf_side, CV_8UC3);
   if (blurred) faint_img_buf.create(buf_side, buf_side, CV_8UC3);
+  // Labelled with blue from faint_look_blue: a thin or blurred square's
+  // blue mixed with the paper's is paler than the first pass's threshold.
+  detail::MaskThresholds pale = filter_settings.mask;
+  pale.blue = std::min(pale.blue, p.faint_look_blue);
   for (const auto& a : anchors) {
     if (looks >= p.faint_looks || pixels_left < 25 * 25) break;
     cv::Rect win;
@@ -833,10 +837,6 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
     const double top = std::max({white[0], white[1], white[2]}), low = std::min({white[0], white[1], white[2]});
     pixels_left -= win.area();
     ++looks;
-    // Labelled with blue from faint_look_blue: a thin or blurred square's
-    // blue mixed with the paper's is paler than the first pass's threshold.
-    detail::MaskThresholds pale = filter_settings.mask;
-    pale.blue = std::min(pale.blue, p.faint_look_blue);
     if (!(low > 0) || top < kFaintLookMinCast * low) {
       // A white already white: the window as it is.
       look(win, f, img(win), pale, max_area, true);

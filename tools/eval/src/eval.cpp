@@ -132,7 +132,7 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
   std::mt19937_64 rng(pointSeed(o.seed, distance_m, yaw_deg));
   std::uniform_real_distribution<double> U(0, 1);
   std::vector<Point> points(marker ? 1 : detectors.size());
-  for (Point& p : points) p.distance_m = distance_m, p.yaw_deg = yaw_deg;
+  for (Point& p : points) p.distance_m = distance_m, p.yaw_deg = yaw_deg, p.motion_px = o.motion_px;
   for (int k = 0; k < o.trials; ++k) {
     const double yaw = yaw_deg + (2 * U(rng) - 1) * yaw_jitter_deg;
     const double roll = o.any_roll ? U(rng) * 360 - 180 : 0;
@@ -246,6 +246,18 @@ std::vector<Point> overDistance(const SweepOptions& o, const std::vector<double>
   std::vector<Point> out;
   for (double d : distances) {
     out.push_back(measure(o, d, 0.0, max_abs_yaw_deg));
+    if (progress) progress(out.back());
+  }
+  return out;
+}
+
+std::vector<Point> overMotion(const SweepOptions& o, double distance_m, const std::vector<double>& blurs,
+                              double max_abs_yaw_deg, const std::function<void(const Point&)>& progress) {
+  SweepOptions at = o;
+  std::vector<Point> out;
+  for (double px : blurs) {
+    at.motion_px = px;
+    out.push_back(measure(at, distance_m, 0.0, max_abs_yaw_deg));
     if (progress) progress(out.back());
   }
   return out;

@@ -159,7 +159,9 @@ void emit(const Common& c, const std::string& table) {
 }
 
 void progress(const ld::eval::Point& p) {
-  std::fprintf(stderr, "  %.2f m, yaw %+.0f: detected %d/%d, decoded %d\n", p.distance_m, p.yaw_deg,
+  char blur[32] = "";
+  if (p.motion_px >= 0) std::snprintf(blur, sizeof blur, ", blur %g px", p.motion_px);
+  std::fprintf(stderr, "  %.2f m, yaw %+.0f%s: detected %d/%d, decoded %d\n", p.distance_m, p.yaw_deg, blur,
                p.detected, p.trials, p.decoded);
 }
 
@@ -269,50 +271,52 @@ int main(int argc, char** argv) {
     if ((dist->parsed() && d_from > d_to) || (qr->parsed() && q_from > q_to))
       throw ld::cli::UsageError("--from must not be beyond --to");
     if (yaw->parsed() || dist->parsed() || motion->parsed()) {
-      // One column and one plotted series per (side, target).
-      const bool by_yaw = yaw->parsed(), by_motion = motion->parsed();
-      const Common& c = by_yaw ? yc : by_motion ? mc : dc;
-      const std::vector<double>& sides = by_yaw ? y_sides : by_motion ? m_sides : d_sides;
-      const std::vector<double>& dists = by_motion ? m_dists : y_dists;
-      if ((by_yaw || by_motion) && dists.size() != sides.size())
-        throw ld::cli::UsageError("give one --distance per --side");
-      const std::vector<double> xs = by_yaw      ? range(-y_max, y_max, y_step)
-                                     : by_motion ? range(0, m_to, m_step)
-                                                 : range(d_from, d_to, d_step);
+      // One column and one plotted series per (side, target). The sweep's
+      // variable: yaw at each side's distance, distance, or blur at each
+      // side's distance.
+      enum class By { kYaw, kDistance, kMotion };
+      const By by = yaw->parsed() ? By::kYaw : motion->parsed() ? By::kMotion : By::kDistance;
+      struct Sweep {
+        const Common& c;
+        const std::vector<double>& sides;
+        const std::vector<double>* dists;  // one per side, or none (distance is the variable)
+        std::vector<double> xs;
+        const char *column, *title, *axis;
+      };
+      const Sweep sw =
+          by == By::kYaw      ? Sweep{yc, y_sides, &y_dists, range(-y_max, y_max, y_step), "yaw (deg)",
+                                      "Detection rate against yaw", "yaw (degrees)"}
+          : by == By::kMotion ? Sweep{mc, m_sides, &m_dists, range(0, m_to, m_step), "motion blur (px)",
+                                      "Detection rate against motion blur", "blur length (pixels)"}
+                              : Sweep{dc, d_sides, nullptr, range(d_from, d_to, d_step), "distance (m)",
+                                      "Detection rate against distance", "distance (m)"};
+      if (sw.dists && sw.dists->size() != sw.sides.size()) throw ld::cli::UsageError("give one --distance per --side");
+      const Common& c = sw.c;
+      const std::vector<double>& xs = sw.xs;
       std::vector<std::string> targets{"landmark"};
       if (c.compare) targets.insert(targets.end(), {"apriltag", "aruco"});
       std::vector<Series> series;
       std::vector<std::vector<ld::eval::Point>> all;
-      for (size_t i = 0; i < sides.size(); ++i)
+      for (size_t i = 0; i < sw.sides.size(); ++i)
         for (const auto& target : targets) {
           auto o = c.options();
-          o.side_m = sides[i];
+          o.side_m = sw.sides[i];
           o.target = target;
-          if (by_motion) {
-            all.emplace_back();
-            for (double px : xs) {
-              o.motion_px = px;
-              all.back().push_back(ld::eval::measure(o, dists[i], 0, m_yaw));
-              std::fprintf(stderr, "  %s %s, blur %g px: detected %d/%d\n", cm(sides[i]).c_str(), target.c_str(), px,
-                           all.back().back().detected, all.back().back().trials);
-            }
-          } else {
-            all.push_back(by_yaw ? ld::eval::overYaw(o, y_dists[i], xs, progress)
-                                 : ld::eval::overDistance(o, xs, d_yaw, progress));
-          }
+          all.push_back(by == By::kYaw      ? ld::eval::overYaw(o, (*sw.dists)[i], xs, progress)
+                        : by == By::kMotion ? ld::eval::overMotion(o, (*sw.dists)[i], xs, m_yaw, progress)
+                                            : ld::eval::overDistance(o, xs, d_yaw, progress));
           std::ostringstream name;
-          name << cm(sides[i]);
-          if (by_yaw || by_motion) name << " at " << dists[i] << " m";
+          name << cm(sw.sides[i]);
+          if (sw.dists) name << " at " << (*sw.dists)[i] << " m";
           if (target != "landmark") name << " " << ld::markers::name(ld::markers::parse(target));
           Series sr{name.str(), {}};
-          for (size_t k = 0; k < xs.size(); ++k) {
-            const auto& p = all.back()[k];
-            sr.points.emplace_back(by_yaw ? p.yaw_deg : by_motion ? xs[k] : p.distance_m, p.detectRate());
-          }
+          for (const auto& p : all.back())
+            sr.points.emplace_back(by == By::kYaw ? p.yaw_deg : by == By::kMotion ? p.motion_px : p.distance_m,
+                                   p.detectRate());
           series.push_back(sr);
         }
       std::ostringstream t;
-      t << (by_yaw ? "| yaw (deg) |" : by_motion ? "| motion blur (px) |" : "| distance (m) |");
+      t << "| " << sw.column << " |";
       for (const auto& sr : series) t << " " << sr.name << " |";
       t << "\n|---|";
       for (size_t i = 0; i < series.size(); ++i) t << "---|";
@@ -323,12 +327,7 @@ int main(int argc, char** argv) {
         t << "\n";
       }
       emit(c, t.str());
-      if (!c.png.empty())
-        plot(c.png,
-             by_yaw      ? "Detection rate against yaw"
-             : by_motion ? "Detection rate against motion blur"
-                         : "Detection rate against distance",
-             by_yaw ? "yaw (degrees)" : by_motion ? "blur length (pixels)" : "distance (m)", series);
+      if (!c.png.empty()) plot(c.png, sw.title, sw.axis, series);
     } else if (qr->parsed()) {
       auto o = qc.options();
       o.side_m = q_side;

@@ -64,6 +64,7 @@ struct SweepOptions {
 /// One sweep point: the swept value and what happened in its trials.
 struct Point {
   double distance_m = 0, yaw_deg = 0;
+  double motion_px = -1;  ///< the blur of the point's frames (SweepOptions::motion_px)
   int trials = 0;
   int detected = 0;       ///< the landmark was found (centres match the truth)
   int decoded = 0;        ///< ... and its QR read to exactly its payload
@@ -87,6 +88,9 @@ std::vector<Point> overYaw(const SweepOptions& options, double distance_m,
 std::vector<Point> overDistance(const SweepOptions& options, const std::vector<double>& distances_m,
                                 double max_abs_yaw_deg,
                                 const std::function<void(const Point&)>& progress = {});
+/// Over motion blur lengths (pixels) at one distance, yaw within +-max_abs_yaw_deg.
+std::vector<Point> overMotion(const SweepOptions& options, double distance_m, const std::vector<double>& blurs_px,
+                              double max_abs_yaw_deg, const std::function<void(const Point&)>& progress = {});
 
 /// False landmarks per frame on `frames` scenes with colourful distractors,
 /// landmark-like cards and no landmark, under the options' lighting.
