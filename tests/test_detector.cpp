@@ -1167,6 +1167,41 @@ TEST(Detector, ShadowAcrossTheSheet) {
   EXPECT_GE(found_adaptive, tried - 2);
 }
 
+// A band of shadow across the sheet's middle (the shadow of a pole or a
+// cable between the lamp and the sheet), light enough to leave the sheet
+// even by sheet_uniformity: two opposite sides are darker than the other
+// two, and the QR is as much darker than the band's paper as a QR is. Such
+// a sheet is a landmark; a grid of sheets' wall through a gap
+// (test_detector_accuracy: GridOfSheetsWithGapsMakesNoLandmarks) is not.
+TEST(Detector, BandOfShadowAcrossTheSheet) {
+  int found_here = 0, tried = 0;
+  for (double depth : {0.75, 0.8})
+    for (double band_deg : {0.0, 45.0, 90.0, 135.0})
+      for (double dist : {0.8, 1.5}) {
+        cv::Mat img = background(kCam.size, 43, true);
+        const Placed p = place(dist, 20, 10, 0.15, 0, 0);
+        drawSheet(img, kCam, p);
+        const Truth t = truthOf(kCam, p);
+        const cv::Point2d c = (t.corners[0] + t.corners[2]) / 2;
+        const double half_width = 0.3 * cv::norm(t.corners[2] - t.corners[0]) / 2;  // over the QR
+        const double a = band_deg * CV_PI / 180;
+        const cv::Point2d n(std::cos(a), std::sin(a));
+        for (int y = 0; y < img.rows; ++y)
+          for (int x = 0; x < img.cols; ++x) {
+            if (std::abs((cv::Point2d(x, y) - c).dot(n)) > half_width) continue;
+            auto& q = img.at<cv::Vec3b>(y, x);
+            for (int k = 0; k < 3; ++k) q[k] = cv::saturate_cast<uint8_t>(q[k] * depth);
+          }
+        cv::GaussianBlur(img, img, {0, 0}, 0.7);
+        addNoise(img, 2, 7 + tried);
+        const bool ok = onlyLandmark(ld::Detector().detect(img), t);
+        found_here += ok;
+        ++tried;
+        EXPECT_TRUE(ok) << "band of " << depth << " of the light at " << band_deg << " deg, " << dist << " m";
+      }
+  std::printf("bands of shadow across the sheet: found %d of %d\n", found_here, tried);
+}
+
 // Close up, at an angle, perspective moves the AP well off TR + BL - TL,
 // where a red thing just off the sheet can lie nearer: it is not taken for
 // the AP (the perspective prediction and, where both are in the gate, the

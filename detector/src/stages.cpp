@@ -110,6 +110,11 @@ constexpr double kClippedSheet = 235;
 // the sheet's brightest sample by this ratio.
 constexpr int kGlaredSamples = 3;
 constexpr double kGlaredOverSheet = 1.1;
+// A band across the sheet: both sides of one opposite pair darker than both
+// of the other pair, the brighter of them by this ratio or more (no light's
+// gradient nor one shadow's edge darkens opposite sides alone; over
+// thousands of landmarks in random scenes the ratio stays above 0.97).
+constexpr double kBandSides = 0.85;
 
 // How much more of a hue than the sheet's a saturated landmark centre may
 // have (printed blue and red have about 1 more).
@@ -848,6 +853,23 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
     // points of it brighter than any of the sheet's).
     const bool clipped = sheet_mean >= kClippedSheet || glared >= kGlaredSamples;
     if (qr_mean > p.qr_max_brightness * sheet_mean && !(clipped && dark >= p.qr_dark_samples)) return fail(Check::kNoQr);
+    // Under a band across the sheet (two opposite sides darker than the
+    // other two) the QR is as much darker than the band's paper: a shadow's
+    // band frames it as the rest of the sheet does. Sheets hung in a grid
+    // with gaps of about a third of a sheet are not: the squares along two
+    // neighbouring sheets' facing edges lie as a landmark's, turned by 90
+    // degrees, whose "sheet" is the two sheets' margins and the wall seen
+    // through the gap between them, and whose "QR" is that same wall.
+    if (!clipped) {
+      double side[4];
+      for (int i = 0; i < 4; ++i) side[i] = (means[3 * i] + means[3 * i + 1] + means[3 * i + 2]) / 3;
+      for (int a : {0, 1}) {
+        const int b = a + 1;
+        const double band = std::max(side[a], side[a + 2]), rest = std::min(side[b], side[(b + 2) % 4]);
+        if (band < kBandSides * rest && qr_mean > p.qr_max_brightness * (side[a] + side[a + 2]) / 2)
+          return fail(Check::kNoQr);
+      }
+    }
   }
   const cv::Point2d ctr = (P[0] + P[1] + P[2] + P[3]) * 0.25;
   {
