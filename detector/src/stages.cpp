@@ -670,41 +670,44 @@ bool smoothLight(const std::array<cv::Point2d, 12>& at, const std::array<double,
 // `uniformity` of the brightest: none shaded), or in a light part and a
 // dark part, each even, the dark one a single run of neighbours around the
 // sheet, as a straight shadow edge makes (it crosses the sheet's outline
-// twice; a stripe across the sheet, crossing it four times, makes two runs
-// and is refused), with a sample on the edge itself, between the two,
-// allowed at either end of the run: the run's samples are shaded. (The
-// darkest sample is never light, so a run holds a dark one.)
-bool sheetLight(const std::array<double, 12>& m, double uniformity, std::array<bool, 12>& shaded) {
+// twice), or two runs apart, as a band of shadow across the sheet makes (a
+// pole's or a cable's: it crosses the outline four times), with a sample
+// on the edge itself, between the two, allowed at either end of a run: the
+// runs' samples are shaded. (The darkest sample is never light, so a run
+// holds a dark one.) `runs`: how many (0 when even).
+bool sheetLight(const std::array<double, 12>& m, double uniformity, std::array<bool, 12>& shaded, int& runs) {
   shaded.fill(false);
+  runs = 0;
   const auto [lo, hi] = std::minmax_element(m.begin(), m.end());
   if (*lo >= uniformity * *hi) return true;
   enum { kLight, kDark, kEdge };
   std::array<int, 12> part;
   for (int j = 0; j < 12; ++j) part[j] = m[j] >= uniformity * *hi ? kLight : m[j] * uniformity <= *lo ? kDark : kEdge;
-  // One run of samples that are not light, edge samples only at its ends.
-  int start = -1, runs = 0;
-  for (int j = 0; j < 12; ++j)
-    if (part[j] != kLight && part[(j + 11) % 12] == kLight) start = j, ++runs;
-  if (runs != 1) return false;
-  int len = 0;
-  while (part[(start + len) % 12] != kLight) ++len;
-  for (int k = 0; k < len; ++k) {
-    const int j = (start + k) % 12;
-    if (part[j] == kEdge && k > 0 && k + 1 < len) return false;
-    shaded[j] = true;
+  // Runs of samples that are not light, edge samples only at their ends.
+  for (int j = 0; j < 12; ++j) {
+    if (part[j] == kLight || part[(j + 11) % 12] != kLight) continue;
+    ++runs;
+    int len = 0;
+    while (part[(j + len) % 12] != kLight) ++len;
+    for (int k = 0; k < len; ++k) {
+      const int i = (j + k) % 12;
+      if (part[i] == kEdge && k > 0 && k + 1 < len) return false;
+      shaded[i] = true;
+    }
   }
-  return true;
+  return runs == 1 || runs == 2;
 }
 
 // The sheet's light by its samples' means and values (brightest channels)
 // against the squares' values (`fip_value` the FIPs' mean): even, or a
-// shadow's two parts (sheetLight). Check::kCount where it passes, else the
-// check that refuses it.
+// shadow's two parts, or a band of shadow across it (sheetLight).
+// Check::kCount where it passes, else the check that refuses it.
 Check sheetLit(const std::array<double, 12>& means, const std::array<double, 12>& values, const double square_value[4],
                double fip_value, const DetectorParams& p) {
   std::array<bool, 12> shaded;
-  if (!sheetLight(means, p.sheet_uniformity, shaded)) return Check::kSheetUneven;
-  if (std::none_of(shaded.begin(), shaded.end(), [](bool v) { return v; })) {
+  int runs = 0;
+  if (!sheetLight(means, p.sheet_uniformity, shaded, runs)) return Check::kSheetUneven;
+  if (runs == 0) {
     for (double v : values)
       if (v < p.sheet_min_value * fip_value) return Check::kSheetDark;
     return Check::kCount;
@@ -717,7 +720,16 @@ Check sheetLit(const std::array<double, 12>& means, const std::array<double, 12>
     const double over = paper >= kClippedValue ? p.sheet_min_value : std::max(p.sheet_min_value, kShadedPaperOverInk);
     if (paper < over * square_value[i]) return Check::kSheetDark;
   }
-  return fip_in_shadow ? Check::kCount : Check::kSheetUneven;
+  if (fip_in_shadow) return Check::kCount;
+  // A band between the squares, none of them in it: across the middle, two
+  // opposite sides in it (verify then holds the QR to the band's paper).
+  if (runs == 2) {
+    double side[4];
+    for (int i = 0; i < 4; ++i) side[i] = (means[3 * i] + means[3 * i + 1] + means[3 * i + 2]) / 3;
+    for (int a : {0, 1})
+      if (std::max(side[a], side[a + 2]) < kBandSides * std::min(side[a + 1], side[(a + 3) % 4])) return Check::kCount;
+  }
+  return Check::kSheetUneven;
 }
 
 }  // namespace
