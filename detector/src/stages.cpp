@@ -115,6 +115,17 @@ constexpr double kGlaredOverSheet = 1.1;
 // gradient nor one shadow's edge darkens opposite sides alone; over
 // thousands of landmarks in random scenes the ratio stays above 0.97).
 constexpr double kBandSides = 0.85;
+// Four sheets hung in a grid with narrow gaps (about a sixth of a sheet):
+// where their corners meet, the TL of one, the TR of its left neighbour,
+// the BL of the one above it and the AP of the one diagonally across lie as
+// a smaller landmark's turned by 180 degrees, and the middle sample of each
+// of its sides falls in a gap, on the wall. Every side's middle sample
+// darker than both samples beside it by this ratio refuses the sheet (no
+// light, even, falling off or shaded, dips at all four middles: over the
+// random scenes of ld-eval's sweeps the brightest of the four middles stays
+// at 0.98 or more of its darker neighbour; such crossings of gaps at 0.88
+// or less).
+constexpr double kGapDip = 0.93;
 
 // How much more of a hue than the sheet's a saturated landmark centre may
 // have (printed blue and red have about 1 more).
@@ -698,6 +709,14 @@ bool sheetLight(const std::array<double, 12>& m, double uniformity, std::array<b
   return runs == 1 || runs == 2;
 }
 
+// The samples `m` (in order around the sheet) dip in the middle of every
+// side: the crossing of the gaps between four sheets (kGapDip).
+bool crossOfGaps(const std::array<double, 12>& m) {
+  for (int i = 0; i < 4; ++i)
+    if (!(m[3 * i + 1] < kGapDip * std::min(m[3 * i], m[3 * i + 2]))) return false;
+  return true;
+}
+
 // The sheet's light by its samples' means and values (brightest channels)
 // against the squares' values (`fip_value` the FIPs' mean): even, or a
 // shadow's two parts, or a band of shadow across it (sheetLight).
@@ -835,6 +854,7 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   // A light falling off smoothly across the sheet (smoothLight) is neither:
   // where those refuse it, the paper where each FIP lies, by the light's
   // plane, is as clearly brighter than the FIP.
+  if (crossOfGaps(means)) return fail(Check::kSheetUneven);
   const Check lit = sheetLit(means, values, square_value, fip_value, p);
   if (lit != Check::kCount) {
     cv::Vec3d plane;
