@@ -1206,6 +1206,40 @@ TEST(Detector, BandOfShadowAcrossTheSheet) {
   std::printf("bands of shadow across the sheet: found %d of %d\n", found_here, tried);
 }
 
+// A square the mask splits (a lamp's hot spot or JPEG's colour leaves a
+// row of it under the threshold): its pieces are joined, and its centre is
+// the whole square's, not the larger piece's (a sixth of a side off).
+TEST(Detector, SquareSplitByAPaleRowKeepsItsCentre) {
+  double worst = 0;
+  int n = 0;
+  for (double dist : {0.8, 1.2})
+    for (double roll : {0.0, 25.0, 60.0})
+      for (int which : {0, 1, 3}) {  // TL, TR, AP
+        cv::Mat img = background(kCam.size, 51, true);
+        const Placed p = place(dist, 15, roll, 0.15, 0, 0);
+        drawSheet(img, kCam, p);
+        const Truth t = truthOf(kCam, p);
+        const cv::Point2d c = t.centres[which];
+        const cv::Point2d ex = (t.centres[1] - t.centres[0]) / 3, ey = (t.centres[2] - t.centres[0]) / 3;
+        // paper between TL and TR, and a row of it across the square, a
+        // quarter of a side below its centre
+        const cv::Vec3b paper = img.at<cv::Vec3b>(cv::Point((t.centres[0] + t.centres[1]) / 2));
+        const cv::Point2d a = c + 0.25 * ey - 0.7 * ex, b = c + 0.25 * ey + 0.7 * ex;
+        cv::line(img, a, b, cv::Scalar(paper[0], paper[1], paper[2]), 1, cv::LINE_8);
+        addNoise(img, 1.5, 3 + n);
+        ld::Detector det;
+        const auto& d = det.detect(img);
+        ASSERT_EQ(d.landmarks.size(), 1u) << dist << " m, roll " << roll << ", square " << which;
+        const auto& lm = d.landmarks[0];
+        const cv::Point2f got[4] = {lm.fip_tl, lm.fip_tr, lm.fip_bl, lm.ap};
+        const double err = cv::norm(cv::Point2d(got[which]) - c);
+        worst = std::max(worst, err);
+        ++n;
+        EXPECT_LT(err, 1.0) << dist << " m, roll " << roll << ", square " << which << ": " << got[which] << " vs " << c;
+      }
+  std::printf("squares split by a pale row: worst centre error %.2f px over %d\n", worst, n);
+}
+
 // Close up, at an angle, perspective moves the AP well off TR + BL - TL,
 // where a red thing just off the sheet can lie nearer: it is not taken for
 // the AP (the perspective prediction and, where both are in the gate, the

@@ -358,7 +358,8 @@ struct Detector::Impl {
   std::vector<std::vector<cv::Point>> contours;
   detail::RunScratch runs;
   std::vector<detail::Region> regions, fips, aps;
-  std::vector<uint8_t> adjacency, used;
+  std::vector<uint8_t> adjacency, used, taken_fips, taken_aps;
+  int looks_run = 0;  // this frame's looks so far (Region::pass)
   detail::RegionIndex ap_index;
   std::vector<std::array<int, 3>> cycles;
   std::vector<detail::Candidate> candidates, choices;
@@ -557,6 +558,7 @@ void Detector::Impl::complete(const cv::Mat& img, const cv::Mat& label_map) {
           detail::Region r;
           --budget;
           if (!detail::completeSquare(img, miss[conf], detail::kBlue, o1 - tl, o2 - tl, min_peak, r)) continue;
+          r.pass = -1;  // measured on the image, whole: no pieces to join
           fips.push_back(r);
           const int m = static_cast<int>(fips.size()) - 1;
           detail::Candidate c;
@@ -590,6 +592,7 @@ void Detector::Impl::complete(const cv::Mat& img, const cv::Mat& label_map) {
       if (!detail::completeSquare(img, pred, detail::kRed, cv::Point2d(a.cx, a.cy) - tl, cv::Point2d(b.cx, b.cy) - tl,
                                   min_peak, r))
         continue;
+      r.pass = -1;
       aps.push_back(r);
       detail::Candidate c;
       c.tl = cyc[corner], c.tr = cyc[(corner + 1) % 3], c.bl = cyc[(corner + 2) % 3];
@@ -876,6 +879,8 @@ void Detector::Impl::look(const cv::Rect& win, const cv::Mat& src, const cv::Mat
     }
   };
   if (!in_window) toFrame(regions);
+  ++looks_run;
+  for (auto& q : regions) q.pass = looks_run;
   classify();
   geometry(img, in_window ? look_labels : labels);
   if (in_window) {
@@ -1007,6 +1012,7 @@ void Detector::Impl::run(const cv::Mat& input) {
   det.landmarks.clear();
   det.stages.clear();
   det.total_ms = 0;
+  looks_run = 0;
   StageTimer timer(det.stages);
   last_img = last_src = nullptr;
   const cv::Mat* img = colourImage(input);
@@ -1048,10 +1054,19 @@ void Detector::Impl::run(const cv::Mat& input) {
   const bool pose = camera && side_m > 0;
   if (pose && scaled.size != img->size()) scaled = camera->scaledTo(img->size());
   const bool distorted = pose && scaled.hasDistortion();
+  taken_fips.assign(fips.size(), 0);
+  taken_aps.assign(aps.size(), 0);
   for (const auto& c : candidates) {
-    std::array<cv::Point2d, 4> centres{
-        cv::Point2d(fips[c.tl].cx, fips[c.tl].cy), cv::Point2d(fips[c.tr].cx, fips[c.tr].cy),
-        cv::Point2d(fips[c.bl].cx, fips[c.bl].cy), cv::Point2d(aps[c.ap].cx, aps[c.ap].cy)};
+    taken_fips[c.tl] = taken_fips[c.tr] = taken_fips[c.bl] = 1;
+    taken_aps[c.ap] = 1;
+  }
+  for (const auto& c : candidates) {
+    std::array<cv::Point2d, 4> centres;
+    const std::array<const detail::Region*, 4> squares{&fips[c.tl], &fips[c.tr], &fips[c.bl], &aps[c.ap]};
+    if (paper)  // (the paper's bounding rectangles are not pieces)
+      for (int i = 0; i < 4; ++i) centres[i] = {squares[i]->cx, squares[i]->cy};
+    else
+      detail::joinPieces(squares, fips, aps, taken_fips, taken_aps, centres);
     std::array<cv::Point2d, 4> corrected, corners;
     if (distorted) detail::undistortPixels(scaled, centres);
     if (!detail::fitCorners(centres, p.centre_iterations, corrected, corners)) continue;

@@ -126,6 +126,20 @@ constexpr double kBandSides = 0.85;
 // at 0.98 or more of its darker neighbour; such crossings of gaps at 0.88
 // or less).
 constexpr double kGapDip = 0.93;
+// A piece of a split square: its centre within this many units of the
+// square's centre, in the frame where the centres are 3 units apart and a
+// square spans half a unit each way, and the square and its pieces
+// together, by their moments, at most this many times as large as the
+// printed square there (the blur's pixel each side, at squares of 6 px).
+constexpr double kPieceReach = 0.75;
+constexpr double kPieceSpan = 1.3;
+// ... and a piece a tenth of the printed square or more (a square's edge
+// against a background of its colour leaves crumbs of a few pixels there).
+constexpr double kPieceMinArea = 0.1;
+// Squares smaller than this (pixels) are left whole: a row under the
+// threshold splits larger ones, and beside a few pixels' square a
+// background's crumbs of its colour pass for pieces.
+constexpr double kPieceMinSide = 8;
 
 // How much more of a hue than the sheet's a saturated landmark centre may
 // have (printed blue and red have about 1 more).
@@ -994,6 +1008,55 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   c.error += shape_err / tol + cover_err / 0.15;
   c.score = static_cast<float>(std::exp(-c.error));
   return true;
+}
+
+int joinPieces(const std::array<const Region*, 4>& squares, const std::vector<Region>& fips,
+               const std::vector<Region>& aps, const std::vector<uint8_t>& taken_fips,
+               const std::vector<uint8_t>& taken_aps, std::array<cv::Point2d, 4>& centres) {
+  // The frame of the centres: 3 units from one to the next, a square 1 unit
+  // across around its centre.
+  static const std::array<cv::Point2d, 4> kCentres = {cv::Point2d(0, 0), {3, 0}, {0, 3}, {3, 3}};
+  for (int i = 0; i < 4; ++i) centres[i] = {squares[i]->cx, squares[i]->cy};
+  cv::Matx33d to_sheet, to_image;
+  if (!homography4(centres, kCentres, to_sheet) || !homography4(kCentres, centres, to_image)) return 0;
+  int joined = 0;
+  for (int i = 0; i < 4; ++i) {
+    const Region& sq = *squares[i];
+    const std::vector<Region>& list = i == 3 ? aps : fips;
+    const std::vector<uint8_t>& taken = i == 3 ? taken_aps : taken_fips;
+    // the printed square's side here, pixels
+    const cv::Point2d k = kCentres[i];
+    const cv::Point2d dx = applyH(to_image, k + cv::Point2d(0.5, 0)) - applyH(to_image, k - cv::Point2d(0.5, 0));
+    const cv::Point2d dy = applyH(to_image, k + cv::Point2d(0, 0.5)) - applyH(to_image, k - cv::Point2d(0, 0.5));
+    const double printed = std::sqrt(std::abs(dx.x * dy.y - dx.y * dy.x));
+    if (printed < kPieceMinSide) {
+      centres[i] = {sq.cx, sq.cy};
+      continue;
+    }
+    // the union so far: area, centre, second central moments
+    double w = sq.area, x = sq.cx, y = sq.cy, sxx = sq.sxx, sxy = sq.sxy, syy = sq.syy;
+    for (size_t j = 0; j < list.size(); ++j) {
+      const Region& r = list[j];
+      if (&r == &sq || r.pass != sq.pass || (j < taken.size() && taken[j])) continue;
+      if (r.area < kPieceMinArea * printed * printed) continue;
+      // touching the square's box (the row between at most)
+      if (r.x0 > sq.x1 + 2 || r.x1 < sq.x0 - 2 || r.y0 > sq.y1 + 2 || r.y1 < sq.y0 - 2) continue;
+      const cv::Point2d q = applyH(to_sheet, {r.cx, r.cy}) - k;
+      if (!(std::abs(q.x) < kPieceReach && std::abs(q.y) < kPieceReach)) continue;
+      // and together no larger than a square (moments of the union)
+      const double w2 = w + r.area, x2 = (w * x + r.area * r.cx) / w2, y2 = (w * y + r.area * r.cy) / w2;
+      const double ax = x - x2, ay = y - y2, bx = r.cx - x2, by = r.cy - y2;
+      const double uxx = (w * (sxx + ax * ax) + r.area * (r.sxx + bx * bx)) / w2;
+      const double uxy = (w * (sxy + ax * ay) + r.area * (r.sxy + bx * by)) / w2;
+      const double uyy = (w * (syy + ay * ay) + r.area * (r.syy + by * by)) / w2;
+      const double side = std::sqrt(12.0 * std::sqrt(std::max(0.0, uxx * uyy - uxy * uxy)));
+      if (!(side <= kPieceSpan * printed)) continue;
+      w = w2, x = x2, y = y2, sxx = uxx, sxy = uxy, syy = uyy;
+      ++joined;
+    }
+    centres[i] = {x, y};
+  }
+  return joined;
 }
 
 double coverFraction(const cv::Mat& bgr, cv::Point2d a, uint8_t ca, cv::Point2d b, uint8_t cb, CoverProfile profile) {

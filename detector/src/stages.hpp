@@ -28,6 +28,7 @@ struct Region {
   double sxx = 0, sxy = 0, syy = 0;  ///< second central moments of the area (px^2)
   double sum_b = 0, sum_g = 0, sum_r = 0;  ///< channel sums the colour ratio is taken on
   double n_sum = 0;                  ///< pixels those sums are over
+  int pass = 0;                      ///< the labelling it came from: 0 the first pass, then each look's
   int width() const { return x1 - x0 + 1; }
   int height() const { return y1 - y0 + 1; }
   /// Side of the square this region would be (from the moments: sqrt(12) *
@@ -282,6 +283,20 @@ cv::Point2d applyH(const cv::Matx33d& H, const cv::Point2d& p);
 bool fitCorners(const std::array<cv::Point2d, 4>& centres, int iterations,
                 std::array<cv::Point2d, 4>& corrected_centres, std::array<cv::Point2d, 4>& corners,
                 cv::Matx33d* H_out = nullptr);
+
+/// 8. corners: the centres of a landmark's squares (TL, TR, BL, AP: the
+/// regions `squares`, FIPs of `fips` and the AP of `aps`) with the pieces
+/// of a square the mask split (a lamp's hot spot or JPEG's colour across
+/// it: a row of pixels under the threshold) joined to it: regions of its
+/// colour from the same labelling that no landmark takes (`taken_fips`,
+/// `taken_aps`), touching the square's box, of a tenth of the printed
+/// square or more, whose centres lie within the square's outline (in the
+/// frame of the four centres) and which together with it, by their
+/// moments, are no larger than the printed square and a pixel's blur; each
+/// centre the joined pieces' area-weighted centroid. How many were joined.
+int joinPieces(const std::array<const Region*, 4>& squares, const std::vector<Region>& fips,
+               const std::vector<Region>& aps, const std::vector<uint8_t>& taken_fips,
+               const std::vector<uint8_t>& taken_aps, std::array<cv::Point2d, 4>& centres);
 
 /// Pixel positions of a distorting camera to those of its ideal pinhole
 /// (same K), and back.

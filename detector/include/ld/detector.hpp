@@ -32,10 +32,12 @@
 //   7d. faint look (fast front end) windows around red squares no landmark
 //                  took, white-balanced by their own white, labelled again
 //                  and put through 4-7
-//   8. corners     the homography from the four square centres, each
-//                  corrected for the perspective shift of a projected square's
-//                  centroid, gives the pattern's outer corners (through the
-//                  undistorted image when the camera distorts)
+//   8. corners     the homography from the four square centres (a square
+//                  the mask split into pieces measured as the pieces
+//                  together), each corrected for the perspective shift of a
+//                  projected square's centroid, gives the pattern's outer
+//                  corners (through the undistorted image when the camera
+//                  distorts)
 //   9. pose        cv::solvePnP (IPPE square) when intrinsics and side are set
 //
 // Each stage is stamped by name into Detection::stages: "blur", "saturation",
