@@ -1208,7 +1208,7 @@ TEST(Detector, BandOfShadowAcrossTheSheet) {
 
 // A square the mask splits (a lamp's hot spot or JPEG's colour leaves a
 // row of it under the threshold): its pieces are joined, and its centre is
-// the whole square's, not the larger piece's (a sixth of a side off).
+// the whole square's, not the larger piece's (an eighth of a side off).
 TEST(Detector, SquareSplitByAPaleRowKeepsItsCentre) {
   double worst = 0;
   int n = 0;

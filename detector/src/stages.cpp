@@ -122,15 +122,17 @@ constexpr double kBandSides = 0.85;
 // of its sides falls in a gap, on the wall. Every side's middle sample
 // darker than both samples beside it by this ratio refuses the sheet (no
 // light, even, falling off or shaded, dips at all four middles: over the
-// random scenes of ld-eval's sweeps the brightest of the four middles stays
-// at 0.98 or more of its darker neighbour; such crossings of gaps at 0.88
-// or less).
+// random scenes of ld-eval's sweeps the largest of the four sides' ratios,
+// middle to darker neighbour, stays at 0.98 or more; at such crossings of
+// gaps it is 0.88 or less).
 constexpr double kGapDip = 0.93;
 // A piece of a split square: its centre within this many units of the
 // square's centre, in the frame where the centres are 3 units apart and a
-// square spans half a unit each way, and the square and its pieces
-// together, by their moments, at most this many times as large as the
-// printed square there (the blur's pixel each side, at squares of 6 px).
+// square spans half a unit each way (a piece's centre lies inside that
+// outline; the margin is for the square's own centre, a piece's, off by
+// the split), and the square and its pieces together, by their moments, at
+// most this many times as large as the printed square there (the blur's
+// pixel each side, at squares of 8 px).
 constexpr double kPieceReach = 0.75;
 constexpr double kPieceSpan = 1.3;
 // ... and a piece a tenth of the printed square or more (a square's edge
@@ -698,10 +700,11 @@ bool smoothLight(const std::array<cv::Point2d, 12>& at, const std::array<double,
 // twice), or two runs apart, as a band of shadow across the sheet makes (a
 // pole's or a cable's: it crosses the outline four times), with a sample
 // on the edge itself, between the two, allowed at either end of a run: the
-// runs' samples are shaded. (The darkest sample is never light, so a run
-// holds a dark one.) `runs`: how many (0 when even).
-bool sheetLight(const std::array<double, 12>& m, double uniformity, std::array<bool, 12>& shaded, int& runs) {
-  shaded.fill(false);
+// runs' samples are shaded, each run holding a dark one (not edge samples
+// alone: a lone grey sample is no band's). `runs`: how many (0 when even);
+// `run_of`: each sample's run (1 or 2; 0 light).
+bool sheetLight(const std::array<double, 12>& m, double uniformity, std::array<int, 12>& run_of, int& runs) {
+  run_of.fill(0);
   runs = 0;
   const auto [lo, hi] = std::minmax_element(m.begin(), m.end());
   if (*lo >= uniformity * *hi) return true;
@@ -713,12 +716,15 @@ bool sheetLight(const std::array<double, 12>& m, double uniformity, std::array<b
     if (part[j] == kLight || part[(j + 11) % 12] != kLight) continue;
     ++runs;
     int len = 0;
+    bool dark = false;
     while (part[(j + len) % 12] != kLight) ++len;
     for (int k = 0; k < len; ++k) {
       const int i = (j + k) % 12;
       if (part[i] == kEdge && k > 0 && k + 1 < len) return false;
-      shaded[i] = true;
+      dark |= part[i] == kDark;
+      run_of[i] = runs;
     }
+    if (!dark) return false;
   }
   return runs == 1 || runs == 2;
 }
@@ -737,23 +743,28 @@ bool crossOfGaps(const std::array<double, 12>& m) {
 // Check::kCount where it passes, else the check that refuses it.
 Check sheetLit(const std::array<double, 12>& means, const std::array<double, 12>& values, const double square_value[4],
                double fip_value, const DetectorParams& p) {
-  std::array<bool, 12> shaded;
+  std::array<int, 12> run_of;
   int runs = 0;
-  if (!sheetLight(means, p.sheet_uniformity, shaded, runs)) return Check::kSheetUneven;
+  if (!sheetLight(means, p.sheet_uniformity, run_of, runs)) return Check::kSheetUneven;
   if (runs == 0) {
     for (double v : values)
       if (v < p.sheet_min_value * fip_value) return Check::kSheetDark;
     return Check::kCount;
   }
   bool fip_in_shadow = false;
-  for (int i : {0, 1, 3}) {
+  bool run_holds_square[3] = {false, false, false};  // by run (1, 2)
+  for (int i : {0, 1, 2, 3}) {
     const int a = 3 * i, b = (3 * i + 11) % 12;  // its two nearest samples
-    fip_in_shadow |= shaded[a] && shaded[b];
-    const double paper = shaded[a] == shaded[b] ? std::min(values[a], values[b]) : std::max(values[a], values[b]);
+    if (run_of[a] && run_of[a] == run_of[b]) run_holds_square[run_of[a]] = true;
+    if (i == 2) continue;  // (the AP: no FIP's ink to hold the paper to)
+    fip_in_shadow |= run_of[a] && run_of[b];
+    const double paper = (run_of[a] != 0) == (run_of[b] != 0) ? std::min(values[a], values[b]) : std::max(values[a], values[b]);
     const double over = paper >= kClippedValue ? p.sheet_min_value : std::max(p.sheet_min_value, kShadedPaperOverInk);
     if (paper < over * square_value[i]) return Check::kSheetDark;
   }
-  if (fip_in_shadow) return Check::kCount;
+  // A shadow over a FIP; with two runs, each over a square (a band across
+  // two opposite corners).
+  if (fip_in_shadow && (runs == 1 || (run_holds_square[1] && run_holds_square[2]))) return Check::kCount;
   // A band between the squares, none of them in it: across the middle, two
   // opposite sides in it (verify then holds the QR to the band's paper).
   if (runs == 2) {
@@ -1024,6 +1035,7 @@ int joinPieces(const std::array<const Region*, 4>& squares, const std::vector<Re
     const Region& sq = *squares[i];
     const std::vector<Region>& list = i == 3 ? aps : fips;
     const std::vector<uint8_t>& taken = i == 3 ? taken_aps : taken_fips;
+    if (sq.pass < 0) continue;  // measured on the image, whole (the completion's)
     // the printed square's side here, pixels
     const cv::Point2d k = kCentres[i];
     const cv::Point2d dx = applyH(to_image, k + cv::Point2d(0.5, 0)) - applyH(to_image, k - cv::Point2d(0.5, 0));
@@ -1037,7 +1049,7 @@ int joinPieces(const std::array<const Region*, 4>& squares, const std::vector<Re
     double w = sq.area, x = sq.cx, y = sq.cy, sxx = sq.sxx, sxy = sq.sxy, syy = sq.syy;
     for (size_t j = 0; j < list.size(); ++j) {
       const Region& r = list[j];
-      if (&r == &sq || r.pass != sq.pass || (j < taken.size() && taken[j])) continue;
+      if (&r == &sq || r.pass != sq.pass || (j < taken.size() && taken[j])) continue;  // (pass >= 0 here)
       if (r.area < kPieceMinArea * printed * printed) continue;
       // touching the square's box (the row between at most)
       if (r.x0 > sq.x1 + 2 || r.x1 < sq.x0 - 2 || r.y0 > sq.y1 + 2 || r.y1 < sq.y0 - 2) continue;

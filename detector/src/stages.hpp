@@ -290,8 +290,8 @@ bool fitCorners(const std::array<cv::Point2d, 4>& centres, int iterations,
 /// it: a row of pixels under the threshold) joined to it: regions of its
 /// colour from the same labelling that no landmark takes (`taken_fips`,
 /// `taken_aps`), touching the square's box, of a tenth of the printed
-/// square or more, whose centres lie within the square's outline (in the
-/// frame of the four centres) and which together with it, by their
+/// square or more, whose centres lie within 0.75 of its side of its centre
+/// (in the frame of the four centres) and which together with it, by their
 /// moments, are no larger than the printed square and a pixel's blur; each
 /// centre the joined pieces' area-weighted centroid. How many were joined.
 int joinPieces(const std::array<const Region*, 4>& squares, const std::vector<Region>& fips,
