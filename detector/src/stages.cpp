@@ -772,6 +772,17 @@ Check sheetLit(const std::array<double, 12>& means, const std::array<double, 12>
     for (int i = 0; i < 4; ++i) side[i] = (means[3 * i] + means[3 * i + 1] + means[3 * i + 2]) / 3;
     for (int a : {0, 1})
       if (std::max(side[a], side[a + 2]) < kBandSides * std::min(side[a + 1], side[(a + 3) % 4])) return Check::kCount;
+    // ... or at a slant, crossing two opposite sides near their ends: each
+    // run within one side, the two sides opposite.
+    int side_of[3] = {-1, -1, -1};
+    bool within[3] = {true, true, true};
+    for (int j = 0; j < 12; ++j) {
+      const int r = run_of[j];
+      if (!r) continue;
+      if (side_of[r] < 0) side_of[r] = j / 3;
+      within[r] &= side_of[r] == j / 3;
+    }
+    if (within[1] && within[2] && side_of[1] >= 0 && side_of[2] == (side_of[1] + 2) % 4) return Check::kCount;
   }
   return Check::kSheetUneven;
 }
