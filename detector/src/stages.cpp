@@ -772,8 +772,11 @@ Check sheetLit(const std::array<double, 12>& means, const std::array<double, 12>
     for (int i = 0; i < 4; ++i) side[i] = (means[3 * i] + means[3 * i + 1] + means[3 * i + 2]) / 3;
     for (int a : {0, 1})
       if (std::max(side[a], side[a + 2]) < kBandSides * std::min(side[a + 1], side[(a + 3) % 4])) return Check::kCount;
-    // ... or at a slant, crossing two opposite sides near their ends: each
-    // run within one side, the two sides opposite.
+    // ... or at a slant through the middle, crossing two opposite sides
+    // near their ends: each run within one side, the two sides opposite,
+    // the runs where the band's straight course through the middle puts
+    // them (each the other turned by half a turn about the middle: a
+    // pattern's dark cells, a QR's modules, fall anywhere).
     int side_of[3] = {-1, -1, -1};
     bool within[3] = {true, true, true};
     for (int j = 0; j < 12; ++j) {
@@ -782,7 +785,9 @@ Check sheetLit(const std::array<double, 12>& means, const std::array<double, 12>
       if (side_of[r] < 0) side_of[r] = j / 3;
       within[r] &= side_of[r] == j / 3;
     }
-    if (within[1] && within[2] && side_of[1] >= 0 && side_of[2] == (side_of[1] + 2) % 4) return Check::kCount;
+    bool symmetric = true;  // through the middle: each run the other turned by half a turn
+    for (int j = 0; j < 12; ++j) symmetric &= (run_of[j] != 0) == (run_of[(j + 6) % 12] != 0);
+    if (within[1] && within[2] && symmetric && side_of[2] == (side_of[1] + 2) % 4) return Check::kCount;
   }
   return Check::kSheetUneven;
 }
