@@ -358,7 +358,7 @@ struct Detector::Impl {
   std::vector<std::vector<cv::Point>> contours;
   detail::RunScratch runs;
   std::vector<detail::Region> regions, fips, aps;
-  std::vector<uint8_t> adjacency, used, taken_fips, taken_aps;
+  std::vector<uint8_t> adjacency, used;
   int looks_run = 0;  // this frame's looks so far (Region::pass)
   detail::RegionIndex ap_index;
   std::vector<std::array<int, 3>> cycles;
@@ -1054,19 +1054,14 @@ void Detector::Impl::run(const cv::Mat& input) {
   const bool pose = camera && side_m > 0;
   if (pose && scaled.size != img->size()) scaled = camera->scaledTo(img->size());
   const bool distorted = pose && scaled.hasDistortion();
-  taken_fips.assign(fips.size(), 0);
-  taken_aps.assign(aps.size(), 0);
-  for (const auto& c : candidates) {
-    taken_fips[c.tl] = taken_fips[c.tr] = taken_fips[c.bl] = 1;
-    taken_aps[c.ap] = 1;
-  }
+  markUsed();
   for (const auto& c : candidates) {
     std::array<cv::Point2d, 4> centres;
     const std::array<const detail::Region*, 4> squares{&fips[c.tl], &fips[c.tr], &fips[c.bl], &aps[c.ap]};
     if (paper)  // (the paper's bounding rectangles are not pieces)
       for (int i = 0; i < 4; ++i) centres[i] = {squares[i]->cx, squares[i]->cy};
     else
-      detail::joinPieces(squares, fips, aps, taken_fips, taken_aps, centres);
+      detail::joinPieces(squares, fips, aps, used, centres);
     std::array<cv::Point2d, 4> corrected, corners;
     if (distorted) detail::undistortPixels(scaled, centres);
     if (!detail::fitCorners(centres, p.centre_iterations, corrected, corners)) continue;

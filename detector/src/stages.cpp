@@ -729,6 +729,17 @@ bool sheetLight(const std::array<double, 12>& m, double uniformity, std::array<i
   return runs == 1 || runs == 2;
 }
 
+// The sheet's side means `side` from its samples' means (side i: samples
+// 3i..3i+2), and the pair of opposite sides (0: sides 0 and 2, 1: sides 1
+// and 3) both darker than both of the other pair by kBandSides: a band
+// across the sheet. -1 when none is.
+int bandPair(const std::array<double, 12>& means, std::array<double, 4>& side) {
+  for (int i = 0; i < 4; ++i) side[i] = (means[3 * i] + means[3 * i + 1] + means[3 * i + 2]) / 3;
+  for (int a : {0, 1})
+    if (std::max(side[a], side[a + 2]) < kBandSides * std::min(side[a + 1], side[(a + 3) % 4])) return a;
+  return -1;
+}
+
 // The samples `m` (in order around the sheet) dip in the middle of every
 // side: the crossing of the gaps between four sheets (kGapDip).
 bool crossOfGaps(const std::array<double, 12>& m) {
@@ -768,10 +779,8 @@ Check sheetLit(const std::array<double, 12>& means, const std::array<double, 12>
   // A band between the squares, none of them in it: across the middle, two
   // opposite sides in it (verify then holds the QR to the band's paper).
   if (runs == 2) {
-    double side[4];
-    for (int i = 0; i < 4; ++i) side[i] = (means[3 * i] + means[3 * i + 1] + means[3 * i + 2]) / 3;
-    for (int a : {0, 1})
-      if (std::max(side[a], side[a + 2]) < kBandSides * std::min(side[a + 1], side[(a + 3) % 4])) return Check::kCount;
+    std::array<double, 4> side;
+    if (bandPair(means, side) >= 0) return Check::kCount;
     // ... or at a slant through the middle, crossing two opposite sides
     // near their ends: each run within one side, the two sides opposite,
     // the runs where the band's straight course through the middle puts
@@ -934,14 +943,9 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
     // degrees, whose "sheet" is the two sheets' margins and the wall seen
     // through the gap between them, and whose "QR" is that same wall.
     if (!clipped) {
-      double side[4];
-      for (int i = 0; i < 4; ++i) side[i] = (means[3 * i] + means[3 * i + 1] + means[3 * i + 2]) / 3;
-      for (int a : {0, 1}) {
-        const int b = a + 1;
-        const double band = std::max(side[a], side[a + 2]), rest = std::min(side[b], side[(b + 2) % 4]);
-        if (band < kBandSides * rest && qr_mean > p.qr_max_brightness * (side[a] + side[a + 2]) / 2)
-          return fail(Check::kNoQr);
-      }
+      std::array<double, 4> side;
+      const int a = bandPair(means, side);
+      if (a >= 0 && qr_mean > p.qr_max_brightness * (side[a] + side[a + 2]) / 2) return fail(Check::kNoQr);
     }
   }
   const cv::Point2d ctr = (P[0] + P[1] + P[2] + P[3]) * 0.25;
@@ -1037,35 +1041,30 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   return true;
 }
 
-int joinPieces(const std::array<const Region*, 4>& squares, const std::vector<Region>& fips,
-               const std::vector<Region>& aps, const std::vector<uint8_t>& taken_fips,
-               const std::vector<uint8_t>& taken_aps, std::array<cv::Point2d, 4>& centres) {
+void joinPieces(const std::array<const Region*, 4>& squares, const std::vector<Region>& fips,
+                const std::vector<Region>& aps, const std::vector<uint8_t>& used, std::array<cv::Point2d, 4>& centres) {
   // The frame of the centres: 3 units from one to the next, a square 1 unit
   // across around its centre.
   static const std::array<cv::Point2d, 4> kCentres = {cv::Point2d(0, 0), {3, 0}, {0, 3}, {3, 3}};
   for (int i = 0; i < 4; ++i) centres[i] = {squares[i]->cx, squares[i]->cy};
   cv::Matx33d to_sheet, to_image;
-  if (!homography4(centres, kCentres, to_sheet) || !homography4(kCentres, centres, to_image)) return 0;
-  int joined = 0;
+  if (!homography4(centres, kCentres, to_sheet) || !homography4(kCentres, centres, to_image)) return;
   for (int i = 0; i < 4; ++i) {
     const Region& sq = *squares[i];
     const std::vector<Region>& list = i == 3 ? aps : fips;
-    const std::vector<uint8_t>& taken = i == 3 ? taken_aps : taken_fips;
+    const size_t first = i == 3 ? fips.size() : 0;  // the list's first in `used`
     if (sq.pass < 0) continue;  // measured on the image, whole (the completion's)
     // the printed square's side here, pixels
     const cv::Point2d k = kCentres[i];
     const cv::Point2d dx = applyH(to_image, k + cv::Point2d(0.5, 0)) - applyH(to_image, k - cv::Point2d(0.5, 0));
     const cv::Point2d dy = applyH(to_image, k + cv::Point2d(0, 0.5)) - applyH(to_image, k - cv::Point2d(0, 0.5));
     const double printed = std::sqrt(std::abs(dx.x * dy.y - dx.y * dy.x));
-    if (printed < kPieceMinSide) {
-      centres[i] = {sq.cx, sq.cy};
-      continue;
-    }
+    if (printed < kPieceMinSide) continue;
     // the union so far: area, centre, second central moments
     double w = sq.area, x = sq.cx, y = sq.cy, sxx = sq.sxx, sxy = sq.sxy, syy = sq.syy;
     for (size_t j = 0; j < list.size(); ++j) {
       const Region& r = list[j];
-      if (&r == &sq || r.pass != sq.pass || (j < taken.size() && taken[j])) continue;  // (pass >= 0 here)
+      if (&r == &sq || r.pass != sq.pass || (first + j < used.size() && used[first + j])) continue;  // (pass >= 0 here)
       if (r.area < kPieceMinArea * printed * printed) continue;
       // touching the square's box (the row between at most)
       if (r.x0 > sq.x1 + 2 || r.x1 < sq.x0 - 2 || r.y0 > sq.y1 + 2 || r.y1 < sq.y0 - 2) continue;
@@ -1080,11 +1079,9 @@ int joinPieces(const std::array<const Region*, 4>& squares, const std::vector<Re
       const double side = std::sqrt(12.0 * std::sqrt(std::max(0.0, uxx * uyy - uxy * uxy)));
       if (!(side <= kPieceSpan * printed)) continue;
       w = w2, x = x2, y = y2, sxx = uxx, sxy = uxy, syy = uyy;
-      ++joined;
     }
     centres[i] = {x, y};
   }
-  return joined;
 }
 
 double coverFraction(const cv::Mat& bgr, cv::Point2d a, uint8_t ca, cv::Point2d b, uint8_t cb, CoverProfile profile) {

@@ -288,15 +288,14 @@ bool fitCorners(const std::array<cv::Point2d, 4>& centres, int iterations,
 /// regions `squares`, FIPs of `fips` and the AP of `aps`) with the pieces
 /// of a square the mask split (a lamp's hot spot or JPEG's colour across
 /// it: a row of pixels under the threshold) joined to it: regions of its
-/// colour from the same labelling that no landmark takes (`taken_fips`,
-/// `taken_aps`), touching the square's box, of a tenth of the printed
+/// colour from the same labelling that no landmark takes (`used`: the
+/// FIPs', then the APs' after fips.size()), touching the square's box, of a tenth of the printed
 /// square or more, whose centres lie within 0.75 of its side of its centre
 /// (in the frame of the four centres) and which together with it, by their
 /// moments, are no larger than the printed square and a pixel's blur; each
-/// centre the joined pieces' area-weighted centroid. How many were joined.
-int joinPieces(const std::array<const Region*, 4>& squares, const std::vector<Region>& fips,
-               const std::vector<Region>& aps, const std::vector<uint8_t>& taken_fips,
-               const std::vector<uint8_t>& taken_aps, std::array<cv::Point2d, 4>& centres);
+/// centre the joined pieces' area-weighted centroid.
+void joinPieces(const std::array<const Region*, 4>& squares, const std::vector<Region>& fips,
+                const std::vector<Region>& aps, const std::vector<uint8_t>& used, std::array<cv::Point2d, 4>& centres);
 
 /// Pixel positions of a distorting camera to those of its ideal pinhole
 /// (same K), and back.
