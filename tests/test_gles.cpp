@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
 #include <sstream>
 
@@ -287,6 +288,50 @@ TEST(GlesParity, SameLandmarks) {
       EXPECT_EQ(gpu.backendInfo().find("the faster on the first frames"), std::string::npos) << gpu.backendInfo();
     }
     EXPECT_GE(found, static_cast<int>(frames.size()) / 2) << fe;
+  }
+}
+
+// "auto" with a GPU (here any renderer, LD_GLES_AUTO_SOFTWARE) times the
+// GPU's filters against the CPU's on the first frames, in turn, then keeps
+// the one its own medians say is faster. The landmarks are the CPU's on every
+// frame, before, during and after the choice; backend() names what ran each
+// frame (the GPU's frames have an upload stage, the CPU's none).
+TEST(GlesAuto, TimesBothThenKeepsTheFasterWithTheSameLandmarks) {
+  ScopedEnv soft("LD_GLES_AUTO_SOFTWARE", "1");
+  const auto frames = scenes(6, 16);
+  for (const char* fe : {"fast", "paper"}) {
+    ld::DetectorParams p = std::string(fe) == "paper" ? ld::DetectorParams::paper() : ld::DetectorParams{};
+    ld::Detector cpu(p);
+    p.backend = "auto";
+    ld::Detector a(p);
+    ASSERT_STREQ(a.backend(), "gles") << a.backendInfo();
+    EXPECT_NE(a.backendInfo().find("timing it against the CPU"), std::string::npos) << a.backendInfo();
+    std::map<std::string, int> ran_during, ran_after;
+    const int n = 40;  // the paper front end: 10 frames for its shader path, then 2 + 16 for the choice
+    for (int i = 0; i < n; ++i) {
+      const auto& f = frames[static_cast<size_t>(i) % frames.size()];
+      const ld::Detection c = cpu.detect(f.bgr);
+      const ld::Detection& d = a.detect(f.bgr);
+      const std::string what = std::string(fe) + " frame " + std::to_string(i);
+      expectSameLandmarks(c, d, 0.5, what);
+      const std::string b = a.backend();
+      EXPECT_EQ(d.stageMs("upload") > 0, b == "gles") << what << ": " << b;
+      (i < 28 ? ran_during : ran_after)[b]++;
+    }
+    EXPECT_GT(ran_during["cpu"], 0) << fe;
+    EXPECT_GT(ran_during["gles"], 0) << fe;
+    ASSERT_EQ(ran_after.size(), 1u) << fe << ": the backend still changes after the choice";
+    const std::string chosen = ran_after.begin()->first;
+    const std::string info = a.backendInfo();
+    std::printf("%s: %s -> %s\n", fe, info.c_str(), chosen.c_str());
+    EXPECT_EQ(info.find("timing it"), std::string::npos) << info;
+    // the choice agrees with the medians it reports
+    const size_t took = info.find("took "), against = info.find("against ");
+    ASSERT_NE(took, std::string::npos) << info;
+    ASSERT_NE(against, std::string::npos) << info;
+    const double gpu_ms = std::stod(info.substr(took + 5)), cpu_ms = std::stod(info.substr(against + 8));
+    EXPECT_EQ(chosen, cpu_ms <= gpu_ms ? "cpu" : "gles") << info;
+    EXPECT_NE(info.find(chosen == "cpu" ? "auto chose the CPU" : "auto chose the GPU"), std::string::npos) << info;
   }
 }
 

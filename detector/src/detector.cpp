@@ -7,6 +7,9 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <functional>
 #include <iostream>
 #include <stdexcept>
@@ -348,6 +351,18 @@ struct Detector::Impl {
   detail::FilterSettings filter_settings;
   std::unique_ptr<detail::Filters> filters;
   std::string fallback_why;  // why the CPU runs where the GPU was asked for
+  // Backend "auto" with a GPU: while `rival` (the CPU's filters) is held,
+  // frames run the GPU's filters and the CPU's in turn, each timed with its
+  // transfers (both give the same labels and edges, so the landmarks do not
+  // change); after a warm-up of each and kChoiceTrials timed frames of each,
+  // the one with the smaller median stays for good.
+  static constexpr int kChoiceTrials = 8;
+  std::unique_ptr<detail::Filters> rival;
+  cv::Mat rival_labels, rival_edges;  // the CPU's outputs while it is the rival
+  int trial = 0;
+  std::vector<double> gpu_ms, cpu_ms;
+  std::string choice;          // what the choice measured, once made
+  const char* ran = nullptr;   // the backend of the last frame's filters
 
   std::optional<CameraModel> camera;  // as given
   CameraModel scaled;                 // for the current frame size
@@ -389,21 +404,71 @@ struct Detector::Impl {
     if (params.backend != "cpu") {
       std::string why;
       // "auto" takes a GPU, not a software renderer emulating one on the CPU
-      filters = detail::makeGlesFilters(why, true, params.backend == "auto");
+      // (LD_GLES_AUTO_SOFTWARE: "auto" takes a software renderer too, and
+      // times it against the CPU like a GPU; for tests)
+      const char* soft = std::getenv("LD_GLES_AUTO_SOFTWARE");
+      const bool any_renderer = soft && *soft && std::strcmp(soft, "0") != 0;
+      filters = detail::makeGlesFilters(why, true, params.backend == "auto" && !any_renderer);
       if (!filters) {
         if (params.backend == "gles")
           throw std::runtime_error("GLES backend unavailable: " + why + " (backend \"auto\" falls back to the CPU)");
         fallback_why = why;
         warnBackend("GLES backend unavailable (" + why + "); running the CPU backend");
+      } else if (params.backend == "auto") {
+        rival = detail::makeCpuFilters();
       }
     }
     if (!filters) filters = detail::makeCpuFilters();
   }
 
+  // Stages 1-3, with "auto"'s choice between the GPU and the CPU on the
+  // first frames (once the GPU's own shader path is chosen).
+  const cv::Mat* runFilters(const cv::Mat& img, StageTimer& timer) {
+    if (!rival || !filters->settled(paper)) return runBackend(img, timer);
+    const bool on_cpu = trial % 2 == 1;
+    const auto t0 = StageTimer::Clock::now();
+    const cv::Mat* filtered = &img;
+    if (on_cpu) {
+      if (!paper) rival->labelMap(img, filter_settings, rival_labels, filtered, timer);
+      else rival->edgeMap(img, filter_settings, rival_edges, timer);
+      labels = rival_labels, edges = rival_edges;
+      ran = rival->name();
+    } else {
+      filtered = runBackend(img, timer);
+      if (!rival) return filtered;  // the GPU failed: the CPU runs from now on
+    }
+    const double ms = std::chrono::duration<double, std::milli>(StageTimer::Clock::now() - t0).count();
+    if (trial >= 2) (on_cpu ? cpu_ms : gpu_ms).push_back(ms);
+    if (++trial == 2 + 2 * kChoiceTrials) choose();
+    return filtered;
+  }
+
+  void choose() {
+    auto median = [](std::vector<double> v) {
+      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+      return v[v.size() / 2];
+    };
+    const double gpu = median(gpu_ms), cpu = median(cpu_ms);
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "the filters took %.3f ms on the GPU, transfers included, against %.3f ms on the CPU (medians of %d frames each)",
+                  gpu, cpu, kChoiceTrials);
+    if (cpu <= gpu) {
+      fallback_why = "auto chose the CPU: " + filters->info(paper) + ": " + buf;
+      if (ran == filters->name()) labels = labels.clone(), edges = edges.clone();  // (not views of the GPU's buffers)
+      filters = std::move(rival);
+      ran = filters->name();
+    } else {
+      choice = std::string("auto chose the GPU: ") + buf;
+    }
+    rival.reset();
+    rival_labels.release(), rival_edges.release();
+  }
+
   // Stages 1-3 on the backend's filters; a GPU failing mid-run is dropped for
   // the CPU, and the frame done again there.
-  const cv::Mat* runFilters(const cv::Mat& img, StageTimer& timer) {
+  const cv::Mat* runBackend(const cv::Mat& img, StageTimer& timer) {
     const cv::Mat* filtered = &img;
+    ran = filters->name();
     try {
       if (!paper) filters->labelMap(img, filter_settings, labels, filtered, timer);
       else filters->edgeMap(img, filter_settings, edges, timer);
@@ -412,6 +477,8 @@ struct Detector::Impl {
       fallback_why = e.what();
       warnBackend(std::string("GLES backend failed (") + e.what() + "); running the CPU backend from now on");
       filters = detail::makeCpuFilters();
+      rival.reset();
+      ran = filters->name();
     }
     labels.release();  // may be a view of the GPU backend's buffer
     if (!paper) filters->labelMap(img, filter_settings, labels, filtered, timer);
@@ -1119,10 +1186,12 @@ const Detection& Detector::detect(const cv::Mat& bgr, Explanation& why) {
 
 const DetectorParams& Detector::params() const { return impl_->params; }
 
-const char* Detector::backend() const { return impl_->filters->name(); }
+const char* Detector::backend() const { return impl_->ran ? impl_->ran : impl_->filters->name(); }
 
 std::string Detector::backendInfo() const {
   std::string s = impl_->filters->info(impl_->paper);
+  if (impl_->rival) s += "; auto: timing it against the CPU on the first frames";
+  if (!impl_->choice.empty()) s += "; " + impl_->choice;
   if (!impl_->fallback_why.empty()) s += " (GLES not used: " + impl_->fallback_why + ")";
   return s;
 }

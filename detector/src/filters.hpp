@@ -75,6 +75,11 @@ class Filters {
   /// the HSV saturation (cut to zero below the threshold) of the blurred
   /// image. Stamps its stages.
   virtual void edgeMap(const cv::Mat& bgr, const FilterSettings& s, cv::Mat& edges, StageTimer& timer) = 0;
+
+  /// False while the backend is still trying its own ways of doing a front
+  /// end's filters on the first frames (the GLES paper front end's shader
+  /// paths), so its times are not yet its settled ones.
+  virtual bool settled(bool /*paper_front_end*/) const { return true; }
 };
 
 /// The CPU backend (OpenCV and the vectorised pass of stages.cpp).

@@ -597,6 +597,8 @@ class GlesFilters final : public Filters {
 
   const char* name() const override { return "gles"; }
 
+  bool settled(bool paper) const override { return !paper || path_ != Path::Measure; }
+
   std::string info(bool paper) const override {
     const auto& i = ctx_->info();
     std::string path = !paper                   ? "fragment shaders"

@@ -87,15 +87,20 @@ struct DetectorParams {
   /// Where the per-pixel filters run. "cpu" (default); "gles": OpenGL ES
   /// shaders on a headless EGL context, a software renderer (Mesa's
   /// llvmpipe) included (the Detector's constructor throws
-  /// std::runtime_error when none can be made); "auto": the GPU when an EGL
-  /// context on a GPU can be made, else (no EGL, or only a software
-  /// renderer, which is slower than the CPU backend) the CPU with one
-  /// warning on stderr per process. A GPU that fails later, mid-run, is dropped for the CPU with
-  /// one warning, whichever was asked for. The environment variable
-  /// LD_EGL_FORCE_FAIL=1 makes every EGL context fail (fallback tests), and
+  /// std::runtime_error when none can be made); "auto": where an EGL
+  /// context on a GPU can be made, the GPU and the CPU in turn on the first
+  /// frames (after the GPU's own choice of shader path), each timed with
+  /// its transfers over 8 frames after a warm-up, then for good the one
+  /// with the smaller median (the landmarks are the same either way); else
+  /// (no EGL, or only a software renderer, which is slower than the CPU
+  /// backend) the CPU with one warning on stderr per process. A GPU that
+  /// fails later, mid-run, is dropped for the CPU with one warning,
+  /// whichever was asked for. The environment variable LD_EGL_FORCE_FAIL=1
+  /// makes every EGL context fail (fallback tests),
   /// LD_EGL_PLATFORM=device|surfaceless|gbm restricts the EGL platform
   /// tried; LD_GLES_COMPUTE=0 or 1 keeps the paper front end off or on
-  /// compute shaders instead of measuring which is faster.
+  /// compute shaders instead of measuring which is faster;
+  /// LD_GLES_AUTO_SOFTWARE=1 lets "auto" time a software renderer too (tests).
   std::string backend = "cpu";
 
   // 1. blur
@@ -346,7 +351,8 @@ class Detector {
 
   const DetectorParams& params() const;
 
-  /// The backend that runs now: "cpu" or "gles" (with "auto", what it chose;
+  /// The backend whose filters ran the last frame: "cpu" or "gles" (with
+  /// "auto", both in turn on the first frames, then what it chose;
   /// "cpu" after a GPU failure).
   const char* backend() const;
   /// One line on it: the GPU, its driver and EGL platform; for the CPU after
