@@ -5,7 +5,8 @@
 # with its utime and seq, most with landmarks; a malformed IMAGE message is
 # reported and does not stop the process. An optional third argument is the
 # detector's --backend (cpu by default; gles: the GPU backend, on llvmpipe
-# where there is no GPU).
+# where there is no GPU; auto: with LD_GLES_AUTO_SOFTWARE=1 and -v, the
+# timed choice between the two, which -v reports once made).
 set -euo pipefail
 BIN=$1; ROOT=$2; BACKEND=${3:-cpu}
 T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
@@ -19,7 +20,9 @@ FRAMES=30
   URL="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608"
   lcm-logger --lcm-url="$URL" -c LANDMARKS -f "$T/out.lcmlog" >/dev/null 2>&1 &
   logger=$!
-  "$BIN/ld-detector" --lcm-url "$URL" --backend "$BACKEND" --explain 0.5 2> "$T/detector.err" &
+  VERBOSE=()
+  if [ "$BACKEND" = auto ]; then export LD_GLES_AUTO_SOFTWARE=1; VERBOSE=(-v); fi
+  "$BIN/ld-detector" --lcm-url "$URL" --backend "$BACKEND" --explain 0.5 "${VERBOSE[@]}" 2> "$T/detector.err" &
   det=$!
   sleep 1
   "$BIN/ld-publish-garbage" --lcm-url "$URL" --channel IMAGE
@@ -42,8 +45,18 @@ diff "$T/in.keys" "$T/out.keys"                      # each frame once, same uti
 [ "$(grep -c "^ld-detector: frame [0-9]* (utime [0-9]*): [0-9]* landmarks\?$" "$T/detector.err")" -ge 2 ]
 grep -q "^  regions: [0-9]* blue, [0-9]* red (min_area_px" "$T/detector.err"
 grep -q "^  FIP graph (d_min" "$T/detector.err"
-[ "$(jq -r .backend "$T/out.jsonl" | sort -u)" = "$BACKEND" ]
 [ "$(jq -r '.stage_ms | has("saturation")' "$T/out.jsonl" | sort -u)" = true ]
+if [ "$BACKEND" = auto ]; then
+  # both in turn while timing, then the chosen one, reported once by -v;
+  # each message names what ran its frame (the GPU's have an upload stage)
+  [ "$(jq -r .backend "$T/out.jsonl" | sort -u | tr '\n' ' ')" = "cpu gles " ]
+  [ "$(jq -r 'select((.backend == "gles") != (.stage_ms | has("upload")))' "$T/out.jsonl" | wc -l)" = 0 ]
+  [ "$(grep -c "^ld-detector: backend .*auto chose the" "$T/detector.err")" = 1 ]
+  if grep -q "auto chose the CPU" "$T/detector.err"; then chosen=cpu; else chosen=gles; fi
+  [ "$(jq -r .backend "$T/out.jsonl" | tail -n 5 | sort -u)" = "$chosen" ]
+else
+  [ "$(jq -r .backend "$T/out.jsonl" | sort -u)" = "$BACKEND" ]
+fi
 if [ "$BACKEND" = gles ]; then
   [ "$(jq -r '.stage_ms | has("upload") and has("readback")' "$T/out.jsonl" | sort -u)" = true ]
 fi
