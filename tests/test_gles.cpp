@@ -292,47 +292,100 @@ TEST(GlesParity, SameLandmarks) {
 }
 
 // "auto" with a GPU (here any renderer, LD_GLES_AUTO_SOFTWARE) times the
-// GPU's filters against the CPU's on the first frames, in turn, then keeps
-// the one its own medians say is faster. The landmarks are the CPU's on every
-// frame, before, during and after the choice; backend() names what ran each
-// frame (the GPU's frames have an upload stage, the CPU's none).
+// GPU's filters against the CPU's on the first frames, in blocks, then keeps
+// the one its own medians say is faster (or, with LD_GLES_AUTO_FORCE, the
+// one forced, so that both outcomes run on any machine). The landmarks are
+// the CPU detector's on every frame, before, during and after the choice;
+// backend() names what ran each frame (the GPU's frames have an upload
+// stage, the CPU's none). The fast front end also with a blur: its filtered
+// image is then the backend's own, and must outlive the choice.
 TEST(GlesAuto, TimesBothThenKeepsTheFasterWithTheSameLandmarks) {
   ScopedEnv soft("LD_GLES_AUTO_SOFTWARE", "1");
   const auto frames = scenes(6, 16);
-  for (const char* fe : {"fast", "paper"}) {
-    ld::DetectorParams p = std::string(fe) == "paper" ? ld::DetectorParams::paper() : ld::DetectorParams{};
+  struct Case {
+    const char* fe;
+    int blur;
+    const char* force;
+  };
+  for (const Case& k : {Case{"fast", 0, ""}, Case{"paper", 0, ""}, Case{"fast", 5, "gles"}, Case{"fast", 5, "cpu"},
+                        Case{"paper", 0, "gles"}}) {
+    ScopedEnv force("LD_GLES_AUTO_FORCE", k.force);
+    ld::DetectorParams p = std::string(k.fe) == "paper" ? ld::DetectorParams::paper() : ld::DetectorParams{};
+    if (k.blur) p.blur_kernel = k.blur;
     ld::Detector cpu(p);
     p.backend = "auto";
     ld::Detector a(p);
+    const std::string name = std::string(k.fe) + (k.blur ? " blur" : "") + (*k.force ? " forced " : "") + k.force;
     ASSERT_STREQ(a.backend(), "gles") << a.backendInfo();
+    EXPECT_TRUE(a.choosingBackend()) << name;
     EXPECT_NE(a.backendInfo().find("timing it against the CPU"), std::string::npos) << a.backendInfo();
     std::map<std::string, int> ran_during, ran_after;
-    const int n = 40;  // the paper front end: 10 frames for its shader path, then 2 + 16 for the choice
+    const int n = 50;  // the paper front end: 10 frames for its shader path, then 24 for the choice
     for (int i = 0; i < n; ++i) {
       const auto& f = frames[static_cast<size_t>(i) % frames.size()];
+      const bool choosing = a.choosingBackend();
       const ld::Detection c = cpu.detect(f.bgr);
       const ld::Detection& d = a.detect(f.bgr);
-      const std::string what = std::string(fe) + " frame " + std::to_string(i);
+      const std::string what = name + " frame " + std::to_string(i);
       expectSameLandmarks(c, d, 0.5, what);
       const std::string b = a.backend();
       EXPECT_EQ(d.stageMs("upload") > 0, b == "gles") << what << ": " << b;
-      (i < 28 ? ran_during : ran_after)[b]++;
+      (choosing ? ran_during : ran_after)[b]++;
     }
-    EXPECT_GT(ran_during["cpu"], 0) << fe;
-    EXPECT_GT(ran_during["gles"], 0) << fe;
-    ASSERT_EQ(ran_after.size(), 1u) << fe << ": the backend still changes after the choice";
+    EXPECT_FALSE(a.choosingBackend()) << name;
+    EXPECT_GT(ran_during["cpu"], 0) << name;
+    EXPECT_GT(ran_during["gles"], 0) << name;
+    ASSERT_EQ(ran_after.size(), 1u) << name << ": the backend still changes after the choice";
+    EXPECT_GE(ran_after.begin()->second, 10) << name;
     const std::string chosen = ran_after.begin()->first;
     const std::string info = a.backendInfo();
-    std::printf("%s: %s -> %s\n", fe, info.c_str(), chosen.c_str());
+    std::printf("%s: %s -> %s\n", name.c_str(), info.c_str(), chosen.c_str());
     EXPECT_EQ(info.find("timing it"), std::string::npos) << info;
-    // the choice agrees with the medians it reports
-    const size_t took = info.find("took "), against = info.find("against ");
-    ASSERT_NE(took, std::string::npos) << info;
-    ASSERT_NE(against, std::string::npos) << info;
-    const double gpu_ms = std::stod(info.substr(took + 5)), cpu_ms = std::stod(info.substr(against + 8));
-    EXPECT_EQ(chosen, cpu_ms <= gpu_ms ? "cpu" : "gles") << info;
     EXPECT_NE(info.find(chosen == "cpu" ? "auto chose the CPU" : "auto chose the GPU"), std::string::npos) << info;
+    if (*k.force) {
+      EXPECT_EQ(chosen, k.force) << info;
+      EXPECT_NE(info.find("LD_GLES_AUTO_FORCE"), std::string::npos) << info;
+    } else {  // the choice agrees with the medians it reports
+      const size_t took = info.find("took "), against = info.find("against ");
+      ASSERT_NE(took, std::string::npos) << info;
+      ASSERT_NE(against, std::string::npos) << info;
+      const double gpu_ms = std::stod(info.substr(took + 5)), cpu_ms = std::stod(info.substr(against + 8));
+      EXPECT_EQ(chosen, cpu_ms <= gpu_ms ? "cpu" : "gles") << info;
+    }
   }
+}
+
+// The GPU failing while "auto" is still timing it: the CPU for good, one
+// warning, no choice left pending or reported, the same landmarks after.
+TEST(GlesAuto, GpuFailureDuringTheChoice) {
+  ScopedEnv soft("LD_GLES_AUTO_SOFTWARE", "1");
+  ld::detail::resetBackendWarning();
+  ld::DetectorParams p;
+  p.backend = "auto";
+  ld::Detector d(p);
+  const auto f = ld::synth::render(ld::synth::randomConditions(
+      kCam, {ld::synth::placeLandmark(kCam, 1.0, 15, 5, 30, 0.1, -0.1, 0.15)}, 17));
+  const size_t n = d.detect(f.bgr).landmarks.size();
+  ASSERT_GT(n, 0u);
+  ASSERT_STREQ(d.backend(), "gles");  // (the first block runs on the GPU)
+  ASSERT_TRUE(d.choosingBackend());
+  testing::internal::CaptureStderr();
+  EXPECT_TRUE(d.detect(cv::Mat(3, 70000, CV_8UC3, cv::Scalar(200, 40, 30))).landmarks.empty());
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_STREQ(d.backend(), "cpu");
+  EXPECT_FALSE(d.choosingBackend());
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  for (int i = 0; i < 30; ++i) {
+    const ld::Detection& det = d.detect(f.bgr);
+    EXPECT_EQ(det.landmarks.size(), n) << i;
+    EXPECT_EQ(det.stageMs("upload"), 0.0) << i;
+    EXPECT_STREQ(d.backend(), "cpu") << i;
+  }
+  const std::string info = d.backendInfo();
+  EXPECT_NE(info.find("texture size limit"), std::string::npos) << info;
+  EXPECT_EQ(info.find("auto chose"), std::string::npos) << info;
+  EXPECT_EQ(info.find("timing"), std::string::npos) << info;
+  ld::detail::resetBackendWarning();
 }
 
 // No EGL display: "auto" runs the CPU with one warning per process, "gles"

@@ -352,16 +352,20 @@ struct Detector::Impl {
   std::unique_ptr<detail::Filters> filters;
   std::string fallback_why;  // why the CPU runs where the GPU was asked for
   // Backend "auto" with a GPU: while `rival` (the CPU's filters) is held,
-  // frames run the GPU's filters and the CPU's in turn, each timed with its
-  // transfers (both give the same labels and edges, so the landmarks do not
-  // change); after a warm-up of each and kChoiceTrials timed frames of each,
-  // the one with the smaller median stays for good.
-  static constexpr int kChoiceTrials = 8;
+  // frames run on the GPU's filters and the CPU's in blocks of kChoiceBlock,
+  // the first of each block a warm-up after the switch, the others timed
+  // with their transfers; after kChoiceBlocks blocks of each, the one with
+  // the smaller median stays for good, decided as the next frame begins
+  // (this frame's filtered image may be the other's). The two give the same
+  // label and edge images (with a blur, all but a few pixels), so the
+  // landmarks do not change with the backend.
+  static constexpr int kChoiceBlock = 4, kChoiceBlocks = 3;
+  static constexpr int kChoiceFrames = 2 * kChoiceBlock * kChoiceBlocks;
   std::unique_ptr<detail::Filters> rival;
   cv::Mat rival_labels, rival_edges;  // the CPU's outputs while it is the rival
   int trial = 0;
   std::vector<double> gpu_ms, cpu_ms;
-  std::string choice;          // what the choice measured, once made
+  std::string choice;          // what the choice measured, once the GPU won
   const char* ran = nullptr;   // the backend of the last frame's filters
 
   std::optional<CameraModel> camera;  // as given
@@ -424,66 +428,74 @@ struct Detector::Impl {
   // Stages 1-3, with "auto"'s choice between the GPU and the CPU on the
   // first frames (once the GPU's own shader path is chosen).
   const cv::Mat* runFilters(const cv::Mat& img, StageTimer& timer) {
+    if (rival && trial == kChoiceFrames) choose();
     if (!rival || !filters->settled(paper)) return runBackend(img, timer);
-    const bool on_cpu = trial % 2 == 1;
+    const bool on_cpu = (trial / kChoiceBlock) % 2 == 1;
     const auto t0 = StageTimer::Clock::now();
-    const cv::Mat* filtered = &img;
-    if (on_cpu) {
-      if (!paper) rival->labelMap(img, filter_settings, rival_labels, filtered, timer);
-      else rival->edgeMap(img, filter_settings, rival_edges, timer);
-      labels = rival_labels, edges = rival_edges;
-      ran = rival->name();
-    } else {
-      filtered = runBackend(img, timer);
-      if (!rival) return filtered;  // the GPU failed: the CPU runs from now on
-    }
+    const cv::Mat* filtered = on_cpu ? filterOn(*rival, img, rival_labels, rival_edges, timer) : runBackend(img, timer);
+    if (!rival) return filtered;  // the GPU failed: the CPU runs from now on
+    if (on_cpu) labels = rival_labels, edges = rival_edges, ran = rival->name();
     const double ms = std::chrono::duration<double, std::milli>(StageTimer::Clock::now() - t0).count();
-    if (trial >= 2) (on_cpu ? cpu_ms : gpu_ms).push_back(ms);
-    if (++trial == 2 + 2 * kChoiceTrials) choose();
+    if (trial % kChoiceBlock != 0) (on_cpu ? cpu_ms : gpu_ms).push_back(ms);
+    ++trial;
     return filtered;
   }
 
+  // Keeps the GPU or the CPU for good, by their medians.
   void choose() {
     auto median = [](std::vector<double> v) {
       std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
       return v[v.size() / 2];
     };
     const double gpu = median(gpu_ms), cpu = median(cpu_ms);
+    const char* force = std::getenv("LD_GLES_AUTO_FORCE");  // (tests: both outcomes on any machine)
+    const bool keep_cpu = force && *force ? std::strcmp(force, "cpu") == 0 : cpu <= gpu;
     char buf[256];
-    std::snprintf(buf, sizeof buf, "the filters took %.3f ms on the GPU, transfers included, against %.3f ms on the CPU (medians of %d frames each)",
-                  gpu, cpu, kChoiceTrials);
-    if (cpu <= gpu) {
+    std::snprintf(buf, sizeof buf,
+                  "the filters took %.3f ms on the GPU, transfers included, against %.3f ms on the CPU "
+                  "(medians of %zu frames each)%s",
+                  gpu, cpu, gpu_ms.size(), force && *force ? ", overridden by LD_GLES_AUTO_FORCE" : "");
+    if (keep_cpu) {
       fallback_why = "auto chose the CPU: " + filters->info(paper) + ": " + buf;
-      if (ran == filters->name()) labels = labels.clone(), edges = edges.clone();  // (not views of the GPU's buffers)
+      labels.release(), edges.release();  // (the last frame's may be views of the GPU's buffers)
       filters = std::move(rival);
-      ran = filters->name();
     } else {
       choice = std::string("auto chose the GPU: ") + buf;
     }
+    endChoice();
+  }
+
+  void endChoice() {
     rival.reset();
     rival_labels.release(), rival_edges.release();
+    gpu_ms = {}, cpu_ms = {};
+  }
+
+  // Stages 1-3 on `f`'s filters into `l` (fast front end) or `e` (paper);
+  // the image the labels were taken on.
+  const cv::Mat* filterOn(detail::Filters& f, const cv::Mat& img, cv::Mat& l, cv::Mat& e, StageTimer& timer) {
+    const cv::Mat* filtered = &img;
+    if (!paper) f.labelMap(img, filter_settings, l, filtered, timer);
+    else f.edgeMap(img, filter_settings, e, timer);
+    return filtered;
   }
 
   // Stages 1-3 on the backend's filters; a GPU failing mid-run is dropped for
-  // the CPU, and the frame done again there.
+  // the CPU (auto's rival, where it has one), and the frame done again there.
   const cv::Mat* runBackend(const cv::Mat& img, StageTimer& timer) {
-    const cv::Mat* filtered = &img;
     ran = filters->name();
     try {
-      if (!paper) filters->labelMap(img, filter_settings, labels, filtered, timer);
-      else filters->edgeMap(img, filter_settings, edges, timer);
-      return filtered;
+      return filterOn(*filters, img, labels, edges, timer);
     } catch (const detail::BackendFailure& e) {
       fallback_why = e.what();
       warnBackend(std::string("GLES backend failed (") + e.what() + "); running the CPU backend from now on");
-      filters = detail::makeCpuFilters();
-      rival.reset();
+      filters = rival ? std::move(rival) : detail::makeCpuFilters();
+      choice.clear();
+      endChoice();
       ran = filters->name();
     }
     labels.release();  // may be a view of the GPU backend's buffer
-    if (!paper) filters->labelMap(img, filter_settings, labels, filtered, timer);
-    else filters->edgeMap(img, filter_settings, edges, timer);
-    return filtered;
+    return filterOn(*filters, img, labels, edges, timer);
   }
 
   void run(const cv::Mat& input);
@@ -1187,6 +1199,8 @@ const Detection& Detector::detect(const cv::Mat& bgr, Explanation& why) {
 const DetectorParams& Detector::params() const { return impl_->params; }
 
 const char* Detector::backend() const { return impl_->ran ? impl_->ran : impl_->filters->name(); }
+
+bool Detector::choosingBackend() const { return impl_->rival != nullptr; }
 
 std::string Detector::backendInfo() const {
   std::string s = impl_->filters->info(impl_->paper);

@@ -72,7 +72,7 @@ int main(int argc, char** argv) {
   }
   if (verbose) std::fprintf(stderr, "ld-detector: backend %s\n", detector.detector().backendInfo().c_str());
   // backend "auto" on a GPU: -v says its choice too, once made
-  bool choosing = verbose && detector.detector().backendInfo().find("auto: timing") != std::string::npos;
+  bool choosing = verbose && detector.detector().choosingBackend();
   LatestFrame latest;
   lcm.subscribe(in_channel, &LatestFrame::onMessage, &latest);
   std::signal(SIGINT, onSignal);
@@ -112,12 +112,9 @@ int main(int argc, char** argv) {
                           detector.detector().backend(), latest.skipped_, out);
         lcm.publish(out_channel, &out);
         ++processed;
-        if (choosing) {
-          const std::string info = detector.detector().backendInfo();
-          if (info.find("auto: timing") == std::string::npos) {
-            std::fprintf(stderr, "ld-detector: backend %s\n", info.c_str());
-            choosing = false;
-          }
+        if (choosing && !detector.detector().choosingBackend()) {
+          std::fprintf(stderr, "ld-detector: backend %s\n", detector.detector().backendInfo().c_str());
+          choosing = false;
         }
       } catch (const std::exception& e) {
         ++bad;

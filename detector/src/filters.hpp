@@ -48,7 +48,7 @@ struct FilterSettings {
 };
 
 /// Thrown by a backend whose device failed while working on a frame (a lost
-/// context, a GL error, a fence that never signals): the detector then
+/// context, a GL error, a frame over its texture limit): the detector then
 /// switches to the CPU backend for good.
 struct BackendFailure : std::runtime_error {
   using std::runtime_error::runtime_error;

@@ -6,9 +6,9 @@
 // as they are, four to an RGBA8UI texel (kRaw: no format conversion in the
 // driver). Then, per front end:
 //   fast:  label pass: kNone/kBlue/kRed per pixel, four pixels (three texels
-//          of the frame) per fragment into an RGBA8 texel, read back through
-//          a pixel pack buffer as the single-channel label image (one byte a
-//          pixel) the CPU's region stage takes. With a blur (not the
+//          of the frame) per fragment into an RGBA8 texel, read back
+//          (glReadPixels into the CPU's buffer) as the single-channel label
+//          image (one byte a pixel) the CPU's region stage takes. With a blur (not the
 //          default) the frame is unpacked and blurred pixel by pixel first,
 //          and the blurred image comes back too (the regions' colour sums
 //          are taken over it).
@@ -556,7 +556,6 @@ class GlesFilters final : public Filters {
     glGenVertexArrays(1, &vao_);
     glGenFramebuffers(1, &fbo_);
     glGenBuffers(1, &pbo_up_);
-    glGenBuffers(1, &pbo_down_);
     label_ = program("label", std::string(kHeader) + kRaw + kLabel);
     label_blurred_ = program("label_blurred", std::string(kHeader) + "#define BLURRED\n" + kLabel);
     group_sat_ = program("groupSat", std::string(kHeader) + kRaw + kSaturation + kGroupSat);
@@ -589,7 +588,6 @@ class GlesFilters final : public Filters {
     for (auto& [key, prog] : programs_) glDeleteProgram(prog);
     freeTextures();
     glDeleteBuffers(1, &pbo_up_);
-    glDeleteBuffers(1, &pbo_down_);
     if (ssbo_) glDeleteBuffers(1, &ssbo_);
     glDeleteFramebuffers(1, &fbo_);
     glDeleteVertexArrays(1, &vao_);
@@ -673,7 +671,7 @@ class GlesFilters final : public Filters {
 
  private:
   // The fragment path of edgeMap: blur H, blur V + saturation + threshold,
-  // Sobel, suppression + double threshold, read back through the pack buffer.
+  // Sobel, suppression + double threshold, read back.
   void edgeMapFragment(const FilterSettings& s, int thr, cv::Mat& edges, StageTimer& timer) {
     if (s.blur_kernel > 1) {
       // blur H (raw frame -> sums), blur V + saturation + threshold
@@ -904,9 +902,6 @@ class GlesFilters final : public Filters {
     glBindBuffer(GL_PIXEL_UNPACK_BUFFER, pbo_up_);
     glBufferData(GL_PIXEL_UNPACK_BUFFER, static_cast<GLsizeiptr>(w4_) * 12 * h, nullptr, GL_STREAM_DRAW);
     glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
-    glBindBuffer(GL_PIXEL_PACK_BUFFER, pbo_down_);
-    glBufferData(GL_PIXEL_PACK_BUFFER, static_cast<GLsizeiptr>(w) * h * 4, nullptr, GL_STREAM_READ);
-    glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
     check("allocation");
   }
 
@@ -1003,30 +998,16 @@ class GlesFilters final : public Filters {
     finish("blur");
   }
 
-  // Reads the attachment of fbo_ (w x h RGBA8) into `dst` through the pack
-  // buffer and a fence.
+  // Reads the attachment of fbo_ (w x h RGBA8) into `dst`, straight into
+  // the caller's memory. (Through a pixel pack buffer and a fence instead,
+  // NVIDIA's driver made the next frame's upload wait about 0.9 ms whenever
+  // the CPU worked between frames, as a detector does: docs/benchmarks.md.)
   void readInto(GLuint tex, int w, int h, uint8_t* dst, size_t bytes) {
+    CV_Assert(bytes == static_cast<size_t>(w) * h * 4);
     glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, tex, 0);
-    glBindBuffer(GL_PIXEL_PACK_BUFFER, pbo_down_);
     glPixelStorei(GL_PACK_ALIGNMENT, 4);
-    glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
-    GLsync fence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
-    const GLenum r = glClientWaitSync(fence, GL_SYNC_FLUSH_COMMANDS_BIT, 5'000'000'000ull);
-    glDeleteSync(fence);
-    if (r != GL_ALREADY_SIGNALED && r != GL_CONDITION_SATISFIED) {
-      glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
-      throw BackendFailure("GLES: the read-back fence did not signal within 5 s");
-    }
-    const void* src = glMapBufferRange(GL_PIXEL_PACK_BUFFER, 0, static_cast<GLsizeiptr>(bytes), GL_MAP_READ_BIT);
-    if (!src) {
-      glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
-      check("read-back map");
-      throw BackendFailure("GLES: cannot map the read-back buffer");
-    }
-    std::memcpy(dst, src, bytes);
-    glUnmapBuffer(GL_PIXEL_PACK_BUFFER);
-    glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+    glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, dst);
     check("read-back");
   }
 
@@ -1042,7 +1023,7 @@ class GlesFilters final : public Filters {
   }
 
   std::unique_ptr<EglContext> ctx_;
-  GLuint vao_ = 0, fbo_ = 0, pbo_up_ = 0, pbo_down_ = 0;
+  GLuint vao_ = 0, fbo_ = 0, pbo_up_ = 0;
   GLuint label_ = 0, label_blurred_ = 0, unpack_ = 0;
   GLuint group_sat_ = 0, group_sobel_ = 0, group_nms_ = 0, group_blur_h_ = 0, group_blur_v_ = 0;
   int group_blur_radius_ = -1;

@@ -89,9 +89,10 @@ struct DetectorParams {
   /// llvmpipe) included (the Detector's constructor throws
   /// std::runtime_error when none can be made); "auto": where an EGL
   /// context on a GPU can be made, the GPU and the CPU in turn on the first
-  /// frames (after the GPU's own choice of shader path), each timed with
-  /// its transfers over 8 frames after a warm-up, then for good the one
-  /// with the smaller median (the landmarks are the same either way); else
+  /// frames (after the GPU's own choice of shader path), in blocks of 4
+  /// frames, 3 blocks each, each timed with its transfers after a warm-up
+  /// frame, then for good the one with the smaller median (the landmarks
+  /// are the same either way); else
   /// (no EGL, or only a software renderer, which is slower than the CPU
   /// backend) the CPU with one warning on stderr per process. A GPU that
   /// fails later, mid-run, is dropped for the CPU with one warning,
@@ -100,7 +101,9 @@ struct DetectorParams {
   /// LD_EGL_PLATFORM=device|surfaceless|gbm restricts the EGL platform
   /// tried; LD_GLES_COMPUTE=0 or 1 keeps the paper front end off or on
   /// compute shaders instead of measuring which is faster;
-  /// LD_GLES_AUTO_SOFTWARE=1 lets "auto" time a software renderer too (tests).
+  /// LD_GLES_AUTO_SOFTWARE=1 lets "auto" time a software renderer too, and
+  /// LD_GLES_AUTO_FORCE=gles or cpu makes it keep that one whatever it
+  /// measured (tests).
   std::string backend = "cpu";
 
   // 1. blur
@@ -353,8 +356,13 @@ class Detector {
 
   /// The backend whose filters ran the last frame: "cpu" or "gles" (with
   /// "auto", both in turn on the first frames, then what it chose;
-  /// "cpu" after a GPU failure).
+  /// "cpu" after a GPU failure; a frame without colour runs no filters and
+  /// leaves it as it was).
   const char* backend() const;
+  /// True while backend "auto" is still timing the GPU against the CPU (its
+  /// first frames, about 24 after the GPU's own shader-path choice):
+  /// backend() may change until then, and not after.
+  bool choosingBackend() const;
   /// One line on it: the GPU, its driver and EGL platform; for the CPU after
   /// a fallback, why the GPU is not used.
   std::string backendInfo() const;
