@@ -272,8 +272,10 @@ TEST(AdaptiveDetection, HoldsUnderGlareOnTheLandmark) {
   const auto [fixed6, adaptive6] = ld::eval::measureFixedAndAdaptive(strong, 1.5, 0, 40);
   std::printf("glare 0.6: fixed %d/%d, adaptive %d/%d\n", fixed6.detected, fixed6.trials, adaptive6.detected,
               adaptive6.trials);
-  EXPECT_GE(adaptive6.detected, fixed6.detected + 10);  // (measured: 0 and 17 of 20)
-  EXPECT_GE(adaptive6.detectRate(), 0.7);
+  // (measured: 0 and 20 of 20; 17 of 20 before the faint look took blue at
+  // any hue under a subtracted veil, Detector::setGlareCorrected)
+  EXPECT_GE(adaptive6.detected, fixed6.detected + 10);
+  EXPECT_GE(adaptive6.detectRate(), 0.9);
 }
 
 // The command line: `ld-detect --adaptive` on frames under tungsten light,

@@ -215,33 +215,42 @@ TEST(Saturation, LabelsBlueRedAndNothingElse) {
   EXPECT_EQ(labels.at<uint8_t>(1, 9), ld::detail::kBlue);
 }
 
-// The vectorised loop and the scalar rule agree on every pixel.
+// The vectorised loop and the scalar rule agree on every pixel, with the
+// blue hue window and without it (MaskThresholds::wide_blue, the faint look
+// under a subtracted glare veil).
 TEST(Saturation, VectorAndScalarAgree) {
   cv::Mat img(37, 101, CV_8UC3);
   cv::RNG(7).fill(img, cv::RNG::UNIFORM, 0, 256);
-  cv::Mat labels;
-  const ld::detail::MaskThresholds t{0.2, 0.35, 25};
-  ld::detail::saturationMask(img, t, labels);
-  const int qb = static_cast<int>(std::lround(t.blue * 256)), qr = static_cast<int>(std::lround(t.red * 256));
-  int mismatches = 0, blue = 0, red = 0;
-  for (int y = 0; y < img.rows; ++y)
-    for (int x = 0; x < img.cols; ++x) {
-      const auto p = img.at<cv::Vec3b>(y, x);
-      const int mx = std::max({p[0], p[1], p[2]}), mn = std::min({p[0], p[1], p[2]});
-      int want = 0;
-      const int b = p[0], g = p[1], r = p[2];
-      // blue: hue 210..270 degrees; red: hue -60..30 degrees
-      if (mx >= 25 && b == mx)
-        want = (mx - mn) > ((mx * qb) >> 8) && b - g > std::max(0, g - r) && b - r > std::max(0, r - g) ? 1 : 0;
-      else if (mx >= 25 && r == mx)
-        want = (mx - mn) > ((mx * qr) >> 8) && r - g > std::max(0, g - b) ? 2 : 0;
-      mismatches += labels.at<uint8_t>(y, x) != want;
-      blue += want == 1;
-      red += want == 2;
-    }
-  EXPECT_EQ(mismatches, 0);
-  EXPECT_GT(blue, 100);
-  EXPECT_GT(red, 100);
+  int blue_narrow = 0;
+  for (const bool wide : {false, true}) {
+    cv::Mat labels;
+    ld::detail::MaskThresholds t{0.2, 0.35, 25};
+    t.wide_blue = wide;
+    ld::detail::saturationMask(img, t, labels);
+    const int qb = static_cast<int>(std::lround(t.blue * 256)), qr = static_cast<int>(std::lround(t.red * 256));
+    int mismatches = 0, blue = 0, red = 0;
+    for (int y = 0; y < img.rows; ++y)
+      for (int x = 0; x < img.cols; ++x) {
+        const auto p = img.at<cv::Vec3b>(y, x);
+        const int mx = std::max({p[0], p[1], p[2]}), mn = std::min({p[0], p[1], p[2]});
+        int want = 0;
+        const int b = p[0], g = p[1], r = p[2];
+        // blue: hue 210..270 degrees (wide: wherever blue is the largest); red: hue -60..30 degrees
+        if (mx >= 25 && b == mx)
+          want = (mx - mn) > ((mx * qb) >> 8) && (wide || (b - g > std::max(0, g - r) && b - r > std::max(0, r - g)))
+                     ? 1 : 0;
+        else if (mx >= 25 && r == mx)
+          want = (mx - mn) > ((mx * qr) >> 8) && r - g > std::max(0, g - b) ? 2 : 0;
+        mismatches += labels.at<uint8_t>(y, x) != want;
+        blue += want == 1;
+        red += want == 2;
+      }
+    EXPECT_EQ(mismatches, 0) << "wide " << wide;
+    EXPECT_GT(blue, 100);
+    EXPECT_GT(red, 100);
+    if (!wide) blue_narrow = blue;
+    else EXPECT_GT(blue, blue_narrow + 100);  // teal and violet too
+  }
 }
 
 // ====================================================================== regions

@@ -355,14 +355,18 @@ AdaptiveDetector::AdaptiveDetector(Detector detector, bool enabled, const Adapti
 
 const Detection& AdaptiveDetector::detect(const cv::Mat& bgr) {
   if (!enabled_) return detector_.detect(bgr);
-  const Detection& d = detector_.detect(adapter_.correct(bgr));
+  const cv::Mat& corrected = adapter_.correct(bgr);
+  detector_.setGlareCorrected(adapter_.glareCorrected());
+  const Detection& d = detector_.detect(corrected);
   adapter_.observe(bgr, d);
   return d;
 }
 
 const Detection& AdaptiveDetector::detect(const cv::Mat& bgr, Explanation& why) {
   if (!enabled_) return detector_.detect(bgr, why);
-  const Detection& d = detector_.detect(adapter_.correct(bgr), why);
+  const cv::Mat& corrected = adapter_.correct(bgr);
+  detector_.setGlareCorrected(adapter_.glareCorrected());
+  const Detection& d = detector_.detect(corrected, why);
   adapter_.observe(bgr, d);
   return d;
 }

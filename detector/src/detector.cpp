@@ -367,6 +367,7 @@ struct Detector::Impl {
   std::vector<double> gpu_ms, cpu_ms;
   std::string choice;          // what the choice measured, once the GPU won
   const char* ran = nullptr;   // the backend of the last frame's filters
+  bool glare_corrected = false;  // setGlareCorrected()
 
   std::optional<CameraModel> camera;  // as given
   CameraModel scaled;                 // for the current frame size
@@ -888,6 +889,10 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   // blue mixed with the paper's is paler than the first pass's threshold.
   detail::MaskThresholds pale = filter_settings.mask;
   pale.blue = std::min(pale.blue, p.faint_look_blue);
+  // Under a subtracted glare veil the stretch tints the squares (a veil a
+  // few levels off in one channel, times about 4): blue at any hue where it
+  // is the largest channel.
+  pale.wide_blue = glare_corrected;
   for (const auto& a : anchors) {
     if (looks >= p.faint_looks || pixels_left < 25 * 25) break;
     cv::Rect win;
@@ -1201,6 +1206,8 @@ const DetectorParams& Detector::params() const { return impl_->params; }
 const char* Detector::backend() const { return impl_->ran ? impl_->ran : impl_->filters->name(); }
 
 bool Detector::choosingBackend() const { return impl_->rival != nullptr; }
+
+void Detector::setGlareCorrected(bool corrected) { impl_->glare_corrected = corrected; }
 
 std::string Detector::backendInfo() const {
   std::string s = impl_->filters->info(impl_->paper);

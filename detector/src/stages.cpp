@@ -161,6 +161,7 @@ void saturationMask(const cv::Mat& bgr, const MaskThresholds& mt, cv::Mat& label
   labels.create(bgr.size(), CV_8UC1);
   const int thr_b = thresholdQ8(mt.blue), thr_r = thresholdQ8(mt.red);
   const int vmin = std::clamp(mt.value_min, 0, 255);
+  const bool wide = mt.wide_blue;
   const int w = bgr.cols;
   for (int y = 0; y < bgr.rows; ++y) {
     const uint8_t* src = bgr.ptr<uint8_t>(y);
@@ -188,7 +189,8 @@ void saturationMask(const cv::Mat& bgr, const MaskThresholds& mt, cv::Mat& label
                                           cv::v_shr<8>(cv::v_mul_wrap(m1, vthr_r)));
         const cv::v_uint8 bright = mx >= vvmin;
         // blue: hue within 210..270 degrees, so cyan, teal and violet are not blue
-        const cv::v_uint8 isb = (b == mx) & (c > tb) & bright & ((b - g) > (g - r)) & ((b - r) > (r - g));
+        const cv::v_uint8 hue_ok = wide ? cv::vx_setall_u8(255) : (((b - g) > (g - r)) & ((b - r) > (r - g)));
+        const cv::v_uint8 isb = (b == mx) & (c > tb) & bright & hue_ok;
         // red: hue below 30 degrees (r - g > g - b), so yellow and warm-lit white
         // are not red (printed red and its blend with the paper stay below 15)
         const cv::v_uint8 isr = (r == mx) & ~(b == mx) & (c > tr) & bright & ((r - g) > (g - b));
@@ -201,7 +203,7 @@ void saturationMask(const cv::Mat& bgr, const MaskThresholds& mt, cv::Mat& label
       const int mx = std::max({b, g, r}), mn = std::min({b, g, r});
       const int c = mx - mn;
       dst[x] = mx < vmin                                 ? kNone
-               : b == mx ? (c > ((mx * thr_b) >> 8) && b - g > std::max(0, g - r) && b - r > std::max(0, r - g)
+               : b == mx ? (c > ((mx * thr_b) >> 8) && (wide || (b - g > std::max(0, g - r) && b - r > std::max(0, r - g)))
                                 ? kBlue : kNone)
                : r == mx ? (c > ((mx * thr_r) >> 8) && r - g > std::max(0, g - b) ? kRed : kNone)
                          : kNone;

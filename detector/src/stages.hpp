@@ -43,6 +43,7 @@ struct MaskThresholds {
   double blue = 0.25;  ///< saturation a blue pixel exceeds
   double red = 0.45;   ///< saturation a red pixel exceeds
   int value_min = 40; ///< darker pixels are never saturated
+  bool wide_blue = false;  ///< blue at any hue where blue is the largest channel (180..300), not only 210..270
 };
 
 /// 2. saturation (fast front end): one pass over an 8-bit BGR image writing a

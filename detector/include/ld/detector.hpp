@@ -340,6 +340,14 @@ class Detector {
   Detector(Detector&&) noexcept;
   Detector& operator=(Detector&&) noexcept;
 
+  /// Whether the frames given from now on had a glare veil subtracted
+  /// (ld::AdaptiveDetector says so per frame). The stretch back to the full
+  /// range under a veil multiplies what is left by about 4, and a veil a few
+  /// levels off in one channel tints the blue squares towards cyan or
+  /// violet: the faint look then takes blue at any hue where blue is the
+  /// largest channel, not only 210-270 degrees. Default false.
+  void setGlareCorrected(bool corrected);
+
   /// Enables pose: intrinsics of the camera and the printed sheet side S in
   /// metres. Frames of another size than the calibration use the scaled camera.
   void setCamera(const CameraModel& camera, double side_m);
