@@ -108,6 +108,32 @@ TEST(LightingAdapter, GlareVeilIsSubtracted) {
   EXPECT_LT(out.at<cv::Vec3b>(100 + 4, 104 + 8 * 4)[0], 90);
   EXPECT_EQ(out.at<cv::Vec3b>(4, 4), clean.at<cv::Vec3b>(4, 4));
   EXPECT_EQ(out.at<cv::Vec3b>(235, 315), clean.at<cv::Vec3b>(235, 315));
+  // The stretch back to the full range, (255 - black) / (255 - veil): about
+  // 3 under this veil of 150 over the checker's black; under one of 100 it
+  // is not strong (AdaptiveParams::wide_hue_min_stretch 3) ...
+  std::printf("veil 150: stretch %.2f\n", a.veilStretch());
+  EXPECT_GT(a.veilStretch(), 2.5);
+  cv::Mat weak = clean.clone();
+  cv::Mat spot1 = weak(cv::Rect(100, 60, 120, 120));
+  cv::add(spot1, cv::Scalar(100, 100, 100), spot1);
+  a.correct(weak);
+  std::printf("veil 100: stretch %.2f, corrected %d\n", a.veilStretch(), a.glareCorrected());
+  EXPECT_TRUE(a.glareCorrected());
+  EXPECT_GT(a.veilStretch(), 1.5);
+  EXPECT_LT(a.veilStretch(), 3.0);
+  EXPECT_FALSE(a.strongVeil());
+  // ... under one of 185, strong; and none without a veil.
+  cv::Mat strong = clean.clone();
+  cv::Mat spot2 = strong(cv::Rect(100, 60, 120, 120));
+  cv::add(spot2, cv::Scalar(185, 185, 185), spot2);
+  a.correct(strong);
+  std::printf("veil 185: stretch %.2f, corrected %d\n", a.veilStretch(), a.glareCorrected());
+  EXPECT_TRUE(a.glareCorrected());
+  EXPECT_GE(a.veilStretch(), 3.0);
+  EXPECT_TRUE(a.strongVeil());
+  a.correct(clean);
+  EXPECT_EQ(a.veilStretch(), 1.0);
+  EXPECT_FALSE(a.strongVeil());
 }
 
 // A warm lamp's hot spot lifts red most and blue least. Assumed neutral, the

@@ -221,6 +221,10 @@ TEST(Saturation, LabelsBlueRedAndNothingElse) {
 TEST(Saturation, VectorAndScalarAgree) {
   cv::Mat img(37, 101, CV_8UC3);
   cv::RNG(7).fill(img, cv::RNG::UNIFORM, 0, 256);
+  // hue ties, in vector lanes and in the scalar tail: cyan (b = g > r),
+  // magenta (b = r > g), grey
+  const cv::Vec3b ties[] = {{200, 200, 60}, {200, 60, 200}, {150, 150, 150}};
+  for (int k = 0; k < 3; ++k) img.at<cv::Vec3b>(0, k) = img.at<cv::Vec3b>(0, img.cols - 1 - k) = ties[k];
   int blue_narrow = 0;
   for (const bool wide : {false, true}) {
     cv::Mat labels;
@@ -237,7 +241,7 @@ TEST(Saturation, VectorAndScalarAgree) {
         const int b = p[0], g = p[1], r = p[2];
         // blue: hue 210..270 degrees (wide: wherever blue is the largest); red: hue -60..30 degrees
         if (mx >= 25 && b == mx)
-          want = (mx - mn) > ((mx * qb) >> 8) && (wide || (b - g > std::max(0, g - r) && b - r > std::max(0, r - g)))
+          want = (mx - mn) > ((mx * qb) >> 8) && (wide ? b > r : b - g > std::max(0, g - r) && b - r > std::max(0, r - g))
                      ? 1 : 0;
         else if (mx >= 25 && r == mx)
           want = (mx - mn) > ((mx * qr) >> 8) && r - g > std::max(0, g - b) ? 2 : 0;
@@ -246,6 +250,11 @@ TEST(Saturation, VectorAndScalarAgree) {
         red += want == 2;
       }
     EXPECT_EQ(mismatches, 0) << "wide " << wide;
+    for (const int x : {0, img.cols - 1}) {  // cyan blue only when wide; magenta and grey never
+      EXPECT_EQ(labels.at<uint8_t>(0, x), wide ? ld::detail::kBlue : ld::detail::kNone) << x;
+      EXPECT_EQ(labels.at<uint8_t>(0, x == 0 ? 1 : x - 1), ld::detail::kNone) << x;
+      EXPECT_EQ(labels.at<uint8_t>(0, x == 0 ? 2 : x - 2), ld::detail::kNone) << x;
+    }
     EXPECT_GT(blue, 100);
     EXPECT_GT(red, 100);
     if (!wide) blue_narrow = blue;

@@ -198,6 +198,9 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
             black[c] + (veiled ? std::min<double>(lb[c] - black[c], spread * lift * light[c]) : 0.0));
       veiled_.at<uint8_t>(y, x) = veiled ? 255 : 0;
       any |= veiled;
+      if (veiled)
+        for (int c = 0; c < 3; ++c)
+          veil_stretch_ = std::max(veil_stretch_, (255.0 - black[c]) / std::max(1, 255 - v[c]));
     }
   if (!any) return bgr;
   glare_corrected_ = true;
@@ -245,6 +248,7 @@ const cv::Mat& LightingAdapter::deglare(const cv::Mat& bgr) {
 const cv::Mat& LightingAdapter::correct(const cv::Mat& bgr_in) {
   gains_ = {1, 1, 1};
   glare_corrected_ = false;
+  veil_stretch_ = 1.0;
   veil_colour_ = {1, 1, 1};
   if (bgr_in.empty() || bgr_in.type() != CV_8UC3) return bgr_in;
   const cv::Mat& bgr = deglare(bgr_in);
@@ -353,20 +357,22 @@ AdaptiveDetector::AdaptiveDetector(const DetectorParams& params, const AdaptiveP
 AdaptiveDetector::AdaptiveDetector(Detector detector, bool enabled, const AdaptiveParams& adaptive)
     : detector_(std::move(detector)), adapter_(adaptive), enabled_(enabled) {}
 
+const cv::Mat& AdaptiveDetector::correct(const cv::Mat& bgr) {
+  const cv::Mat& corrected = adapter_.correct(bgr);
+  detector_.setGlareCorrected(adapter_.strongVeil());
+  return corrected;
+}
+
 const Detection& AdaptiveDetector::detect(const cv::Mat& bgr) {
   if (!enabled_) return detector_.detect(bgr);
-  const cv::Mat& corrected = adapter_.correct(bgr);
-  detector_.setGlareCorrected(adapter_.glareCorrected());
-  const Detection& d = detector_.detect(corrected);
+  const Detection& d = detector_.detect(correct(bgr));
   adapter_.observe(bgr, d);
   return d;
 }
 
 const Detection& AdaptiveDetector::detect(const cv::Mat& bgr, Explanation& why) {
   if (!enabled_) return detector_.detect(bgr, why);
-  const cv::Mat& corrected = adapter_.correct(bgr);
-  detector_.setGlareCorrected(adapter_.glareCorrected());
-  const Detection& d = detector_.detect(corrected, why);
+  const Detection& d = detector_.detect(correct(bgr), why);
   adapter_.observe(bgr, d);
   return d;
 }

@@ -174,6 +174,7 @@ void saturationMask(const cv::Mat& bgr, const MaskThresholds& mt, cv::Mat& label
       const cv::v_uint16 vthr_r = cv::vx_setall_u16(static_cast<uint16_t>(thr_r));
       const cv::v_uint8 vvmin = cv::vx_setall_u8(static_cast<uint8_t>(vmin));
       const cv::v_uint8 one = cv::vx_setall_u8(kBlue), two = cv::vx_setall_u8(kRed);
+      const cv::v_uint8 vwide = cv::vx_setall_u8(wide ? 255 : 0), vzero = cv::vx_setzero_u8();
       for (; x <= w - n; x += n) {
         cv::v_uint8 b, g, r;
         cv::v_load_deinterleave(src + 3 * x, b, g, r);
@@ -188,8 +189,9 @@ void saturationMask(const cv::Mat& bgr, const MaskThresholds& mt, cv::Mat& label
         const cv::v_uint8 tr = cv::v_pack(cv::v_shr<8>(cv::v_mul_wrap(m0, vthr_r)),
                                           cv::v_shr<8>(cv::v_mul_wrap(m1, vthr_r)));
         const cv::v_uint8 bright = mx >= vvmin;
-        // blue: hue within 210..270 degrees, so cyan, teal and violet are not blue
-        const cv::v_uint8 hue_ok = wide ? cv::vx_setall_u8(255) : (((b - g) > (g - r)) & ((b - r) > (r - g)));
+        // blue: hue within 210..270 degrees, so cyan, teal and violet are not
+        // blue (wide: anywhere blue is largest and above red)
+        const cv::v_uint8 hue_ok = (((b - g) > (g - r)) & ((b - r) > (r - g))) | (vwide & ((b - r) > vzero));
         const cv::v_uint8 isb = (b == mx) & (c > tb) & bright & hue_ok;
         // red: hue below 30 degrees (r - g > g - b), so yellow and warm-lit white
         // are not red (printed red and its blend with the paper stay below 15)
@@ -203,7 +205,7 @@ void saturationMask(const cv::Mat& bgr, const MaskThresholds& mt, cv::Mat& label
       const int mx = std::max({b, g, r}), mn = std::min({b, g, r});
       const int c = mx - mn;
       dst[x] = mx < vmin                                 ? kNone
-               : b == mx ? (c > ((mx * thr_b) >> 8) && (wide || (b - g > std::max(0, g - r) && b - r > std::max(0, r - g)))
+               : b == mx ? (c > ((mx * thr_b) >> 8) && (wide ? b > r : b - g > std::max(0, g - r) && b - r > std::max(0, r - g))
                                 ? kBlue : kNone)
                : r == mx ? (c > ((mx * thr_r) >> 8) && r - g > std::max(0, g - b) ? kRed : kNone)
                          : kNone;

@@ -43,7 +43,11 @@ struct MaskThresholds {
   double blue = 0.25;  ///< saturation a blue pixel exceeds
   double red = 0.45;   ///< saturation a red pixel exceeds
   int value_min = 40; ///< darker pixels are never saturated
-  bool wide_blue = false;  ///< blue at any hue where blue is the largest channel (180..300), not only 210..270
+  /// Blue at any hue where blue is the largest channel and above red
+  /// (180..300 degrees, 300 left out), not only 210..270. CPU only: the
+  /// GLES label shader has the narrow window; only the faint look (on the
+  /// CPU) sets it, under a strong glare veil (Detector::setGlareCorrected).
+  bool wide_blue = false;
 };
 
 /// 2. saturation (fast front end): one pass over an 8-bit BGR image writing a
@@ -51,7 +55,8 @@ struct MaskThresholds {
 /// is saturated ((max - min) > threshold * max, max >= value_min), kRed where
 /// red is and its hue is below 30 degrees (r - g > g - b: red and
 /// red-orange, not yellow), kNone elsewhere. Blue must lie within 210..270
-/// degrees (not cyan or violet).
+/// degrees (not cyan or violet; with t.wide_blue, anywhere blue is largest
+/// and above red).
 void saturationMask(const cv::Mat& bgr, const MaskThresholds& t, cv::Mat& labels);
 
 /// Scratch memory of the run-based labelling, kept between frames.

@@ -308,6 +308,7 @@ int main(int argc, char** argv) {
         for (int r = 0; r < repeats + 1; ++r) {
           const auto t0 = Clock::now();
           const cv::Mat& img = adapter.correct(s.ours.bgr);
+          detector.setGlareCorrected(adapter.strongVeil());  // (as ld::AdaptiveDetector does)
           const double ms = msSince(t0);
           const ld::Detection& det = detector.detect(img);
           const double all = msSince(t0);

@@ -58,6 +58,13 @@ struct AdaptiveParams {
   double glare_min_lift = 60.0;
   double glare_min_contrast = 60.0;
   int glare_window = 40;
+  /// Where the glare pass stretched a channel back by this factor or more
+  /// ((255 - black) / (255 - veil): 4 under a veil of about 190), a veil a
+  /// few levels off in one channel tints the blue squares towards cyan or
+  /// violet; AdaptiveDetector then has the detector's faint look take blue
+  /// at any hue where blue is the largest channel
+  /// (Detector::setGlareCorrected). A huge value turns that off.
+  double wide_hue_min_stretch = 3.0;
 };
 
 class LightingAdapter {
@@ -79,6 +86,13 @@ class LightingAdapter {
   cv::Vec3d gains() const { return gains_; }
   /// Whether the last correct() subtracted a glare veil somewhere.
   bool glareCorrected() const { return glare_corrected_; }
+  /// The largest factor by which the last correct()'s glare pass stretched
+  /// a channel back to the full range, (255 - black) / (255 - veil) over
+  /// the veiled blocks; 1 where it subtracted no veil.
+  double veilStretch() const { return veil_stretch_; }
+  /// Whether that stretch reached wide_hue_min_stretch: what
+  /// Detector::setGlareCorrected is to be told for the corrected frame.
+  bool strongVeil() const { return glare_corrected_ && veil_stretch_ >= params_.wide_hue_min_stretch; }
   /// The colour (B, G, R over the strongest) of the veil the last correct()
   /// looked for: measured on the veiled blocks when there were enough of
   /// them, else the running white estimate's, else neutral (also when the
@@ -101,6 +115,7 @@ class LightingAdapter {
   std::vector<int> hist_;
   std::vector<cv::Vec3d> level_sums_;  // the frame estimate's channel sums per weakest-channel level
   bool glare_corrected_ = false;
+  double veil_stretch_ = 1.0;
   cv::Mat deglared_, row_min_, block_min_, block_white_, local_black_, local_open_, local_white_, veil_coarse_,
       veiled_;
   cv::Mat window_kernel_, spread_kernel_;  // the glare pass's morphology
@@ -125,6 +140,9 @@ class AdaptiveDetector {
   bool enabled() const { return enabled_; }
 
  private:
+  // The frame corrected, and the detector told whether the correction
+  // stretched a veil away by wide_hue_min_stretch or more.
+  const cv::Mat& correct(const cv::Mat& bgr);
   Detector detector_;
   LightingAdapter adapter_;
   bool enabled_ = true;

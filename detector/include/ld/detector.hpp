@@ -340,12 +340,14 @@ class Detector {
   Detector(Detector&&) noexcept;
   Detector& operator=(Detector&&) noexcept;
 
-  /// Whether the frames given from now on had a glare veil subtracted
-  /// (ld::AdaptiveDetector says so per frame). The stretch back to the full
-  /// range under a veil multiplies what is left by about 4, and a veil a few
-  /// levels off in one channel tints the blue squares towards cyan or
-  /// violet: the faint look then takes blue at any hue where blue is the
-  /// largest channel, not only 210-270 degrees. Default false.
+  /// Whether the frames given from now on had a strong glare veil
+  /// subtracted (ld::AdaptiveDetector says so per frame: where its glare
+  /// pass stretched a channel back by AdaptiveParams::wide_hue_min_stretch
+  /// or more). The stretch multiplies what is left, 4 times under a veil of
+  /// about 190, so a veil a few levels off in one channel tints the blue
+  /// squares towards cyan or violet: the faint look then takes blue at any
+  /// hue where blue is the largest channel and above red, not only 210-270
+  /// degrees. Default false.
   void setGlareCorrected(bool corrected);
 
   /// Enables pose: intrinsics of the camera and the printed sheet side S in
