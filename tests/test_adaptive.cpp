@@ -94,10 +94,14 @@ double saturation(const cv::Vec3b& p) {
 TEST(LightingAdapter, GlareVeilIsSubtracted) {
   ld::LightingAdapter a;
   const cv::Mat clean = checkerWithBluePatch();
-  // A veil of +150 on every channel over the middle (a lamp's hot spot).
-  cv::Mat frame = clean.clone();
-  cv::Mat spot = frame(cv::Rect(100, 60, 120, 120));
-  cv::add(spot, cv::Scalar(150, 150, 150), spot);
+  // A veil of `level` on every channel over the middle (a lamp's hot spot).
+  auto veiled = [&clean](double level) {
+    cv::Mat frame = clean.clone();
+    cv::Mat spot = frame(cv::Rect(100, 60, 120, 120));
+    cv::add(spot, cv::Scalar::all(level), spot);
+    return frame;
+  };
+  const cv::Mat frame = veiled(150);
   ASSERT_LT(saturation(frame.at<cv::Vec3b>(120, 160)), 0.25);  // the blue is washed out
   const cv::Mat out = a.correct(frame).clone();
   EXPECT_TRUE(a.glareCorrected());
@@ -113,20 +117,14 @@ TEST(LightingAdapter, GlareVeilIsSubtracted) {
   // is not strong (AdaptiveParams::wide_hue_min_stretch 3) ...
   std::printf("veil 150: stretch %.2f\n", a.veilStretch());
   EXPECT_GT(a.veilStretch(), 2.5);
-  cv::Mat weak = clean.clone();
-  cv::Mat spot1 = weak(cv::Rect(100, 60, 120, 120));
-  cv::add(spot1, cv::Scalar(100, 100, 100), spot1);
-  a.correct(weak);
+  a.correct(veiled(100));
   std::printf("veil 100: stretch %.2f, corrected %d\n", a.veilStretch(), a.glareCorrected());
   EXPECT_TRUE(a.glareCorrected());
   EXPECT_GT(a.veilStretch(), 1.5);
   EXPECT_LT(a.veilStretch(), 3.0);
   EXPECT_FALSE(a.strongVeil());
   // ... under one of 185, strong; and none without a veil.
-  cv::Mat strong = clean.clone();
-  cv::Mat spot2 = strong(cv::Rect(100, 60, 120, 120));
-  cv::add(spot2, cv::Scalar(185, 185, 185), spot2);
-  a.correct(strong);
+  a.correct(veiled(185));
   std::printf("veil 185: stretch %.2f, corrected %d\n", a.veilStretch(), a.glareCorrected());
   EXPECT_TRUE(a.glareCorrected());
   EXPECT_GE(a.veilStretch(), 3.0);

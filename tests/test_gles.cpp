@@ -70,6 +70,12 @@ std::vector<ld::synth::Frame> scenes(int n, uint64_t seed) {
   return out;
 }
 
+// One landmark of 15 cm at 1 m, seen a little from the side (the fallback tests' frame).
+ld::synth::Frame oneLandmark() {
+  return ld::synth::render(ld::synth::randomConditions(
+      kCam, {ld::synth::placeLandmark(kCam, 1.0, 15, 5, 30, 0.1, -0.1, 0.15)}, 17));
+}
+
 // The fraction of the edge pixels of `a` with an edge pixel of `b` within one pixel.
 double agreement(const cv::Mat& a, const cv::Mat& b) {
   cv::Mat grown;
@@ -363,8 +369,7 @@ TEST(GlesAuto, GpuFailureDuringTheChoice) {
   ld::DetectorParams p;
   p.backend = "auto";
   ld::Detector d(p);
-  const auto f = ld::synth::render(ld::synth::randomConditions(
-      kCam, {ld::synth::placeLandmark(kCam, 1.0, 15, 5, 30, 0.1, -0.1, 0.15)}, 17));
+  const auto f = oneLandmark();
   const size_t n = d.detect(f.bgr).landmarks.size();
   ASSERT_GT(n, 0u);
   ASSERT_STREQ(d.backend(), "gles");  // (the first block runs on the GPU)
@@ -472,8 +477,7 @@ TEST(GlesFallback, FailureMidRunSwitchesToCpu) {
   ld::DetectorParams p;
   p.backend = "gles";
   ld::Detector d(p);
-  const auto f = ld::synth::render(ld::synth::randomConditions(
-      kCam, {ld::synth::placeLandmark(kCam, 1.0, 15, 5, 30, 0.1, -0.1, 0.15)}, 17));
+  const auto f = oneLandmark();
   const size_t n = d.detect(f.bgr).landmarks.size();
   ASSERT_GT(n, 0u);
   ASSERT_STREQ(d.backend(), "gles");

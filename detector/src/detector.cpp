@@ -411,9 +411,7 @@ struct Detector::Impl {
       // "auto" takes a GPU, not a software renderer emulating one on the CPU
       // (LD_GLES_AUTO_SOFTWARE: "auto" takes a software renderer too, and
       // times it against the CPU like a GPU; for tests)
-      const char* soft = std::getenv("LD_GLES_AUTO_SOFTWARE");
-      const bool any_renderer = soft && *soft && std::strcmp(soft, "0") != 0;
-      filters = detail::makeGlesFilters(why, true, params.backend == "auto" && !any_renderer);
+      filters = detail::makeGlesFilters(why, true, params.backend == "auto" && !detail::envFlag("LD_GLES_AUTO_SOFTWARE"));
       if (!filters) {
         if (params.backend == "gles")
           throw std::runtime_error("GLES backend unavailable: " + why + " (backend \"auto\" falls back to the CPU)");
@@ -889,9 +887,9 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   // blue mixed with the paper's is paler than the first pass's threshold.
   detail::MaskThresholds pale = filter_settings.mask;
   pale.blue = std::min(pale.blue, p.faint_look_blue);
-  // Under a subtracted glare veil the stretch tints the squares (a veil a
-  // few levels off in one channel, times about 4): blue at any hue where it
-  // is the largest channel.
+  // Under a strong glare veil (setGlareCorrected) the stretch tints the
+  // squares (a veil a few levels off in one channel, times about 4): blue at
+  // any hue where it is the largest channel and above red.
   pale.wide_blue = glare_corrected;
   for (const auto& a : anchors) {
     if (looks >= p.faint_looks || pixels_left < 25 * 25) break;

@@ -1,6 +1,8 @@
 // Headless EGL (see egl_context.hpp).
 #include "egl_context.hpp"
 
+#include "filters.hpp"
+
 #include <EGL/egl.h>
 #include <EGL/eglext.h>
 #include <GLES3/gl3.h>
@@ -127,7 +129,7 @@ std::vector<Route> routes(const std::string& only, std::string& why) {
 
 std::unique_ptr<EglContext> EglContext::create(std::string& why) {
   why.clear();
-  if (const char* f = std::getenv("LD_EGL_FORCE_FAIL"); f && *f && std::strcmp(f, "0") != 0) {
+  if (envFlag("LD_EGL_FORCE_FAIL")) {
     why = "EGL display disabled by LD_EGL_FORCE_FAIL";
     return nullptr;
   }

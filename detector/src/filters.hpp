@@ -7,6 +7,8 @@
 #pragma once
 
 #include <chrono>
+#include <cstdlib>
+#include <cstring>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -46,6 +48,13 @@ struct FilterSettings {
 
   static FilterSettings from(const DetectorParams& p);
 };
+
+/// Whether the environment variable `name` is set, to anything but "" or "0"
+/// (the backends' switches for tests: LD_EGL_FORCE_FAIL, LD_GLES_AUTO_SOFTWARE).
+inline bool envFlag(const char* name) {
+  const char* v = std::getenv(name);
+  return v && *v && std::strcmp(v, "0") != 0;
+}
 
 /// Thrown by a backend whose device failed while working on a frame (a lost
 /// context, a GL error, a frame over its texture limit): the detector then
