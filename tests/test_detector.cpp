@@ -262,6 +262,44 @@ TEST(Saturation, VectorAndScalarAgree) {
   }
 }
 
+// ====================================================================== colour from brightness
+
+// The vectorised loops and the scalar tail agree with the rule written out
+// (within a level: float rounding), at widths that leave tails of every
+// length and on a 1-pixel-wide and a 1-pixel-high window.
+TEST(ColourFromBrightness, VectorAndScalarAgreeWithTheRule) {
+  std::vector<float> scratch;
+  for (const cv::Size size : {cv::Size(1, 9), cv::Size(9, 1), cv::Size(37, 5), cv::Size(16, 3), cv::Size(50, 7)}) {
+    cv::Mat img(size, CV_8UC3);
+    cv::RNG(size.width * 31 + size.height).fill(img, cv::RNG::UNIFORM, 0, 256);
+    const double white = 200;
+    cv::Mat out;
+    ld::detail::colourFromBrightness(img, white, out, scratch);
+    const int w = img.cols, h = img.rows;
+    const auto at = [&](int y, int x) { return img.at<cv::Vec3b>(std::clamp(y, 0, h - 1), std::clamp(x, 0, w - 1)); };
+    const auto luma = [](const cv::Vec3b& p) { return 0.114 * p[0] + 0.587 * p[1] + 0.299 * p[2]; };
+    int off = 0;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        double sd = 0, sb = 0, sr = 0;
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const cv::Vec3b q = at(y + dy, x + dx);
+            const double yy = luma(q);
+            sd += std::max(white - yy, 0.0), sb += q[0] - yy, sr += q[2] - yy;
+          }
+        const double yy = luma(at(y, x)), f = std::max(white - yy, 0.0) / std::max(sd, 0.05 * 9 * white);
+        const double cb = f * sb, cr = f * sr;
+        const cv::Vec3b want(cv::saturate_cast<uint8_t>(yy + cb),
+                             cv::saturate_cast<uint8_t>(yy - (0.114 * cb + 0.299 * cr) / 0.587),
+                             cv::saturate_cast<uint8_t>(yy + cr));
+        const cv::Vec3b got = out.at<cv::Vec3b>(y, x);
+        for (int c = 0; c < 3; ++c) off += std::abs(got[c] - want[c]) > 1;
+      }
+    EXPECT_EQ(off, 0) << size;
+  }
+}
+
 // ====================================================================== regions
 
 TEST(Regions, SmallSquaresStayWhole) {

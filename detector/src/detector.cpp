@@ -71,6 +71,7 @@ void forEachField(DetectorParams& p, F&& f) {
   f("second_look_raise", p.second_look_raise);
   f("faint_looks", p.faint_looks);
   f("faint_look_blue", p.faint_look_blue);
+  f("steep_looks", p.steep_looks);
   f("max_candidates", p.max_candidates);
   f("max_cycles", p.max_cycles);
   f("centre_iterations", p.centre_iterations);
@@ -157,6 +158,7 @@ void checkValues(const DetectorParams& p, const std::string& prefix) {
   if (!(p.second_look_raise > 0 && p.second_look_raise < 1)) bad("second_look_raise", "must be in (0, 1)");
   if (p.faint_looks < 0 || p.faint_looks > 64) bad("faint_looks", "must be in [0, 64]");
   if (!(p.faint_look_blue > 0 && p.faint_look_blue < 1)) bad("faint_look_blue", "must be in (0, 1)");
+  if (p.steep_looks < 0 || p.steep_looks > 64) bad("steep_looks", "must be in [0, 64]");
   if (p.max_candidates < 3 || p.max_candidates > 4096) bad("max_candidates", "must be in [3, 4096]");
   if (p.max_cycles < 1) bad("max_cycles", "must be >= 1");
   if (p.centre_iterations < 0 || p.centre_iterations > 10) bad("centre_iterations", "must be in [0, 10]");
@@ -331,6 +333,17 @@ constexpr int kFaintLookMinArea = 6;
 // ... and windows whose white is this much stronger in one channel than in
 // another (a colour cast) are looked at.
 constexpr double kFaintLookMinCast = 1.08;
+// Red squares up to kSteepMaxSide long whose moments' axes differ by
+// kSteepAxisRatio or more may be a steeply seen landmark's AP (60 degrees
+// of yaw: 2; 70: about 3) whose blue squares, a few pixels wide, lost their
+// colour to the camera's or JPEG's half-resolution colour: the faint look's
+// steep round looks around them again, further (the thresholded square
+// comes out shorter than printed: 5 px long for 8 at 70 degrees), with the
+// window's colour taken from its brightness (detail::colourFromBrightness).
+// Longer ones have squares wide enough to keep their colour; the limit keeps
+// the round's windows (and time) from red clutter.
+constexpr double kSteepAxisRatio = 2.0, kSteepMaxSide = 10.0;
+constexpr double kFaintLookReach = 5.0, kSteepReach = 6.5;  // the windows' radius, in the square's longest axes
 
 // One warning per process about the GPU not being used (whether it could
 // not be started or failed later).
@@ -390,12 +403,14 @@ struct Detector::Impl {
     int rank;  // second look: 0 an AP and a FIP, 1 two FIPs; faint look: 0 (an AP alone)
     int area;  // the larger square's (faint look: the AP's)
   };
-  std::vector<Anchor> anchors;
+  std::vector<Anchor> anchors, steep_anchors;
   std::vector<std::pair<cv::Rect, int64_t>> blobs;  // the first pass's larger regions: bbox, area
   detail::RegionIndex fip_index;
   std::vector<cv::Rect> looked;
   cv::Mat look_labels_buf;                 // look()'s labels are a window-sized view of it
   cv::Mat faint_src_buf, faint_img_buf;    // the faint look's white-balanced windows
+  cv::Mat faint_rc_buf, faint_rc_img_buf;  // ... steep ones' colour from brightness
+  std::vector<float> rc_scratch;
   int white_hist[766];                     // the faint look's histogram of b + g + r ...
   cv::Vec3i white_sums[766];               // ... and its pixels' channel sums per bin
   std::vector<detail::Region> all_fips, all_aps;
@@ -516,6 +531,17 @@ struct Detector::Impl {
   void complete(const cv::Mat& img, const cv::Mat& label_map);
   void secondLook(const cv::Mat& img, const cv::Mat& filtered, int max_area);
   void faintLook(const cv::Mat& img, const cv::Mat& filtered, int max_area);
+  void faintWindow(const cv::Rect& win, const cv::Mat& img, const cv::Mat& filtered,
+                   const detail::MaskThresholds& pale, int max_area, bool steep);
+  // Whether a landmark found so far (during the looks: all_candidates) has
+  // its AP at `centre`.
+  bool apTaken(const cv::Point2d& centre) const {
+    for (const auto& c : all_candidates) {
+      const detail::Region& q = all_aps[c.ap];
+      if (std::hypot(q.cx - centre.x, q.cy - centre.y) < std::max(2.0, 0.5 * detail::maxAxis(q))) return true;
+    }
+    return false;
+  }
   // `used`: the FIPs (then the APs, after fips.size()) some candidate takes.
   // The looks: the first pass's squares and landmarks go aside into all_*,
   // each look's join them there (look()), and endLooks() brings all back.
@@ -854,35 +880,46 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
 // red squares down (a nearer landmark's, whose window is the likelier to
 // hold one whole), windows reaching 5 of the square's longest axes (the FIPs
 // lie within 4.24 sides of the AP), at most faint_looks of them and an
-// eighth of the frame in all.
+// eighth of the frame in all. Then the steep round: around the red squares
+// no landmark took yet that are shaped as a steeply seen AP (kSteepAxisRatio,
+// kSteepMaxSide), windows reaching further, always white-balanced, their
+// colour taken from their brightness, at most steep_looks of them and
+// another eighth of the frame.
 void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int max_area) {
   const DetectorParams& p = params;
   const int nf = static_cast<int>(fips.size()), na = static_cast<int>(aps.size());
   markUsed();
   anchors.clear();
+  steep_anchors.clear();
   const double max_radius = 0.3 * std::min(img.cols, img.rows);
   for (int k = 0; k < na; ++k) {
     const double side = detail::maxAxis(aps[k]);
     if (used[nf + k] || side > kSecondLookMaxSide || aps[k].area < kFaintLookMinArea) continue;
-    const double radius = std::max(12.0, 5.0 * side);
-    if (radius <= max_radius) anchors.push_back({{aps[k].cx, aps[k].cy}, radius, 0, aps[k].area});
+    const cv::Point2d centre(aps[k].cx, aps[k].cy);
+    const double radius = std::max(12.0, kFaintLookReach * side);
+    if (p.faint_looks > 0 && radius <= max_radius) anchors.push_back({centre, radius, 0, aps[k].area});
+    const double steep_radius = std::max(12.0, kSteepReach * side);
+    if (p.steep_looks > 0 && side <= kSteepMaxSide && side >= kSteepAxisRatio * detail::minAxis(aps[k]) &&
+        steep_radius <= max_radius)
+      steep_anchors.push_back({centre, steep_radius, 0, aps[k].area});
   }
-  if (anchors.empty()) return;
-  std::sort(anchors.begin(), anchors.end(), [](const Anchor& a, const Anchor& b) {
+  if (anchors.empty() && steep_anchors.empty()) return;
+  const auto larger = [](const Anchor& a, const Anchor& b) {
     return std::tie(b.area, a.centre.x, a.centre.y) < std::tie(a.area, b.centre.x, b.centre.y);
-  });
+  };
+  std::sort(anchors.begin(), anchors.end(), larger);
+  std::sort(steep_anchors.begin(), steep_anchors.end(), larger);
   swapLooksLists();
   const cv::Rect frame(0, 0, img.cols, img.rows);
-  // An eighth of the frame for the looks, and as many pixels again for
-  // measuring windows' white (a quarter of each window's pixels are sampled).
-  int64_t pixels_left = static_cast<int64_t>(img.total()) / 8, samples_left = pixels_left;
-  int looks = 0;
-  looked.clear();
   const bool blurred = filtered.data != img.data;
   // Window-sized views of buffers as large as the largest window (no allocation per look).
   const int buf_side = 2 * static_cast<int>(std::ceil(max_radius)) + 1;
   faint_src_buf.create(buf_side, buf_side, CV_8UC3);
   if (blurred) faint_img_buf.create(buf_side, buf_side, CV_8UC3);
+  if (!steep_anchors.empty()) {
+    faint_rc_buf.create(buf_side, buf_side, CV_8UC3);
+    if (blurred) faint_rc_img_buf.create(buf_side, buf_side, CV_8UC3);
+  }
   // Labelled with blue from faint_look_blue: a thin or blurred square's
   // blue mixed with the paper's is paler than the first pass's threshold.
   detail::MaskThresholds pale = filter_settings.mask;
@@ -891,53 +928,88 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   // squares (a veil a few levels off in one channel, times about 4): blue at
   // any hue where it is the largest channel and above red.
   pale.wide_blue = glare_corrected;
-  for (const auto& a : anchors) {
-    if (looks >= p.faint_looks || pixels_left < 25 * 25) break;
-    cv::Rect win;
-    if (!freshWindow(a, frame, win)) continue;
-    if (win.area() > pixels_left || win.area() / 4 > samples_left) continue;
-    samples_left -= win.area() / 4;
-    // (a window measured, cast or not, stands for the red squares in it)
-    looked.push_back(win);
-    // The white: the mean colour of the brightest fifth (by the sum of the
-    // channels) of every other pixel of every other row, from one pass that
-    // counts and sums the pixels per sum of channels.
-    const cv::Mat f = filtered(win);
-    std::fill(std::begin(white_hist), std::end(white_hist), 0);
-    std::fill(std::begin(white_sums), std::end(white_sums), cv::Vec3i(0, 0, 0));
-    int samples = 0;
-    for (int y = 0; y < f.rows; y += 2) {
-      const uint8_t* q = f.ptr<uint8_t>(y);
-      for (int x = 0; x < f.cols; x += 2, q += 6, ++samples) {
-        const int v = q[0] + q[1] + q[2];
-        ++white_hist[v];
-        white_sums[v] += cv::Vec3i(q[0], q[1], q[2]);
-      }
+
+  // Each round: up to `max_looks` windows, an eighth of the frame for them
+  // and as many pixels again for measuring windows' white (a quarter of
+  // each window's pixels are sampled).
+  const auto round = [&](const std::vector<Anchor>& from, int max_looks, bool steep) {
+    int64_t pixels_left = static_cast<int64_t>(img.total()) / 8, samples_left = pixels_left;
+    int looks = 0;
+    looked.clear();
+    for (const auto& a : from) {
+      if (looks >= max_looks || pixels_left < 25 * 25) break;
+      if (steep && apTaken(a.centre)) continue;
+      cv::Rect win;
+      if (!freshWindow(a, frame, win)) continue;
+      if (win.area() > pixels_left || win.area() / 4 > samples_left) continue;
+      samples_left -= win.area() / 4;
+      // (a window measured, cast or not, stands for the red squares in it)
+      looked.push_back(win);
+      pixels_left -= win.area();
+      ++looks;
+      faintWindow(win, img, filtered, pale, max_area, steep);
     }
-    cv::Vec3d white(0, 0, 0);
-    for (int v = 765, n = 0; v >= 0 && n < std::max(1, samples / 5); --v) {
-      n += white_hist[v];
-      white += cv::Vec3d(white_sums[v]);
-    }
-    const double top = std::max({white[0], white[1], white[2]}), low = std::min({white[0], white[1], white[2]});
-    pixels_left -= win.area();
-    ++looks;
-    if (!(low > 0) || top < kFaintLookMinCast * low) {
-      // A white already white: the window as it is.
-      look(win, f, img(win), pale, max_area, true);
-      continue;
-    }
-    const cv::Scalar gain(top / white[0], top / white[1], top / white[2]);
-    cv::Mat src = faint_src_buf(cv::Rect(0, 0, win.width, win.height));
-    cv::multiply(f, gain, src);
-    cv::Mat balanced = src;
-    if (blurred) {
-      balanced = faint_img_buf(cv::Rect(0, 0, win.width, win.height));
-      cv::multiply(img(win), gain, balanced);
-    }
-    look(win, src, balanced, pale, max_area, true);
-  }
+  };
+  round(anchors, p.faint_looks, false);
+  round(steep_anchors, p.steep_looks, true);
   endLooks();
+}
+
+// One window of the faint look (see faintLook()): its white measured, the
+// window white-balanced by it (steep: always; else only where it has a
+// cast), steep windows' colour taken from their brightness, then look().
+void Detector::Impl::faintWindow(const cv::Rect& win, const cv::Mat& img, const cv::Mat& filtered,
+                                 const detail::MaskThresholds& pale, int max_area, bool steep) {
+  // The white: the mean colour of the brightest fifth (by the sum of the
+  // channels) of every other pixel of every other row, from one pass that
+  // counts and sums the pixels per sum of channels.
+  const cv::Mat f = filtered(win);
+  std::fill(std::begin(white_hist), std::end(white_hist), 0);
+  std::fill(std::begin(white_sums), std::end(white_sums), cv::Vec3i(0, 0, 0));
+  int samples = 0;
+  for (int y = 0; y < f.rows; y += 2) {
+    const uint8_t* q = f.ptr<uint8_t>(y);
+    for (int x = 0; x < f.cols; x += 2, q += 6, ++samples) {
+      const int v = q[0] + q[1] + q[2];
+      ++white_hist[v];
+      white_sums[v] += cv::Vec3i(q[0], q[1], q[2]);
+    }
+  }
+  cv::Vec3d white(0, 0, 0);
+  int n_white = 0;
+  for (int v = 765; v >= 0 && n_white < std::max(1, samples / 5); --v) {
+    n_white += white_hist[v];
+    white += cv::Vec3d(white_sums[v]);
+  }
+  const double top = std::max({white[0], white[1], white[2]}), low = std::min({white[0], white[1], white[2]});
+  if (!(low > 0) || (!steep && top < kFaintLookMinCast * low)) {
+    // A white already white (or none): the window as it is.
+    if (!steep) look(win, f, img(win), pale, max_area, true);
+    return;
+  }
+  const cv::Scalar gain(top / white[0], top / white[1], top / white[2]);
+  cv::Mat src = faint_src_buf(cv::Rect(0, 0, win.width, win.height));
+  cv::multiply(f, gain, src);
+  cv::Mat balanced = src;
+  if (filtered.data != img.data) {  // blurred: the looks label the filtered image, verify on the frame
+    balanced = faint_img_buf(cv::Rect(0, 0, win.width, win.height));
+    cv::multiply(img(win), gain, balanced);
+  }
+  if (steep) {
+    // The balanced white's level: the mean of its brightest channel.
+    const double level = top / n_white;
+    cv::Mat recoloured = faint_rc_buf(cv::Rect(0, 0, win.width, win.height));
+    detail::colourFromBrightness(src, level, recoloured, rc_scratch);
+    if (balanced.data != src.data) {
+      cv::Mat rc_img = faint_rc_img_buf(cv::Rect(0, 0, win.width, win.height));
+      detail::colourFromBrightness(balanced, level, rc_img, rc_scratch);
+      balanced = rc_img;
+    } else {
+      balanced = recoloured;
+    }
+    src = recoloured;
+  }
+  look(win, src, balanced, pale, max_area, true);
 }
 
 // One look of the second or the faint look: `src` (the window `win` of the
@@ -1126,7 +1198,7 @@ void Detector::Impl::run(const cv::Mat& input) {
     timer.stamp("second look");
   }
   // 7d. FAINT LOOK around the red squares no landmark took
-  if (!paper && p.faint_looks > 0) {
+  if (!paper && (p.faint_looks > 0 || p.steep_looks > 0)) {
     faintLook(*img, *src, max_area);
     timer.stamp("faint look");
   }

@@ -156,6 +156,122 @@ double Region::side() const {
 
 // ====================================================================== front ends
 
+void colourFromBrightness(const cv::Mat& bgr, double white, cv::Mat& out, std::vector<float>& scratch) {
+  CV_Assert(bgr.type() == CV_8UC3);
+  const int w = bgr.cols, h = bgr.rows;
+  out.create(h, w, CV_8UC3);
+  if (w == 0 || h == 0) return;
+  // Float planes (the loops vectorise) of the whole window: brightness y
+  // (BT.601) and darkness d = white - y (>= 0); of one row: the colour
+  // differences b - y and r - y; and the 3-pixel sums along each row (edges
+  // replicated) of d, b - y and r - y.
+  const size_t n = static_cast<size_t>(w) * h;
+  scratch.resize(5 * n + 2 * static_cast<size_t>(w));
+  float *Y = scratch.data(), *D = Y + n, *HD = D + n, *HB = HD + n, *HR = HB + n;
+  float *CB = HR + n, *CR = CB + w;
+  const float W = static_cast<float>(white);
+  const auto rowSum = [w](const float* a, float* s) {
+    if (w == 1) {
+      s[0] = 3 * a[0];
+      return;
+    }
+    s[0] = 2 * a[0] + a[1];
+    for (int x = 1; x < w - 1; ++x) s[x] = a[x - 1] + a[x] + a[x + 1];
+    s[w - 1] = a[w - 2] + 2 * a[w - 1];
+  };
+  for (int y = 0; y < h; ++y) {
+    const uint8_t* p = bgr.ptr<uint8_t>(y);
+    const size_t o = static_cast<size_t>(y) * w;
+    float *Yr = Y + o, *Dr = D + o;
+    int x = 0;
+#if CV_SIMD
+    {
+      constexpr int L = cv::v_uint8::nlanes, Q = cv::v_float32::nlanes;
+      const cv::v_float32 kb = cv::vx_setall_f32(0.114f), kg = cv::vx_setall_f32(0.587f),
+                          kr = cv::vx_setall_f32(0.299f), vw = cv::vx_setall_f32(W), v0 = cv::vx_setzero_f32();
+      for (; x <= w - L; x += L) {
+        cv::v_uint8 b8, g8, r8;
+        cv::v_load_deinterleave(p + 3 * x, b8, g8, r8);
+        cv::v_uint16 b16[2], g16[2], r16[2];
+        cv::v_expand(b8, b16[0], b16[1]);
+        cv::v_expand(g8, g16[0], g16[1]);
+        cv::v_expand(r8, r16[0], r16[1]);
+        for (int k = 0; k < 2; ++k) {
+          cv::v_uint32 b32[2], g32[2], r32[2];
+          cv::v_expand(b16[k], b32[0], b32[1]);
+          cv::v_expand(g16[k], g32[0], g32[1]);
+          cv::v_expand(r16[k], r32[0], r32[1]);
+          for (int j = 0; j < 2; ++j) {
+            const cv::v_float32 fb = cv::v_cvt_f32(cv::v_reinterpret_as_s32(b32[j]));
+            const cv::v_float32 fg = cv::v_cvt_f32(cv::v_reinterpret_as_s32(g32[j]));
+            const cv::v_float32 fr = cv::v_cvt_f32(cv::v_reinterpret_as_s32(r32[j]));
+            const cv::v_float32 yy = fb * kb + fg * kg + fr * kr;
+            const int at = x + (2 * k + j) * Q;
+            cv::v_store(Yr + at, yy);
+            cv::v_store(Dr + at, cv::v_max(vw - yy, v0));
+            cv::v_store(CB + at, fb - yy);
+            cv::v_store(CR + at, fr - yy);
+          }
+        }
+      }
+    }
+#endif
+    for (; x < w; ++x) {
+      const float b = p[3 * x], g = p[3 * x + 1], r = p[3 * x + 2];
+      const float yy = 0.114f * b + 0.587f * g + 0.299f * r;
+      Yr[x] = yy;
+      Dr[x] = std::max(W - yy, 0.0f);
+      CB[x] = b - yy;
+      CR[x] = r - yy;
+    }
+    rowSum(Dr, HD + o);
+    rowSum(CB, HB + o);
+    rowSum(CR, HR + o);
+  }
+  // Neighbourhoods darker than a twentieth of white in all are pale: their
+  // colour per darkness is taken over that much darkness at least.
+  const float floor_d = 0.05f * 9 * W;
+  for (int y = 0; y < h; ++y) {
+    const size_t a = static_cast<size_t>(std::max(y - 1, 0)) * w, o = static_cast<size_t>(y) * w,
+                 c = static_cast<size_t>(std::min(y + 1, h - 1)) * w;
+    uint8_t* q = out.ptr<uint8_t>(y);
+    int x = 0;
+#if CV_SIMD
+    {
+      constexpr int L = cv::v_uint8::nlanes, Q = cv::v_float32::nlanes;
+      const cv::v_float32 vfloor = cv::vx_setall_f32(floor_d), kgb = cv::vx_setall_f32(0.114f / 0.587f),
+                          kgr = cv::vx_setall_f32(0.299f / 0.587f);
+      for (; x <= w - L; x += L) {
+        cv::v_int32 ob[4], og[4], orr[4];
+        for (int j = 0; j < 4; ++j) {
+          const int at = x + j * Q;
+          const cv::v_float32 sd = cv::v_max(cv::vx_load(HD + a + at) + cv::vx_load(HD + o + at) + cv::vx_load(HD + c + at), vfloor);
+          const cv::v_float32 f = cv::vx_load(D + o + at) / sd;
+          const cv::v_float32 cb = f * (cv::vx_load(HB + a + at) + cv::vx_load(HB + o + at) + cv::vx_load(HB + c + at));
+          const cv::v_float32 cr = f * (cv::vx_load(HR + a + at) + cv::vx_load(HR + o + at) + cv::vx_load(HR + c + at));
+          const cv::v_float32 yy = cv::vx_load(Y + o + at);
+          ob[j] = cv::v_round(yy + cb);
+          og[j] = cv::v_round(yy - cb * kgb - cr * kgr);
+          orr[j] = cv::v_round(yy + cr);
+        }
+        const auto pack = [](const cv::v_int32* v) {
+          return cv::v_pack_u(cv::v_pack(v[0], v[1]), cv::v_pack(v[2], v[3]));
+        };
+        cv::v_store_interleave(q + 3 * x, pack(ob), pack(og), pack(orr));
+      }
+    }
+#endif
+    for (; x < w; ++x) {
+      const float f = D[o + x] / std::max(HD[a + x] + HD[o + x] + HD[c + x], floor_d);
+      const float cb = f * (HB[a + x] + HB[o + x] + HB[c + x]), cr = f * (HR[a + x] + HR[o + x] + HR[c + x]);
+      const float yy = Y[o + x];
+      q[3 * x] = cv::saturate_cast<uint8_t>(yy + cb);
+      q[3 * x + 1] = cv::saturate_cast<uint8_t>(yy - (0.114f * cb + 0.299f * cr) / 0.587f);
+      q[3 * x + 2] = cv::saturate_cast<uint8_t>(yy + cr);
+    }
+  }
+}
+
 void saturationMask(const cv::Mat& bgr, const MaskThresholds& mt, cv::Mat& labels) {
   CV_Assert(bgr.type() == CV_8UC3);
   labels.create(bgr.size(), CV_8UC1);
@@ -517,6 +633,11 @@ void RegionIndex::build(const std::vector<Region>& regions) {
 double maxAxis(const Region& r) {
   const double t = (r.sxx + r.syy) / 2, d = std::sqrt(std::max(0.0, (r.sxx - r.syy) * (r.sxx - r.syy) / 4 + r.sxy * r.sxy));
   return std::sqrt(12.0 * (t + d));
+}
+
+double minAxis(const Region& r) {
+  const double t = (r.sxx + r.syy) / 2, d = std::sqrt(std::max(0.0, (r.sxx - r.syy) * (r.sxx - r.syy) / 4 + r.sxy * r.sxy));
+  return std::sqrt(12.0 * std::max(0.0, t - d));
 }
 
 bool rightIsosceles(const std::array<int, 3>& cyc, const std::vector<Region>& fips, double tol, int* corner) {

@@ -59,6 +59,20 @@ struct MaskThresholds {
 /// and above red).
 void saturationMask(const cv::Mat& bgr, const MaskThresholds& t, cv::Mat& labels);
 
+/// Colour from brightness: `bgr` (8-bit, white-balanced so that its white
+/// of level `white` is grey) with each pixel's colour taken again from the
+/// sharp brightness. Cameras and JPEG carry colour at half resolution or
+/// less, so a square two or three pixels wide (a steeply seen landmark's)
+/// keeps its darkness but spreads its colour over the paper beside it, to
+/// grey. Over each 3 x 3 neighbourhood the colour difference from grey
+/// (b - y, r - y) per unit of darkness (white - y) is one ink's, and each
+/// pixel gets its own darkness times it: the neighbourhood's colour moves
+/// onto its dark pixels and off the paper. Uniform areas keep their colour
+/// (pale ones, under a twentieth of white's darkness, lose some); a neutral
+/// ink (toner) stays neutral. `out` gets bgr's size and type; `scratch`
+/// keeps the sums between calls (no allocation once large enough).
+void colourFromBrightness(const cv::Mat& bgr, double white, cv::Mat& out, std::vector<float>& scratch);
+
 /// Scratch memory of the run-based labelling, kept between frames.
 struct RunScratch {
   struct Run {
@@ -147,6 +161,8 @@ struct RegionIndex {
 /// The longest axis of a region's moments as a square's side: sqrt(12
 /// lambda_max), pixels.
 double maxAxis(const Region& r);
+/// The shortest axis the same way: sqrt(12 lambda_min).
+double minAxis(const Region& r);
 
 /// Whether three FIPs make a right isosceles triangle in the frame of their
 /// moments (two sides alike, the third sqrt(2) longer, within `tol` as a

@@ -31,7 +31,9 @@
 //                  at raised saturation thresholds and put through 4-7
 //   7d. faint look (fast front end) windows around red squares no landmark
 //                  took, white-balanced by their own white, labelled again
-//                  and put through 4-7
+//                  and put through 4-7; then windows around those shaped as
+//                  a steeply seen AP, their colour taken again from the
+//                  sharp brightness (the steep round)
 //   8. corners     the homography from the four square centres (a square
 //                  the mask split into pieces measured as the pieces
 //                  together), each corrected for the perspective shift of a
@@ -237,6 +239,18 @@ struct DetectorParams {
   /// (more blurred, thinner) squares near a red one and more bluish
   /// background there.
   double faint_look_blue = 0.15;
+  /// The faint look's steep round: windows per frame (0: none), after the
+  /// faint look's own, around red squares (of 6 pixels or more, up to 10 px
+  /// long) twice as long as wide or more, as a steeply seen AP is, that no
+  /// landmark took, reaching 6.5 of their longest axes, white-balanced, and
+  /// with their colour taken
+  /// again from the sharp brightness before labelling (at 60-70 degrees of
+  /// yaw a 9 cm landmark's blue squares are 2-3 px wide; the half-resolution
+  /// colour of cameras and JPEG spreads their blue over the paper beside
+  /// them, to grey): over each 3 x 3 neighbourhood the colour per unit of
+  /// darkness below the white is one ink's, and each pixel gets its own
+  /// darkness times it. Another eighth of the frame at most.
+  int steep_looks = 16;
   /// FIP and AP candidates kept (largest first), and 3-cycles of the FIP
   /// graph examined (those among the largest squares first): what bounds the
   /// time of frames cluttered with hundreds of small blue and red things.
