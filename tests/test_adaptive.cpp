@@ -273,7 +273,7 @@ TEST(AdaptiveDetection, NoMoreFalseLandmarksOnDistractorScenes) {
 }
 
 // A hot spot of glare on the landmark (peak 0.3 of white, in linear light,
-// then 0.6, which clips the sheet): the fixed defaults lose most frames, the
+// then 0.6, which clips the sheet): the fixed defaults lose half the frames or more, the
 // adaptive detector's veil subtraction keeps most, and no false landmark
 // appears under it.
 TEST(AdaptiveDetection, HoldsUnderGlareOnTheLandmark) {
@@ -285,7 +285,10 @@ TEST(AdaptiveDetection, HoldsUnderGlareOnTheLandmark) {
   const auto [fixed, adaptive] = ld::eval::measureFixedAndAdaptive(glare(true), 1.5, 0, 40);
   std::printf("glare 0.3: fixed %d/%d, adaptive %d/%d\n", fixed.detected, fixed.trials, adaptive.detected,
               adaptive.trials);
-  EXPECT_LE(fixed.detectRate(), 0.4);
+  // (measured: fixed 9 of 20 since the faint look's steep round, at most 8
+  // before; adaptive 20 of 20)
+  EXPECT_LE(fixed.detectRate(), 0.5);
+  EXPECT_GE(adaptive.detected, fixed.detected + 8);
   EXPECT_GE(adaptive.detectRate(), 0.8);
   const double fp = ld::eval::falsePositivesPerFrame(glare(true), 100);
   std::printf("glare 0.3: %.3f false landmarks per frame\n", fp);
