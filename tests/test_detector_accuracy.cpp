@@ -118,10 +118,10 @@ TEST(DetectionRate, DISABLED_IssueTargetAtExtremeYaw15cm) {
 // landmark's blue squares at 1.5 m are 2-3 px wide, and the half-resolution
 // colour of JPEG (4 frames in 5 of ld-synth's random conditions) spreads
 // their blue over the paper, to grey; taken again from the sharp brightness
-// in a window around the red square, it is blue again. On these 80 frames
+// in a window around the red square, it is blue again. On these 160 frames
 // (the 15 cm landmark at 2.5 m is the same in pixels) the round finds at
-// least 3 landmarks more (5 % of the frames) than the detector without it
-// finds (54 against 50 when written), and loses none that it finds.
+// least 8 landmarks more (5 % of the frames) than the detector without it
+// finds (112 against 97 when written), and loses none that it finds.
 TEST(DetectionRate, SteepRoundTakesTheColourFromTheBrightness) {
   ld::DetectorParams without;
   without.steep_looks = 0;
@@ -130,7 +130,7 @@ TEST(DetectionRate, SteepRoundTakesTheColourFromTheBrightness) {
   std::uniform_real_distribution<double> U(0, 1);
   int found = 0, found_without = 0, lost = 0, frames = 0;
   for (const double yaw : {-70.0, 70.0})
-    for (int k = 0; k < 40; ++k, ++frames) {
+    for (int k = 0; k < 80; ++k, ++frames) {
       const double roll = U(rng) * 360 - 180, pitch = (U(rng) - 0.5) * 20;
       const auto lm = ld::synth::placeLandmark(kCam, 1.5, yaw, pitch, roll, U(rng) - 0.5, U(rng) - 0.5, 0.09);
       const auto frame = ld::synth::render(ld::synth::randomConditions(kCam, {lm}, rng()));
@@ -140,7 +140,7 @@ TEST(DetectionRate, SteepRoundTakesTheColourFromTheBrightness) {
     }
   std::printf("9 cm at 1.5 m, yaw +-70: %d of %d found, %d without the steep round (%d of them lost with it)\n", found,
               frames, found_without, lost);
-  EXPECT_GE(found, found_without + 3);
+  EXPECT_GE(found, found_without + 8);
   EXPECT_EQ(lost, 0);
 }
 

@@ -334,7 +334,8 @@ constexpr int kFaintLookMinArea = 6;
 // another (a colour cast) are looked at.
 constexpr double kFaintLookMinCast = 1.08;
 // Red squares up to kSteepMaxSide long whose moments' axes differ by
-// kSteepAxisRatio or more may be a steeply seen landmark's AP (60 degrees
+// kSteepAxisRatio or more, with paper beside them (paperBeside()), may be a
+// steeply seen landmark's AP (60 degrees
 // of yaw: 2; 70: about 3) whose blue squares, a few pixels wide, lost their
 // colour to the camera's or JPEG's half-resolution colour: the faint look's
 // steep round looks around them again, further (the thresholded square
@@ -343,6 +344,7 @@ constexpr double kFaintLookMinCast = 1.08;
 // Longer ones have squares wide enough to keep their colour; the limit keeps
 // the round's windows (and time) from red clutter.
 constexpr double kSteepAxisRatio = 2.0, kSteepMaxSide = 10.0;
+constexpr int64_t kSteepMaxPixels = 640 * 480 / 8;  // the steep round's windows in all, at most
 constexpr double kFaintLookReach = 5.0, kSteepReach = 6.5;  // the windows' radius, in the square's longest axes
 
 // One warning per process about the GPU not being used (whether it could
@@ -867,6 +869,31 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
   endLooks();
 }
 
+// Whether paper lies beside a red square, as beside a landmark's AP: of
+// the four points a little beyond its ends and sides (along its moments'
+// axes), two or more bright (their largest channel 0.8 of the square's mean
+// red or more) and unsaturated (the smallest channel 0.65 of the largest or
+// more). A steeply seen AP has the sheet's margins on its inner end and
+// side (the paper between it and TR, and between it and BL); red things on
+// coloured or dark surroundings, which took half the steep round's time on
+// ld-bench's cluttered scenes, have not.
+static bool paperBeside(const cv::Mat& img, const detail::Region& r) {
+  const double th = 0.5 * std::atan2(2 * r.sxy, r.sxx - r.syy);
+  const cv::Point2d e(std::cos(th), std::sin(th)), n(-e.y, e.x);
+  const double a = 0.5 * detail::maxAxis(r) + 2.5, b = 0.5 * detail::minAxis(r) + 2.5;
+  const double red = r.sum_r / std::max(1.0, r.n_sum);
+  const cv::Point2d c(r.cx, r.cy);
+  int paper = 0;
+  for (const cv::Point2d& q : {c + a * e, c - a * e, c + b * n, c - b * n}) {
+    const int x = static_cast<int>(std::lround(q.x)), y = static_cast<int>(std::lround(q.y));
+    if (x < 0 || y < 0 || x >= img.cols || y >= img.rows) continue;
+    const cv::Vec3b v = img.at<cv::Vec3b>(y, x);
+    const int mx = std::max({v[0], v[1], v[2]}), mn = std::min({v[0], v[1], v[2]});
+    paper += mx >= 0.8 * red && mn >= 0.65 * mx;
+  }
+  return paper >= 2;
+}
+
 // The faint look: around a red square that no landmark took, the window
 // white-balanced by its own white (the mean of its brightest fifth: the
 // sheet, or whatever white lies near), labelled with blue from
@@ -900,7 +927,7 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
     if (p.faint_looks > 0 && radius <= max_radius) anchors.push_back({centre, radius, 0, aps[k].area});
     const double steep_radius = std::max(12.0, kSteepReach * side);
     if (p.steep_looks > 0 && side <= kSteepMaxSide && side >= kSteepAxisRatio * detail::minAxis(aps[k]) &&
-        steep_radius <= max_radius)
+        steep_radius <= max_radius && paperBeside(filtered, aps[k]))
       steep_anchors.push_back({centre, steep_radius, 0, aps[k].area});
   }
   if (anchors.empty() && steep_anchors.empty()) return;
@@ -930,10 +957,15 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   pale.wide_blue = glare_corrected;
 
   // Each round: up to `max_looks` windows, an eighth of the frame for them
-  // and as many pixels again for measuring windows' white (a quarter of
-  // each window's pixels are sampled).
+  // (the steep round: at most kSteepMaxPixels) and as many pixels again for
+  // measuring windows' white (a quarter of each window's pixels are sampled).
   const auto round = [&](const std::vector<Anchor>& from, int max_looks, bool steep) {
-    int64_t pixels_left = static_cast<int64_t>(img.total()) / 8, samples_left = pixels_left;
+    int64_t pixels_left = static_cast<int64_t>(img.total()) / 8;
+    // (the steep round's squares are small whatever the frame's size: its
+    // windows, up to 131 px across, need no more room in a large frame than
+    // in a 640x480 one)
+    if (steep) pixels_left = std::min<int64_t>(pixels_left, kSteepMaxPixels);
+    int64_t samples_left = pixels_left;
     int looks = 0;
     looked.clear();
     for (const auto& a : from) {

@@ -241,7 +241,8 @@ struct DetectorParams {
   double faint_look_blue = 0.15;
   /// The faint look's steep round: windows per frame (0: none), after the
   /// faint look's own, around red squares (of 6 pixels or more, up to 10 px
-  /// long) twice as long as wide or more, as a steeply seen AP is, that no
+  /// long) twice as long as wide or more, with bright unsaturated paper
+  /// beside them on two of four sides, as a steeply seen AP is, that no
   /// landmark took, reaching 6.5 of their longest axes, white-balanced, and
   /// with their colour taken
   /// again from the sharp brightness before labelling (at 60-70 degrees of
@@ -249,7 +250,8 @@ struct DetectorParams {
   /// colour of cameras and JPEG spreads their blue over the paper beside
   /// them, to grey): over each 3 x 3 neighbourhood the colour per unit of
   /// darkness below the white is one ink's, and each pixel gets its own
-  /// darkness times it. Another eighth of the frame at most.
+  /// darkness times it. Another eighth of the frame at most, and no more
+  /// than a 640x480 frame's eighth (the squares it looks around are small).
   int steep_looks = 16;
   /// FIP and AP candidates kept (largest first), and 3-cycles of the FIP
   /// graph examined (those among the largest squares first): what bounds the
