@@ -979,7 +979,21 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
       looked.push_back(win);
       pixels_left -= win.area();
       ++looks;
+      const size_t before = all_candidates.size();
       faintWindow(win, img, filtered, pale, max_area, steep);
+      if (steep) {
+        // The steep round looks for the landmark of its own red square
+        // (its AP within the square's longest axis of it): others its
+        // recoloured window shows are not taken (dark stripes on a warm wall
+        // beside an orange bar, under adaptive white balance, made one).
+        const auto other = [&](const detail::Candidate& c) {
+          const detail::Region& q = all_aps[c.ap];
+          return std::hypot(q.cx - a.centre.x, q.cy - a.centre.y) >= std::max(3.0, detail::maxAxis(q));
+        };
+        all_candidates.erase(std::remove_if(all_candidates.begin() + static_cast<std::ptrdiff_t>(before),
+                                            all_candidates.end(), other),
+                             all_candidates.end());
+      }
     }
   };
   round(anchors, p.faint_looks, false);

@@ -250,8 +250,9 @@ struct DetectorParams {
   /// colour of cameras and JPEG spreads their blue over the paper beside
   /// them, to grey): over each 3 x 3 neighbourhood the colour per unit of
   /// darkness below the white is one ink's, and each pixel gets its own
-  /// darkness times it. Another eighth of the frame at most, and no more
-  /// than a 640x480 frame's eighth (the squares it looks around are small).
+  /// darkness times it. Only landmarks whose AP is the window's red square
+  /// are taken. Another eighth of the frame at most, and no more than a
+  /// 640x480 frame's eighth (the squares it looks around are small).
   int steep_looks = 16;
   /// FIP and AP candidates kept (largest first), and 3-cycles of the FIP
   /// graph examined (those among the largest squares first): what bounds the
