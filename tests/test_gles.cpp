@@ -76,6 +76,9 @@ ld::synth::Frame oneLandmark() {
       kCam, {ld::synth::placeLandmark(kCam, 1.0, 15, 5, 30, 0.1, -0.1, 0.15)}, 17));
 }
 
+// A frame wider than any GPU's texture size limit: the GLES backend fails on it mid-run.
+cv::Mat beyondTextureLimit() { return cv::Mat(3, 70000, CV_8UC3, cv::Scalar(200, 40, 30)); }
+
 // The fraction of the edge pixels of `a` with an edge pixel of `b` within one pixel.
 double agreement(const cv::Mat& a, const cv::Mat& b) {
   cv::Mat grown;
@@ -375,7 +378,7 @@ TEST(GlesAuto, GpuFailureDuringTheChoice) {
   ASSERT_STREQ(d.backend(), "gles");  // (the first block runs on the GPU)
   ASSERT_TRUE(d.choosingBackend());
   testing::internal::CaptureStderr();
-  EXPECT_TRUE(d.detect(cv::Mat(3, 70000, CV_8UC3, cv::Scalar(200, 40, 30))).landmarks.empty());
+  EXPECT_TRUE(d.detect(beyondTextureLimit()).landmarks.empty());
   const std::string err = testing::internal::GetCapturedStderr();
   EXPECT_STREQ(d.backend(), "cpu");
   EXPECT_FALSE(d.choosingBackend());
@@ -482,7 +485,7 @@ TEST(GlesFallback, FailureMidRunSwitchesToCpu) {
   ASSERT_GT(n, 0u);
   ASSERT_STREQ(d.backend(), "gles");
   testing::internal::CaptureStderr();
-  EXPECT_TRUE(d.detect(cv::Mat(3, 70000, CV_8UC3, cv::Scalar(200, 40, 30))).landmarks.empty());
+  EXPECT_TRUE(d.detect(beyondTextureLimit()).landmarks.empty());
   EXPECT_EQ(d.detect(f.bgr).landmarks.size(), n);
   const std::string err = testing::internal::GetCapturedStderr();
   EXPECT_STREQ(d.backend(), "cpu");

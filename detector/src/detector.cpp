@@ -538,10 +538,8 @@ struct Detector::Impl {
   // Whether a landmark found so far (during the looks: all_candidates) has
   // its AP at `centre`.
   bool apTaken(const cv::Point2d& centre) const {
-    for (const auto& c : all_candidates) {
-      const detail::Region& q = all_aps[c.ap];
-      if (std::hypot(q.cx - centre.x, q.cy - centre.y) < std::max(2.0, 0.5 * detail::maxAxis(q))) return true;
-    }
+    for (const auto& c : all_candidates)
+      if (detail::nearCentre(all_aps[c.ap], centre)) return true;
     return false;
   }
   // `used`: the FIPs (then the APs, after fips.size()) some candidate takes.
@@ -986,10 +984,7 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
         // (its AP within the square's longest axis of it): others its
         // recoloured window shows are not taken (dark stripes on a warm wall
         // beside an orange bar, under adaptive white balance, made one).
-        const auto other = [&](const detail::Candidate& c) {
-          const detail::Region& q = all_aps[c.ap];
-          return std::hypot(q.cx - a.centre.x, q.cy - a.centre.y) >= std::max(3.0, detail::maxAxis(q));
-        };
+        const auto other = [&](const detail::Candidate& c) { return !detail::nearCentre(all_aps[c.ap], a.centre, 1.0, 3.0); };
         all_candidates.erase(std::remove_if(all_candidates.begin() + static_cast<std::ptrdiff_t>(before),
                                             all_candidates.end(), other),
                              all_candidates.end());
@@ -1098,7 +1093,7 @@ void Detector::Impl::look(const cv::Rect& win, const cv::Mat& src, const cv::Mat
       const detail::Region* theirs[4] = {&all_fips[k.tl], &all_fips[k.tr], &all_fips[k.bl], &all_aps[k.ap]};
       for (const auto* m : mine)
         for (const auto* q : theirs)
-          again |= std::hypot(m->cx - q->cx, m->cy - q->cy) < std::max(2.0, 0.5 * detail::maxAxis(*m));
+          again |= detail::nearCentre(*m, {q->cx, q->cy});
     }
     if (again) continue;
     c.tl += of, c.tr += of, c.bl += of, c.ap += oa;
@@ -1146,7 +1141,7 @@ void Detector::Impl::explain(Explanation& e) {
     auto found = [&](const detail::Region& r) {
       for (const auto& lm : det.landmarks)
         for (const cv::Point2f& q : {lm.fip_tl, lm.fip_tr, lm.fip_bl, lm.ap})
-          if (std::hypot(r.cx - q.x, r.cy - q.y) < std::max(2.0, 0.5 * detail::maxAxis(r))) return true;
+          if (detail::nearCentre(r, q)) return true;
       return false;
     };
     auto at = [](const detail::Region& r) { return cv::Point2f(static_cast<float>(r.cx), static_cast<float>(r.cy)); };

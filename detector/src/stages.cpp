@@ -630,13 +630,23 @@ void RegionIndex::build(const std::vector<Region>& regions) {
   for (size_t k = 0; k < order.size(); ++k) xs[k] = regions[order[k]].cx;
 }
 
+namespace {
+// The moments' eigenvalues as their mean t and half difference d (lambda = t +- d).
+void eigenMeanAndHalfDiff(const Region& r, double& t, double& d) {
+  t = (r.sxx + r.syy) / 2;
+  d = std::sqrt(std::max(0.0, (r.sxx - r.syy) * (r.sxx - r.syy) / 4 + r.sxy * r.sxy));
+}
+}  // namespace
+
 double maxAxis(const Region& r) {
-  const double t = (r.sxx + r.syy) / 2, d = std::sqrt(std::max(0.0, (r.sxx - r.syy) * (r.sxx - r.syy) / 4 + r.sxy * r.sxy));
+  double t, d;
+  eigenMeanAndHalfDiff(r, t, d);
   return std::sqrt(12.0 * (t + d));
 }
 
 double minAxis(const Region& r) {
-  const double t = (r.sxx + r.syy) / 2, d = std::sqrt(std::max(0.0, (r.sxx - r.syy) * (r.sxx - r.syy) / 4 + r.sxy * r.sxy));
+  double t, d;
+  eigenMeanAndHalfDiff(r, t, d);
   return std::sqrt(12.0 * std::max(0.0, t - d));
 }
 

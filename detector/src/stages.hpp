@@ -163,6 +163,13 @@ struct RegionIndex {
 double maxAxis(const Region& r);
 /// The shortest axis the same way: sqrt(12 lambda_min).
 double minAxis(const Region& r);
+/// Whether `p` lies within `axes` of the region's longest axis (and
+/// `min_px` at least) of its centre: the defaults, within half its side,
+/// say a point is at the square (a landmark's centre there, the same
+/// square found again).
+inline bool nearCentre(const Region& r, const cv::Point2d& p, double axes = 0.5, double min_px = 2.0) {
+  return std::hypot(r.cx - p.x, r.cy - p.y) < std::max(min_px, axes * maxAxis(r));
+}
 
 /// Whether three FIPs make a right isosceles triangle in the frame of their
 /// moments (two sides alike, the third sqrt(2) longer, within `tol` as a
