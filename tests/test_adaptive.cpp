@@ -285,9 +285,10 @@ TEST(AdaptiveDetection, HoldsUnderGlareOnTheLandmark) {
   const auto [fixed, adaptive] = ld::eval::measureFixedAndAdaptive(glare(true), 1.5, 0, 40);
   std::printf("glare 0.3: fixed %d/%d, adaptive %d/%d\n", fixed.detected, fixed.trials, adaptive.detected,
               adaptive.trials);
-  // (measured: fixed 9 of 20 since the faint look's steep round, at most 8
-  // before; adaptive 20 of 20)
-  EXPECT_LE(fixed.detectRate(), 0.5);
+  // (measured: fixed 11 of 20 since the fifteenth session's changes for
+  // glare (the QR on a clipped sheet read by its grey points), 9 since the
+  // faint look's steep round, at most 8 before; adaptive 20 of 20)
+  EXPECT_LE(fixed.detectRate(), 0.6);
   EXPECT_GE(adaptive.detected, fixed.detected + 8);
   EXPECT_GE(adaptive.detectRate(), 0.8);
   const double fp = ld::eval::falsePositivesPerFrame(glare(true), 100);
@@ -303,6 +304,26 @@ TEST(AdaptiveDetection, HoldsUnderGlareOnTheLandmark) {
   // any hue under a subtracted veil, Detector::setGlareCorrected)
   EXPECT_GE(adaptive6.detected, fixed6.detected + 10);
   EXPECT_GE(adaptive6.detectRate(), 0.9);
+}
+
+// Under glare 0.6 the veil's subtraction leaves a tint (a veil a few levels
+// off in one channel, stretched back 4 times) that turns the blue squares
+// violet, cyan or brown; the QR beside them, black on white, shows the same
+// tint, and the faint look's veil round takes it out of its windows
+// (DetectorParams::veil_looks). On the lighting sweep's glare point, seeds
+// 1-12 of 100 frames each, it finds 1171 of 1200 against 1135 without it;
+// on this seed 97 against 91.
+TEST(AdaptiveDetection, VeilRoundTakesTheQrsTintOut) {
+  auto o = lit(-1, -1, true);
+  o.glare = 0.6;
+  o.trials = 100;
+  o.seed = 10;
+  const auto with = ld::eval::measure(o, 1.5, 0, 40);
+  o.params.veil_looks = 0;
+  const auto without = ld::eval::measure(o, 1.5, 0, 40);
+  std::printf("glare 0.6, 100 frames: veil round %d, without it %d\n", with.detected, without.detected);
+  EXPECT_GE(with.detected, without.detected + 4);
+  EXPECT_GE(with.detectRate(), 0.95);
 }
 
 // The command line: `ld-detect --adaptive` on frames under tungsten light,

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <numeric>
 #include <random>
 #include <set>
@@ -1300,6 +1301,50 @@ TEST(Detector, SquareSplitByAPaleRowKeepsItsCentre) {
   std::printf("squares split by a pale row: worst centre error %.2f px over %d\n", worst, n);
 }
 
+// A blue square half of whose ink has lost its blue under a glare veil's
+// tint (the outer half grey-violet, as dark; in glare the parts have any
+// shape), in a frame the adaptive detector tells the detector had a strong
+// veil subtracted: its centre is the whole square's (measured where a
+// square of the printed size is darkest against the margin's paper:
+// detail::joinPieces), not the blue half's (a quarter of a side off), and
+// not pulled out over the sheet's edge by a dark background there.
+TEST(Detector, SquareHalfTintedKeepsItsCentre) {
+  double worst = 0;
+  int n = 0;
+  for (double dist : {0.8, 1.2})
+    for (double roll : {0.0, 25.0, 60.0})
+      for (int which : {0, 1, 2}) {  // TL, TR, BL
+        cv::Mat img = background(kCam.size, 53, true);
+        const Placed p = place(dist, 15, roll, 0.15, 0, 0);
+        drawSheet(img, kCam, p);
+        const Truth t = truthOf(kCam, p);
+        const cv::Point2d c = t.centres[which];
+        // from the square's centre: outwards along the sheet's side (away
+        // from the QR), and along the other side; half a side each way
+        const cv::Point2d ex = (t.centres[1] - t.centres[0]) / 6, ey = (t.centres[2] - t.centres[0]) / 6;
+        const cv::Point2d out = which == 1 ? ex : -ex;
+        const cv::Vec3b ink = img.at<cv::Vec3b>(cv::Point(c));
+        const double m = std::max({ink[0], ink[1], ink[2]});
+        const std::vector<cv::Point> half = {cv::Point(c + out - ey), cv::Point(c - ey), cv::Point(c + ey), cv::Point(c + out + ey)};
+        cv::fillConvexPoly(img, half, cv::Scalar(m, 0.8 * m, 1.05 * m), cv::LINE_8);
+        // the background dark right up to the sheet's edge beyond it
+        const cv::Point2d edge = c + 2.0 * out;
+        cv::circle(img, edge + 1.5 * out, static_cast<int>(cv::norm(1.5 * out)), cv::Scalar(40, 40, 40), cv::FILLED);
+        addNoise(img, 1.5, 7 + n);
+        ld::Detector det;
+        det.setGlareCorrected(true);
+        const auto& d = det.detect(img);
+        ASSERT_EQ(d.landmarks.size(), 1u) << dist << " m, roll " << roll << ", square " << which;
+        const auto& lm = d.landmarks[0];
+        const cv::Point2f got[3] = {lm.fip_tl, lm.fip_tr, lm.fip_bl};
+        const double err = cv::norm(cv::Point2d(got[which]) - c);
+        worst = std::max(worst, err);
+        ++n;
+        EXPECT_LT(err, 1.0) << dist << " m, roll " << roll << ", square " << which << ": " << got[which] << " vs " << c;
+      }
+  std::printf("squares half tinted: worst centre error %.2f px over %d\n", worst, n);
+}
+
 // Close up, at an angle, perspective moves the AP well off TR + BL - TL,
 // where a red thing just off the sheet can lie nearer: it is not taken for
 // the AP (the perspective prediction and, where both are in the gate, the
@@ -1389,6 +1434,7 @@ TEST(Detector, WashedOutQrOnAClippedSheetStillCounts) {
   EXPECT_TRUE(onlyLandmark(det.detect(img), truthOf(kCam, p)));
   ld::DetectorParams mean_only;
   mean_only.qr_dark_samples = 26;
+  mean_only.qr_clipped_max_brightness = mean_only.qr_max_brightness;
   ld::Detector strict(mean_only);
   EXPECT_TRUE(strict.detect(img).landmarks.empty()) << "the QR's mean passes: the test does not test the rule";
 
@@ -1396,6 +1442,37 @@ TEST(Detector, WashedOutQrOnAClippedSheetStillCounts) {
   p.artwork = washed(true);
   drawSheet(blank, kCam, p);
   EXPECT_TRUE(det.detect(blank).landmarks.empty());
+}
+
+// Farther off the QR's modules are a pixel or less and blur to a light grey:
+// under glare on a clipped sheet that grey reads 0.88-0.92 of the sheet
+// (whose true brightness lies above the clip), with no point dark enough
+// for the dark-point rule. It counts as a QR up to 0.93 of the sheet when
+// its points are grey; a lighter grey, a blank middle, and a yellow patch on
+// white as dark on the average (the mean of the grey points counts) do not.
+TEST(Detector, LightGreyQrOnAClippedSheetCounts) {
+  const auto with_qr = [](const std::function<void(cv::Mat&)>& paint) {
+    Placed p = place(0.6, 10, 20);
+    p.artwork = artworkImage().clone();
+    cv::Mat paper;  // at the clip
+    cv::inRange(p.artwork, inkColours().white, inkColours().white, paper);
+    p.artwork.setTo(cv::Scalar(252, 252, 252), paper);
+    const int u = p.artwork.cols / 9;
+    cv::Mat qr = p.artwork(cv::Rect(5 * u / 2, 5 * u / 2, 4 * u, 4 * u));
+    paint(qr);
+    cv::Mat img = background(kCam.size, 29);
+    drawSheet(img, kCam, p);
+    ld::Detector det;
+    return onlyLandmark(det.detect(img), truthOf(kCam, p));
+  };
+  EXPECT_TRUE(with_qr([](cv::Mat& qr) { qr.setTo(cv::Scalar(227, 227, 227)); }));   // 0.90
+  EXPECT_TRUE(with_qr([](cv::Mat& qr) { qr.setTo(cv::Scalar(214, 232, 236)); }));   // 0.90, tinted as under a veil
+  EXPECT_FALSE(with_qr([](cv::Mat& qr) { qr.setTo(cv::Scalar(242, 242, 242)); }));  // 0.96
+  EXPECT_FALSE(with_qr([](cv::Mat& qr) { qr.setTo(cv::Scalar(252, 252, 252)); }));  // blank
+  EXPECT_FALSE(with_qr([](cv::Mat& qr) {  // a yellow patch off the centre, as dark on the average
+    qr.setTo(cv::Scalar(252, 252, 252));
+    qr(cv::Rect(qr.cols / 10, qr.rows / 10, qr.cols / 2, qr.rows * 3 / 10)).setTo(cv::Scalar(40, 220, 230));
+  }));
 }
 
 // Hundreds of small blue and red dots: the graph is dense, the work bounded

@@ -64,6 +64,7 @@ void forEachField(DetectorParams& p, F&& f) {
   f("qr_max_brightness", p.qr_max_brightness);
   f("qr_dark_samples", p.qr_dark_samples);
   f("qr_dark_sample", p.qr_dark_sample);
+  f("qr_clipped_max_brightness", p.qr_clipped_max_brightness);
   f("cover_min", p.cover_min);
   f("cover_max", p.cover_max);
   f("complete_missing", p.complete_missing);
@@ -72,6 +73,7 @@ void forEachField(DetectorParams& p, F&& f) {
   f("faint_looks", p.faint_looks);
   f("faint_look_blue", p.faint_look_blue);
   f("steep_looks", p.steep_looks);
+  f("veil_looks", p.veil_looks);
   f("max_candidates", p.max_candidates);
   f("max_cycles", p.max_cycles);
   f("centre_iterations", p.centre_iterations);
@@ -154,11 +156,14 @@ void checkValues(const DetectorParams& p, const std::string& prefix) {
   if (!(p.qr_max_brightness > 0 && p.qr_max_brightness <= 2)) bad("qr_max_brightness", "must be in (0, 2]");
   if (p.qr_dark_samples < 1 || p.qr_dark_samples > 26) bad("qr_dark_samples", "must be in [1, 26]");
   if (!(p.qr_dark_sample > 0 && p.qr_dark_sample <= 1)) bad("qr_dark_sample", "must be in (0, 1]");
+  if (!(p.qr_clipped_max_brightness > 0 && p.qr_clipped_max_brightness <= 2))
+    bad("qr_clipped_max_brightness", "must be in (0, 2]");
   if (p.second_looks < 0 || p.second_looks > 64) bad("second_looks", "must be in [0, 64]");
   if (!(p.second_look_raise > 0 && p.second_look_raise < 1)) bad("second_look_raise", "must be in (0, 1)");
   if (p.faint_looks < 0 || p.faint_looks > 64) bad("faint_looks", "must be in [0, 64]");
   if (!(p.faint_look_blue > 0 && p.faint_look_blue < 1)) bad("faint_look_blue", "must be in (0, 1)");
   if (p.steep_looks < 0 || p.steep_looks > 64) bad("steep_looks", "must be in [0, 64]");
+  if (p.veil_looks < 0 || p.veil_looks > 64) bad("veil_looks", "must be in [0, 64]");
   if (p.max_candidates < 3 || p.max_candidates > 4096) bad("max_candidates", "must be in [3, 4096]");
   if (p.max_cycles < 1) bad("max_cycles", "must be >= 1");
   if (p.centre_iterations < 0 || p.centre_iterations > 10) bad("centre_iterations", "must be in [0, 10]");
@@ -238,7 +243,7 @@ const char* checkHint(detail::Check check) {
     case Check::kSheetSaturated: return "sheet_max_saturation";
     case Check::kSheetDark: return "sheet_min_value";
     case Check::kSheetUneven: return "sheet_uniformity";
-    case Check::kNoQr: return "qr_max_brightness, qr_dark_samples, qr_dark_sample";
+    case Check::kNoQr: return "qr_max_brightness, qr_dark_samples, qr_dark_sample, qr_clipped_max_brightness";
     case Check::kCentreSaturated:
     case Check::kCentreColoured: return "colour at the centre: a look-alike card";
     case Check::kCover: return "cover_min, cover_max; where the colour is smeared, the absorbed light's 0.25-0.42";
@@ -346,6 +351,15 @@ constexpr double kFaintLookMinCast = 1.08;
 constexpr double kSteepAxisRatio = 2.0, kSteepMaxSide = 10.0;
 constexpr int64_t kSteepMaxPixels = 640 * 480 / 8;  // the steep round's windows in all, at most
 constexpr double kFaintLookReach = 5.0, kSteepReach = 6.5;  // the windows' radius, in the square's longest axes
+// The veil round (DetectorParams::veil_looks): the QR's centre lies 2.12 of
+// the AP's sides from the AP's (4.24 u); its texture is measured over a
+// disc of half a side there, its tint over the middle 0.4 (inside the
+// modules, 1.8 u each way), in kVeilDirections directions, from pixels
+// under kVeilClipped in every channel (kVeilMinTintPixels of them at
+// least); a tint under kVeilMinTint levels in every channel is none.
+constexpr int kVeilDirections = 8;
+constexpr double kVeilQrReach = 2.12, kVeilTextureDisc = 0.5, kVeilTintDisc = 0.4, kVeilMinTint = 6;
+constexpr int kVeilClipped = 250, kVeilMinTintPixels = 6;
 
 // One warning per process about the GPU not being used (whether it could
 // not be started or failed later).
@@ -404,8 +418,9 @@ struct Detector::Impl {
     double radius;
     int rank;  // second look: 0 an AP and a FIP, 1 two FIPs; faint look: 0 (an AP alone)
     int area;  // the larger square's (faint look: the AP's)
+    double side = 0;  // faint look: the red square's longest axis
   };
-  std::vector<Anchor> anchors, steep_anchors;
+  std::vector<Anchor> anchors, steep_anchors, veil_anchors;
   std::vector<std::pair<cv::Rect, int64_t>> blobs;  // the first pass's larger regions: bbox, area
   detail::RegionIndex fip_index;
   std::vector<cv::Rect> looked;
@@ -535,6 +550,8 @@ struct Detector::Impl {
   void faintLook(const cv::Mat& img, const cv::Mat& filtered, int max_area);
   void faintWindow(const cv::Rect& win, const cv::Mat& img, const cv::Mat& filtered,
                    const detail::MaskThresholds& pale, int max_area, bool steep);
+  int64_t veilWindow(const cv::Rect& win, const Anchor& a, const cv::Mat& img, const cv::Mat& filtered,
+                     const detail::MaskThresholds& pale, int max_area, int64_t pixels_left);
   // Whether a landmark found so far (during the looks: all_candidates) has
   // its AP at `centre`.
   bool apTaken(const cv::Point2d& centre) const {
@@ -916,24 +933,28 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   markUsed();
   anchors.clear();
   steep_anchors.clear();
+  veil_anchors.clear();
   const double max_radius = 0.3 * std::min(img.cols, img.rows);
   for (int k = 0; k < na; ++k) {
     const double side = detail::maxAxis(aps[k]);
     if (used[nf + k] || side > kSecondLookMaxSide || aps[k].area < kFaintLookMinArea) continue;
     const cv::Point2d centre(aps[k].cx, aps[k].cy);
     const double radius = std::max(12.0, kFaintLookReach * side);
-    if (p.faint_looks > 0 && radius <= max_radius) anchors.push_back({centre, radius, 0, aps[k].area});
+    if (p.faint_looks > 0 && radius <= max_radius) anchors.push_back({centre, radius, 0, aps[k].area, side});
+    if (p.veil_looks > 0 && glare_corrected && radius <= max_radius)
+      veil_anchors.push_back({centre, radius, 0, aps[k].area, side});
     const double steep_radius = std::max(12.0, kSteepReach * side);
     if (p.steep_looks > 0 && side <= kSteepMaxSide && side >= kSteepAxisRatio * detail::minAxis(aps[k]) &&
         steep_radius <= max_radius && paperBeside(filtered, aps[k]))
       steep_anchors.push_back({centre, steep_radius, 0, aps[k].area});
   }
-  if (anchors.empty() && steep_anchors.empty()) return;
+  if (anchors.empty() && steep_anchors.empty() && veil_anchors.empty()) return;
   const auto larger = [](const Anchor& a, const Anchor& b) {
     return std::tie(b.area, a.centre.x, a.centre.y) < std::tie(a.area, b.centre.x, b.centre.y);
   };
   std::sort(anchors.begin(), anchors.end(), larger);
   std::sort(steep_anchors.begin(), steep_anchors.end(), larger);
+  std::sort(veil_anchors.begin(), veil_anchors.end(), larger);
   swapLooksLists();
   const cv::Rect frame(0, 0, img.cols, img.rows);
   const bool blurred = filtered.data != img.data;
@@ -957,8 +978,11 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   // Each round: up to `max_looks` windows, an eighth of the frame for them
   // (the steep round: at most kSteepMaxPixels) and as many pixels again for
   // measuring windows' white (a quarter of each window's pixels are sampled).
-  const auto round = [&](const std::vector<Anchor>& from, int max_looks, bool steep) {
-    int64_t pixels_left = static_cast<int64_t>(img.total()) / 8;
+  enum class Round { kFaint, kSteep, kVeil };
+  const auto round = [&](const std::vector<Anchor>& from, int max_looks, Round kind) {
+    const bool steep = kind == Round::kSteep, veil = kind == Round::kVeil;
+    // (the veil round: a quarter of the frame, two looks a window)
+    int64_t pixels_left = static_cast<int64_t>(img.total()) / (veil ? 4 : 8);
     // (the steep round's squares are small whatever the frame's size: its
     // windows, up to 131 px across, need no more room in a large frame than
     // in a 640x480 one)
@@ -968,22 +992,27 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
     looked.clear();
     for (const auto& a : from) {
       if (looks >= max_looks || pixels_left < 25 * 25) break;
-      if (steep && apTaken(a.centre)) continue;
+      if (kind != Round::kFaint && apTaken(a.centre)) continue;
       cv::Rect win;
       if (!freshWindow(a, frame, win)) continue;
       if (win.area() > pixels_left || win.area() / 4 > samples_left) continue;
       samples_left -= win.area() / 4;
       // (a window measured, cast or not, stands for the red squares in it)
       looked.push_back(win);
-      pixels_left -= win.area();
       ++looks;
       const size_t before = all_candidates.size();
-      faintWindow(win, img, filtered, pale, max_area, steep);
-      if (steep) {
-        // The steep round looks for the landmark of its own red square
-        // (its AP within the square's longest axis of it): others its
-        // recoloured window shows are not taken (dark stripes on a warm wall
-        // beside an orange bar, under adaptive white balance, made one).
+      if (veil) {
+        pixels_left -= veilWindow(win, a, img, filtered, pale, max_area, pixels_left);
+      } else {
+        pixels_left -= win.area();
+        faintWindow(win, img, filtered, pale, max_area, steep);
+      }
+      if (kind != Round::kFaint) {
+        // The steep and veil rounds look for the landmark of their own red
+        // square (its AP within the square's longest axis of it): others
+        // their recoloured window shows are not taken (dark stripes on a
+        // warm wall beside an orange bar, under adaptive white balance,
+        // made one).
         const auto other = [&](const detail::Candidate& c) { return !detail::nearCentre(all_aps[c.ap], a.centre, 1.0, 3.0); };
         all_candidates.erase(std::remove_if(all_candidates.begin() + static_cast<std::ptrdiff_t>(before),
                                             all_candidates.end(), other),
@@ -991,9 +1020,74 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
       }
     }
   };
-  round(anchors, p.faint_looks, false);
-  round(steep_anchors, p.steep_looks, true);
+  round(anchors, p.faint_looks, Round::kFaint);
+  round(steep_anchors, p.steep_looks, Round::kSteep);
+  round(veil_anchors, p.veil_looks, Round::kVeil);
   endLooks();
+}
+
+// One window of the faint look's veil round (see DetectorParams::veil_looks):
+// the tint a glare veil's subtraction left, measured on the QR where it
+// would lie (kVeilQrReach of the red square's sides from it, in
+// kVeilDirections directions; the two with the finest texture, the QR's
+// modules), taken out of the window before labelling: one look per tint.
+// Returns the pixels looked at.
+int64_t Detector::Impl::veilWindow(const cv::Rect& win, const Anchor& a, const cv::Mat& img, const cv::Mat& filtered,
+                                   const detail::MaskThresholds& pale, int max_area, int64_t pixels_left) {
+  std::array<double, kVeilDirections> texture;
+  std::array<cv::Scalar, kVeilDirections> tint;
+  for (int d = 0; d < kVeilDirections; ++d) {
+    texture[d] = -1;
+    const double angle = 2 * CV_PI * d / kVeilDirections;
+    const cv::Point2d c = a.centre + kVeilQrReach * a.side * cv::Point2d(std::cos(angle), std::sin(angle));
+    const double rt = kVeilTextureDisc * a.side, rc = kVeilTintDisc * a.side;
+    const int x0 = std::max(0, static_cast<int>(std::floor(c.x - rt))), x1 = std::min(img.cols - 2, static_cast<int>(std::ceil(c.x + rt)));
+    const int y0 = std::max(0, static_cast<int>(std::floor(c.y - rt))), y1 = std::min(img.rows - 2, static_cast<int>(std::ceil(c.y + rt)));
+    int64_t fine = 0;
+    int n = 0, m = 0;
+    cv::Vec3d sum(0, 0, 0);
+    for (int y = y0; y <= y1; ++y) {
+      const uint8_t* row = img.ptr<uint8_t>(y);
+      const uint8_t* below = img.ptr<uint8_t>(y + 1);
+      for (int x = x0; x <= x1; ++x) {
+        const double r2 = (x - c.x) * (x - c.x) + (y - c.y) * (y - c.y);
+        if (r2 > rt * rt) continue;
+        const uint8_t* q = row + 3 * x;
+        const int v = q[0] + q[1] + q[2];
+        fine += std::abs(v - (q[3] + q[4] + q[5])) + std::abs(v - (below[3 * x] + below[3 * x + 1] + below[3 * x + 2]));
+        ++n;
+        // (clipped pixels, the white modules at the hot spot, carry no tint)
+        if (r2 <= rc * rc && std::max({q[0], q[1], q[2]}) < kVeilClipped) sum += cv::Vec3d(q[0], q[1], q[2]), ++m;
+      }
+    }
+    if (n == 0 || m < kVeilMinTintPixels) continue;
+    const cv::Vec3d mean = sum / m;
+    const double grey = (mean[0] + mean[1] + mean[2]) / 3;
+    tint[d] = cv::Scalar(mean[0] - grey, mean[1] - grey, mean[2] - grey);
+    texture[d] = static_cast<double>(fine) / n;
+  }
+  int64_t pixels = 0;
+  std::array<int, 2> tried = {-1, -1};
+  for (int& pick : tried) {
+    for (int d = 0; d < kVeilDirections; ++d)
+      if (texture[d] >= 0 && d != tried[0] && (pick < 0 || texture[d] > texture[pick])) pick = d;
+    if (pick < 0 || pixels + win.area() > pixels_left) break;
+    const cv::Scalar& t = tint[pick];
+    // (a tint too slight to have hidden the squares' blue, or the one
+    // already taken out, needs no look)
+    if (std::max({std::abs(t[0]), std::abs(t[1]), std::abs(t[2])}) < kVeilMinTint) continue;
+    if (&pick == &tried[1] && tried[0] >= 0 && cv::norm(t - tint[tried[0]], cv::NORM_INF) < kVeilMinTint) continue;
+    cv::Mat src = faint_src_buf(cv::Rect(0, 0, win.width, win.height));
+    cv::subtract(filtered(win), t, src);
+    cv::Mat balanced = src;
+    if (filtered.data != img.data) {  // blurred: the looks label the filtered image, verify on the frame
+      balanced = faint_img_buf(cv::Rect(0, 0, win.width, win.height));
+      cv::subtract(img(win), t, balanced);
+    }
+    look(win, src, balanced, pale, max_area, true);
+    pixels += win.area();
+  }
+  return pixels;
 }
 
 // One window of the faint look (see faintLook()): its white measured, the
@@ -1256,7 +1350,7 @@ void Detector::Impl::run(const cv::Mat& input) {
     if (paper)  // (the paper's bounding rectangles are not pieces)
       for (int i = 0; i < 4; ++i) centres[i] = {squares[i]->cx, squares[i]->cy};
     else
-      detail::joinPieces(squares, fips, aps, used, centres);
+      detail::joinPieces(*img, squares, fips, aps, used, glare_corrected, centres);
     std::array<cv::Point2d, 4> corrected, corners;
     if (distorted) detail::undistortPixels(scaled, centres);
     if (!detail::fitCorners(centres, p.centre_iterations, corrected, corners)) continue;

@@ -110,6 +110,9 @@ constexpr double kClippedSheet = 235;
 // the sheet's brightest sample by this ratio.
 constexpr int kGlaredSamples = 3;
 constexpr double kGlaredOverSheet = 1.1;
+// A QR on a clipped sheet read by its grey points' mean
+// (DetectorParams::qr_clipped_max_brightness): this many of the 25 grey.
+constexpr int kClippedQrGrey = 22;
 // A band across the sheet: both sides of one opposite pair darker than both
 // of the other pair, the brighter of them by this ratio or more (no light's
 // gradient nor one shadow's edge darkens opposite sides alone; over
@@ -142,6 +145,12 @@ constexpr double kPieceMinArea = 0.1;
 // threshold splits larger ones, and beside a few pixels' square a
 // background's crumbs of its colour pass for pieces.
 constexpr double kPieceMinSide = 8;
+// Squares (joined) covering less than this fraction of the printed square
+// under a glare veil's tint are pieces still: their centre is measured on
+// the image (inkCentre(); on ld-synth's random scenes squares cover 0.6-1.0
+// of it, under glare 0.6 from a few hundredths).
+constexpr double kPieceWhole = 0.7;
+constexpr int kInkRounds = 2;
 
 // How much more of a hue than the sheet's a saturated landmark centre may
 // have (printed blue and red have about 1 more).
@@ -1053,14 +1062,15 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   {
     const cv::Point2d ex = (P[1] - P[0]) * (1.0 / 6), ey = (P[3] - P[0]) * (1.0 / 6);
     const double sheet_max = *std::max_element(means.begin(), means.end());
-    double qr_mean = 0;
-    int dark = 0, glared = 0;
+    double qr_mean = 0, grey_mean = 0;
+    int dark = 0, glared = 0, grey = 0;
     for (int j = 0; j < 5; ++j)
       for (int i = 0; i < 5; ++i) {
         const double u = 3.1 + 0.7 * i - 1.5, v = 3.1 + 0.7 * j - 1.5;
         double sv, vv, b;
         if (!sampleSV(bgr, P[0] + ex * u + ey * v, sv, vv, &b)) return fail(Check::kOutsideImage);
         qr_mean += b / 25;
+        if (sv <= p.sheet_max_saturation) grey_mean += b, ++grey;
         dark += b < p.qr_dark_sample * sheet_mean && sv <= p.sheet_max_saturation;
         glared += b > kGlaredOverSheet * sheet_max && sv <= p.sheet_max_saturation;
       }
@@ -1069,7 +1079,13 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
     // so they are where a reflection lies on the QR alone (a glossy sheet's:
     // points of it brighter than any of the sheet's).
     const bool clipped = sheet_mean >= kClippedSheet || glared >= kGlaredSamples;
-    if (qr_mean > p.qr_max_brightness * sheet_mean && !(clipped && dark >= p.qr_dark_samples)) return fail(Check::kNoQr);
+    // A clipped sheet is brighter than it reads, by how much no one knows:
+    // there a QR of grey points (kClippedQrGrey of the 25 or more: not a
+    // coloured thing's) may read up to qr_clipped_max_brightness of it.
+    const bool washed = clipped && grey >= kClippedQrGrey &&
+                        grey_mean / grey <= p.qr_clipped_max_brightness * sheet_mean;
+    if (qr_mean > p.qr_max_brightness * sheet_mean && !(clipped && dark >= p.qr_dark_samples) && !washed)
+      return fail(Check::kNoQr);
     // Under a band across the sheet (two opposite sides darker than the
     // other two) the QR is as much darker than the band's paper: a shadow's
     // band frames it as the rest of the sheet does. Sheets hung in a grid
@@ -1176,19 +1192,70 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   return true;
 }
 
-void joinPieces(const std::array<const Region*, 4>& squares, const std::vector<Region>& fips,
-                const std::vector<Region>& aps, const std::vector<uint8_t>& used, std::array<cv::Point2d, 4>& centres) {
+// Where a square's ink lies near `at` (sheet frame of joinPieces: a square
+// half a unit each way): the offset within kInkSearch units at which a
+// square of the printed size is darkest against a ring of the sheet's
+// margin around it (ink absorbs in its weakest channel, paper does not).
+static bool inkCentre(const cv::Mat& bgr, const cv::Matx33d& to_image, const cv::Matx33d& to_sheet, cv::Point2d at,
+                      cv::Point2d& out) {
+  constexpr double kInkSearch = 0.3, kRing = 0.2;
+  constexpr double kReach = 0.5 + kInkSearch + kRing;
+  cv::Point2d lo(1e9, 1e9), hi(-1e9, -1e9);
+  for (const cv::Point2d d : {cv::Point2d(-1, -1), {1, -1}, {1, 1}, {-1, 1}}) {
+    const cv::Point2d q = applyH(to_image, at + d * kReach);
+    lo.x = std::min(lo.x, q.x), lo.y = std::min(lo.y, q.y), hi.x = std::max(hi.x, q.x), hi.y = std::max(hi.y, q.y);
+  }
+  const int x0 = std::max(0, static_cast<int>(std::floor(lo.x))), x1 = std::min(bgr.cols - 1, static_cast<int>(std::ceil(hi.x)));
+  const int y0 = std::max(0, static_cast<int>(std::floor(lo.y))), y1 = std::min(bgr.rows - 1, static_cast<int>(std::ceil(hi.y)));
+  if (x1 < x0 || y1 < y0) return false;
+  static thread_local std::vector<cv::Point3f> px;
+  px.clear();
+  for (int y = y0; y <= y1; ++y) {
+    const uint8_t* row = bgr.ptr<uint8_t>(y);
+    for (int x = x0; x <= x1; ++x) {
+      const cv::Point2d q = applyH(to_sheet, {double(x), double(y)}) - at;
+      if (std::max(std::abs(q.x), std::abs(q.y)) > kReach) continue;
+      px.push_back({float(q.x), float(q.y), float(std::min({row[3 * x], row[3 * x + 1], row[3 * x + 2]}))});
+    }
+  }
+  auto score = [&](double ox, double oy) {
+    double in = 0, ring = 0;
+    int n_in = 0, n_ring = 0;
+    for (const auto& p : px) {
+      const double m = std::max(std::abs(p.x - ox), std::abs(p.y - oy));
+      if (m <= 0.5) in += p.z, ++n_in;
+      else if (m <= 0.5 + kRing) ring += p.z, ++n_ring;
+    }
+    return n_in > 0 && n_ring > 0 ? ring / n_ring - in / n_in : -1e9;
+  };
+  double bx = 0, by = 0, best = -1e9;
+  for (double step : {0.1, 0.025}) {
+    const double cx = bx, cy = by, reach = step == 0.1 ? kInkSearch : 0.1;
+    for (double oy = cy - reach; oy <= cy + reach + 1e-9; oy += step)
+      for (double ox = cx - reach; ox <= cx + reach + 1e-9; ox += step) {
+        const double sc = score(ox, oy);
+        if (sc > best) best = sc, bx = ox, by = oy;
+      }
+  }
+  if (!(best >= 16)) return false;
+  out = applyH(to_image, at + cv::Point2d(bx, by));
+  return true;
+}
+
+void joinPieces(const cv::Mat& bgr, const std::array<const Region*, 4>& squares, const std::vector<Region>& fips,
+                const std::vector<Region>& aps, const std::vector<uint8_t>& used, bool tinted,
+                std::array<cv::Point2d, 4>& centres) {
   // The frame of the centres: 3 units from one to the next, a square 1 unit
   // across around its centre.
   static const std::array<cv::Point2d, 4> kCentres = {cv::Point2d(0, 0), {3, 0}, {0, 3}, {3, 3}};
   for (int i = 0; i < 4; ++i) centres[i] = {squares[i]->cx, squares[i]->cy};
   cv::Matx33d to_sheet, to_image;
   if (!homography4(centres, kCentres, to_sheet) || !homography4(kCentres, centres, to_image)) return;
+  std::array<bool, 4> piece = {false, false, false, false};
   for (int i = 0; i < 4; ++i) {
     const Region& sq = *squares[i];
     const std::vector<Region>& list = i == 3 ? aps : fips;
     const size_t first = i == 3 ? fips.size() : 0;  // the list's first in `used`
-    if (sq.pass < 0) continue;  // measured on the image, whole (the completion's)
     // the printed square's side here, pixels
     const cv::Point2d k = kCentres[i];
     const cv::Point2d dx = applyH(to_image, k + cv::Point2d(0.5, 0)) - applyH(to_image, k - cv::Point2d(0.5, 0));
@@ -1197,7 +1264,8 @@ void joinPieces(const std::array<const Region*, 4>& squares, const std::vector<R
     if (printed < kPieceMinSide) continue;
     // the union so far: area, centre, second central moments
     double w = sq.area, x = sq.cx, y = sq.cy, sxx = sq.sxx, sxy = sq.sxy, syy = sq.syy;
-    for (size_t j = 0; j < list.size(); ++j) {
+    // (the completion's squares, measured on the image, have no pieces)
+    for (size_t j = 0; sq.pass >= 0 && j < list.size(); ++j) {
       const Region& r = list[j];
       if (&r == &sq || r.pass != sq.pass || (first + j < used.size() && used[first + j])) continue;  // (pass >= 0 here)
       if (r.area < kPieceMinArea * printed * printed) continue;
@@ -1216,6 +1284,25 @@ void joinPieces(const std::array<const Region*, 4>& squares, const std::vector<R
       w = w2, x = x2, y = y2, sxx = uxx, sxy = uxy, syy = uyy;
     }
     centres[i] = {x, y};
+    // Still a piece where a glare veil's stretch tints the squares (parts of
+    // a square under the threshold, in any shape): measured where its ink
+    // is, below. (Elsewhere a square short of the printed area is as often
+    // whole: a sheet bent round a pillar, seen through the flat sheet's
+    // homography, reads 0.5-0.7 of it.)
+    piece[i] = tinted && w < kPieceWhole * printed * printed;
+  }
+  // Each round in the frame of the centres so far (a piece's centre skews
+  // the frame around it, and so the square's outline there).
+  for (int round = 0; round < kInkRounds && (piece[0] || piece[1] || piece[2] || piece[3]); ++round) {
+    if (!homography4(centres, kCentres, to_sheet) || !homography4(kCentres, centres, to_image)) return;
+    std::array<cv::Point2d, 4> moved = centres;
+    for (int i = 0; i < 4; ++i) {
+      cv::Point2d ink;
+      if (!piece[i] || !inkCentre(bgr, to_image, to_sheet, applyH(to_sheet, centres[i]), ink)) continue;
+      const cv::Point2d q = applyH(to_sheet, ink) - kCentres[i];
+      if (std::abs(q.x) < kPieceReach && std::abs(q.y) < kPieceReach) moved[i] = ink;
+    }
+    centres = moved;
   }
 }
 

@@ -322,9 +322,15 @@ bool fitCorners(const std::array<cv::Point2d, 4>& centres, int iterations,
 /// square or more, whose centres lie within 0.75 of its side of its centre
 /// (in the frame of the four centres) and which together with it, by their
 /// moments, are no larger than the printed square and a pixel's blur; each
-/// centre the joined pieces' area-weighted centroid.
-void joinPieces(const std::array<const Region*, 4>& squares, const std::vector<Region>& fips,
-                const std::vector<Region>& aps, const std::vector<uint8_t>& used, std::array<cv::Point2d, 4>& centres);
+/// centre the joined pieces' area-weighted centroid. In a frame whose
+/// squares a glare veil's stretch tinted (`tinted`), a square (joined, or
+/// the completion's) still covering under kPieceWhole of the printed one is
+/// measured on `bgr` instead: where a square of the printed size is
+/// darkest in its pixels' weakest channel against a ring of the margin's
+/// paper around it, within 0.3 units of the piece.
+void joinPieces(const cv::Mat& bgr, const std::array<const Region*, 4>& squares, const std::vector<Region>& fips,
+                const std::vector<Region>& aps, const std::vector<uint8_t>& used, bool tinted,
+                std::array<cv::Point2d, 4>& centres);
 
 /// Pixel positions of a distorting camera to those of its ideal pinhole
 /// (same K), and back.

@@ -199,6 +199,13 @@ struct DetectorParams {
   /// qr_dark_samples = 26: the mean alone.
   int qr_dark_samples = 4;
   double qr_dark_sample = 0.8;
+  /// ... or, on a clipped sheet, the mean of the grey ones of those 25
+  /// points (22 of them grey at least: no coloured thing's) at most this
+  /// times the sheet's brightness. A clipped sheet is brighter than it
+  /// reads: under glare 0.6 a QR whose modules are a pixel each reads
+  /// 0.88-0.92 of a sheet read at 250-254, with no point dark enough for
+  /// qr_dark_sample. At qr_max_brightness or below: no such rule.
+  double qr_clipped_max_brightness = 0.93;
   /// Along each side of the quadrilateral (TL-TR, TR-AP, AP-BL, BL-TL) the
   /// two squares cover 1/3 of the distance between their centres, in any
   /// view; the colour profile's cover must lie in [cover_min, cover_max].
@@ -254,6 +261,18 @@ struct DetectorParams {
   /// are taken. Another eighth of the frame at most, and no more than a
   /// 640x480 frame's eighth (the squares it looks around are small).
   int steep_looks = 16;
+  /// The faint look's veil round: windows per frame (0: none), only in
+  /// frames that had a strong glare veil subtracted (setGlareCorrected),
+  /// around the red squares no landmark took (as the faint look's), with
+  /// the tint the veil's subtraction left taken out. A veil a few levels off
+  /// in one channel, stretched back 4 times, tints the blue squares violet,
+  /// cyan or brown; the QR beside them is printed black on white and tinted
+  /// alike, so its colour is that tint: in the two directions from the red
+  /// square where the QR would lie that have the finest texture (its
+  /// modules), the mean colour of the unclipped pixels less its grey is
+  /// subtracted from the window before labelling. Only landmarks whose AP
+  /// is the window's red square are taken. A quarter of the frame at most.
+  int veil_looks = 8;
   /// FIP and AP candidates kept (largest first), and 3-cycles of the FIP
   /// graph examined (those among the largest squares first): what bounds the
   /// time of frames cluttered with hundreds of small blue and red things.
