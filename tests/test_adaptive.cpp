@@ -285,10 +285,9 @@ TEST(AdaptiveDetection, HoldsUnderGlareOnTheLandmark) {
   const auto [fixed, adaptive] = ld::eval::measureFixedAndAdaptive(glare(true), 1.5, 0, 40);
   std::printf("glare 0.3: fixed %d/%d, adaptive %d/%d\n", fixed.detected, fixed.trials, adaptive.detected,
               adaptive.trials);
-  // (measured: fixed 11 of 20 since the fifteenth session's changes for
-  // glare (the QR on a clipped sheet read by its grey points), 9 since the
-  // faint look's steep round, at most 8 before; adaptive 20 of 20)
-  EXPECT_LE(fixed.detectRate(), 0.6);
+  // (measured: fixed 9 of 20 since the faint look's steep round, at most 8
+  // before; adaptive 20 of 20)
+  EXPECT_LE(fixed.detectRate(), 0.5);
   EXPECT_GE(adaptive.detected, fixed.detected + 8);
   EXPECT_GE(adaptive.detectRate(), 0.8);
   const double fp = ld::eval::falsePositivesPerFrame(glare(true), 100);

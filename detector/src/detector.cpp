@@ -428,6 +428,7 @@ struct Detector::Impl {
   cv::Mat faint_src_buf, faint_img_buf;    // the faint look's white-balanced windows
   cv::Mat faint_rc_buf, faint_rc_img_buf;  // ... steep ones' colour from brightness
   std::vector<float> rc_scratch;
+  std::vector<cv::Point3f> ink_scratch;  // joinPieces()'s pixels
   int white_hist[766];                     // the faint look's histogram of b + g + r ...
   cv::Vec3i white_sums[766];               // ... and its pixels' channel sums per bin
   std::vector<detail::Region> all_fips, all_aps;
@@ -1066,17 +1067,21 @@ int64_t Detector::Impl::veilWindow(const cv::Rect& win, const Anchor& a, const c
     tint[d] = cv::Scalar(mean[0] - grey, mean[1] - grey, mean[2] - grey);
     texture[d] = static_cast<double>(fine) / n;
   }
+  // The two most textured directions, most first.
+  int first = -1, second = -1;
+  for (int d = 0; d < kVeilDirections; ++d) {
+    if (texture[d] < 0) continue;
+    if (first < 0 || texture[d] > texture[first]) second = first, first = d;
+    else if (second < 0 || texture[d] > texture[second]) second = d;
+  }
   int64_t pixels = 0;
-  std::array<int, 2> tried = {-1, -1};
-  for (int& pick : tried) {
-    for (int d = 0; d < kVeilDirections; ++d)
-      if (texture[d] >= 0 && d != tried[0] && (pick < 0 || texture[d] > texture[pick])) pick = d;
+  for (const int pick : {first, second}) {
     if (pick < 0 || pixels + win.area() > pixels_left) break;
     const cv::Scalar& t = tint[pick];
-    // (a tint too slight to have hidden the squares' blue, or the one
-    // already taken out, needs no look)
-    if (std::max({std::abs(t[0]), std::abs(t[1]), std::abs(t[2])}) < kVeilMinTint) continue;
-    if (&pick == &tried[1] && tried[0] >= 0 && cv::norm(t - tint[tried[0]], cv::NORM_INF) < kVeilMinTint) continue;
+    // A tint too slight to have hidden the squares' blue needs no look, nor
+    // one the first look took out already.
+    if (cv::norm(t, cv::NORM_INF) < kVeilMinTint) continue;
+    if (pick == second && first >= 0 && cv::norm(t - tint[first], cv::NORM_INF) < kVeilMinTint) continue;
     cv::Mat src = faint_src_buf(cv::Rect(0, 0, win.width, win.height));
     cv::subtract(filtered(win), t, src);
     cv::Mat balanced = src;
@@ -1350,7 +1355,7 @@ void Detector::Impl::run(const cv::Mat& input) {
     if (paper)  // (the paper's bounding rectangles are not pieces)
       for (int i = 0; i < 4; ++i) centres[i] = {squares[i]->cx, squares[i]->cy};
     else
-      detail::joinPieces(*img, squares, fips, aps, used, glare_corrected, centres);
+      detail::joinPieces(*img, squares, fips, aps, used, glare_corrected, ink_scratch, centres);
     std::array<cv::Point2d, 4> corrected, corners;
     if (distorted) detail::undistortPixels(scaled, centres);
     if (!detail::fitCorners(centres, p.centre_iterations, corrected, corners)) continue;

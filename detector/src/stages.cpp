@@ -1194,12 +1194,17 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
 
 // Where a square's ink lies near `at` (sheet frame of joinPieces: a square
 // half a unit each way): the offset within kInkSearch units at which a
-// square of the printed size is darkest against a ring of the sheet's
-// margin around it (ink absorbs in its weakest channel, paper does not).
+// square of the printed size is darkest against a ring kInkRing wide of the
+// sheet's margin around it (ink absorbs in its weakest channel, paper does
+// not), by kInkMinContrast levels at least; searched in steps of a tenth,
+// then of a fortieth of a unit around the best. Large squares are sampled
+// on a grid of about kInkSamples pixels a side of the unit. False when no
+// offset is dark enough.
 static bool inkCentre(const cv::Mat& bgr, const cv::Matx33d& to_image, const cv::Matx33d& to_sheet, cv::Point2d at,
-                      cv::Point2d& out) {
-  constexpr double kInkSearch = 0.3, kRing = 0.2;
-  constexpr double kReach = 0.5 + kInkSearch + kRing;
+                      std::vector<cv::Point3f>& px, cv::Point2d& out) {
+  constexpr double kInkSearch = 0.3, kInkRing = 0.2, kInkMinContrast = 16;
+  constexpr double kReach = 0.5 + kInkSearch + kInkRing;
+  constexpr int kInkSamples = 16;
   cv::Point2d lo(1e9, 1e9), hi(-1e9, -1e9);
   for (const cv::Point2d d : {cv::Point2d(-1, -1), {1, -1}, {1, 1}, {-1, 1}}) {
     const cv::Point2d q = applyH(to_image, at + d * kReach);
@@ -1208,43 +1213,45 @@ static bool inkCentre(const cv::Mat& bgr, const cv::Matx33d& to_image, const cv:
   const int x0 = std::max(0, static_cast<int>(std::floor(lo.x))), x1 = std::min(bgr.cols - 1, static_cast<int>(std::ceil(hi.x)));
   const int y0 = std::max(0, static_cast<int>(std::floor(lo.y))), y1 = std::min(bgr.rows - 1, static_cast<int>(std::ceil(hi.y)));
   if (x1 < x0 || y1 < y0) return false;
-  static thread_local std::vector<cv::Point3f> px;
+  const double unit = std::max(hi.x - lo.x, hi.y - lo.y) / (2 * kReach);  // pixels, about
+  const int stride = std::max(1, static_cast<int>(unit / kInkSamples));
   px.clear();
-  for (int y = y0; y <= y1; ++y) {
+  for (int y = y0; y <= y1; y += stride) {
     const uint8_t* row = bgr.ptr<uint8_t>(y);
-    for (int x = x0; x <= x1; ++x) {
+    for (int x = x0; x <= x1; x += stride) {
       const cv::Point2d q = applyH(to_sheet, {double(x), double(y)}) - at;
       if (std::max(std::abs(q.x), std::abs(q.y)) > kReach) continue;
-      px.push_back({float(q.x), float(q.y), float(std::min({row[3 * x], row[3 * x + 1], row[3 * x + 2]}))});
+      px.push_back({static_cast<float>(q.x), static_cast<float>(q.y),
+                    static_cast<float>(std::min({row[3 * x], row[3 * x + 1], row[3 * x + 2]}))});
     }
   }
-  auto score = [&](double ox, double oy) {
+  const auto contrast = [&](double ox, double oy) {
     double in = 0, ring = 0;
     int n_in = 0, n_ring = 0;
     for (const auto& p : px) {
       const double m = std::max(std::abs(p.x - ox), std::abs(p.y - oy));
       if (m <= 0.5) in += p.z, ++n_in;
-      else if (m <= 0.5 + kRing) ring += p.z, ++n_ring;
+      else if (m <= 0.5 + kInkRing) ring += p.z, ++n_ring;
     }
-    return n_in > 0 && n_ring > 0 ? ring / n_ring - in / n_in : -1e9;
+    return n_in > 0 && n_ring > 0 ? ring / n_ring - in / n_in : -1.0;
   };
-  double bx = 0, by = 0, best = -1e9;
-  for (double step : {0.1, 0.025}) {
-    const double cx = bx, cy = by, reach = step == 0.1 ? kInkSearch : 0.1;
+  double bx = 0, by = 0, best = -1;
+  for (const auto& [step, reach] : {std::pair{0.1, kInkSearch}, {0.025, 0.1}}) {
+    const double cx = bx, cy = by;
     for (double oy = cy - reach; oy <= cy + reach + 1e-9; oy += step)
       for (double ox = cx - reach; ox <= cx + reach + 1e-9; ox += step) {
-        const double sc = score(ox, oy);
-        if (sc > best) best = sc, bx = ox, by = oy;
+        const double c = contrast(ox, oy);
+        if (c > best) best = c, bx = ox, by = oy;
       }
   }
-  if (!(best >= 16)) return false;
+  if (!(best >= kInkMinContrast)) return false;
   out = applyH(to_image, at + cv::Point2d(bx, by));
   return true;
 }
 
 void joinPieces(const cv::Mat& bgr, const std::array<const Region*, 4>& squares, const std::vector<Region>& fips,
                 const std::vector<Region>& aps, const std::vector<uint8_t>& used, bool tinted,
-                std::array<cv::Point2d, 4>& centres) {
+                std::vector<cv::Point3f>& scratch, std::array<cv::Point2d, 4>& centres) {
   // The frame of the centres: 3 units from one to the next, a square 1 unit
   // across around its centre.
   static const std::array<cv::Point2d, 4> kCentres = {cv::Point2d(0, 0), {3, 0}, {0, 3}, {3, 3}};
@@ -1298,7 +1305,7 @@ void joinPieces(const cv::Mat& bgr, const std::array<const Region*, 4>& squares,
     std::array<cv::Point2d, 4> moved = centres;
     for (int i = 0; i < 4; ++i) {
       cv::Point2d ink;
-      if (!piece[i] || !inkCentre(bgr, to_image, to_sheet, applyH(to_sheet, centres[i]), ink)) continue;
+      if (!piece[i] || !inkCentre(bgr, to_image, to_sheet, applyH(to_sheet, centres[i]), scratch, ink)) continue;
       const cv::Point2d q = applyH(to_sheet, ink) - kCentres[i];
       if (std::abs(q.x) < kPieceReach && std::abs(q.y) < kPieceReach) moved[i] = ink;
     }

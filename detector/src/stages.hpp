@@ -327,10 +327,11 @@ bool fitCorners(const std::array<cv::Point2d, 4>& centres, int iterations,
 /// the completion's) still covering under kPieceWhole of the printed one is
 /// measured on `bgr` instead: where a square of the printed size is
 /// darkest in its pixels' weakest channel against a ring of the margin's
-/// paper around it, within 0.3 units of the piece.
+/// paper around it, within 0.3 units of the piece (`scratch`: its pixels,
+/// kept between calls).
 void joinPieces(const cv::Mat& bgr, const std::array<const Region*, 4>& squares, const std::vector<Region>& fips,
                 const std::vector<Region>& aps, const std::vector<uint8_t>& used, bool tinted,
-                std::array<cv::Point2d, 4>& centres);
+                std::vector<cv::Point3f>& scratch, std::array<cv::Point2d, 4>& centres);
 
 /// Pixel positions of a distorting camera to those of its ideal pinhole
 /// (same K), and back.
