@@ -420,7 +420,7 @@ struct Detector::Impl {
     int area;  // the larger square's (faint look: the AP's)
     double side = 0;  // faint look: the red square's longest axis
   };
-  std::vector<Anchor> anchors, steep_anchors, veil_anchors;
+  std::vector<Anchor> anchors, steep_anchors;
   std::vector<std::pair<cv::Rect, int64_t>> blobs;  // the first pass's larger regions: bbox, area
   detail::RegionIndex fip_index;
   std::vector<cv::Rect> looked;
@@ -934,28 +934,27 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   markUsed();
   anchors.clear();
   steep_anchors.clear();
-  veil_anchors.clear();
+  // (the faint look's anchors serve the veil round too, in frames it runs in)
+  const int veil_looks = glare_corrected ? p.veil_looks : 0;
   const double max_radius = 0.3 * std::min(img.cols, img.rows);
   for (int k = 0; k < na; ++k) {
     const double side = detail::maxAxis(aps[k]);
     if (used[nf + k] || side > kSecondLookMaxSide || aps[k].area < kFaintLookMinArea) continue;
     const cv::Point2d centre(aps[k].cx, aps[k].cy);
     const double radius = std::max(12.0, kFaintLookReach * side);
-    if (p.faint_looks > 0 && radius <= max_radius) anchors.push_back({centre, radius, 0, aps[k].area, side});
-    if (p.veil_looks > 0 && glare_corrected && radius <= max_radius)
-      veil_anchors.push_back({centre, radius, 0, aps[k].area, side});
+    if ((p.faint_looks > 0 || veil_looks > 0) && radius <= max_radius)
+      anchors.push_back({centre, radius, 0, aps[k].area, side});
     const double steep_radius = std::max(12.0, kSteepReach * side);
     if (p.steep_looks > 0 && side <= kSteepMaxSide && side >= kSteepAxisRatio * detail::minAxis(aps[k]) &&
         steep_radius <= max_radius && paperBeside(filtered, aps[k]))
       steep_anchors.push_back({centre, steep_radius, 0, aps[k].area});
   }
-  if (anchors.empty() && steep_anchors.empty() && veil_anchors.empty()) return;
+  if (anchors.empty() && steep_anchors.empty()) return;
   const auto larger = [](const Anchor& a, const Anchor& b) {
     return std::tie(b.area, a.centre.x, a.centre.y) < std::tie(a.area, b.centre.x, b.centre.y);
   };
   std::sort(anchors.begin(), anchors.end(), larger);
   std::sort(steep_anchors.begin(), steep_anchors.end(), larger);
-  std::sort(veil_anchors.begin(), veil_anchors.end(), larger);
   swapLooksLists();
   const cv::Rect frame(0, 0, img.cols, img.rows);
   const bool blurred = filtered.data != img.data;
@@ -1023,7 +1022,7 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   };
   round(anchors, p.faint_looks, Round::kFaint);
   round(steep_anchors, p.steep_looks, Round::kSteep);
-  round(veil_anchors, p.veil_looks, Round::kVeil);
+  round(anchors, veil_looks, Round::kVeil);
   endLooks();
 }
 
@@ -1338,7 +1337,7 @@ void Detector::Impl::run(const cv::Mat& input) {
     timer.stamp("second look");
   }
   // 7d. FAINT LOOK around the red squares no landmark took
-  if (!paper && (p.faint_looks > 0 || p.steep_looks > 0)) {
+  if (!paper && (p.faint_looks > 0 || p.steep_looks > 0 || (glare_corrected && p.veil_looks > 0))) {
     faintLook(*img, *src, max_area);
     timer.stamp("faint look");
   }

@@ -33,10 +33,13 @@
 //                  took, white-balanced by their own white, labelled again
 //                  and put through 4-7; then windows around those shaped as
 //                  a steeply seen AP, their colour taken again from the
-//                  sharp brightness (the steep round)
+//                  sharp brightness (the steep round); under a strong glare
+//                  veil, windows with the tint the QR shows taken out (the
+//                  veil round)
 //   8. corners     the homography from the four square centres (a square
 //                  the mask split into pieces measured as the pieces
-//                  together), each corrected for the perspective shift of a
+//                  together; under a strong glare veil, one still in pieces
+//                  where its ink is), each corrected for the perspective shift of a
 //                  projected square's centroid, gives the pattern's outer
 //                  corners (through the undistorted image when the camera
 //                  distorts)
