@@ -119,10 +119,13 @@ TEST(DetectionRate, DISABLED_IssueTargetAtExtremeYaw15cm) {
 // landmark's blue squares at 1.5 m are 2-3 px wide, and the half-resolution
 // colour of JPEG (4 frames in 5 of ld-synth's random conditions) spreads
 // their blue over the paper, to grey; taken again from the sharp brightness
-// in a window around the red square, it is blue again. On these 160 frames
-// (the 15 cm landmark at 2.5 m is the same in pixels) the round finds at
-// least 8 landmarks more (5 % of the frames) than the detector without it
-// finds (112 against 97 when written), and loses none that it finds.
+// in a window around the red square, it is blue again. The same JPEG
+// colour rounds the thresholded AP: it starts from red squares whose axes
+// differ by 1.3:1 or more, as thresholded, not the printed 3:1. On these
+// 160 frames (the 15 cm landmark at 2.5 m is the same in pixels) the round
+// finds at least 16 landmarks more (10 % of the frames) than the detector
+// without it finds (116 against 97 when written; 112 when it started only
+// from squares of 2:1 or more), and loses none that it finds.
 TEST(DetectionRate, SteepRoundTakesTheColourFromTheBrightness) {
   ld::DetectorParams without;
   without.steep_looks = 0;
@@ -141,7 +144,7 @@ TEST(DetectionRate, SteepRoundTakesTheColourFromTheBrightness) {
     }
   std::printf("9 cm at 1.5 m, yaw +-70: %d of %d found, %d without the steep round (%d of them lost with it)\n", found,
               frames, found_without, lost);
-  EXPECT_GE(found, found_without + 8);
+  EXPECT_GE(found, found_without + 16);
   EXPECT_EQ(lost, 0);
 }
 

@@ -339,16 +339,23 @@ constexpr int kFaintLookMinArea = 6;
 // another (a colour cast) are looked at.
 constexpr double kFaintLookMinCast = 1.08;
 // Red squares up to kSteepMaxSide long whose moments' axes differ by
-// kSteepAxisRatio or more, with paper beside them (paperBeside()), may be a
-// steeply seen landmark's AP (60 degrees
-// of yaw: 2; 70: about 3) whose blue squares, a few pixels wide, lost their
-// colour to the camera's or JPEG's half-resolution colour: the faint look's
-// steep round looks around them again, further (the thresholded square
-// comes out shorter than printed: 5 px long for 8 at 70 degrees), with the
-// window's colour taken from its brightness (detail::colourFromBrightness).
-// Longer ones have squares wide enough to keep their colour; the limit keeps
-// the round's windows (and time) from red clutter.
-constexpr double kSteepAxisRatio = 2.0, kSteepMaxSide = 10.0;
+// kSteepAxisRatio or more, of kSteepMinArea pixels or more, with paper
+// beside them (paperBeside()), may be a steeply seen landmark's AP (printed
+// 2:1 at 60 degrees of yaw, 3:1 at 70) whose blue squares, a few pixels
+// wide, lost their colour to the camera's or JPEG's half-resolution colour:
+// the faint look's steep round looks around them again, further (the
+// thresholded square comes out shorter than printed: 5 px long for 8 at 70
+// degrees), with the window's colour taken from its brightness
+// (detail::colourFromBrightness). The same half-resolution colour rounds
+// the thresholded AP too: at 70 degrees a 9 cm AP at 1.5 m, 8 x 2.7 px
+// printed, often comes out 4-5 px by 2.5-3.5 (axes 1.3:1 to 1.8:1) and
+// 4-14 px in all, so the bounds are those, not the printed shape's (2:1
+// and the faint look's 6 px found 1420 of ld-eval yaw's 1500 frames for
+// 9 cm at 1.5 m within +-70 degrees; these 1434). Longer squares have blue
+// squares wide enough to keep their colour; the limit keeps the round's
+// windows (and time) from red clutter.
+constexpr double kSteepAxisRatio = 1.3, kSteepMaxSide = 10.0;
+constexpr int kSteepMinArea = 4;
 constexpr int64_t kSteepMaxPixels = 640 * 480 / 8;  // the steep round's windows in all, at most
 constexpr double kFaintLookReach = 5.0, kSteepReach = 6.5;  // the windows' radius, in the square's longest axes
 // The veil round (DetectorParams::veil_looks): the QR's centre lies 2.12 of
@@ -939,14 +946,14 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   const double max_radius = 0.3 * std::min(img.cols, img.rows);
   for (int k = 0; k < na; ++k) {
     const double side = detail::maxAxis(aps[k]);
-    if (used[nf + k] || side > kSecondLookMaxSide || aps[k].area < kFaintLookMinArea) continue;
+    if (used[nf + k] || side > kSecondLookMaxSide || aps[k].area < std::min(kFaintLookMinArea, kSteepMinArea)) continue;
     const cv::Point2d centre(aps[k].cx, aps[k].cy);
     const double radius = std::max(12.0, kFaintLookReach * side);
-    if ((p.faint_looks > 0 || veil_looks > 0) && radius <= max_radius)
+    if ((p.faint_looks > 0 || veil_looks > 0) && radius <= max_radius && aps[k].area >= kFaintLookMinArea)
       anchors.push_back({centre, radius, 0, aps[k].area, side});
     const double steep_radius = std::max(12.0, kSteepReach * side);
     if (p.steep_looks > 0 && side <= kSteepMaxSide && side >= kSteepAxisRatio * detail::minAxis(aps[k]) &&
-        steep_radius <= max_radius && paperBeside(filtered, aps[k]))
+        aps[k].area >= kSteepMinArea && steep_radius <= max_radius && paperBeside(filtered, aps[k]))
       steep_anchors.push_back({centre, steep_radius, 0, aps[k].area});
   }
   if (anchors.empty() && steep_anchors.empty()) return;
