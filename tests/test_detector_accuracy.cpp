@@ -148,6 +148,45 @@ TEST(DetectionRate, SteepRoundTakesTheColourFromTheBrightness) {
   EXPECT_EQ(lost, 0);
 }
 
+// The steep round around blue squares: a 9 cm landmark at 1.5 m, 60-70
+// degrees of yaw, hung on a brown or red wall (just behind the sheet),
+// every frame through JPEG. Half-resolution colour joins the AP, 1-2 px of
+// margin from the sheet's edge, to the wall, so no red square is left to
+// start from; where a FIP kept some blue, the round looks around it. Of
+// these 120 frames 95 are found (88 when the round started only from red
+// squares); at least 92 must be, and no landmark but the sheet's.
+TEST(DetectionRate, SteepRoundAroundBlueSquaresWhenTheApJoinedTheWall) {
+  ld::Detector det;
+  std::mt19937_64 rng(6070);
+  std::uniform_real_distribution<double> U(0, 1);
+  int found = 0, others = 0, frames = 0;
+  for (int k = 0; k < 120; ++k, ++frames) {
+    const double yaw = (k % 2 ? 1 : -1) * (60 + 10 * U(rng));
+    const double roll = U(rng) * 360 - 180, pitch = (U(rng) - 0.5) * 20;
+    const auto lm = ld::synth::placeLandmark(kCam, 1.5, yaw, pitch, roll, U(rng) - 0.5, U(rng) - 0.5, 0.09);
+    auto spec = ld::synth::randomConditions(kCam, {lm}, rng());
+    ld::synth::Surface wall;
+    // brown wood, orange, or red paint (BGR)
+    const cv::Scalar colours[] = {{40, 90, 160}, {30, 110, 210}, {45, 45, 190}};
+    wall.texture = cv::Mat(8, 8, CV_8UC3, colours[k % 3]);
+    wall.size_m = {2.0, 2.0};
+    wall.rvec = lm.rvec;
+    cv::Matx33d R;
+    cv::Rodrigues(lm.rvec, R);
+    wall.tvec = lm.tvec + R * cv::Vec3d(0, 0, 0.002);
+    spec.surfaces.push_back(wall);
+    spec.degradation.jpeg_quality = 75 + static_cast<int>(20 * U(rng));
+    const auto frame = ld::synth::render(spec);
+    const ld::Detection& d = det.detect(frame.bgr);
+    found += match(d, frame.truth[0]) != nullptr;
+    for (const auto& l : d.landmarks) others += !ld::matchesTruth(l, centres(frame.truth[0]));
+  }
+  std::printf("9 cm at 1.5 m, yaw 60-70, on a brown or red wall, JPEG: %d of %d found, %d other landmarks\n", found,
+              frames, others);
+  EXPECT_GE(found, 92);
+  EXPECT_EQ(others, 0);
+}
+
 // Close range: a 15 cm landmark from 0.25 to 0.35 m at yaw within +-60
 // degrees (strong perspective: the AP far from the affine prediction), in
 // the middle of the image so that it stays in view.

@@ -356,6 +356,22 @@ constexpr double kFaintLookMinCast = 1.08;
 // windows (and time) from red clutter.
 constexpr double kSteepAxisRatio = 1.3, kSteepMaxSide = 10.0;
 constexpr int kSteepMinArea = 4;
+// Where the AP is lost (JPEG's colour joined it, 1-2 px of margin from the
+// sheet's edge, to a red or brown background behind) but a FIP kept some
+// blue, the steep round looks around the blue squares too: up to
+// kSteepMaxSide long, of kSteepMinArea pixels or more, axes differing by
+// kSteepFipAxisRatio or more (1.3, as for the AP, let a striped blue and
+// white surface in a dim frame make a landmark of its recoloured stripes),
+// with paper beside them, taking only a landmark one of whose FIPs is the
+// window's blue square. On ld-eval yaw --trials 100, 9 cm at 1.5 m within
+// +-70 degrees, 1434 -> 1439 of 1500 (seeds 2, 3: 1440 -> 1447, 1432 ->
+// 1440); 15 cm at 2.5 m within +-80, 1461 -> 1476 of 1700.
+constexpr double kSteepFipAxisRatio = 1.6;
+// ... and paper beside them brighter than their blue by this much (0.8 of
+// it, as beside an AP, started the round around blue clutter on ld-bench's
+// scenes: +0.1 ms a 640x480 frame; printed blue is dark, its blue channel
+// under the paper's even mixed with it at a steep angle).
+constexpr double kSteepFipPaperOverInk = 1.1;
 constexpr int64_t kSteepMaxPixels = 640 * 480 / 8;  // the steep round's windows in all, at most
 constexpr double kFaintLookReach = 5.0, kSteepReach = 6.5;  // the windows' radius, in the square's longest axes
 // The veil round (DetectorParams::veil_looks): the QR's centre lies 2.12 of
@@ -427,7 +443,7 @@ struct Detector::Impl {
     int area;  // the larger square's (faint look: the AP's)
     double side = 0;  // faint look: the red square's longest axis
   };
-  std::vector<Anchor> anchors, steep_anchors;
+  std::vector<Anchor> anchors, steep_anchors, steep_fip_anchors;
   std::vector<std::pair<cv::Rect, int64_t>> blobs;  // the first pass's larger regions: bbox, area
   detail::RegionIndex fip_index;
   std::vector<cv::Rect> looked;
@@ -560,13 +576,6 @@ struct Detector::Impl {
                    const detail::MaskThresholds& pale, int max_area, bool steep);
   int64_t veilWindow(const cv::Rect& win, const Anchor& a, const cv::Mat& img, const cv::Mat& filtered,
                      const detail::MaskThresholds& pale, int max_area, int64_t pixels_left);
-  // Whether a landmark found so far (during the looks: all_candidates) has
-  // its AP at `centre`.
-  bool apTaken(const cv::Point2d& centre) const {
-    for (const auto& c : all_candidates)
-      if (detail::nearCentre(all_aps[c.ap], centre)) return true;
-    return false;
-  }
   // `used`: the FIPs (then the APs, after fips.size()) some candidate takes.
   // The looks: the first pass's squares and landmarks go aside into all_*,
   // each look's join them there (look()), and endLooks() brings all back.
@@ -892,19 +901,21 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
   endLooks();
 }
 
-// Whether paper lies beside a red square, as beside a landmark's AP: of
-// the four points a little beyond its ends and sides (along its moments'
-// axes), two or more bright (their largest channel 0.8 of the square's mean
-// red or more) and unsaturated (the smallest channel 0.65 of the largest or
+// Whether paper lies beside a red square, as beside a landmark's AP (or a
+// blue square, as beside a FIP): of the four points a little beyond its
+// ends and sides (along its moments' axes), two or more bright (their
+// largest channel `paper_over_ink` of the square's mean red, or blue, or
+// more) and unsaturated (the smallest channel 0.65 of the largest or
 // more). A steeply seen AP has the sheet's margins on its inner end and
 // side (the paper between it and TR, and between it and BL); red things on
 // coloured or dark surroundings, which took half the steep round's time on
 // ld-bench's cluttered scenes, have not.
-static bool paperBeside(const cv::Mat& img, const detail::Region& r) {
+static bool paperBeside(const cv::Mat& img, const detail::Region& r, double paper_over_ink = 0.8) {
   const double th = 0.5 * std::atan2(2 * r.sxy, r.sxx - r.syy);
   const cv::Point2d e(std::cos(th), std::sin(th)), n(-e.y, e.x);
   const double a = 0.5 * detail::maxAxis(r) + 2.5, b = 0.5 * detail::minAxis(r) + 2.5;
-  const double red = r.sum_r / std::max(1.0, r.n_sum);
+  // (the square's own ink's channel: red for an AP, blue for a FIP)
+  const double ink = (r.colour == detail::kBlue ? r.sum_b : r.sum_r) / std::max(1.0, r.n_sum);
   const cv::Point2d c(r.cx, r.cy);
   int paper = 0;
   for (const cv::Point2d& q : {c + a * e, c - a * e, c + b * n, c - b * n}) {
@@ -912,7 +923,7 @@ static bool paperBeside(const cv::Mat& img, const detail::Region& r) {
     if (x < 0 || y < 0 || x >= img.cols || y >= img.rows) continue;
     const cv::Vec3b v = img.at<cv::Vec3b>(y, x);
     const int mx = std::max({v[0], v[1], v[2]}), mn = std::min({v[0], v[1], v[2]});
-    paper += mx >= 0.8 * red && mn >= 0.65 * mx;
+    paper += mx >= paper_over_ink * ink && mn >= 0.65 * mx;
   }
   return paper >= 2;
 }
@@ -934,13 +945,15 @@ static bool paperBeside(const cv::Mat& img, const detail::Region& r) {
 // no landmark took yet that are shaped as a steeply seen AP (kSteepAxisRatio,
 // kSteepMaxSide), windows reaching further, always white-balanced, their
 // colour taken from their brightness, at most steep_looks of them and
-// another eighth of the frame.
+// another eighth of the frame; then as many again around the blue squares
+// shaped as a steeply seen FIP (kSteepFipAxisRatio, kSteepFipPaperOverInk).
 void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int max_area) {
   const DetectorParams& p = params;
   const int nf = static_cast<int>(fips.size()), na = static_cast<int>(aps.size());
   markUsed();
   anchors.clear();
   steep_anchors.clear();
+  steep_fip_anchors.clear();
   // (the faint look's anchors serve the veil round too, in frames it runs in)
   const int veil_looks = glare_corrected ? p.veil_looks : 0;
   const double max_radius = 0.3 * std::min(img.cols, img.rows);
@@ -956,12 +969,21 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
         aps[k].area >= kSteepMinArea && steep_radius <= max_radius && paperBeside(filtered, aps[k]))
       steep_anchors.push_back({centre, steep_radius, 0, aps[k].area});
   }
-  if (anchors.empty() && steep_anchors.empty()) return;
+  for (int k = 0; k < nf && p.steep_looks > 0; ++k) {
+    const double side = detail::maxAxis(fips[k]);
+    if (used[k] || side > kSteepMaxSide || fips[k].area < kSteepMinArea) continue;
+    const double steep_radius = std::max(12.0, kSteepReach * side);
+    if (side >= kSteepFipAxisRatio * detail::minAxis(fips[k]) && steep_radius <= max_radius &&
+        paperBeside(filtered, fips[k], kSteepFipPaperOverInk))
+      steep_fip_anchors.push_back({cv::Point2d(fips[k].cx, fips[k].cy), steep_radius, 1, fips[k].area});
+  }
+  if (anchors.empty() && steep_anchors.empty() && steep_fip_anchors.empty()) return;
   const auto larger = [](const Anchor& a, const Anchor& b) {
     return std::tie(b.area, a.centre.x, a.centre.y) < std::tie(a.area, b.centre.x, b.centre.y);
   };
   std::sort(anchors.begin(), anchors.end(), larger);
   std::sort(steep_anchors.begin(), steep_anchors.end(), larger);
+  std::sort(steep_fip_anchors.begin(), steep_fip_anchors.end(), larger);
   swapLooksLists();
   const cv::Rect frame(0, 0, img.cols, img.rows);
   const bool blurred = filtered.data != img.data;
@@ -969,7 +991,7 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   const int buf_side = 2 * static_cast<int>(std::ceil(max_radius)) + 1;
   faint_src_buf.create(buf_side, buf_side, CV_8UC3);
   if (blurred) faint_img_buf.create(buf_side, buf_side, CV_8UC3);
-  if (!steep_anchors.empty()) {
+  if (!steep_anchors.empty() || !steep_fip_anchors.empty()) {
     faint_rc_buf.create(buf_side, buf_side, CV_8UC3);
     if (blurred) faint_rc_img_buf.create(buf_side, buf_side, CV_8UC3);
   }
@@ -985,9 +1007,18 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   // Each round: up to `max_looks` windows, an eighth of the frame for them
   // (the steep round: at most kSteepMaxPixels) and as many pixels again for
   // measuring windows' white (a quarter of each window's pixels are sampled).
-  enum class Round { kFaint, kSteep, kVeil };
+  // (kSteepFip: the steep round around blue squares, with a budget of its own)
+  enum class Round { kFaint, kSteep, kSteepFip, kVeil };
   const auto round = [&](const std::vector<Anchor>& from, int max_looks, Round kind) {
-    const bool steep = kind == Round::kSteep, veil = kind == Round::kVeil;
+    const bool steep = kind == Round::kSteep || kind == Round::kSteepFip, veil = kind == Round::kVeil;
+    const bool around_fip = kind == Round::kSteepFip;
+    // Whether candidate c's AP (around_fip: one of its FIPs) is the anchor's square.
+    const auto owns = [&](const detail::Candidate& c, const cv::Point2d& centre, double tol, double min_px) {
+      if (!around_fip) return detail::nearCentre(all_aps[c.ap], centre, tol, min_px);
+      return detail::nearCentre(all_fips[c.tl], centre, tol, min_px) ||
+             detail::nearCentre(all_fips[c.tr], centre, tol, min_px) ||
+             detail::nearCentre(all_fips[c.bl], centre, tol, min_px);
+    };
     // (the veil round: a quarter of the frame, two looks a window)
     int64_t pixels_left = static_cast<int64_t>(img.total()) / (veil ? 4 : 8);
     // (the steep round's squares are small whatever the frame's size: its
@@ -999,7 +1030,11 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
     looked.clear();
     for (const auto& a : from) {
       if (looks >= max_looks || pixels_left < 25 * 25) break;
-      if (kind != Round::kFaint && apTaken(a.centre)) continue;
+      // (a landmark found so far holds the anchor's square: nothing to look for)
+      if (kind != Round::kFaint &&
+          std::any_of(all_candidates.begin(), all_candidates.end(),
+                      [&](const detail::Candidate& c) { return owns(c, a.centre, 0.5, 2.0); }))
+        continue;
       cv::Rect win;
       if (!freshWindow(a, frame, win)) continue;
       if (win.area() > pixels_left || win.area() / 4 > samples_left) continue;
@@ -1016,11 +1051,11 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
       }
       if (kind != Round::kFaint) {
         // The steep and veil rounds look for the landmark of their own red
-        // square (its AP within the square's longest axis of it): others
-        // their recoloured window shows are not taken (dark stripes on a
-        // warm wall beside an orange bar, under adaptive white balance,
-        // made one).
-        const auto other = [&](const detail::Candidate& c) { return !detail::nearCentre(all_aps[c.ap], a.centre, 1.0, 3.0); };
+        // square (its AP within the square's longest axis of it; around a
+        // blue square, one of its FIPs): others their recoloured window
+        // shows are not taken (dark stripes on a warm wall beside an orange
+        // bar, under adaptive white balance, made one).
+        const auto other = [&](const detail::Candidate& c) { return !owns(c, a.centre, 1.0, 3.0); };
         all_candidates.erase(std::remove_if(all_candidates.begin() + static_cast<std::ptrdiff_t>(before),
                                             all_candidates.end(), other),
                              all_candidates.end());
@@ -1029,6 +1064,7 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   };
   round(anchors, p.faint_looks, Round::kFaint);
   round(steep_anchors, p.steep_looks, Round::kSteep);
+  round(steep_fip_anchors, p.steep_looks, Round::kSteepFip);
   round(anchors, veil_looks, Round::kVeil);
   endLooks();
 }

@@ -32,7 +32,8 @@
 //   7d. faint look (fast front end) windows around red squares no landmark
 //                  took, white-balanced by their own white, labelled again
 //                  and put through 4-7; then windows around those shaped as
-//                  a steeply seen AP, their colour taken again from the
+//                  a steeply seen AP, and around blue squares shaped as a
+//                  steeply seen FIP, their colour taken again from the
 //                  sharp brightness (the steep round); under a strong glare
 //                  veil, windows with the tint the QR shows taken out (the
 //                  veil round)
@@ -250,8 +251,10 @@ struct DetectorParams {
   /// background there.
   double faint_look_blue = 0.15;
   /// The faint look's steep round: windows per frame (0: none), after the
-  /// faint look's own, around red squares (of 6 pixels or more, up to 10 px
-  /// long) twice as long as wide or more, with bright unsaturated paper
+  /// faint look's own, around red squares (of 4 pixels or more, up to 10 px
+  /// long) whose axes differ by 1.3:1 or more as thresholded (a steeply seen
+  /// AP, printed 3:1 at 70 degrees, comes out rounded by the camera's or
+  /// JPEG's half-resolution colour), with bright unsaturated paper
   /// beside them on two of four sides, as a steeply seen AP is, that no
   /// landmark took, reaching 6.5 of their longest axes, white-balanced, and
   /// with their colour taken
@@ -262,7 +265,12 @@ struct DetectorParams {
   /// darkness below the white is one ink's, and each pixel gets its own
   /// darkness times it. Only landmarks whose AP is the window's red square
   /// are taken. Another eighth of the frame at most, and no more than a
-  /// 640x480 frame's eighth (the squares it looks around are small).
+  /// 640x480 frame's eighth (the squares it looks around are small). Then
+  /// as many windows again, with a budget of their own, around blue squares
+  /// no landmark took shaped as a steeply seen FIP (axes 1.6:1 or more,
+  /// paper beside them 1.1 times their blue or brighter), for landmarks
+  /// whose AP joined a red or brown background: only landmarks with a FIP
+  /// at the window's blue square are taken.
   int steep_looks = 16;
   /// The faint look's veil round: windows per frame (0: none), only in
   /// frames that had a strong glare veil subtracted (setGlareCorrected),
