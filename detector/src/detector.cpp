@@ -364,8 +364,8 @@ constexpr int kSteepMinArea = 4;
 // white surface in a dim frame make a landmark of its recoloured stripes),
 // with paper beside them, taking only a landmark one of whose FIPs is the
 // window's blue square. On ld-eval yaw --trials 100, 9 cm at 1.5 m within
-// +-70 degrees, 1434 -> 1439 of 1500 (seeds 2, 3: 1440 -> 1447, 1432 ->
-// 1440); 15 cm at 2.5 m within +-80, 1461 -> 1476 of 1700.
+// +-70 degrees, 1434 -> 1441 of 1500 (seeds 2, 3: 1440 -> 1446, 1432 ->
+// 1441); 15 cm at 2.5 m within +-80, 1461 -> 1478 of 1700.
 constexpr double kSteepFipAxisRatio = 1.6;
 // ... and paper beside them brighter than their blue by this much (0.8 of
 // it, as beside an AP, started the round around blue clutter on ld-bench's
@@ -439,7 +439,7 @@ struct Detector::Impl {
   struct Anchor {
     cv::Point2d centre;
     double radius;
-    int rank;  // second look: 0 an AP and a FIP, 1 two FIPs; faint look: 0 (an AP alone)
+    int rank;  // second look: 0 an AP and a FIP, 1 two FIPs; faint look: 0 (one square alone)
     int area;  // the larger square's (faint look: the AP's)
     double side = 0;  // faint look: the red square's longest axis
   };
@@ -975,7 +975,7 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
     const double steep_radius = std::max(12.0, kSteepReach * side);
     if (side >= kSteepFipAxisRatio * detail::minAxis(fips[k]) && steep_radius <= max_radius &&
         paperBeside(filtered, fips[k], kSteepFipPaperOverInk))
-      steep_fip_anchors.push_back({cv::Point2d(fips[k].cx, fips[k].cy), steep_radius, 1, fips[k].area});
+      steep_fip_anchors.push_back({cv::Point2d(fips[k].cx, fips[k].cy), steep_radius, 0, fips[k].area});
   }
   if (anchors.empty() && steep_anchors.empty() && steep_fip_anchors.empty()) return;
   const auto larger = [](const Anchor& a, const Anchor& b) {
