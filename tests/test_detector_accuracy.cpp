@@ -76,6 +76,19 @@ Sweep sweep(double side_m, double distance, int max_yaw, int step, int per_yaw, 
   return s;
 }
 
+// A plain wall of `colour` (BGR), `side_m` square, just behind the sheet
+// `lm` and in its plane.
+ld::synth::Surface wallBehind(const ld::synth::LandmarkPlacement& lm, const cv::Scalar& colour, double side_m) {
+  ld::synth::Surface wall;
+  wall.texture = cv::Mat(8, 8, CV_8UC3, colour);
+  wall.size_m = {side_m, side_m};
+  wall.rvec = lm.rvec;
+  cv::Matx33d R;
+  cv::Rodrigues(lm.rvec, R);
+  wall.tvec = lm.tvec + R * cv::Vec3d(0, 0, 0.002);
+  return wall;
+}
+
 }  // namespace
 
 // A 9 cm landmark at 1.5 m: FIPs of 8 px, 3 px wide at 70 degrees of yaw.
@@ -159,22 +172,16 @@ TEST(DetectionRate, SteepRoundAroundBlueSquaresWhenTheApJoinedTheWall) {
   ld::Detector det;
   std::mt19937_64 rng(6070);
   std::uniform_real_distribution<double> U(0, 1);
-  int found = 0, others = 0, frames = 0;
-  for (int k = 0; k < 120; ++k, ++frames) {
+  constexpr int kFrames = 120;
+  int found = 0, others = 0;
+  for (int k = 0; k < kFrames; ++k) {
     const double yaw = (k % 2 ? 1 : -1) * (60 + 10 * U(rng));
     const double roll = U(rng) * 360 - 180, pitch = (U(rng) - 0.5) * 20;
     const auto lm = ld::synth::placeLandmark(kCam, 1.5, yaw, pitch, roll, U(rng) - 0.5, U(rng) - 0.5, 0.09);
     auto spec = ld::synth::randomConditions(kCam, {lm}, rng());
-    ld::synth::Surface wall;
     // brown wood, orange, or red paint (BGR)
     const cv::Scalar colours[] = {{40, 90, 160}, {30, 110, 210}, {45, 45, 190}};
-    wall.texture = cv::Mat(8, 8, CV_8UC3, colours[k % 3]);
-    wall.size_m = {2.0, 2.0};
-    wall.rvec = lm.rvec;
-    cv::Matx33d R;
-    cv::Rodrigues(lm.rvec, R);
-    wall.tvec = lm.tvec + R * cv::Vec3d(0, 0, 0.002);
-    spec.surfaces.push_back(wall);
+    spec.surfaces.push_back(wallBehind(lm, colours[k % 3], 2.0));
     spec.degradation.jpeg_quality = 75 + static_cast<int>(20 * U(rng));
     const auto frame = ld::synth::render(spec);
     const ld::Detection& d = det.detect(frame.bgr);
@@ -182,7 +189,7 @@ TEST(DetectionRate, SteepRoundAroundBlueSquaresWhenTheApJoinedTheWall) {
     for (const auto& l : d.landmarks) others += !ld::matchesTruth(l, centres(frame.truth[0]));
   }
   std::printf("9 cm at 1.5 m, yaw 60-70, on a brown or red wall, JPEG: %d of %d found, %d other landmarks\n", found,
-              frames, others);
+              kFrames, others);
   EXPECT_GE(found, 92);
   EXPECT_EQ(others, 0);
 }
@@ -320,13 +327,8 @@ GridResult gridOfSheets(double gap_lo, double gap_hi, int frames, uint64_t seed,
         sheets.push_back(lm);
       }
     auto spec = ld::synth::randomConditions(kCam, sheets, scene_seed + static_cast<uint64_t>(k));
-    ld::synth::Surface wall;
     const double level = 255 * (0.35 + 0.6 * U(rng));
-    wall.texture = cv::Mat(8, 8, CV_8UC3, cv::Scalar(level, level, level));
-    wall.size_m = {3.0, 3.0};
-    wall.rvec = mid.rvec;
-    wall.tvec = mid.tvec + R * cv::Vec3d(0, 0, 0.002);  // just behind the sheets
-    spec.surfaces.push_back(wall);
+    spec.surfaces.push_back(wallBehind(mid, cv::Scalar(level, level, level), 3.0));
     spec.distractors = 0;
     const auto frame = ld::synth::render(spec);
     const ld::Detection& d = det.detect(frame.bgr);

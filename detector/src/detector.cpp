@@ -356,6 +356,8 @@ constexpr double kFaintLookMinCast = 1.08;
 // windows (and time) from red clutter.
 constexpr double kSteepAxisRatio = 1.3, kSteepMaxSide = 10.0;
 constexpr int kSteepMinArea = 4;
+// Paper beside such a square reads at least this much of its red.
+constexpr double kSteepApPaperOverInk = 0.8;
 // Where the AP is lost (JPEG's colour joined it, 1-2 px of margin from the
 // sheet's edge, to a red or brown background behind) but a FIP kept some
 // blue, the steep round looks around the blue squares too: up to
@@ -910,7 +912,7 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
 // side (the paper between it and TR, and between it and BL); red things on
 // coloured or dark surroundings, which took half the steep round's time on
 // ld-bench's cluttered scenes, have not.
-static bool paperBeside(const cv::Mat& img, const detail::Region& r, double paper_over_ink = 0.8) {
+static bool paperBeside(const cv::Mat& img, const detail::Region& r, double paper_over_ink) {
   const double th = 0.5 * std::atan2(2 * r.sxy, r.sxx - r.syy);
   const cv::Point2d e(std::cos(th), std::sin(th)), n(-e.y, e.x);
   const double a = 0.5 * detail::maxAxis(r) + 2.5, b = 0.5 * detail::minAxis(r) + 2.5;
@@ -957,26 +959,24 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   // (the faint look's anchors serve the veil round too, in frames it runs in)
   const int veil_looks = glare_corrected ? p.veil_looks : 0;
   const double max_radius = 0.3 * std::min(img.cols, img.rows);
+  // The steep round's anchor at square r when it is shaped as a steeply
+  // seen one: small, its axes `ratio`:1 or more, paper beside it.
+  const auto steepAnchor = [&](const detail::Region& r, double ratio, double paper_over_ink, std::vector<Anchor>& to) {
+    const double side = detail::maxAxis(r), radius = std::max(12.0, kSteepReach * side);
+    if (side <= kSteepMaxSide && r.area >= kSteepMinArea && side >= ratio * detail::minAxis(r) &&
+        radius <= max_radius && paperBeside(filtered, r, paper_over_ink))
+      to.push_back({cv::Point2d(r.cx, r.cy), radius, 0, r.area});
+  };
   for (int k = 0; k < na; ++k) {
     const double side = detail::maxAxis(aps[k]);
-    if (used[nf + k] || side > kSecondLookMaxSide || aps[k].area < std::min(kFaintLookMinArea, kSteepMinArea)) continue;
-    const cv::Point2d centre(aps[k].cx, aps[k].cy);
+    if (used[nf + k] || side > kSecondLookMaxSide) continue;
     const double radius = std::max(12.0, kFaintLookReach * side);
     if ((p.faint_looks > 0 || veil_looks > 0) && radius <= max_radius && aps[k].area >= kFaintLookMinArea)
-      anchors.push_back({centre, radius, 0, aps[k].area, side});
-    const double steep_radius = std::max(12.0, kSteepReach * side);
-    if (p.steep_looks > 0 && side <= kSteepMaxSide && side >= kSteepAxisRatio * detail::minAxis(aps[k]) &&
-        aps[k].area >= kSteepMinArea && steep_radius <= max_radius && paperBeside(filtered, aps[k]))
-      steep_anchors.push_back({centre, steep_radius, 0, aps[k].area});
+      anchors.push_back({cv::Point2d(aps[k].cx, aps[k].cy), radius, 0, aps[k].area, side});
+    if (p.steep_looks > 0) steepAnchor(aps[k], kSteepAxisRatio, kSteepApPaperOverInk, steep_anchors);
   }
-  for (int k = 0; k < nf && p.steep_looks > 0; ++k) {
-    const double side = detail::maxAxis(fips[k]);
-    if (used[k] || side > kSteepMaxSide || fips[k].area < kSteepMinArea) continue;
-    const double steep_radius = std::max(12.0, kSteepReach * side);
-    if (side >= kSteepFipAxisRatio * detail::minAxis(fips[k]) && steep_radius <= max_radius &&
-        paperBeside(filtered, fips[k], kSteepFipPaperOverInk))
-      steep_fip_anchors.push_back({cv::Point2d(fips[k].cx, fips[k].cy), steep_radius, 0, fips[k].area});
-  }
+  for (int k = 0; k < nf && p.steep_looks > 0; ++k)
+    if (!used[k]) steepAnchor(fips[k], kSteepFipAxisRatio, kSteepFipPaperOverInk, steep_fip_anchors);
   if (anchors.empty() && steep_anchors.empty() && steep_fip_anchors.empty()) return;
   const auto larger = [](const Anchor& a, const Anchor& b) {
     return std::tie(b.area, a.centre.x, a.centre.y) < std::tie(a.area, b.centre.x, b.centre.y);
