@@ -1476,6 +1476,46 @@ TEST(Detector, LightGreyQrOnAClippedSheetCounts) {
   }));
 }
 
+// A hot spot's peak on the QR of a sheet it clipped all round: the QR's
+// white modules read at the clip, above the sheet's margins, and its dark
+// ones only a few levels under them, so its mean is the sheet's or more.
+// In a frame the adapter took a strong glare veil out of
+// (setGlareCorrected), the modules' dips count as a QR
+// (DetectorParams::qr_washed_dip); a blank middle at the clip, a flat grey
+// and the same frame without the correction do not.
+TEST(Detector, QrWashedPastTheSheetCountsByItsTextureUnderGlare) {
+  const auto detect = [](const std::function<void(cv::Mat&)>& paint, bool corrected, double dip = 6) {
+    Placed p = place(0.6, 10, 20);
+    p.artwork = artworkImage().clone();
+    cv::Mat paper;  // the margins at the clip
+    cv::inRange(p.artwork, inkColours().white, inkColours().white, paper);
+    p.artwork.setTo(cv::Scalar(250, 250, 250), paper);
+    const int u = p.artwork.cols / 9;
+    cv::Mat qr = p.artwork(cv::Rect(5 * u / 2, 5 * u / 2, 4 * u, 4 * u));
+    paint(qr);
+    cv::Mat img = background(kCam.size, 31);
+    drawSheet(img, kCam, p);
+    ld::DetectorParams params;
+    params.qr_washed_dip = dip;
+    ld::Detector det(params);
+    det.setGlareCorrected(corrected);
+    return onlyLandmark(det.detect(img), truthOf(kCam, p));
+  };
+  // the QR's modules: white at the clip, black 14 levels under it
+  const auto washed = [](cv::Mat& qr) {
+    cv::Mat dark;
+    cv::inRange(qr, cv::Scalar(0, 0, 0), cv::Scalar(120, 120, 120), dark);
+    qr.setTo(cv::Scalar(255, 255, 255));
+    qr.setTo(cv::Scalar(241, 241, 241), dark);
+  };
+  EXPECT_TRUE(detect(washed, true));
+  EXPECT_FALSE(detect(washed, false)) << "the other QR rules pass it: the test does not test the rule";
+  EXPECT_FALSE(detect(washed, true, 0));
+  EXPECT_FALSE(detect([](cv::Mat& qr) { qr.setTo(cv::Scalar(255, 255, 255)); }, true));  // blank, at the clip
+  EXPECT_FALSE(detect([](cv::Mat& qr) { qr.setTo(cv::Scalar(250, 250, 250)); }, true));  // blank, as the sheet
+  EXPECT_FALSE(detect([](cv::Mat& qr) { qr.setTo(cv::Scalar(247, 247, 247)); }, true));  // a flat grey
+}
+
 // Hundreds of small blue and red dots: the graph is dense, the work bounded
 // (max_candidates, max_cycles), and the landmark's larger squares come first.
 TEST(Detector, DenseClutterStillFindsTheLandmark) {

@@ -65,6 +65,7 @@ void forEachField(DetectorParams& p, F&& f) {
   f("qr_dark_samples", p.qr_dark_samples);
   f("qr_dark_sample", p.qr_dark_sample);
   f("qr_clipped_max_brightness", p.qr_clipped_max_brightness);
+  f("qr_washed_dip", p.qr_washed_dip);
   f("cover_min", p.cover_min);
   f("cover_max", p.cover_max);
   f("complete_missing", p.complete_missing);
@@ -158,6 +159,7 @@ void checkValues(const DetectorParams& p, const std::string& prefix) {
   if (!(p.qr_dark_sample > 0 && p.qr_dark_sample <= 1)) bad("qr_dark_sample", "must be in (0, 1]");
   if (!(p.qr_clipped_max_brightness > 0 && p.qr_clipped_max_brightness <= 2))
     bad("qr_clipped_max_brightness", "must be in (0, 2]");
+  if (!(p.qr_washed_dip >= 0 && p.qr_washed_dip <= 255)) bad("qr_washed_dip", "must be in [0, 255]");
   if (p.second_looks < 0 || p.second_looks > 64) bad("second_looks", "must be in [0, 64]");
   if (!(p.second_look_raise > 0 && p.second_look_raise < 1)) bad("second_look_raise", "must be in (0, 1)");
   if (p.faint_looks < 0 || p.faint_looks > 64) bad("faint_looks", "must be in [0, 64]");
@@ -243,7 +245,7 @@ const char* checkHint(detail::Check check) {
     case Check::kSheetSaturated: return "sheet_max_saturation";
     case Check::kSheetDark: return "sheet_min_value";
     case Check::kSheetUneven: return "sheet_uniformity";
-    case Check::kNoQr: return "qr_max_brightness, qr_dark_samples, qr_dark_sample, qr_clipped_max_brightness";
+    case Check::kNoQr: return "qr_max_brightness, qr_dark_samples, qr_dark_sample, qr_clipped_max_brightness, qr_washed_dip";
     case Check::kCentreSaturated:
     case Check::kCentreColoured: return "colour at the centre: a look-alike card";
     case Check::kCover: return "cover_min, cover_max; where the colour is smeared, the absorbed light's 0.25-0.42";
@@ -654,7 +656,7 @@ void Detector::Impl::complete(const cv::Mat& img, const cv::Mat& label_map) {
     c.completed = true;
     c.error = 1.0;  // ranks below complete landmarks
     order(c);
-    if (!detail::verify(c, fips, aps, img, p)) return false;
+    if (!detail::verify(c, fips, aps, img, p, nullptr, glare_corrected)) return false;
     candidates.push_back(c);
     return true;
   };
@@ -798,7 +800,8 @@ void Detector::Impl::geometry(const cv::Mat& img, const cv::Mat& label_map) {
     if (!whole || !detail::rightIsosceles(cyc, fips, kTriangleTolerance)) continue;
     // Of the APs that fit, the one whose landmark verifies best.
     detail::Candidate c;
-    if (detail::bestVerifiedChoice(cyc, fips, aps, img, p, choices, c, &ap_index)) candidates.push_back(c);
+    if (detail::bestVerifiedChoice(cyc, fips, aps, img, p, choices, c, &ap_index, glare_corrected))
+      candidates.push_back(c);
   }
   if (completion) complete(img, label_map);
   detail::resolveOverlaps(candidates, static_cast<int>(fips.size()), static_cast<int>(aps.size()), used);
@@ -1313,7 +1316,7 @@ void Detector::Impl::explain(Explanation& e) {
         for (size_t k = 0; k < choices.size() && !verified; ++k) {
           detail::Candidate c = choices[k];
           detail::Check why = detail::Check::kNoAp;
-          verified = detail::verify(c, fips, aps, *img, p, &why);
+          verified = detail::verify(c, fips, aps, *img, p, &why, glare_corrected);
           if (k == 0) first = why;
         }
         if (verified) continue;  // a landmark that lost to an overlapping one

@@ -113,6 +113,10 @@ constexpr double kGlaredOverSheet = 1.1;
 // A QR on a clipped sheet read by its grey points' mean
 // (DetectorParams::qr_clipped_max_brightness): this many of the 25 grey.
 constexpr int kClippedQrGrey = 22;
+// A QR washed out by a hot spot on a sheet clipped all round
+// (DetectorParams::qr_washed_dip): this many of the 25 points dip under
+// the brightest.
+constexpr int kWashedDips = 3;
 // A band across the sheet: both sides of one opposite pair darker than both
 // of the other pair, the brighter of them by this ratio or more (no light's
 // gradient nor one shadow's edge darkens opposite sides alone; over
@@ -743,11 +747,14 @@ bool chooseAp(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
 
 bool bestVerifiedChoice(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
                         const std::vector<Region>& aps, const cv::Mat& bgr, const DetectorParams& p,
-                        std::vector<Candidate>& choices, Candidate& out, const RegionIndex* ap_index) {
+                        std::vector<Candidate>& choices, Candidate& out, const RegionIndex* ap_index,
+                        bool glare_corrected) {
   apChoices(cycle, fips, aps, p, choices, ap_index);
   int best = -1;
   for (int k = 0; k < static_cast<int>(choices.size()); ++k)
-    if (verify(choices[k], fips, aps, bgr, p) && (best < 0 || choices[k].error < choices[best].error)) best = k;
+    if (verify(choices[k], fips, aps, bgr, p, nullptr, glare_corrected) &&
+        (best < 0 || choices[k].error < choices[best].error))
+      best = k;
   if (best < 0) return false;
   out = choices[best];
   return true;
@@ -948,7 +955,7 @@ Check sheetLit(const std::array<double, 12>& means, const std::array<double, 12>
 }  // namespace
 
 bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Region>& aps,
-            const cv::Mat& bgr, const DetectorParams& p, Check* why) {
+            const cv::Mat& bgr, const DetectorParams& p, Check* why, bool glare_corrected) {
   auto fail = [&](Check reason) {
     if (why) *why = reason;
     return false;
@@ -1062,13 +1069,14 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   {
     const cv::Point2d ex = (P[1] - P[0]) * (1.0 / 6), ey = (P[3] - P[0]) * (1.0 / 6);
     const double sheet_max = *std::max_element(means.begin(), means.end());
-    double qr_mean = 0, grey_mean = 0;
+    double qr_mean = 0, grey_mean = 0, qr_points[25];
     int dark = 0, glared = 0, grey = 0;
     for (int j = 0; j < 5; ++j)
       for (int i = 0; i < 5; ++i) {
         const double u = 3.1 + 0.7 * i - 1.5, v = 3.1 + 0.7 * j - 1.5;
         double sv, vv, b;
         if (!sampleSV(bgr, P[0] + ex * u + ey * v, sv, vv, &b)) return fail(Check::kOutsideImage);
+        qr_points[5 * j + i] = b;
         qr_mean += b / 25;
         if (sv <= p.sheet_max_saturation) grey_mean += b, ++grey;
         dark += b < p.qr_dark_sample * sheet_mean && sv <= p.sheet_max_saturation;
@@ -1084,7 +1092,21 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
     // coloured thing's) may read up to qr_clipped_max_brightness of it.
     const bool washed = clipped && grey >= kClippedQrGrey &&
                         grey_mean / grey <= p.qr_clipped_max_brightness * sheet_mean;
-    if (qr_mean > p.qr_max_brightness * sheet_mean && !(clipped && dark >= p.qr_dark_samples) && !washed)
+    // A hot spot's peak on the QR of a sheet it clipped all round lifts the
+    // QR's grey to the sheet's and beyond: its dark modules are then points
+    // a few levels under its brightest (a blank middle at the clip is flat).
+    // Only in frames with a strong veil taken out: a bright wall clipped in
+    // two channels has as much noise in the third.
+    const auto dipped = [&] {
+      if (!glare_corrected || !(p.qr_washed_dip > 0) || grey < kClippedQrGrey ||
+          *std::min_element(means.begin(), means.end()) < kClippedSheet)
+        return false;
+      const double top = *std::max_element(qr_points, qr_points + 25);
+      return std::count_if(qr_points, qr_points + 25, [&](double b) { return b <= top - p.qr_washed_dip; }) >=
+             kWashedDips;
+    };
+    if (qr_mean > p.qr_max_brightness * sheet_mean && !(clipped && dark >= p.qr_dark_samples) && !washed &&
+        !dipped())
       return fail(Check::kNoQr);
     // Under a band across the sheet (two opposite sides darker than the
     // other two) the QR is as much darker than the band's paper: a shadow's

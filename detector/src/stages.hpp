@@ -236,15 +236,19 @@ const char* checkName(Check check);
 /// a square layout in the frame of the squares' moments, white unsaturated
 /// sheet between the squares and at the centre, no coloured region at the
 /// centre. Sets the candidate's score. `why`, when given, names the failed check.
+/// `glare_corrected`: the frame had a strong glare veil subtracted
+/// (Detector::setGlareCorrected), where a QR washed out to the sheet's
+/// brightness may count by its texture (DetectorParams::qr_washed_dip).
 bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Region>& aps,
-            const cv::Mat& bgr, const DetectorParams& p, Check* why = nullptr);
+            const cv::Mat& bgr, const DetectorParams& p, Check* why = nullptr, bool glare_corrected = false);
 
 /// 7 and verification for one 3-cycle: of its AP choices (apChoices, into
 /// `choices`), the one whose landmark verifies with the least error, in
 /// `out`. False when none verifies.
 bool bestVerifiedChoice(const std::array<int, 3>& cycle, const std::vector<Region>& fips,
                         const std::vector<Region>& aps, const cv::Mat& bgr, const DetectorParams& p,
-                        std::vector<Candidate>& choices, Candidate& out, const RegionIndex* ap_index = nullptr);
+                        std::vector<Candidate>& choices, Candidate& out, const RegionIndex* ap_index = nullptr,
+                        bool glare_corrected = false);
 
 /// The fraction of the segment between two square centres a and b that the
 /// two squares cover, from the colour-excess profile along it (each end's

@@ -210,6 +210,19 @@ struct DetectorParams {
   /// 0.88-0.92 of a sheet read at 250-254, with no point dark enough for
   /// qr_dark_sample. At qr_max_brightness or below: no such rule.
   double qr_clipped_max_brightness = 0.93;
+  /// ... or, in frames with a strong glare veil taken out
+  /// (Detector::setGlareCorrected, as ld::AdaptiveDetector says) and on a
+  /// sheet clipped all round (every one of its 12 samples 235 or more), at
+  /// least 3 of those 25 points this many levels (0..255) or more under the
+  /// brightest of them, 22 of them grey at least. Where a hot spot's peak
+  /// lies on the QR it lifts the QR past the sheet's brightness, and what is
+  /// left of its dark modules is points a few levels under its white ones;
+  /// a blank middle at the clip is flat, as is a uniform grey. (Not in other
+  /// frames: a bright wall clipped in two channels has as much noise in the
+  /// third.) Under glare 0.75 the adaptive detector finds 90-92 of 100
+  /// frames of the lighting sweep's point, against 72 without. 0: no such
+  /// rule.
+  double qr_washed_dip = 6;
   /// Along each side of the quadrilateral (TL-TR, TR-AP, AP-BL, BL-TL) the
   /// two squares cover 1/3 of the distance between their centres, in any
   /// view; the colour profile's cover must lie in [cover_min, cover_max].
