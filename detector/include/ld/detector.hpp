@@ -407,7 +407,9 @@ class Detector {
   /// about 190, so a veil a few levels off in one channel tints the blue
   /// squares towards cyan or violet: the faint look then takes blue at any
   /// hue where blue is the largest channel and above red, not only 210-270
-  /// degrees. Default false.
+  /// degrees; the veil round looks (veil_looks); and verification counts a
+  /// QR the hot spot washed out past the sheet by its modules' dips
+  /// (qr_washed_dip). Default false.
   void setGlareCorrected(bool corrected);
 
   /// Enables pose: intrinsics of the camera and the printed sheet side S in
