@@ -4,9 +4,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 #include <string>
 #include <sys/wait.h>
@@ -305,6 +308,24 @@ TEST(AdaptiveDetection, HoldsUnderGlareOnTheLandmark) {
   EXPECT_GE(adaptive6.detectRate(), 0.9);
 }
 
+namespace {
+
+// The adaptive detector on the lighting sweep's glare point (`glare` on the
+// landmark, 15 cm at 1.5 m, yaw within +-40 degrees): `trials` frames of
+// `seed` as it is, and again with `off` applied to its parameters.
+std::array<ld::eval::Point, 2> glareWithAndWithout(double glare, int trials, uint64_t seed,
+                                                   const std::function<void(ld::DetectorParams&)>& off) {
+  auto o = lit(-1, -1, true);
+  o.glare = glare;
+  o.trials = trials;
+  o.seed = seed;
+  const auto with = ld::eval::measure(o, 1.5, 0, 40);
+  off(o.params);
+  return {with, ld::eval::measure(o, 1.5, 0, 40)};
+}
+
+}  // namespace
+
 // Under glare 0.6 the veil's subtraction leaves a tint (a veil a few levels
 // off in one channel, stretched back 4 times) that turns the blue squares
 // violet, cyan or brown; the QR beside them, black on white, shows the same
@@ -313,13 +334,7 @@ TEST(AdaptiveDetection, HoldsUnderGlareOnTheLandmark) {
 // 1-12 of 100 frames each, it finds 1171 of 1200 against 1140 without it;
 // on this seed 97 against 91.
 TEST(AdaptiveDetection, VeilRoundTakesTheQrsTintOut) {
-  auto o = lit(-1, -1, true);
-  o.glare = 0.6;
-  o.trials = 100;
-  o.seed = 10;
-  const auto with = ld::eval::measure(o, 1.5, 0, 40);
-  o.params.veil_looks = 0;
-  const auto without = ld::eval::measure(o, 1.5, 0, 40);
+  const auto [with, without] = glareWithAndWithout(0.6, 100, 10, [](ld::DetectorParams& p) { p.veil_looks = 0; });
   std::printf("glare 0.6, 100 frames: veil round %d, without it %d\n", with.detected, without.detected);
   EXPECT_GE(with.detected, without.detected + 4);
   EXPECT_GE(with.detectRate(), 0.95);
@@ -332,12 +347,7 @@ TEST(AdaptiveDetection, VeilRoundTakesTheQrsTintOut) {
 // the lighting sweep's glare-0.75 point it finds 92, 90 and 91 of 100
 // frames (seeds 1-3) against 72; here 34 of 40 against 24.
 TEST(AdaptiveDetection, QrWashedOutByAHotSpotCountsByItsTexture) {
-  auto o = lit(-1, -1, true);
-  o.glare = 0.75;
-  o.trials = 40;
-  const auto with = ld::eval::measure(o, 1.5, 0, 40);
-  o.params.qr_washed_dip = 0;
-  const auto without = ld::eval::measure(o, 1.5, 0, 40);
+  const auto [with, without] = glareWithAndWithout(0.75, 40, 99, [](ld::DetectorParams& p) { p.qr_washed_dip = 0; });
   std::printf("glare 0.75, 40 frames: %d, without the washed-QR rule %d\n", with.detected, without.detected);
   EXPECT_GE(with.detected, without.detected + 6);
   EXPECT_GE(with.detectRate(), 0.8);

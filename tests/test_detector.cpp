@@ -1445,6 +1445,29 @@ TEST(Detector, WashedOutQrOnAClippedSheetStillCounts) {
   EXPECT_TRUE(det.detect(blank).landmarks.empty());
 }
 
+// A landmark at 0.6 m whose paper reads `paper` on every channel (glare at
+// the sensor's clip), its QR square painted by `paint`, on background
+// `seed`.
+namespace {
+struct ClippedSheet {
+  cv::Mat img;
+  Truth truth;
+};
+ClippedSheet clippedSheet(uint8_t paper, const std::function<void(cv::Mat&)>& paint, uint64_t seed) {
+  Placed p = place(0.6, 10, 20);
+  p.artwork = artworkImage().clone();
+  cv::Mat white;
+  cv::inRange(p.artwork, inkColours().white, inkColours().white, white);
+  p.artwork.setTo(cv::Scalar(paper, paper, paper), white);
+  const int u = p.artwork.cols / 9;
+  cv::Mat qr = p.artwork(cv::Rect(5 * u / 2, 5 * u / 2, 4 * u, 4 * u));
+  paint(qr);
+  ClippedSheet s{background(kCam.size, seed), truthOf(kCam, p)};
+  drawSheet(s.img, kCam, p);
+  return s;
+}
+}  // namespace
+
 // Farther off the QR's modules are a pixel or less and blur to a light grey:
 // under glare on a clipped sheet that grey reads 0.88-0.92 of the sheet
 // (whose true brightness lies above the clip), with no point dark enough
@@ -1453,18 +1476,9 @@ TEST(Detector, WashedOutQrOnAClippedSheetStillCounts) {
 // white as dark on the average (the mean of the grey points counts) do not.
 TEST(Detector, LightGreyQrOnAClippedSheetCounts) {
   const auto with_qr = [](const std::function<void(cv::Mat&)>& paint) {
-    Placed p = place(0.6, 10, 20);
-    p.artwork = artworkImage().clone();
-    cv::Mat paper;  // at the clip
-    cv::inRange(p.artwork, inkColours().white, inkColours().white, paper);
-    p.artwork.setTo(cv::Scalar(252, 252, 252), paper);
-    const int u = p.artwork.cols / 9;
-    cv::Mat qr = p.artwork(cv::Rect(5 * u / 2, 5 * u / 2, 4 * u, 4 * u));
-    paint(qr);
-    cv::Mat img = background(kCam.size, 29);
-    drawSheet(img, kCam, p);
+    const ClippedSheet s = clippedSheet(252, paint, 29);
     ld::Detector det;
-    return onlyLandmark(det.detect(img), truthOf(kCam, p));
+    return onlyLandmark(det.detect(s.img), s.truth);
   };
   EXPECT_TRUE(with_qr([](cv::Mat& qr) { qr.setTo(cv::Scalar(227, 227, 227)); }));   // 0.90
   EXPECT_TRUE(with_qr([](cv::Mat& qr) { qr.setTo(cv::Scalar(214, 232, 236)); }));   // 0.90, tinted as under a veil
@@ -1485,21 +1499,12 @@ TEST(Detector, LightGreyQrOnAClippedSheetCounts) {
 // and the same frame without the correction do not.
 TEST(Detector, QrWashedPastTheSheetCountsByItsTextureUnderGlare) {
   const auto detect = [](const std::function<void(cv::Mat&)>& paint, bool corrected, double dip = 6) {
-    Placed p = place(0.6, 10, 20);
-    p.artwork = artworkImage().clone();
-    cv::Mat paper;  // the margins at the clip
-    cv::inRange(p.artwork, inkColours().white, inkColours().white, paper);
-    p.artwork.setTo(cv::Scalar(250, 250, 250), paper);
-    const int u = p.artwork.cols / 9;
-    cv::Mat qr = p.artwork(cv::Rect(5 * u / 2, 5 * u / 2, 4 * u, 4 * u));
-    paint(qr);
-    cv::Mat img = background(kCam.size, 31);
-    drawSheet(img, kCam, p);
+    const ClippedSheet s = clippedSheet(250, paint, 31);
     ld::DetectorParams params;
     params.qr_washed_dip = dip;
     ld::Detector det(params);
     det.setGlareCorrected(corrected);
-    return onlyLandmark(det.detect(img), truthOf(kCam, p));
+    return onlyLandmark(det.detect(s.img), s.truth);
   };
   // the QR's modules: white at the clip, black 14 levels under it
   const auto washed = [](cv::Mat& qr) {
