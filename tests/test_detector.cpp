@@ -1445,15 +1445,17 @@ TEST(Detector, WashedOutQrOnAClippedSheetStillCounts) {
   EXPECT_TRUE(det.detect(blank).landmarks.empty());
 }
 
-// A landmark at 0.6 m whose paper reads `paper` on every channel (glare at
-// the sensor's clip), its QR square painted by `paint`, on background
-// `seed`.
 namespace {
+
+// A landmark at 0.6 m whose paper reads `paper` on every channel (glare at
+// the sensor's clip), its QR square painted by `paint` (and the whole
+// artwork then by `paint_sheet`), on background `seed`.
 struct ClippedSheet {
   cv::Mat img;
   Truth truth;
 };
-ClippedSheet clippedSheet(uint8_t paper, const std::function<void(cv::Mat&)>& paint, uint64_t seed) {
+ClippedSheet clippedSheet(uint8_t paper, const std::function<void(cv::Mat&)>& paint, uint64_t seed,
+                          const std::function<void(cv::Mat&)>& paint_sheet = {}) {
   Placed p = place(0.6, 10, 20);
   p.artwork = artworkImage().clone();
   cv::Mat white;
@@ -1462,10 +1464,12 @@ ClippedSheet clippedSheet(uint8_t paper, const std::function<void(cv::Mat&)>& pa
   const int u = p.artwork.cols / 9;
   cv::Mat qr = p.artwork(cv::Rect(5 * u / 2, 5 * u / 2, 4 * u, 4 * u));
   paint(qr);
+  if (paint_sheet) paint_sheet(p.artwork);
   ClippedSheet s{background(kCam.size, seed), truthOf(kCam, p)};
   drawSheet(s.img, kCam, p);
   return s;
 }
+
 }  // namespace
 
 // Farther off the QR's modules are a pixel or less and blur to a light grey:
@@ -1513,12 +1517,39 @@ TEST(Detector, QrWashedPastTheSheetCountsByItsTextureUnderGlare) {
     qr.setTo(cv::Scalar(255, 255, 255));
     qr.setTo(cv::Scalar(241, 241, 241), dark);
   };
-  EXPECT_TRUE(detect(washed, true));
-  EXPECT_FALSE(detect(washed, false)) << "the other QR rules pass it: the test does not test the rule";
+  const double dip = ld::DetectorParams{}.qr_washed_dip;
+  EXPECT_TRUE(detect(washed, true, dip));
+  EXPECT_FALSE(detect(washed, false, dip)) << "the other QR rules pass it: the test does not test the rule";
   EXPECT_FALSE(detect(washed, true, 0));
-  EXPECT_FALSE(detect([](cv::Mat& qr) { qr.setTo(cv::Scalar(255, 255, 255)); }, true));  // blank, at the clip
-  EXPECT_FALSE(detect([](cv::Mat& qr) { qr.setTo(cv::Scalar(250, 250, 250)); }, true));  // blank, as the sheet
-  EXPECT_FALSE(detect([](cv::Mat& qr) { qr.setTo(cv::Scalar(247, 247, 247)); }, true));  // a flat grey
+  EXPECT_FALSE(detect(washed, true, 20));  // dips of 14 levels
+  EXPECT_FALSE(detect([](cv::Mat& qr) { qr.setTo(cv::Scalar(255, 255, 255)); }, true, dip));  // blank, at the clip
+  EXPECT_FALSE(detect([](cv::Mat& qr) { qr.setTo(cv::Scalar(250, 250, 250)); }, true, dip));  // blank, as the sheet
+  EXPECT_FALSE(detect([](cv::Mat& qr) { qr.setTo(cv::Scalar(247, 247, 247)); }, true, dip));  // a flat grey
+  // a blank middle with three green dots where points are sampled: coloured
+  // points are not a QR's modules
+  EXPECT_FALSE(detect(
+      [](cv::Mat& qr) {
+        qr.setTo(cv::Scalar(250, 250, 250));
+        const double u = qr.cols / 4.0;  // the QR square spans 2.5u..6.5u of the sheet
+        for (const cv::Point2d at : {cv::Point2d(3.1, 3.8), {5.9, 5.2}, {3.8, 5.9}})
+          cv::circle(qr, (at - cv::Point2d(2.5, 2.5)) * u, static_cast<int>(0.3 * u), cv::Scalar(60, 170, 60), -1);
+      },
+      true, dip));
+  // The sheet clipped all round: with its top margin (between TL and TR) at
+  // 237 the QR counts, at 228 it does not.
+  const auto top_margin = [&](uint8_t level) {
+    const ClippedSheet s = clippedSheet(250, washed, 31, [level](cv::Mat& art) {
+      const int u = art.cols / 9;
+      cv::Mat strip = art(cv::Rect(5 * u / 2, u / 2, 4 * u, 2 * u)), paper;
+      cv::inRange(strip, cv::Scalar(250, 250, 250), cv::Scalar(250, 250, 250), paper);
+      strip.setTo(cv::Scalar(level, level, level), paper);
+    });
+    ld::Detector det;
+    det.setGlareCorrected(true);
+    return onlyLandmark(det.detect(s.img), s.truth);
+  };
+  EXPECT_TRUE(top_margin(237));
+  EXPECT_FALSE(top_margin(228));
 }
 
 // Hundreds of small blue and red dots: the graph is dense, the work bounded
@@ -1845,6 +1876,7 @@ TEST(Params, SaveLoadRoundTrip) {
   p.max_candidates = 99;
   p.centre_iterations = 1;
   p.complete_missing = false;
+  p.qr_washed_dip = 9;
   const std::string path = tempPath("params.yaml");
   p.save(path);
   const ld::DetectorParams q = ld::DetectorParams::load(path);
@@ -1856,6 +1888,7 @@ TEST(Params, SaveLoadRoundTrip) {
   EXPECT_EQ(q.max_candidates, 99);
   EXPECT_EQ(q.centre_iterations, 1);
   EXPECT_FALSE(q.complete_missing);
+  EXPECT_DOUBLE_EQ(q.qr_washed_dip, 9);
   EXPECT_DOUBLE_EQ(q.color_ratio_a, p.color_ratio_a);
   EXPECT_DOUBLE_EQ(q.sheet_min_value, p.sheet_min_value);
   std::remove(path.c_str());
@@ -1977,6 +2010,7 @@ TEST(Params, ValidateNamesTheField) {
   EXPECT_NE(err([](auto& p) { p.canny_high = 1; }).find("canny_high"), std::string::npos);
   EXPECT_NE(err([](auto& p) { p.ap_size_min = 0; }).find("ap_size_min"), std::string::npos);
   EXPECT_NE(err([](auto& p) { p.faint_look_blue = 0; }).find("faint_look_blue"), std::string::npos);
+  EXPECT_NE(err([](auto& p) { p.qr_washed_dip = -1; }).find("qr_washed_dip"), std::string::npos);
   ld::DetectorParams bad;
   bad.front_end = "x";
   EXPECT_THROW(ld::Detector{bad}, std::invalid_argument);

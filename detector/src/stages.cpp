@@ -114,7 +114,7 @@ constexpr double kGlaredOverSheet = 1.1;
 // (DetectorParams::qr_clipped_max_brightness): this many of the 25 grey.
 constexpr int kClippedQrGrey = 22;
 // A QR washed out by a hot spot on a sheet clipped all round
-// (DetectorParams::qr_washed_dip): this many of the 25 points dip under
+// (DetectorParams::qr_washed_dip): this many of its grey points dip under
 // the brightest.
 constexpr int kWashedDips = 3;
 // A band across the sheet: both sides of one opposite pair darker than both
@@ -1069,16 +1069,16 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
   {
     const cv::Point2d ex = (P[1] - P[0]) * (1.0 / 6), ey = (P[3] - P[0]) * (1.0 / 6);
     const double sheet_max = *std::max_element(means.begin(), means.end());
-    double qr_mean = 0, grey_mean = 0, qr_points[25];
+    double qr_mean = 0, grey_mean = 0;
+    std::array<double, 25> grey_points{};  // the grey points' brightness, `grey` of them
     int dark = 0, glared = 0, grey = 0;
     for (int j = 0; j < 5; ++j)
       for (int i = 0; i < 5; ++i) {
         const double u = 3.1 + 0.7 * i - 1.5, v = 3.1 + 0.7 * j - 1.5;
         double sv, vv, b;
         if (!sampleSV(bgr, P[0] + ex * u + ey * v, sv, vv, &b)) return fail(Check::kOutsideImage);
-        qr_points[5 * j + i] = b;
         qr_mean += b / 25;
-        if (sv <= p.sheet_max_saturation) grey_mean += b, ++grey;
+        if (sv <= p.sheet_max_saturation) grey_mean += b, grey_points[static_cast<size_t>(grey++)] = b;
         dark += b < p.qr_dark_sample * sheet_mean && sv <= p.sheet_max_saturation;
         glared += b > kGlaredOverSheet * sheet_max && sv <= p.sheet_max_saturation;
       }
@@ -1093,16 +1093,18 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
     const bool washed = clipped && grey >= kClippedQrGrey &&
                         grey_mean / grey <= p.qr_clipped_max_brightness * sheet_mean;
     // A hot spot's peak on the QR of a sheet it clipped all round lifts the
-    // QR's grey to the sheet's and beyond: its dark modules are then points
-    // a few levels under its brightest (a blank middle at the clip is flat).
-    // Only in frames with a strong veil taken out: a bright wall clipped in
-    // two channels has as much noise in the third.
+    // QR's grey to the sheet's and beyond: its dark modules are then grey
+    // points a few levels under the brightest (a blank middle at the clip
+    // is flat). Only in frames with a strong veil taken out: a bright wall
+    // clipped in two channels has as much noise in the third. (Measured
+    // only where every other rule refused the QR.)
     const auto dipped = [&] {
       if (!glare_corrected || !(p.qr_washed_dip > 0) || grey < kClippedQrGrey ||
           *std::min_element(means.begin(), means.end()) < kClippedSheet)
         return false;
-      const double top = *std::max_element(qr_points, qr_points + 25);
-      return std::count_if(qr_points, qr_points + 25, [&](double b) { return b <= top - p.qr_washed_dip; }) >=
+      const auto end = grey_points.begin() + grey;
+      const double top = *std::max_element(grey_points.begin(), end);
+      return std::count_if(grey_points.begin(), end, [&](double b) { return b <= top - p.qr_washed_dip; }) >=
              kWashedDips;
     };
     if (qr_mean > p.qr_max_brightness * sheet_mean && !(clipped && dark >= p.qr_dark_samples) && !washed &&

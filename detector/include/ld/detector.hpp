@@ -211,7 +211,7 @@ struct DetectorParams {
   /// qr_dark_sample. At qr_max_brightness or below: no such rule.
   double qr_clipped_max_brightness = 0.93;
   /// ... or, in frames with a strong glare veil taken out
-  /// (Detector::setGlareCorrected, as ld::AdaptiveDetector says) and on a
+  /// (Detector::setGlareCorrected, as ld::AdaptiveDetector sets per frame) and on a
   /// sheet clipped all round (every one of its 12 samples 235 or more), at
   /// least 3 of those 25 points this many levels (0..255) or more under the
   /// brightest of them, 22 of them grey at least. Where a hot spot's peak
@@ -220,8 +220,8 @@ struct DetectorParams {
   /// a blank middle at the clip is flat, as is a uniform grey. (Not in other
   /// frames: a bright wall clipped in two channels has as much noise in the
   /// third.) Under glare 0.75 the adaptive detector finds 90-92 of 100
-  /// frames of the lighting sweep's point, against 72 without. 0: no such
-  /// rule.
+  /// frames of the lighting sweep's point, against 72-73 without. 0: no
+  /// such rule.
   double qr_washed_dip = 6;
   /// Along each side of the quadrilateral (TL-TR, TR-AP, AP-BL, BL-TL) the
   /// two squares cover 1/3 of the distance between their centres, in any
