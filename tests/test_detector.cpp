@@ -1502,8 +1502,9 @@ TEST(Detector, LightGreyQrOnAClippedSheetCounts) {
 // (DetectorParams::qr_washed_dip); a blank middle at the clip, a flat grey
 // and the same frame without the correction do not.
 TEST(Detector, QrWashedPastTheSheetCountsByItsTextureUnderGlare) {
-  const auto detect = [](const std::function<void(cv::Mat&)>& paint, bool corrected, double dip = 6) {
-    const ClippedSheet s = clippedSheet(250, paint, 31);
+  const auto detect = [](const std::function<void(cv::Mat&)>& paint, bool corrected, double dip,
+                          const std::function<void(cv::Mat&)>& paint_sheet = {}) {
+    const ClippedSheet s = clippedSheet(250, paint, 31, paint_sheet);
     ld::DetectorParams params;
     params.qr_washed_dip = dip;
     ld::Detector det(params);
@@ -1538,15 +1539,12 @@ TEST(Detector, QrWashedPastTheSheetCountsByItsTextureUnderGlare) {
   // The sheet clipped all round: with its top margin (between TL and TR) at
   // 237 the QR counts, at 228 it does not.
   const auto top_margin = [&](uint8_t level) {
-    const ClippedSheet s = clippedSheet(250, washed, 31, [level](cv::Mat& art) {
+    return detect(washed, true, dip, [level](cv::Mat& art) {
       const int u = art.cols / 9;
       cv::Mat strip = art(cv::Rect(5 * u / 2, u / 2, 4 * u, 2 * u)), paper;
       cv::inRange(strip, cv::Scalar(250, 250, 250), cv::Scalar(250, 250, 250), paper);
       strip.setTo(cv::Scalar(level, level, level), paper);
     });
-    ld::Detector det;
-    det.setGlareCorrected(true);
-    return onlyLandmark(det.detect(s.img), s.truth);
   };
   EXPECT_TRUE(top_margin(237));
   EXPECT_FALSE(top_margin(228));

@@ -978,8 +978,9 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
       anchors.push_back({cv::Point2d(aps[k].cx, aps[k].cy), radius, 0, aps[k].area, side});
     if (p.steep_looks > 0) steepAnchor(aps[k], kSteepAxisRatio, kSteepApPaperOverInk, steep_anchors);
   }
-  for (int k = 0; k < nf && p.steep_looks > 0; ++k)
-    if (!used[k]) steepAnchor(fips[k], kSteepFipAxisRatio, kSteepFipPaperOverInk, steep_fip_anchors);
+  if (p.steep_looks > 0)
+    for (int k = 0; k < nf; ++k)
+      if (!used[k]) steepAnchor(fips[k], kSteepFipAxisRatio, kSteepFipPaperOverInk, steep_fip_anchors);
   if (anchors.empty() && steep_anchors.empty() && steep_fip_anchors.empty()) return;
   const auto larger = [](const Anchor& a, const Anchor& b) {
     return std::tie(b.area, a.centre.x, a.centre.y) < std::tie(a.area, b.centre.x, b.centre.y);

@@ -1078,9 +1078,11 @@ bool verify(Candidate& c, const std::vector<Region>& fips, const std::vector<Reg
         double sv, vv, b;
         if (!sampleSV(bgr, P[0] + ex * u + ey * v, sv, vv, &b)) return fail(Check::kOutsideImage);
         qr_mean += b / 25;
-        if (sv <= p.sheet_max_saturation) grey_mean += b, grey_points[static_cast<size_t>(grey++)] = b;
-        dark += b < p.qr_dark_sample * sheet_mean && sv <= p.sheet_max_saturation;
-        glared += b > kGlaredOverSheet * sheet_max && sv <= p.sheet_max_saturation;
+        if (sv > p.sheet_max_saturation) continue;  // (a coloured point: the mean's only)
+        grey_mean += b;
+        grey_points[static_cast<size_t>(grey++)] = b;
+        dark += b < p.qr_dark_sample * sheet_mean;
+        glared += b > kGlaredOverSheet * sheet_max;
       }
     // A sheet at the sensor's white clip (glare) hides the QR's white
     // modules and lifts its mean: there its dark modules are the evidence;
