@@ -22,6 +22,9 @@ refused "^ld-bench: --size: must be in \[0.01, 2\], not -1" "$BIN/ld-bench" --si
 refused "^ld-bench: --resolutions: '640' is not WIDTHxHEIGHT" "$BIN/ld-bench" --resolutions 640
 refused "^ld-bench: --resolutions: '32x32' is out of 64x48 .. 8192x8192" "$BIN/ld-bench" --resolutions 640x480,32x32
 refused "^ld-bench: cannot write $T: is a folder$" "$BIN/ld-bench" --markdown "$T"
+printf '%%YAML:1.0\n---\ncentre_iterations: 11\n' >"$T/bad.yaml"
+refused "^ld-bench: .*bad.yaml.*centre_iterations" "$BIN/ld-bench" --params "$T/bad.yaml"
+refused "^ld-bench: .*missing.yaml" "$BIN/ld-bench" --params "$T/missing.yaml"
 refused "^ld-bench-tracker: --landmarks: must be > 0, not -5" "$BIN/ld-bench-tracker" --landmarks -5
 refused "^ld-bench-e2e: unknown option --bogus (--help lists the options)$" "$BIN/ld-bench-e2e" --bogus
 refused "^ld-bench-e2e: --seconds must be a number of seconds, not x" "$BIN/ld-bench-e2e" --seconds x
@@ -38,4 +41,12 @@ timeout 120 "$BIN/ld-bench" --frames 1 --repeats 1 --resolutions 320x240 --backe
 grep -q "^| 320x240 | cpu | fast | " "$T/out" || fail "no detector row: $(cat "$T/out")"
 grep -q "^| 10 | " "$T/out" || fail "no tracker row: $(cat "$T/out")"
 grep -q "^| 320x240 | cpu | fast | " "$T/new/bench.md" || fail "no --markdown"
+# --params: the rows start from the file's parameters (sheet alignment on:
+# the corners column takes its time) and the header says so.
+printf '%%YAML:1.0\n---\nalign_iterations: 10\n' >"$T/align.yaml"
+timeout 120 "$BIN/ld-bench" --frames 1 --repeats 1 --resolutions 640x480 --backend cpu --no-paper \
+  --tracker-landmarks 10 --tracker-repeats 1 --params "$T/align.yaml" >"$T/out" 2>"$T/err" ||
+  fail "--params run: $(cat "$T/err")"
+grep -q -- "--params $T/align.yaml" "$T/out" || fail "--params not in the header: $(head -2 "$T/out")"
+grep -q "^| 640x480 | cpu | fast | " "$T/out" || fail "no detector row with --params: $(cat "$T/out")"
 echo "bench command lines: ok"

@@ -1875,6 +1875,7 @@ TEST(Params, SaveLoadRoundTrip) {
   p.centre_iterations = 1;
   p.complete_missing = false;
   p.qr_washed_dip = 9;
+  p.align_iterations = 7;
   const std::string path = tempPath("params.yaml");
   p.save(path);
   const ld::DetectorParams q = ld::DetectorParams::load(path);
@@ -1887,6 +1888,7 @@ TEST(Params, SaveLoadRoundTrip) {
   EXPECT_EQ(q.centre_iterations, 1);
   EXPECT_FALSE(q.complete_missing);
   EXPECT_DOUBLE_EQ(q.qr_washed_dip, 9);
+  EXPECT_EQ(q.align_iterations, 7);
   EXPECT_DOUBLE_EQ(q.color_ratio_a, p.color_ratio_a);
   EXPECT_DOUBLE_EQ(q.sheet_min_value, p.sheet_min_value);
   std::remove(path.c_str());
@@ -2009,6 +2011,8 @@ TEST(Params, ValidateNamesTheField) {
   EXPECT_NE(err([](auto& p) { p.ap_size_min = 0; }).find("ap_size_min"), std::string::npos);
   EXPECT_NE(err([](auto& p) { p.faint_look_blue = 0; }).find("faint_look_blue"), std::string::npos);
   EXPECT_NE(err([](auto& p) { p.qr_washed_dip = -1; }).find("qr_washed_dip"), std::string::npos);
+  EXPECT_NE(err([](auto& p) { p.align_iterations = 101; }).find("align_iterations"), std::string::npos);
+  EXPECT_NE(err([](auto& p) { p.align_iterations = -1; }).find("align_iterations"), std::string::npos);
   ld::DetectorParams bad;
   bad.front_end = "x";
   EXPECT_THROW(ld::Detector{bad}, std::invalid_argument);

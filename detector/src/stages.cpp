@@ -10,6 +10,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/hal/intrin.hpp>
 #include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
 
 #include "ld/landmark_layout.hpp"
 
@@ -1591,6 +1592,89 @@ bool fitCorners(const std::array<cv::Point2d, 4>& centres, int iterations,
   }
   for (int i = 0; i < 4; ++i) corners[i] = applyH(H, {layout::kCornersU[i][0], layout::kCornersU[i][1]});
   if (H_out) *H_out = H;
+  return true;
+}
+
+namespace {
+
+// Sheet alignment: only landmarks whose crop is at most this large (px; a
+// 15 cm sheet from about 0.75 m on at f = 600 px): ECC's time goes with the
+// crop's pixels, and larger landmarks' centres, from many pixels, are as
+// good without it. An alignment that moves a centre by more than
+// kAlignMaxShift of its square's smaller projected side is not taken
+// (squares a few pixels wide, steeply seen, give ECC too little to hold on
+// to in one direction).
+constexpr int kAlignMaxCrop = 128;
+constexpr double kAlignMaxShift = 0.25;
+
+cv::Point2f project(const cv::Matx33d& H, double x, double y) {
+  const cv::Vec3d p = H * cv::Vec3d(x, y, 1.0);
+  return {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
+}
+
+}  // namespace
+
+void sheetTemplate(int per_unit, cv::Mat& sheet, cv::Mat& mask) {
+  const int n = static_cast<int>(layout::kUnits) * per_unit;
+  sheet.create(n, n, CV_32F);
+  sheet.setTo(255);
+  mask.create(n, n, CV_8U);
+  mask.setTo(255);
+  const auto units = [per_unit](double u) { return static_cast<int>(std::lround(u * per_unit)); };
+  const int side = units(layout::kSquareSide);
+  for (const auto& c : layout::kCentresU)
+    sheet(cv::Rect(units(c[0] - layout::kSquareSide / 2), units(c[1] - layout::kSquareSide / 2), side, side)).setTo(0);
+  const int qr = units(layout::kQrMax - layout::kQrMin);
+  mask(cv::Rect(units(layout::kQrMin), units(layout::kQrMin), qr, qr)).setTo(0);
+}
+
+bool alignSheet(const cv::Mat& bgr, const cv::Mat& sheet, const cv::Mat& mask, int per_unit, int iterations,
+                std::array<cv::Point2f, 4>& centres, std::array<cv::Point2f, 4>& corners, AlignScratch& scratch) {
+  if (iterations <= 0 || bgr.type() != CV_8UC3) return false;
+  const cv::Matx33d H = layout::sheetToImage(corners);
+  // The landmark's crop: the sheet's bounding box and 3 px around it.
+  std::array<cv::Point2f, 4> outline;
+  for (int i = 0; i < 4; ++i)
+    outline[i] = project(H, i % 3 ? layout::kUnits : 0.0, i < 2 ? 0.0 : layout::kUnits);
+  const cv::Rect box = (cv::boundingRect(std::vector<cv::Point2f>(outline.begin(), outline.end())) +
+                        cv::Size(6, 6) - cv::Point(3, 3)) &
+                       cv::Rect(0, 0, bgr.cols, bgr.rows);
+  if (box.width < 4 || box.height < 4) return false;
+  // (a landmark larger than that has centres precise to a tenth of a pixel
+  // from its squares' many pixels already)
+  if (std::max(box.width, box.height) > kAlignMaxCrop) return false;
+  cv::extractChannel(bgr(box), scratch.green, 1);
+  scratch.green.convertTo(scratch.view, CV_32F);
+  // image px -> view px, sheet px -> sheet u
+  const cv::Matx33d to_view(1, 0, -box.x, 0, 1, -box.y, 0, 0, 1);
+  const double s = per_unit;
+  const cv::Matx33d sheet_px_to_u(1 / s, 0, 0.5 / s, 0, 1 / s, 0.5 / s, 0, 0, 1);
+  // ECC's warp takes the view's pixels to the sheet's (the mask is the sheet's)
+  cv::Matx33d W = (to_view * H * sheet_px_to_u).inv();
+  if (!(std::abs(W(2, 2)) > 1e-12)) return false;
+  W *= 1.0 / W(2, 2);
+  cv::Mat warp;
+  cv::Mat(W).convertTo(warp, CV_32F);
+  try {
+    cv::findTransformECC(scratch.view, sheet, warp, cv::MOTION_HOMOGRAPHY,
+                         cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, iterations, 1e-3), mask, 3);
+  } catch (const cv::Exception&) {
+    return false;  // (no convergence, or a degenerate crop)
+  }
+  cv::Matx33d Wn;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) Wn(r, c) = warp.at<float>(r, c);
+  const cv::Matx33d Hn = to_view.inv() * Wn.inv() * sheet_px_to_u.inv();
+  std::array<cv::Point2f, 4> aligned;
+  for (int i = 0; i < 4; ++i) {
+    const double x = layout::kCentresU[i][0], y = layout::kCentresU[i][1], h = layout::kSquareSide / 2;
+    aligned[i] = project(Hn, x, y);
+    const double across = cv::norm(project(H, x - h, y) - project(H, x + h, y));
+    const double down = cv::norm(project(H, x, y - h) - project(H, x, y + h));
+    if (!(cv::norm(aligned[i] - centres[i]) <= kAlignMaxShift * std::min(across, down))) return false;
+  }
+  centres = aligned;
+  for (int i = 0; i < 4; ++i) corners[i] = project(Hn, layout::kCornersU[i][0], layout::kCornersU[i][1]);
   return true;
 }
 

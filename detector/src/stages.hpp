@@ -317,6 +317,27 @@ bool fitCorners(const std::array<cv::Point2d, 4>& centres, int iterations,
                 std::array<cv::Point2d, 4>& corrected_centres, std::array<cv::Point2d, 4>& corners,
                 cv::Matx33d* H_out = nullptr);
 
+/// 8. corners, sheet alignment (DetectorParams::align_iterations): the
+/// sheet as the image's green channel shows it, `per_unit` px per unit u:
+/// white paper (255) and the four squares (0; both inks absorb green), and
+/// the mask of what counts (all but the QR square, whose modules are unknown).
+void sheetTemplate(int per_unit, cv::Mat& sheet, cv::Mat& mask);
+
+/// Buffers of alignSheet() kept between calls.
+struct AlignScratch {
+  cv::Mat green, view;
+};
+
+/// Aligns `sheet` (sheetTemplate(per_unit)) to the green channel of `bgr`
+/// around the landmark whose centres (TL, TR, BL, AP) and corners (TL, TR,
+/// BR, BL) are given, by ECC over a homography (up to `iterations`).
+/// Replaces the centres and corners with the alignment's and returns true,
+/// unless the landmark's crop is larger than kAlignMaxCrop px, ECC failed,
+/// or the alignment moves a centre by more than a quarter of its square's
+/// smaller projected side (then they stay as they are: false).
+bool alignSheet(const cv::Mat& bgr, const cv::Mat& sheet, const cv::Mat& mask, int per_unit, int iterations,
+                std::array<cv::Point2f, 4>& centres, std::array<cv::Point2f, 4>& corners, AlignScratch& scratch);
+
 /// 8. corners: the centres of a landmark's squares (TL, TR, BL, AP: the
 /// regions `squares`, FIPs of `fips` and the AP of `aps`) with the pieces
 /// of a square the mask split (a lamp's hot spot or JPEG's colour across

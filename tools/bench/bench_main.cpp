@@ -105,7 +105,19 @@ int main(int argc, char** argv) {
   app.add_option("--tracker-repeats", tracker_repeats, "timed runs per tracker row")
       ->check(ld::cli::Positive)
       ->capture_default_str();
+  std::string params_file;
+  app.add_option("--params", params_file,
+                 "detector parameters (YAML) every row starts from (each row sets its own front_end and backend)");
   LD_CLI_PARSE(app, argc, argv);
+  ld::DetectorParams base;
+  if (!params_file.empty()) {
+    try {
+      base = ld::DetectorParams::load(params_file);
+    } catch (const std::exception& e) {
+      std::cerr << "ld-bench: " << e.what() << "\n";
+      return 2;
+    }
+  }
   // Where the tables go, checked before the run (minutes) rather than after it.
   if (!markdown.empty()) {
     const std::string problem = ld::prepareOutputFile(markdown);
@@ -120,7 +132,8 @@ int main(int argc, char** argv) {
   ld::markers::Detector aruco_detector(ld::markers::Kind::Aruco);
 
   std::ostringstream md;
-  md << "Measured by `ld-bench --frames " << frames << " --repeats " << repeats << "`: "
+  md << "Measured by `ld-bench --frames " << frames << " --repeats " << repeats
+     << (params_file.empty() ? "" : " --params " + params_file) << "`: "
      << "median of per-scene medians, one thread, ms. Scenes: ld-synth, 1-2 landmarks of "
      << side_m << " m at 0.8-2.5 m, yaw within +-45 deg, any roll, random lighting, noise and JPEG; "
      << "AprilTag (tag36h11) and ArUco (4x4) markers of the same printed size at the same poses.\n\n";
@@ -130,7 +143,7 @@ int main(int argc, char** argv) {
   // GLES availability, once (a context made and dropped).
   std::string gles_why;
   if (std::find(backends.begin(), backends.end(), "gles") != backends.end()) {
-    ld::DetectorParams probe;
+    ld::DetectorParams probe = base;
     probe.backend = "gles";
     try {
       ld::Detector d(probe);
@@ -177,7 +190,7 @@ int main(int argc, char** argv) {
     for (const auto& fe : front_ends)
     for (const auto& be : backends) {
       if (be == "gles" && !gles_why.empty()) continue;
-      ld::DetectorParams params;
+      ld::DetectorParams params = base;
       params.front_end = fe;
       params.backend = be;
       ld::Detector detector(params);
@@ -299,7 +312,9 @@ int main(int argc, char** argv) {
     // output. The adapter keeps its estimate from frame to frame, as on a
     // camera's video; each scene is one such video of a still frame.
     {
-      ld::Detector detector;
+      ld::DetectorParams params = base;
+      params.backend = "cpu";
+      ld::Detector detector(params);
       std::vector<double> correction, total;
       int found = 0, truths = 0, veiled = 0;
       for (const Scene& s : scenes) {
