@@ -219,6 +219,13 @@ double Detection::stageMs(const std::string& name) const {
   return 0.0;
 }
 
+std::optional<Pose> poseFromCorners(const std::array<cv::Point2f, 4>& corners, const CameraModel& camera,
+                                    double side_m) {
+  Pose pose;
+  if (!(side_m > 0) || !detail::estimatePose(corners, camera, side_m, pose)) return std::nullopt;
+  return pose;
+}
+
 bool matchesTruth(const Landmark& d, const std::array<cv::Point2d, 4>& truth, double min_tol_px,
                   double tol_frac) {
   const double size = cv::norm(truth[1] - truth[0]) / 3.0;
@@ -1417,6 +1424,11 @@ void Detector::Impl::run(const cv::Mat& input) {
     std::array<cv::Point2d, 4> corrected, corners;
     if (distorted) detail::undistortPixels(scaled, centres);
     if (!detail::fitCorners(centres, p.centre_iterations, corrected, corners)) continue;
+    if (p.align_iterations > 0) {
+      if (align_sheet.empty()) detail::sheetTemplate(kAlignPerUnit, align_sheet, align_mask);
+      detail::alignSheet(*img, distorted ? &scaled : nullptr, align_sheet, align_mask, kAlignPerUnit,
+                         p.align_iterations, corrected, corners, align_scratch);
+    }
     if (distorted) {
       detail::distortPixels(scaled, corrected);
       detail::distortPixels(scaled, corners);
@@ -1428,19 +1440,6 @@ void Detector::Impl::run(const cv::Mat& input) {
     lm.ap = corrected[3];
     for (int i = 0; i < 4; ++i) lm.corners[i] = corners[i];
     lm.score = c.score;
-    if (p.align_iterations > 0) {
-      // (in the image as it is: over a landmark's few dozen pixels a lens's
-      // distortion is as good as a homography)
-      if (align_sheet.empty()) detail::sheetTemplate(kAlignPerUnit, align_sheet, align_mask);
-      std::array<cv::Point2f, 4> centres_f{lm.fip_tl, lm.fip_tr, lm.fip_bl, lm.ap};
-      if (detail::alignSheet(*img, align_sheet, align_mask, kAlignPerUnit, p.align_iterations, centres_f, lm.corners,
-                             align_scratch)) {
-        lm.fip_tl = centres_f[0];
-        lm.fip_tr = centres_f[1];
-        lm.fip_bl = centres_f[2];
-        lm.ap = centres_f[3];
-      }
-    }
     // a distortion model that does not invert there (found by
     // tests/fuzz/fuzz_camera) gives no landmark rather than NaN positions
     if (!finiteLandmark(lm)) continue;

@@ -1597,19 +1597,22 @@ bool fitCorners(const std::array<cv::Point2d, 4>& centres, int iterations,
 
 namespace {
 
-// Sheet alignment: only landmarks whose crop is at most this large (px; a
-// 15 cm sheet from about 0.75 m on at f = 600 px): ECC's time goes with the
-// crop's pixels, and larger landmarks' centres, from many pixels, are as
-// good without it. An alignment that moves a centre by more than
-// kAlignMaxShift of its square's smaller projected side is not taken
-// (squares a few pixels wide, steeply seen, give ECC too little to hold on
-// to in one direction).
-constexpr int kAlignMaxCrop = 128;
+// Sheet alignment: only sheets whose longest side is at most this long (px;
+// a 15 cm sheet from about 0.75 m on at f = 600 px): ECC's time goes with
+// the crop's pixels, and larger sheets' centres, from many pixels, are as
+// good without it. Nor sheets seen so steeply that their shortest side is
+// under this fraction of their longest (yaw beyond about 65 degrees): their
+// squares, a few pixels wide, give ECC too little to hold on to across, and
+// over 40 such frames it placed the corners worse about as often as
+// better. An alignment that moves a centre by more than kAlignMaxShift of
+// its square's smaller projected side is not taken.
+constexpr double kAlignMaxSide = 120;
+constexpr double kAlignMinAspect = 0.4;
 constexpr double kAlignMaxShift = 0.25;
 
-cv::Point2f project(const cv::Matx33d& H, double x, double y) {
+cv::Point2d project(const cv::Matx33d& H, double x, double y) {
   const cv::Vec3d p = H * cv::Vec3d(x, y, 1.0);
-  return {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
+  return {p[0] / p[2], p[1] / p[2]};
 }
 
 }  // namespace
@@ -1628,22 +1631,51 @@ void sheetTemplate(int per_unit, cv::Mat& sheet, cv::Mat& mask) {
   mask(cv::Rect(units(layout::kQrMin), units(layout::kQrMin), qr, qr)).setTo(0);
 }
 
-bool alignSheet(const cv::Mat& bgr, const cv::Mat& sheet, const cv::Mat& mask, int per_unit, int iterations,
-                std::array<cv::Point2f, 4>& centres, std::array<cv::Point2f, 4>& corners, AlignScratch& scratch) {
+bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const cv::Mat& sheet, const cv::Mat& mask,
+                int per_unit, int iterations, std::array<cv::Point2d, 4>& centres, std::array<cv::Point2d, 4>& corners,
+                AlignScratch& scratch) {
   if (iterations <= 0 || bgr.type() != CV_8UC3) return false;
-  const cv::Matx33d H = layout::sheetToImage(corners);
-  // The landmark's crop: the sheet's bounding box and 3 px around it.
+  std::array<cv::Point2d, 4> pattern;
+  for (int i = 0; i < 4; ++i) pattern[i] = {layout::kCornersU[i][0], layout::kCornersU[i][1]};
+  cv::Matx33d H;
+  if (!homography4(pattern, corners, H)) return false;
+  // The sheet's outline: its size and shape decide whether to align.
   std::array<cv::Point2f, 4> outline;
   for (int i = 0; i < 4; ++i)
     outline[i] = project(H, i % 3 ? layout::kUnits : 0.0, i < 2 ? 0.0 : layout::kUnits);
-  const cv::Rect box = (cv::boundingRect(std::vector<cv::Point2f>(outline.begin(), outline.end())) +
-                        cv::Size(6, 6) - cv::Point(3, 3)) &
-                       cv::Rect(0, 0, bgr.cols, bgr.rows);
-  if (box.width < 4 || box.height < 4) return false;
-  // (a landmark larger than that has centres precise to a tenth of a pixel
-  // from its squares' many pixels already)
-  if (std::max(box.width, box.height) > kAlignMaxCrop) return false;
-  cv::extractChannel(bgr(box), scratch.green, 1);
+  double longest = 0, shortest = 1e300;
+  for (int i = 0; i < 4; ++i) {
+    const double side = cv::norm(outline[(i + 1) % 4] - outline[i]);
+    longest = std::max(longest, side), shortest = std::min(shortest, side);
+  }
+  if (!(longest <= kAlignMaxSide) || !(shortest >= kAlignMinAspect * longest)) return false;
+  // The landmark's crop: the sheet's bounding box and 3 px around it, in the
+  // undistorted image's pixels (through the lens's distortion when there is
+  // one: a homography maps the sheet to the undistorted image only).
+  cv::Rect box = cv::boundingRect(std::vector<cv::Point2f>(outline.begin(), outline.end())) + cv::Size(6, 6) -
+                 cv::Point(3, 3);
+  const cv::Rect frame(0, 0, bgr.cols, bgr.rows);
+  if (!distorting) {
+    box &= frame;
+    if (box.width < 4 || box.height < 4) return false;
+    cv::extractChannel(bgr(box), scratch.green, 1);
+  } else {
+    // where each of the box's pixels lies in the frame
+    const cv::Matx33d Ki = distorting->K.inv();
+    scratch.rays.clear();
+    for (int y = 0; y < box.height; ++y)
+      for (int x = 0; x < box.width; ++x) {
+        const cv::Vec3d r = Ki * cv::Vec3d(box.x + x, box.y + y, 1.0);
+        scratch.rays.emplace_back(static_cast<float>(r[0] / r[2]), static_cast<float>(r[1] / r[2]), 1.0f);
+      }
+    cv::projectPoints(scratch.rays, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), cv::Mat(distorting->K), distorting->dist,
+                      scratch.at);
+    for (const cv::Point2f& q : scratch.at)
+      if (!frame.contains(cv::Point(cvFloor(q.x), cvFloor(q.y)))) return false;  // (part of it outside the frame)
+    const cv::Mat map(box.height, box.width, CV_32FC2, scratch.at.data());
+    cv::remap(bgr, scratch.undistorted, map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    cv::extractChannel(scratch.undistorted, scratch.green, 1);
+  }
   scratch.green.convertTo(scratch.view, CV_32F);
   // image px -> view px, sheet px -> sheet u
   const cv::Matx33d to_view(1, 0, -box.x, 0, 1, -box.y, 0, 0, 1);
@@ -1665,7 +1697,7 @@ bool alignSheet(const cv::Mat& bgr, const cv::Mat& sheet, const cv::Mat& mask, i
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) Wn(r, c) = warp.at<float>(r, c);
   const cv::Matx33d Hn = to_view.inv() * Wn.inv() * sheet_px_to_u.inv();
-  std::array<cv::Point2f, 4> aligned;
+  std::array<cv::Point2d, 4> aligned;
   for (int i = 0; i < 4; ++i) {
     const double x = layout::kCentresU[i][0], y = layout::kCentresU[i][1], h = layout::kSquareSide / 2;
     aligned[i] = project(Hn, x, y);

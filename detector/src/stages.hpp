@@ -325,18 +325,24 @@ void sheetTemplate(int per_unit, cv::Mat& sheet, cv::Mat& mask);
 
 /// Buffers of alignSheet() kept between calls.
 struct AlignScratch {
-  cv::Mat green, view;
+  cv::Mat green, view, undistorted;
+  std::vector<cv::Point3f> rays;
+  std::vector<cv::Point2f> at;
 };
 
 /// Aligns `sheet` (sheetTemplate(per_unit)) to the green channel of `bgr`
 /// around the landmark whose centres (TL, TR, BL, AP) and corners (TL, TR,
-/// BR, BL) are given, by ECC over a homography (up to `iterations`).
-/// Replaces the centres and corners with the alignment's and returns true,
-/// unless the landmark's crop is larger than kAlignMaxCrop px, ECC failed,
-/// or the alignment moves a centre by more than a quarter of its square's
-/// smaller projected side (then they stay as they are: false).
-bool alignSheet(const cv::Mat& bgr, const cv::Mat& sheet, const cv::Mat& mask, int per_unit, int iterations,
-                std::array<cv::Point2f, 4>& centres, std::array<cv::Point2f, 4>& corners, AlignScratch& scratch);
+/// BR, BL) are given, by ECC over a homography (up to `iterations`). With a
+/// `distorting` camera the centres and corners are in its undistorted
+/// image's pixels, and the crop is taken through its distortion. Replaces
+/// the centres and corners with the alignment's and returns true, unless
+/// the sheet is larger than kAlignMaxSide px or seen more steeply than
+/// kAlignMinAspect, its crop leaves the frame through the distortion, ECC
+/// failed, or the alignment moves a centre by more than a quarter of its
+/// square's smaller projected side (then they stay as they are: false).
+bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const cv::Mat& sheet, const cv::Mat& mask,
+                int per_unit, int iterations, std::array<cv::Point2d, 4>& centres, std::array<cv::Point2d, 4>& corners,
+                AlignScratch& scratch);
 
 /// 8. corners: the centres of a landmark's squares (TL, TR, BL, AP: the
 /// regions `squares`, FIPs of `fips` and the AP of `aps`) with the pieces

@@ -313,6 +313,7 @@ int main(int argc, char** argv) {
     // camera's video; each scene is one such video of a still frame.
     {
       ld::DetectorParams params = base;
+      params.front_end = "fast";
       params.backend = "cpu";
       ld::Detector detector(params);
       std::vector<double> correction, total;

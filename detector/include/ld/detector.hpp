@@ -316,11 +316,12 @@ struct DetectorParams {
   /// within +-40 degrees) the corners' median error goes from 0.21 to
   /// 0.06 px and the pose's rotation error (90th percentile) from 29 to
   /// 0.9 degrees (README, "Sheet alignment for pose"). Costs about
-  /// 0.4-0.8 ms per landmark. Left out for landmarks whose crop is over
-  /// 128 px (their centres are as good without it), and not taken where it
-  /// would move a centre by more than a quarter of its square's smaller side
-  /// (steeply seen landmarks, whose squares are a few pixels wide).
-  /// 0 = off (default).
+  /// 0.4-0.8 ms per landmark. Left out for sheets whose longest side is
+  /// over 120 px (their centres are as good without it) or whose shortest
+  /// is under 0.4 of their longest (yaw beyond about 65 degrees), and not
+  /// taken where it would move a centre by more than a quarter of its
+  /// square's smaller side. With a distorting camera (setCamera) the crop
+  /// is taken through the distortion. 0 = off (default).
   int align_iterations = 0;
 
   /// The paper's own settings: "paper" front end with its 9x9 blur.
@@ -466,5 +467,13 @@ class Detector {
 /// detections do not match.
 bool matchesTruth(const Landmark& detection, const std::array<cv::Point2d, 4>& truth,
                   double min_tol_px = 2.0, double tol_frac = 0.3);
+
+/// The pose of a printed square of side `side_m` (the pattern square's
+/// outer corners, TL, TR, BR, BL, as Landmark::corners, ArUco and AprilTag
+/// give theirs) seen by `camera`: what Detector computes for its landmarks
+/// (cv::solvePnP, SOLVEPNP_IPPE_SQUARE), for corners found otherwise (a
+/// marker's, in an evaluation). Empty when it does not solve.
+std::optional<Pose> poseFromCorners(const std::array<cv::Point2f, 4>& corners, const CameraModel& camera,
+                                    double side_m);
 
 }  // namespace ld

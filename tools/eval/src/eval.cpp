@@ -8,6 +8,7 @@
 #include <random>
 #include <stdexcept>
 
+#include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "ld/adaptive.hpp"
@@ -117,6 +118,42 @@ FramesRead readOverFrames(const SweepOptions& o, synth::SceneSpec spec, const sy
 }
 
 // The trials at one sweep point, every frame scored by each of `detectors`
+// A marker's corners in the order of the truth's (TL, TR, BR, BL of the
+// sheet): its detector's own order is a fixed turn or mirror of it (ArUco
+// clockwise from its top left, AprilTag counter-clockwise); of the eight,
+// the one nearest the truth.
+std::array<cv::Point2f, 4> inTruthOrder(const markers::Quad& quad, const synth::LandmarkTruth& t) {
+  std::array<cv::Point2f, 4> best = quad;
+  double best_d = 1e300;
+  for (int mirror = 0; mirror < 2; ++mirror)
+    for (int turn = 0; turn < 4; ++turn) {
+      std::array<cv::Point2f, 4> q;
+      double d = 0;
+      for (int i = 0; i < 4; ++i) {
+        q[i] = quad[static_cast<size_t>(mirror ? (turn - i + 4) % 4 : (turn + i) % 4)];
+        d += cv::norm(cv::Point2d(q[i]) - t.corners[i]);
+      }
+      if (d < best_d) best_d = d, best = q;
+    }
+  return best;
+}
+
+// With options.pose, the errors of the pose from `corners` against the truth `t` into `p`.
+void addPoseErrors(const SweepOptions& o, const std::array<cv::Point2f, 4>& corners, const synth::LandmarkTruth& t,
+                   Point& p) {
+  if (!o.pose) return;
+  double e = 0;
+  for (int i = 0; i < 4; ++i) e += cv::norm(cv::Point2d(corners[i]) - t.corners[i]) / 4;
+  p.corner_px.push_back(e);
+  const std::optional<Pose> pose = poseFromCorners(corners, o.camera, o.side_m);
+  if (!pose) return;
+  cv::Matx33d R, Rt;
+  cv::Rodrigues(pose->rvec, R);
+  cv::Rodrigues(t.rvec, Rt);
+  p.rotation_deg.push_back(std::acos(std::clamp((cv::trace(R.t() * Rt) - 1) / 2, -1.0, 1.0)) * 180 / CV_PI);
+  p.distance_frac.push_back(std::abs(pose->distance - t.distance) / t.distance);
+}
+
 // (ours, one Point each), or by the options' marker detector when the target
 // is a marker (one Point).
 std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector>& detectors, double distance_m,
@@ -158,6 +195,7 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
       for (const auto& f : marker_detector->detect(gray))
         if (f.id == 0 && markers::matches(f.corners, t.corners)) {
           ++points[0].detected;
+          addPoseErrors(o, inTruthOrder(f.corners, t), t, points[0]);
           break;
         }
       continue;
@@ -168,6 +206,7 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
       for (const Landmark& d : det.landmarks) {
         if (!matchesTruth(d, {t.fip_tl, t.fip_tr, t.fip_bl, t.ap})) continue;
         ++p.detected;
+        addPoseErrors(o, d.corners, t, p);
         if (o.decode) {
           const auto r = reader.decode(frame.bgr, d.corners);
           bool right = r && r->payload == payload, wrong = r && r->payload != payload;
@@ -284,6 +323,13 @@ Point total(const std::vector<Point>& points) {
     t.wrong_payload += p.wrong_payload;
   }
   return t;
+}
+
+double quantile(std::vector<double> values, double q) {
+  if (values.empty()) return 0;
+  const size_t k = std::min(values.size() - 1, static_cast<size_t>(std::clamp(q, 0.0, 1.0) * values.size()));
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
+  return values[k];
 }
 
 }  // namespace ld::eval

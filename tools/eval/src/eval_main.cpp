@@ -113,13 +113,13 @@ struct Common {
   }
 };
 
-void addCommon(CLI::App* app, Common& c) {
+void addCommon(CLI::App* app, Common& c, bool png = true) {
   app->add_option("--camera", c.camera_file, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration); default 640x480, f = 600 px");
   app->add_option("--params", c.params_file, "detector parameters (YAML)");
   app->add_option("--trials", c.trials, "frames per sweep point")->check(ld::cli::Positive)->capture_default_str();
   app->add_option("--seed", c.seed, "scene seed")->capture_default_str();
   app->add_option("--markdown", c.markdown, "also write the table to this file");
-  app->add_option("--png", c.png, "write a plot");
+  if (png) app->add_option("--png", c.png, "write a plot");
 }
 
 // The QR sweeps' --stack: frames read as ld-qr-reader reads a track (0-64, as its --stack-frames).
@@ -261,14 +261,30 @@ int main(int argc, char** argv) {
   motion->add_option("--step", m_step, "pixels between sweep points")->capture_default_str()->check(ld::cli::Positive);
   motion->add_option("--max-yaw", m_yaw, "yaw drawn within +-this, degrees")->capture_default_str()->check(kYaw);
 
+  Common pc;
+  double p_side = 0.15, p_from = 0.5, p_to = 3.5, p_step = 0.5, p_yaw = 40;
+  int p_align = 10;
+  auto* pose = app.add_subcommand("pose", "pose accuracy against distance: corners, rotation and distance errors");
+  addCommon(pose, pc, false);
+  addCompare(pose, pc);
+  pose->add_option("--side", p_side, "printed side S, metres")->capture_default_str()->check(ld::cli::Positive);
+  pose->add_option("--from", p_from, "first distance, metres")->capture_default_str()->check(ld::cli::Positive);
+  pose->add_option("--to", p_to, "last distance, metres")->capture_default_str()->check(ld::cli::Positive);
+  pose->add_option("--step", p_step, "metres between sweep points")->capture_default_str()->check(ld::cli::Positive);
+  pose->add_option("--max-yaw", p_yaw, "yaw drawn within +-this, degrees")->capture_default_str()->check(kYaw);
+  pose->add_option("--align", p_align,
+                   "also our detector with sheet alignment (align_iterations) of this many iterations; 0: not")
+      ->capture_default_str()
+      ->check(ld::cli::Between(0, 100));
+
   LD_CLI_PARSE(app, argc, argv);
   try {
     // Where the results go, checked before the sweep (minutes) rather than after it.
-    for (const Common* c : {&yc, &dc, &qc, &sc, &lc, &mc}) {
+    for (const Common* c : {&yc, &dc, &qc, &sc, &lc, &mc, &pc}) {
       requireWritable(c->markdown, "--markdown");
       requireWritable(c->png, "--png");
     }
-    if ((dist->parsed() && d_from > d_to) || (qr->parsed() && q_from > q_to))
+    if ((dist->parsed() && d_from > d_to) || (qr->parsed() && q_from > q_to) || (pose->parsed() && p_from > p_to))
       throw ld::cli::UsageError("--from must not be beyond --to");
     if (yaw->parsed() || dist->parsed() || motion->parsed()) {
       // One column and one plotted series per (side, target). The sweep's
@@ -409,6 +425,54 @@ int main(int argc, char** argv) {
         }
       }
       emit(lc, t.str());
+    } else if (pose->parsed()) {
+      // One row per (distance, detector): ours with the given parameters,
+      // ours with sheet alignment (unless those have it on already),
+      // AprilTag 3 and ArUco with --compare; the pose from each one's four
+      // corners by the same solver.
+      auto o = pc.options();
+      o.side_m = p_side;
+      o.pose = true;
+      struct Row {
+        std::string name;
+        ld::eval::SweepOptions o;
+      };
+      std::vector<Row> rows{{"ours", o}};
+      if (o.params.align_iterations > 0) {
+        rows[0].name = "ours, sheet alignment";
+      } else if (p_align > 0) {
+        rows.push_back({"ours, sheet alignment", o});
+        rows.back().o.params.align_iterations = p_align;
+      }
+      if (pc.compare)
+        for (const char* target : {"apriltag", "aruco"}) {
+          rows.push_back({ld::markers::name(ld::markers::parse(target)), o});
+          rows.back().o.target = target;
+        }
+      const std::vector<double> ds = range(p_from, p_to, p_step);
+      std::vector<std::vector<ld::eval::Point>> all;
+      for (const Row& r : rows) all.push_back(ld::eval::overDistance(r.o, ds, p_yaw, progress));
+      const auto pair = [](const std::vector<double>& v, double scale, int digits) {
+        if (v.empty()) return std::string("-");
+        char b[64];
+        std::snprintf(b, sizeof b, "%.*f / %.*f", digits, scale * ld::eval::quantile(v, 0.5), digits,
+                      scale * ld::eval::quantile(v, 0.9));
+        return std::string(b);
+      };
+      std::ostringstream t;
+      t << "| distance (m) | detector | found | corners, median / 90th pct (px) | rotation, median / 90th pct "
+           "(deg) | distance, median / 90th pct (%) |\n|---|---|---|---|---|---|\n";
+      for (size_t k = 0; k < ds.size(); ++k)
+        for (size_t i = 0; i < rows.size(); ++i) {
+          const ld::eval::Point& p = all[i][k];
+          t << "| " << ds[k] << " | " << rows[i].name << " | " << pct(p.detected, p.trials) << " % | "
+            << pair(p.corner_px, 1, 3) << " | " << pair(p.rotation_deg, 1, 2) << " | "
+            << pair(p.distance_frac, 100, 2) << " |\n";
+        }
+      t << "\n" << cm(p_side) << " landmarks and markers of the same printed size at the same poses, yaw within +-"
+        << p_yaw << " deg, " << pc.trials << " frames per distance; each pose from the four outer corners by "
+        << "cv::solvePnP (SOLVEPNP_IPPE_SQUARE); errors over the frames where each found its target\n";
+      emit(pc, t.str());
     } else if (size->parsed()) {
       auto o = sc.options();
       o.ecc = ld::artwork::parseQrEcc(s_ecc);

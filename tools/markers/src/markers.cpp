@@ -111,11 +111,14 @@ std::vector<Found> Detector::detect(const cv::Mat& gray) {
       zarray_get(dets, k, &d);
       Found f{d->id, {}};
       // AprilTag's corners run counter-clockwise from the bottom left in
-      // the tag's frame; ours clockwise from the top left.
+      // the tag's frame; ours clockwise from the top left. Its pixel
+      // coordinates put a pixel's centre at +0.5 (AprilRobotics/apriltag
+      // issue 121; measured here on ld-synth's renders: +0.50 px in x and y
+      // on average); OpenCV's, ours, at the integer: half a pixel less.
       const int order[4] = {3, 2, 1, 0};
       for (int i = 0; i < 4; ++i)
-        f.corners[static_cast<size_t>(i)] = {static_cast<float>(d->p[order[i]][0]),
-                                             static_cast<float>(d->p[order[i]][1])};
+        f.corners[static_cast<size_t>(i)] = {static_cast<float>(d->p[order[i]][0] - 0.5),
+                                             static_cast<float>(d->p[order[i]][1] - 0.5)};
       out.push_back(f);
     }
     apriltag_detections_destroy(dets);

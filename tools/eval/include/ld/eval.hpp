@@ -59,6 +59,10 @@ struct SweepOptions {
   /// time (a moving camera), found by the detector in each; read when any
   /// frame alone or their mean (ld::QrStack) reads. 0: single frames only.
   int stack_frames = 0;
+  /// Also the pose of each found landmark or marker, from its four corners
+  /// (ld::poseFromCorners: IPPE_SQUARE with `camera` and `side_m`), against
+  /// the truth: Point::corner_px, rotation_deg, distance_frac.
+  bool pose = false;
 };
 
 /// One sweep point: the swept value and what happened in its trials.
@@ -71,6 +75,12 @@ struct Point {
   int wrong_payload = 0;  ///< a payload other than the printed one (must stay 0)
   int decoded_stacked = 0;  ///< read over stack_frames frames, alone or averaged (stack_frames > 0)
   int decoded_mean = 0;     ///< ... of which the frames' mean (ld::QrStack) read it
+  /// With SweepOptions::pose, one entry per found landmark or marker: its
+  /// corners' mean distance from the truth (px), the angle between its
+  /// pose's rotation and the truth's (degrees), and its distance's relative
+  /// error (|d - true d| / true d); a pose that did not solve adds a corner
+  /// error only.
+  std::vector<double> corner_px, rotation_deg, distance_frac;
   double detectRate() const { return trials ? static_cast<double>(detected) / trials : 0; }
   double decodeRate() const { return trials ? static_cast<double>(decoded) / trials : 0; }
   double stackedDecodeRate() const { return trials ? static_cast<double>(decoded_stacked) / trials : 0; }
@@ -106,5 +116,9 @@ std::array<double, 2> falsePositivesFixedAndAdaptive(const SweepOptions& options
 
 /// Totals over a sweep's points.
 Point total(const std::vector<Point>& points);
+
+/// The q-quantile (0..1) of `values` (the element at q * n of them sorted);
+/// 0 when there are none.
+double quantile(std::vector<double> values, double q);
 
 }  // namespace ld::eval

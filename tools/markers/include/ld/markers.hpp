@@ -29,7 +29,7 @@ using Quad = std::array<cv::Point2f, 4>;
 
 struct Found {
   int id;
-  Quad corners;  ///< the marker's outer corners (black border), image pixels
+  Quad corners;  ///< the marker's outer corners (black border), image pixels (OpenCV's convention: a pixel's centre at the integer)
 };
 
 /// A detector for one kind; keeps its state between frames.
