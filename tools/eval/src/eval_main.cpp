@@ -143,6 +143,15 @@ void addCompare(CLI::App* app, Common& c) {
 // Yaw within a quarter turn: at 90 degrees the sheet is seen edge on.
 const CLI::Validator kYaw = ld::cli::Between(0, 89);
 
+// One side swept over distance (qr, pose): --side, --from, --to, --step, --max-yaw.
+void addDistanceSweep(CLI::App* app, double& side, double& from, double& to, double& step, double& max_yaw) {
+  app->add_option("--side", side, "printed side S, metres")->capture_default_str()->check(ld::cli::Positive);
+  app->add_option("--from", from, "first distance, metres")->capture_default_str()->check(ld::cli::Positive);
+  app->add_option("--to", to, "last distance, metres")->capture_default_str()->check(ld::cli::Positive);
+  app->add_option("--step", step, "metres between sweep points")->capture_default_str()->check(ld::cli::Positive);
+  app->add_option("--max-yaw", max_yaw, "yaw drawn within +-this, degrees")->capture_default_str()->check(kYaw);
+}
+
 // An output file can be written where it is asked for (its missing folders made).
 void requireWritable(const std::string& path, const char* option) {
   if (path.empty()) return;
@@ -198,11 +207,7 @@ int main(int argc, char** argv) {
   double q_side = 0.15, q_from = 0.3, q_to = 1.2, q_step = 0.1, q_yaw = 40;
   auto* qr = app.add_subcommand("qr", "QR decode rate against distance, short and long payloads");
   addCommon(qr, qc);
-  qr->add_option("--side", q_side, "printed side S, metres")->capture_default_str()->check(ld::cli::Positive);
-  qr->add_option("--from", q_from, "first distance, metres")->capture_default_str()->check(ld::cli::Positive);
-  qr->add_option("--to", q_to, "last distance, metres")->capture_default_str()->check(ld::cli::Positive);
-  qr->add_option("--step", q_step, "metres between sweep points")->capture_default_str()->check(ld::cli::Positive);
-  qr->add_option("--max-yaw", q_yaw, "yaw drawn within +-this, degrees")->capture_default_str()->check(kYaw);
+  addDistanceSweep(qr, q_side, q_from, q_to, q_step, q_yaw);
   int q_stack = 0;
   addStack(qr, q_stack,
            "also read each trial's QR from this many frames averaged, as ld-qr-reader does for an undecoded "
@@ -267,11 +272,7 @@ int main(int argc, char** argv) {
   auto* pose = app.add_subcommand("pose", "pose accuracy against distance: corners, rotation and distance errors");
   addCommon(pose, pc, false);
   addCompare(pose, pc);
-  pose->add_option("--side", p_side, "printed side S, metres")->capture_default_str()->check(ld::cli::Positive);
-  pose->add_option("--from", p_from, "first distance, metres")->capture_default_str()->check(ld::cli::Positive);
-  pose->add_option("--to", p_to, "last distance, metres")->capture_default_str()->check(ld::cli::Positive);
-  pose->add_option("--step", p_step, "metres between sweep points")->capture_default_str()->check(ld::cli::Positive);
-  pose->add_option("--max-yaw", p_yaw, "yaw drawn within +-this, degrees")->capture_default_str()->check(kYaw);
+  addDistanceSweep(pose, p_side, p_from, p_to, p_step, p_yaw);
   pose->add_option("--align", p_align,
                    "also our detector with sheet alignment (align_iterations) of this many iterations; 0: not")
       ->capture_default_str()
