@@ -330,9 +330,10 @@ using detail::StageTimer;
 constexpr double kTriangleTolerance = 1.5;
 
 // Sheet alignment (align_iterations): the sheet drawn at this many px per
-// unit u (72 px across). Measured at 1 and 2.5 m: 16 (sharper than the far
-// landmarks' blurred edges) placed the corners of 15 cm sheets at 2.5 m
-// worse (median 0.11 px against 0.07), and gained little at 1 m.
+// unit u (72 px across). Measured at 1 and 2.5 m (with OpenCV's ECC, before
+// the Gauss-Newton fit): 16, sharper than the far landmarks' blurred edges,
+// placed the corners of 15 cm sheets at 2.5 m worse (median 0.11 px against
+// 0.07), and gained little at 1 m.
 constexpr int kAlignPerUnit = 8;
 
 // Missing squares measured, and (FIP pair, AP) triples looked at, per frame
@@ -471,9 +472,9 @@ struct Detector::Impl {
   cv::Mat faint_rc_buf, faint_rc_img_buf;  // ... steep ones' colour from brightness
   std::vector<float> rc_scratch;
   std::vector<cv::Point3f> ink_scratch;  // joinPieces()'s pixels
-  // sheet alignment (align_iterations): the sheet as green shows it, its
-  // mask, built at the first alignment; ECC's buffers
-  cv::Mat align_sheet, align_mask;
+  // sheet alignment (align_iterations): the sheet as green shows it, built
+  // at the first alignment; the alignment's buffers
+  detail::SheetModel align_model;
   detail::AlignScratch align_scratch;
   int white_hist[766];                     // the faint look's histogram of b + g + r ...
   cv::Vec3i white_sums[766];               // ... and its pixels' channel sums per bin
@@ -1425,9 +1426,9 @@ void Detector::Impl::run(const cv::Mat& input) {
     if (distorted) detail::undistortPixels(scaled, centres);
     if (!detail::fitCorners(centres, p.centre_iterations, corrected, corners)) continue;
     if (p.align_iterations > 0) {
-      if (align_sheet.empty()) detail::sheetTemplate(kAlignPerUnit, align_sheet, align_mask);
-      detail::alignSheet(*img, distorted ? &scaled : nullptr, align_sheet, align_mask, kAlignPerUnit,
-                         p.align_iterations, corrected, corners, align_scratch);
+      if (align_model.per_unit == 0) detail::sheetModel(kAlignPerUnit, align_model);
+      detail::alignSheet(*img, distorted ? &scaled : nullptr, align_model, p.align_iterations, corrected, corners,
+                         align_scratch);
     }
     if (distorted) {
       detail::distortPixels(scaled, corrected);

@@ -10,7 +10,6 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/hal/intrin.hpp>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/video/tracking.hpp>
 
 #include "ld/landmark_layout.hpp"
 
@@ -1598,16 +1597,20 @@ bool fitCorners(const std::array<cv::Point2d, 4>& centres, int iterations,
 namespace {
 
 // Sheet alignment: only sheets whose longest side is at most this long (px;
-// a 15 cm sheet from about 0.75 m on at f = 600 px): ECC's time goes with
-// the crop's pixels, and larger sheets' centres, from many pixels, are as
-// good without it. Nor sheets seen so steeply that their shortest side is
-// under this fraction of their longest (yaw beyond about 65 degrees): their
-// squares, a few pixels wide, give ECC too little to hold on to across, and
-// over 40 such frames it placed the corners worse about as often as
-// better. An alignment that moves a centre by more than kAlignMaxShift of
-// its square's smaller projected side is not taken.
+// a 15 cm sheet from about 0.75 m on at f = 600 px): the fit's time goes
+// with the crop's pixels, and larger sheets' centres, from many pixels, are
+// as good without it. Sheets over kAlignDenseSide are fitted on every other
+// pixel each way. Nor sheets seen so steeply that their shortest side is
+// under kAlignMinAspect of their longest (yaw beyond about 65 degrees):
+// their squares, a few pixels wide, give the fit too little to hold on to
+// across, and over 40 such frames it placed the corners worse about as
+// often as better. The fit halves a step that made its error larger and
+// stops at one that lowered it by less than kAlignMinGain. An alignment that moves a centre by more than
+// kAlignMaxShift of its square's smaller projected side is not taken.
 constexpr double kAlignMaxSide = 120;
+constexpr double kAlignDenseSide = 60;
 constexpr double kAlignMinAspect = 0.4;
+constexpr double kAlignMinGain = 0.001;
 constexpr double kAlignMaxShift = 0.25;
 
 cv::Point2d project(const cv::Matx33d& H, double x, double y) {
@@ -1617,23 +1620,142 @@ cv::Point2d project(const cv::Matx33d& H, double x, double y) {
 
 }  // namespace
 
-void sheetTemplate(int per_unit, cv::Mat& sheet, cv::Mat& mask) {
+void sheetModel(int per_unit, SheetModel& model) {
   const int n = static_cast<int>(layout::kUnits) * per_unit;
-  sheet.create(n, n, CV_32F);
-  sheet.setTo(255);
-  mask.create(n, n, CV_8U);
-  mask.setTo(255);
+  model.per_unit = per_unit;
+  cv::Mat sheet(n, n, CV_32F, cv::Scalar(255));
+  model.valid.create(n, n, CV_8U);
+  model.valid.setTo(255);
   const auto units = [per_unit](double u) { return static_cast<int>(std::lround(u * per_unit)); };
   const int side = units(layout::kSquareSide);
   for (const auto& c : layout::kCentresU)
     sheet(cv::Rect(units(c[0] - layout::kSquareSide / 2), units(c[1] - layout::kSquareSide / 2), side, side)).setTo(0);
   const int qr = units(layout::kQrMax - layout::kQrMin);
-  mask(cv::Rect(units(layout::kQrMin), units(layout::kQrMin), qr, qr)).setTo(0);
+  model.valid(cv::Rect(units(layout::kQrMin), units(layout::kQrMin), qr, qr)).setTo(0);
+  cv::GaussianBlur(sheet, model.value, {3, 3}, 0, 0, cv::BORDER_REPLICATE);
+  // central differences (a Sobel's, scaled to levels per pixel)
+  cv::Sobel(model.value, model.dx, CV_32F, 1, 0, 3, 1.0 / 8, 0, cv::BORDER_REPLICATE);
+  cv::Sobel(model.value, model.dy, CV_32F, 0, 1, 3, 1.0 / 8, 0, cv::BORDER_REPLICATE);
 }
 
-bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const cv::Mat& sheet, const cv::Mat& mask,
-                int per_unit, int iterations, std::array<cv::Point2d, 4>& centres, std::array<cv::Point2d, 4>& corners,
-                AlignScratch& scratch) {
+namespace {
+
+// One Gauss-Newton fit of the sheet `m` to `view` (the crop's green, float):
+// view(x) ~ gain * sheet(W(x)) + offset over the crop's pixels that W takes
+// onto the known sheet, W a homography from the view's pixels to the
+// sheet's, started at `W`. Returns false when degenerate.
+bool fitSheet(const cv::Mat& view, const SheetModel& m, int iterations, int step, cv::Matx33d& W) {
+  const int n = m.value.cols;
+  const double lim = n - 1.001;
+  // the view's pixels centred and scaled (a well conditioned system)
+  const double cx = (view.cols - 1) / 2.0, cy = (view.rows - 1) / 2.0, sc = std::max(view.cols, view.rows) / 2.0;
+  const cv::Matx33d N(1 / sc, 0, -cx / sc, 0, 1 / sc, -cy / sc, 0, 0, 1);
+  cv::Matx33d G = W * N.inv();  // normalised view -> sheet px
+  G *= 1.0 / G(2, 2);
+  double gain = 1, offset = 0, prev_mse = 1e300, prev_gain = 1, prev_offset = 0;
+  int halvings = 0;
+  cv::Matx33d prev_G = G;
+  for (int it = 0; it <= iterations; ++it) {
+    // it 0: the light alone (gain, offset) at the start; then all ten
+    const bool light_only = it == 0;
+    cv::Matx<double, 10, 10> A = cv::Matx<double, 10, 10>::zeros();
+    cv::Vec<double, 10> r = cv::Vec<double, 10>::all(0);
+    int used = 0;
+    double sse = 0;
+    for (int y = 0; y < view.rows; y += step) {
+      const float* v = view.ptr<float>(y);
+      const double yn = (y - cy) / sc;
+      for (int x = 0; x < view.cols; x += step) {
+        const double xn = (x - cx) / sc;
+        const double Z = G(2, 0) * xn + G(2, 1) * yn + G(2, 2);
+        if (!(Z > 1e-9)) continue;
+        const double u = (G(0, 0) * xn + G(0, 1) * yn + G(0, 2)) / Z, w = (G(1, 0) * xn + G(1, 1) * yn + G(1, 2)) / Z;
+        if (!(u >= 0 && u <= lim && w >= 0 && w <= lim)) continue;
+        const int u0 = static_cast<int>(u), w0 = static_cast<int>(w);
+        if (!m.valid.at<uint8_t>(w0, u0)) continue;
+        const double fu = u - u0, fw = w - w0;
+        const auto bilinear = [&](const cv::Mat& img) {
+          const float* a = img.ptr<float>(w0) + u0;
+          const float* b = img.ptr<float>(w0 + 1) + u0;
+          return (1 - fw) * ((1 - fu) * a[0] + fu * a[1]) + fw * ((1 - fu) * b[0] + fu * b[1]);
+        };
+        const double s = bilinear(m.value);
+        const double e = gain * s + offset - v[x];
+        sse += e * e;
+        double J[10];
+        J[8] = s;
+        J[9] = 1;
+        int k0 = 8;
+        // (where the sheet is flat, on paper or ink, only the light's terms)
+        const double sx = light_only ? 0.0 : bilinear(m.dx), sy = light_only ? 0.0 : bilinear(m.dy);
+        if (sx != 0 || sy != 0) {
+          const double gx = gain * sx / Z, gy = gain * sy / Z;
+          J[0] = gx * xn, J[1] = gx * yn, J[2] = gx;
+          J[3] = gy * xn, J[4] = gy * yn, J[5] = gy;
+          J[6] = -(gx * u + gy * w) * xn, J[7] = -(gx * u + gy * w) * yn;
+          k0 = 0;
+        }
+        for (int i = k0; i < 10; ++i) {
+          r[i] += J[i] * e;
+          for (int j = i; j < 10; ++j) A(i, j) += J[i] * J[j];
+        }
+        ++used;
+      }
+    }
+    if (used < 16) return false;
+    // A step that made the error larger overshot (a flat error surface, as
+    // along a motion blur): half of it, from where it started, at most
+    // three times; one that lowered it by less than kAlignMinGain ends the fit.
+    const double mse = sse / used;
+    if (!light_only && it > 1) {
+      if (mse > prev_mse) {
+        if (++halvings > 3) {
+          G = prev_G, gain = prev_gain, offset = prev_offset;
+          break;
+        }
+        G = prev_G + 0.5 * (G - prev_G);
+        gain = prev_gain + 0.5 * (gain - prev_gain), offset = prev_offset + 0.5 * (offset - prev_offset);
+        continue;
+      }
+      if (mse > prev_mse * (1 - kAlignMinGain)) break;
+    }
+    prev_mse = mse, prev_G = G, prev_gain = gain, prev_offset = offset;
+    if (light_only) {
+      // the 2x2 system of gain and offset alone
+      const double det = A(8, 8) * A(9, 9) - A(8, 9) * A(8, 9);
+      if (!(std::abs(det) > 1e-9)) return false;
+      gain -= (A(9, 9) * r[8] - A(8, 9) * r[9]) / det;
+      offset -= (A(8, 8) * r[9] - A(8, 9) * r[8]) / det;
+      continue;
+    }
+    for (int i = 0; i < 10; ++i)
+      for (int j = 0; j < i; ++j) A(i, j) = A(j, i);
+    cv::Vec<double, 10> d;
+    if (!cv::solve(A, -r, d, cv::DECOMP_CHOLESKY)) return false;
+    const cv::Matx33d before = G;
+    G(0, 0) += d[0], G(0, 1) += d[1], G(0, 2) += d[2];
+    G(1, 0) += d[3], G(1, 1) += d[4], G(1, 2) += d[5];
+    G(2, 0) += d[6], G(2, 1) += d[7];
+    gain += d[8], offset += d[9];
+    if (!(gain > 0)) return false;
+    // converged: the view's corners move by under a hundredth of a sheet pixel
+    double moved = 0;
+    for (const double xn : {-1.0, 1.0})
+      for (const double yn : {-1.0, 1.0}) {
+        const cv::Vec3d p = G * cv::Vec3d(xn, yn, 1), q = before * cv::Vec3d(xn, yn, 1);
+        moved = std::max(moved, cv::norm(cv::Point2d(p[0] / p[2] - q[0] / q[2], p[1] / p[2] - q[1] / q[2])));
+      }
+    if (!(moved < 1e3)) return false;
+    if (moved < 0.01) break;
+  }
+  W = G * N;
+  return true;
+}
+
+}  // namespace
+
+bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetModel& model, int iterations,
+                std::array<cv::Point2d, 4>& centres, std::array<cv::Point2d, 4>& corners, AlignScratch& scratch) {
   if (iterations <= 0 || bgr.type() != CV_8UC3) return false;
   std::array<cv::Point2d, 4> pattern;
   for (int i = 0; i < 4; ++i) pattern[i] = {layout::kCornersU[i][0], layout::kCornersU[i][1]};
@@ -1677,26 +1799,19 @@ bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const cv::Mat
     cv::extractChannel(scratch.undistorted, scratch.green, 1);
   }
   scratch.green.convertTo(scratch.view, CV_32F);
+  cv::GaussianBlur(scratch.view, scratch.view, {3, 3}, 0, 0, cv::BORDER_REPLICATE);
   // image px -> view px, sheet px -> sheet u
   const cv::Matx33d to_view(1, 0, -box.x, 0, 1, -box.y, 0, 0, 1);
-  const double s = per_unit;
+  const double s = model.per_unit;
   const cv::Matx33d sheet_px_to_u(1 / s, 0, 0.5 / s, 0, 1 / s, 0.5 / s, 0, 0, 1);
-  // ECC's warp takes the view's pixels to the sheet's (the mask is the sheet's)
+  // the fit's warp takes the view's pixels to the sheet's
   cv::Matx33d W = (to_view * H * sheet_px_to_u).inv();
   if (!(std::abs(W(2, 2)) > 1e-12)) return false;
   W *= 1.0 / W(2, 2);
-  cv::Mat warp;
-  cv::Mat(W).convertTo(warp, CV_32F);
-  try {
-    cv::findTransformECC(scratch.view, sheet, warp, cv::MOTION_HOMOGRAPHY,
-                         cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, iterations, 1e-3), mask, 3);
-  } catch (const cv::Exception&) {
-    return false;  // (no convergence, or a degenerate crop)
-  }
-  cv::Matx33d Wn;
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) Wn(r, c) = warp.at<float>(r, c);
-  const cv::Matx33d Hn = to_view.inv() * Wn.inv() * sheet_px_to_u.inv();
+  // (a sheet over kAlignDenseSide px fitted on every other pixel each way:
+  // plenty of them, a quarter of the time)
+  if (!fitSheet(scratch.view, model, iterations, longest > kAlignDenseSide ? 2 : 1, W)) return false;
+  const cv::Matx33d Hn = to_view.inv() * W.inv() * sheet_px_to_u.inv();
   std::array<cv::Point2d, 4> aligned;
   for (int i = 0; i < 4; ++i) {
     const double x = layout::kCentresU[i][0], y = layout::kCentresU[i][1], h = layout::kSquareSide / 2;

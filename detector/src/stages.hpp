@@ -319,9 +319,15 @@ bool fitCorners(const std::array<cv::Point2d, 4>& centres, int iterations,
 
 /// 8. corners, sheet alignment (DetectorParams::align_iterations): the
 /// sheet as the image's green channel shows it, `per_unit` px per unit u:
-/// white paper (255) and the four squares (0; both inks absorb green), and
-/// the mask of what counts (all but the QR square, whose modules are unknown).
-void sheetTemplate(int per_unit, cv::Mat& sheet, cv::Mat& mask);
+/// white paper (255) and the four squares (0; both inks absorb green),
+/// smoothed a little (a 3x3 Gaussian, as the view is), its gradients, and
+/// what counts (all but the QR square, whose modules are unknown).
+struct SheetModel {
+  int per_unit = 0;
+  cv::Mat value, dx, dy;  ///< CV_32F
+  cv::Mat valid;          ///< CV_8U, 255 where the sheet is known
+};
+void sheetModel(int per_unit, SheetModel& model);
 
 /// Buffers of alignSheet() kept between calls.
 struct AlignScratch {
@@ -330,19 +336,19 @@ struct AlignScratch {
   std::vector<cv::Point2f> at;
 };
 
-/// Aligns `sheet` (sheetTemplate(per_unit)) to the green channel of `bgr`
-/// around the landmark whose centres (TL, TR, BL, AP) and corners (TL, TR,
-/// BR, BL) are given, by ECC over a homography (up to `iterations`). With a
+/// Aligns the sheet `model` to the green channel of `bgr` around the
+/// landmark whose centres (TL, TR, BL, AP) and corners (TL, TR, BR, BL) are
+/// given: Gauss-Newton over a homography and the light's gain and offset,
+/// from the corners' homography, up to `iterations` steps. With a
 /// `distorting` camera the centres and corners are in its undistorted
 /// image's pixels, and the crop is taken through its distortion. Replaces
 /// the centres and corners with the alignment's and returns true, unless
 /// the sheet is larger than kAlignMaxSide px or seen more steeply than
-/// kAlignMinAspect, its crop leaves the frame through the distortion, ECC
-/// failed, or the alignment moves a centre by more than a quarter of its
+/// kAlignMinAspect, its crop leaves the frame through the distortion, the
+/// fit is degenerate, or it moves a centre by more than a quarter of its
 /// square's smaller projected side (then they stay as they are: false).
-bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const cv::Mat& sheet, const cv::Mat& mask,
-                int per_unit, int iterations, std::array<cv::Point2d, 4>& centres, std::array<cv::Point2d, 4>& corners,
-                AlignScratch& scratch);
+bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetModel& model, int iterations,
+                std::array<cv::Point2d, 4>& centres, std::array<cv::Point2d, 4>& corners, AlignScratch& scratch);
 
 /// 8. corners: the centres of a landmark's squares (TL, TR, BL, AP: the
 /// regions `squares`, FIPs of `fips` and the AP of `aps`) with the pieces

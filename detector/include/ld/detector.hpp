@@ -308,20 +308,20 @@ struct DetectorParams {
   /// extrapolated (iterations; 0 = take the centroids as the centres).
   int centre_iterations = 2;
   /// Sheet alignment for pose: after the centres, the whole sheet (its four
-  /// squares and its white paper; the QR, unknown, left out) is aligned to
-  /// the image's green channel by ECC (cv::findTransformECC, a homography)
-  /// for up to this many iterations, and the centres and corners are taken
-  /// from it: it uses every edge of the sheet at once where the centres use
-  /// each square's own pixels. On ld-synth's scenes at 2.5 m (15 cm, yaw
-  /// within +-40 degrees) the corners' median error goes from 0.21 to
-  /// 0.06 px and the pose's rotation error (90th percentile) from 29 to
-  /// 0.9 degrees (README, "Sheet alignment for pose"). Costs about
-  /// 0.4-0.8 ms per landmark. Left out for sheets whose longest side is
-  /// over 120 px (their centres are as good without it) or whose shortest
-  /// is under 0.4 of their longest (yaw beyond about 65 degrees), and not
-  /// taken where it would move a centre by more than a quarter of its
-  /// square's smaller side. With a distorting camera (setCamera) the crop
-  /// is taken through the distortion. 0 = off (default).
+  /// squares and its white paper; the QR, unknown, left out) is fitted to
+  /// the image's green channel (Gauss-Newton over a homography and the
+  /// light's gain and offset) for up to this many steps, and the centres
+  /// and corners are taken from it: it uses every edge of the sheet at once
+  /// where the centres use each square's own pixels. On ld-synth's scenes
+  /// at 2.5 m (15 cm, yaw within +-40 degrees) the corners' median error
+  /// goes from 0.21 to 0.06 px and the pose's rotation error (90th
+  /// percentile) from 29 to 1.2 degrees (README, "Sheet alignment for
+  /// pose"). Costs about 0.3 ms per landmark. Left out for sheets whose
+  /// longest side is over 120 px (their centres are as good without it) or
+  /// whose shortest is under 0.4 of their longest (yaw beyond about 65
+  /// degrees), and not taken where it would move a centre by more than a
+  /// quarter of its square's smaller side. With a distorting camera
+  /// (setCamera) the crop is taken through the distortion. 0 = off (default).
   int align_iterations = 0;
 
   /// The paper's own settings: "paper" front end with its 9x9 blur.
