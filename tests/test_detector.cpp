@@ -1864,6 +1864,65 @@ std::string tempPath(const std::string& name) {
 
 }  // namespace
 
+// Sheet alignment (detail::alignSheet) from a start off the truth: a start
+// a tenth of a square off is fitted back to within a few hundredths of a
+// pixel; from starts 0.6 of a square off, an alignment is either refused or
+// moves no centre by more than a quarter of its square (the guard), and it
+// is refused at least once (the fit slid back that far).
+TEST(SheetAlignment, RecoversANearStartAndRefusesALongSlide) {
+  const cv::Size size(640, 480);
+  cv::Mat img = background(size, 5);
+  const Placed p = place(2.0, 20, 30);
+  drawSheet(img, kCam, p);
+  addNoise(img, 2.0, 6);
+  const Truth t = truthOf(kCam, p);
+  ld::detail::SheetModel model;
+  ld::detail::sheetModel(8, model);
+  ld::detail::AlignScratch scratch;
+  const double side = cv::norm(t.centres[1] - t.centres[0]) / 3;  // a square's side, px
+  std::array<cv::Point2d, 4> pattern;
+  for (int i = 0; i < 4; ++i) pattern[i] = {layout::kCornersU[i][0], layout::kCornersU[i][1]};
+  // The truth moved by `shift` square sides in direction `angle`, centres
+  // from its corners.
+  const auto start = [&](double shift, double angle, std::array<cv::Point2d, 4>& centres,
+                         std::array<cv::Point2d, 4>& corners) {
+    const cv::Point2d d = shift * side * cv::Point2d(std::cos(angle), std::sin(angle));
+    for (int i = 0; i < 4; ++i) corners[i] = t.corners[i] + d;
+    cv::Matx33d H;
+    ASSERT_TRUE(ld::detail::homography4(pattern, corners, H));
+    for (int i = 0; i < 4; ++i) {
+      const cv::Vec3d q = H * cv::Vec3d(layout::kCentresU[i][0], layout::kCentresU[i][1], 1);
+      centres[i] = {q[0] / q[2], q[1] / q[2]};
+    }
+  };
+  std::array<cv::Point2d, 4> centres, corners;
+  for (int k = 0; k < 4; ++k) {
+    start(0.1, k * CV_PI / 2 + 0.3, centres, corners);
+    ASSERT_TRUE(ld::detail::alignSheet(img, nullptr, model, 10, centres, corners, scratch)) << k;
+    for (int i = 0; i < 4; ++i) {
+      EXPECT_LT(cv::norm(centres[i] - t.centres[i]), 0.1) << k << " centre " << i;
+      EXPECT_LT(cv::norm(corners[i] - t.corners[i]), 0.15) << k << " corner " << i;
+    }
+  }
+  int refused = 0;
+  for (int k = 0; k < 8; ++k) {
+    start(0.6, k * CV_PI / 4, centres, corners);
+    const auto before = centres;
+    if (!ld::detail::alignSheet(img, nullptr, model, 10, centres, corners, scratch)) {
+      ++refused;
+      for (int i = 0; i < 4; ++i) EXPECT_EQ(centres[i], before[i]) << k;  // left as they were
+      continue;
+    }
+    for (int i = 0; i < 4; ++i) EXPECT_LE(cv::norm(centres[i] - before[i]), 0.25 * side * 1.1) << k << " centre " << i;
+  }
+  EXPECT_GT(refused, 0);
+  // off: nothing
+  start(0.1, 0, centres, corners);
+  const auto before = centres;
+  EXPECT_FALSE(ld::detail::alignSheet(img, nullptr, model, 0, centres, corners, scratch));
+  EXPECT_EQ(centres, before);
+}
+
 TEST(Params, SaveLoadRoundTrip) {
   ld::DetectorParams p;
   p.front_end = "paper";

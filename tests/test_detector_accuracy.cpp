@@ -535,10 +535,9 @@ TEST(Pose, SheetAlignmentSharpensFarLandmarks) {
 
 // ... and what it leaves alone: near landmarks (sheets over 120 px, whose
 // centroids are as good) keep their corners exactly; steeply seen ones
-// (55-70 degrees of yaw; beyond about 65 it is not run), whose squares are
-// a few pixels wide, are found as often: the alignment is not taken where
-// it would move a centre by a quarter of its square (without that guard
-// 3 of these 40 were lost).
+// (55-70 degrees of yaw), whose squares are a few pixels wide, are found as
+// often (the fit does not slide them off the truth: SheetAlignment.* in
+// test_detector tests the guard against a slide).
 TEST(Pose, SheetAlignmentLeavesNearAndSteepLandmarks) {
   ld::DetectorParams aligned;
   aligned.align_iterations = 10;

@@ -1600,16 +1600,13 @@ namespace {
 // a 15 cm sheet from about 0.75 m on at f = 600 px): the fit's time goes
 // with the crop's pixels, and larger sheets' centres, from many pixels, are
 // as good without it. Sheets over kAlignDenseSide are fitted on every other
-// pixel each way. Nor sheets seen so steeply that their shortest side is
-// under kAlignMinAspect of their longest (yaw beyond about 65 degrees):
-// their squares, a few pixels wide, give the fit too little to hold on to
-// across, and over 40 such frames it placed the corners worse about as
-// often as better. The fit halves a step that made its error larger and
-// stops at one that lowered it by less than kAlignMinGain. An alignment that moves a centre by more than
-// kAlignMaxShift of its square's smaller projected side is not taken.
+// pixel each way. The fit halves a step that made its error larger and
+// stops at one that lowered it by less than kAlignMinGain. An alignment
+// that moves a centre by more than kAlignMaxShift of its square's smaller
+// projected side is not taken (a fit that slid, as along the thin squares
+// of a steeply seen sheet).
 constexpr double kAlignMaxSide = 120;
 constexpr double kAlignDenseSide = 60;
-constexpr double kAlignMinAspect = 0.4;
 constexpr double kAlignMinGain = 0.001;
 constexpr double kAlignMaxShift = 0.25;
 
@@ -1633,9 +1630,9 @@ void sheetModel(int per_unit, SheetModel& model) {
   const int qr = units(layout::kQrMax - layout::kQrMin);
   model.valid(cv::Rect(units(layout::kQrMin), units(layout::kQrMin), qr, qr)).setTo(0);
   cv::GaussianBlur(sheet, model.value, {3, 3}, 0, 0, cv::BORDER_REPLICATE);
-  // central differences (a Sobel's, scaled to levels per pixel)
-  cv::Sobel(model.value, model.dx, CV_32F, 1, 0, 3, 1.0 / 8, 0, cv::BORDER_REPLICATE);
-  cv::Sobel(model.value, model.dy, CV_32F, 0, 1, 3, 1.0 / 8, 0, cv::BORDER_REPLICATE);
+  // its derivatives, central differences (levels per pixel)
+  cv::Sobel(model.value, model.dx, CV_32F, 1, 0, 1, 0.5, 0, cv::BORDER_REPLICATE);
+  cv::Sobel(model.value, model.dy, CV_32F, 0, 1, 1, 0.5, 0, cv::BORDER_REPLICATE);
 }
 
 namespace {
@@ -1655,9 +1652,10 @@ bool fitSheet(const cv::Mat& view, const SheetModel& m, int iterations, int step
   double gain = 1, offset = 0, prev_mse = 1e300, prev_gain = 1, prev_offset = 0;
   int halvings = 0;
   cv::Matx33d prev_G = G;
-  for (int it = 0; it <= iterations; ++it) {
-    // it 0: the light alone (gain, offset) at the start; then all ten
-    const bool light_only = it == 0;
+  // it 0: the light alone (gain, offset) at the start; then all ten, up to
+  // `iterations` steps; the last pass only measures the last step
+  for (int it = 0; it <= iterations + 1; ++it) {
+    const bool light_only = it == 0, last = it == iterations + 1;
     cv::Matx<double, 10, 10> A = cv::Matx<double, 10, 10>::zeros();
     cv::Vec<double, 10> r = cv::Vec<double, 10>::all(0);
     int used = 0;
@@ -1666,6 +1664,7 @@ bool fitSheet(const cv::Mat& view, const SheetModel& m, int iterations, int step
       const float* v = view.ptr<float>(y);
       const double yn = (y - cy) / sc;
       for (int x = 0; x < view.cols; x += step) {
+        if (!(v[x] == v[x])) continue;  // (NaN: outside the frame, through the distortion)
         const double xn = (x - cx) / sc;
         const double Z = G(2, 0) * xn + G(2, 1) * yn + G(2, 2);
         if (!(Z > 1e-9)) continue;
@@ -1687,7 +1686,7 @@ bool fitSheet(const cv::Mat& view, const SheetModel& m, int iterations, int step
         J[9] = 1;
         int k0 = 8;
         // (where the sheet is flat, on paper or ink, only the light's terms)
-        const double sx = light_only ? 0.0 : bilinear(m.dx), sy = light_only ? 0.0 : bilinear(m.dy);
+        const double sx = light_only || last ? 0.0 : bilinear(m.dx), sy = light_only || last ? 0.0 : bilinear(m.dy);
         if (sx != 0 || sy != 0) {
           const double gx = gain * sx / Z, gy = gain * sy / Z;
           J[0] = gx * xn, J[1] = gx * yn, J[2] = gx;
@@ -1705,11 +1704,12 @@ bool fitSheet(const cv::Mat& view, const SheetModel& m, int iterations, int step
     if (used < 16) return false;
     // A step that made the error larger overshot (a flat error surface, as
     // along a motion blur): half of it, from where it started, at most
-    // three times; one that lowered it by less than kAlignMinGain ends the fit.
+    // three times a step (none after the last: back to where it started);
+    // one that lowered it by less than kAlignMinGain ends the fit.
     const double mse = sse / used;
     if (!light_only && it > 1) {
       if (mse > prev_mse) {
-        if (++halvings > 3) {
+        if (last || ++halvings > 3) {
           G = prev_G, gain = prev_gain, offset = prev_offset;
           break;
         }
@@ -1717,9 +1717,10 @@ bool fitSheet(const cv::Mat& view, const SheetModel& m, int iterations, int step
         gain = prev_gain + 0.5 * (gain - prev_gain), offset = prev_offset + 0.5 * (offset - prev_offset);
         continue;
       }
-      if (mse > prev_mse * (1 - kAlignMinGain)) break;
+      if (last || mse > prev_mse * (1 - kAlignMinGain)) break;
     }
     prev_mse = mse, prev_G = G, prev_gain = gain, prev_offset = offset;
+    halvings = 0;
     if (light_only) {
       // the 2x2 system of gain and offset alone
       const double det = A(8, 8) * A(9, 9) - A(8, 9) * A(8, 9);
@@ -1761,16 +1762,13 @@ bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetMo
   for (int i = 0; i < 4; ++i) pattern[i] = {layout::kCornersU[i][0], layout::kCornersU[i][1]};
   cv::Matx33d H;
   if (!homography4(pattern, corners, H)) return false;
-  // The sheet's outline: its size and shape decide whether to align.
+  // The sheet's outline: its size decides whether to align.
   std::array<cv::Point2f, 4> outline;
   for (int i = 0; i < 4; ++i)
     outline[i] = project(H, i % 3 ? layout::kUnits : 0.0, i < 2 ? 0.0 : layout::kUnits);
-  double longest = 0, shortest = 1e300;
-  for (int i = 0; i < 4; ++i) {
-    const double side = cv::norm(outline[(i + 1) % 4] - outline[i]);
-    longest = std::max(longest, side), shortest = std::min(shortest, side);
-  }
-  if (!(longest <= kAlignMaxSide) || !(shortest >= kAlignMinAspect * longest)) return false;
+  double longest = 0;
+  for (int i = 0; i < 4; ++i) longest = std::max(longest, cv::norm(outline[(i + 1) % 4] - outline[i]));
+  if (!(longest <= kAlignMaxSide)) return false;
   // The landmark's crop: the sheet's bounding box and 3 px around it, in the
   // undistorted image's pixels (through the lens's distortion when there is
   // one: a homography maps the sheet to the undistorted image only).
@@ -1792,14 +1790,21 @@ bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetMo
       }
     cv::projectPoints(scratch.rays, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), cv::Mat(distorting->K), distorting->dist,
                       scratch.at);
-    for (const cv::Point2f& q : scratch.at)
-      if (!frame.contains(cv::Point(cvFloor(q.x), cvFloor(q.y)))) return false;  // (part of it outside the frame)
     const cv::Mat map(box.height, box.width, CV_32FC2, scratch.at.data());
     cv::remap(bgr, scratch.undistorted, map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
     cv::extractChannel(scratch.undistorted, scratch.green, 1);
   }
   scratch.green.convertTo(scratch.view, CV_32F);
   cv::GaussianBlur(scratch.view, scratch.view, {3, 3}, 0, 0, cv::BORDER_REPLICATE);
+  if (distorting) {
+    // the box's pixels the distortion takes out of the frame: not seen (NaN,
+    // which the fit skips)
+    const cv::Rect2f inside(0, 0, static_cast<float>(bgr.cols - 1), static_cast<float>(bgr.rows - 1));
+    for (size_t i = 0; i < scratch.at.size(); ++i)
+      if (!inside.contains(scratch.at[i]))
+        scratch.view.at<float>(static_cast<int>(i) / box.width, static_cast<int>(i) % box.width) =
+            std::numeric_limits<float>::quiet_NaN();
+  }
   // image px -> view px, sheet px -> sheet u
   const cv::Matx33d to_view(1, 0, -box.x, 0, 1, -box.y, 0, 0, 1);
   const double s = model.per_unit;

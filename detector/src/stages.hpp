@@ -341,12 +341,12 @@ struct AlignScratch {
 /// given: Gauss-Newton over a homography and the light's gain and offset,
 /// from the corners' homography, up to `iterations` steps. With a
 /// `distorting` camera the centres and corners are in its undistorted
-/// image's pixels, and the crop is taken through its distortion. Replaces
-/// the centres and corners with the alignment's and returns true, unless
-/// the sheet is larger than kAlignMaxSide px or seen more steeply than
-/// kAlignMinAspect, its crop leaves the frame through the distortion, the
-/// fit is degenerate, or it moves a centre by more than a quarter of its
-/// square's smaller projected side (then they stay as they are: false).
+/// image's pixels, and the crop is taken through its distortion (pixels it
+/// takes out of the frame are left out of the fit). Replaces the centres
+/// and corners with the alignment's and returns true, unless the sheet is
+/// larger than kAlignMaxSide px, the fit is degenerate, or it moves a
+/// centre by more than a quarter of its square's smaller projected side
+/// (then they stay as they are: false).
 bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetModel& model, int iterations,
                 std::array<cv::Point2d, 4>& centres, std::array<cv::Point2d, 4>& corners, AlignScratch& scratch);
 

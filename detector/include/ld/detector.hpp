@@ -314,14 +314,13 @@ struct DetectorParams {
   /// and corners are taken from it: it uses every edge of the sheet at once
   /// where the centres use each square's own pixels. On ld-synth's scenes
   /// at 2.5 m (15 cm, yaw within +-40 degrees) the corners' median error
-  /// goes from 0.21 to 0.06 px and the pose's rotation error (90th
-  /// percentile) from 29 to 1.2 degrees (README, "Sheet alignment for
+  /// goes from 0.21 to 0.065 px and the pose's rotation error (90th
+  /// percentile) from 29 to 1.0 degrees (README, "Sheet alignment for
   /// pose"). Costs about 0.3 ms per landmark. Left out for sheets whose
-  /// longest side is over 120 px (their centres are as good without it) or
-  /// whose shortest is under 0.4 of their longest (yaw beyond about 65
-  /// degrees), and not taken where it would move a centre by more than a
-  /// quarter of its square's smaller side. With a distorting camera
-  /// (setCamera) the crop is taken through the distortion. 0 = off (default).
+  /// longest side is over 120 px (their centres are as good without it),
+  /// and not taken where it would move a centre by more than a quarter of
+  /// its square's smaller side. With a distorting camera (setCamera) the
+  /// crop is taken through the distortion. 0 = off (default).
   int align_iterations = 0;
 
   /// The paper's own settings: "paper" front end with its 9x9 blur.

@@ -117,27 +117,6 @@ FramesRead readOverFrames(const SweepOptions& o, synth::SceneSpec spec, const sy
   return read;
 }
 
-// The trials at one sweep point, every frame scored by each of `detectors`
-// A marker's corners in the order of the truth's (TL, TR, BR, BL of the
-// sheet): its detector's own order is a fixed turn or mirror of it (ArUco
-// clockwise from its top left, AprilTag counter-clockwise); of the eight,
-// the one nearest the truth.
-std::array<cv::Point2f, 4> inTruthOrder(const markers::Quad& quad, const synth::LandmarkTruth& t) {
-  std::array<cv::Point2f, 4> best = quad;
-  double best_d = 1e300;
-  for (int mirror = 0; mirror < 2; ++mirror)
-    for (int turn = 0; turn < 4; ++turn) {
-      std::array<cv::Point2f, 4> q;
-      double d = 0;
-      for (int i = 0; i < 4; ++i) {
-        q[i] = quad[static_cast<size_t>(mirror ? (turn - i + 4) % 4 : (turn + i) % 4)];
-        d += cv::norm(cv::Point2d(q[i]) - t.corners[i]);
-      }
-      if (d < best_d) best_d = d, best = q;
-    }
-  return best;
-}
-
 // With options.pose, the errors of the pose from `corners` against the truth `t` into `p`.
 void addPoseErrors(const SweepOptions& o, const std::array<cv::Point2f, 4>& corners, const synth::LandmarkTruth& t,
                    Point& p) {
@@ -154,6 +133,7 @@ void addPoseErrors(const SweepOptions& o, const std::array<cv::Point2f, 4>& corn
   p.distance_frac.push_back(std::abs(pose->distance - t.distance) / t.distance);
 }
 
+// The trials at one sweep point, every frame scored by each of `detectors`
 // (ours, one Point each), or by the options' marker detector when the target
 // is a marker (one Point).
 std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector>& detectors, double distance_m,
@@ -195,7 +175,7 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
       for (const auto& f : marker_detector->detect(gray))
         if (f.id == 0 && markers::matches(f.corners, t.corners)) {
           ++points[0].detected;
-          addPoseErrors(o, inTruthOrder(f.corners, t), t, points[0]);
+          addPoseErrors(o, f.corners, t, points[0]);  // (in our order: ld/markers.hpp)
           break;
         }
       continue;
