@@ -1610,11 +1610,6 @@ constexpr double kAlignDenseSide = 60;
 constexpr double kAlignMinGain = 0.001;
 constexpr double kAlignMaxShift = 0.25;
 
-cv::Point2d project(const cv::Matx33d& H, double x, double y) {
-  const cv::Vec3d p = H * cv::Vec3d(x, y, 1.0);
-  return {p[0] / p[2], p[1] / p[2]};
-}
-
 }  // namespace
 
 void sheetModel(int per_unit, SheetModel& model) {
@@ -1642,6 +1637,7 @@ namespace {
 // onto the known sheet, W a homography from the view's pixels to the
 // sheet's, started at `W`. Returns false when degenerate.
 bool fitSheet(const cv::Mat& view, const SheetModel& m, int iterations, int step, cv::Matx33d& W) {
+  if (iterations < 1) return false;
   const int n = m.value.cols;
   const double lim = n - 1.001;
   // the view's pixels centred and scaled (a well conditioned system)
@@ -1681,12 +1677,14 @@ bool fitSheet(const cv::Mat& view, const SheetModel& m, int iterations, int step
         const double s = bilinear(m.value);
         const double e = gain * s + offset - v[x];
         sse += e * e;
+        ++used;
+        if (last) continue;  // (the last pass measures the error alone)
         double J[10];
         J[8] = s;
         J[9] = 1;
         int k0 = 8;
         // (where the sheet is flat, on paper or ink, only the light's terms)
-        const double sx = light_only || last ? 0.0 : bilinear(m.dx), sy = light_only || last ? 0.0 : bilinear(m.dy);
+        const double sx = light_only ? 0.0 : bilinear(m.dx), sy = light_only ? 0.0 : bilinear(m.dy);
         if (sx != 0 || sy != 0) {
           const double gx = gain * sx / Z, gy = gain * sy / Z;
           J[0] = gx * xn, J[1] = gx * yn, J[2] = gx;
@@ -1698,7 +1696,6 @@ bool fitSheet(const cv::Mat& view, const SheetModel& m, int iterations, int step
           r[i] += J[i] * e;
           for (int j = i; j < 10; ++j) A(i, j) += J[i] * J[j];
         }
-        ++used;
       }
     }
     if (used < 16) return false;
@@ -1733,18 +1730,17 @@ bool fitSheet(const cv::Mat& view, const SheetModel& m, int iterations, int step
       for (int j = 0; j < i; ++j) A(i, j) = A(j, i);
     cv::Vec<double, 10> d;
     if (!cv::solve(A, -r, d, cv::DECOMP_CHOLESKY)) return false;
-    const cv::Matx33d before = G;
     G(0, 0) += d[0], G(0, 1) += d[1], G(0, 2) += d[2];
     G(1, 0) += d[3], G(1, 1) += d[4], G(1, 2) += d[5];
     G(2, 0) += d[6], G(2, 1) += d[7];
     gain += d[8], offset += d[9];
     if (!(gain > 0)) return false;
-    // converged: the view's corners move by under a hundredth of a sheet pixel
+    // converged: the view's corners move by under a hundredth of a sheet
+    // pixel (prev_G: where this step started)
     double moved = 0;
     for (const double xn : {-1.0, 1.0})
       for (const double yn : {-1.0, 1.0}) {
-        const cv::Vec3d p = G * cv::Vec3d(xn, yn, 1), q = before * cv::Vec3d(xn, yn, 1);
-        moved = std::max(moved, cv::norm(cv::Point2d(p[0] / p[2] - q[0] / q[2], p[1] / p[2] - q[1] / q[2])));
+        moved = std::max(moved, cv::norm(applyH(G, {xn, yn}) - applyH(prev_G, {xn, yn})));
       }
     if (!(moved < 1e3)) return false;
     if (moved < 0.01) break;
@@ -1765,15 +1761,14 @@ bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetMo
   // The sheet's outline: its size decides whether to align.
   std::array<cv::Point2f, 4> outline;
   for (int i = 0; i < 4; ++i)
-    outline[i] = project(H, i % 3 ? layout::kUnits : 0.0, i < 2 ? 0.0 : layout::kUnits);
+    outline[i] = applyH(H, {i % 3 ? layout::kUnits : 0.0, i < 2 ? 0.0 : layout::kUnits});
   double longest = 0;
   for (int i = 0; i < 4; ++i) longest = std::max(longest, cv::norm(outline[(i + 1) % 4] - outline[i]));
   if (!(longest <= kAlignMaxSide)) return false;
   // The landmark's crop: the sheet's bounding box and 3 px around it, in the
   // undistorted image's pixels (through the lens's distortion when there is
   // one: a homography maps the sheet to the undistorted image only).
-  cv::Rect box = cv::boundingRect(std::vector<cv::Point2f>(outline.begin(), outline.end())) + cv::Size(6, 6) -
-                 cv::Point(3, 3);
+  cv::Rect box = cv::boundingRect(cv::Mat(4, 1, CV_32FC2, outline.data())) + cv::Size(6, 6) - cv::Point(3, 3);
   const cv::Rect frame(0, 0, bgr.cols, bgr.rows);
   if (!distorting) {
     box &= frame;
@@ -1820,13 +1815,13 @@ bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetMo
   std::array<cv::Point2d, 4> aligned;
   for (int i = 0; i < 4; ++i) {
     const double x = layout::kCentresU[i][0], y = layout::kCentresU[i][1], h = layout::kSquareSide / 2;
-    aligned[i] = project(Hn, x, y);
-    const double across = cv::norm(project(H, x - h, y) - project(H, x + h, y));
-    const double down = cv::norm(project(H, x, y - h) - project(H, x, y + h));
+    aligned[i] = applyH(Hn, {x, y});
+    const double across = cv::norm(applyH(H, {x - h, y}) - applyH(H, {x + h, y}));
+    const double down = cv::norm(applyH(H, {x, y - h}) - applyH(H, {x, y + h}));
     if (!(cv::norm(aligned[i] - centres[i]) <= kAlignMaxShift * std::min(across, down))) return false;
   }
   centres = aligned;
-  for (int i = 0; i < 4; ++i) corners[i] = project(Hn, layout::kCornersU[i][0], layout::kCornersU[i][1]);
+  for (int i = 0; i < 4; ++i) corners[i] = applyH(Hn, {layout::kCornersU[i][0], layout::kCornersU[i][1]});
   return true;
 }
 
