@@ -15,6 +15,7 @@
 #include <opencv2/calib3d.hpp>
 
 #include "ld/detector.hpp"
+#include "ld/eval.hpp"
 #include "ld/synth.hpp"
 
 namespace {
@@ -472,30 +473,15 @@ TEST(Corners, SheetAlignmentThroughTheDistortion) {
 
 namespace {
 
-struct PoseErrors {
-  std::vector<double> corner, rotation, distance;  // px (mean of the four), degrees, fraction
-  static double quantile(std::vector<double> v, double q) {
-    std::sort(v.begin(), v.end());
-    return v.empty() ? 0.0 : v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
-  }
-  void add(const ld::Landmark& d, const ld::synth::LandmarkTruth& t) {
-    double e = 0;
-    for (int i = 0; i < 4; ++i) e += cv::norm(cv::Point2d(d.corners[i]) - t.corners[i]) / 4;
-    corner.push_back(e);
-    if (!d.pose) return;
-    distance.push_back(std::abs(d.pose->distance - t.distance) / t.distance);
-    cv::Matx33d R, Rt;
-    cv::Rodrigues(d.pose->rvec, R);
-    cv::Rodrigues(t.rvec, Rt);
-    rotation.push_back(std::acos(std::clamp((cv::trace(R.t() * Rt) - 1) / 2, -1.0, 1.0)) * 180 / CV_PI);
-  }
-  void print(const char* name) const {
-    std::printf("%s: corners median %.3f px, 90th pct %.3f px; rotation median %.2f deg, 90th pct %.2f deg; "
-                "distance median %.2f %%, 90th pct %.2f %%\n",
-                name, quantile(corner, 0.5), quantile(corner, 0.9), quantile(rotation, 0.5), quantile(rotation, 0.9),
-                100 * quantile(distance, 0.5), 100 * quantile(distance, 0.9));
-  }
-};
+using ld::eval::PoseErrors;
+using ld::eval::quantile;
+
+void print(const PoseErrors& e, const char* name) {
+  std::printf("%s: corners median %.3f px, 90th pct %.3f px; rotation median %.2f deg, 90th pct %.2f deg; "
+              "distance median %.2f %%, 90th pct %.2f %%\n",
+              name, quantile(e.corner_px, 0.5), quantile(e.corner_px, 0.9), quantile(e.rotation_deg, 0.5),
+              quantile(e.rotation_deg, 0.9), 100 * quantile(e.distance_frac, 0.5), 100 * quantile(e.distance_frac, 0.9));
+}
 
 }  // namespace
 
@@ -519,18 +505,18 @@ TEST(Pose, SheetAlignmentSharpensFarLandmarks) {
     const auto frame = ld::synth::render(ld::synth::randomConditions(kCam, {lm}, 500 + static_cast<uint64_t>(k)));
     const ld::Landmark* a = match(plain.detect(frame.bgr), frame.truth[0]);
     ASSERT_NE(a, nullptr) << k;
-    without.add(*a, frame.truth[0]);
+    without.add(a->corners, a->pose, frame.truth[0]);
     const ld::Landmark* b = match(align.detect(frame.bgr), frame.truth[0]);
     ASSERT_NE(b, nullptr) << k;
-    with.add(*b, frame.truth[0]);
+    with.add(b->corners, b->pose, frame.truth[0]);
   }
-  without.print("15 cm at 2.5 m, centroids");
-  with.print("15 cm at 2.5 m, sheet alignment");
-  ASSERT_EQ(with.rotation.size(), without.rotation.size());
-  EXPECT_LT(PoseErrors::quantile(with.corner, 0.5), 0.6 * PoseErrors::quantile(without.corner, 0.5));
-  EXPECT_LT(PoseErrors::quantile(with.corner, 0.9), 0.6 * PoseErrors::quantile(without.corner, 0.9));
-  EXPECT_LT(PoseErrors::quantile(with.rotation, 0.9), 0.5 * PoseErrors::quantile(without.rotation, 0.9));
-  EXPECT_LT(PoseErrors::quantile(with.rotation, 0.9), 3.0);
+  print(without, "15 cm at 2.5 m, centroids");
+  print(with, "15 cm at 2.5 m, sheet alignment");
+  ASSERT_EQ(with.rotation_deg.size(), without.rotation_deg.size());
+  EXPECT_LT(quantile(with.corner_px, 0.5), 0.6 * quantile(without.corner_px, 0.5));
+  EXPECT_LT(quantile(with.corner_px, 0.9), 0.6 * quantile(without.corner_px, 0.9));
+  EXPECT_LT(quantile(with.rotation_deg, 0.9), 0.5 * quantile(without.rotation_deg, 0.9));
+  EXPECT_LT(quantile(with.rotation_deg, 0.9), 3.0);
 }
 
 // ... and what it leaves alone: near landmarks (sheets over 120 px, whose
@@ -572,8 +558,7 @@ TEST(Pose, SheetAlignmentLeavesNearAndSteepLandmarks) {
 TEST(Pose, DistanceWithinTwoPercentAt1m5) {
   ld::Detector det;
   det.setCamera(kCam, 0.15);
-  std::vector<double> errs;
-  double worst_angle = 0;
+  PoseErrors errors;
   for (int k = 0; k < 30; ++k) {
     const auto lm = ld::synth::placeLandmark(kCam, 1.5, -45 + 3.0 * k, 0, k * 37.0, 0.5 * std::sin(k),
                                              0.4 * std::cos(3 * k), 0.15);
@@ -581,14 +566,10 @@ TEST(Pose, DistanceWithinTwoPercentAt1m5) {
     const ld::Landmark* d = match(det.detect(frame.bgr), frame.truth[0]);
     ASSERT_NE(d, nullptr) << k;
     ASSERT_TRUE(d->pose.has_value());
-    const auto& t = frame.truth[0];
-    errs.push_back(std::abs(d->pose->distance - t.distance) / t.distance);
-    cv::Matx33d R, Rt;
-    cv::Rodrigues(d->pose->rvec, R);
-    cv::Rodrigues(t.rvec, Rt);
-    const double c = (cv::trace(R.t() * Rt) - 1) / 2;
-    worst_angle = std::max(worst_angle, std::acos(std::clamp(c, -1.0, 1.0)) * 180 / CV_PI);
+    errors.add(d->corners, d->pose, frame.truth[0]);
   }
+  const std::vector<double>& errs = errors.distance_frac;
+  const double worst_angle = *std::max_element(errors.rotation_deg.begin(), errors.rotation_deg.end());
   double mean = 0, worst = 0;
   for (double e : errs) mean += e / errs.size(), worst = std::max(worst, e);
   std::printf("pose distance error at 1.5 m: mean %.2f %%, worst %.2f %%; worst rotation error %.1f deg\n",

@@ -117,20 +117,10 @@ FramesRead readOverFrames(const SweepOptions& o, synth::SceneSpec spec, const sy
   return read;
 }
 
-// With options.pose, the errors of the pose from `corners` against the truth `t` into `p`.
+// With options.pose, the errors of `corners` and the pose from them against the truth `t` into `p`.
 void addPoseErrors(const SweepOptions& o, const std::array<cv::Point2f, 4>& corners, const synth::LandmarkTruth& t,
                    Point& p) {
-  if (!o.pose) return;
-  double e = 0;
-  for (int i = 0; i < 4; ++i) e += cv::norm(cv::Point2d(corners[i]) - t.corners[i]) / 4;
-  p.corner_px.push_back(e);
-  const std::optional<Pose> pose = poseFromCorners(corners, o.camera, o.side_m);
-  if (!pose) return;
-  cv::Matx33d R, Rt;
-  cv::Rodrigues(pose->rvec, R);
-  cv::Rodrigues(t.rvec, Rt);
-  p.rotation_deg.push_back(std::acos(std::clamp((cv::trace(R.t() * Rt) - 1) / 2, -1.0, 1.0)) * 180 / CV_PI);
-  p.distance_frac.push_back(std::abs(pose->distance - t.distance) / t.distance);
+  if (o.pose) p.pose_errors.add(corners, poseFromCorners(corners, o.camera, o.side_m), t);
 }
 
 // The trials at one sweep point, every frame scored by each of `detectors`
@@ -303,6 +293,19 @@ Point total(const std::vector<Point>& points) {
     t.wrong_payload += p.wrong_payload;
   }
   return t;
+}
+
+void PoseErrors::add(const std::array<cv::Point2f, 4>& corners, const std::optional<Pose>& pose,
+                     const synth::LandmarkTruth& t) {
+  double e = 0;
+  for (int i = 0; i < 4; ++i) e += cv::norm(cv::Point2d(corners[i]) - t.corners[i]) / 4;
+  corner_px.push_back(e);
+  if (!pose) return;
+  cv::Matx33d R, Rt;
+  cv::Rodrigues(pose->rvec, R);
+  cv::Rodrigues(t.rvec, Rt);
+  rotation_deg.push_back(std::acos(std::clamp((cv::trace(R.t() * Rt) - 1) / 2, -1.0, 1.0)) * 180 / CV_PI);
+  distance_frac.push_back(std::abs(pose->distance - t.distance) / t.distance);
 }
 
 double quantile(std::vector<double> values, double q) {

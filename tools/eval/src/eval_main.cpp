@@ -467,8 +467,8 @@ int main(int argc, char** argv) {
         for (size_t i = 0; i < rows.size(); ++i) {
           const ld::eval::Point& p = all[i][k];
           t << "| " << ds[k] << " | " << rows[i].name << " | " << pct(p.detected, p.trials) << " % | "
-            << pair(p.corner_px, 1, 3) << " | " << pair(p.rotation_deg, 1, 2) << " | "
-            << pair(p.distance_frac, 100, 2) << " |\n";
+            << pair(p.pose_errors.corner_px, 1, 3) << " | " << pair(p.pose_errors.rotation_deg, 1, 2) << " | "
+            << pair(p.pose_errors.distance_frac, 100, 2) << " |\n";
         }
       t << "\n" << cm(p_side) << " landmarks and markers of the same printed size at the same poses, yaw within +-"
         << p_yaw << " deg, " << pc.trials << " frames per distance; each pose from the four outer corners by "

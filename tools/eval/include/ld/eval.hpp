@@ -7,12 +7,14 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "ld/artwork.hpp"
 #include "ld/camera.hpp"
 #include "ld/detector.hpp"
+#include "ld/synth.hpp"
 
 namespace ld::eval {
 
@@ -61,8 +63,18 @@ struct SweepOptions {
   int stack_frames = 0;
   /// Also the pose of each found landmark or marker, from its four corners
   /// (ld::poseFromCorners: IPPE_SQUARE with `camera` and `side_m`), against
-  /// the truth: Point::corner_px, rotation_deg, distance_frac.
+  /// the truth: Point::pose_errors.
   bool pose = false;
+};
+
+/// How far found landmarks' (or markers') corners and poses lie from the
+/// truth, one entry per add(): the corners' mean distance from the truth's
+/// (px), and with a pose the angle between its rotation and the truth's
+/// (degrees) and its distance's relative error (|d - true d| / true d).
+struct PoseErrors {
+  std::vector<double> corner_px, rotation_deg, distance_frac;
+  void add(const std::array<cv::Point2f, 4>& corners, const std::optional<Pose>& pose,
+           const synth::LandmarkTruth& truth);
 };
 
 /// One sweep point: the swept value and what happened in its trials.
@@ -75,12 +87,10 @@ struct Point {
   int wrong_payload = 0;  ///< a payload other than the printed one (must stay 0)
   int decoded_stacked = 0;  ///< read over stack_frames frames, alone or averaged (stack_frames > 0)
   int decoded_mean = 0;     ///< ... of which the frames' mean (ld::QrStack) read it
-  /// With SweepOptions::pose, one entry per found landmark or marker: its
-  /// corners' mean distance from the truth (px), the angle between its
-  /// pose's rotation and the truth's (degrees), and its distance's relative
-  /// error (|d - true d| / true d); a pose that did not solve adds a corner
-  /// error only.
-  std::vector<double> corner_px, rotation_deg, distance_frac;
+  /// With SweepOptions::pose, one entry per found landmark or marker, its
+  /// pose from its corners (a pose that did not solve adds a corner error
+  /// only).
+  PoseErrors pose_errors;
   double detectRate() const { return trials ? static_cast<double>(detected) / trials : 0; }
   double decodeRate() const { return trials ? static_cast<double>(decoded) / trials : 0; }
   double stackedDecodeRate() const { return trials ? static_cast<double>(decoded_stacked) / trials : 0; }
