@@ -52,15 +52,15 @@ awk -F'|' '/^\| 20 / { ok = ($3 ~ / 0.0 %/) } END { exit !ok }' "$T/motion.md" \
 if "$BIN/ld-eval" motion --side 0.1 --side 0.2 --distance 1 >/dev/null 2>"$T/err"; then fail "motion: 2 sides, 1 distance accepted"; fi
 grep -q "one --distance per --side" "$T/err" || fail "motion sides/distances: $(cat "$T/err")"
 
-# The pose table: one row per distance and detector (ours, ours with sheet
-# alignment, AprilTag 3 and ArUco with --compare); at 2 m the alignment's
+# The pose table: one row per distance and detector (ours from the centroids,
+# ours with sheet alignment, AprilTag 3 and ArUco with --compare); at 2 m the alignment's
 # corners are better than the centroids', and every detector finds its target.
 "$BIN/ld-eval" pose --trials 8 --from 1 --to 2 --step 1 --compare >"$T/pose.md" 2>/dev/null || fail "pose: exit $?"
 [ "$(grep -c '^| [12] | ' "$T/pose.md")" -eq 8 ] || fail "pose rows: $(cat "$T/pose.md")"
-for d in "ours" "ours, sheet alignment" "AprilTag 3" "ArUco"; do
+for d in "ours, centroids" "ours, sheet alignment" "AprilTag 3" "ArUco"; do
   grep -q "^| 2 | $d | " "$T/pose.md" || fail "pose: no row for $d at 2 m: $(cat "$T/pose.md")"
 done
-awk -F'|' '/^\| 2 \| ours \|/ { split($5, a, " / "); plain = a[1] + 0 }
+awk -F'|' '/^\| 2 \| ours, centroids \|/ { split($5, a, " / "); plain = a[1] + 0 }
            /^\| 2 \| ours, sheet alignment \|/ { split($5, a, " / "); aligned = a[1] + 0 }
            END { exit !(aligned > 0 && aligned < plain) }' "$T/pose.md" ||
   fail "pose: alignment's corners not better at 2 m: $(grep '^| 2 ' "$T/pose.md")"

@@ -1923,6 +1923,34 @@ TEST(SheetAlignment, RecoversANearStartAndRefusesALongSlide) {
   EXPECT_EQ(centres, before);
 }
 
+// align_iterations' default (-1, auto): a detector that computes poses
+// aligns the sheet (its corners are align_iterations 10's, not the
+// centroids'), one without a camera does not (its corners are
+// align_iterations 0's), and the paper's settings never do.
+TEST(SheetAlignment, OnByDefaultWhenAPoseIsComputed) {
+  cv::Mat img = background(kCam.size, 7);
+  drawSheet(img, kCam, place(2.0, 25, 40));
+  addNoise(img, 2.0, 8);
+  ld::DetectorParams off, ten;
+  off.align_iterations = 0;
+  ten.align_iterations = ld::DetectorParams::kAutoAlignIterations;
+  EXPECT_EQ(ld::DetectorParams().align_iterations, -1);
+  EXPECT_EQ(ld::DetectorParams::paper().align_iterations, 0);
+  const auto corners = [&img](const ld::DetectorParams& params, bool with_camera) {
+    ld::Detector det(params);
+    if (with_camera) det.setCamera(kCam, 0.15);
+    const auto& d = det.detect(img);
+    EXPECT_EQ(d.landmarks.size(), 1u);
+    EXPECT_EQ(d.landmarks.empty() ? false : d.landmarks[0].pose.has_value(), with_camera);
+    return d.landmarks.empty() ? std::array<cv::Point2f, 4>{} : d.landmarks[0].corners;
+  };
+  const auto centroids = corners(off, true), aligned = corners(ten, true);
+  ASSERT_NE(centroids, aligned);  // (the alignment moves them at 2 m)
+  EXPECT_EQ(corners(ld::DetectorParams(), true), aligned);
+  EXPECT_EQ(corners(ld::DetectorParams(), false), corners(off, false));
+  EXPECT_EQ(corners(ld::DetectorParams(), false), centroids);
+}
+
 TEST(Params, SaveLoadRoundTrip) {
   ld::DetectorParams p;
   p.front_end = "paper";
@@ -2071,7 +2099,7 @@ TEST(Params, ValidateNamesTheField) {
   EXPECT_NE(err([](auto& p) { p.faint_look_blue = 0; }).find("faint_look_blue"), std::string::npos);
   EXPECT_NE(err([](auto& p) { p.qr_washed_dip = -1; }).find("qr_washed_dip"), std::string::npos);
   EXPECT_NE(err([](auto& p) { p.align_iterations = 101; }).find("align_iterations"), std::string::npos);
-  EXPECT_NE(err([](auto& p) { p.align_iterations = -1; }).find("align_iterations"), std::string::npos);
+  EXPECT_NE(err([](auto& p) { p.align_iterations = -2; }).find("align_iterations"), std::string::npos);
   ld::DetectorParams bad;
   bad.front_end = "x";
   EXPECT_THROW(ld::Detector{bad}, std::invalid_argument);

@@ -459,9 +459,10 @@ TEST(Corners, DistortingCameraWithItsCalibration) {
 TEST(Corners, SheetAlignmentThroughTheDistortion) {
   ld::CameraModel cam = kCam;
   cam.dist = (cv::Mat_<double>(1, 5) << -0.3, 0.1, 0, 0, 0);
-  ld::DetectorParams aligned;
+  ld::DetectorParams centroids, aligned;
+  centroids.align_iterations = 0;
   aligned.align_iterations = 10;
-  ld::Detector plain, align(aligned);
+  ld::Detector plain(centroids), align(aligned);
   plain.setCamera(cam, 0.15);
   align.setCamera(cam, 0.15);
   const auto [rms_plain, rms_align] = cornerRms(plain, align, cam, {1.2, 2.0}, 220);
@@ -489,11 +490,12 @@ void print(const PoseErrors& e, const char* name) {
 // at 2.5 m (a sheet of about 36 px): the whole sheet's edges place the
 // corners better than each square's centroid, and the pose's rotation with
 // them (where four corners a few tenths of a pixel off let IPPE pick the
-// wrong one of the two mirror poses).
+// wrong one of the two mirror poses). The aligned detector is the default
+// one: it aligns because it computes a pose (align_iterations -1, auto).
 TEST(Pose, SheetAlignmentSharpensFarLandmarks) {
-  ld::DetectorParams aligned;
-  aligned.align_iterations = 10;
-  ld::Detector plain, align(aligned);
+  ld::DetectorParams centroids;
+  centroids.align_iterations = 0;
+  ld::Detector plain(centroids), align;  // (align: the default, which aligns when it computes a pose)
   plain.setCamera(kCam, 0.15);
   align.setCamera(kCam, 0.15);
   PoseErrors without, with;

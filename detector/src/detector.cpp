@@ -110,6 +110,7 @@ DetectorParams DetectorParams::paper() {
   p.front_end = "paper";
   p.blur_kernel = 9;
   p.blur_sigma = 3.0;
+  p.align_iterations = 0;  // (the paper's corners: the centres' homography)
   return p;
 }
 
@@ -170,7 +171,7 @@ void checkValues(const DetectorParams& p, const std::string& prefix) {
   if (p.max_candidates < 3 || p.max_candidates > 4096) bad("max_candidates", "must be in [3, 4096]");
   if (p.max_cycles < 1) bad("max_cycles", "must be >= 1");
   if (p.centre_iterations < 0 || p.centre_iterations > 10) bad("centre_iterations", "must be in [0, 10]");
-  if (p.align_iterations < 0 || p.align_iterations > 100) bad("align_iterations", "must be in [0, 100]");
+  if (p.align_iterations < -1 || p.align_iterations > 100) bad("align_iterations", "must be -1 (auto) or in [0, 100]");
 }
 
 }  // namespace
@@ -1414,6 +1415,7 @@ void Detector::Impl::run(const cv::Mat& input) {
   const bool pose = camera && side_m > 0;
   if (pose && scaled.size != img->size()) scaled = camera->scaledTo(img->size());
   const bool distorted = pose && scaled.hasDistortion();
+  const int align = p.align_iterations >= 0 ? p.align_iterations : pose ? DetectorParams::kAutoAlignIterations : 0;
   markUsed();
   for (const auto& c : candidates) {
     std::array<cv::Point2d, 4> centres;
@@ -1425,9 +1427,9 @@ void Detector::Impl::run(const cv::Mat& input) {
     std::array<cv::Point2d, 4> corrected, corners;
     if (distorted) detail::undistortPixels(scaled, centres);
     if (!detail::fitCorners(centres, p.centre_iterations, corrected, corners)) continue;
-    if (p.align_iterations > 0) {
+    if (align > 0) {
       if (align_model.per_unit == 0) detail::sheetModel(kAlignPerUnit, align_model);
-      detail::alignSheet(*img, distorted ? &scaled : nullptr, align_model, p.align_iterations, corrected, corners,
+      detail::alignSheet(*img, distorted ? &scaled : nullptr, align_model, align, corrected, corners,
                          align_scratch);
     }
     if (distorted) {

@@ -320,8 +320,12 @@ struct DetectorParams {
   /// longest side is over 120 px (their centres are as good without it),
   /// and not taken where it would move a centre by more than a quarter of
   /// its square's smaller side. With a distorting camera (setCamera) the
-  /// crop is taken through the distortion. 0 = off (default).
-  int align_iterations = 0;
+  /// crop is taken through the distortion. -1 (default): kAutoAlignIterations
+  /// steps when the detector computes a pose (setCamera), none otherwise, so
+  /// that detection alone keeps its speed and every pose gets the sharper
+  /// corners; 0: never; N: N steps for every landmark, with or without a pose.
+  int align_iterations = -1;
+  static constexpr int kAutoAlignIterations = 10;
 
   /// The paper's own settings: "paper" front end with its 9x9 blur.
   static DetectorParams paper();

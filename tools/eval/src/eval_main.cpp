@@ -274,7 +274,8 @@ int main(int argc, char** argv) {
   addCompare(pose, pc);
   addDistanceSweep(pose, p_side, p_from, p_to, p_step, p_yaw);
   pose->add_option("--align", p_align,
-                   "also our detector with sheet alignment (align_iterations) of this many iterations; 0: not")
+                   "also our detector with sheet alignment (align_iterations) of this many iterations, as a detector "
+                   "computing a pose runs by default; 0: the centroids' row alone")
       ->capture_default_str()
       ->check(ld::cli::Between(0, 100));
 
@@ -427,10 +428,11 @@ int main(int argc, char** argv) {
       }
       emit(lc, t.str());
     } else if (pose->parsed()) {
-      // One row per (distance, detector): ours with the given parameters,
-      // ours with sheet alignment (unless those have it on already),
-      // AprilTag 3 and ArUco with --compare; the pose from each one's four
-      // corners by the same solver.
+      // One row per (distance, detector): ours from the centroids alone
+      // (align_iterations 0), ours with --align steps of sheet alignment
+      // (what a detector computing a pose does by default), AprilTag 3 and
+      // ArUco with --compare; the pose from each one's four corners by the
+      // same solver.
       auto o = pc.options();
       o.side_m = p_side;
       o.pose = true;
@@ -438,10 +440,9 @@ int main(int argc, char** argv) {
         std::string name;
         ld::eval::SweepOptions o;
       };
-      std::vector<Row> rows{{"ours", o}};
-      if (o.params.align_iterations > 0) {
-        rows[0].name = "ours, sheet alignment";
-      } else if (p_align > 0) {
+      std::vector<Row> rows{{"ours, centroids", o}};
+      rows[0].o.params.align_iterations = 0;
+      if (p_align > 0) {
         rows.push_back({"ours, sheet alignment", o});
         rows.back().o.params.align_iterations = p_align;
       }
