@@ -300,6 +300,34 @@ TEST(GlesParity, SameLandmarks) {
   }
 }
 
+// With a camera (a pose per landmark, and the sheet alignment that runs by
+// default then, on the CPU after either backend's filters): the same
+// landmarks and the same poses on both backends.
+TEST(GlesParity, SamePosesWithACamera) {
+  const auto frames = scenes(6, 23);
+  ld::DetectorParams p;
+  ld::Detector cpu(p);
+  p.backend = "gles";
+  ld::Detector gpu(p);
+  ASSERT_STREQ(gpu.backend(), "gles");
+  cpu.setCamera(kCam, 0.15);
+  gpu.setCamera(kCam, 0.15);
+  int posed = 0;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const ld::Detection a = cpu.detect(frames[i].bgr);
+    const ld::Detection& b = gpu.detect(frames[i].bgr);
+    expectSameLandmarks(a, b, 0.5, "frame " + std::to_string(i));
+    for (const auto& la : a.landmarks)
+      for (const auto& lb : b.landmarks) {
+        if (cv::norm(la.fip_tl - lb.fip_tl) > 0.5) continue;
+        ASSERT_TRUE(la.pose && lb.pose) << "frame " << i;
+        EXPECT_NEAR(la.pose->distance, lb.pose->distance, 0.01 * la.pose->distance) << "frame " << i;
+        ++posed;
+      }
+  }
+  EXPECT_GE(posed, static_cast<int>(frames.size()) / 2);
+}
+
 // "auto" with a GPU (here any renderer, LD_GLES_AUTO_SOFTWARE) times the
 // GPU's filters against the CPU's on the first frames, in blocks, then keeps
 // the one its own medians say is faster (or, with LD_GLES_AUTO_FORCE, the
