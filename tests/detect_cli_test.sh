@@ -36,6 +36,17 @@ set +e; "$BIN/ld-detect" --explain "$T/s" >"$T/out" 2>"$T/err"; rc=$?; set -e
 grep -q 'broken.png: cannot read as an image' "$T/err" || fail "broken file: $(cat "$T/err")"
 [ "$(grep -c '"landmarks":\[{' "$T/out")" -eq 2 ] && grep -q '"error":"cannot read as an image"' "$T/out" ||
   fail "broken file, output: $(cat "$T/out")"
+# Bytes that are not UTF-8, in a file's name or in a QR's payload, come out
+# as U+FFFD in the JSON; the run goes on.
+set +e; "$BIN/ld-detect" "$T/s/000000.png" "$T/s/nope"$'\xe9'".png" "$T/s/000001.png" >"$T/out" 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 1 ] || fail "non-UTF-8 name: exit $rc: $(cat "$T/err")"
+[ "$(grep -c '"landmarks":\[{' "$T/out")" -eq 2 ] && grep -q $'nope\xef\xbf\xbd.png","error":"no such file"' "$T/out" ||
+  fail "non-UTF-8 name, output: $(cat "$T/out")"
+"$BIN/ld-synth" scene --out "$T/latin1" --seed 2 --count 1 --distance 0.5 --yaw 0 --lighting normal --degrade none \
+  --background plain --distractors 0 --payload $'caf\xe9' >/dev/null || fail "ld-synth, Latin-1 payload: exit $?"
+grep -q $'"payload":"caf\xef\xbf\xbd"' "$T/latin1/truth.jsonl" || fail "ld-synth truth: $(cat "$T/latin1/truth.jsonl")"
+"$BIN/ld-detect" --decode "$T/latin1/000000.png" >"$T/out" 2>"$T/err" || fail "--decode, Latin-1 payload: exit $?: $(cat "$T/err")"
+grep -q $'"payload":"caf\xef\xbf\xbd"' "$T/out" || fail "--decode, Latin-1 payload: $(cat "$T/out")"
 # The README's parameters file, as printed there (comments after values included), loads.
 awk '/^### Parameters/{p=1} p&&/^```yaml/{y=1;next} y&&/^```/{exit} y' "$SRC/README.md" >"$T/readme.yaml"
 [ "$(wc -l <"$T/readme.yaml")" -gt 10 ] || fail "no YAML block under the README's Parameters"

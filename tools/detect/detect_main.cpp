@@ -24,6 +24,10 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// Bytes that are not UTF-8 (a file name's or a QR payload's) come out as
+// U+FFFD rather than ending the run.
+constexpr auto kReplace = nlohmann::ordered_json::error_handler_t::replace;
+
 bool isImageFile(const fs::path& p) {
   std::string ext = p.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
@@ -119,7 +123,7 @@ int main(int argc, char** argv) {
       std::error_code ec;
       const char* why = !fs::exists(path, ec) ? "no such file" : "cannot read as an image";
       std::cerr << "ld-detect: " << path << ": " << why << "\n";
-      out << nlohmann::ordered_json{{"image", path}, {"error", why}}.dump() << "\n";
+      out << nlohmann::ordered_json{{"image", path}, {"error", why}}.dump(-1, ' ', false, kReplace) << "\n";
       ++failed;
       continue;
     }
@@ -137,7 +141,7 @@ int main(int argc, char** argv) {
                      {"detect_ms", std::round(ms * 1000.0) / 1000.0}};
     j["landmarks"] = nlohmann::ordered_json::array();
     for (const auto& lm : found) j["landmarks"].push_back(ld::toJson(lm));
-    out << j.dump() << "\n";
+    out << j.dump(-1, ' ', false, kReplace) << "\n";
     if (explain) {
       out.flush();  // the explanation after its image's line when both go to the terminal
       std::string text = path + ": " + std::to_string(found.size()) + (found.size() == 1 ? " landmark" : " landmarks");

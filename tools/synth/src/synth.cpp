@@ -1413,7 +1413,8 @@ std::string truthJsonLine(const std::string& image, cv::Size size,
     l["in_view"] = t.in_view;
     j["landmarks"].push_back(l);
   }
-  return j.dump();
+  // (a payload's bytes that are not UTF-8 as U+FFFD)
+  return j.dump(-1, ' ', false, nlohmann::ordered_json::error_handler_t::replace);
 }
 
 }  // namespace ld::synth
