@@ -36,6 +36,12 @@ set +e; "$BIN/ld-detect" --explain "$T/s" >"$T/out" 2>"$T/err"; rc=$?; set -e
 grep -q 'broken.png: cannot read as an image' "$T/err" || fail "broken file: $(cat "$T/err")"
 [ "$(grep -c '"landmarks":\[{' "$T/out")" -eq 2 ] && grep -q '"error":"cannot read as an image"' "$T/out" ||
   fail "broken file, output: $(cat "$T/out")"
+# A calibration of another aspect ratio: no pose, said once on stderr, and the landmarks as ever.
+printf '%%YAML:1.0\n---\nimage_width: 1280\nimage_height: 720\ncamera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n  data: [1200, 0, 639.5, 0, 1200, 359.5, 0, 0, 1]\ndistortion_coefficients: !!opencv-matrix\n  rows: 1\n  cols: 5\n  dt: d\n  data: [0, 0, 0, 0, 0]\n' >"$T/wide.yaml"
+"$BIN/ld-detect" --camera "$T/wide.yaml" --size 0.15 "$T/s/000000.png" "$T/s/000001.png" >"$T/out" 2>"$T/err" || fail "wide calibration: exit $?: $(cat "$T/err")"
+[ "$(grep -c '"landmarks":\[{' "$T/out")" -eq 2 ] && ! grep -q '"pose"' "$T/out" || fail "wide calibration, output: $(cat "$T/out")"
+[ "$(grep -c 'calibration is for 1280x720 images and this frame is 640x480' "$T/err")" -eq 1 ] ||
+  fail "wide calibration, stderr: $(cat "$T/err")"
 # Bytes that are not UTF-8, in a file's name or in a QR's payload, come out
 # as U+FFFD in the JSON; the run goes on.
 set +e; "$BIN/ld-detect" "$T/s/000000.png" "$T/s/nope"$'\xe9'".png" "$T/s/000001.png" >"$T/out" 2>"$T/err"; rc=$?; set -e

@@ -1853,6 +1853,31 @@ TEST(Pose, ScaledCamera) {
   EXPECT_NEAR(d.landmarks[0].pose->distance, 1.0, 0.01);
 }
 
+// A calibration of another aspect ratio (a 16:9 mode's, on 4:3 frames) is
+// another crop of the sensor: no pose, and the detection says why; the
+// landmarks are found as ever, and a frame that fits gets its pose again.
+TEST(Pose, CalibrationOfAnotherAspectRatioGivesNoPose) {
+  const ld::CameraModel wide = ld::CameraModel::pinhole({1280, 720}, 1200);
+  EXPECT_FALSE(wide.fits(kCam.size));
+  EXPECT_TRUE(wide.fits({640, 360}));
+  EXPECT_TRUE(ld::CameraModel::pinhole({1280, 960}, 1200).fits(kCam.size));
+  EXPECT_EQ(ld::CameraModel::pinhole({1280, 960}, 1200).misfit(kCam.size), "");
+  cv::Mat img = background(kCam.size, 14);
+  drawSheet(img, kCam, place(1.0, 0, 0));
+  ld::Detector det;
+  det.setCamera(wide, 0.15);
+  const ld::Detection& d = det.detect(img);
+  ASSERT_EQ(d.landmarks.size(), 1u);
+  EXPECT_FALSE(d.landmarks[0].pose.has_value());
+  EXPECT_NE(d.pose_error.find("1280x720"), std::string::npos) << d.pose_error;
+  EXPECT_NE(d.pose_error.find("640x480"), std::string::npos) << d.pose_error;
+  det.setCamera(ld::CameraModel::pinhole({1280, 960}, 1200), 0.15);
+  const ld::Detection& d2 = det.detect(img);
+  ASSERT_EQ(d2.landmarks.size(), 1u);
+  EXPECT_TRUE(d2.landmarks[0].pose.has_value());
+  EXPECT_EQ(d2.pose_error, "");
+}
+
 // ====================================================================== parameters
 
 namespace {

@@ -1,5 +1,7 @@
 #include "ld/camera.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <stdexcept>
 
@@ -161,6 +163,22 @@ CameraModel CameraModel::scaledTo(cv::Size new_size) const {
   c.K(1, 2) = (K(1, 2) + 0.5) * sy - 0.5;
   c.size = new_size;
   return c;
+}
+
+bool CameraModel::fits(cv::Size frame) const {
+  if (size.width <= 0 || size.height <= 0) return true;
+  if (frame.width <= 0 || frame.height <= 0) return false;
+  const double sx = static_cast<double>(frame.width) / size.width;
+  const double sy = static_cast<double>(frame.height) / size.height;
+  return std::abs(sx - sy) <= 0.01 * std::max(sx, sy);
+}
+
+std::string CameraModel::misfit(cv::Size frame) const {
+  if (fits(frame)) return "";
+  return "the camera calibration is for " + std::to_string(size.width) + "x" + std::to_string(size.height) +
+         " images and this frame is " + std::to_string(frame.width) + "x" + std::to_string(frame.height) +
+         ", another aspect ratio (another crop of the sensor, whose intrinsics do not scale): no pose; "
+         "calibrate the camera at this resolution";
 }
 
 bool CameraModel::hasDistortion() const {

@@ -1373,6 +1373,7 @@ void Detector::Impl::run(const cv::Mat& input) {
   det.landmarks.clear();
   det.stages.clear();
   det.total_ms = 0;
+  det.pose_error.clear();
   looks_run = 0;
   StageTimer timer(det.stages);
   last_img = last_src = nullptr;
@@ -1412,7 +1413,8 @@ void Detector::Impl::run(const cv::Mat& input) {
 
   // 8. CORNERS (through the undistorted image when the camera distorts: the
   // sheet maps to it by a homography)
-  const bool pose = camera && side_m > 0;
+  const bool pose = camera && side_m > 0 && camera->fits(img->size());
+  if (camera && !pose) det.pose_error = camera->misfit(img->size());
   if (pose && scaled.size != img->size()) scaled = camera->scaledTo(img->size());
   const bool distorted = pose && scaled.hasDistortion();
   const int align = p.align_iterations >= 0 ? p.align_iterations : pose ? DetectorParams::kAutoAlignIterations : 0;

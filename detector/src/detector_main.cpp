@@ -85,6 +85,7 @@ int main(int argc, char** argv) {
   auto last_status = std::chrono::steady_clock::now();
   auto next_explain = last_status;
   ld::Explanation why_frame;
+  std::string pose_error;  // the last frame's Detection::pose_error
   while (!g_stop) {
     // waits, then drains the queue: only the newest message is processed
     if (!ld::pumpLcm(lcm, 200, g_stop, "ld-detector")) return 1;
@@ -100,6 +101,11 @@ int main(int argc, char** argv) {
         // a detection more, and is not counted in the published timings).
         const bool explain = explain_s > 0 && std::chrono::steady_clock::now() >= next_explain;
         const ld::Detection& det = explain ? detector.detect(bgr, why_frame) : detector.detect(bgr);
+        // (a calibration that does not fit the frames: said once, and again when it changes)
+        if (det.pose_error != pose_error) {
+          pose_error = det.pose_error;
+          if (!pose_error.empty()) std::cerr << "ld-detector: " << pose_error << "\n";
+        }
         if (explain) {
           next_explain = std::chrono::steady_clock::now() +
                          std::chrono::microseconds(static_cast<int64_t>(explain_s * 1e6));

@@ -107,6 +107,7 @@ int main(int argc, char** argv) {
   int failed = 0, with_landmarks = 0, total_landmarks = 0;
   std::vector<double> times;
   std::set<std::string> drawn;  // overlay names written
+  std::string pose_error;       // the last frame's Detection::pose_error
   const auto files = expandInputs(inputs);
   if (files.empty()) {
     std::cerr << "ld-detect: no image files found\n";
@@ -133,6 +134,11 @@ int main(int argc, char** argv) {
     // (what explaining took is not detection time)
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() - why.ms;
+    // (a calibration that does not fit the frames: said once, and again when it changes)
+    if (det.pose_error != pose_error) {
+      pose_error = det.pose_error;
+      if (!pose_error.empty()) std::cerr << "ld-detect: " << path << ": " << pose_error << "\n";
+    }
     found.assign(det.landmarks.begin(), det.landmarks.end());
     if (decode)
       for (auto& lm : found)

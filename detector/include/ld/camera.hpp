@@ -27,6 +27,13 @@ struct CameraModel {
 
   /// The same camera for another image size (scales K; distortion is kept).
   CameraModel scaledTo(cv::Size new_size) const;
+  /// Whether frames of `frame` size can use this calibration scaled
+  /// (scaledTo): the calibration's size is unknown (0x0), or the two have
+  /// the same aspect ratio within 1 %. Another aspect ratio is another crop
+  /// of the sensor (a 16:9 mode of a 4:3 sensor): its K does not scale.
+  bool fits(cv::Size frame) const;
+  /// Why frames of `frame` size cannot use it, for people ("" when fits()).
+  std::string misfit(cv::Size frame) const;
 
   bool hasDistortion() const;
 };

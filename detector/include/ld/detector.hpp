@@ -375,6 +375,9 @@ struct Detection {
   std::vector<Landmark> landmarks;
   std::vector<StageTime> stages;  ///< in pipeline order
   double total_ms = 0;
+  /// Why the landmarks carry no pose although a camera is set (its
+  /// calibration does not fit the frame: CameraModel::misfit); "" otherwise.
+  std::string pose_error;
   double stageMs(const std::string& name) const;  ///< 0 when the stage did not run
 };
 
