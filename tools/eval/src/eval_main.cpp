@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <sstream>
 
@@ -167,11 +168,18 @@ void emit(const Common& c, const std::string& table) {
   }
 }
 
-void progress(const ld::eval::Point& p) {
-  char blur[32] = "";
-  if (p.motion_px >= 0) std::snprintf(blur, sizeof blur, ", blur %g px", p.motion_px);
-  std::fprintf(stderr, "  %.2f m, yaw %+.0f%s: detected %d/%d, decoded %d\n", p.distance_m, p.yaw_deg, blur,
-               p.detected, p.trials, p.decoded);
+// A sweep point's line on stderr as it ends: its yaw (or, for sweeps over
+// distance or blur, the range yaw is drawn within), and what was decoded
+// when the sweep reads QR codes.
+std::function<void(const ld::eval::Point&)> progress(double yaw_within, bool decode) {
+  return [yaw_within, decode](const ld::eval::Point& p) {
+    char blur[32] = "", yaw[32], decoded[32] = "";
+    if (p.motion_px >= 0) std::snprintf(blur, sizeof blur, ", blur %g px", p.motion_px);
+    if (yaw_within > 0) std::snprintf(yaw, sizeof yaw, "yaw within +-%g", yaw_within);
+    else std::snprintf(yaw, sizeof yaw, "yaw %+.0f", p.yaw_deg);
+    if (decode) std::snprintf(decoded, sizeof decoded, ", decoded %d", p.decoded);
+    std::fprintf(stderr, "  %.2f m, %s%s: detected %d/%d%s\n", p.distance_m, yaw, blur, p.detected, p.trials, decoded);
+  };
 }
 
 }  // namespace
@@ -320,9 +328,9 @@ int main(int argc, char** argv) {
           auto o = c.options();
           o.side_m = sw.sides[i];
           o.target = target;
-          all.push_back(by == By::kYaw      ? ld::eval::overYaw(o, (*sw.dists)[i], xs, progress)
-                        : by == By::kMotion ? ld::eval::overMotion(o, (*sw.dists)[i], xs, m_yaw, progress)
-                                            : ld::eval::overDistance(o, xs, d_yaw, progress));
+          all.push_back(by == By::kYaw      ? ld::eval::overYaw(o, (*sw.dists)[i], xs, progress(0, o.decode))
+                        : by == By::kMotion ? ld::eval::overMotion(o, (*sw.dists)[i], xs, m_yaw, progress(m_yaw, o.decode))
+                                            : ld::eval::overDistance(o, xs, d_yaw, progress(d_yaw, o.decode)));
           std::ostringstream name;
           name << cm(sw.sides[i]);
           if (sw.dists) name << " at " << (*sw.dists)[i] << " m";
@@ -360,7 +368,7 @@ int main(int argc, char** argv) {
       std::vector<std::vector<ld::eval::Point>> all;
       for (const auto& k : kinds) {
         o.payload = [k](int i) { return ld::eval::payloadFor(5 * i + k.first + i % k.count); };
-        all.push_back(ld::eval::overDistance(o, ds, q_yaw, progress));
+        all.push_back(ld::eval::overDistance(o, ds, q_yaw, progress(q_yaw, o.decode)));
         Series s{k.name, {}};
         for (const auto& p : all.back()) s.points.emplace_back(p.distance_m, p.decodeRate());
         series.push_back(s);
@@ -453,7 +461,7 @@ int main(int argc, char** argv) {
         }
       const std::vector<double> ds = range(p_from, p_to, p_step);
       std::vector<std::vector<ld::eval::Point>> all;
-      for (const Row& r : rows) all.push_back(ld::eval::overDistance(r.o, ds, p_yaw, progress));
+      for (const Row& r : rows) all.push_back(ld::eval::overDistance(r.o, ds, p_yaw, progress(p_yaw, r.o.decode)));
       const auto pair = [](const std::vector<double>& v, double scale, int digits) {
         if (v.empty()) return std::string("-");
         char b[64];
