@@ -2103,6 +2103,29 @@ TEST(Params, FilesOpenLikeEveryConfigFile) {
   std::remove(path.c_str());
 }
 
+// A key given twice (cv::FileStorage would read the first and ignore the
+// second without a word) is refused, in any format and at any depth, naming
+// the key; a file without one reads as before.
+TEST(Params, KeyGivenTwiceIsRefused) {
+  const std::string path = tempPath("twice.yaml");
+  for (const auto& [text, key] :
+       {std::pair{std::string("align_iterations: 5\nd_min: 2.0\nalign_iterations: 6\n"), std::string("align_iterations")},
+        {"{\"d_min\": 2.0, \"d_min\": 2.5}", "d_min"},
+        {"<?xml version=\"1.0\"?>\n<opencv_storage>\n<d_max>9</d_max>\n<d_max>8</d_max>\n</opencv_storage>\n", "d_max"},
+        {"camera_matrix:\n  rows: 3\n  rows: 3\n", "camera_matrix.rows"}}) {
+    std::ofstream(path) << text;
+    try {
+      ld::DetectorParams::load(path);
+      ADD_FAILURE() << text << ": no error";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(path + ": key '" + key + "' is given twice"), std::string::npos) << e.what();
+    }
+  }
+  std::ofstream(path) << "align_iterations: 5\nd_min: 2.0\n";
+  EXPECT_EQ(ld::DetectorParams::load(path).align_iterations, 5);
+  std::remove(path.c_str());
+}
+
 TEST(Params, ValidateNamesTheField) {
   auto err = [](auto&& mutate) {
     ld::DetectorParams p;

@@ -18,6 +18,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <opencv2/core/persistence.hpp>
 
@@ -82,6 +83,25 @@ inline std::string configString(const cv::FileNode& n) {
   return end == std::string::npos ? std::string() : s.substr(0, end + 1);
 }
 
+/// The first key that a map of `node` (the node itself or one inside it,
+/// at any depth) holds twice, as "outer.inner" for nested maps, or nullopt.
+/// cv::FileStorage keeps both and reads the first, so a setting added again
+/// further down a file would be silently ignored.
+inline std::optional<std::string> duplicateKey(const cv::FileNode& node, const std::string& prefix = "") {
+  if (!node.isMap() && !node.isSeq()) return std::nullopt;
+  std::vector<std::string> names;
+  for (auto it = node.begin(); it != node.end(); ++it) {
+    const cv::FileNode child = *it;
+    const std::string name = node.isMap() ? child.name() : "";
+    if (node.isMap()) {
+      if (std::find(names.begin(), names.end(), name) != names.end()) return prefix + name;
+      names.push_back(name);
+    }
+    if (const auto inner = duplicateKey(child, node.isMap() ? prefix + name + "." : prefix)) return inner;
+  }
+  return std::nullopt;
+}
+
 /// A configuration file (YAML, XML or JSON) opened for reading, the way every
 /// reader of the project opens one: the file read once, its text checked by
 /// unsafeForOpenCv, plain YAML given the "%YAML:1.0" header OpenCV wants, and
@@ -120,6 +140,7 @@ inline cv::FileStorage openConfigFile(const std::string& path, const std::string
   }
   if (!error.empty()) fail("cannot parse as YAML, XML or JSON (OpenCV: " + error + ")");
   if (!opened) fail("cannot parse as YAML, XML or JSON");
+  if (const auto key = duplicateKey(fs.root())) fail("key '" + *key + "' is given twice (only the first would count)");
   return fs;
 }
 
