@@ -18,6 +18,7 @@
 #include "../detector/src/stages.hpp"
 #include "ld/adaptive.hpp"
 #include "ld/artwork.hpp"
+#include "ld/config_file.hpp"
 #include "ld/detector.hpp"
 #include "ld/qr_reader.hpp"
 #include "ld/landmark_layout.hpp"
@@ -2112,7 +2113,8 @@ TEST(Params, KeyGivenTwiceIsRefused) {
        {std::pair{std::string("align_iterations: 5\nd_min: 2.0\nalign_iterations: 6\n"), std::string("align_iterations")},
         {"{\"d_min\": 2.0, \"d_min\": 2.5}", "d_min"},
         {"<?xml version=\"1.0\"?>\n<opencv_storage>\n<d_max>9</d_max>\n<d_max>8</d_max>\n</opencv_storage>\n", "d_max"},
-        {"camera_matrix:\n  rows: 3\n  rows: 3\n", "camera_matrix.rows"}}) {
+        {"camera_matrix:\n  rows: 3\n  rows: 3\n", "camera_matrix.rows"},
+        {"views:\n  - { a: 1, b: 2 }\n  - { a: 3, a: 4 }\n", "views.[1].a"}}) {
     std::ofstream(path) << text;
     try {
       ld::DetectorParams::load(path);
@@ -2121,6 +2123,18 @@ TEST(Params, KeyGivenTwiceIsRefused) {
       EXPECT_NE(std::string(e.what()).find(path + ": key '" + key + "' is given twice"), std::string::npos) << e.what();
     }
   }
+  // (every reader: a calibration too)
+  std::ofstream(path) << "image_width: 640\nimage_height: 480\nimage_width: 320\n";
+  try {
+    ld::CameraModel::load(path);
+    ADD_FAILURE() << "camera file: no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("camera file " + path + ": key 'image_width' is given twice"),
+              std::string::npos) << e.what();
+  }
+  // the same keys in a sequence's maps, each once, are no repeat
+  std::ofstream(path) << "%YAML:1.0\n---\nd_min: 2.0\nviews:\n  - { a: 1, b: 2 }\n  - { a: 3, b: 4 }\n";
+  EXPECT_FALSE(ld::duplicateKey(cv::FileStorage(path, cv::FileStorage::READ).root()).has_value());
   std::ofstream(path) << "align_iterations: 5\nd_min: 2.0\n";
   EXPECT_EQ(ld::DetectorParams::load(path).align_iterations, 5);
   std::remove(path.c_str());

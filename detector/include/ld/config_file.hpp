@@ -18,7 +18,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
-#include <vector>
+#include <unordered_set>
 
 #include <opencv2/core/persistence.hpp>
 
@@ -87,17 +87,17 @@ inline std::string configString(const cv::FileNode& n) {
 /// at any depth) holds twice, as "outer.inner" for nested maps, or nullopt.
 /// cv::FileStorage keeps both and reads the first, so a setting added again
 /// further down a file would be silently ignored.
-inline std::optional<std::string> duplicateKey(const cv::FileNode& node, const std::string& prefix = "") {
-  if (!node.isMap() && !node.isSeq()) return std::nullopt;
-  std::vector<std::string> names;
-  for (auto it = node.begin(); it != node.end(); ++it) {
+inline std::optional<std::string> duplicateKey(const cv::FileNode& node, const std::string& prefix = "",
+                                               int depth = 0) {
+  if ((!node.isMap() && !node.isSeq()) || depth > 64) return std::nullopt;  // (no configuration nests deeper)
+  std::unordered_set<std::string> names;
+  int index = 0;
+  for (auto it = node.begin(); it != node.end(); ++it, ++index) {
     const cv::FileNode child = *it;
     const std::string name = node.isMap() ? child.name() : "";
-    if (node.isMap()) {
-      if (std::find(names.begin(), names.end(), name) != names.end()) return prefix + name;
-      names.push_back(name);
-    }
-    if (const auto inner = duplicateKey(child, node.isMap() ? prefix + name + "." : prefix)) return inner;
+    if (node.isMap() && !names.insert(name).second) return prefix + name;
+    const std::string inner_prefix = node.isMap() ? prefix + name + "." : prefix + "[" + std::to_string(index) + "].";
+    if (const auto inner = duplicateKey(child, inner_prefix, depth + 1)) return inner;
   }
   return std::nullopt;
 }

@@ -321,9 +321,13 @@ struct DetectorParams {
   /// and not taken where it would move a centre by more than a quarter of
   /// its square's smaller side. With a distorting camera (setCamera) the
   /// crop is taken through the distortion. -1 (default): kAutoAlignIterations
-  /// steps when the detector computes a pose (setCamera), none otherwise, so
-  /// that detection alone keeps its speed and every pose gets the sharper
-  /// corners; 0: never; N: N steps for every landmark, with or without a pose.
+  /// steps when the detector computes a pose (setCamera, with a calibration
+  /// that fits the frame), none otherwise, so that detection alone keeps its
+  /// speed and every pose gets the sharper corners; 0: never (paper() sets
+  /// it; a parameters file with `front_end: paper` keeps the default); N
+  /// (1-100): N steps, with or without a pose, for every landmark of up to
+  /// 120 px. Worse than the centroids on clean but defocused frames at
+  /// 0.8-2.5 m (README, "Sheet alignment for pose").
   int align_iterations = -1;
   static constexpr int kAutoAlignIterations = 10;
 
@@ -435,7 +439,9 @@ class Detector {
   void setGlareCorrected(bool corrected);
 
   /// Enables pose: intrinsics of the camera and the printed sheet side S in
-  /// metres. Frames of another size than the calibration use the scaled camera.
+  /// metres. Frames of another size than the calibration use the scaled
+  /// camera when they have its aspect ratio (CameraModel::fits); frames of
+  /// another aspect ratio get no pose, and Detection::pose_error says why.
   void setCamera(const CameraModel& camera, double side_m);
 
   /// Detects landmarks in an 8-bit BGR (or gray: no landmarks) image. The

@@ -67,8 +67,15 @@ void applyLighting(const SweepOptions& o, synth::SceneSpec& spec) {
   }
 }
 
-// The fixed or the adaptive detector, as the options say.
-AdaptiveDetector makeDetector(const SweepOptions& o) { return AdaptiveDetector(Detector(o.params), o.adaptive); }
+// The fixed or the adaptive detector, as the options say; for pose sweeps
+// with the camera and side set, as a user's detector computing poses has
+// them (its centres undistorted with the camera's distortion, its sheet
+// alignment through it).
+AdaptiveDetector makeDetector(const SweepOptions& o) {
+  AdaptiveDetector d(Detector(o.params), o.adaptive);
+  if (o.pose) d.detector().setCamera(o.camera, o.side_m);
+  return d;
+}
 
 // Every trial is an independent frame: the adapter starts afresh on each.
 const Detection& detectFresh(AdaptiveDetector& detector, const cv::Mat& bgr) {

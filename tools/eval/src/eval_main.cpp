@@ -438,7 +438,8 @@ int main(int argc, char** argv) {
     } else if (pose->parsed()) {
       // One row per (distance, detector): ours from the centroids alone
       // (align_iterations 0), ours with --align steps of sheet alignment
-      // (what a detector computing a pose does by default), AprilTag 3 and
+      // (what a detector computing a pose does by default; the parameters'
+      // own align_iterations when they set one above 0), AprilTag 3 and
       // ArUco with --compare; the pose from each one's four corners by the
       // same solver.
       auto o = pc.options();
@@ -450,9 +451,9 @@ int main(int argc, char** argv) {
       };
       std::vector<Row> rows{{"ours, centroids", o}};
       rows[0].o.params.align_iterations = 0;
-      if (p_align > 0) {
+      if (o.params.align_iterations > 0 || p_align > 0) {
         rows.push_back({"ours, sheet alignment", o});
-        rows.back().o.params.align_iterations = p_align;
+        if (o.params.align_iterations <= 0) rows.back().o.params.align_iterations = p_align;
       }
       if (pc.compare)
         for (const char* target : {"apriltag", "aruco"}) {
