@@ -1949,6 +1949,41 @@ TEST(SheetAlignment, RecoversANearStartAndRefusesALongSlide) {
   EXPECT_EQ(centres, before);
 }
 
+// The size gates: a sheet over 120 px is fitted only to a near model (and
+// then placed as well as a far one is), and none over 480 px.
+TEST(SheetAlignment, NearSheetsTakeTheNearModelUpTo480Px) {
+  ld::detail::SheetModel far_model, near_model;
+  ld::detail::sheetModel(8, far_model);
+  ld::detail::sheetModel(16, near_model);
+  ld::detail::AlignScratch scratch;
+  for (const double distance : {0.6, 0.17}) {
+    cv::Mat img = background(kCam.size, 9);
+    const Placed p = place(distance, 15, 20);
+    drawSheet(img, kCam, p);
+    addNoise(img, 2.0, 10);
+    const Truth t = truthOf(kCam, p);
+    std::array<cv::Point2d, 4> centres, corners;
+    for (int i = 0; i < 4; ++i) {  // (a start off the truth by a third of a pixel)
+      corners[i] = t.corners[i] + cv::Point2d(0.3, -0.2);
+      centres[i] = t.centres[i] + cv::Point2d(0.3, -0.2);
+    }
+    const auto start_centres = centres, start_corners = corners;
+    EXPECT_FALSE(ld::detail::alignSheet(img, nullptr, far_model, 10, centres, corners, scratch)) << distance;
+    EXPECT_EQ(centres, start_centres);
+    const bool aligned = ld::detail::alignSheet(img, nullptr, far_model, 10, centres, corners, scratch, &near_model);
+    if (distance > 0.5) {
+      ASSERT_TRUE(aligned);
+      for (int i = 0; i < 4; ++i) {
+        EXPECT_LT(cv::norm(corners[i] - t.corners[i]), 0.15) << "corner " << i;
+        EXPECT_LT(cv::norm(centres[i] - t.centres[i]), 0.15) << "centre " << i;
+      }
+    } else {
+      EXPECT_FALSE(aligned);  // (a sheet of about 530 px)
+      EXPECT_EQ(corners, start_corners);
+    }
+  }
+}
+
 // align_iterations' default (-1, auto): a detector that computes poses
 // aligns the sheet (its corners are align_iterations 10's, not the
 // centroids'), one without a camera does not (its corners are

@@ -523,27 +523,49 @@ TEST(Pose, SheetAlignmentSharpensFarLandmarks) {
   EXPECT_LT(quantile(with.rotation_deg, 0.9), 3.0);
 }
 
-// ... and what it leaves alone: near landmarks (sheets over 120 px, whose
-// centroids are as good) keep their corners exactly; steeply seen ones
-// (55-70 degrees of yaw), whose squares are a few pixels wide, are found as
-// often (the fit does not slide them off the truth: SheetAlignment.* in
-// test_detector tests the guard against a slide).
-TEST(Pose, SheetAlignmentLeavesNearAndSteepLandmarks) {
+// ... and on near ones, 15 cm at 0.5 m (sheets of about 180 px, fitted to
+// a finer model on every third pixel): the centroids, from many pixels,
+// place the corners about as well, but the rotation still gains.
+TEST(Pose, SheetAlignmentSteadiesNearLandmarks) {
+  ld::DetectorParams centroids;
+  centroids.align_iterations = 0;
+  ld::Detector plain(centroids), align;
+  plain.setCamera(kCam, 0.15);
+  align.setCamera(kCam, 0.15);
+  PoseErrors without, with;
+  std::mt19937_64 rng(45);
+  std::uniform_real_distribution<double> U(0, 1);
+  for (int k = 0; k < 30; ++k) {
+    const auto lm = ld::synth::placeLandmark(kCam, 0.5, -40 + 80 * U(rng), -10 + 20 * U(rng), 360 * U(rng),
+                                             0.5 * (U(rng) - 0.5), 0.5 * (U(rng) - 0.5), 0.15);
+    const auto frame = ld::synth::render(ld::synth::randomConditions(kCam, {lm}, 800 + static_cast<uint64_t>(k)));
+    // (the two detectors differ in their corners alone: they find the same landmarks)
+    const ld::Landmark* a = match(plain.detect(frame.bgr), frame.truth[0]);
+    const bool found = a != nullptr;
+    if (a) without.add(a->corners, a->pose, frame.truth[0]);
+    const ld::Landmark* b = match(align.detect(frame.bgr), frame.truth[0]);
+    ASSERT_EQ(b != nullptr, found) << k;
+    if (b) with.add(b->corners, b->pose, frame.truth[0]);
+  }
+  ASSERT_GE(with.corner_px.size(), 25u);
+  print(without, "15 cm at 0.5 m, centroids");
+  print(with, "15 cm at 0.5 m, sheet alignment");
+  EXPECT_LT(quantile(with.corner_px, 0.9), 1.1 * quantile(without.corner_px, 0.9));
+  EXPECT_LT(quantile(with.rotation_deg, 0.9), 0.75 * quantile(without.rotation_deg, 0.9));
+  EXPECT_LT(quantile(with.rotation_deg, 0.9), 1.0);
+}
+
+// ... and what it leaves alone: steeply seen landmarks (55-70 degrees of
+// yaw), whose squares are a few pixels wide, are found as often (the fit
+// does not slide them off the truth: SheetAlignment.* in test_detector
+// tests the guard against a slide).
+TEST(Pose, SheetAlignmentLeavesSteepLandmarks) {
   ld::DetectorParams aligned;
   aligned.align_iterations = 10;
   ld::Detector plain, align(aligned);
   std::mt19937_64 rng(43);
   std::uniform_real_distribution<double> U(0, 1);
-  for (int k = 0; k < 6; ++k) {
-    const auto lm = ld::synth::placeLandmark(kCam, 0.6, -30 + 60 * U(rng), 0, 360 * U(rng), 0, 0, 0.15);
-    const auto frame = ld::synth::render(ld::synth::randomConditions(kCam, {lm}, 600 + static_cast<uint64_t>(k)));
-    const ld::Landmark* a = match(plain.detect(frame.bgr), frame.truth[0]);
-    ASSERT_NE(a, nullptr) << k;
-    const auto corners = a->corners;
-    const ld::Landmark* b = match(align.detect(frame.bgr), frame.truth[0]);
-    ASSERT_NE(b, nullptr) << k;
-    for (int i = 0; i < 4; ++i) EXPECT_EQ(b->corners[i], corners[i]) << k;
-  }
+  for (int k = 0; k < 6; ++k) (void)U(rng), (void)U(rng);  // (the draws of the near half this test had)
   int found_plain = 0, found_aligned = 0;
   for (int k = 0; k < 40; ++k) {
     const double yaw = (k % 2 ? 1 : -1) * (55 + 15 * U(rng));

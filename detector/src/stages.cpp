@@ -1596,17 +1596,21 @@ bool fitCorners(const std::array<cv::Point2d, 4>& centres, int iterations,
 
 namespace {
 
-// Sheet alignment: only sheets whose longest side is at most this long (px;
-// a 15 cm sheet from about 0.75 m on at f = 600 px): the fit's time goes
-// with the crop's pixels, and larger sheets' centres, from many pixels, are
-// as good without it. Sheets over kAlignDenseSide are fitted on every other
-// pixel each way. The fit halves a step that made its error larger and
+// Sheet alignment: sheets whose longest side is at most kAlignMaxSide px (a
+// 15 cm sheet from about 0.75 m on at f = 600 px) are fitted to the model
+// given, those over kAlignDenseSide on every other pixel each way. Larger
+// ones, to kAlignNearMaxSide px (15 cm from about 0.2 m), are fitted to the
+// finer near model, when there is one, on every (longest /
+// kAlignNearSamples)'th pixel each way (at least every other one: 60-120
+// pixels each way): the fit's time goes with the pixels it reads. The fit halves a step that made its error larger and
 // stops at one that lowered it by less than kAlignMinGain. An alignment
 // that moves a centre by more than kAlignMaxShift of its square's smaller
 // projected side is not taken (a fit that slid, as along the thin squares
 // of a steeply seen sheet).
 constexpr double kAlignMaxSide = 120;
 constexpr double kAlignDenseSide = 60;
+constexpr double kAlignNearMaxSide = 480;
+constexpr double kAlignNearSamples = 60;
 constexpr double kAlignMinGain = 0.001;
 constexpr double kAlignMaxShift = 0.25;
 
@@ -1751,8 +1755,9 @@ bool fitSheet(const cv::Mat& view, const SheetModel& m, int iterations, int step
 
 }  // namespace
 
-bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetModel& model, int iterations,
-                std::array<cv::Point2d, 4>& centres, std::array<cv::Point2d, 4>& corners, AlignScratch& scratch) {
+bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetModel& far_model, int iterations,
+                std::array<cv::Point2d, 4>& centres, std::array<cv::Point2d, 4>& corners, AlignScratch& scratch,
+                const SheetModel* near_model) {
   if (iterations <= 0 || bgr.type() != CV_8UC3) return false;
   std::array<cv::Point2d, 4> pattern;
   for (int i = 0; i < 4; ++i) pattern[i] = {layout::kCornersU[i][0], layout::kCornersU[i][1]};
@@ -1764,7 +1769,9 @@ bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetMo
     outline[i] = applyH(H, {i % 3 ? layout::kUnits : 0.0, i < 2 ? 0.0 : layout::kUnits});
   double longest = 0;
   for (int i = 0; i < 4; ++i) longest = std::max(longest, cv::norm(outline[(i + 1) % 4] - outline[i]));
-  if (!(longest <= kAlignMaxSide)) return false;
+  const bool near = !(longest <= kAlignMaxSide);
+  if (near && !(near_model && longest <= kAlignNearMaxSide)) return false;
+  const SheetModel& model = near ? *near_model : far_model;
   // The landmark's crop: the sheet's bounding box and 3 px around it, in the
   // undistorted image's pixels (through the lens's distortion when there is
   // one: a homography maps the sheet to the undistorted image only).
@@ -1809,8 +1816,10 @@ bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetMo
   if (!(std::abs(W(2, 2)) > 1e-12)) return false;
   W *= 1.0 / W(2, 2);
   // (a sheet over kAlignDenseSide px fitted on every other pixel each way:
-  // plenty of them, a quarter of the time)
-  if (!fitSheet(scratch.view, model, iterations, longest > kAlignDenseSide ? 2 : 1, W)) return false;
+  // plenty of them, a quarter of the time; a near one on 60-120 each way)
+  const int step = near ? std::max(2, static_cast<int>(longest / kAlignNearSamples))
+                        : longest > kAlignDenseSide ? 2 : 1;
+  if (!fitSheet(scratch.view, model, iterations, step, W)) return false;
   const cv::Matx33d Hn = to_view.inv() * W.inv() * sheet_px_to_u.inv();
   std::array<cv::Point2d, 4> aligned;
   for (int i = 0; i < 4; ++i) {

@@ -336,19 +336,22 @@ struct AlignScratch {
   std::vector<cv::Point2f> at;
 };
 
-/// Aligns the sheet `model` to the green channel of `bgr` around the
+/// Aligns the sheet `far_model` to the green channel of `bgr` around the
 /// landmark whose centres (TL, TR, BL, AP) and corners (TL, TR, BR, BL) are
 /// given: Gauss-Newton over a homography and the light's gain and offset,
-/// from the corners' homography, up to `iterations` steps. With a
+/// from the corners' homography, up to `iterations` steps. Sheets over
+/// kAlignMaxSide px (120) take `near_model` instead (a finer one, on 60-120
+/// of their pixels each way), up to kAlignNearMaxSide px (480). With a
 /// `distorting` camera the centres and corners are in its undistorted
 /// image's pixels, and the crop is taken through its distortion (pixels it
 /// takes out of the frame are left out of the fit). Replaces the centres
 /// and corners with the alignment's and returns true, unless the sheet is
-/// larger than kAlignMaxSide px, the fit is degenerate, or it moves a
-/// centre by more than a quarter of its square's smaller projected side
-/// (then they stay as they are: false).
-bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetModel& model, int iterations,
-                std::array<cv::Point2d, 4>& centres, std::array<cv::Point2d, 4>& corners, AlignScratch& scratch);
+/// over kAlignMaxSide px without a near model or over kAlignNearMaxSide px,
+/// the fit is degenerate, or it moves a centre by more than a quarter of
+/// its square's smaller projected side (then they stay as they are: false).
+bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetModel& far_model, int iterations,
+                std::array<cv::Point2d, 4>& centres, std::array<cv::Point2d, 4>& corners, AlignScratch& scratch,
+                const SheetModel* near_model = nullptr);
 
 /// 8. corners: the centres of a landmark's squares (TL, TR, BL, AP: the
 /// regions `squares`, FIPs of `fips` and the AP of `aps`) with the pieces

@@ -316,8 +316,9 @@ struct DetectorParams {
   /// at 2.5 m (15 cm, yaw within +-40 degrees) the corners' median error
   /// goes from 0.21 to 0.065 px and the pose's rotation error (90th
   /// percentile) from 29 to 1.0 degrees (README, "Sheet alignment for
-  /// pose"). Costs about 0.3 ms per landmark. Left out for sheets whose
-  /// longest side is over 120 px (their centres are as good without it),
+  /// pose"); at 0.5 m the rotation's from 1.3 to 0.3 degrees. Costs about
+  /// 0.3 ms per landmark of up to 120 px, more on larger ones (fitted to a
+  /// finer model). Left out for sheets whose longest side is over 480 px,
   /// and not taken where it would move a centre by more than a quarter of
   /// its square's smaller side. With a distorting camera (setCamera) the
   /// crop is taken through the distortion. -1 (default): kAutoAlignIterations
@@ -326,8 +327,8 @@ struct DetectorParams {
   /// speed and every pose gets the sharper corners; 0: never (paper() sets
   /// it; a parameters file with `front_end: paper` keeps the default); N
   /// (1-100): N steps, with or without a pose, for every landmark of up to
-  /// 120 px. Worse than the centroids on clean but defocused frames at
-  /// 0.8-2.5 m (README, "Sheet alignment for pose").
+  /// 480 px. Worse than the centroids on clean but defocused frames (README,
+  /// "Sheet alignment for pose").
   int align_iterations = -1;
   static constexpr int kAutoAlignIterations = 10;
 
