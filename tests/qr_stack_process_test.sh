@@ -8,6 +8,15 @@
 set -euo pipefail
 BIN=$(cd "$1" && pwd)
 T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+# Its schedule's options out of range are refused at once, in one line,
+# with status 2 (before any LCM is opened).
+for bad in "--max-decodes 0|--max-decodes: must be in \[1, 100\], not 0" \
+           "--retry-interval nan|--retry-interval: 'nan' is not a number" \
+           "--recheck-interval -5|--recheck-interval: must be > 0, not -5"; do
+  rc=0; "$BIN/ld-qr-reader" ${bad%%|*} 2>"$T/err" || rc=$?
+  [ $rc -eq 2 ] && [ "$(wc -l <"$T/err")" -eq 1 ] && grep -q "^ld-qr-reader: ${bad#*|}" "$T/err" ||
+    { echo "FAIL: ld-qr-reader ${bad%%|*}: exit $rc: $(cat "$T/err")"; exit 1; }
+done
 payload=$(printf 'stacked-frames-%085d' 7)
 "$BIN/ld-synth" scene --out "$T/sc" --count 10 --seed 5 --size 0.15 --distance 1.0 --yaw 5 --roll 10 \
   --x=-0.002:0.002 --y=-0.002:0.002 --payload "$payload" --lighting normal --background plain \

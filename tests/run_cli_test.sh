@@ -50,6 +50,9 @@ refused "--speed: must be > 0, not 0" --replay "$T/in.lcmlog" --speed 0
 refused "--fps: must be > 0, not 0" --play "$T/in.lcmlog" --fps 0
 refused "--fps: 'nan' is not a number" --play "$T/in.lcmlog" --fps nan
 refused "--duration: must be >= 0, not -2" --play "$T/in.lcmlog" --duration -2
+refused "--stop-grace: must be >= 0, not -1" --replay "$T/in.lcmlog" --stop-grace -1
+refused "--wait-ready: must be >= 0, not -1" --replay "$T/in.lcmlog" --wait-ready -1
+refused "--drain: must be >= 0, not -1" --replay "$T/in.lcmlog" --drain -1
 
 # A source that fails on its input after starting (ld-play: a log without
 # images, exit 2) ends a run with --exit-when-replay-done (status 1) instead
@@ -61,6 +64,14 @@ timeout 20 "$BIN/ld-run" --netns --status-interval 0 --play "$T/noimg.lcmlog" --
 [ $rc -eq 1 ] || fail "a source failing with exit 2: ld-run exit $rc: $(cat "$T/out")"
 grep -q "the source play failed (exit 2; its error is above); stopping" "$T/out" || fail "source failure: $(cat "$T/out")"
 grep -q "ld-play: no IMAGE images in" "$T/out" || fail "the source's own error: $(cat "$T/out")"
+# ... and so does a worker that refuses its options (exit 2): status 1, not
+# a run that restarts it again and again and ends with status 0.
+printf '{"detector": {"args": ["--bogus-detector-opt"]}}\n' >"$T/badworker.json"
+rc=0
+timeout 30 "$BIN/ld-run" --netns --status-interval 0 --config "$T/badworker.json" --replay "$T/in.lcmlog" \
+  --exit-when-replay-done >"$T/out" 2>&1 || rc=$?
+[ $rc -eq 1 ] || fail "a worker failing with exit 2: ld-run exit $rc: $(cat "$T/out")"
+grep -q "detector failed (exit 2; its error is above); stopping" "$T/out" || fail "worker failure: $(cat "$T/out")"
 
 # What is accepted: a pixel format in any case, and missing folders of the
 # recording and the summary, which ld-run creates.

@@ -109,3 +109,30 @@ TEST(QrTrackBook, ForgetsTracksUnseenForLong) {
   EXPECT_EQ(book.payload(5), nullptr);
   EXPECT_EQ(book.size(), 1u);
 }
+
+// A tracker that restarted numbers its tracks from 1 again: an id seen
+// younger than it was is another landmark, and nothing read under the old
+// tracker's ids is kept. Ages a few frames back (reordered messages) and
+// ages going on are the same track.
+TEST(QrTrackBook, ForgetsEverythingWhenTrackIdsStartAgain) {
+  ld::QrTrackBook book;
+  EXPECT_FALSE(book.noteAges({{1, 40}, {2, 38}}));
+  book.schedule({1, 2}, 0);
+  book.record(1, 0, 40, std::string("room-101"));
+  book.record(2, 0, 40, std::string("room-102"));
+  EXPECT_FALSE(book.noteAges({{1, 41}, {2, 39}}));
+  EXPECT_FALSE(book.noteAges({{1, 39}, {2, 37}}));  // (an older frame, matched late)
+  ASSERT_NE(book.payload(1), nullptr);
+  EXPECT_EQ(book.payload(1)->payload, "room-101");
+  // the tracker restarted: track 1 is now a new landmark, 3 frames old
+  EXPECT_TRUE(book.noteAges({{1, 3}}));
+  EXPECT_EQ(book.payload(1), nullptr);
+  EXPECT_EQ(book.payload(2), nullptr);
+  EXPECT_EQ(book.size(), 1u);
+  // the new track 1 is scheduled at once, read, and kept as it grows
+  EXPECT_EQ(book.schedule({1}, 1000), std::vector<int64_t>{1});
+  book.record(1, 1000, 5, std::string("room-103"));
+  EXPECT_FALSE(book.noteAges({{1, 4}, {2, 0}}));
+  ASSERT_NE(book.payload(1), nullptr);
+  EXPECT_EQ(book.payload(1)->payload, "room-103");
+}

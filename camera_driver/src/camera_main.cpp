@@ -191,9 +191,7 @@ int main(int argc, char** argv) {
       } catch (const ld::ImageFormatError& e) {
         ok = false;
         ++bad;
-        if (bad <= 10 || bad % 100 == 0)
-          say("dropped frame: " + std::string(e.what()) + " (" + std::to_string(bad) +
-              " bad so far)");
+        if (ld::printBadLine(bad)) say("dropped frame: " + std::string(e.what()) + " " + ld::badSoFar(bad));
       }
       capture.requeue(frame);  // the message holds a copy: give the buffer back first
       if (ok) {

@@ -124,9 +124,8 @@ int main(int argc, char** argv) {
         }
       } catch (const std::exception& e) {
         ++bad;
-        if (bad <= 10 || bad % 100 == 0)
-          std::cerr << "ld-detector: dropped frame: " << e.what() << " (" << bad
-                    << " bad so far)\n";
+        if (ld::printBadLine(bad))
+          std::cerr << "ld-detector: dropped frame: " << e.what() << " " << ld::badSoFar(bad) << "\n";
       }
     }
     const auto now = std::chrono::steady_clock::now();

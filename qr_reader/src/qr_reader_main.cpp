@@ -57,9 +57,8 @@ struct Inputs {
   }
   void reportBad(const std::string& ch, const std::string& what) {
     ++bad;
-    if (bad <= 10 || bad % 100 == 0)
-      std::cerr << "ld-qr-reader: dropped message on " << ch << ": " << what << " (" << bad
-                << " bad so far)\n";
+    if (ld::printBadLine(bad))
+      std::cerr << "ld-qr-reader: dropped message on " << ch << ": " << what << " " << ld::badSoFar(bad) << "\n";
   }
   std::string why;
 };
@@ -77,11 +76,14 @@ int main(int argc, char** argv) {
   app.add_option("--tracks", tracks_ch, "tracked landmarks channel")->capture_default_str();
   app.add_option("--out", out_ch, "codes channel")->capture_default_str();
   app.add_option("--retry-interval", sched.retry_interval_s, "seconds between tries of an undecoded track")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(ld::cli::Positive);
   app.add_option("--recheck-interval", sched.recheck_interval_s, "seconds between re-reads of a decoded track")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(ld::cli::Positive);
   app.add_option("--max-decodes", sched.max_decodes_per_frame, "decode attempts per frame")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(ld::cli::Between(1, 100));
   int stack_frames = 8;
   app.add_option("--stack-frames", stack_frames,
                  "frames of an undecoded track averaged in the sheet's frame and read when single "
@@ -112,6 +114,7 @@ int main(int argc, char** argv) {
   ld::qr_code_list_t out;
   cv::Mat bgr;
   std::vector<int64_t> ids;
+  std::vector<std::pair<int64_t, int32_t>> ages;  // (track id, age) of every track of the frame
   // Undecoded tracks' frames, averaged (ld::QrStack); at most kMaxStacks.
   constexpr size_t kMaxStacks = 32;
   constexpr int kMinStackFrames = 3;
@@ -127,8 +130,18 @@ int main(int argc, char** argv) {
       continue;  // checked on arrival already
     ++frames;
     ids.clear();
-    for (const auto& lm : list.landmarks)
+    ages.clear();
+    for (const auto& lm : list.landmarks) {
       if (lm.visible && lm.track_id >= 0) ids.push_back(lm.track_id);
+      if (lm.track_id >= 0) ages.emplace_back(lm.track_id, lm.age);
+    }
+    // (a tracker that restarted numbers its tracks from 1 again: what was
+    // read under the old ids belongs to other landmarks)
+    if (book.noteAges(ages)) {
+      stacks.clear();
+      std::cerr << "ld-qr-reader: track ids started again (a track is younger than it was: the tracker "
+                   "restarted); the payloads read so far are forgotten\n";
+    }
     const std::vector<int64_t> todo = book.schedule(ids, list.utime);
     for (auto it = stacks.begin(); it != stacks.end();) {  // tracks gone or read: their stacks go
       const ld::landmark_t* listed = nullptr;  // visible or coasting

@@ -84,6 +84,22 @@ bool FrameMatcher::takeNewest(Pair& out) {
   return true;
 }
 
+bool QrTrackBook::noteAges(const std::vector<std::pair<int64_t, int32_t>>& ages) {
+  for (const auto& [id, age] : ages) {
+    const auto it = tracks_.find(id);
+    if (it != tracks_.end() && it->second.age >= 0 && age + kAgeSlack < it->second.age) {
+      tracks_.clear();
+      for (const auto& [id2, age2] : ages) tracks_[id2].age = age2;
+      return true;
+    }
+  }
+  for (const auto& [id, age] : ages) {
+    Track& t = tracks_[id];
+    t.age = std::max(t.age, age);
+  }
+  return false;
+}
+
 std::vector<int64_t> QrTrackBook::schedule(const std::vector<int64_t>& track_ids, int64_t utime) {
   const auto us = [](double s) { return static_cast<int64_t>(s * 1e6); };
   std::vector<std::pair<int64_t, int64_t>> due;  // (priority, id): lower first

@@ -109,9 +109,9 @@ int main(int argc, char** argv) {
       std::string why;
       if (!ld::decodeMessage(latest.bytes_.data(), latest.bytes_.size(), in, &why)) {
         ++bad;
-        if (bad <= 10 || bad % 100 == 0)
-          std::cerr << "ld-tracker: dropped message: message on " << in_channel << " is " << why
-                    << " (" << bad << " bad so far)\n";
+        if (ld::printBadLine(bad))
+          std::cerr << "ld-tracker: dropped message: message on " << in_channel << " is " << why << " "
+                    << ld::badSoFar(bad) << "\n";
       } else {
         const auto t0 = std::chrono::steady_clock::now();
         ld::landmarksFromList(in, detections);

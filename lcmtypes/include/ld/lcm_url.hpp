@@ -2,6 +2,7 @@
 #pragma once
 
 #include <atomic>
+#include <cstdint>
 #include <string>
 
 namespace ld {
@@ -26,5 +27,19 @@ namespace ld {
 /// is not an error. Returns false only when LCM itself failed, which is
 /// reported in one line prefixed with `program`.
 bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const char* program);
+
+/// Whether a process prints the line of its `bad`'th bad input (1, 2, ...):
+/// the first kBadLinesInFull, then every kBadLinesEvery'th, so that a flood
+/// of garbage does not flood the log; all are counted.
+constexpr int64_t kBadLinesInFull = 10, kBadLinesEvery = 100;
+inline bool printBadLine(int64_t bad) { return bad <= kBadLinesInFull || bad % kBadLinesEvery == 0; }
+/// The end of that line: "(N bad so far)", and on the last line printed in
+/// full, that only every kBadLinesEvery'th is printed from there on.
+inline std::string badSoFar(int64_t bad) {
+  return "(" + std::to_string(bad) + " bad so far" +
+         (bad == kBadLinesInFull ? "; from here on every " + std::to_string(kBadLinesEvery) +
+                                       "th is printed, all are counted)"
+                                 : ")");
+}
 
 }  // namespace ld

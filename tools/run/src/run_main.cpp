@@ -203,7 +203,8 @@ int main(int argc, char** argv) {
   app.add_flag("--exit-when-replay-done", exit_when_done,
                "end the run when the replay (or play) has finished and the set has drained");
   app.add_option("--drain", drain_s, "seconds at most to wait for the last frames after the replay")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(ld::cli::NonNegative);
   app.add_option("--record", record, "record the outputs with lcm-logger to this file");
   app.add_flag("--netns", netns,
                "run the whole set in a private network namespace (multicast on loopback only)");
@@ -211,14 +212,17 @@ int main(int argc, char** argv) {
   app.add_option("--state-file", state_file, "keep the process table (pids, restarts) in this JSON file");
   app.add_flag("--report", report, "print a readable summary on stdout at exit");
   app.add_option("--status-interval", status_interval,
-                 "seconds between status lines (default 1 on a terminal, else 5; 0: none)");
+                 "seconds between status lines (default 1 on a terminal, else 5; 0: none)")
+      ->check(ld::cli::NonNegative);
   app.add_option("--log-dir", log_dir, "write each process's output to DIR/NAME.log instead of stderr");
   app.add_flag("-q,--quiet", quiet, "do not print the processes' output");
   app.add_option("--wait-ready", wait_ready_s,
                  "seconds at most to wait for the processes to subscribe before the source starts")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(ld::cli::NonNegative);
   app.add_option("--stop-grace", grace_s, "seconds a process gets to stop before SIGKILL")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(ld::cli::NonNegative);
   LD_CLI_PARSE(app, argc, argv);
 
   // Sources a child would refuse (and be restarted for, again and again).
@@ -339,7 +343,7 @@ int main(int argc, char** argv) {
   std::signal(SIGHUP, onSignal);
   std::signal(SIGPIPE, SIG_IGN);
 
-  cfg.restart.source_usage_error_is_final = exit_when_done;
+  cfg.restart.usage_error_is_final = exit_when_done;
   ld::Supervisor sup(cfg.restart, [&](const std::string& n, const std::string& l) { console.line(n, l); });
   std::vector<size_t> early, late;  // late: the image source, started once the rest listens
   for (auto& s : specs) {
@@ -446,11 +450,13 @@ int main(int argc, char** argv) {
       console.status(monitor.statusLine(wallMicros()) + " | restarts " + std::to_string(sup.restarts()));
       next_status = now + std::chrono::milliseconds(static_cast<int64_t>(status_interval * 1000));
     }
-    // A replay that cannot be done (its source exits 2: an argument or an
-    // input a restart will not mend, such as a log without images) ends the
-    // run instead of restarting it again and again.
-    if (const ld::ProcessState* failed = sup.failedSource()) {
-      end_reason = "the source " + failed->spec.name + " failed (exit 2; its error is above)";
+    // A replay that cannot be done (a process exits 2: an argument or an
+    // input a restart will not mend, such as a log without images for the
+    // source, or an option a worker refuses) ends the run instead of
+    // restarting it again and again.
+    if (const ld::ProcessState* failed = sup.failedProcess()) {
+      end_reason = std::string(failed->spec.role == ld::ProcessRole::Source ? "the source " : "") +
+                   failed->spec.name + " failed (exit 2; its error is above)";
       exit_code = 1;
       break;
     }

@@ -221,8 +221,7 @@ void Supervisor::onExit(ProcessState& p, int status, SteadyClock::time_point now
     sink_(p.spec.name, "finished (exit 0)");
     return;
   }
-  if (p.spec.role == ProcessRole::Source && WIFEXITED(status) && WEXITSTATUS(status) == 2 &&
-      policy_.source_usage_error_is_final) {
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 2 && policy_.usage_error_is_final) {
     p.failed = true;
     sink_(p.spec.name, "failed (exit 2); not restarted");
     return;
@@ -317,9 +316,9 @@ bool Supervisor::sourcesDone() const {
   return any;
 }
 
-const ProcessState* Supervisor::failedSource() const {
+const ProcessState* Supervisor::failedProcess() const {
   for (const auto& p : procs_)
-    if (p.spec.role == ProcessRole::Source && p.failed) return &p;
+    if (p.failed) return &p;
   return nullptr;
 }
 

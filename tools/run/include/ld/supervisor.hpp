@@ -36,10 +36,10 @@ struct RestartPolicy {
   double initial_s = 0.2;
   double max_s = 5.0;
   double stable_after_s = 10.0;
-  /// A Source that exits with status 2 (a usage error: a file or option it
+  /// A process that exits with status 2 (a usage error: a file or option it
   /// refuses) is not restarted, as it would fail the same way again; ld-run
   /// sets it with --exit-when-replay-done.
-  bool source_usage_error_is_final = false;
+  bool usage_error_is_final = false;
 };
 
 /// Delay before a restart after `consecutive_failures` (>= 1) quick deaths.
@@ -103,8 +103,8 @@ class Supervisor {
   const std::vector<ProcessState>& processes() const { return procs_; }
   /// A Source exists and all sources are done.
   bool sourcesDone() const;
-  /// A Source that ended with a usage error and is not restarted, or nullptr.
-  const ProcessState* failedSource() const;
+  /// A process that ended with a usage error and is not restarted, or nullptr.
+  const ProcessState* failedProcess() const;
   /// Number of restarts so far, all processes.
   int restarts() const;
 
