@@ -1636,16 +1636,42 @@ void sheetModel(int per_unit, SheetModel& model) {
 
 namespace {
 
-// One Gauss-Newton fit of the sheet `m` to `view` (the crop's green, float):
-// view(x) ~ gain * sheet(W(x)) + offset over the crop's pixels that W takes
-// onto the known sheet, W a homography from the view's pixels to the
-// sheet's, started at `W`. Returns false when degenerate.
-bool fitSheet(const cv::Mat& view, const SheetModel& m, int iterations, int step, cv::Matx33d& W) {
+// The green channel of `bgr` (8-bit BGR) smoothed by the 3x3 Gaussian (1 2
+// 1 / 4 each way, the border replicated) at every `stride`'th pixel each
+// way, into `out` (CV_32F, ceil(rows / stride) x ceil(cols / stride)): what
+// cv::GaussianBlur of the whole would give there, without smoothing the
+// pixels never read.
+void greenSmoothedEvery(const cv::Mat& bgr, int stride, cv::Mat& out) {
+  out.create((bgr.rows + stride - 1) / stride, (bgr.cols + stride - 1) / stride, CV_32F);
+  const auto g = [&bgr](int y, int x) {
+    return static_cast<float>(bgr.ptr<uint8_t>(std::clamp(y, 0, bgr.rows - 1))[3 * std::clamp(x, 0, bgr.cols - 1) + 1]);
+  };
+  for (int yo = 0; yo < out.rows; ++yo) {
+    float* o = out.ptr<float>(yo);
+    const int y = yo * stride;
+    for (int xo = 0; xo < out.cols; ++xo) {
+      const int x = xo * stride;
+      const float up = g(y - 1, x - 1) + 2 * g(y - 1, x) + g(y - 1, x + 1);
+      const float mid = g(y, x - 1) + 2 * g(y, x) + g(y, x + 1);
+      const float down = g(y + 1, x - 1) + 2 * g(y + 1, x) + g(y + 1, x + 1);
+      o[xo] = (up + 2 * mid + down) / 16;
+    }
+  }
+}
+
+// One Gauss-Newton fit of the sheet `m` to `view` (the crop's green, float,
+// smoothed; of a crop of `crop` pixels, every `stride`'th each way):
+// view(x) ~ gain * sheet(W(x)) + offset over the view's pixels (every
+// `step`'th each way) that W takes onto the known sheet, W a homography
+// from the crop's pixels to the sheet's, started at `W`. Returns false
+// when degenerate.
+bool fitSheet(const cv::Mat& view, cv::Size crop, int stride, const SheetModel& m, int iterations, int step,
+              cv::Matx33d& W) {
   if (iterations < 1) return false;
   const int n = m.value.cols;
   const double lim = n - 1.001;
-  // the view's pixels centred and scaled (a well conditioned system)
-  const double cx = (view.cols - 1) / 2.0, cy = (view.rows - 1) / 2.0, sc = std::max(view.cols, view.rows) / 2.0;
+  // the crop's pixels centred and scaled (a well conditioned system)
+  const double cx = (crop.width - 1) / 2.0, cy = (crop.height - 1) / 2.0, sc = std::max(crop.width, crop.height) / 2.0;
   const cv::Matx33d N(1 / sc, 0, -cx / sc, 0, 1 / sc, -cy / sc, 0, 0, 1);
   cv::Matx33d G = W * N.inv();  // normalised view -> sheet px
   G *= 1.0 / G(2, 2);
@@ -1660,12 +1686,12 @@ bool fitSheet(const cv::Mat& view, const SheetModel& m, int iterations, int step
     cv::Vec<double, 10> r = cv::Vec<double, 10>::all(0);
     int used = 0;
     double sse = 0;
-    for (int y = 0; y < view.rows; y += step) {
-      const float* v = view.ptr<float>(y);
-      const double yn = (y - cy) / sc;
+    for (int yv = 0; yv < view.rows; yv += step) {
+      const float* v = view.ptr<float>(yv);
+      const double yn = (yv * stride - cy) / sc;
       for (int x = 0; x < view.cols; x += step) {
         if (!(v[x] == v[x])) continue;  // (NaN: outside the frame, through the distortion)
-        const double xn = (x - cx) / sc;
+        const double xn = (x * stride - cx) / sc;
         const double Z = G(2, 0) * xn + G(2, 1) * yn + G(2, 2);
         if (!(Z > 1e-9)) continue;
         const double u = (G(0, 0) * xn + G(0, 1) * yn + G(0, 2)) / Z, w = (G(1, 0) * xn + G(1, 1) * yn + G(1, 2)) / Z;
@@ -1777,10 +1803,13 @@ bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetMo
   // one: a homography maps the sheet to the undistorted image only).
   cv::Rect box = cv::boundingRect(cv::Mat(4, 1, CV_32FC2, outline.data())) + cv::Size(6, 6) - cv::Point(3, 3);
   const cv::Rect frame(0, 0, bgr.cols, bgr.rows);
+  // (a near sheet is read on every stride'th pixel each way: its view holds
+  // those alone, each smoothed as the whole crop would be)
+  const int stride = near ? std::max(2, static_cast<int>(longest / kAlignNearSamples)) : 1;
   if (!distorting) {
     box &= frame;
     if (box.width < 4 || box.height < 4) return false;
-    cv::extractChannel(bgr(box), scratch.green, 1);
+    if (stride == 1) cv::extractChannel(bgr(box), scratch.green, 1);
   } else {
     // where each of the box's pixels lies in the frame
     const cv::Matx33d Ki = distorting->K.inv();
@@ -1796,8 +1825,12 @@ bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetMo
     cv::remap(bgr, scratch.undistorted, map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
     cv::extractChannel(scratch.undistorted, scratch.green, 1);
   }
-  scratch.green.convertTo(scratch.view, CV_32F);
-  cv::GaussianBlur(scratch.view, scratch.view, {3, 3}, 0, 0, cv::BORDER_REPLICATE);
+  if (stride > 1 && !distorting) {
+    greenSmoothedEvery(bgr(box), stride, scratch.view);
+  } else {
+    scratch.green.convertTo(scratch.view, CV_32F);
+    cv::GaussianBlur(scratch.view, scratch.view, {3, 3}, 0, 0, cv::BORDER_REPLICATE);
+  }
   if (distorting) {
     // the box's pixels the distortion takes out of the frame: not seen (NaN,
     // which the fit skips)
@@ -1806,6 +1839,13 @@ bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetMo
       if (!inside.contains(scratch.at[i]))
         scratch.view.at<float>(static_cast<int>(i) / box.width, static_cast<int>(i) % box.width) =
             std::numeric_limits<float>::quiet_NaN();
+    if (stride > 1) {  // (every stride'th pixel of the whole crop's view)
+      scratch.strided.create((box.height + stride - 1) / stride, (box.width + stride - 1) / stride, CV_32F);
+      for (int y = 0; y < scratch.strided.rows; ++y)
+        for (int x = 0; x < scratch.strided.cols; ++x)
+          scratch.strided.at<float>(y, x) = scratch.view.at<float>(y * stride, x * stride);
+      std::swap(scratch.view, scratch.strided);
+    }
   }
   // image px -> view px, sheet px -> sheet u
   const cv::Matx33d to_view(1, 0, -box.x, 0, 1, -box.y, 0, 0, 1);
@@ -1815,11 +1855,11 @@ bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetMo
   cv::Matx33d W = (to_view * H * sheet_px_to_u).inv();
   if (!(std::abs(W(2, 2)) > 1e-12)) return false;
   W *= 1.0 / W(2, 2);
-  // (a sheet over kAlignDenseSide px fitted on every other pixel each way:
-  // plenty of them, a quarter of the time; a near one on 60-120 each way)
-  const int step = near ? std::max(2, static_cast<int>(longest / kAlignNearSamples))
-                        : longest > kAlignDenseSide ? 2 : 1;
-  if (!fitSheet(scratch.view, model, iterations, step, W)) return false;
+  // (a far sheet over kAlignDenseSide px fitted on every other pixel each
+  // way: plenty of them, a quarter of the time; a near one on its view's
+  // every pixel, 60-120 each way)
+  const int step = !near && longest > kAlignDenseSide ? 2 : 1;
+  if (!fitSheet(scratch.view, box.size(), stride, model, iterations, step, W)) return false;
   const cv::Matx33d Hn = to_view.inv() * W.inv() * sheet_px_to_u.inv();
   std::array<cv::Point2d, 4> aligned;
   for (int i = 0; i < 4; ++i) {
