@@ -35,4 +35,10 @@ done
 [ "$(wc -l <"$T/tracks8")" -eq 1 ] || { echo "FAIL: not one track"; exit 1; }
 [ "$(cut -d' ' -f2 "$T/tracks8")" = "$payload" ] || { echo "FAIL: stacked frames did not give the payload"; exit 1; }
 [ "$(cut -d' ' -f2 "$T/tracks0")" = null ] || { echo "FAIL: a payload without stacking"; exit 1; }
+# Fed the detector's lists (no track ids) it says so, once.
+printf 'tracker: {enabled: false}\nchannels: {tracked: LANDMARKS}\n' >"$T/cfgdet.yaml"
+timeout 60 "$BIN/ld-run" --config "$T/cfgdet.yaml" --netns --replay "$T/sc.lcmlog" \
+  --exit-when-replay-done --log-dir "$T/logdet" --status-interval 0 -q
+[ "$(grep -c "the landmarks on LANDMARKS carry no track ids (from backend 'cpu'): --tracks must name the tracker's output" \
+    "$T/logdet/qr-reader.log")" -eq 1 ] || { echo "FAIL: no word on untracked lists: $(cat "$T/logdet/qr-reader.log")"; exit 1; }
 echo "ok"

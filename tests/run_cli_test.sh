@@ -64,6 +64,14 @@ timeout 20 "$BIN/ld-run" --netns --status-interval 0 --play "$T/noimg.lcmlog" --
 [ $rc -eq 1 ] || fail "a source failing with exit 2: ld-run exit $rc: $(cat "$T/out")"
 grep -q "the source play failed (exit 2; its error is above); stopping" "$T/out" || fail "source failure: $(cat "$T/out")"
 grep -q "ld-play: no IMAGE images in" "$T/out" || fail "the source's own error: $(cat "$T/out")"
+# A replay whose log has its images on another channel feeds the set
+# nothing: it ends with status 1 and says so (it ended with status 0).
+rc=0
+timeout 30 "$BIN/ld-run" --netns --status-interval 0 --replay "$T/noimg.lcmlog" --exit-when-replay-done \
+  >"$T/out" 2>&1 || rc=$?
+[ $rc -eq 1 ] || fail "a replay without images: ld-run exit $rc: $(cat "$T/out")"
+grep -q "replay done, but no image came on IMAGE (are the log's images on another channel?" "$T/out" ||
+  fail "a replay without images: $(cat "$T/out")"
 # ... and so does a worker that refuses its options (exit 2): status 1, not
 # a run that restarts it again and again and ends with status 0.
 printf '{"detector": {"args": ["--bogus-detector-opt"]}}\n' >"$T/badworker.json"

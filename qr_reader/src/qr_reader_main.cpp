@@ -1,6 +1,7 @@
 // ld-qr-reader: joins IMAGE and LANDMARKS_TRACKED by frame, decodes each
 // track's QR code (once, then re-checked rarely; undecoded tracks retried at
 // a bounded rate) and publishes the known payloads on LANDMARK_CODES.
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -115,6 +116,7 @@ int main(int argc, char** argv) {
   cv::Mat bgr;
   std::vector<int64_t> ids;
   std::vector<std::pair<int64_t, int32_t>> ages;  // (track id, age) of every track of the frame
+  bool untracked_said = false;                     // said that the lists carry no track ids
   // Undecoded tracks' frames, averaged (ld::QrStack); at most kMaxStacks.
   constexpr size_t kMaxStacks = 32;
   constexpr int kMinStackFrames = 3;
@@ -129,6 +131,14 @@ int main(int argc, char** argv) {
     if (image.decode(pair.image.data(), 0, ni) != ni || list.decode(pair.list.data(), 0, nl) != nl)
       continue;  // checked on arrival already
     ++frames;
+    // (landmarks without track ids: the detector's lists, not the tracker's)
+    if (!untracked_said && list.nlandmarks > 0 &&
+        std::all_of(list.landmarks.begin(), list.landmarks.end(), [](const auto& lm) { return lm.track_id < 0; })) {
+      std::cerr << "ld-qr-reader: the landmarks on " << tracks_ch << " carry no track ids (from backend '"
+                << list.backend << "'): --tracks must name the tracker's output (LANDMARKS_TRACKED); nothing is "
+                << "read until then\n";
+      untracked_said = true;
+    }
     ids.clear();
     ages.clear();
     for (const auto& lm : list.landmarks) {

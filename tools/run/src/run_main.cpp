@@ -473,6 +473,13 @@ int main(int argc, char** argv) {
       if (now - last_tracked_change > std::chrono::milliseconds(500) ||
           seconds(now - done_at) > drain_s) {
         end_reason = "replay done";
+        // (a log whose images are on another channel replays "fine" and
+        // feeds the set nothing)
+        if (monitor.imageFrames() == 0) {
+          end_reason += ", but no image came on " + cfg.channels.image +
+                        " (are the log's images on another channel? the config's channels.image names it)";
+          exit_code = 1;
+        }
         break;
       }
     }

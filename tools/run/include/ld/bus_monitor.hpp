@@ -72,6 +72,7 @@ class BusMonitor {
   nlohmann::ordered_json summary() const;
 
   int64_t trackedFrames() const { return tracked_frames_; }
+  int64_t imageFrames() const { return images_.total; }
   /// LCM_SELF_TEST messages seen (each process sends one, repeated every
   /// 100 ms until its own copy comes back) and when the last came.
   int64_t selfTests() const { return self_tests_; }
