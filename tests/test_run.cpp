@@ -312,6 +312,12 @@ TEST(RunConfig, RejectsUnknownKeysAndBadValues) {
                std::runtime_error);
   EXPECT_THROW(ld::RunConfig::fromJson(nlohmann::json::parse(R"({"restart": {"initial_s": 0}})")),
                std::runtime_error);
+  try {
+    ld::RunConfig::fromJson(nlohmann::json::parse(R"({"channels": {"image": ""}})"));
+    ADD_FAILURE() << "an empty channel name: no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_EQ(std::string(e.what()), "channels.image: a channel name, not \"\"");
+  }
   const auto cfg = ld::RunConfig::fromJson(nlohmann::json::parse(R"({"source": {"type": "replay"}})"));
   EXPECT_THROW(ld::buildProcessSpecs(cfg, "udpm://", ""), std::runtime_error);  // no log
 }

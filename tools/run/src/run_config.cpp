@@ -167,6 +167,11 @@ RunConfig RunConfig::fromTree(const Json& j, bool yaml) {
     get(ch, "landmarks", "channels", c.channels.landmarks);
     get(ch, "tracked", "channels", c.channels.tracked);
     get(ch, "codes", "channels", c.channels.codes);
+    for (const auto& [key, name] : {std::pair<const char*, const std::string*>{"image", &c.channels.image},
+                                    {"landmarks", &c.channels.landmarks},
+                                    {"tracked", &c.channels.tracked},
+                                    {"codes", &c.channels.codes}})
+      if (name->empty()) throw std::runtime_error(std::string("channels.") + key + ": a channel name, not \"\"");
   }
   if (j.contains("source")) {
     const Json& s = j["source"];
