@@ -1,6 +1,7 @@
 #include "ld/lcm_url.hpp"
 
 #include <cerrno>
+#include <chrono>
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
@@ -20,7 +21,11 @@ bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const
     std::cerr << program << ": LCM receive failed: " << std::strerror(errno) << "\n";
     return false;
   }
-  while (!stop && lcm.handleTimeout(0) > 0) {
+  // (at most kMaxDrainMs of it: under a flood, or starved of CPU, the queue
+  // may never be empty when looked at, and the caller would never get to
+  // process the newest it has)
+  const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(kMaxDrainMs);
+  while (!stop && std::chrono::steady_clock::now() < until && lcm.handleTimeout(0) > 0) {
   }
   return true;
 }

@@ -22,10 +22,11 @@ class LCM;
 namespace ld {
 
 /// One turn of a process's receive loop: waits up to timeout_ms for messages
-/// on `lcm`, then handles every message already queued, so that the caller
-/// sees only the newest. A signal interrupting the wait (and setting `stop`)
-/// is not an error. Returns false only when LCM itself failed, which is
-/// reported in one line prefixed with `program`.
+/// on `lcm`, then handles every message already queued (for kMaxDrainMs at
+/// most), so that the caller sees only the newest. A signal interrupting
+/// the wait (and setting `stop`) is not an error. Returns false only when
+/// LCM itself failed, which is reported in one line prefixed with `program`.
+constexpr int kMaxDrainMs = 50;
 bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const char* program);
 
 /// Whether a process prints the line of its `bad`'th bad input (1, 2, ...):
