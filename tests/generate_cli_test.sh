@@ -77,6 +77,14 @@ if "$BIN/ld-generate" -p "$big" --svg "$T/e.svg" >"$T/out" 2>"$T/err"; then fail
 grep -q '^QR "b\{32\}... (500 bytes)": version 15' "$T/out" || fail "500 bytes: $(cat "$T/out")"
 grep -q "needs QR version 15 (77 modules, more than the 37 of version 5" "$T/err" || fail "500 bytes, note: $(cat "$T/err")"
 
+# A PNG whose QR modules are under 3 px (too few for a reader): written, with
+# a warning saying which --dpi would do; none at the default 300 dpi.
+"$BIN/ld-generate" -p a --dpi 10 --png "$T/d10.png" >"$T/out" 2>"$T/err" || fail "--dpi 10: exit $?"
+[ -s "$T/d10.png" ] && grep -q "warning: $T/d10.png: a QR module is 1.1 px at 10 dpi, too few to read (3 or more): raise --dpi to 27 or more" "$T/err" ||
+  fail "--dpi 10: $(cat "$T/err")"
+"$BIN/ld-generate" -p a --png "$T/d300.png" >"$T/out" 2>"$T/err" || fail "--dpi 300: exit $?"
+[ ! -s "$T/err" ] || fail "--dpi 300 warned: $(cat "$T/err")"
+
 # Page names: a folder with a dot in its name, a file name without an extension.
 mkdir -p "$T/out.d"
 "$BIN/ld-generate" --sheet --size 0.15 -p a -p b --svg "$T/out.d/sheet" >/dev/null

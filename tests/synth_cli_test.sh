@@ -56,4 +56,12 @@ refused "--yaw must lie within -89.9:89.9 (--help lists the options)" scene --ou
 refused "--quality: must be in \[1, 100\], not 500" sequence --out "$T/x" --quality 500
 refused "--count must be at least 1" scene --out "$T/x" --count 0
 refused "--lighting must be" scene --out "$T/x" --lighting sunset
+refused "--jpeg must lie within 0:100" scene --out "$T/x" --jpeg 150
+refused "--jpeg: a whole quality 0..100, not '1.5'" scene --out "$T/x" --jpeg 1.5
+refused "--defocus must lie within 0:50" scene --out "$T/x" --defocus -1
+refused "--motion must lie within 0:200" scene --out "$T/x" --motion 1e6
+refused "--noise must lie within 0:100" scene --out "$T/x" --noise -3
+refused "--resolution: 7x5 is out of 16x16 .. 16384x16384" scene --out "$T/x" --resolution 7x5
+refused "--fps: must be > 0, not 0 (--help lists the options)" sequence --out "$T/x" --fps 0
+refused "--frames: must be in \[1, 100000\], not 0" sequence --out "$T/x" --frames 0
 echo "ld-synth command line: ok"

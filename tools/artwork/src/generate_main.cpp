@@ -1,9 +1,11 @@
 // ld-generate: printable landmarks (PNG at a DPI, SVG at exact physical size)
 // and sheets of several landmarks.
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <sstream>
 
 #include <CLI/CLI.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -13,6 +15,9 @@
 #include "ld/artwork.hpp"
 
 namespace {
+
+// Pixels a QR module should have in the PNG for readers to find it.
+constexpr double kMinModulePx = 3.0;
 
 bool writeText(const std::string& path, const std::string& text) {
   std::ofstream f(path, std::ios::binary);
@@ -120,6 +125,20 @@ int main(int argc, char** argv) {
           return 2;
         }
         std::cout << "wrote " << path << " (" << img.cols << "x" << img.rows << " px at " << dpi << " dpi)\n";
+        // (a QR whose modules are a pixel or two in the PNG is lost to the
+        // pixel grid: no reader reads it off the PNG, nor off its print)
+        double smallest = 1e9;
+        for (const auto& payload : on_page)
+          smallest = std::min(smallest, ld::artwork::qrPlacement(ld::artwork::encodeQr(payload, ecc)).module_u *
+                                            side_mm / 25.4 * dpi / 9);
+        if (smallest < kMinModulePx) {
+          std::ostringstream w;
+          w.precision(2);
+          w << "ld-generate: warning: " << path << ": a QR module is " << smallest << " px at " << dpi
+            << " dpi, too few to read (" << kMinModulePx << " or more): raise --dpi to "
+            << static_cast<int>(std::ceil(dpi * kMinModulePx / smallest)) << " or more, or print the SVG\n";
+          std::cerr << w.str();
+        }
       }
     }
     // Files an earlier run left beside these (more numbered pages, or the

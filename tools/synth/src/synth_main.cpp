@@ -78,8 +78,9 @@ ld::CameraModel makeCamera(const std::string& file, const std::string& resolutio
   std::optional<cv::Size> size;
   if (!resolution.empty()) {
     const auto wh = ld::cli::parseSize(resolution);
-    if (!wh || wh->first < 16 || wh->second < 16 || wh->first > 16384 || wh->second > 16384)
-      throw UsageError("--resolution: '" + resolution + "' is not WIDTHxHEIGHT");
+    if (!wh) throw UsageError("--resolution: '" + resolution + "' is not WIDTHxHEIGHT");
+    if (wh->first < 16 || wh->second < 16 || wh->first > 16384 || wh->second > 16384)
+      throw UsageError("--resolution: " + resolution + " is out of 16x16 .. 16384x16384");
     size = cv::Size(static_cast<int>(wh->first), static_cast<int>(wh->second));
   }
   ld::CameraModel cam;
@@ -171,13 +172,25 @@ void applyDegradation(const SceneArgs& a, SceneSpec& spec, Random& r) {
   } else if (a.degrade != "mild") {
     throw UsageError("--degrade must be none, mild or strong, not '" + a.degrade + "'");
   }
-  if (!a.defocus.empty()) d.defocus_sigma_px = parseRange("defocus", a.defocus).draw(r);
+  // (each checked against its range: a JPEG quality of 150, a negative
+  // blur, or a blur of a million pixels are not a degradation)
+  const auto within = [](const char* name, const std::string& text, double lo, double hi) {
+    const Range range = parseRange(name, text);
+    requireWithin(name, range, lo, hi);
+    return range;
+  };
+  if (!a.defocus.empty()) d.defocus_sigma_px = within("defocus", a.defocus, 0, 50).draw(r);
   if (!a.motion.empty()) {
-    d.motion_px = parseRange("motion", a.motion).draw(r);
+    d.motion_px = within("motion", a.motion, 0, 200).draw(r);
     d.motion_angle_deg = r.uni(0, 180);
   }
-  if (!a.noise.empty()) d.noise_sigma = parseRange("noise", a.noise).draw(r);
-  if (!a.jpeg.empty()) d.jpeg_quality = static_cast<int>(std::lround(parseRange("jpeg", a.jpeg).draw(r)));
+  if (!a.noise.empty()) d.noise_sigma = within("noise", a.noise, 0, 100).draw(r);
+  if (!a.jpeg.empty()) {
+    const Range q = within("jpeg", a.jpeg, 0, 100);
+    if (q.lo != std::floor(q.lo) || q.hi != std::floor(q.hi))
+      throw UsageError("--jpeg: a whole quality 0..100, not '" + a.jpeg + "'");
+    d.jpeg_quality = static_cast<int>(std::lround(q.draw(r)));
+  }
 }
 
 int runScene(const SceneArgs& a) {
@@ -326,8 +339,10 @@ int main(int argc, char** argv) {
   std::string q_camera, q_resolution;
   auto* sequence = app.add_subcommand("sequence", "a camera driving past a wall with landmarks: frames, truth.jsonl, LCM log");
   sequence->add_option("--out,-o", qo.out_dir, "output folder for frames and truth.jsonl");
-  sequence->add_option("--frames,-n", qo.frames, "number of frames")->capture_default_str();
-  sequence->add_option("--fps", qo.fps, "frame rate of the timestamps")->capture_default_str();
+  sequence->add_option("--frames,-n", qo.frames, "number of frames")
+      ->capture_default_str()
+      ->check(ld::cli::Between(1, 100000));
+  sequence->add_option("--fps", qo.fps, "frame rate of the timestamps")->capture_default_str()->check(ld::cli::Positive);
   sequence->add_option("--log", qo.log_path, "LCM log of ld.image_t to write");
   sequence->add_option("--channel", qo.channel, "channel in the log")->capture_default_str();
   sequence->add_option("--format", qo.pixel_format, "pixel format in the log: bgr, rgb, gray, yuyv, uyvy, mjpeg")->capture_default_str();
