@@ -1801,6 +1801,12 @@ bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetMo
   // The landmark's crop: the sheet's bounding box and 3 px around it, in the
   // undistorted image's pixels (through the lens's distortion when there is
   // one: a homography maps the sheet to the undistorted image only).
+  // (an outline far off the frame, as a distortion model that does not
+  // invert there puts it, is no sheet to align; its box's arithmetic would
+  // overflow: found by tests/fuzz/fuzz_camera)
+  const float reach = 2.0f * static_cast<float>(std::max(bgr.cols, bgr.rows));
+  for (const auto& p : outline)
+    if (!(std::abs(p.x) <= reach && std::abs(p.y) <= reach)) return false;
   cv::Rect box = cv::boundingRect(cv::Mat(4, 1, CV_32FC2, outline.data())) + cv::Size(6, 6) - cv::Point(3, 3);
   const cv::Rect frame(0, 0, bgr.cols, bgr.rows);
   // (a near sheet is read on every stride'th pixel each way: its view holds
