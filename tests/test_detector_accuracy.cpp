@@ -488,6 +488,41 @@ void print(const PoseErrors& e, const char* name) {
               quantile(e.rotation_deg, 0.9), 100 * quantile(e.distance_frac, 0.5), 100 * quantile(e.distance_frac, 0.9));
 }
 
+// The default detector (it aligns the sheet when it computes a pose)
+// against one with align_iterations 0, both with the camera, on `frames`
+// random views of a 15 cm landmark at `distance` (yaw within +-40 degrees,
+// pitch within +-10, any roll, within `spread` of the image's middle;
+// scenes `scene_seed` on): each one's errors over the frames where it found
+// the landmark. With `every_frame` both must find it in every frame;
+// otherwise both in the same frames.
+void alignedAgainstCentroids(double distance, double spread, int frames, uint64_t rng_seed, uint64_t scene_seed,
+                             bool every_frame, PoseErrors& without, PoseErrors& with) {
+  ld::DetectorParams centroids;
+  centroids.align_iterations = 0;
+  ld::Detector plain(centroids), align;
+  plain.setCamera(kCam, 0.15);
+  align.setCamera(kCam, 0.15);
+  std::mt19937_64 rng(rng_seed);
+  std::uniform_real_distribution<double> U(0, 1);
+  for (int k = 0; k < frames; ++k) {
+    const auto lm = ld::synth::placeLandmark(kCam, distance, -40 + 80 * U(rng), -10 + 20 * U(rng), 360 * U(rng),
+                                             spread * (U(rng) - 0.5), spread * (U(rng) - 0.5), 0.15);
+    const auto frame =
+        ld::synth::render(ld::synth::randomConditions(kCam, {lm}, scene_seed + static_cast<uint64_t>(k)));
+    const ld::Landmark* a = match(plain.detect(frame.bgr), frame.truth[0]);
+    if (every_frame) {
+      ASSERT_NE(a, nullptr) << k;
+    }
+    if (a) without.add(a->corners, a->pose, frame.truth[0]);
+    const ld::Landmark* b = match(align.detect(frame.bgr), frame.truth[0]);
+    if (every_frame) {
+      ASSERT_NE(b, nullptr) << k;
+    }
+    ASSERT_EQ(b != nullptr, a != nullptr) << k;  // (the two differ in their corners alone)
+    if (b) with.add(b->corners, b->pose, frame.truth[0]);
+  }
+}
+
 }  // namespace
 
 // Sheet alignment (DetectorParams::align_iterations) on far landmarks, 15 cm
@@ -497,25 +532,8 @@ void print(const PoseErrors& e, const char* name) {
 // wrong one of the two mirror poses). The aligned detector is the default
 // one: it aligns because it computes a pose (align_iterations -1, auto).
 TEST(Pose, SheetAlignmentSharpensFarLandmarks) {
-  ld::DetectorParams centroids;
-  centroids.align_iterations = 0;
-  ld::Detector plain(centroids), align;  // (align: the default, which aligns when it computes a pose)
-  plain.setCamera(kCam, 0.15);
-  align.setCamera(kCam, 0.15);
   PoseErrors without, with;
-  std::mt19937_64 rng(41);
-  std::uniform_real_distribution<double> U(0, 1);
-  for (int k = 0; k < 40; ++k) {
-    const auto lm = ld::synth::placeLandmark(kCam, 2.5, -40 + 80 * U(rng), -10 + 20 * U(rng), 360 * U(rng),
-                                             U(rng) - 0.5, U(rng) - 0.5, 0.15);
-    const auto frame = ld::synth::render(ld::synth::randomConditions(kCam, {lm}, 500 + static_cast<uint64_t>(k)));
-    const ld::Landmark* a = match(plain.detect(frame.bgr), frame.truth[0]);
-    ASSERT_NE(a, nullptr) << k;
-    without.add(a->corners, a->pose, frame.truth[0]);
-    const ld::Landmark* b = match(align.detect(frame.bgr), frame.truth[0]);
-    ASSERT_NE(b, nullptr) << k;
-    with.add(b->corners, b->pose, frame.truth[0]);
-  }
+  ASSERT_NO_FATAL_FAILURE(alignedAgainstCentroids(2.5, 1.0, 40, 41, 500, true, without, with));
   print(without, "15 cm at 2.5 m, centroids");
   print(with, "15 cm at 2.5 m, sheet alignment");
   ASSERT_EQ(with.rotation_deg.size(), without.rotation_deg.size());
@@ -529,26 +547,8 @@ TEST(Pose, SheetAlignmentSharpensFarLandmarks) {
 // a finer model on every third pixel): the centroids, from many pixels,
 // place the corners about as well, but the rotation still gains.
 TEST(Pose, SheetAlignmentSteadiesNearLandmarks) {
-  ld::DetectorParams centroids;
-  centroids.align_iterations = 0;
-  ld::Detector plain(centroids), align;
-  plain.setCamera(kCam, 0.15);
-  align.setCamera(kCam, 0.15);
   PoseErrors without, with;
-  std::mt19937_64 rng(45);
-  std::uniform_real_distribution<double> U(0, 1);
-  for (int k = 0; k < 30; ++k) {
-    const auto lm = ld::synth::placeLandmark(kCam, 0.5, -40 + 80 * U(rng), -10 + 20 * U(rng), 360 * U(rng),
-                                             0.5 * (U(rng) - 0.5), 0.5 * (U(rng) - 0.5), 0.15);
-    const auto frame = ld::synth::render(ld::synth::randomConditions(kCam, {lm}, 800 + static_cast<uint64_t>(k)));
-    // (the two detectors differ in their corners alone: they find the same landmarks)
-    const ld::Landmark* a = match(plain.detect(frame.bgr), frame.truth[0]);
-    const bool found = a != nullptr;
-    if (a) without.add(a->corners, a->pose, frame.truth[0]);
-    const ld::Landmark* b = match(align.detect(frame.bgr), frame.truth[0]);
-    ASSERT_EQ(b != nullptr, found) << k;
-    if (b) with.add(b->corners, b->pose, frame.truth[0]);
-  }
+  ASSERT_NO_FATAL_FAILURE(alignedAgainstCentroids(0.5, 0.5, 30, 45, 800, false, without, with));
   ASSERT_GE(with.corner_px.size(), 25u);
   print(without, "15 cm at 0.5 m, centroids");
   print(with, "15 cm at 0.5 m, sheet alignment");

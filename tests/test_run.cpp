@@ -108,40 +108,30 @@ TEST(Supervisor, SourceThatFinishesIsDoneNotRestarted) {
 // policy says so (ld-run --exit-when-replay-done); otherwise it is restarted
 // as any death.
 TEST(Supervisor, UsageErrorIsFinalWhenThePolicySaysSo) {
-  for (const bool final_error : {true, false}) {
-    Lines lines;
-    ld::RestartPolicy policy{0.05, 0.1, 10};
-    policy.usage_error_is_final = final_error;
-    ld::Supervisor sup(policy, lines.sink());
-    const size_t i = sup.add({"play", {"sh", "-c", "echo bad file >&2; exit 2"}, ld::ProcessRole::Source});
-    ASSERT_TRUE(sup.start(i));
-    pollUntil(sup, [] { return false; }, 400ms);
-    if (final_error) {
-      ASSERT_NE(sup.failedProcess(), nullptr);
-      EXPECT_EQ(sup.failedProcess()->spec.name, "play");
-      EXPECT_EQ(sup.processes()[i].starts, 1);
-      EXPECT_TRUE(lines.has("play", "failed (exit 2); not restarted"));
-    } else {
-      EXPECT_EQ(sup.failedProcess(), nullptr);
-      EXPECT_GE(sup.processes()[i].starts, 2);
-      EXPECT_TRUE(lines.has("play", "died (exit 2); restarting"));
+  // (a source's refused file; a worker's refused option, as the detector's)
+  for (const auto& [name, role] :
+       {std::pair{"play", ld::ProcessRole::Source}, {"detector", ld::ProcessRole::Worker}})
+    for (const bool final_error : {true, false}) {
+      Lines lines;
+      ld::RestartPolicy policy{0.05, 0.1, 10};
+      policy.usage_error_is_final = final_error;
+      ld::Supervisor sup(policy, lines.sink());
+      const size_t i = sup.add({name, {"sh", "-c", "echo refused >&2; exit 2"}, role});
+      ASSERT_TRUE(sup.start(i));
+      pollUntil(sup, [] { return false; }, 400ms);
+      if (final_error) {
+        ASSERT_NE(sup.failedProcess(), nullptr) << name;
+        EXPECT_EQ(sup.failedProcess()->spec.name, name);
+        EXPECT_EQ(sup.processes()[i].starts, 1) << name;
+        EXPECT_TRUE(lines.has(name, "failed (exit 2); not restarted")) << name;
+      } else {
+        EXPECT_EQ(sup.failedProcess(), nullptr) << name;
+        EXPECT_GE(sup.processes()[i].starts, 2) << name;
+        EXPECT_TRUE(lines.has(name, "died (exit 2); restarting")) << name;
+      }
+      EXPECT_FALSE(sup.sourcesDone()) << name;
+      sup.stopAll(0.5);
     }
-    EXPECT_FALSE(sup.sourcesDone());
-    sup.stopAll(0.5);
-  }
-  // a worker's too (an option the detector refuses: a restart would not mend it)
-  Lines lines;
-  ld::RestartPolicy policy{0.05, 0.1, 10};
-  policy.usage_error_is_final = true;
-  ld::Supervisor sup(policy, lines.sink());
-  const size_t i = sup.add({"detector", {"sh", "-c", "echo bad option >&2; exit 2"}, ld::ProcessRole::Worker});
-  ASSERT_TRUE(sup.start(i));
-  pollUntil(sup, [] { return false; }, 400ms);
-  ASSERT_NE(sup.failedProcess(), nullptr);
-  EXPECT_EQ(sup.failedProcess()->spec.name, "detector");
-  EXPECT_EQ(sup.processes()[i].starts, 1);
-  EXPECT_TRUE(lines.has("detector", "failed (exit 2); not restarted"));
-  sup.stopAll(0.5);
 }
 
 TEST(Supervisor, MissingProgramIsReportedAndRetried) {

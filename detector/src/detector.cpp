@@ -451,6 +451,9 @@ struct Detector::Impl {
   std::optional<CameraModel> camera;  // as given
   CameraModel scaled;                 // for the current frame size
   double side_m = 0;
+  // why frames of misfit_size get no pose (CameraModel::misfit), made once a size
+  std::string misfit;
+  cv::Size misfit_size;
 
   // Buffers kept between frames.
   cv::Mat converted, labels, edges;
@@ -1420,7 +1423,10 @@ void Detector::Impl::run(const cv::Mat& input) {
   // 8. CORNERS (through the undistorted image when the camera distorts: the
   // sheet maps to it by a homography)
   const bool pose = camera && side_m > 0 && camera->fits(img->size());
-  if (camera && !pose) det.pose_error = camera->misfit(img->size());
+  if (camera && !pose) {
+    if (misfit_size != img->size()) misfit = camera->misfit(img->size()), misfit_size = img->size();
+    det.pose_error = misfit;  // (into the detection's own buffer: no allocation a frame)
+  }
   if (pose && scaled.size != img->size()) scaled = camera->scaledTo(img->size());
   const bool distorted = pose && scaled.hasDistortion();
   const int align = p.align_iterations >= 0 ? p.align_iterations : pose ? DetectorParams::kAutoAlignIterations : 0;
@@ -1482,6 +1488,7 @@ void Detector::setCamera(const CameraModel& camera, double side_m) {
   impl_->camera = camera;
   impl_->scaled = camera;
   impl_->side_m = side_m;
+  impl_->misfit_size = {};
 }
 
 const Detection& Detector::detect(const cv::Mat& bgr) {

@@ -1602,8 +1602,9 @@ namespace {
 // ones, to kAlignNearMaxSide px (15 cm from about 0.2 m), are fitted to the
 // finer near model, when there is one, on every (longest /
 // kAlignNearSamples)'th pixel each way (at least every other one: 60-120
-// pixels each way): the fit's time goes with the pixels it reads. The fit halves a step that made its error larger and
-// stops at one that lowered it by less than kAlignMinGain. An alignment
+// pixels each way): the fit's time goes with the pixels it reads. The fit
+// halves a step that made its error larger and stops at one that lowered
+// it by less than kAlignMinGain. An alignment
 // that moves a centre by more than kAlignMaxShift of its square's smaller
 // projected side is not taken (a fit that slid, as along the thin squares
 // of a steeply seen sheet).
@@ -1815,7 +1816,6 @@ bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetMo
   if (!distorting) {
     box &= frame;
     if (box.width < 4 || box.height < 4) return false;
-    if (stride == 1) cv::extractChannel(bgr(box), scratch.green, 1);
   } else {
     // where each of the box's pixels lies in the frame
     const cv::Matx33d Ki = distorting->K.inv();
@@ -1829,29 +1829,23 @@ bool alignSheet(const cv::Mat& bgr, const CameraModel* distorting, const SheetMo
                       scratch.at);
     const cv::Mat map(box.height, box.width, CV_32FC2, scratch.at.data());
     cv::remap(bgr, scratch.undistorted, map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-    cv::extractChannel(scratch.undistorted, scratch.green, 1);
   }
-  if (stride > 1 && !distorting) {
-    greenSmoothedEvery(bgr(box), stride, scratch.view);
+  const cv::Mat crop = distorting ? scratch.undistorted : bgr(box);
+  if (stride > 1) {
+    greenSmoothedEvery(crop, stride, scratch.view);
   } else {
+    cv::extractChannel(crop, scratch.green, 1);
     scratch.green.convertTo(scratch.view, CV_32F);
     cv::GaussianBlur(scratch.view, scratch.view, {3, 3}, 0, 0, cv::BORDER_REPLICATE);
   }
   if (distorting) {
-    // the box's pixels the distortion takes out of the frame: not seen (NaN,
-    // which the fit skips)
+    // the view's pixels the distortion takes out of the frame: not seen
+    // (NaN, which the fit skips)
     const cv::Rect2f inside(0, 0, static_cast<float>(bgr.cols - 1), static_cast<float>(bgr.rows - 1));
-    for (size_t i = 0; i < scratch.at.size(); ++i)
-      if (!inside.contains(scratch.at[i]))
-        scratch.view.at<float>(static_cast<int>(i) / box.width, static_cast<int>(i) % box.width) =
-            std::numeric_limits<float>::quiet_NaN();
-    if (stride > 1) {  // (every stride'th pixel of the whole crop's view)
-      scratch.strided.create((box.height + stride - 1) / stride, (box.width + stride - 1) / stride, CV_32F);
-      for (int y = 0; y < scratch.strided.rows; ++y)
-        for (int x = 0; x < scratch.strided.cols; ++x)
-          scratch.strided.at<float>(y, x) = scratch.view.at<float>(y * stride, x * stride);
-      std::swap(scratch.view, scratch.strided);
-    }
+    for (int y = 0; y < scratch.view.rows; ++y)
+      for (int x = 0; x < scratch.view.cols; ++x)
+        if (!inside.contains(scratch.at[static_cast<size_t>(y * stride) * box.width + x * stride]))
+          scratch.view.at<float>(y, x) = std::numeric_limits<float>::quiet_NaN();
   }
   // image px -> view px, sheet px -> sheet u
   const cv::Matx33d to_view(1, 0, -box.x, 0, 1, -box.y, 0, 0, 1);

@@ -334,7 +334,6 @@ struct AlignScratch {
   cv::Mat green, view, undistorted;
   std::vector<cv::Point3f> rays;
   std::vector<cv::Point2f> at;
-  cv::Mat strided;
 };
 
 /// Aligns the sheet `far_model` to the green channel of `bgr` around the

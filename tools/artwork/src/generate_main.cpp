@@ -6,6 +6,7 @@
 #include <fstream>
 #include <iostream>
 #include <sstream>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -85,8 +86,10 @@ int main(int argc, char** argv) {
     const double side_mm = side_m * 1000.0;
     // What each code became (the distance it reads from: ld-eval size).
     // (each line whole before it is printed: a payload that does not fit leaves no half line)
+    std::vector<double> module_u;  // each payload's QR module, in units u (for the PNG's check below)
     for (const auto& p : payloads) {
       const ld::artwork::QrCode qr = ld::artwork::encodeQr(p, ecc);
+      module_u.push_back(ld::artwork::qrPlacement(qr).module_u);
       const std::string shown = p.size() <= 40 ? p : p.substr(0, 32) + "... (" + std::to_string(p.size()) + " bytes)";
       std::cout << "QR \"" << shown << "\": " << ld::artwork::describeQr(qr, side_mm) << "\n";
       if (qr.size > 37)
@@ -127,10 +130,9 @@ int main(int argc, char** argv) {
         std::cout << "wrote " << path << " (" << img.cols << "x" << img.rows << " px at " << dpi << " dpi)\n";
         // (a QR whose modules are a pixel or two in the PNG is lost to the
         // pixel grid: no reader reads it off the PNG, nor off its print)
-        double smallest = 1e9;
-        for (const auto& payload : on_page)
-          smallest = std::min(smallest, ld::artwork::qrPlacement(ld::artwork::encodeQr(payload, ecc)).module_u *
-                                            side_mm / 25.4 * dpi / 9);
+        const auto first = module_u.begin() + static_cast<std::ptrdiff_t>(static_cast<size_t>(k - 1) * per_page);
+        const double smallest =
+            *std::min_element(first, first + static_cast<std::ptrdiff_t>(on_page.size())) * side_mm / 25.4 * dpi / 9;
         if (smallest < kMinModulePx) {
           std::ostringstream w;
           w.precision(2);
