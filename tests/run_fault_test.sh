@@ -4,7 +4,8 @@
 # ld-qr-reader in turn is killed with SIGKILL: it must be running again (a
 # new pid, the same program) within 2 s while the other processes keep their
 # pids, and frames must be tracked again afterwards. SIGTERM to ld-run then
-# stops every process, and ld-run exits 0.
+# stops every process, and ld-run exits 0; its summary keeps the restarted
+# tracker's tracks apart from the first run's.
 set -euo pipefail
 BIN=$1
 source "$(dirname "$0")/ld_run_lib.sh"
@@ -45,6 +46,13 @@ done
 [ "$(jq -r .end "$T/summary.json")" = "stopped by SIGTERM" ]
 [ "$(jq '[.processes[] | select(.name == "detector" or .name == "tracker" or .name == "qr-reader") | .restarts] | add' "$T/summary.json")" -eq 3 ]
 [ "$(jq '[.processes[] | select(.name == "play") | .restarts] | add' "$T/summary.json")" -eq 0 ]
+# the restarted tracker numbered its tracks from 1 again: the summary tells
+# its tracks from the first run's (one restart, seen from the tracks' ages)
+echo "tracker restarts seen on the bus: $(jq .summary.tracker_restarts "$T/summary.json")," \
+  "tracks: $(jq -c '[.summary.tracks[] | "\(.id)/\(.tracker_run)"]' "$T/summary.json")"
+[ "$(jq .summary.tracker_restarts "$T/summary.json")" -eq 1 ]
+[ "$(jq '[.summary.tracks[] | select(.tracker_run == 2)] | length' "$T/summary.json")" -ge 1 ]
+[ "$(jq '[.summary.tracks[] | [.id, .tracker_run]] | length == (unique | length)' "$T/summary.json")" = true ]
 # frames kept flowing through the restarts: the last tracked frame is recent
 last=$(jq '.summary.per_frame[-1].seq' "$T/summary.json")
 images=$(jq '.summary.frames.images' "$T/summary.json")

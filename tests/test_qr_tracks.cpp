@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "ld/qr_tracks.hpp"
+#include "ld/track_restarts.hpp"
 
 namespace {
 
@@ -128,11 +129,43 @@ TEST(QrTrackBook, ForgetsEverythingWhenTrackIdsStartAgain) {
   EXPECT_TRUE(book.noteAges({{1, 3}}));
   EXPECT_EQ(book.payload(1), nullptr);
   EXPECT_EQ(book.payload(2), nullptr);
-  EXPECT_EQ(book.size(), 1u);
+  EXPECT_EQ(book.size(), 0u);  // (the new tracks come in as they are scheduled)
   // the new track 1 is scheduled at once, read, and kept as it grows
   EXPECT_EQ(book.schedule({1}, 1000), std::vector<int64_t>{1});
   book.record(1, 1000, 5, std::string("room-103"));
   EXPECT_FALSE(book.noteAges({{1, 4}, {2, 0}}));
   ASSERT_NE(book.payload(1), nullptr);
   EXPECT_EQ(book.payload(1)->payload, "room-103");
+}
+
+// The watch behind noteAges and ld-run's report: between two lists naming a
+// track, its age grows by at least the lists in between; less (by more than
+// 3 frames) is another track under the same id.
+TEST(TrackRestartWatch, TellsARestartFromTheTracksAges) {
+  ld::TrackRestartWatch w;
+  for (int32_t age = 0; age < 10; ++age) EXPECT_FALSE(w.note({{1, age}, {2, age}}));
+  EXPECT_FALSE(w.note({{1, 7}, {2, 7}}));    // an older frame, read late
+  EXPECT_FALSE(w.note({{1, 10}, {2, 10}}));  // and on
+  EXPECT_FALSE(w.note({{1, 30}}));           // lists lost: the age grew more
+  EXPECT_EQ(w.restarts(), 0);
+  EXPECT_TRUE(w.note({{1, 0}}));  // 0 frames old: a new tracker's track 1
+  EXPECT_EQ(w.restarts(), 1);
+  EXPECT_EQ(w.size(), 1u);  // only the new run's tracks are known
+  EXPECT_FALSE(w.note({{1, 1}, {2, 0}}));
+}
+
+// A track the old tracker had for two frames, gone long before the restart:
+// its age alone (2, now 0) is within the slack, but 100 lists later a track
+// that went on would be over 100 frames old.
+TEST(TrackRestartWatch, TellsARestartFromAnIdGoneLongAgo) {
+  ld::TrackRestartWatch w;
+  EXPECT_FALSE(w.note({{5, 1}}));
+  EXPECT_FALSE(w.note({{5, 2}}));
+  for (int32_t i = 0; i < 100; ++i) EXPECT_FALSE(w.note({{6, 40 + i}}));
+  EXPECT_TRUE(w.note({{5, 0}}));
+  // a track not listed for a while (coasting unreported) that went on is not a restart
+  ld::TrackRestartWatch v;
+  EXPECT_FALSE(v.note({{1, 3}}));
+  for (int32_t i = 0; i < 50; ++i) EXPECT_FALSE(v.note({}));
+  EXPECT_FALSE(v.note({{1, 53}}));
 }

@@ -182,9 +182,10 @@ TEST(Netns, LcmUdpPort) {
   EXPECT_EQ(ld::lcmUdpPort("memq://"), -1);
 }
 
-ld::landmark_t trackedLandmark(int64_t id, bool visible, const std::string& payload = "") {
+ld::landmark_t trackedLandmark(int64_t id, bool visible, const std::string& payload = "", int32_t age = 0) {
   ld::landmark_t m{};
   m.track_id = id;
+  m.age = age;
   m.visible = visible;
   m.has_payload = !payload.empty();
   m.payload = payload;
@@ -253,6 +254,50 @@ TEST(BusMonitor, MatchesFramesByUtimeAndSeqAndSummarises) {
   EXPECT_TRUE(s["tracks"][1]["payload"].is_null());
   EXPECT_EQ(s["tracks"][1]["frames_coasting"], 1);
   EXPECT_EQ(s["payloads_decoded"], 1);
+}
+
+// A tracker that restarts numbers its tracks from 1 again: the summary keeps
+// the two runs' track 1 apart (they are different landmarks), and a payload
+// read from a frame of the first run stays with the first run's track even
+// when it comes after the restart.
+TEST(BusMonitor, KeepsTheTracksOfATrackerRunApartFromTheNext) {
+  ld::BusMonitor m;
+  for (int i = 0; i < 20; ++i)
+    m.trackedSeen(list(1000 + i, i, {trackedLandmark(1, true, "", i), trackedLandmark(2, true, "", i)}), 1000 + i);
+  // the tracker restarts: its first tracks are 1 again, 0 frames old
+  for (int i = 0; i < 5; ++i)
+    m.trackedSeen(list(2000 + i, 100 + i, {trackedLandmark(1, true, "", i)}), 2000 + i);
+  ld::qr_code_list_t codes{};
+  ld::qr_code_t old_read{}, new_read{};
+  old_read.track_id = 1;
+  old_read.payload = "dock";
+  old_read.utime = 1015;  // a frame of the first run
+  new_read.track_id = 1;
+  new_read.payload = "room-101";
+  new_read.utime = 2003;
+  codes.codes = {old_read, new_read};
+  codes.ncodes = 2;
+  m.codesSeen(codes, 2010);
+
+  const auto s = m.summary();
+  EXPECT_EQ(s["tracker_restarts"], 1);
+  ASSERT_EQ(s["tracks"].size(), 3u);
+  EXPECT_EQ(s["tracks"][0]["id"], 1);
+  EXPECT_EQ(s["tracks"][0]["tracker_run"], 1);
+  EXPECT_EQ(s["tracks"][0]["payload"], "dock");
+  EXPECT_EQ(s["tracks"][0]["frames_visible"], 20);
+  EXPECT_EQ(s["tracks"][0]["last_seq"], 19);
+  EXPECT_EQ(s["tracks"][1]["id"], 2);
+  EXPECT_EQ(s["tracks"][1]["tracker_run"], 1);
+  EXPECT_EQ(s["tracks"][2]["id"], 1);
+  EXPECT_EQ(s["tracks"][2]["tracker_run"], 2);
+  EXPECT_EQ(s["tracks"][2]["payload"], "room-101");
+  EXPECT_EQ(s["tracks"][2]["payload_changes"], 0);
+  EXPECT_EQ(s["tracks"][2]["first_seq"], 100);
+  EXPECT_EQ(s["tracks"][2]["frames_visible"], 5);
+  EXPECT_EQ(s["payloads_decoded"], 2);
+  EXPECT_EQ(s["per_frame"][19]["tracker_run"], 1);
+  EXPECT_EQ(s["per_frame"][20]["tracker_run"], 2);
 }
 
 TEST(BusMonitor, SkipCountersSurviveAPublisherRestart) {

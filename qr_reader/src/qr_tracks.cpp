@@ -85,19 +85,9 @@ bool FrameMatcher::takeNewest(Pair& out) {
 }
 
 bool QrTrackBook::noteAges(const std::vector<std::pair<int64_t, int32_t>>& ages) {
-  for (const auto& [id, age] : ages) {
-    const auto it = tracks_.find(id);
-    if (it != tracks_.end() && it->second.age >= 0 && age + kAgeSlack < it->second.age) {
-      tracks_.clear();
-      for (const auto& [id2, age2] : ages) tracks_[id2].age = age2;
-      return true;
-    }
-  }
-  for (const auto& [id, age] : ages) {
-    Track& t = tracks_[id];
-    t.age = std::max(t.age, age);
-  }
-  return false;
+  if (!restarts_.note(ages)) return false;
+  tracks_.clear();
+  return true;
 }
 
 std::vector<int64_t> QrTrackBook::schedule(const std::vector<int64_t>& track_ids, int64_t utime) {
@@ -123,8 +113,12 @@ std::vector<int64_t> QrTrackBook::schedule(const std::vector<int64_t>& track_ids
   }
   // Forget tracks unseen for long.
   for (auto it = tracks_.begin(); it != tracks_.end();) {
-    if (utime - it->second.last_seen > us(params_.forget_after_s)) it = tracks_.erase(it);
-    else ++it;
+    if (utime - it->second.last_seen > us(params_.forget_after_s)) {
+      restarts_.forget(it->first);
+      it = tracks_.erase(it);
+    } else {
+      ++it;
+    }
   }
   return out;
 }

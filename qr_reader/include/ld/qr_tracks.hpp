@@ -11,6 +11,8 @@
 #include <unordered_map>
 #include <vector>
 
+#include "ld/track_restarts.hpp"
+
 namespace ld {
 
 /// Holds the newest images (raw encoded bytes, keyed by utime and seq) and
@@ -71,13 +73,12 @@ class QrTrackBook {
   explicit QrTrackBook(const QrScheduleParams& params = {}) : params_(params) {}
 
   /// The ages (frames since the tracker created them) of the tracks of a
-  /// frame, as (track id, age). A track seen younger than it was, by more
-  /// than kAgeSlack frames (what reordered messages can make), was created
-  /// again: a tracker that restarted numbers its tracks from 1 again, so
-  /// every id the book knows now means another landmark, and everything it
-  /// knows is forgotten. Returns true when that happened.
+  /// frame, as (track id, age), frames in the order they are read. When they
+  /// show that the tracker started again (ld/track_restarts.hpp: a track
+  /// younger than it can be), every id the book knows now means another
+  /// landmark, and everything it knows is forgotten. Returns true when that
+  /// happened.
   bool noteAges(const std::vector<std::pair<int64_t, int32_t>>& ages);
-  static constexpr int32_t kAgeSlack = 3;
 
   /// Track ids present in a frame at `utime`, in the order given: returns
   /// those to decode now (undecoded first, least recently tried first),
@@ -102,9 +103,9 @@ class QrTrackBook {
     std::optional<Known> known;
     int64_t last_try = INT64_MIN;
     int64_t last_seen = 0;
-    int32_t age = -1;  ///< the oldest age seen (noteAges); -1: none yet
   };
   QrScheduleParams params_;
+  TrackRestartWatch restarts_;
   std::unordered_map<int64_t, Track> tracks_;
 };
 

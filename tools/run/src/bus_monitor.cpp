@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdint>
 #include <cmath>
 #include <cstdio>
 #include <numeric>
@@ -172,9 +173,16 @@ void BusMonitor::trackedSeen(const landmark_list_t& list, Micros rx_us) {
   count(tracked_, rx_us);
   ++tracked_frames_;
   trk_skipped_.update(list.frames_skipped);
+  ages_.clear();
+  for (const auto& lm : list.landmarks)
+    if (lm.track_id >= 0) ages_.emplace_back(lm.track_id, lm.age);
+  if (run_starts_.empty()) run_starts_.push_back(INT64_MIN);
+  if (restarts_.note(ages_)) run_starts_.push_back(list.utime);
+  const int run = static_cast<int>(run_starts_.size());
   FrameRecord f;
   f.utime = list.utime;
   f.seq = list.seq;
+  f.run = run;
   const auto it = pending_.find({list.utime, list.seq});
   if (it != pending_.end()) {
     f.latency_ms = static_cast<double>(rx_us - it->second) * 1e-3;
@@ -184,7 +192,7 @@ void BusMonitor::trackedSeen(const landmark_list_t& list, Micros rx_us) {
   }
   for (const auto& lm : list.landmarks) {
     if (lm.track_id < 0) continue;
-    auto [t, is_new] = tracks_.try_emplace(lm.track_id);
+    auto [t, is_new] = tracks_.try_emplace({run, lm.track_id});
     if (is_new) t->second.first_seq = list.seq;
     t->second.last_seq = list.seq;
     if (lm.visible) {
@@ -194,14 +202,14 @@ void BusMonitor::trackedSeen(const landmark_list_t& list, Micros rx_us) {
     } else {
       ++t->second.frames_coasting;
     }
-    if (lm.has_payload) setPayload(lm.track_id, lm.payload);
+    if (lm.has_payload) setPayload(run, lm.track_id, lm.payload);
   }
   ++histogram_[f.landmarks];
   frames_.push_back(std::move(f));
 }
 
-void BusMonitor::setPayload(int64_t id, const std::string& payload) {
-  TrackInfo& t = tracks_[id];
+void BusMonitor::setPayload(int run, int64_t id, const std::string& payload) {
+  TrackInfo& t = tracks_[{run, id}];
   if (t.has_payload && t.payload != payload) ++t.payload_changes;
   t.payload = payload;
   t.has_payload = true;
@@ -209,7 +217,14 @@ void BusMonitor::setPayload(int64_t id, const std::string& payload) {
 
 void BusMonitor::codesSeen(const qr_code_list_t& codes, Micros rx_us) {
   count(codes_, rx_us);
-  for (const auto& c : codes.codes) setPayload(c.track_id, c.payload);
+  // a code names the frame it was read from: its track is of the tracker's
+  // run that frame belongs to (codes read before a restart come after it)
+  for (const auto& c : codes.codes) {
+    int run = 1;
+    while (run < static_cast<int>(run_starts_.size()) && run_starts_[static_cast<size_t>(run)] <= c.utime)
+      ++run;
+    setPayload(run, c.track_id, c.payload);
+  }
 }
 
 std::string BusMonitor::statusLine(Micros now_us) {
@@ -270,9 +285,10 @@ nlohmann::ordered_json BusMonitor::summary() const {
                      {"p99", round3(p.p99)}, {"max", round3(p.max)}, {"mean", round3(p.mean)}};
   J tracks = J::array();
   int read = 0;
-  for (const auto& [id, t] : tracks_) {
+  for (const auto& [key, t] : tracks_) {
     read += t.has_payload;
-    tracks.push_back({{"id", id},
+    tracks.push_back({{"id", key.second},
+                      {"tracker_run", key.first},
                       {"payload", t.has_payload ? J(t.payload) : J(nullptr)},
                       {"payload_changes", t.payload_changes},
                       {"first_seq", t.first_seq},
@@ -280,6 +296,7 @@ nlohmann::ordered_json BusMonitor::summary() const {
                       {"frames_visible", t.frames_visible},
                       {"frames_coasting", t.frames_coasting}});
   }
+  j["tracker_restarts"] = restarts_.restarts();
   j["tracks"] = tracks;
   j["payloads_decoded"] = read;
   J per = J::array();
@@ -288,7 +305,8 @@ nlohmann::ordered_json BusMonitor::summary() const {
                    {"utime", f.utime},
                    {"latency_ms", f.latency_ms < 0 ? J(nullptr) : J(round3(f.latency_ms))},
                    {"landmarks", f.landmarks},
-                   {"ids", f.ids}});
+                   {"ids", f.ids},
+                   {"tracker_run", f.run}});
   j["per_frame"] = per;
   return j;
 }

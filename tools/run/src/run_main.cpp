@@ -9,6 +9,7 @@
 #include <cstring>
 #include <fstream>
 #include <iostream>
+#include <string>
 #include <thread>
 
 #include <CLI/CLI.hpp>
@@ -153,9 +154,16 @@ void printReport(const Json& s) {
               lat["p99"].get<double>(), lat["max"].get<double>());
   std::printf("tracks (%zu, %d with a payload):\n", s["summary"]["tracks"].size(),
               s["summary"]["payloads_decoded"].get<int>());
+  // (a tracker that restarted numbered its tracks from 1 again: each run's apart)
+  const long long tracker_restarts = s["summary"]["tracker_restarts"].get<long long>();
+  if (tracker_restarts > 0)
+    std::printf("  (the tracker started again %lld time%s: ids are per tracker run, \"id N/RUN\")\n",
+                tracker_restarts, tracker_restarts == 1 ? "" : "s");
   for (const auto& t : s["summary"]["tracks"])
-    std::printf("  id %-4lld %-20s frames %lld-%lld, %lld visible, %lld coasting\n",
-                t["id"].get<long long>(),
+    std::printf("  id %-4s %-20s frames %lld-%lld, %lld visible, %lld coasting\n",
+                (std::to_string(t["id"].get<long long>()) +
+                 (tracker_restarts > 0 ? "/" + std::to_string(t["tracker_run"].get<int>()) : ""))
+                    .c_str(),
                 t["payload"].is_null() ? "(no payload)" : ("\"" + t["payload"].get<std::string>() + "\"").c_str(),
                 t["first_seq"].get<long long>(), t["last_seq"].get<long long>(),
                 t["frames_visible"].get<long long>(), t["frames_coasting"].get<long long>());

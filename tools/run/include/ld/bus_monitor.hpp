@@ -2,7 +2,8 @@
 // rates, end-to-end latency (IMAGE received -> LANDMARKS_TRACKED received
 // for the same frame, matched by utime and seq, both on this process's
 // steady clock), frames the detector and tracker skipped, tracks and their
-// payloads. Receive times are the kernel's (SO_TIMESTAMP, which LCM passes
+// payloads (a tracker that restarts numbers its tracks from 1 again: its
+// tracks are told apart by a run number, ld/track_restarts.hpp). Receive times are the kernel's (SO_TIMESTAMP, which LCM passes
 // on as recv_utime), so the monitor's own scheduling does not blur them.
 // ld-run prints its status line and writes its summary.
 #pragma once
@@ -16,6 +17,7 @@
 
 #include "ld/landmark_list_t.hpp"
 #include "ld/qr_code_list_t.hpp"
+#include "ld/track_restarts.hpp"
 
 namespace lcm {
 class LCM;
@@ -67,8 +69,12 @@ class BusMonitor {
   ///             "tracker_skipped"},
   ///  "landmarks_per_frame": {"mean", "max", "histogram": {"n": frames}},
   ///  "latency_ms": {"count", "p50", "p90", "p99", "max", "mean"},
-  ///  "tracks": [{"id", "payload", "first_seq", "last_seq", "frames_visible", "frames_coasting"}],
-  ///  "payloads_decoded", "per_frame": [{"seq", "utime", "latency_ms"|null, "landmarks", "ids"}]}
+  ///  "tracker_restarts",
+  ///  "tracks": [{"id", "tracker_run", "payload", "payload_changes", "first_seq", "last_seq",
+  ///              "frames_visible", "frames_coasting"}],
+  ///  "payloads_decoded",
+  ///  "per_frame": [{"seq", "utime", "latency_ms"|null, "landmarks", "ids", "tracker_run"}]}
+  /// tracker_run counts the tracker's runs from 1 (a track is its id and run).
   nlohmann::ordered_json summary() const;
 
   int64_t trackedFrames() const { return tracked_frames_; }
@@ -93,6 +99,7 @@ class BusMonitor {
   };
   struct FrameRecord {
     int64_t utime = 0, seq = 0;
+    int run = 1;             // the tracker's run
     double latency_ms = -1;  // < 0: the image was not seen
     int landmarks = 0;       // visible
     std::vector<int64_t> ids;
@@ -107,7 +114,7 @@ class BusMonitor {
   };
 
   void count(ChannelCount& c, Micros rx_us);
-  void setPayload(int64_t id, const std::string& payload);
+  void setPayload(int run, int64_t id, const std::string& payload);
   void onImage(const lcm::ReceiveBuffer* rb, const std::string& channel);
   void onLandmarks(const lcm::ReceiveBuffer* rb, const std::string& channel);
   void onTracked(const lcm::ReceiveBuffer* rb, const std::string& channel);
@@ -124,7 +131,10 @@ class BusMonitor {
   SkipCounter det_skipped_, trk_skipped_;
   std::vector<double> latencies_ms_;
   size_t window_start_ = 0;  // first latency of the current status window
-  std::map<int64_t, TrackInfo> tracks_;
+  std::map<std::pair<int, int64_t>, TrackInfo> tracks_;  // (tracker run, id)
+  TrackRestartWatch restarts_;
+  std::vector<int64_t> run_starts_;  // utime of each tracker run's first list, the first run's INT64_MIN
+  std::vector<std::pair<int64_t, int32_t>> ages_;
   std::map<int, int64_t> histogram_;
   std::vector<FrameRecord> frames_;
   landmark_list_t list_buf_;
