@@ -58,4 +58,7 @@ last=$(jq '.summary.per_frame[-1].seq' "$T/summary.json")
 images=$(jq '.summary.frames.images' "$T/summary.json")
 echo "images: $images, tracked: $(jq .summary.frames.tracked "$T/summary.json"), last tracked seq: $last"
 [ "$last" -ge $(( images - 5 )) ]
+# ld-play's images are timed from their publication (utime), never below 0
+[ "$(jq -r .summary.latency_ms.from "$T/summary.json")" = capture ]
+[ "$(jq '[.summary.per_frame[] | select(.latency_ms != null and .latency_ms <= 0)] | length' "$T/summary.json")" -eq 0 ]
 echo "1 passed, 0 failed"

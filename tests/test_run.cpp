@@ -218,21 +218,22 @@ TEST(BusMonitor, PeeksUtimeAndSeqOfAnEncodedImage) {
 
 TEST(BusMonitor, MatchesFramesByUtimeAndSeqAndSummarises) {
   ld::BusMonitor m;
-  // three frames published 33 ms apart; tracked 2 ms, 3 ms and (frame 2) never
-  m.imageSeen(1000, 0, 1'000'000);
-  m.imageSeen(2000, 1, 1'033'000);
-  m.imageSeen(3000, 2, 1'066'000);
-  m.landmarksSeen(list(1000, 0, {}), 1'001'000);
-  m.trackedSeen(list(1000, 0, {trackedLandmark(7, true), trackedLandmark(8, true)}), 1'002'000);
-  m.trackedSeen(list(2000, 1, {trackedLandmark(7, true), trackedLandmark(8, false)}, 1), 1'036'000);
-  m.trackedSeen(list(9999, 5, {}), 1'040'000);  // an image never seen: no latency
+  // three frames of a replayed log (their utimes 9 s old) arriving 33 ms
+  // apart; tracked 2 ms, 3 ms after their arrival and (frame 2) never
+  m.imageSeen(1000, 0, 9'000'000);
+  m.imageSeen(2000, 1, 9'033'000);
+  m.imageSeen(3000, 2, 9'066'000);
+  m.landmarksSeen(list(1000, 0, {}), 9'001'000);
+  m.trackedSeen(list(1000, 0, {trackedLandmark(7, true), trackedLandmark(8, true)}), 9'002'000);
+  m.trackedSeen(list(2000, 1, {trackedLandmark(7, true), trackedLandmark(8, false)}, 1), 9'036'000);
+  m.trackedSeen(list(9999, 5, {}), 9'040'000);  // an image never seen: no latency
   ld::qr_code_list_t codes{};
   ld::qr_code_t c{};
   c.track_id = 7;
   c.payload = "dock";
   codes.codes = {c};
   codes.ncodes = 1;
-  m.codesSeen(codes, 1'037'000);
+  m.codesSeen(codes, 9'037'000);
 
   const auto s = m.summary();
   EXPECT_EQ(s["frames"]["images"], 3);
@@ -241,6 +242,7 @@ TEST(BusMonitor, MatchesFramesByUtimeAndSeqAndSummarises) {
   EXPECT_EQ(s["frames"]["unmatched_images"], 1);
   EXPECT_EQ(s["frames"]["tracker_skipped"], 1);
   EXPECT_EQ(s["latency_ms"]["count"], 2);
+  EXPECT_EQ(s["latency_ms"]["from"], "arrival");  // (utimes 9 s before: a replay's)
   EXPECT_DOUBLE_EQ(s["latency_ms"]["p50"].get<double>(), 2.0);
   EXPECT_DOUBLE_EQ(s["latency_ms"]["max"].get<double>(), 3.0);
   EXPECT_TRUE(s["per_frame"][2]["latency_ms"].is_null());
@@ -254,6 +256,24 @@ TEST(BusMonitor, MatchesFramesByUtimeAndSeqAndSummarises) {
   EXPECT_TRUE(s["tracks"][1]["payload"].is_null());
   EXPECT_EQ(s["tracks"][1]["frames_coasting"], 1);
   EXPECT_EQ(s["payloads_decoded"], 1);
+}
+
+// An image whose utime is a time of the last second (ld-camera's capture
+// time, ld-play's publication) is timed from it: the latency includes its
+// transfer, which LCM does not time from the kernel for an image. A
+// replayed image (an old utime) is timed from its arrival.
+TEST(BusMonitor, TimesLiveImagesFromTheirUtime) {
+  ld::BusMonitor m;
+  m.imageSeen(5'000'000, 0, 5'004'000);  // captured, arrived 4 ms later
+  m.trackedSeen(list(5'000'000, 0, {}), 5'010'000);
+  EXPECT_EQ(m.summary()["latency_ms"]["from"], "capture");
+  EXPECT_DOUBLE_EQ(m.summary()["latency_ms"]["max"].get<double>(), 10.0);
+  m.imageSeen(1'000, 1, 5'100'000);  // a logged image replayed
+  m.trackedSeen(list(1'000, 1, {}), 5'103'000);
+  const auto s = m.summary();
+  EXPECT_EQ(s["latency_ms"]["from"], "capture and arrival");
+  EXPECT_DOUBLE_EQ(s["per_frame"][0]["latency_ms"].get<double>(), 10.0);
+  EXPECT_DOUBLE_EQ(s["per_frame"][1]["latency_ms"].get<double>(), 3.0);
 }
 
 // A tracker that restarts numbers its tracks from 1 again: the summary keeps

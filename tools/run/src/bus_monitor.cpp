@@ -153,12 +153,14 @@ void BusMonitor::onCodes(const lcm::ReceiveBuffer* rb, const std::string&) {
 
 void BusMonitor::imageSeen(int64_t utime, int64_t seq, Micros rx_us) {
   count(images_, rx_us);
-  pending_[{utime, seq}] = rx_us;
+  const bool live = utime <= rx_us && rx_us - utime <= kLiveUtimeUs;
+  pending_[{utime, seq}] = PendingImage{rx_us, live ? utime : rx_us};
   // Frames never tracked (skipped by the detector) are forgotten after 5 s.
   while (!pending_.empty()) {
-    auto oldest = std::min_element(pending_.begin(), pending_.end(),
-                                   [](const auto& a, const auto& b) { return a.second < b.second; });
-    if (rx_us - oldest->second < 5'000'000) break;
+    auto oldest = std::min_element(pending_.begin(), pending_.end(), [](const auto& a, const auto& b) {
+      return a.second.received < b.second.received;
+    });
+    if (rx_us - oldest->second.received < 5'000'000) break;
     pending_.erase(oldest);
     ++unmatched_images_;
   }
@@ -185,7 +187,8 @@ void BusMonitor::trackedSeen(const landmark_list_t& list, Micros rx_us) {
   f.run = run;
   const auto it = pending_.find({list.utime, list.seq});
   if (it != pending_.end()) {
-    f.latency_ms = static_cast<double>(rx_us - it->second) * 1e-3;
+    f.latency_ms = static_cast<double>(rx_us - it->second.origin) * 1e-3;
+    ++(it->second.origin == it->second.received ? from_arrival_ : from_capture_);
     latencies_ms_.push_back(f.latency_ms);
     ++matched_;
     pending_.erase(it);
@@ -282,7 +285,10 @@ nlohmann::ordered_json BusMonitor::summary() const {
       {"histogram", hist}};
   const Percentiles p = percentiles(latencies_ms_);
   j["latency_ms"] = {{"count", p.count},   {"p50", round3(p.p50)}, {"p90", round3(p.p90)},
-                     {"p99", round3(p.p99)}, {"max", round3(p.max)}, {"mean", round3(p.mean)}};
+                     {"p99", round3(p.p99)}, {"max", round3(p.max)}, {"mean", round3(p.mean)},
+                     {"from", from_arrival_ == 0   ? "capture"
+                              : from_capture_ == 0 ? "arrival"
+                                                   : "capture and arrival"}};
   J tracks = J::array();
   int read = 0;
   for (const auto& [key, t] : tracks_) {

@@ -1,11 +1,19 @@
 // Watches the process set's channels on the bus and measures it: message
-// rates, end-to-end latency (IMAGE received -> LANDMARKS_TRACKED received
-// for the same frame, matched by utime and seq, both on this process's
-// steady clock), frames the detector and tracker skipped, tracks and their
-// payloads (a tracker that restarts numbers its tracks from 1 again: its
-// tracks are told apart by a run number, ld/track_restarts.hpp). Receive times are the kernel's (SO_TIMESTAMP, which LCM passes
-// on as recv_utime), so the monitor's own scheduling does not blur them.
-// ld-run prints its status line and writes its summary.
+// rates, end-to-end latency, frames the detector and tracker skipped, tracks
+// and their payloads (a tracker that restarts numbers its tracks from 1
+// again: its tracks are told apart by a run number, ld/track_restarts.hpp).
+//
+// End-to-end latency is from the image's capture (or publication) to the
+// LANDMARKS_TRACKED list of the same frame (matched by utime and seq)
+// reaching this process, on the wall clock: the list's time is the kernel's
+// receive time (SO_TIMESTAMP, which LCM passes on as recv_utime), the
+// image's its utime, which ld-camera sets to the capture time and ld-play to
+// the time it publishes. An image whose utime is not a time of the last
+// second (lcm-logplayer replays the logged utimes) is timed from its
+// arrival instead, which LCM 1.4 does not take from the kernel for a message
+// of several datagrams (an image): it is when LCM's receive thread read the
+// last one, which a loaded machine delays, so replays' latencies can read
+// low. ld-run prints its status line and writes its summary.
 #pragma once
 
 #include <cstdint>
@@ -54,7 +62,7 @@ class BusMonitor {
   void subscribe(lcm::LCM& lcm);
 
   // What the handlers record; public so tests can feed a monitor directly.
-  void imageSeen(int64_t utime, int64_t seq, Micros rx_us);
+  void imageSeen(int64_t utime, int64_t seq, Micros rx_us);  ///< rx_us: when it arrived
   void landmarksSeen(const landmark_list_t& list, Micros rx_us);
   void trackedSeen(const landmark_list_t& list, Micros rx_us);
   void codesSeen(const qr_code_list_t& codes, Micros rx_us);
@@ -68,7 +76,8 @@ class BusMonitor {
   ///  "frames": {"images", "tracked", "matched", "unmatched_images", "detector_skipped",
   ///             "tracker_skipped"},
   ///  "landmarks_per_frame": {"mean", "max", "histogram": {"n": frames}},
-  ///  "latency_ms": {"count", "p50", "p90", "p99", "max", "mean"},
+  ///  "latency_ms": {"count", "p50", "p90", "p99", "max", "mean", "from"}, from: "capture"
+  ///               (every frame timed from its utime), "arrival" or "capture and arrival",
   ///  "tracker_restarts",
   ///  "tracks": [{"id", "tracker_run", "payload", "payload_changes", "first_seq", "last_seq",
   ///              "frames_visible", "frames_coasting"}],
@@ -84,6 +93,9 @@ class BusMonitor {
   int64_t selfTests() const { return self_tests_; }
   Micros lastSelfTest() const { return last_self_test_us_; }
   size_t latencyCount() const { return latencies_ms_.size(); }
+  /// An image's utime within this long before its arrival is its capture or
+  /// publication time; older (a replayed log), it is not.
+  static constexpr Micros kLiveUtimeUs = 1'000'000;
 
  private:
   struct ChannelCount {
@@ -124,7 +136,12 @@ class BusMonitor {
   BusChannels ch_;
   ChannelCount images_, landmarks_, tracked_, codes_;
   Micros last_status_us_ = 0;
-  std::map<std::pair<int64_t, int64_t>, Micros> pending_;  // image key -> received
+  struct PendingImage {
+    Micros received = 0;  // when it arrived (see the top)
+    Micros origin = 0;    // what its latency is timed from: its utime, or its arrival
+  };
+  std::map<std::pair<int64_t, int64_t>, PendingImage> pending_;  // by (utime, seq)
+  int64_t from_capture_ = 0, from_arrival_ = 0;  // latencies timed from a utime, from an arrival
   int64_t self_tests_ = 0;
   Micros last_self_test_us_ = 0;
   int64_t tracked_frames_ = 0, matched_ = 0, unmatched_images_ = 0, bad_ = 0;
