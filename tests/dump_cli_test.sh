@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # ld-dump on files: a whole log prints one JSON object per message; a file
-# that is not an LCM log is refused in one line (status 2); a log cut off
+# that is not an LCM log, or a missing or unreadable one, is refused in one
+# line (status 2, as ld-run and ld-play refuse it); a log cut off
 # mid-event prints the messages before the cut, then says in one line where
 # it ends (status 1), wherever the cut is; bytes that are no event, likewise
 # at the end, and skipped with the whole events after them read elsewhere;
@@ -75,9 +76,18 @@ dump "$T/junk2.lcmlog"
 dump "$T/empty.lcmlog"
 [ $rc -eq 0 ] && [ "$out" -eq 0 ] && [ -z "$err" ] || fail "empty log: exit $rc, $out lines, $err"
 
+# a missing log and a folder: one line each, status 2
+dump "$T/missing.lcmlog"
+[ $rc -eq 2 ] && [ "$out" -eq 0 ] && [ "$(wc -l <"$T/err")" -eq 1 ] && grep -q "cannot read log $T/missing.lcmlog" "$T/err" \
+  || fail "missing log: exit $rc, $out lines, $(cat "$T/err")"
+dump "$T"
+[ $rc -eq 2 ] && [ "$out" -eq 0 ] && [ "$(wc -l <"$T/err")" -eq 1 ] || fail "a folder: exit $rc, $out lines, $(cat "$T/err")"
+
 # several files: each is dumped or reported; the worst status wins
 dump "$T/in.lcmlog" "$T/cut.lcmlog" "$T/in.lcmlog"
 [ $rc -eq 1 ] && [ "$out" -eq 6 ] || fail "several: exit $rc, $out lines"
 dump "$T/cut.lcmlog" "$T/lm.png" "$T/in.lcmlog"
 [ $rc -eq 2 ] && [ "$out" -eq 3 ] && [ "$(wc -l <"$T/err")" -eq 2 ] || fail "several: exit $rc, $out lines, $err"
+dump "$T/in.lcmlog" "$T/missing.lcmlog" "$T/in.lcmlog"
+[ $rc -eq 2 ] && [ "$out" -eq 6 ] || fail "several with a missing one: exit $rc, $out lines"
 echo "ld-dump on files: ok"

@@ -711,6 +711,9 @@ TEST(TrackerParams, ClearErrors) {
   expectLoadError("max_lifetime_s: -1\n", "max_lifetime_s");
   expectLoadError("max_size_ratio: 0.5\n", "max_size_ratio");
   expectLoadError("max_lifetime_s: [1\n", "cannot parse");
+  expectLoadError("", "is empty");  // as the detector's parameters (a file cut short)
+  expectLoadError(" \n\n", "is empty");
+  EXPECT_EQ(ld::TrackerParams::load(writeTemp("braces.yaml", "{}\n")).max_distance, ld::TrackerParams{}.max_distance);
   try {
     ld::TrackerParams::load("/nonexistent/tracker.yaml");
     ADD_FAILURE();

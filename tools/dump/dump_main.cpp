@@ -147,8 +147,9 @@ int main(int argc, char** argv) {
     }
     return 0;
   }
-  // Exit status: 2 when a file is not an LCM log, else 1 when a log could
-  // not be read or was read only in part, else 0.
+  // Exit status: 2 when a file is not an LCM log or cannot be read at all
+  // (missing, a folder, no permission: as ld-run and ld-play refuse it),
+  // else 1 when a log was read only in part, else 0.
   int status = 0;
   for (const auto& path : logs) {
     const ld::LcmLogCheck start = ld::checkLcmLogStart(path);
@@ -162,7 +163,7 @@ int main(int argc, char** argv) {
     if (start.start == ld::LcmLogStart::Unreadable || !log.good()) {
       std::cerr << "ld-dump: cannot read log " << path << ": "
                 << (start.error.empty() ? std::strerror(errno) : start.error) << "\n";
-      status = std::max(status, 1);
+      status = 2;
       continue;
     }
     while (log.next()) {

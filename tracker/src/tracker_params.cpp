@@ -51,7 +51,9 @@ std::string num(double v) {
 }  // namespace
 
 TrackerParams TrackerParams::load(const std::string& path) {
-  const cv::FileStorage fs = openConfigFile(path, "tracker parameters", true);
+  // (an empty file is refused as the detector's is: a file cut short or
+  // never written; `{}` gives the defaults)
+  const cv::FileStorage fs = openConfigFile(path, "tracker parameters");
   TrackerParams p;
   const cv::FileNode root = fs.root();
   if (!root.isMap() && !root.empty()) fail(path, "top level is not a map of parameters");

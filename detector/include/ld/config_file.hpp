@@ -106,11 +106,11 @@ inline std::optional<std::string> duplicateKey(const cv::FileNode& node, const s
 /// reader of the project opens one: the file read once, its text checked by
 /// unsafeForOpenCv, plain YAML given the "%YAML:1.0" header OpenCV wants, and
 /// parsed from memory. Throws std::runtime_error("<what> <path>: <why>") when
-/// the path is a directory or cannot be read, the file is empty (unless
-/// `empty_ok`: then it reads as an empty map), is unsafe, or does not parse
+/// the path is a directory or cannot be read, the file is empty (a file cut
+/// short or never written; `{}` is an empty map), is unsafe, or does not parse
 /// (OpenCV's cv::Exception and the std::length_error and others its parser
 /// lets out included).
-inline cv::FileStorage openConfigFile(const std::string& path, const std::string& what, bool empty_ok = false) {
+inline cv::FileStorage openConfigFile(const std::string& path, const std::string& what) {
   const auto fail = [&](const std::string& why) { throw std::runtime_error(what + " " + path + ": " + why); };
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) fail("is a directory");
@@ -119,10 +119,8 @@ inline cv::FileStorage openConfigFile(const std::string& path, const std::string
   std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
   if (const auto why = unsafeForOpenCv(text)) fail(*why);
   const size_t first = text.find_first_not_of(" \t\r\n");
-  if (first == std::string::npos) {
-    if (!empty_ok) fail("is empty");
-    text = "%YAML:1.0\n---\n{}\n";
-  } else if (text[first] != '<' && text[first] != '{' && text.compare(first, 5, "%YAML") != 0) {
+  if (first == std::string::npos) fail("is empty");
+  if (text[first] != '<' && text[first] != '{' && text.compare(first, 5, "%YAML") != 0) {
     text = "%YAML:1.0\n---\n" + text;
   }
   // OpenCV's YAML parser fails on a tab anywhere ("skipSpaces"), where YAML
