@@ -62,6 +62,14 @@ refused "--defocus must lie within 0:50" scene --out "$T/x" --defocus -1
 refused "--motion must lie within 0:200" scene --out "$T/x" --motion 1e6
 refused "--noise must lie within 0:100" scene --out "$T/x" --noise -3
 refused "--resolution: 7x5 is out of 16x16 .. 16384x16384" scene --out "$T/x" --resolution 7x5
+# a calibration scaled to another aspect ratio would lie (the detector refuses it too); the same one does
+printf '%%YAML:1.0\n---\nimage_width: 1280\nimage_height: 720\ncamera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n  data: [1200, 0, 639.5, 0, 1200, 359.5, 0, 0, 1]\ndistortion_coefficients: !!opencv-matrix\n  rows: 1\n  cols: 5\n  dt: d\n  data: [0, 0, 0, 0, 0]\n' >"$T/wide.yaml"
+refused "--resolution: 640x480 is another aspect ratio than the camera file's 1280x720" scene --out "$T/x" --camera "$T/wide.yaml" --resolution 640x480
+refused "--resolution: 640x480 is another aspect ratio" sequence --out "$T/x" --camera "$T/wide.yaml" --resolution 640x480
+"$BIN/ld-synth" scene --out "$T/half" --camera "$T/wide.yaml" --resolution 640x360 --count 1 >/dev/null ||
+  fail "the same aspect ratio, scaled, was refused"
+size=$(od -An -tx1 -j16 -N8 "$T/half/000000.png" | tr -d ' \n')  # the PNG's width and height
+[ "$size" = 0000028000000168 ] || fail "scaled frame: not 640x360 ($size)"
 refused "--fps: must be > 0, not 0 (--help lists the options)" sequence --out "$T/x" --fps 0
 refused "--frames: must be in \[1, 100000\], not 0" sequence --out "$T/x" --frames 0
 echo "ld-synth command line: ok"

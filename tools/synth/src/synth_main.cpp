@@ -87,6 +87,12 @@ ld::CameraModel makeCamera(const std::string& file, const std::string& resolutio
   if (!file.empty()) {
     if (!std::ifstream(file)) throw std::runtime_error("camera file " + file + ": cannot open");
     cam = ld::CameraModel::load(file);  // throws with a one-line reason
+    // (another aspect ratio is another crop of the sensor: the detector
+    // refuses such a calibration, so frames made with it scaled would lie)
+    if (size && !cam.fits(*size))
+      throw UsageError("--resolution: " + resolution + " is another aspect ratio than the camera file's " +
+                       std::to_string(cam.size.width) + "x" + std::to_string(cam.size.height) +
+                       " (another crop of the sensor, whose intrinsics do not scale)");
     if (size) cam = cam.scaledTo(*size);
   } else {
     const cv::Size s = size.value_or(cv::Size(640, 480));
