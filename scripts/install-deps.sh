@@ -14,6 +14,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev
   default-jdk-headless libjchart2d-java
   libqrencode-dev nlohmann-json3-dev libcli11-dev libyaml-cpp-dev
+  zlib1g-dev fonts-dejavu-core   # ld-generate's PNG: its pHYs chunk's CRC, its labels' font
   libapriltag-dev
   iproute2 jq
   clang libclang-rt-14-dev   # libFuzzer targets (tests/fuzz)

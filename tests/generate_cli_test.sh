@@ -85,6 +85,19 @@ grep -q "needs QR version 15 (77 modules, more than the 37 of version 5" "$T/err
 "$BIN/ld-generate" -p a --png "$T/d300.png" >"$T/out" 2>"$T/err" || fail "--dpi 300: exit $?"
 [ ! -s "$T/err" ] || fail "--dpi 300 warned: $(cat "$T/err")"
 
+# The PNG carries its resolution (a pHYs chunk right after IHDR: 300 dpi is
+# 11811 pixels per metre, 0x2e23), so printing it at 100 % gives the size.
+[ "$(od -An -tx1 -j33 -N17 "$T/d300.png" | tr -d ' \n')" = 000000097048597300002e2300002e2301 ] ||
+  fail "no pHYs of 300 dpi: $(od -An -tx1 -j33 -N17 "$T/d300.png")"
+
+# An unknown option is named as such, not as the missing --payload; a
+# landmark too large for the page is refused before any QR line is printed.
+if "$BIN/ld-generate" --bogus 2>"$T/err"; then fail "--bogus accepted"; fi
+grep -q "^ld-generate: The following argument was not expected: --bogus" "$T/err" || fail "--bogus: $(cat "$T/err")"
+if "$BIN/ld-generate" --sheet --size 0.5 -p a --svg "$T/big.svg" >"$T/out" 2>"$T/err"; then fail "500 mm on A4 accepted"; fi
+[ ! -s "$T/out" ] && [ "$(wc -l <"$T/err")" -eq 1 ] && grep -q "does not fit on a 210x297 mm page" "$T/err" ||
+  fail "500 mm on A4: '$(cat "$T/out")' $(cat "$T/err")"
+
 # Page names: a folder with a dot in its name, a file name without an extension.
 mkdir -p "$T/out.d"
 "$BIN/ld-generate" --sheet --size 0.15 -p a -p b --svg "$T/out.d/sheet" >/dev/null

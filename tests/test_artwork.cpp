@@ -5,8 +5,10 @@
 #include <regex>
 #include <set>
 
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <zbar.h>
+#include <zlib.h>
 
 #include "ld/artwork.hpp"
 
@@ -218,6 +220,52 @@ TEST(Artwork, SheetHoldsEveryLandmarkAndDecodes) {
   EXPECT_THROW(ld::artwork::sheetSvg(payloads, 300.0), std::invalid_argument);
   EXPECT_THROW(ld::artwork::sheetSvg(std::vector<std::string>(40, "x"), 60.0),
                std::invalid_argument);
+}
+
+// The PNG's labels are the SVG's: the payload in UTF-8, drawn (DejaVu Sans),
+// and the size. Two payloads that differ in a non-ASCII letter alone label
+// differently (OpenCV's own font would draw both "B?ro").
+TEST(Artwork, SheetImageLabelsInUtf8) {
+  ASSERT_FALSE(ld::artwork::labelFontPath().empty()) << "fonts-dejavu-core is not installed";
+  const double dpi = 150, px_mm = dpi / 25.4;
+  const auto labelStrip = [&](const std::string& payload) {
+    const cv::Mat page = ld::artwork::sheetImage({payload}, 60.0, dpi);
+    // under the sheet (10 mm margin + 60 mm), down to 6 mm further
+    return page(cv::Rect(0, static_cast<int>(70 * px_mm), static_cast<int>(80 * px_mm),
+                         static_cast<int>(6 * px_mm)))
+        .clone();
+  };
+  const cv::Mat a = labelStrip("Büro"), b = labelStrip("Bäro"), c = labelStrip("Büro");
+  cv::Mat gray;
+  cv::cvtColor(a, gray, cv::COLOR_BGR2GRAY);
+  EXPECT_GT(cv::countNonZero(gray < 128), 50);  // a label is there
+  EXPECT_GT(cv::norm(a, b, cv::NORM_L1), 0);   // ü and ä drawn apart
+  EXPECT_EQ(cv::norm(a, c, cv::NORM_L1), 0);
+  // and the size follows, as in the SVG: a longer label than the payload alone
+  int right = 0;
+  for (int x = 0; x < gray.cols; ++x)
+    if (cv::countNonZero(gray.col(x) < 128) > 0) right = x;
+  EXPECT_GT(right, static_cast<int>(25 * px_mm));  // "Büro (60 mm)" at 3 mm text is over 15 mm long
+}
+
+// The PNG's bytes carry the resolution: a pHYs chunk after IHDR, pixels
+// per metre, with a valid CRC; OpenCV reads the image back unchanged.
+TEST(Artwork, PngCarriesItsDpi) {
+  const cv::Mat img = ld::artwork::renderLandmark("dock", 90);
+  const std::vector<uint8_t> png = ld::artwork::pngWithDpi(img, 300);
+  ASSERT_GT(png.size(), 54u);
+  EXPECT_EQ(std::string(png.begin() + 37, png.begin() + 41), "pHYs");
+  const auto be32 = [&](size_t at) {
+    return uint32_t{png[at]} << 24 | uint32_t{png[at + 1]} << 16 | uint32_t{png[at + 2]} << 8 | png[at + 3];
+  };
+  EXPECT_EQ(be32(33), 9u);
+  EXPECT_EQ(be32(41), 11811u);  // 300 dpi
+  EXPECT_EQ(be32(45), 11811u);
+  EXPECT_EQ(png[49], 1);  // the metre
+  EXPECT_EQ(be32(50), crc32(crc32(0L, Z_NULL, 0), png.data() + 37, 13));
+  const cv::Mat back = cv::imdecode(png, cv::IMREAD_COLOR);
+  ASSERT_FALSE(back.empty());
+  EXPECT_EQ(cv::norm(back, img, cv::NORM_L1), 0);
 }
 
 TEST(Artwork, LandmarksPerPage) {

@@ -3,12 +3,16 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <memory>
 #include <sstream>
 #include <stdexcept>
 
+#include <opencv2/freetype.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <qrencode.h>
+#include <zlib.h>
 
 #include "ld/landmark_layout.hpp"
 
@@ -253,6 +257,15 @@ cv::Mat sheetImage(const std::vector<std::string>& payloads, double side_mm, dou
               static_cast<int>(std::lround(page.page_w_mm * px_per_mm)), CV_8UC3,
               cv::Scalar(255, 255, 255));
   const int side_px = static_cast<int>(std::lround(side_mm * px_per_mm));
+  cv::Ptr<cv::freetype::FreeType2> font;
+  if (const std::string path = labelFontPath(); !path.empty()) {
+    try {
+      font = cv::freetype::createFreeType2();
+      font->loadFontData(path, 0);
+    } catch (const cv::Exception&) {
+      font.release();  // (a damaged font file: OpenCV's own font)
+    }
+  }
   for (size_t i = 0; i < payloads.size(); ++i) {
     const int x0 = static_cast<int>(
         std::lround((page.margin_mm + static_cast<double>(i % g.cols) * g.cell_w) * px_per_mm));
@@ -261,11 +274,49 @@ cv::Mat sheetImage(const std::vector<std::string>& payloads, double side_mm, dou
     const cv::Rect roi(x0, y0, side_px, side_px);
     cv::rectangle(img, roi, cv::Scalar(192, 192, 192), 1);
     renderLandmark(payloads[i], side_px, {}, ecc).copyTo(img(roi));
-    cv::putText(img, payloads[i], {x0, y0 + side_px + static_cast<int>(3.5 * px_per_mm)},
-                cv::FONT_HERSHEY_SIMPLEX, 0.1 * px_per_mm, cv::Scalar(64, 64, 64),
-                std::max(1, static_cast<int>(0.1 * px_per_mm)), cv::LINE_AA);
+    // the SVG's label: 3 mm text, its baseline 3.5 mm under the sheet
+    const std::string label = payloads[i] + " (" + fmt(side_mm) + " mm)";
+    const cv::Point baseline(x0, y0 + side_px + static_cast<int>(3.5 * px_per_mm));
+    const int height = std::max(4, static_cast<int>(std::lround(3.0 * px_per_mm)));
+    if (font) {
+      font->putText(img, label, baseline, height, cv::Scalar(64, 64, 64), -1, cv::LINE_AA, false);
+    } else {
+      std::string ascii;  // OpenCV's Hershey font has ASCII alone: one '?' per other character
+      for (size_t k = 0; k < label.size(); ++k) {
+        const auto c = static_cast<unsigned char>(label[k]);
+        if (c < 0x80) ascii += label[k];
+        else if ((c & 0xC0) != 0x80) ascii += '?';
+      }
+      cv::putText(img, ascii, baseline, cv::FONT_HERSHEY_SIMPLEX, 0.1 * px_per_mm, cv::Scalar(64, 64, 64),
+                  std::max(1, static_cast<int>(0.1 * px_per_mm)), cv::LINE_AA);
+    }
   }
   return img;
+}
+
+std::string labelFontPath() {
+  for (const char* path : {"/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
+                           "/usr/share/fonts/TTF/DejaVuSans.ttf", "/usr/share/fonts/dejavu/DejaVuSans.ttf"})
+    if (std::ifstream(path).good()) return path;
+  return "";
+}
+
+std::vector<uint8_t> pngWithDpi(const cv::Mat& img, double dpi) {
+  std::vector<uint8_t> png;
+  if (!cv::imencode(".png", img, png) || png.size() < 33)
+    throw std::runtime_error("OpenCV could not encode the image as PNG");
+  // After the signature (8 bytes) and IHDR (always first, 25 bytes), a pHYs
+  // chunk: pixels per metre across and down, unit 1 (the metre), and the
+  // CRC of its type and data.
+  const auto ppm = static_cast<uint32_t>(std::lround(dpi / 0.0254));
+  std::vector<uint8_t> chunk{0, 0, 0, 9, 'p', 'H', 'Y', 's'};
+  for (int k = 0; k < 2; ++k)
+    for (int shift = 24; shift >= 0; shift -= 8) chunk.push_back(static_cast<uint8_t>(ppm >> shift));
+  chunk.push_back(1);
+  const uLong crc = crc32(crc32(0L, Z_NULL, 0), chunk.data() + 4, 13);
+  for (int shift = 24; shift >= 0; shift -= 8) chunk.push_back(static_cast<uint8_t>(crc >> shift));
+  png.insert(png.begin() + 33, chunk.begin(), chunk.end());
+  return png;
 }
 
 }  // namespace ld::artwork

@@ -20,9 +20,9 @@ namespace {
 // Pixels a QR module should have in the PNG for readers to find it.
 constexpr double kMinModulePx = 3.0;
 
-bool writeText(const std::string& path, const std::string& text) {
+bool writeFile(const std::string& path, const std::string& bytes) {
   std::ofstream f(path, std::ios::binary);
-  f << text;
+  f << bytes;
   return static_cast<bool>(f);
 }
 
@@ -70,7 +70,7 @@ int main(int argc, char** argv) {
   if (png.empty() && svg.empty()) {
     return ld::cli::usage(argv[0], "give --png and/or --svg");
   }
-  // OpenCV picks the PNG writer by the extension
+  // (a PNG is written whatever the name: one that says so)
   if (!png.empty() && (png.size() < 4 || png.compare(png.size() - 4, 4, ".png") != 0))
     return ld::cli::usage(argv[0], "--png " + png + ": the file name must end in .png");
   if (payloads.size() > 1 && !sheet) return ld::cli::usage(argv[0], "several payloads need --sheet");
@@ -84,6 +84,8 @@ int main(int argc, char** argv) {
   const ld::artwork::QrEcc ecc = ld::artwork::parseQrEcc(ecc_text);  // (checked on parsing)
   try {
     const double side_mm = side_m * 1000.0;
+    // (first: a landmark too large for the page is refused before anything is printed)
+    const size_t per_page = sheet ? static_cast<size_t>(ld::artwork::landmarksPerPage(side_mm, page)) : 1;
     // What each code became (the distance it reads from: ld-eval size).
     // (each line whole before it is printed: a payload that does not fit leaves no half line)
     std::vector<double> module_u;  // each payload's QR module, in units u (for the PNG's check below)
@@ -100,7 +102,6 @@ int main(int argc, char** argv) {
     }
     // The pages: one payload alone, or as many per page as fit.
     std::vector<std::vector<std::string>> pages;
-    const size_t per_page = sheet ? static_cast<size_t>(ld::artwork::landmarksPerPage(side_mm, page)) : 1;
     for (size_t i = 0; i < payloads.size(); i += per_page)
       pages.emplace_back(payloads.begin() + static_cast<std::ptrdiff_t>(i),
                          payloads.begin() + static_cast<std::ptrdiff_t>(std::min(payloads.size(), i + per_page)));
@@ -111,7 +112,7 @@ int main(int argc, char** argv) {
         const std::string path = pagePath(svg, k, n);
         const std::string text = sheet ? ld::artwork::sheetSvg(on_page, side_mm, page, ecc)
                                        : ld::artwork::landmarkSvg(on_page.front(), side_mm, ecc);
-        if (!writeText(path, text)) {
+        if (!writeFile(path, text)) {
           std::cerr << "ld-generate: cannot write " << path << "\n";
           return 2;
         }
@@ -123,7 +124,8 @@ int main(int argc, char** argv) {
         const cv::Mat img =
             sheet ? ld::artwork::sheetImage(on_page, side_mm, dpi, page, ecc)
                   : ld::artwork::renderLandmark(on_page.front(), ld::artwork::sidePixels(side_m, dpi), {}, ecc);
-        if (!cv::imwrite(path, img)) {
+        const std::vector<uint8_t> bytes = ld::artwork::pngWithDpi(img, dpi);  // (the print size in the file)
+        if (!writeFile(path, std::string(bytes.begin(), bytes.end()))) {
           std::cerr << "ld-generate: cannot write " << path << "\n";
           return 2;
         }

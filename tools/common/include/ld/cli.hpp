@@ -8,6 +8,7 @@
 //   LD_CLI_PARSE(app, argc, argv);
 #pragma once
 
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -28,6 +29,29 @@ inline std::string programName(const char* argv0) {
   return slash == std::string::npos ? s : s.substr(slash + 1);
 }
 
+namespace detail {
+/// An option-like word of the command line that no option of the program
+/// or of its subcommands takes ("" when none).
+inline std::string unknownOption(CLI::App& app, int argc, char** argv) {
+  const auto known = [&](const std::string& name) {
+    if (app.get_option_no_throw(name)) return true;
+    for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; }))
+      if (sub->get_option_no_throw(name)) return true;
+    return false;
+  };
+  for (int i = 1; i < argc; ++i) {
+    const std::string word = argv[i];
+    if (word == "--") break;
+    if (word.size() < 2 || word[0] != '-' || std::isdigit(static_cast<unsigned char>(word[1])) || word[1] == '.')
+      continue;  // a value, a negative number
+    const std::string name = word.substr(0, word.find('='));
+    // (-abc: short flags together; -p5: a short option and its value)
+    if (name.size() > 2 && name[1] != '-' ? !known(name.substr(0, 2)) : !known(name)) return name;
+  }
+  return "";
+}
+}  // namespace detail
+
 /// Parses; -1 when the program goes on, else the status to exit with (0
 /// after --help, 2 after a bad command line, reported on one line).
 inline int parse(CLI::App& app, int argc, char** argv) {
@@ -38,6 +62,11 @@ inline int parse(CLI::App& app, int argc, char** argv) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     std::string what = e.what();
+    // CLI11 checks required options before it looks for unknown ones: a
+    // misspelt option would be reported as the required one it is not
+    if (dynamic_cast<const CLI::RequiredError*>(&e))
+      if (const std::string unknown = detail::unknownOption(app, argc, argv); !unknown.empty())
+        what = "The following argument was not expected: " + unknown;
     for (char& c : what)
       if (c == '\n') c = ' ';
     std::cerr << programName(argc > 0 ? argv[0] : nullptr) << ": " << what << " (--help lists the options)\n";
