@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # ld-log-images' command line: a folder (unreadable files skipped and
-# counted), a single image, refusals with one line, and no empty log left
-# behind when nothing could be read.
+# counted), a single image, a video whole and cut short (a note), an odd
+# width in YUYV (cropped, a note), refusals with one line, and no empty log
+# left behind when nothing could be read.
 # usage: log_images_cli_test.sh BIN_DIR
 set -euo pipefail
 BIN=$(cd "$1" && pwd)
@@ -20,6 +21,21 @@ grep -q "wrote 1 frames" "$T/out" || fail "one image: $(cat "$T/out")"
 "$BIN/ld-view" --log "$T/a.lcmlog" --all --video "$T/v.avi" >/dev/null 2>&1 || fail "ld-view --video"
 "$BIN/ld-log-images" "$T/v.avi" "$T/v.lcmlog" >"$T/out" 2>"$T/err" || fail "video: $(cat "$T/err")"
 grep -q "wrote 2 frames to $T/v.lcmlog" "$T/out" || fail "video: $(cat "$T/out")"
+# A video cut short: the frames before the cut, and a note saying how far it got.
+"$BIN/ld-synth" scene --out "$T/t" --count 10 --seed 3 >/dev/null
+"$BIN/ld-log-images" "$T/t" "$T/t.lcmlog" >/dev/null
+"$BIN/ld-view" --log "$T/t.lcmlog" --all --video "$T/t.avi" >/dev/null 2>&1 || fail "ld-view --video, 10 frames"
+head -c $(( $(stat -c %s "$T/t.avi") / 2 )) "$T/t.avi" >"$T/cut.avi"
+"$BIN/ld-log-images" "$T/cut.avi" "$T/cut.lcmlog" >"$T/out" 2>"$T/err" || fail "cut video: exit $?, $(cat "$T/err")"
+grep -q "note: $T/cut.avi says it holds 10 frames and [1-9] could be read (a file cut short or damaged?)" "$T/err" ||
+  fail "cut video, no note: $(cat "$T/err")"
+"$BIN/ld-log-images" "$T/t.avi" "$T/whole.lcmlog" >"$T/out" 2>"$T/err" || fail "whole video"
+grep -q "wrote 10 frames" "$T/out" && ! grep -q "note:" "$T/err" || fail "whole video: $(cat "$T/out") $(cat "$T/err")"
+# An odd width in YUYV (pixels in pairs): cropped by one column, said once.
+"$BIN/ld-synth" scene --out "$T/odd" --count 2 --resolution 59x45 >/dev/null
+"$BIN/ld-log-images" "$T/odd" "$T/odd.lcmlog" --format yuyv >/dev/null 2>"$T/err" || fail "odd width: $(cat "$T/err")"
+[ "$(grep -c "note: 59 px wide frames are cropped to 58 for yuyv" "$T/err")" -eq 1 ] || fail "odd width: $(cat "$T/err")"
+[ "$("$BIN/ld-dump" "$T/odd.lcmlog" | jq -s '[.[] | .width] | unique | .[0]')" -eq 58 ] || fail "odd width: not 58 wide"
 
 refused() {  # STATUS LOG PATTERN ARGS...
   local want=$1 log=$2 pat=$3; shift 3
@@ -35,4 +51,5 @@ refused 2 "$T/d.lcmlog" "^ld-log-images: $T/missing does not exist$" "$T/missing
 mkdir "$T/bad"; cp "$T/f/000002.png" "$T/bad/"
 refused 1 "$T/e.lcmlog" "no frame could be read from $T/bad; $T/e.lcmlog not written" "$T/bad"
 refused 2 "$T/g.lcmlog" "ld-log-images: --fps: must be in \[0.1, 1000\], not 0" "$T/f" --fps 0
+refused 2 "$T/h.lcmlog" "ld-log-images: --start-utime: must be >= 0, not -5" "$T/f" --start-utime -5
 echo "ld-log-images command line: ok"

@@ -37,7 +37,8 @@ int main(int argc, char** argv) {
   app.add_option("output", output, "LCM log to write")->required();
   app.add_option("--fps", fps, "frame rate of the timestamps")->check(ld::cli::Between(0.1, 1000.0))
       ->capture_default_str();
-  app.add_option("--start-utime", start_utime, "utime of the first frame (default: now)");
+  app.add_option("--start-utime", start_utime, "utime of the first frame, microseconds since 1970 (default: now)")
+      ->check(ld::cli::NonNegative);
   app.add_option("--format", format, "pixel format: gray, rgb, bgr, yuyv, uyvy, mjpeg")
       ->capture_default_str();
   app.add_option("--quality", quality, "JPEG quality for mjpeg")->check(ld::cli::Between(1, 100))
@@ -91,6 +92,7 @@ int main(int argc, char** argv) {
   }
   std::vector<uint8_t> buf;
   int64_t seq = 0, skipped = 0;
+  bool crop_said = false;
   for (size_t i = 0;; ++i) {
     cv::Mat frame;
     if (!files.empty()) {
@@ -105,8 +107,14 @@ int main(int argc, char** argv) {
       break;
     }
     if ((pixelformat == ld::image_t::PIXEL_FORMAT_YUYV || pixelformat == ld::image_t::PIXEL_FORMAT_UYVY) &&
-        frame.cols % 2)
+        frame.cols % 2) {
+      // (two pixels share their colour in YUYV and UYVY: an odd width loses its last column)
+      if (!crop_said)
+        std::cerr << "ld-log-images: note: " << frame.cols << " px wide frames are cropped to " << frame.cols - 1
+                  << " for " << format << " (its pixels come in pairs)\n";
+      crop_said = true;
       frame = frame.colRange(0, frame.cols - 1).clone();
+    }
     const int64_t utime = start_utime + static_cast<int64_t>(std::llround(seq * 1e6 / fps));
     const ld::image_t msg = ld::matToImage(frame, pixelformat, utime, seq, quality);
     buf.resize(static_cast<size_t>(msg.getEncodedSize()));
@@ -127,6 +135,14 @@ int main(int argc, char** argv) {
     fs::remove(output, ec);
     std::cerr << "ld-log-images: no frame could be read from " << input << "; " << output << " not written\n";
     return 1;
+  }
+  // A video cut short or damaged: OpenCV stops at the first frame it cannot
+  // decode (FFmpeg may say why on its own line); say how far it got.
+  if (video.isOpened()) {
+    const double said = video.get(cv::CAP_PROP_FRAME_COUNT);  // (the container's count; an estimate for some)
+    if (said > 0 && static_cast<double>(seq) < said - 1)
+      std::cerr << "ld-log-images: note: " << input << " says it holds " << static_cast<long long>(said)
+                << " frames and " << seq << " could be read (a file cut short or damaged?)\n";
   }
   std::cout << "wrote " << seq << " frames to " << output << " (" << format << ", " << fps
             << " fps)" << (skipped ? ", " + std::to_string(skipped) + " unreadable skipped" : "")
