@@ -70,7 +70,8 @@ mkdir -p "$T/other"; cp "$T/s/000000.png" "$T/other/000000.png"
 # other way round), an unwritable -o or --draw.
 set +e; "$BIN/ld-detect" "$T/nothere.png" >"$T/out" 2>"$T/err"; rc=$?; set -e
 [ $rc -eq 1 ] && [ "$(cat "$T/err")" = "ld-detect: $T/nothere.png: no such file" ] || fail "missing: $rc $(cat "$T/err")"
-for args in "--size 0|ld-detect: --size: must be > 0, not 0 (--help lists the options)" \
+for args in "--size 0|ld-detect: --size: must be in [0.01, 10], not 0 (--help lists the options)" \
+            "--size 1e9|ld-detect: --size: must be in [0.01, 10], not 1e9 (--help lists the options)" \
             "--size 0.15|ld-detect: --size requires --camera (--help lists the options)" \
             "--camera $T/cam.yaml|ld-detect: --camera requires --size (--help lists the options)" \
             "-o /proc/no/such.jsonl|ld-detect: cannot write /proc/no/such.jsonl: cannot create folder /proc/no: No such file or directory" \
@@ -78,4 +79,22 @@ for args in "--size 0|ld-detect: --size: must be > 0, not 0 (--help lists the op
   set +e; "$BIN/ld-detect" ${args%%|*} "$T/s/000000.png" >/dev/null 2>"$T/err"; rc=$?; set -e
   [ $rc -eq 2 ] && [ "$(cat "$T/err")" = "${args#*|}" ] || fail "${args%%|*}: exit $rc, $(cat "$T/err")"
 done
+set +e; "$BIN/ld-detect" --draw "" "$T/s/000000.png" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && [ "$(cat "$T/err")" = 'ld-detect: --draw needs a path, not "" (--help lists the options)' ] || fail "--draw '': exit $rc, $(cat "$T/err")"
+# What it writes is never what it reads: -o naming an input, --draw into an
+# input's folder (an overlay would take an input's name) are refused, the
+# inputs untouched.
+mkdir -p "$T/keep"; cp "$T/s/000000.png" "$T/s/000001.png" "$T/keep/"
+sum=$(md5sum "$T/keep/"*.png)
+set +e; "$BIN/ld-detect" "$T/keep/000000.png" -o "$T/keep/000000.png" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -q "is one of the input images: it would be emptied" "$T/err" || fail "-o = input: exit $rc, $(cat "$T/err")"
+set +e; "$BIN/ld-detect" "$T/keep" --draw "$T/keep" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -q "would write its overlay over the input $T/keep/000000.png" "$T/err" || fail "--draw = input folder: exit $rc, $(cat "$T/err")"
+[ "$(md5sum "$T/keep/"*.png)" = "$sum" ] || fail "the inputs changed"
+# --summary even when no image could be read, counted in the singular where one.
+echo "not an image" >"$T/bad.png"
+set +e; "$BIN/ld-detect" "$T/bad.png" --summary >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 1 ] && grep -q "^ld-detect: 0 images, 0 with landmarks, 0 landmarks; 1 unreadable; backend" "$T/err" || fail "summary of none: $(cat "$T/err")"
+"$BIN/ld-detect" "$T/s/000000.png" --summary >/dev/null 2>"$T/err"
+grep -q "^ld-detect: 1 image, 1 with landmarks, 1 landmark, 1.00 per image" "$T/err" || fail "summary of one: $(cat "$T/err")"
 echo "ld-detect command line: ok"

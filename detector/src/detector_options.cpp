@@ -12,7 +12,8 @@ void DetectorOptions::addTo(CLI::App& app) {
       "--camera", camera_file,
       "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration), for pose");
   CLI::Option* size =
-      app.add_option("--size", side_m, "printed landmark side S in metres, for pose")->check(cli::Positive);
+      app.add_option("--size", side_m, "printed landmark side S in metres, for pose (0.01 to 10)")
+          ->check(cli::Between(0.01, 10.0));
   // pose needs both
   size->needs(camera);
   camera->needs(size);

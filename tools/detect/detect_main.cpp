@@ -80,6 +80,36 @@ int main(int argc, char** argv) {
     std::cerr << "ld-detect: " << e.what() << "\n";
     return 2;
   }
+  if ((app.count("--draw") && draw_dir.empty()) || (app.count("--output") && out_file.empty()))
+    return ld::cli::usage(argv[0], std::string(draw_dir.empty() && app.count("--draw") ? "--draw" : "--output") +
+                                       " needs a path, not \"\"");
+  const auto files = expandInputs(inputs);
+  if (files.empty()) {
+    std::cerr << "ld-detect: no image files found\n";
+    return 2;
+  }
+  // What it writes must not be what it reads: -o naming an input would
+  // empty it before it is read, and --draw into an input's folder would put
+  // an overlay over an input of the same name.
+  {
+    std::error_code ec;
+    const auto canonical = [&](const std::string& p) { return fs::weakly_canonical(fs::absolute(p, ec), ec); };
+    std::set<fs::path> in;
+    for (const auto& f : files) in.insert(canonical(f));
+    if (!out_file.empty() && in.count(canonical(out_file)))
+      return ld::cli::usage(argv[0], "-o " + out_file + " is one of the input images: it would be emptied");
+    if (!draw_dir.empty()) {
+      std::set<std::string> names;
+      for (const auto& f : files) {
+        std::string name = fs::path(f).stem().string();  // (as the overlays are named below)
+        for (int k = 2; !names.insert(name).second; ++k) name = fs::path(f).stem().string() + "-" + std::to_string(k);
+        const fs::path dst = fs::path(draw_dir) / (name + ".png");
+        if (in.count(canonical(dst.string())))
+          return ld::cli::usage(argv[0], "--draw " + draw_dir + " would write its overlay over the input " +
+                                             dst.string() + ": draw into another folder");
+      }
+    }
+  }
   if (!draw_dir.empty()) {  // created when missing, and written in, as ld-view's --out
     const std::string problem = ld::prepareOutputFolder(draw_dir);
     if (!problem.empty()) {
@@ -108,11 +138,6 @@ int main(int argc, char** argv) {
   std::vector<double> times;
   std::set<std::string> drawn;  // overlay names written
   std::string pose_error;       // the last frame's Detection::pose_error
-  const auto files = expandInputs(inputs);
-  if (files.empty()) {
-    std::cerr << "ld-detect: no image files found\n";
-    return 2;
-  }
   for (const auto& path : files) {
     cv::Mat img;
     try {
@@ -172,19 +197,25 @@ int main(int argc, char** argv) {
     }
   }
   out.flush();
-  if (summary && !times.empty()) {
+  if (summary) {
     std::sort(times.begin(), times.end());
     // nearest rank: the smallest time that q of the images take at most
     const auto pct = [&](double q) {
       const auto rank = static_cast<size_t>(std::ceil(q * static_cast<double>(times.size())));
       return times[std::clamp<size_t>(rank, 1, times.size()) - 1];
     };
-    std::fprintf(stderr,
-                 "ld-detect: %zu images, %d with landmarks, %d landmarks, %.2f per image; "
-                 "detect_ms median %.3f, p95 %.3f, max %.3f; %d unreadable; backend %s\n",
-                 times.size(), with_landmarks, total_landmarks,
-                 static_cast<double>(total_landmarks) / static_cast<double>(times.size()),
-                 pct(0.5), pct(0.95), times.back(), failed, detector.detector().backendInfo().c_str());
+    const auto count = [](size_t n, const char* one, const char* many) {
+      return std::to_string(n) + " " + (n == 1 ? one : many);
+    };
+    std::string line = "ld-detect: " + count(times.size(), "image", "images") + ", " +
+                       std::to_string(with_landmarks) + " with landmarks, " +
+                       count(static_cast<size_t>(total_landmarks), "landmark", "landmarks");
+    if (!times.empty())
+      line += cv::format(", %.2f per image; detect_ms median %.3f, p95 %.3f, max %.3f",
+                         static_cast<double>(total_landmarks) / static_cast<double>(times.size()), pct(0.5),
+                         pct(0.95), times.back());
+    line += "; " + std::to_string(failed) + " unreadable; backend " + detector.detector().backendInfo();
+    std::cerr << line << "\n";
   }
   return failed > 0 ? 1 : 0;
 }
