@@ -25,7 +25,11 @@ refused "^ld-bench: cannot write $T: is a folder$" "$BIN/ld-bench" --markdown "$
 printf '%%YAML:1.0\n---\ncentre_iterations: 11\n' >"$T/bad.yaml"
 refused "^ld-bench: .*bad.yaml.*centre_iterations" "$BIN/ld-bench" --params "$T/bad.yaml"
 refused "^ld-bench: .*missing.yaml" "$BIN/ld-bench" --params "$T/missing.yaml"
-refused "^ld-bench-tracker: --landmarks: must be > 0, not -5" "$BIN/ld-bench-tracker" --landmarks -5
+refused "^ld-bench-tracker: --landmarks: must be in \[1, 1000\], not -5" "$BIN/ld-bench-tracker" --landmarks -5
+refused "^ld-bench-tracker: --landmarks: must be in \[1, 1000\], not 100000" "$BIN/ld-bench-tracker" --landmarks 100000
+refused "^ld-bench: --tracker-landmarks: must be in \[1, 1000\], not 100000" "$BIN/ld-bench" --tracker-landmarks 10,100000
+timeout 60 "$BIN/ld-bench-tracker" --landmarks 5,7 --repeats 1 >"$T/out" || fail "ld-bench-tracker 5,7"
+[ "$(grep -c '^| [57] |' "$T/out")" -eq 2 ] || fail "ld-bench-tracker 5,7: $(cat "$T/out")"
 refused "^ld-bench-e2e: unknown option --bogus (--help lists the options)$" "$BIN/ld-bench-e2e" --bogus
 refused "^ld-bench-e2e: --seconds must be a number of seconds, not x" "$BIN/ld-bench-e2e" --seconds x
 refused "^ld-bench-e2e: --seconds must be above 0" "$BIN/ld-bench-e2e" --seconds 0.0

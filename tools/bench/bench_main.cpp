@@ -99,8 +99,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   std::vector<int> tracker_counts{10, 50, 200};
   int tracker_repeats = 100;
-  app.add_option("--tracker-landmarks", tracker_counts, "landmark counts of the tracker rows")
-      ->check(ld::cli::Positive)
+  app.add_option("--tracker-landmarks", tracker_counts, "landmark counts of the tracker rows, a list (1 to 1000 each)")
+      ->delimiter(',')
+      ->check(ld::cli::Between(1, 1000))
       ->capture_default_str();
   app.add_option("--tracker-repeats", tracker_repeats, "timed runs per tracker row")
       ->check(ld::cli::Positive)

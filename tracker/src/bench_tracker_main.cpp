@@ -11,7 +11,10 @@ int main(int argc, char** argv) {
   CLI::App app{"ld-bench-tracker: assignment and tracker update time by landmark count."};
   std::vector<int> counts{10, 50, 200};
   int repeats = 200;
-  app.add_option("--landmarks", counts, "landmark counts")->check(ld::cli::Positive)->capture_default_str();
+  app.add_option("--landmarks", counts, "landmark counts, a list (1 to 1000 each)")
+      ->delimiter(',')
+      ->check(ld::cli::Between(1, 1000))
+      ->capture_default_str();
   app.add_option("--repeats", repeats, "timed runs per count (median reported)")
       ->check(ld::cli::Positive)->capture_default_str();
   LD_CLI_PARSE(app, argc, argv);
