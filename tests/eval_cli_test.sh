@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# ld-eval's command line: the size advisor's answer and exit codes, the QR
-# table with and without --stack, its plot, the motion and pose tables, and
-# bad options refused.
+# ld-eval's command line: the size advisor's answer, exit codes and plot,
+# the QR table with and without --stack, its plot, the motion and pose
+# tables, and bad options refused before any sweep.
 # usage: eval_cli_test.sh BIN_DIR
 set -euo pipefail
 BIN=$(cd "$1" && pwd)
@@ -73,6 +73,28 @@ if "$BIN/ld-eval" qr --stack 100 >/dev/null 2>"$T/err"; then fail "--stack 100 a
 grep -q -- "--stack" "$T/err" || fail "bad --stack: $(cat "$T/err")"
 if "$BIN/ld-eval" size --ecc Z >/dev/null 2>"$T/err"; then fail "--ecc Z accepted"; fi
 grep -q -- "--ecc.*not 'Z'" "$T/err" || fail "bad --ecc: $(cat "$T/err")"
+# Refused before any sweep, one line each: a step making too many points (a
+# step of 1e-9 filled gigabytes), a plot not named .png (it failed after the
+# sweep), an empty path, a negative seed, sides without their distances.
+for args in "yaw --step 1e-9|--step 1e-09 from -80 to 80 makes 1.6e+11 sweep points (at most 1000)" \
+            "distance --step 1e-6|sweep points (at most 1000)" \
+            "yaw --png $T/plot|--png $T/plot: the plot is a PNG, its name must end in .png" \
+            "yaw --seed -1|--seed: must be >= 0, not -1" \
+            "yaw --side 0.12|give one --distance per --side (1 side, 2 distances: the default distances 1.5 2.5 go with the default sides 0.09 0.15)"; do
+  set +e; timeout 20 "$BIN/ld-eval" ${args%%|*} >/dev/null 2>"$T/err"; rc=$?; set -e
+  [ $rc -eq 2 ] && [ "$(wc -l <"$T/err")" -eq 1 ] && grep -qF -- "${args#*|}" "$T/err" || fail "${args%%|*}: exit $rc, $(cat "$T/err")"
+done
+set +e; "$BIN/ld-eval" qr --png "" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -qF -- '--png needs a path, not ""' "$T/err" || fail "--png '': exit $rc, $(cat "$T/err")"
+# A lone --side in motion takes the default distance, 1.5 m.
+"$BIN/ld-eval" motion --trials 1 --side 0.12 --to 5 --step 5 >"$T/m1.md" 2>/dev/null || fail "motion, one side: exit $?"
+head -1 "$T/m1.md" | grep -q '^| motion blur (px) | 12 cm at 1.5 m |$' || fail "motion, one side: $(head -1 "$T/m1.md")"
+# size --png plots every candidate (the answer still the smallest that does).
+"$BIN/ld-eval" size --detect-at 1 --read-at 0.5 --side 0.3 --side 0.4 --trials 2 --png "$T/size.png" >"$T/size2.md" 2>/dev/null ||
+  fail "size --png: exit $?"
+[ -s "$T/size.png" ] && [ "$(grep -c '^| [34]0 cm' "$T/size2.md")" -eq 2 ] && grep -q "^smallest landmark: 30 cm" "$T/size2.md" ||
+  fail "size --png: $(cat "$T/size2.md")"
+
 # A level given (any case) is taken: codes printed at M read at 0.3 m.
 "$BIN/ld-eval" qr --ecc m --trials 3 --from 0.3 --to 0.3 >"$T/qrm.md" 2>/dev/null || fail "qr --ecc m: exit $?"
 grep -q '^| 0\.3 | 100.0 % | 100.0 % | 100.0 % | 0 |' "$T/qrm.md" || fail "qr --ecc m: $(cat "$T/qrm.md")"

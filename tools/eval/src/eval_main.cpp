@@ -1,6 +1,7 @@
 // ld-eval: detection and QR decode rates on ld-synth sweeps, as tables
 // (markdown) and plots (PNG). See README, "Evaluating".
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -51,24 +52,36 @@ void plot(const std::string& path, const std::string& title, const std::string& 
     for (const auto& p : series[0].points) xs.push_back(p.x);
   else
     for (int k = 0; k <= 8; ++k) xs.push_back(x0 + (x1 - x0) * k / 8);
+  int label_end = -1;  // where the last tick label drawn ends
   for (double x : xs) {
     cv::line(img, px(x, 0), px(x, 1), cv::Scalar(235, 235, 235));
     std::ostringstream s;
     s << std::round(x * 100) / 100;
-    text(s.str(), px(x, 0) + cv::Point(-12, 20));
+    // centred under its tick, kept inside the image, and left out where it
+    // would run into the one before (the grid line stays)
+    int baseline = 0;
+    const int w = cv::getTextSize(s.str(), cv::FONT_HERSHEY_SIMPLEX, 0.5, 1, &baseline).width;
+    const int left = std::clamp(px(x, 0).x - w / 2, 0, W - w - 2);
+    if (left <= label_end + 6) continue;
+    text(s.str(), {left, px(x, 0).y + 20});
+    label_end = left + w;
   }
   cv::rectangle(img, px(x0, 1), px(x1, 0), cv::Scalar(0, 0, 0));
   text(title, {L, 30}, 0.6);
   text(xlabel, {W / 2 - 60, H - 15});
   text("%", {15, T + (H - T - B) / 2});
   const cv::Scalar colours[] = {{200, 80, 0}, {0, 0, 220}, {0, 150, 0}, {150, 0, 150}, {0, 140, 220}, {80, 80, 80}};
-  for (size_t i = 0; i < series.size(); ++i) {
-    const cv::Scalar c = colours[i % 6];
-    const auto& pts = series[i].points;
+  // (the first series, ours, drawn last: on top where others have the same rates)
+  for (size_t j = series.size(); j-- > 0;) {
+    const cv::Scalar c = colours[j % 6];
+    const auto& pts = series[j].points;
     for (size_t k = 0; k < pts.size(); ++k) {
       cv::circle(img, px(pts[k].x, pts[k].y), 3, c, cv::FILLED, cv::LINE_AA);
       if (k > 0) cv::line(img, px(pts[k - 1].x, pts[k - 1].y), px(pts[k].x, pts[k].y), c, 2, cv::LINE_AA);
     }
+  }
+  for (size_t i = 0; i < series.size(); ++i) {
+    const cv::Scalar c = colours[i % 6];
     const cv::Point at(L + 15, H - B - 20 - 22 * static_cast<int>(series.size() - 1 - i));
     cv::line(img, at, at + cv::Point(25, 0), c, 2, cv::LINE_AA);
     text(series[i].name, at + cv::Point(32, 5));
@@ -76,8 +89,18 @@ void plot(const std::string& path, const std::string& title, const std::string& 
   if (!cv::imwrite(path, img)) throw std::runtime_error("cannot write plot " + path);
 }
 
+// The sweep's points, from `from` to `to` by `step`; at most kMaxPoints
+// (a step of 1e-9 would ask for billions: a usage error naming the count).
+constexpr double kMaxPoints = 1000;
 std::vector<double> range(double from, double to, double step) {
   if (!(step > 0) || !(to >= from)) throw std::invalid_argument("bad range: need from <= to and step > 0");
+  const double n = std::floor((to - from) / step + 1e-9) + 1;
+  if (!(n <= kMaxPoints)) {
+    std::ostringstream m;
+    m << "--step " << step << " from " << from << " to " << to << " makes " << n << " sweep points (at most "
+      << kMaxPoints << ")";
+    throw ld::cli::UsageError(m.str());
+  }
   std::vector<double> v;
   for (int k = 0;; ++k) {
     const double x = from + k * step;
@@ -100,7 +123,7 @@ std::string cm(double m) {
 }
 
 struct Common {
-  std::string camera_file, params_file, markdown, png;
+  std::string camera_file, params_file, markdown, png, backend;
   bool compare = false;
   int trials = 20;
   uint64_t seed = 1;
@@ -108,6 +131,7 @@ struct Common {
     ld::eval::SweepOptions o;
     if (!camera_file.empty()) o.camera = ld::CameraModel::load(camera_file);
     if (!params_file.empty()) o.params = ld::DetectorParams::load(params_file);
+    if (!backend.empty()) o.params.backend = backend;
     o.trials = trials;
     o.seed = seed;
     return o;
@@ -117,8 +141,11 @@ struct Common {
 void addCommon(CLI::App* app, Common& c, bool png = true) {
   app->add_option("--camera", c.camera_file, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration); default 640x480, f = 600 px");
   app->add_option("--params", c.params_file, "detector parameters (YAML)");
+  app->add_option("--backend", c.backend, "our detector's backend: cpu, gles or auto, as ld-detect's (default: the "
+                                          "params file's, else cpu)")
+      ->check(CLI::IsMember({"cpu", "gles", "auto"}));
   app->add_option("--trials", c.trials, "frames per sweep point")->check(ld::cli::Positive)->capture_default_str();
-  app->add_option("--seed", c.seed, "scene seed")->capture_default_str();
+  app->add_option("--seed", c.seed, "scene seed (0 or more)")->capture_default_str()->check(ld::cli::NonNegative);
   app->add_option("--markdown", c.markdown, "also write the table to this file");
   if (png) app->add_option("--png", c.png, "write a plot");
 }
@@ -151,6 +178,13 @@ void addDistanceSweep(CLI::App* app, double& side, double& from, double& to, dou
   app->add_option("--to", to, "last distance, metres")->capture_default_str()->check(ld::cli::Positive);
   app->add_option("--step", step, "metres between sweep points")->capture_default_str()->check(ld::cli::Positive);
   app->add_option("--max-yaw", max_yaw, "yaw drawn within +-this, degrees")->capture_default_str()->check(kYaw);
+}
+
+bool endsWithPng(const std::string& path) {
+  if (path.size() < 4) return false;
+  std::string ext = path.substr(path.size() - 4);
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return std::tolower(ch); });
+  return ext == ".png";
 }
 
 // An output file can be written where it is asked for (its missing folders made).
@@ -290,7 +324,14 @@ int main(int argc, char** argv) {
   LD_CLI_PARSE(app, argc, argv);
   try {
     // Where the results go, checked before the sweep (minutes) rather than after it.
-    for (const Common* c : {&yc, &dc, &qc, &sc, &lc, &mc, &pc}) {
+    for (const auto& [c, sub] : std::vector<std::pair<const Common*, CLI::App*>>{
+             {&yc, yaw}, {&dc, dist}, {&qc, qr}, {&sc, size}, {&lc, light}, {&mc, motion}, {&pc, pose}}) {
+      if (!sub->parsed()) continue;
+      for (const char* opt : {"--markdown", "--png"})
+        if (sub->get_option_no_throw(opt) && sub->count(opt) && (opt[2] == 'm' ? c->markdown : c->png).empty())
+          throw ld::cli::UsageError(std::string(opt) + " needs a path, not \"\"");
+      if (!c->png.empty() && !endsWithPng(c->png))
+        throw ld::cli::UsageError("--png " + c->png + ": the plot is a PNG, its name must end in .png");
       requireWritable(c->markdown, "--markdown");
       requireWritable(c->png, "--png");
     }
@@ -316,7 +357,15 @@ int main(int argc, char** argv) {
                                       "Detection rate against motion blur", "blur length (pixels)"}
                               : Sweep{dc, d_sides, nullptr, range(d_from, d_to, d_step), "distance (m)",
                                       "Detection rate against distance", "distance (m)"};
-      if (sw.dists && sw.dists->size() != sw.sides.size()) throw ld::cli::UsageError("give one --distance per --side");
+      if (by == By::kMotion && !motion->count("--distance") && m_sides.size() != m_dists.size())
+        m_dists.assign(m_sides.size(), 1.5);  // (the default distance, the same for every side)
+      if (sw.dists && sw.dists->size() != sw.sides.size())
+        throw ld::cli::UsageError("give one --distance per --side (" + std::to_string(sw.sides.size()) +
+                                  (sw.sides.size() == 1 ? " side, " : " sides, ") + std::to_string(sw.dists->size()) +
+                                  (sw.dists->size() == 1 ? " distance" : " distances") +
+                                  (by == By::kYaw && !yaw->count("--distance")
+                                       ? ": the default distances 1.5 2.5 go with the default sides 0.09 0.15)"
+                                       : ")"));
       const Common& c = sw.c;
       const std::vector<double>& xs = sw.xs;
       std::vector<std::string> targets{"landmark"};
@@ -415,22 +464,23 @@ int main(int argc, char** argv) {
           const auto points = ld::eval::measureFixedAndAdaptive(o, l_dist, 0, l_yaw);
           const auto fp = ld::eval::falsePositivesFixedAndAdaptive(o, l_fp_frames);
           double rate[2];
+          // (no distractor frames rendered: no false-positive figure, "-")
+          const auto false_rate = [&](int a) { return l_fp_frames > 0 ? cv::format("%.3f", fp[a]) : std::string("-"); };
           for (int a = 0; a < 2; ++a) {
             rate[a] = points[static_cast<size_t>(a)].detectRate();
             series[static_cast<size_t>(a)].points.emplace_back(v, rate[a]);
-            std::fprintf(stderr, "  %s %g %s: detected %.0f %%, false %.3f/frame\n", sw.name.c_str(), v,
-                         a ? "adaptive" : "fixed", 100 * rate[a], fp[a]);
+            std::fprintf(stderr, "  %s %g %s: detected %.0f %%, false %s/frame\n", sw.name.c_str(), v,
+                         a ? "adaptive" : "fixed", 100 * rate[a], false_rate(a).c_str());
           }
           char row[256];
-          std::snprintf(row, sizeof row, "| %g %s | %.1f %% | %.1f %% | %.3f | %.3f |\n", v, sw.unit.c_str(),
-                        100 * rate[0], 100 * rate[1], fp[0], fp[1]);
+          std::snprintf(row, sizeof row, "| %g %s | %.1f %% | %.1f %% | %s | %s |\n", v, sw.unit.c_str(),
+                        100 * rate[0], 100 * rate[1], false_rate(0).c_str(), false_rate(1).c_str());
           t << row;
         }
         t << "\n";
         if (!lc.png.empty()) {
-          std::string path = lc.png;
-          const auto dot = path.rfind(".png");
-          path = (dot == std::string::npos ? path : path.substr(0, dot)) + "_" + sw.png_suffix + ".png";
+          // (the name's .png, any case, after the sweep's suffix)
+          const std::string path = lc.png.substr(0, lc.png.size() - 4) + "_" + sw.png_suffix + ".png";
           plot(path, "Detection rate against " + sw.name, sw.name + (sw.unit.empty() ? "" : " (" + sw.unit + ")"), series);
         }
       }
@@ -480,8 +530,10 @@ int main(int argc, char** argv) {
             << pair(p.pose_errors.corner_px, 1, 3) << " | " << pair(p.pose_errors.rotation_deg, 1, 2) << " | "
             << pair(p.pose_errors.distance_frac, 100, 2) << " |\n";
         }
-      t << "\n" << cm(p_side) << " landmarks and markers of the same printed size at the same poses, yaw within +-"
-        << p_yaw << " deg, " << pc.trials << " frames per distance; each pose from the four outer corners by "
+      t << "\n" << cm(p_side) << (pc.compare ? " landmarks and markers of the same printed size at the same poses"
+                                             : " landmarks")
+        << ", yaw within +-" << p_yaw << " deg, " << pc.trials << (pc.trials == 1 ? " frame" : " frames")
+        << " per distance; each pose from the four outer corners by "
         << "cv::solvePnP (SOLVEPNP_IPPE_SQUARE); errors over the frames where each found its target\n";
       emit(pc, t.str());
     } else if (size->parsed()) {
@@ -493,6 +545,8 @@ int main(int argc, char** argv) {
       t << "| side | detected at " << s_detect << " m | read at " << s_read << " m" << read_how
         << " |\n|---|---|---|\n";
       double answer = -1;
+      std::vector<Series> series{{"detected at " + cv::format("%g", s_detect) + " m", {}},
+                                 {"read at " + cv::format("%g", s_read) + " m" + read_how, {}}};
       for (double side : s_sides) {
         o.side_m = side;
         o.decode = false;
@@ -509,15 +563,22 @@ int main(int argc, char** argv) {
         const int read = s_stack > 0 ? rd.decoded_stacked : rd.decoded;
         t << "| " << cm(side) << " | " << pct(det.detected, det.trials) << " % | "
           << pct(read, rd.trials) << " % |\n";
-        if (det.detectRate() >= 0.95 && read >= 0.95 * rd.trials) {
-          answer = side;
-          break;
-        }
+        series[0].points.emplace_back(side * 100, det.detectRate());
+        series[1].points.emplace_back(side * 100, rd.trials ? static_cast<double>(read) / rd.trials : 0.0);
+        if (answer < 0 && det.detectRate() >= 0.95 && read >= 0.95 * rd.trials) answer = side;
+        if (answer > 0 && sc.png.empty()) break;  // (a plot shows every candidate)
       }
-      t << "\n" << (answer > 0 ? "smallest landmark: " + cm(answer) : std::string("no candidate side reaches 95 %"))
-        << " (detected at " << s_detect << " m and read at " << s_read << " m" << read_how
-        << " in 95 % of frames, yaw within +-"
-        << s_yaw << " deg)\n";
+      // (the smallest candidate: a smaller landmark may do too; none: the
+      // candidates may not even fit in the view that close)
+      const double view_h = std::min(s_detect, s_read) * o.camera.size.height / o.camera.K(1, 1);
+      std::string verdict = answer > 0 ? "smallest landmark: " + cm(answer) : "no candidate side reaches 95 %";
+      if (answer > 0 && answer == s_sides.front())
+        verdict += " or less (the smallest candidate; --side tries others)";
+      t << "\n" << verdict << " (detected at " << s_detect << " m and read at " << s_read << " m" << read_how
+        << " in 95 % of frames, yaw within +-" << s_yaw << " deg)\n";
+      if (answer < 0 && s_sides.front() * 1.2 > view_h)
+        t << "at " << std::min(s_detect, s_read) << " m the view is " << cv::format("%.2f", view_h)
+          << " m high: even a " << cm(s_sides.front()) << " landmark (with its white margin) hardly fits in it\n";
       // What was printed on it: the code's size decides the reading distance.
       const std::string sample = o.payload(0);
       const double side = answer > 0 ? answer : s_sides.back();
@@ -525,6 +586,8 @@ int main(int argc, char** argv) {
         << ld::artwork::describeQr(ld::artwork::encodeQr(sample, o.ecc), side * 1000) << " on a " << cm(side)
         << " landmark\n";
       emit(sc, t.str());
+      if (!sc.png.empty())
+        plot(sc.png, "Detection and QR read rate against landmark side", "landmark side (cm)", series);
       return answer > 0 ? 0 : 3;
     }
   } catch (const ld::cli::UsageError& e) {
