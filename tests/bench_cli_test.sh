@@ -45,6 +45,9 @@ timeout 120 "$BIN/ld-bench" --frames 1 --repeats 1 --resolutions 320x240 --backe
 grep -q "^| 320x240 | cpu | fast | " "$T/out" || fail "no detector row: $(cat "$T/out")"
 grep -q "^| 10 | " "$T/out" || fail "no tracker row: $(cat "$T/out")"
 grep -q "^| 320x240 | cpu | fast | " "$T/new/bench.md" || fail "no --markdown"
+# the header gives the command as run, to measure it again
+grep -qF "Measured by \`ld-bench --frames 1 --repeats 1 --resolutions 320x240 --backend cpu --no-paper --tracker-landmarks 10 --tracker-repeats 1 --markdown $T/new/bench.md\`" "$T/out" ||
+  fail "header: $(grep Measured "$T/out")"
 # --params: the rows start from the file's parameters (sheet alignment on:
 # the corners column takes its time) and the header says so.
 printf '%%YAML:1.0\n---\nalign_iterations: 10\n' >"$T/align.yaml"

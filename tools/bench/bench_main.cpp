@@ -133,8 +133,14 @@ int main(int argc, char** argv) {
   ld::markers::Detector aruco_detector(ld::markers::Kind::Aruco);
 
   std::ostringstream md;
-  md << "Measured by `ld-bench --frames " << frames << " --repeats " << repeats
-     << (params_file.empty() ? "" : " --params " + params_file) << "`: "
+  // the command as given, so the table says how to measure it again
+  std::string command = "ld-bench";
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    const bool plain = !a.empty() && a.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789-_.,/=:+") == std::string::npos;
+    command += " " + (plain ? a : "'" + a + "'");
+  }
+  md << "Measured by `" << command << "`: "
      << "median of per-scene medians, one thread, ms. Scenes: ld-synth, 1-2 landmarks of "
      << side_m << " m at 0.8-2.5 m, yaw within +-45 deg, any roll, random lighting, noise and JPEG; "
      << "AprilTag (tag36h11) and ArUco (4x4) markers of the same printed size at the same poses.\n\n";
