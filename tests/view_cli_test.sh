@@ -45,7 +45,15 @@ grep -q '^ld-view: 3 images, 0 tracked lists, 3 frames written$' "$T/err" || fai
 
 refused "--video /proc/x/x.avi: cannot create folder /proc/x" \
   env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --video /proc/x/x.avi
-refused "--video $T: is a folder" env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --video "$T"
+mkdir -p "$T/dir.avi"
+refused "--video $T/dir.avi: is a folder" env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --video "$T/dir.avi"
+# the video is MJPG in AVI: another name is refused at the start (it failed at the first frame)
+refused "--video $T/v.mp4: the video is MJPG in AVI, its name must end in .avi" \
+  env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --video "$T/v.mp4"
+refused "--all is for --log" env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --all --out "$T/live"
+# --window with --out and no display: the advice is to drop --window; an empty DISPLAY is none
+refused "cannot open a window: DISPLAY and WAYLAND_DISPLAY are unset (.*); drop --window$" \
+  "$netns" env -u WAYLAND_DISPLAY DISPLAY= "$BIN/ld-view" --window --all --log "$T/in.lcmlog" --out "$T/w"
 refused "--out /proc/x: cannot create folder /proc/x" \
   env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --out /proc/x
 printf '\x89PNG\r\n\x1a\n an image, not a log' >"$T/lm.png"
@@ -69,4 +77,13 @@ refused "--axis-length: must be > 0, not -1" env -u DISPLAY -u WAYLAND_DISPLAY "
 rc=0; env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --out "$T/none" 2>"$T/err" || rc=$?
 [ $rc -eq 1 ] && grep -q "^ld-view: no tracked lists on LANDMARKS_TRACKED; --all draws every image$" "$T/err" ||
   fail "nothing to draw: exit $rc, $(cat "$T/err")"
+# two logs whose seqs overlap, of two sizes: no PNG written over another
+# (the second gets -2), and the video takes every frame, scaled to its size
+"$BIN/ld-synth" sequence --out "$T/small" --frames 2 --log "$T/small.lcmlog" --landmarks 1 --resolution 320x240 >/dev/null
+env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --log "$T/small.lcmlog" --all \
+  --out "$T/both" --video "$T/both.avi" 2>"$T/err" || fail "two logs: $(cat "$T/err")"
+[ "$(ls "$T/both" | wc -l)" -eq 5 ] && [ -s "$T/both/000000-2.png" ] || fail "two logs: $(ls "$T/both")"
+grep -q "^ld-view: note: 320x240 frames are scaled to the video's " "$T/err" || fail "two logs, video: $(cat "$T/err")"
+"$BIN/ld-log-images" "$T/both.avi" "$T/both.lcmlog" >"$T/out" 2>/dev/null
+grep -q "wrote 5 frames" "$T/out" || fail "the video holds: $(cat "$T/out")"
 echo "ld-view command line: ok"

@@ -2,7 +2,9 @@
 // the frames they were found in, matched by utime and seq. Reads the live
 // bus (IMAGE, LANDMARKS_TRACKED, LANDMARK_CODES) or LCM logs, and shows the
 // result in a window or writes PNGs / a video.
+#include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <chrono>
 #include <csignal>
@@ -13,6 +15,7 @@
 #include <iostream>
 #include <map>
 #include <optional>
+#include <set>
 
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
@@ -60,10 +63,17 @@ class Sink {
   explicit Sink(const Options& o) : o_(o) {}
   bool put(const cv::Mat& img, int64_t seq) {
     if (!o_.out_dir.empty()) {
+      // DIR/SEQ.png; a name already written in this run (seq starting again:
+      // a restarted camera, a second log) gets the next free -N, so no frame
+      // is written over another
       char name[32];
-      std::snprintf(name, sizeof name, "/%06lld.png", static_cast<long long>(seq < 0 ? count_ : seq));
-      if (!cv::imwrite(o_.out_dir + name, img)) {
-        std::cerr << "ld-view: cannot write " << o_.out_dir + name << "\n";
+      std::snprintf(name, sizeof name, "%06lld", static_cast<long long>(seq < 0 ? count_ : seq));
+      std::string file = name;
+      for (int k = 2; !written_.insert(file).second; ++k) file = std::string(name) + "-" + std::to_string(k);
+      const std::string path = o_.out_dir + "/" + file + ".png";
+      if (!cv::imwrite(path, img)) {
+        std::cerr << "ld-view: cannot write " << path << "\n";
+        failed_ = true;
         return false;
       }
     }
@@ -72,11 +82,22 @@ class Sink {
         writer_.open(o_.video, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), o_.fps, img.size());
         if (!writer_.isOpened()) {
           std::cerr << "ld-view: cannot open video " << o_.video << " (MJPG)\n";
+          failed_ = true;
           return false;
         }
         size_ = img.size();
       }
-      if (img.size() == size_) writer_.write(img);
+      if (img.size() == size_) {
+        writer_.write(img);
+      } else {
+        // (a video has one frame size: another size is scaled to it, said once)
+        if (!resize_said_)
+          std::cerr << "ld-view: note: " << img.cols << "x" << img.rows << " frames are scaled to the video's "
+                    << size_.width << "x" << size_.height << "\n";
+        resize_said_ = true;
+        cv::resize(img, resized_, size_, 0, 0, cv::INTER_AREA);
+        writer_.write(resized_);
+      }
     }
     if (o_.window) {
       cv::imshow("ld-view", img);
@@ -87,11 +108,16 @@ class Sink {
     return true;
   }
   int64_t count() const { return count_; }
+  /// A frame could not be written (the run ends with status 1).
+  bool failed() const { return failed_; }
 
  private:
   const Options& o_;
   cv::VideoWriter writer_;
   cv::Size size_;
+  cv::Mat resized_;
+  std::set<std::string> written_;
+  bool resize_said_ = false, failed_ = false;
   int64_t count_ = 0;
 };
 
@@ -138,6 +164,15 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
              const std::string& codes_ch, bool all_frames, const Options& o) {
   std::map<Key, ld::landmark_list_t> lists;
   std::map<Key, ld::qr_code_list_t> codes;
+  int64_t bad = 0;
+  // a message that is not what its channel carries: one line naming it (the
+  // first ten, then every hundredth), and counted
+  const auto dropped = [&](const std::string& path, const std::string& channel, const std::string& why) {
+    if (ld::printBadLine(++bad))
+      std::cerr << "ld-view: " << path << ": dropped message on " << channel << ": " << why << " "
+                << ld::badSoFar(bad) << "\n";
+  };
+  std::string why;
   for (const auto& path : logs) {
     ld::LcmLogReader log(path);
     if (!log.good()) {
@@ -147,10 +182,12 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
     while (log.next()) {
       if (log.channel == tracked_ch) {
         ld::landmark_list_t l;
-        if (ld::decodeMessage(log.data.data(), log.data.size(), l)) lists[{l.utime, l.seq}] = std::move(l);
+        if (ld::decodeMessage(log.data.data(), log.data.size(), l, &why)) lists[{l.utime, l.seq}] = std::move(l);
+        else dropped(path, log.channel, why);
       } else if (log.channel == codes_ch) {
         ld::qr_code_list_t c;
-        if (ld::decodeMessage(log.data.data(), log.data.size(), c)) codes[{c.utime, c.seq}] = std::move(c);
+        if (ld::decodeMessage(log.data.data(), log.data.size(), c, &why)) codes[{c.utime, c.seq}] = std::move(c);
+        else dropped(path, log.channel, why);
       }
     }
     if (!log.problem().empty())  // a cut log: what it holds is drawn
@@ -160,13 +197,14 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
   std::map<int64_t, std::string> payloads;  // what was known up to the frame drawn
   ld::image_t img;
   cv::Mat bgr;
-  int64_t images = 0, bad = 0, matched = 0;
+  int64_t images = 0, matched = 0, events = 0;
   for (const auto& path : logs) {
     ld::LcmLogReader log(path);
     while (!g_stop && log.next()) {
+      ++events;
       if (log.channel != image_ch) continue;
-      if (!ld::decodeMessage(log.data.data(), log.data.size(), img)) {
-        ++bad;
+      if (!ld::decodeMessage(log.data.data(), log.data.size(), img, &why)) {
+        dropped(path, log.channel, why);
         continue;
       }
       ++images;
@@ -180,8 +218,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
       try {
         ld::imageToBgr(img, bgr);
       } catch (const std::exception& e) {
-        std::cerr << "ld-view: " << e.what() << "\n";
-        ++bad;
+        dropped(path, log.channel, e.what());
         continue;
       }
       if (l != lists.end()) annotate(bgr, l->second, payloads, o);
@@ -191,6 +228,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
   std::fprintf(stderr, "ld-view: %lld images, %zu tracked lists, %lld frames written%s\n",
                static_cast<long long>(images), lists.size(), static_cast<long long>(sink.count()),
                bad ? (", " + std::to_string(bad) + " bad").c_str() : "");
+  if (events == 0) std::fprintf(stderr, "ld-view: the logs hold no message: nothing to draw\n");
   if (sink.count() == 0 && images > 0 && matched == 0 && !all_frames)
     std::fprintf(stderr, "ld-view: %s; --all draws every image\n",
                  lists.empty() ? ("no tracked lists on " + tracked_ch).c_str()
@@ -202,10 +240,10 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
 class Live {
  public:
   Live(const Options& o) : sink_(o), o_(o) {}
-  void onImage(const lcm::ReceiveBuffer* rb, const std::string&) {
+  void onImage(const lcm::ReceiveBuffer* rb, const std::string& channel) {
     // The last kRecentFrames frames; the one that drops out lends its
     // buffer to the next (no copy, no allocation once they are all there).
-    if (!ld::decodeMessage(rb->data, rb->data_size, spare_)) return;
+    if (!decoded(rb, spare_, channel)) return;
     const Key key{spare_.utime, ld::imageSeq(spare_).value_or(-1)};
     recent_.emplace_back(key, std::move(spare_));
     if (recent_.size() > kRecentFrames) {
@@ -213,13 +251,13 @@ class Live {
       recent_.pop_front();
     }
   }
-  void onCodes(const lcm::ReceiveBuffer* rb, const std::string&) {
+  void onCodes(const lcm::ReceiveBuffer* rb, const std::string& channel) {
     ld::qr_code_list_t c;
-    if (!ld::decodeMessage(rb->data, rb->data_size, c)) return;
+    if (!decoded(rb, c, channel)) return;
     for (const auto& code : c.codes) payloads_[code.track_id] = code.payload;
   }
-  void onTracked(const lcm::ReceiveBuffer* rb, const std::string&) {
-    if (!ld::decodeMessage(rb->data, rb->data_size, list_)) return;
+  void onTracked(const lcm::ReceiveBuffer* rb, const std::string& channel) {
+    if (!decoded(rb, list_, channel)) return;
     for (auto it = recent_.rbegin(); it != recent_.rend(); ++it) {
       if (it->first != Key{list_.utime, list_.seq}) continue;
       try {
@@ -234,8 +272,20 @@ class Live {
     }
   }
   int64_t frames() const { return sink_.count(); }
+  bool failed() const { return sink_.failed(); }
 
  private:
+  // A message that is not what its channel carries: one line naming it (the
+  // first ten, then every hundredth, as every process says it).
+  template <class T>
+  bool decoded(const lcm::ReceiveBuffer* rb, T& msg, const std::string& channel) {
+    std::string why;
+    if (ld::decodeMessage(rb->data, rb->data_size, msg, &why)) return true;
+    if (ld::printBadLine(++bad_))
+      std::cerr << "ld-view: dropped message on " << channel << ": " << why << " " << ld::badSoFar(bad_) << "\n";
+    return false;
+  }
+  int64_t bad_ = 0;
   Sink sink_;
   const Options& o_;
   static constexpr size_t kRecentFrames = 60;
@@ -341,9 +391,22 @@ int main(int argc, char** argv) {
   LD_CLI_PARSE(app, argc, argv);
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);  // our own one-line errors
 
-  const char* x_display = std::getenv("DISPLAY");
-  const char* wayland_display = std::getenv("WAYLAND_DISPLAY");
+  // (an empty variable is no display)
+  const auto envSet = [](const char* name) -> const char* {
+    const char* v = std::getenv(name);
+    return v && *v ? v : nullptr;
+  };
+  const char* x_display = envSet("DISPLAY");
+  const char* wayland_display = envSet("WAYLAND_DISPLAY");
   const bool display = x_display || wayland_display;
+  if (all_frames && logs.empty())
+    return ld::cli::usage(argv[0], "--all is for --log (live, every frame with a tracked list is drawn)");
+  if (!o.video.empty()) {
+    std::string ext = o.video.size() >= 4 ? o.video.substr(o.video.size() - 4) : "";
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+    if (ext != ".avi")
+      return ld::cli::usage(argv[0], "--video " + o.video + ": the video is MJPG in AVI, its name must end in .avi");
+  }
   o.window = force_window || (display && o.out_dir.empty() && o.video.empty());
   if (!o.window && o.out_dir.empty() && o.video.empty()) {
     std::cerr << "ld-view: no display: give --out DIR or --video FILE\n";
@@ -355,8 +418,9 @@ int main(int argc, char** argv) {
       const std::string where = x_display         ? std::string(" on display ") + x_display
                                 : wayland_display ? std::string(" on Wayland display ") + wayland_display
                                                   : ": DISPLAY and WAYLAND_DISPLAY are unset";
-      std::cerr << "ld-view: cannot open a window" << where << " (" << why
-                << "); give --out DIR or --video FILE\n";
+      std::cerr << "ld-view: cannot open a window" << where << " (" << why << "); "
+                << (o.out_dir.empty() && o.video.empty() ? "give --out DIR or --video FILE" : "drop --window")
+                << "\n";
       return 2;
     }
   }
@@ -405,5 +469,5 @@ int main(int argc, char** argv) {
   while (!g_stop)
     if (!ld::pumpLcm(lcm, 200, g_stop, "ld-view")) return 1;
   std::fprintf(stderr, "ld-view: %lld frames drawn\n", static_cast<long long>(live.frames()));
-  return 0;
+  return live.failed() ? 1 : 0;
 }
