@@ -22,4 +22,11 @@ for f in "$ROOT"/tools/systemd/*.service; do
   echo "$(basename "$f"): $prog"
 done
 grep -q '^Wants=.*ld-detector.service' "$ROOT/tools/systemd/landmark.target"
+# each process's unit restarts for as long as it takes (a camera plugged in
+# late: a start limit would put it in "failed" for good) and waits for the network
+for u in ld-camera ld-detector ld-tracker ld-qr-reader; do
+  grep -q '^StartLimitIntervalSec=0$' "$ROOT/tools/systemd/$u.service" || { echo "$u: a start limit"; exit 1; }
+  grep -q '^Wants=network-online.target$' "$ROOT/tools/systemd/$u.service" || { echo "$u: no Wants=network-online"; exit 1; }
+done
+grep -q '^Wants=network-online.target$' "$ROOT/tools/systemd/landmark.target"
 echo "1 passed, 0 failed"
