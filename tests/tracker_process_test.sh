@@ -5,12 +5,32 @@
 # Every frame must come back once with its utime and seq, the three landmarks
 # must keep three ids, the hidden one must coast (visible = false) and come
 # back with its id; malformed messages are reported and do not stop the
-# process, which exits cleanly on SIGINT.
+# process, which exits cleanly on SIGINT. Bad options and channels that
+# would feed a process itself are refused first.
 set -euo pipefail
 BIN=$1; ROOT=$2
 T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
 FRAMES=40
 "$BIN/ld-tracker-testlog" --out "$T/in.lcmlog" --frames $FRAMES
+
+# Refused before LCM is opened, one line each, status 2: out-of-range
+# parameters named by their option, and channels that would feed a process
+# its own output (LCM reads --in as a pattern) or are empty.
+for args in "ld-tracker --max-lifetime 0|--max-lifetime: must be > 0, not 0" \
+            "ld-tracker --min-hits 2147483648|--min-hits: must be in [1, 1000], not 2147483648" \
+            "ld-tracker --max-size-ratio 0.5|--max-size-ratio: must be in [1, 1000], not 0.5" \
+            "ld-tracker --in LANDMARKS.*|--in LANDMARKS.* takes the tracker's own output LANDMARKS_TRACKED: it would feed itself" \
+            "ld-tracker --in X --out X|--in X takes the tracker's own output X" \
+            "ld-detector --in .*|--in .* takes the detector's own output LANDMARKS" \
+            "ld-qr-reader --tracks LANDMARK.*|--tracks LANDMARK.* takes the reader's own output LANDMARK_CODES"; do
+  cmd=${args%%|*}; rc=0
+  # (no glob: the patterns are passed as written)
+  set -f; timeout 10 "$BIN/${cmd%% *}" ${cmd#* } >/dev/null 2>"$T/err" || rc=$?; set +f
+  [ $rc -eq 2 ] && [ "$(wc -l <"$T/err")" -eq 1 ] && grep -qF -- "${args#*|}" "$T/err" ||
+    { echo "FAIL: $cmd: exit $rc, $(cat "$T/err")"; exit 1; }
+done
+rc=0; timeout 10 "$BIN/ld-tracker" --in "" >/dev/null 2>"$T/err" || rc=$?
+[ $rc -eq 2 ] && grep -qF -- "--in needs a channel name" "$T/err" || { echo "FAIL: --in '': $rc $(cat "$T/err")"; exit 1; }
 
 "$ROOT/scripts/netns-run.sh" bash -c '
   set -euo pipefail

@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
+#include <regex>
 
 #include <lcm/lcm-cpp.hpp>
 
@@ -28,6 +29,15 @@ bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const
   while (!stop && std::chrono::steady_clock::now() < until && lcm.handleTimeout(0) > 0) {
   }
   return true;
+}
+
+bool channelPatternTakes(const std::string& pattern, const std::string& channel) {
+  if (pattern == channel) return true;
+  try {
+    return std::regex_match(channel, std::regex(pattern, std::regex::extended));
+  } catch (const std::regex_error&) {
+    return false;
+  }
 }
 
 }  // namespace ld

@@ -53,18 +53,27 @@ int main(int argc, char** argv) {
   app.add_option("--out", out_channel, "tracked landmarks channel")->capture_default_str();
   app.add_option("--params", params_file, "tracker parameters (YAML); the options below override it");
   auto* o_life = app.add_option("--max-lifetime", cli.max_lifetime_s,
-                                "seconds a landmark is kept while not detected (default 1)");
+                                "seconds a landmark is kept while not detected (default 1)")
+                     ->check(ld::cli::Positive);
   auto* o_dist = app.add_option("--max-distance", cli.max_distance,
-                                "largest match distance, in landmark sizes (default 2)");
+                                "largest match distance, in landmark sizes (default 2)")
+                     ->check(ld::cli::Positive);
   auto* o_ratio = app.add_option("--max-size-ratio", cli.max_size_ratio,
-                                 "largest size ratio of a match (default 1.5)");
+                                 "largest size ratio of a match (default 1.5)")
+                      ->check(ld::cli::Between(1, 1000));
   auto* o_hits = app.add_option("--min-hits", cli.min_hits,
-                                "detections before a track is published (default 1)");
+                                "detections before a track is published (default 1)")
+                     ->check(ld::cli::Between(1, 1000));
   app.add_flag("--no-predict", no_predict, "no constant-velocity prediction (the paper's tracker)");
   app.add_flag("--no-coasting", no_coasting, "publish only the landmarks detected in each frame");
   app.add_flag("--print-params", print_params, "print the effective parameters as YAML and exit");
   app.add_flag("-v,--verbose", verbose, "print a status line every 5 s");
   LD_CLI_PARSE(app, argc, argv);
+  if (in_channel.empty() || out_channel.empty())
+    return ld::cli::usage(argv[0], std::string(in_channel.empty() ? "--in" : "--out") + " needs a channel name");
+  if (ld::channelPatternTakes(in_channel, out_channel))
+    return ld::cli::usage(argv[0], "--in " + in_channel + " takes the tracker's own output " + out_channel +
+                                       ": it would feed itself");
 
   ld::TrackerParams params;
   try {

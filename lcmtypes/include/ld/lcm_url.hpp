@@ -29,6 +29,12 @@ namespace ld {
 constexpr int kMaxDrainMs = 50;
 bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const char* program);
 
+/// Whether a subscription to `pattern` (LCM reads it as a regular
+/// expression of the whole channel name) takes messages on `channel`: a
+/// process whose input takes its own output feeds itself without end. A
+/// pattern that is no valid expression is taken as a name.
+bool channelPatternTakes(const std::string& pattern, const std::string& channel);
+
 /// Whether a process prints the line of its `bad`'th bad input (1, 2, ...):
 /// the first kBadLinesInFull, then every kBadLinesEvery'th, so that a flood
 /// of garbage does not flood the log; all are counted.
