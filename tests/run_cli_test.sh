@@ -99,4 +99,17 @@ grep -q "^ld-play: warning: $T/cut.lcmlog: the log ends mid-event after 2 messag
 # ld-play takes --frames or --duration, not both.
 rc=0; "$BIN/ld-play" "$T/in.lcmlog" --frames 3 --duration 2 2>"$T/err" || rc=$?
 [ $rc -eq 2 ] && grep -q "^ld-play: --frames excludes --duration" "$T/err" || fail "ld-play --frames --duration: $rc $(cat "$T/err")"
+# ... each a count of 1 and more (0 published the log once), no duration
+# so long that its frame count wraps (1e19 s published nothing), no negative seq
+for args in "--frames 0|--frames: must be in [1, 1e+12], not 0" "--duration 0|--duration: must be > 0, not 0" \
+            "--duration 1e19|--duration 1e+19 at --fps 30 is over 1e12 frames" \
+            "--first-seq -5|--first-seq: must be >= 0, not -5"; do
+  rc=0; "$BIN/ld-play" "$T/in.lcmlog" --lcm-url memq:// ${args%%|*} 2>"$T/err" || rc=$?
+  [ $rc -eq 2 ] && grep -qF -- "ld-play: ${args#*|}" "$T/err" || fail "ld-play ${args%%|*}: $rc $(cat "$T/err")"
+done
+# SIGTERM stops it at once, not when the next frame is due (10 s away here)
+"$BIN/ld-play" "$T/in.lcmlog" --lcm-url memq:// --fps 0.1 --frames 5 >/dev/null 2>&1 &
+play=$!; sleep 0.5; kill -TERM $play
+start=$(date +%s%N); wait $play || true
+[ $(( ($(date +%s%N) - start) / 1000000 )) -lt 2000 ] || fail "ld-play took over 2 s to stop on SIGTERM"
 echo "ld-run command line: ok"

@@ -3,11 +3,13 @@
 // number, and the log is looped for as long as asked. Optionally converts
 // the frames first (say MJPEG in the log, raw BGR on the bus), so that a
 // small log drives a long benchmark or a bandwidth test.
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <iostream>
+#include <sstream>
 #include <thread>
 
 #include <CLI/CLI.hpp>
@@ -18,6 +20,7 @@
 #include "ld/lcm_log_reader.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/lcm_url.hpp"
+#include "ld/message_decode.hpp"
 
 namespace {
 
@@ -43,17 +46,30 @@ int main(int argc, char** argv) {
   app.add_option("--channel", channel, "image channel in the log (and on the bus)")->capture_default_str();
   app.add_option("--out-channel", out_channel, "publish on this channel instead");
   app.add_option("--fps", fps, "frames per second")->check(ld::cli::Positive)->capture_default_str();
-  auto* frames_opt =
-      app.add_option("--frames", frames, "frames to publish (looping the log)")->check(ld::cli::NonNegative);
-  app.add_option("--duration", duration, "seconds to publish (looping the log)")
-      ->check(ld::cli::NonNegative)
+  // (neither given: the log once)
+  auto* frames_opt = app.add_option("--frames", frames, "frames to publish, looping the log (default: the log once)")
+                         ->check(ld::cli::Between(1, 1e12));
+  app.add_option("--duration", duration, "seconds to publish, looping the log (default: the log once)")
+      ->check(ld::cli::Positive)
       ->excludes(frames_opt);
   app.add_option("--format", format, "keep, or convert to bgr, rgb, gray, yuyv, uyvy, mjpeg")
       ->capture_default_str();
   app.add_option("--quality", quality, "JPEG quality for mjpeg")->capture_default_str()->check(ld::cli::Between(1, 100));
-  app.add_option("--first-seq", first_seq, "sequence number of the first frame")->capture_default_str();
+  app.add_option("--first-seq", first_seq, "sequence number of the first frame (0 or more)")
+      ->capture_default_str()
+      ->check(ld::cli::NonNegative);
+  auto* out_opt = app.get_option("--out-channel");
   LD_CLI_PARSE(app, argc, argv);
+  if (channel.empty() || (out_opt->count() && out_channel.empty()))
+    return ld::cli::usage(argv[0], std::string(channel.empty() ? "--channel" : "--out-channel") +
+                                       " needs a channel name");
   if (out_channel.empty()) out_channel = channel;
+  // (a duration at this rate beyond a trillion frames is no run: it wrapped to none)
+  if (duration > 0 && !(duration * fps <= 1e12)) {
+    std::ostringstream m;
+    m << "--duration " << duration << " at --fps " << fps << " is over 1e12 frames";
+    return ld::cli::usage(argv[0], m.str());
+  }
 
   int32_t pixelformat = -1;
   if (format != "keep") {
@@ -79,19 +95,20 @@ int main(int argc, char** argv) {
     while (log.next()) {
       if (log.channel != channel) continue;
       ld::image_t img;
-      const int size = static_cast<int>(log.data.size());
-      if (img.decode(log.data.data(), 0, size) != size) {
-        std::cerr << "ld-play: skipping message " << log.messages() << ": not an ld.image_t\n";
+      std::string why;
+      if (!ld::decodeMessage(log.data.data(), log.data.size(), img, &why)) {
+        std::cerr << "ld-play: skipping message " << log.messages() << ": " << why << "\n";
         continue;
       }
-      if (pixelformat != -1 && img.pixelformat != pixelformat) {
-        try {
-          const cv::Mat bgr = ld::imageToBgr(img);
+      // every frame must be an image its readers can read (kept as it is,
+      // or converted): a broken one is skipped here, not published
+      try {
+        const cv::Mat bgr = ld::imageToBgr(img);
+        if (pixelformat != -1 && img.pixelformat != pixelformat)
           img = ld::matToImage(bgr, pixelformat, img.utime, -1, quality);
-        } catch (const std::exception& e) {
-          std::cerr << "ld-play: skipping message " << log.messages() << ": " << e.what() << "\n";
-          continue;
-        }
+      } catch (const std::exception& e) {
+        std::cerr << "ld-play: skipping message " << log.messages() << ": " << e.what() << "\n";
+        continue;
       }
       images.push_back(std::move(img));
     }
@@ -116,23 +133,34 @@ int main(int argc, char** argv) {
   const auto period = std::chrono::duration<double>(1.0 / fps);
   const auto t0 = std::chrono::steady_clock::now();
   int64_t sent = 0, late = 0, failed = 0;
+  auto last = t0;
   for (int64_t k = 0; k < frames && !g_stop; ++k) {
     const auto due = t0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(period * k);
     const auto now = std::chrono::steady_clock::now();
-    if (now < due) std::this_thread::sleep_until(due);
-    else if (now - due > period) ++late;
+    if (now < due) {
+      // (in slices: SIGTERM stops it at once, not when the next frame is due)
+      while (!g_stop && std::chrono::steady_clock::now() < due)
+        std::this_thread::sleep_until(std::min(due, std::chrono::steady_clock::now() + std::chrono::milliseconds(50)));
+      if (g_stop) break;
+    } else if (now - due > period) {
+      ++late;
+    }
     ld::image_t& img = images[static_cast<size_t>(k) % images.size()];
     img.utime = wallMicros();
     ld::setImageSeq(img, first_seq + k);
     if (lcm.publish(out_channel, &img) == 0) ++sent;
     else ++failed;
+    last = std::chrono::steady_clock::now();
   }
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  // the rate: frames after the first over the time from the first to the last
+  const double span = std::chrono::duration<double>(last - t0).count();
+  const double rate = sent > 1 && span > 0 ? static_cast<double>(sent - 1) / span : 0.0;
   std::fprintf(stderr,
                "ld-play: published %lld frames (%dx%d %s) in %.2f s, %.2f frames/s; %lld late, %lld "
                "failed\n",
                static_cast<long long>(sent), images[0].width, images[0].height,
-               ld::pixelFormatName(images[0].pixelformat).c_str(), s, s > 0 ? sent / s : 0.0,
+               ld::pixelFormatName(images[0].pixelformat).c_str(), s, rate,
                static_cast<long long>(late), static_cast<long long>(failed));
   return g_stop || failed == 0 ? 0 : 1;
 }
