@@ -11,7 +11,7 @@ set -euo pipefail
 BIN=$1; ROOT=$2
 T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
 FRAMES=40
-"$BIN/ld-tracker-testlog" --out "$T/in.lcmlog" --frames $FRAMES
+"$BIN/ld-tracker-testlog" --out "$T/in.lcmlog" --frames $FRAMES --non-finite-at 20
 
 # Refused before LCM is opened, one line each, status 2: out-of-range
 # parameters named by their option, and channels that would feed a process
@@ -72,4 +72,7 @@ diff "$T/in.keys" "$T/out.keys"                          # each frame once, same
 [ "$(jq -r '.landmarks[] | select(.track_id == 1) | .payload' "$T/out.jsonl" | sort -u)" = A ]
 grep -q "dropped message" "$T/tracker.err"               # the garbage was reported
 grep -q "stopped after" "$T/tracker.err"                  # clean exit on SIGINT
+# a landmark whose corners are not numbers is not tracked, and said so
+grep -q "^ld-tracker: 1 landmark of the list on LANDMARKS for frame 1020 (utime [0-9]*) not tracked: corners not finite" "$T/tracker.err"
+grep -q "stopped after .*, 1 landmarks not tracked)" "$T/tracker.err"
 echo "1 passed, 0 failed"

@@ -2,6 +2,7 @@
 // tracks, for the ld-tracker process test: landmark A static, B moving right
 // 6 px per frame, C hidden for frames 10-14 (0.25 s at 20 frames/s) and seen
 // again where it was. Frames are 50 ms apart in utime and in log time.
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 
@@ -36,6 +37,9 @@ int main(int argc, char** argv) {
   app.add_option("--out", out, "log file to write")->required();
   app.add_option("--channel", channel, "channel")->capture_default_str();
   app.add_option("--frames", frames, "frames")->check(ld::cli::Positive)->capture_default_str();
+  int non_finite_at = -1;
+  app.add_option("--non-finite-at", non_finite_at,
+                 "frame whose list also holds a landmark with NaN corners (a fourth, never tracked)");
   LD_CLI_PARSE(app, argc, argv);
 
   lcm::LogFile log(out, "w");
@@ -59,6 +63,7 @@ int main(int argc, char** argv) {
     msg.landmarks.push_back(ld::toMessage(a));
     msg.landmarks.push_back(ld::toMessage(square(100.0f + 6.0f * k, 300, 30)));
     if (k < 10 || k >= 15) msg.landmarks.push_back(ld::toMessage(square(500, 150, 50)));
+    if (k == non_finite_at) msg.landmarks.push_back(ld::toMessage(square(std::nanf(""), 200, 40)));
     msg.nlandmarks = static_cast<int32_t>(msg.landmarks.size());
 
     std::vector<uint8_t> buf(static_cast<size_t>(msg.getEncodedSize()));

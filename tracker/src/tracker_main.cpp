@@ -107,7 +107,7 @@ int main(int argc, char** argv) {
 
   ld::landmark_list_t in, out;
   std::vector<ld::Landmark> detections;
-  int64_t processed = 0, bad = 0, last_processed = 0, resets = 0;
+  int64_t processed = 0, bad = 0, last_processed = 0, resets = 0, rejected = 0, rejected_lists = 0;
   auto last_status = std::chrono::steady_clock::now();
   while (!g_stop) {
     // waits, then drains the queue: only the newest message is processed
@@ -127,6 +127,17 @@ int main(int argc, char** argv) {
         const auto& tracks = tracker.update(detections, in.utime);
         const double ms =
             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        // (landmarks with positions that are not numbers, or under a pixel:
+        // not tracked; said as bad input is, and counted)
+        if (tracker.stats().rejected_detections > rejected) {
+          const int64_t n = tracker.stats().rejected_detections - rejected;
+          rejected = tracker.stats().rejected_detections;
+          if (ld::printBadLine(++rejected_lists))
+            std::cerr << "ld-tracker: " << n << (n == 1 ? " landmark" : " landmarks") << " of the list on "
+                      << in_channel << " for frame " << in.seq << " (utime " << in.utime
+                      << ") not tracked: corners not finite or under a pixel apart "
+                      << ld::badSoFar(rejected_lists) << "\n";
+        }
         if (tracker.stats().resets > resets) {
           resets = tracker.stats().resets;
           std::cerr << "ld-tracker: utime " << in.utime
@@ -152,8 +163,10 @@ int main(int argc, char** argv) {
     }
   }
   std::fprintf(stderr,
-               "ld-tracker: stopped after %lld frames (%lld skipped, %lld bad), %lld tracks\n",
+               "ld-tracker: stopped after %lld frames (%lld skipped, %lld bad, %lld landmarks not tracked), "
+               "%lld tracks\n",
                static_cast<long long>(processed), static_cast<long long>(latest.skipped_),
-               static_cast<long long>(bad), static_cast<long long>(tracker.stats().tracks_created));
+               static_cast<long long>(bad), static_cast<long long>(rejected),
+               static_cast<long long>(tracker.stats().tracks_created));
   return 0;
 }
