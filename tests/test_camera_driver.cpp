@@ -894,6 +894,19 @@ TEST(Process, ErrorsAndExitCodes) {
   r = runCamera("--exposure -1", dir);
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("--exposure: must be >= 0, not -1"), std::string::npos) << r.err;
+  // the test aids: numbers checked, and only with --fake; a size of the
+  // right form out of range says so
+  for (const auto& [args, says] : std::vector<std::pair<std::string, std::string>>{
+           {"--fake --fake-unplug-after -1", "--fake-unplug-after: must be >= 0, not -1"},
+           {"--fake --fake-unplug-after 3 --fake-replug-after nan", "--fake-replug-after: 'nan' is not a number"},
+           {"--fake-unplug-after 5", "--fake-unplug-after is for --fake"},
+           {"--fake --fake-replug-after 2", "--fake-replug-after needs --fake-unplug-after"},
+           {"--fake --size 100000x100000", "--size: 100000x100000 is out of 1x1 .. 16384x16384"},
+           {"--fake --channel ''", "--channel needs a channel name"}}) {
+    r = runCamera(args, dir);
+    EXPECT_EQ(r.status, 2) << args;
+    EXPECT_NE(r.err.find(says), std::string::npos) << args << ": " << r.err;
+  }
   // A manual exposure: said at start, with the device's own value when it
   // differs and a word when it is longer than a frame.
   r = runCamera("--fake --exposure 500 --lcm-url memq://", dir, 1.0);

@@ -72,7 +72,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Validator(
           [](std::string& s) {
             uint32_t w, h;
-            return parseSize(s, w, h) ? std::string() : "expected WIDTHxHEIGHT, e.g. 640x480";
+            if (parseSize(s, w, h)) return std::string();
+            return ld::cli::parseSize(s) ? s + " is out of 1x1 .. 16384x16384"
+                                         : std::string("expected WIDTHxHEIGHT, e.g. 640x480");
           },
           "WxH"))
       ->capture_default_str();
@@ -99,14 +101,22 @@ int main(int argc, char** argv) {
                "test/demo aid: capture from a built-in fake webcam at --device (a moving "
                "test pattern) instead of a real V4L2 device")
       ->group("Test aids");
-  app.add_option("--fake-unplug-after", fake_unplug_after,
-                 "with --fake: unplug the fake webcam after this many frames")
-      ->group("Test aids");
-  app.add_option("--fake-replug-after", fake_replug_after,
-                 "with --fake-unplug-after: plug it back after this many seconds")
-      ->group("Test aids")
-      ->capture_default_str();
+  auto* unplug = app.add_option("--fake-unplug-after", fake_unplug_after,
+                                "with --fake: unplug the fake webcam after this many frames")
+                     ->group("Test aids")
+                     ->check(ld::cli::NonNegative);
+  auto* replug = app.add_option("--fake-replug-after", fake_replug_after,
+                                "with --fake-unplug-after: plug it back after this many seconds")
+                     ->group("Test aids")
+                     ->capture_default_str()
+                     ->check(ld::cli::NonNegative);
   LD_CLI_PARSE(app, argc, argv);
+  if ((unplug->count() || replug->count()) && !fake)
+    return ld::cli::usage(argv[0], std::string(unplug->count() ? "--fake-unplug-after" : "--fake-replug-after") +
+                                       " is for --fake");
+  if (replug->count() && !unplug->count())
+    return ld::cli::usage(argv[0], "--fake-replug-after needs --fake-unplug-after");
+  if (channel.empty()) return ld::cli::usage(argv[0], "--channel needs a channel name");
 
   ld::CaptureRequest request;
   ld::ImageConversion conversion;
