@@ -79,6 +79,9 @@ for args in "--size 0|ld-detect: --size: must be in [0.01, 10], not 0 (--help li
   set +e; "$BIN/ld-detect" ${args%%|*} "$T/s/000000.png" >/dev/null 2>"$T/err"; rc=$?; set -e
   [ $rc -eq 2 ] && [ "$(cat "$T/err")" = "${args#*|}" ] || fail "${args%%|*}: exit $rc, $(cat "$T/err")"
 done
+# a misspelt option is named, not the option it left without its partner
+set +e; "$BIN/ld-detect" --size 0.15 --camra "$T/cam.yaml" "$T/s/000000.png" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -qF "The following argument was not expected: --camra" "$T/err" || fail "--camra: exit $rc, $(cat "$T/err")"
 set +e; "$BIN/ld-detect" --draw "" "$T/s/000000.png" >/dev/null 2>"$T/err"; rc=$?; set -e
 [ $rc -eq 2 ] && [ "$(cat "$T/err")" = 'ld-detect: --draw needs a path, not "" (--help lists the options)' ] || fail "--draw '': exit $rc, $(cat "$T/err")"
 # What it writes is never what it reads: -o naming an input, --draw into an

@@ -110,6 +110,12 @@ done
 # SIGTERM stops it at once, not when the next frame is due (10 s away here)
 "$BIN/ld-play" "$T/in.lcmlog" --lcm-url memq:// --fps 0.1 --frames 5 >/dev/null 2>&1 &
 play=$!; sleep 0.5; kill -TERM $play
-start=$(date +%s%N); wait $play || true
+start=$(date +%s%N); rc=0; wait $play || rc=$?
 [ $(( ($(date +%s%N) - start) / 1000000 )) -lt 2000 ] || fail "ld-play took over 2 s to stop on SIGTERM"
+[ $rc -eq 0 ] || fail "ld-play stopped by SIGTERM: exit $rc"
+# a duration under half a frame is one frame, not the log once; --fps within 0.001-1000
+"$BIN/ld-play" "$T/in.lcmlog" --lcm-url memq:// --duration 0.01 2>"$T/err" || fail "ld-play --duration 0.01: $(cat "$T/err")"
+grep -q "published 1 frames" "$T/err" || fail "ld-play --duration 0.01: $(cat "$T/err")"
+rc=0; "$BIN/ld-play" "$T/in.lcmlog" --lcm-url memq:// --fps 1e-10 2>"$T/err" || rc=$?
+[ $rc -eq 2 ] && grep -qF "ld-play: --fps: must be in [0.001, 1000], not 1e-10" "$T/err" || fail "ld-play --fps 1e-10: $rc $(cat "$T/err")"
 echo "ld-run command line: ok"

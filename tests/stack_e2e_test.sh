@@ -39,6 +39,7 @@ diff "$T/truth.keys" "$T/run1.keys"
 [ "$(jq '.summary.frames.images' "$T/run1.json")" -eq $FRAMES ]
 [ "$(jq '[.summary.per_frame[] | select(.latency_ms != null and .latency_ms > 0)] | length' "$T/run1.json")" -eq $FRAMES ]
 [ "$(jq -r .summary.latency_ms.from "$T/run1.json")" = arrival ]  # (a replay: the logged utimes)
+[ "$(jq .summary.tracker_restarts "$T/run1.json")" -eq 0 ]  # (no restart seen where none was)
 [ "$(jq '[.processes[] | .restarts] | add' "$T/run1.json")" -eq 0 ]
 
 # 2. Truth landmark -> track id, frame by frame: the visible track whose

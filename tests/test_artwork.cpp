@@ -242,10 +242,17 @@ TEST(Artwork, SheetImageLabelsInUtf8) {
   EXPECT_GT(cv::norm(a, b, cv::NORM_L1), 0);   // ü and ä drawn apart
   EXPECT_EQ(cv::norm(a, c, cv::NORM_L1), 0);
   // and the size follows, as in the SVG: a longer label than the payload alone
-  int right = 0;
+  int right = 0, top = gray.rows, bottom = -1;
   for (int x = 0; x < gray.cols; ++x)
     if (cv::countNonZero(gray.col(x) < 128) > 0) right = x;
+  for (int y = 0; y < gray.rows; ++y)
+    if (cv::countNonZero(gray.row(y) < 128) > 0) top = std::min(top, y), bottom = y;
   EXPECT_GT(right, static_cast<int>(25 * px_mm));  // "Büro (60 mm)" at 3 mm text is over 15 mm long
+  // where the SVG puts it: 3 mm text on a baseline 3.5 mm under the sheet
+  // (70 mm down the page), the parentheses' tails a little below it
+  EXPECT_LT(top / px_mm + 70, 72.0) << "the label's top";
+  EXPECT_GT(top / px_mm + 70, 70.0) << "the label's top";
+  EXPECT_LT(bottom / px_mm + 70, 74.5) << "the label's bottom";
 }
 
 // The PNG's bytes carry the resolution: a pHYs chunk after IHDR, pixels

@@ -144,14 +144,29 @@ TEST(QrTrackBook, ForgetsEverythingWhenTrackIdsStartAgain) {
 TEST(TrackRestartWatch, TellsARestartFromTheTracksAges) {
   ld::TrackRestartWatch w;
   for (int32_t age = 0; age < 10; ++age) EXPECT_FALSE(w.note({{1, age}, {2, age}}));
-  EXPECT_FALSE(w.note({{1, 7}, {2, 7}}));    // an older frame, read late
+  EXPECT_FALSE(w.note({{1, 6}, {2, 6}}));    // a list 3 frames old, read late (the slack)
   EXPECT_FALSE(w.note({{1, 10}, {2, 10}}));  // and on
   EXPECT_FALSE(w.note({{1, 30}}));           // lists lost: the age grew more
   EXPECT_EQ(w.restarts(), 0);
   EXPECT_TRUE(w.note({{1, 0}}));  // 0 frames old: a new tracker's track 1
+  EXPECT_FALSE(w.note({{1, 1}}));
   EXPECT_EQ(w.restarts(), 1);
   EXPECT_EQ(w.size(), 1u);  // only the new run's tracks are known
-  EXPECT_FALSE(w.note({{1, 1}, {2, 0}}));
+  EXPECT_FALSE(w.note({{1, 2}, {2, 0}}));
+  // 4 frames late is beyond the slack: another track
+  ld::TrackRestartWatch late;
+  for (int32_t age = 0; age < 10; ++age) EXPECT_FALSE(late.note({{1, age}}));
+  EXPECT_TRUE(late.note({{1, 5}}));
+}
+
+// A reader that forgets tracks not named for N lists keeps its memory
+// bounded (tracks seen only coasting included) and still tells a restart
+// from the tracks it knows.
+TEST(TrackRestartWatch, ForgetsTracksNotNamedForLong) {
+  ld::TrackRestartWatch w(300);
+  for (int32_t i = 0; i < 1000; ++i) EXPECT_FALSE(w.note({{i + 1, 0}, {10000, i}}));  // a new id each list
+  EXPECT_LE(w.size(), 300u + 256u + 1u);
+  EXPECT_TRUE(w.note({{10000, 2}}));  // the long track, young again
 }
 
 // A track the old tracker had for two frames, gone long before the restart:

@@ -274,6 +274,17 @@ TEST(BusMonitor, TimesLiveImagesFromTheirUtime) {
   EXPECT_EQ(s["latency_ms"]["from"], "capture and arrival");
   EXPECT_DOUBLE_EQ(s["per_frame"][0]["latency_ms"].get<double>(), 10.0);
   EXPECT_DOUBLE_EQ(s["per_frame"][1]["latency_ms"].get<double>(), 3.0);
+  // the edges: a utime exactly a second before its arrival is live, one
+  // after it (another clock ahead) is not; no frame timed: from null
+  ld::BusMonitor edge;
+  EXPECT_TRUE(edge.summary()["latency_ms"]["from"].is_null());
+  edge.imageSeen(10'000'000, 0, 10'000'000 + ld::BusMonitor::kLiveUtimeUs);
+  edge.trackedSeen(list(10'000'000, 0, {}), 11'000'002);
+  edge.imageSeen(20'000'000, 1, 19'999'999);
+  edge.trackedSeen(list(20'000'000, 1, {}), 20'000'004);
+  const auto e = edge.summary();
+  EXPECT_DOUBLE_EQ(e["per_frame"][0]["latency_ms"].get<double>(), 1000.002);
+  EXPECT_DOUBLE_EQ(e["per_frame"][1]["latency_ms"].get<double>(), 0.005);
 }
 
 // A tracker that restarts numbers its tracks from 1 again: the summary keeps

@@ -710,6 +710,7 @@ TEST(TrackerParams, ClearErrors) {
   expectLoadError("predict: maybe\n", "'predict' must be true/false");
   expectLoadError("max_lifetime_s: -1\n", "max_lifetime_s");
   expectLoadError("max_size_ratio: 0.5\n", "max_size_ratio");
+  expectLoadError("min_hits: 5000\n", "min_hits must be in [1, 1000]");  // as --min-hits
   expectLoadError("max_lifetime_s: [1\n", "cannot parse");
   expectLoadError("", "is empty");  // as the detector's parameters (a file cut short)
   expectLoadError(" \n\n", "is empty");

@@ -5,8 +5,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
-#include <regex>
 
+#include <glib.h>
 #include <lcm/lcm-cpp.hpp>
 
 namespace ld {
@@ -33,11 +33,13 @@ bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const
 
 bool channelPatternTakes(const std::string& pattern, const std::string& channel) {
   if (pattern == channel) return true;
-  try {
-    return std::regex_match(channel, std::regex(pattern, std::regex::extended));
-  } catch (const std::regex_error&) {
-    return false;
-  }
+  // as LCM matches a subscription: GLib's (PCRE) expression of the whole name
+  GRegex* re = g_regex_new(("^" + pattern + "$").c_str(), static_cast<GRegexCompileFlags>(0),
+                           static_cast<GRegexMatchFlags>(0), nullptr);
+  if (!re) return false;
+  const bool takes = g_regex_match(re, channel.c_str(), static_cast<GRegexMatchFlags>(0), nullptr);
+  g_regex_unref(re);
+  return takes;
 }
 
 }  // namespace ld

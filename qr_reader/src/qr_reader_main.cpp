@@ -157,7 +157,7 @@ int main(int argc, char** argv) {
     // read under the old ids belongs to other landmarks)
     if (book.noteAges(ages)) {
       stacks.clear();
-      std::cerr << "ld-qr-reader: track ids started again (a track is younger than it was: the tracker "
+      std::cerr << "ld-qr-reader: track ids started again (a track is younger than it can be: the tracker "
                    "restarted); the payloads read so far are forgotten\n";
     }
     const std::vector<int64_t> todo = book.schedule(ids, list.utime);

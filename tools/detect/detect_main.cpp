@@ -91,24 +91,32 @@ int main(int argc, char** argv) {
   // What it writes must not be what it reads: -o naming an input would
   // empty it before it is read, and --draw into an input's folder would put
   // an overlay over an input of the same name.
+  // Each image's overlay, named after it: one per image, a name already
+  // taken (frames/1.png and other/1.png) gets the next free -N.
+  std::vector<fs::path> overlays;
+  if (!draw_dir.empty()) {
+    std::set<std::string> names;
+    for (const auto& f : files) {
+      std::string name = fs::path(f).stem().string();
+      for (int k = 2; !names.insert(name).second; ++k) name = fs::path(f).stem().string() + "-" + std::to_string(k);
+      overlays.push_back(fs::path(draw_dir) / (name + ".png"));
+    }
+  }
   {
-    std::error_code ec;
-    const auto canonical = [&](const std::string& p) { return fs::weakly_canonical(fs::absolute(p, ec), ec); };
+    // (a path whose canonical form cannot be had is compared as written)
+    const auto canonical = [](const fs::path& p) {
+      std::error_code ec;
+      const fs::path c = fs::weakly_canonical(fs::absolute(p, ec), ec);
+      return ec || c.empty() ? p : c;
+    };
     std::set<fs::path> in;
     for (const auto& f : files) in.insert(canonical(f));
     if (!out_file.empty() && in.count(canonical(out_file)))
       return ld::cli::usage(argv[0], "-o " + out_file + " is one of the input images: it would be emptied");
-    if (!draw_dir.empty()) {
-      std::set<std::string> names;
-      for (const auto& f : files) {
-        std::string name = fs::path(f).stem().string();  // (as the overlays are named below)
-        for (int k = 2; !names.insert(name).second; ++k) name = fs::path(f).stem().string() + "-" + std::to_string(k);
-        const fs::path dst = fs::path(draw_dir) / (name + ".png");
-        if (in.count(canonical(dst.string())))
-          return ld::cli::usage(argv[0], "--draw " + draw_dir + " would write its overlay over the input " +
-                                             dst.string() + ": draw into another folder");
-      }
-    }
+    for (const auto& dst : overlays)
+      if (in.count(canonical(dst)))
+        return ld::cli::usage(argv[0], "--draw " + draw_dir + " would write its overlay over the input " +
+                                           dst.string() + ": draw into another folder");
   }
   if (!draw_dir.empty()) {  // created when missing, and written in, as ld-view's --out
     const std::string problem = ld::prepareOutputFolder(draw_dir);
@@ -136,7 +144,6 @@ int main(int argc, char** argv) {
   std::vector<ld::Landmark> found;
   int failed = 0, with_landmarks = 0, total_landmarks = 0;
   std::vector<double> times;
-  std::set<std::string> drawn;  // overlay names written
   std::string pose_error;       // the last frame's Detection::pose_error
   for (const auto& path : files) {
     cv::Mat img;
@@ -188,11 +195,7 @@ int main(int argc, char** argv) {
     total_landmarks += static_cast<int>(found.size());
     if (!draw_dir.empty()) {
       ld::drawLandmarks(img, found);
-      // One overlay per image: a name already written in this run (frames/1.png
-      // and other/1.png) gets the next free -N.
-      std::string name = fs::path(path).stem().string();
-      for (int k = 2; !drawn.insert(name).second; ++k) name = fs::path(path).stem().string() + "-" + std::to_string(k);
-      const fs::path dst = fs::path(draw_dir) / (name + ".png");
+      const fs::path& dst = overlays[static_cast<size_t>(&path - files.data())];
       if (!cv::imwrite(dst.string(), img)) std::cerr << "ld-detect: cannot write " << dst << "\n";
     }
   }

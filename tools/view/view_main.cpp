@@ -66,11 +66,12 @@ class Sink {
       // DIR/SEQ.png; a name already written in this run (seq starting again:
       // a restarted camera, a second log) gets the next free -N, so no frame
       // is written over another
+      // (a file of this run is one written since it started: no list of
+      // names kept, which would grow with every frame of a live run)
       char name[32];
       std::snprintf(name, sizeof name, "%06lld", static_cast<long long>(seq < 0 ? count_ : seq));
-      std::string file = name;
-      for (int k = 2; !written_.insert(file).second; ++k) file = std::string(name) + "-" + std::to_string(k);
-      const std::string path = o_.out_dir + "/" + file + ".png";
+      std::string path = o_.out_dir + "/" + name + ".png";
+      for (int k = 2; writtenThisRun(path); ++k) path = o_.out_dir + "/" + name + "-" + std::to_string(k) + ".png";
       if (!cv::imwrite(path, img)) {
         std::cerr << "ld-view: cannot write " << path << "\n";
         failed_ = true;
@@ -112,11 +113,18 @@ class Sink {
   bool failed() const { return failed_; }
 
  private:
+  bool writtenThisRun(const std::string& path) const {
+    std::error_code ec;
+    const auto t = std::filesystem::last_write_time(path, ec);
+    return !ec && t >= started_;
+  }
   const Options& o_;
+  // (a second before the start: file times may be coarser than the clock)
+  const std::filesystem::file_time_type started_ =
+      std::filesystem::file_time_type::clock::now() - std::chrono::seconds(1);
   cv::VideoWriter writer_;
   cv::Size size_;
   cv::Mat resized_;
-  std::set<std::string> written_;
   bool resize_said_ = false, failed_ = false;
   int64_t count_ = 0;
 };
@@ -239,7 +247,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
 // --- live bus: recent images kept, each drawn when its tracked list comes ---
 class Live {
  public:
-  Live(const Options& o) : sink_(o), o_(o) {}
+  Live(const Options& o, std::string image_ch) : sink_(o), o_(o), o_image_ch_(std::move(image_ch)) {}
   void onImage(const lcm::ReceiveBuffer* rb, const std::string& channel) {
     // The last kRecentFrames frames; the one that drops out lends its
     // buffer to the next (no copy, no allocation once they are all there).
@@ -263,7 +271,9 @@ class Live {
       try {
         ld::imageToBgr(it->second, bgr_);
       } catch (const std::exception& e) {
-        std::cerr << "ld-view: " << e.what() << "\n";
+        if (ld::printBadLine(++bad_))
+          std::cerr << "ld-view: dropped image on " << o_image_ch_ << ": " << e.what() << " " << ld::badSoFar(bad_)
+                    << "\n";
         return;
       }
       annotate(bgr_, list_, payloads_, o_);
@@ -272,6 +282,7 @@ class Live {
     }
   }
   int64_t frames() const { return sink_.count(); }
+  int64_t bad() const { return bad_; }
   bool failed() const { return sink_.failed(); }
 
  private:
@@ -288,6 +299,7 @@ class Live {
   int64_t bad_ = 0;
   Sink sink_;
   const Options& o_;
+  std::string o_image_ch_;
   static constexpr size_t kRecentFrames = 60;
   ld::image_t spare_;
   ld::landmark_list_t list_;
@@ -462,12 +474,13 @@ int main(int argc, char** argv) {
     std::cerr << "ld-view: cannot open LCM at " << url << "\n";
     return 2;
   }
-  Live live(o);
+  Live live(o, image_ch);
   lcm.subscribe(image_ch, &Live::onImage, &live);
   lcm.subscribe(tracked_ch, &Live::onTracked, &live);
   lcm.subscribe(codes_ch, &Live::onCodes, &live);
   while (!g_stop)
     if (!ld::pumpLcm(lcm, 200, g_stop, "ld-view")) return 1;
-  std::fprintf(stderr, "ld-view: %lld frames drawn\n", static_cast<long long>(live.frames()));
+  std::fprintf(stderr, "ld-view: %lld frames drawn%s\n", static_cast<long long>(live.frames()),
+               live.bad() ? (", " + std::to_string(live.bad()) + " bad").c_str() : "");
   return live.failed() ? 1 : 0;
 }

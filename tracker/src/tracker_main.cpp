@@ -163,10 +163,11 @@ int main(int argc, char** argv) {
     }
   }
   std::fprintf(stderr,
-               "ld-tracker: stopped after %lld frames (%lld skipped, %lld bad, %lld landmarks not tracked), "
+               "ld-tracker: stopped after %lld frames (%lld skipped, %lld bad, %lld %s not tracked), "
                "%lld tracks\n",
                static_cast<long long>(processed), static_cast<long long>(latest.skipped_),
                static_cast<long long>(bad), static_cast<long long>(rejected),
+               rejected == 1 ? "landmark" : "landmarks",
                static_cast<long long>(tracker.stats().tracks_created));
   return 0;
 }

@@ -122,11 +122,10 @@ void TrackerParams::validate() const {
     bad("max_distance must be positive (landmark sizes)");
   if (!(coast_distance_growth >= 0) || !std::isfinite(coast_distance_growth))
     bad("coast_distance_growth must be >= 0 (landmark sizes per second)");
-  if (!(max_size_ratio >= 1) || !std::isfinite(max_size_ratio))
-    bad("max_size_ratio must be >= 1");
+  if (!(max_size_ratio >= 1 && max_size_ratio <= 1000)) bad("max_size_ratio must be in [1, 1000]");
   if (!(velocity_smoothing > 0 && velocity_smoothing <= 1))
     bad("velocity_smoothing must be in (0, 1]");
-  if (min_hits < 1) bad("min_hits must be >= 1");
+  if (min_hits < 1 || min_hits > 1000) bad("min_hits must be in [1, 1000]");
 }
 
 }  // namespace ld

@@ -9,8 +9,8 @@
 // track once for each frame it processes, and publishes one list per frame,
 // so between two lists that name the same track its age grows by at least
 // the number of lists in between. An id whose age grew by less (by more than
-// kAgeSlack frames, what reordered messages can make) is another track under
-// the same id: the tracker started again.
+// kAgeSlack frames, what reordered messages can make: a list read up to 3
+// lists late) is another track under the same id: the tracker started again.
 #pragma once
 
 #include <cstddef>
@@ -24,6 +24,11 @@ namespace ld {
 class TrackRestartWatch {
  public:
   static constexpr int32_t kAgeSlack = 3;
+
+  /// forget_after_lists > 0: a track not named for that many lists is
+  /// forgotten (a long-running reader's memory stays bounded; a restart is
+  /// still told from any track it knows); 0: none is.
+  explicit TrackRestartWatch(int64_t forget_after_lists = 0) : forget_after_(forget_after_lists) {}
 
   /// Notes the tracks of one list as (track id, age), lists in the order
   /// they are read (a reader that reads only some lists notes those). True
@@ -42,7 +47,7 @@ class TrackRestartWatch {
     int64_t list = 0;   ///< the list it was seen in (note's count)
   };
   std::unordered_map<int64_t, Seen> seen_;
-  int64_t lists_ = 0, restarts_ = 0;
+  int64_t forget_after_ = 0, lists_ = 0, restarts_ = 0;
 };
 
 }  // namespace ld

@@ -105,7 +105,9 @@ class QrTrackBook {
     int64_t last_seen = 0;
   };
   QrScheduleParams params_;
-  TrackRestartWatch restarts_;
+  // (tracks not named for 3000 frames read, about 100 s at 30 frames/s,
+  // leave the watch: coasting ones the schedule never sees included)
+  TrackRestartWatch restarts_{3000};
   std::unordered_map<int64_t, Track> tracks_;
 };
 

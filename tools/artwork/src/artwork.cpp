@@ -279,7 +279,8 @@ cv::Mat sheetImage(const std::vector<std::string>& payloads, double side_mm, dou
     const cv::Point baseline(x0, y0 + side_px + static_cast<int>(3.5 * px_per_mm));
     const int height = std::max(4, static_cast<int>(std::lround(3.0 * px_per_mm)));
     if (font) {
-      font->putText(img, label, baseline, height, cv::Scalar(64, 64, 64), -1, cv::LINE_AA, false);
+      // (bottomLeftOrigin true: the point is the text's baseline, as the SVG's y)
+      font->putText(img, label, baseline, height, cv::Scalar(64, 64, 64), -1, cv::LINE_AA, true);
     } else {
       std::string ascii;  // OpenCV's Hershey font has ASCII alone: one '?' per other character
       for (size_t k = 0; k < label.size(); ++k) {

@@ -286,9 +286,10 @@ nlohmann::ordered_json BusMonitor::summary() const {
   const Percentiles p = percentiles(latencies_ms_);
   j["latency_ms"] = {{"count", p.count},   {"p50", round3(p.p50)}, {"p90", round3(p.p90)},
                      {"p99", round3(p.p99)}, {"max", round3(p.max)}, {"mean", round3(p.mean)},
-                     {"from", from_arrival_ == 0   ? "capture"
-                              : from_capture_ == 0 ? "arrival"
-                                                   : "capture and arrival"}};
+                     {"from", p.count == 0          ? J(nullptr)
+                              : from_arrival_ == 0 ? J("capture")
+                              : from_capture_ == 0 ? J("arrival")
+                                                   : J("capture and arrival")}};
   J tracks = J::array();
   int read = 0;
   for (const auto& [key, t] : tracks_) {

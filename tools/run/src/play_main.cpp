@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <iostream>
@@ -45,7 +46,9 @@ int main(int argc, char** argv) {
   app.add_option("--lcm-url", url, "LCM URL")->capture_default_str();
   app.add_option("--channel", channel, "image channel in the log (and on the bus)")->capture_default_str();
   app.add_option("--out-channel", out_channel, "publish on this channel instead");
-  app.add_option("--fps", fps, "frames per second")->check(ld::cli::Positive)->capture_default_str();
+  app.add_option("--fps", fps, "frames per second (0.001 to 1000)")
+      ->check(ld::cli::Between(0.001, 1000))
+      ->capture_default_str();
   // (neither given: the log once)
   auto* frames_opt = app.add_option("--frames", frames, "frames to publish, looping the log (default: the log once)")
                          ->check(ld::cli::Between(1, 1e12));
@@ -119,7 +122,8 @@ int main(int argc, char** argv) {
     std::cerr << "ld-play: no " << channel << " images in " << log_path << "\n";
     return 2;
   }
-  if (frames == 0 && duration > 0) frames = static_cast<int64_t>(duration * fps + 0.5);
+  // (a duration under half a frame is still a frame, not the log once)
+  if (frames == 0 && duration > 0) frames = std::max<int64_t>(1, std::llround(duration * fps));
   if (frames == 0) frames = static_cast<int64_t>(images.size());
 
   lcm::LCM lcm(url);

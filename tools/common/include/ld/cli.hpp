@@ -30,24 +30,12 @@ inline std::string programName(const char* argv0) {
 }
 
 namespace detail {
-/// An option-like word of the command line that no option of the program
-/// or of its subcommands takes ("" when none).
-inline std::string unknownOption(CLI::App& app, int argc, char** argv) {
-  const auto known = [&](const std::string& name) {
-    if (app.get_option_no_throw(name)) return true;
-    for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; }))
-      if (sub->get_option_no_throw(name)) return true;
-    return false;
-  };
-  for (int i = 1; i < argc; ++i) {
-    const std::string word = argv[i];
-    if (word == "--") break;
-    if (word.size() < 2 || word[0] != '-' || std::isdigit(static_cast<unsigned char>(word[1])) || word[1] == '.')
-      continue;  // a value, a negative number
-    const std::string name = word.substr(0, word.find('='));
-    // (-abc: short flags together; -p5: a short option and its value)
-    if (name.size() > 2 && name[1] != '-' ? !known(name.substr(0, 2)) : !known(name)) return name;
-  }
+/// The first word of the command line that CLI11 matched to no option nor
+/// took as a value, when it looks like an option ("" when none).
+inline std::string unknownOption(const CLI::App& app) {
+  for (const std::string& word : app.remaining(true))
+    if (word.size() >= 2 && word[0] == '-' && !std::isdigit(static_cast<unsigned char>(word[1])) && word[1] != '.')
+      return word.substr(0, word.find('='));
   return "";
 }
 }  // namespace detail
@@ -62,10 +50,12 @@ inline int parse(CLI::App& app, int argc, char** argv) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     std::string what = e.what();
-    // CLI11 checks required options before it looks for unknown ones: a
-    // misspelt option would be reported as the required one it is not
-    if (dynamic_cast<const CLI::RequiredError*>(&e))
-      if (const std::string unknown = detail::unknownOption(app, argc, argv); !unknown.empty())
+    // CLI11 checks required options, and what options need or exclude,
+    // before it looks for unknown ones: a misspelt option would be reported
+    // as the required one it is not
+    if (dynamic_cast<const CLI::RequiredError*>(&e) || dynamic_cast<const CLI::RequiresError*>(&e) ||
+        dynamic_cast<const CLI::ExcludesError*>(&e))
+      if (const std::string unknown = detail::unknownOption(app); !unknown.empty())
         what = "The following argument was not expected: " + unknown;
     for (char& c : what)
       if (c == '\n') c = ' ';

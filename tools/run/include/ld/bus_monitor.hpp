@@ -8,12 +8,15 @@
 // reaching this process, on the wall clock: the list's time is the kernel's
 // receive time (SO_TIMESTAMP, which LCM passes on as recv_utime), the
 // image's its utime, which ld-camera sets to the capture time and ld-play to
-// the time it publishes. An image whose utime is not a time of the last
-// second (lcm-logplayer replays the logged utimes) is timed from its
-// arrival instead, which LCM 1.4 does not take from the kernel for a message
-// of several datagrams (an image): it is when LCM's receive thread read the
-// last one, which a loaded machine delays, so replays' latencies can read
-// low. ld-run prints its status line and writes its summary.
+// the time it publishes: both clocks must be one (the camera on this
+// machine, or machines kept in step by NTP/PTP; a camera clock behind adds
+// its lag, one ahead makes every frame "arrival"). An image whose utime is
+// not a time of the last second (lcm-logplayer replays the logged utimes)
+// is timed from its arrival instead, which LCM (1.3.1, as built here) does
+// not take from the kernel for a message of several datagrams (an image):
+// it is when LCM's receive thread read the last one, which a loaded machine
+// delays, so replays' latencies can read low. ld-run prints its status line
+// and writes its summary.
 #pragma once
 
 #include <cstdint>
@@ -77,7 +80,8 @@ class BusMonitor {
   ///             "tracker_skipped"},
   ///  "landmarks_per_frame": {"mean", "max", "histogram": {"n": frames}},
   ///  "latency_ms": {"count", "p50", "p90", "p99", "max", "mean", "from"}, from: "capture"
-  ///               (every frame timed from its utime), "arrival" or "capture and arrival",
+  ///               (every frame timed from its utime), "arrival", "capture and arrival", or
+  ///               null (no frame timed),
   ///  "tracker_restarts",
   ///  "tracks": [{"id", "tracker_run", "payload", "payload_changes", "first_seq", "last_seq",
   ///              "frames_visible", "frames_coasting"}],
