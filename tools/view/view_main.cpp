@@ -413,12 +413,8 @@ int main(int argc, char** argv) {
   const bool display = x_display || wayland_display;
   if (all_frames && logs.empty())
     return ld::cli::usage(argv[0], "--all is for --log (live, every frame with a tracked list is drawn)");
-  if (!o.video.empty()) {
-    std::string ext = o.video.size() >= 4 ? o.video.substr(o.video.size() - 4) : "";
-    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-    if (ext != ".avi")
-      return ld::cli::usage(argv[0], "--video " + o.video + ": the video is MJPG in AVI, its name must end in .avi");
-  }
+  if (!o.video.empty() && !ld::hasExtension(o.video, ".avi"))
+    return ld::cli::usage(argv[0], "--video " + o.video + ": the video is MJPG in AVI, its name must end in .avi");
   o.window = force_window || (display && o.out_dir.empty() && o.video.empty());
   if (!o.window && o.out_dir.empty() && o.video.empty()) {
     std::cerr << "ld-view: no display: give --out DIR or --video FILE\n";

@@ -71,7 +71,7 @@ int main(int argc, char** argv) {
     return ld::cli::usage(argv[0], "give --png and/or --svg");
   }
   // (a PNG is written whatever the name: one that says so)
-  if (!png.empty() && (png.size() < 4 || png.compare(png.size() - 4, 4, ".png") != 0))
+  if (!png.empty() && !ld::hasExtension(png, ".png"))
     return ld::cli::usage(argv[0], "--png " + png + ": the file name must end in .png");
   if (payloads.size() > 1 && !sheet) return ld::cli::usage(argv[0], "several payloads need --sheet");
   for (const std::string& path : {svg, png}) {

@@ -1,5 +1,7 @@
 #include "ld/file_checks.hpp"
 
+#include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -71,6 +73,14 @@ std::string prepareOutputFile(const std::string& path) {
   if (fs::exists(path, ec) && ::access(path.c_str(), W_OK) != 0)
     return std::string("cannot be written: ") + std::strerror(errno);
   return "";
+}
+
+bool hasExtension(const std::string& path, const std::string& extension) {
+  if (path.size() < extension.size()) return false;
+  return std::equal(extension.begin(), extension.end(), path.end() - static_cast<std::ptrdiff_t>(extension.size()),
+                    [](char a, char b) {
+                      return std::tolower(static_cast<unsigned char>(a)) == std::tolower(static_cast<unsigned char>(b));
+                    });
 }
 
 }  // namespace ld

@@ -180,13 +180,6 @@ void addDistanceSweep(CLI::App* app, double& side, double& from, double& to, dou
   app->add_option("--max-yaw", max_yaw, "yaw drawn within +-this, degrees")->capture_default_str()->check(kYaw);
 }
 
-bool endsWithPng(const std::string& path) {
-  if (path.size() < 4) return false;
-  std::string ext = path.substr(path.size() - 4);
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return std::tolower(ch); });
-  return ext == ".png";
-}
-
 // An output file can be written where it is asked for (its missing folders made).
 void requireWritable(const std::string& path, const char* option) {
   if (path.empty()) return;
@@ -330,7 +323,7 @@ int main(int argc, char** argv) {
       for (const char* opt : {"--markdown", "--png"})
         if (sub->get_option_no_throw(opt) && sub->count(opt) && (opt[2] == 'm' ? c->markdown : c->png).empty())
           throw ld::cli::UsageError(std::string(opt) + " needs a path, not \"\"");
-      if (!c->png.empty() && !endsWithPng(c->png))
+      if (!c->png.empty() && !ld::hasExtension(c->png, ".png"))
         throw ld::cli::UsageError("--png " + c->png + ": the plot is a PNG, its name must end in .png");
       requireWritable(c->markdown, "--markdown");
       requireWritable(c->png, "--png");

@@ -37,6 +37,11 @@ struct LcmLogCheck {
 /// Reads the first event header of `path` (nothing more).
 LcmLogCheck checkLcmLogStart(const std::string& path);
 
+/// Whether `path` ends in `extension` (".png", ".avi"), in any case: the
+/// tools that write a format by its name (a plot, a video) say so when it
+/// does not.
+bool hasExtension(const std::string& path, const std::string& extension);
+
 /// Makes sure files can be created in `folder`: creates it (and its parents)
 /// when missing, then creates and removes a temporary file in it. Empty when
 /// they can; otherwise why, as prepareOutputFile says it.
