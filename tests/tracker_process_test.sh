@@ -19,6 +19,7 @@ FRAMES=40
 for args in "ld-tracker --max-lifetime 0|--max-lifetime: must be > 0, not 0" \
             "ld-tracker --min-hits 2147483648|--min-hits: must be in [1, 1000], not 2147483648" \
             "ld-tracker --max-size-ratio 0.5|--max-size-ratio: must be in [1, 1000], not 0.5" \
+            "ld-tracker --min-hits 1.5|--min-hits: '1.5' is not a value it takes (a number of its kind" \
             "ld-tracker --in LANDMARKS.*|--in LANDMARKS.* takes the tracker's own output LANDMARKS_TRACKED: it would feed itself" \
             "ld-tracker --in X --out X|--in X takes the tracker's own output X" \
             "ld-tracker --in LANDMARKS\w*|--in LANDMARKS\w* takes the tracker's own output" \

@@ -53,6 +53,16 @@ inline int parse(CLI::App& app, int argc, char** argv) {
     // CLI11 checks required options, and what options need or exclude,
     // before it looks for unknown ones: a misspelt option would be reported
     // as the required one it is not
+    // CLI11's "Could not convert: --seed = abc" (a value its type cannot
+    // hold: not a number, a fraction for a count, beyond the type's range)
+    // said as the project's checks say it
+    if (dynamic_cast<const CLI::ConversionError*>(&e)) {
+      const std::string head = "Could not convert: ";
+      const size_t eq = what.find(" = ");
+      if (what.compare(0, head.size(), head) == 0 && eq != std::string::npos)
+        what = what.substr(head.size(), eq - head.size()) + ": '" + what.substr(eq + 3) +
+               "' is not a value it takes (a number of its kind, in its type's range)";
+    }
     if (dynamic_cast<const CLI::RequiredError*>(&e) || dynamic_cast<const CLI::RequiresError*>(&e) ||
         dynamic_cast<const CLI::ExcludesError*>(&e))
       if (const std::string unknown = detail::unknownOption(app); !unknown.empty())
