@@ -30,6 +30,7 @@ refused "^ld-bench-tracker: --landmarks: must be in \[1, 1000\], not 100000" "$B
 refused "^ld-bench: --tracker-landmarks: must be in \[1, 1000\], not 100000" "$BIN/ld-bench" --tracker-landmarks 10,100000
 timeout 60 "$BIN/ld-bench-tracker" --landmarks 5,7 --repeats 1 >"$T/out" || fail "ld-bench-tracker 5,7"
 [ "$(grep -c '^| [57] |' "$T/out")" -eq 2 ] || fail "ld-bench-tracker 5,7: $(cat "$T/out")"
+grep -q '^| landmarks | assignment | update |$' "$T/out" || fail "ld-bench-tracker's table is not ld-bench's: $(cat "$T/out")"
 refused "^ld-bench-e2e: unknown option --bogus (--help lists the options)$" "$BIN/ld-bench-e2e" --bogus
 refused "^ld-bench-e2e: --seconds must be a number of seconds, not x" "$BIN/ld-bench-e2e" --seconds x
 refused "^ld-bench-e2e: --seconds must be above 0" "$BIN/ld-bench-e2e" --seconds 0.0
@@ -44,6 +45,7 @@ timeout 120 "$BIN/ld-bench" --frames 1 --repeats 1 --resolutions 320x240 --backe
   fail "tiny run: $(cat "$T/err")"
 grep -q "^| 320x240 | cpu | fast | " "$T/out" || fail "no detector row: $(cat "$T/out")"
 grep -q "^| 10 | " "$T/out" || fail "no tracker row: $(cat "$T/out")"
+grep -q '^| landmarks | assignment | update |$' "$T/out" || fail "ld-bench's tracker table: $(cat "$T/out")"
 grep -q "^| 320x240 | cpu | fast | " "$T/new/bench.md" || fail "no --markdown"
 # the header gives the command as run, to measure it again
 grep -qF "Measured by \`ld-bench --frames 1 --repeats 1 --resolutions 320x240 --backend cpu --no-paper --tracker-landmarks 10 --tracker-repeats 1 --markdown $T/new/bench.md\`" "$T/out" ||

@@ -384,13 +384,7 @@ int main(int argc, char** argv) {
      << "|---|---|---|---|---|---|\n";
   for (const auto& r : adaptive_rows) md << r << "\n";
   // The tracker (section IV): one assignment and one update per frame.
-  md << "\nTracker: median ms over " << tracker_repeats << " runs; assignment = one Hungarian solve of a "
-        "dense NxN matrix (the worst case), update = one Tracker::update() with N landmarks moving.\n\n"
-     << "| landmarks | assignment | update |\n|---|---|---|\n";
-  for (int n : tracker_counts) {
-    const ld::TrackerTiming t = ld::timeTracker(n, tracker_repeats, seed);
-    md << "| " << n << " | " << fmt(t.assignment_ms, 4) << " | " << fmt(t.update_ms, 4) << " |\n";
-  }
+  md << "\n" << ld::trackerTable(tracker_counts, tracker_repeats, seed);
   std::cout << md.str();
   if (!markdown.empty()) {
     std::ofstream f(markdown);

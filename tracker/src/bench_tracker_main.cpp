@@ -19,11 +19,6 @@ int main(int argc, char** argv) {
       ->check(ld::cli::Positive)->capture_default_str();
   LD_CLI_PARSE(app, argc, argv);
 
-  std::printf("| landmarks | assignment ms (Hungarian, dense n x n) | tracker update ms |\n");
-  std::printf("|---:|---:|---:|\n");
-  for (int n : counts) {
-    const ld::TrackerTiming t = ld::timeTracker(n, repeats);
-    std::printf("| %d | %.4f | %.4f |\n", t.landmarks, t.assignment_ms, t.update_ms);
-  }
+  std::printf("%s", ld::trackerTable(counts, repeats).c_str());
   return 0;
 }

@@ -1,5 +1,7 @@
 #include "ld/tracker_bench.hpp"
 
+#include <cstdio>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -86,6 +88,19 @@ TrackerTiming timeTracker(int landmarks, int repeats, uint64_t seed) {
     t.update_ms = median(ms);
   }
   return t;
+}
+
+std::string trackerTable(const std::vector<int>& landmarks, int repeats, uint64_t seed) {
+  std::string md = "Tracker: median ms over " + std::to_string(repeats) + (repeats == 1 ? " run" : " runs") +
+                   "; assignment = one Hungarian solve of a dense NxN matrix (the worst case), update = one "
+                   "Tracker::update() with N landmarks moving.\n\n| landmarks | assignment | update |\n|---|---|---|\n";
+  char row[96];
+  for (int n : landmarks) {
+    const TrackerTiming t = timeTracker(n, repeats, seed);
+    std::snprintf(row, sizeof row, "| %d | %.4f | %.4f |\n", n, t.assignment_ms, t.update_ms);
+    md += row;
+  }
+  return md;
 }
 
 }  // namespace ld

@@ -2,6 +2,8 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
+#include <vector>
 
 namespace ld {
 
@@ -19,5 +21,9 @@ struct TrackerTiming {
 /// Times the assignment and the tracker update for `landmarks` landmarks over
 /// `repeats` runs (deterministic inputs from `seed`).
 TrackerTiming timeTracker(int landmarks, int repeats = 200, uint64_t seed = 1);
+
+/// The tracker's benchmark table (Markdown, its caption first), timing each
+/// count of `landmarks`: the same in ld-bench and ld-bench-tracker.
+std::string trackerTable(const std::vector<int>& landmarks, int repeats, uint64_t seed = 1);
 
 }  // namespace ld
