@@ -80,6 +80,18 @@ void plot(const std::string& path, const std::string& title, const std::string& 
       if (k > 0) cv::line(img, px(pts[k - 1].x, pts[k - 1].y), px(pts[k].x, pts[k].y), c, 2, cv::LINE_AA);
     }
   }
+  // the legend on a white box with a thin frame, over the lines it would hide
+  int legend_w = 0;
+  for (const auto& sr : series) {
+    int baseline = 0;
+    legend_w = std::max(legend_w, cv::getTextSize(sr.name, cv::FONT_HERSHEY_SIMPLEX, 0.5, 1, &baseline).width);
+  }
+  if (!series.empty()) {
+    const cv::Rect box(L + 8, H - B - 20 - 22 * static_cast<int>(series.size() - 1) - 12, legend_w + 32 + 22,
+                       22 * static_cast<int>(series.size()) + 6);
+    cv::rectangle(img, box, cv::Scalar(255, 255, 255), cv::FILLED);
+    cv::rectangle(img, box, cv::Scalar(200, 200, 200), 1);
+  }
   for (size_t i = 0; i < series.size(); ++i) {
     const cv::Scalar c = colours[i % 6];
     const cv::Point at(L + 15, H - B - 20 - 22 * static_cast<int>(series.size() - 1 - i));
