@@ -27,6 +27,7 @@ grep -q '^Wants=.*ld-detector.service' "$ROOT/tools/systemd/landmark.target"
 for u in ld-camera ld-detector ld-tracker ld-qr-reader; do
   grep -q '^StartLimitIntervalSec=0$' "$ROOT/tools/systemd/$u.service" || { echo "$u: a start limit"; exit 1; }
   grep -q '^Wants=network-online.target$' "$ROOT/tools/systemd/$u.service" || { echo "$u: no Wants=network-online"; exit 1; }
+  grep -q '^RestartPreventExitStatus=2$' "$ROOT/tools/systemd/$u.service" || { echo "$u: restarts on status 2"; exit 1; }
 done
 grep -q '^Wants=network-online.target$' "$ROOT/tools/systemd/landmark.target"
 echo "1 passed, 0 failed"

@@ -31,6 +31,14 @@ for args in "ld-tracker --max-lifetime 0|--max-lifetime: must be > 0, not 0" \
   [ $rc -eq 2 ] && [ "$(wc -l <"$T/err")" -eq 1 ] && grep -qF -- "${args#*|}" "$T/err" ||
     { echo "FAIL: $cmd: exit $rc, $(cat "$T/err")"; exit 1; }
 done
+# LCM that will not open: a network without its multicast route (a private
+# namespace with none, as at boot before the network is up) is status 1, a
+# supervisor's to retry; a wrong URL is 2, which no restart mends.
+flags=-n; [ "$(id -u)" -eq 0 ] || flags=-rn
+rc=0; timeout 10 unshare $flags "$BIN/ld-tracker" >/dev/null 2>"$T/err" || rc=$?
+[ $rc -eq 1 ] && grep -q "^ld-tracker: cannot open LCM at udpm://" "$T/err" || { echo "FAIL: no route: $rc $(cat "$T/err")"; exit 1; }
+rc=0; timeout 10 "$BIN/ld-tracker" --lcm-url bogus://x >/dev/null 2>"$T/err" || rc=$?
+[ $rc -eq 2 ] && grep -q "^ld-tracker: cannot open LCM at bogus://x" "$T/err" || { echo "FAIL: bogus URL: $rc $(cat "$T/err")"; exit 1; }
 rc=0; timeout 10 "$BIN/ld-tracker" --in "" >/dev/null 2>"$T/err" || rc=$?
 [ $rc -eq 2 ] && grep -qF -- "--in needs a channel name" "$T/err" || { echo "FAIL: --in '': $rc $(cat "$T/err")"; exit 1; }
 

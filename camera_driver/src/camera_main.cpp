@@ -173,7 +173,7 @@ int main(int argc, char** argv) {
   lcm::LCM lcm(url);
   if (!lcm.good()) {
     say("cannot open LCM at " + url);
-    return 2;
+    return ld::lcmOpenFailureStatus(url);  // (1: may pass, a supervisor restarts it; 2: a wrong URL)
   }
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);

@@ -73,7 +73,7 @@ int main(int argc, char** argv) {
   lcm::LCM lcm(url);
   if (!lcm.good()) {
     std::cerr << "ld-detector: cannot open LCM at " << url << "\n";
-    return 2;
+    return ld::lcmOpenFailureStatus(url);  // (1: may pass, a supervisor restarts it; 2: a wrong URL)
   }
   if (verbose) std::fprintf(stderr, "ld-detector: backend %s\n", detector.detector().backendInfo().c_str());
   // backend "auto" on a GPU: -v says its choice too, once made

@@ -16,6 +16,13 @@ std::string defaultLcmUrl() {
   return "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608";
 }
 
+int lcmOpenFailureStatus(const std::string& url) {
+  const std::string provider = url.substr(0, url.find("://"));
+  for (const char* known : {"udpm", "mpudpm", "file", "memq", "tcpq"})
+    if (provider == known && url.find("://") != std::string::npos) return 1;
+  return 2;
+}
+
 bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const char* program) {
   if (lcm.handleTimeout(timeout_ms) < 0) {
     if (stop || errno == EINTR) return true;  // a signal, not a failure

@@ -106,7 +106,7 @@ int main(int argc, char** argv) {
   lcm::LCM lcm(url);
   if (!lcm.good()) {
     std::cerr << "ld-qr-reader: cannot open LCM at " << url << "\n";
-    return 2;
+    return ld::lcmOpenFailureStatus(url);  // (1: may pass, a supervisor restarts it; 2: a wrong URL)
   }
   Inputs in;
   lcm.subscribe(image_ch, &Inputs::onImage, &in);

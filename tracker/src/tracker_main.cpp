@@ -98,7 +98,7 @@ int main(int argc, char** argv) {
   lcm::LCM lcm(url);
   if (!lcm.good()) {
     std::cerr << "ld-tracker: cannot open LCM at " << url << "\n";
-    return 2;
+    return ld::lcmOpenFailureStatus(url);  // (1: may pass, a supervisor restarts it; 2: a wrong URL)
   }
   LatestMessage latest;
   lcm.subscribe(in_channel, &LatestMessage::onMessage, &latest);

@@ -13,6 +13,12 @@ namespace ld {
 /// let it take effect; see README).
 std::string defaultLcmUrl();
 
+/// The exit status of a process whose LCM would not open at `url`: 1 (may
+/// pass: a network not up yet at boot; a supervisor restarts it) for a
+/// provider LCM has (udpm, mpudpm, file, memq, tcpq), 2 (a restart will not
+/// mend it: the URL is wrong) for any other.
+int lcmOpenFailureStatus(const std::string& url);
+
 }  // namespace ld
 
 namespace lcm {

@@ -129,7 +129,7 @@ int main(int argc, char** argv) {
   lcm::LCM lcm(url);
   if (!lcm.good()) {
     std::cerr << "ld-play: cannot open LCM at " << url << "\n";
-    return 1;  // (not 2: the network may come up; ld-run gives up on a source's 2)
+    return ld::lcmOpenFailureStatus(url);  // (1: the network may come up; 2, a wrong URL, ld-run gives up on)
   }
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
