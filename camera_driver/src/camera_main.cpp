@@ -116,7 +116,8 @@ int main(int argc, char** argv) {
                                        " is for --fake");
   if (replug->count() && !unplug->count())
     return ld::cli::usage(argv[0], "--fake-replug-after needs --fake-unplug-after");
-  if (channel.empty()) return ld::cli::usage(argv[0], "--channel needs a channel name");
+  if (const std::string p = ld::channelProblem({}, {"--channel", channel}, "ld-camera's"); !p.empty())
+    return ld::cli::usage(argv[0], p);
 
   ld::CaptureRequest request;
   ld::ImageConversion conversion;

@@ -56,11 +56,9 @@ int main(int argc, char** argv) {
                  "stage kept, why groups of squares were refused); 0: never")
       ->check(ld::cli::NonNegative);
   LD_CLI_PARSE(app, argc, argv);
-  if (in_channel.empty() || out_channel.empty())
-    return ld::cli::usage(argv[0], std::string(in_channel.empty() ? "--in" : "--out") + " needs a channel name");
-  if (ld::channelPatternTakes(in_channel, out_channel))
-    return ld::cli::usage(argv[0], "--in " + in_channel + " takes the detector's own output " + out_channel +
-                                       ": it would feed itself");
+  if (const std::string p = ld::channelProblem({{"--in", in_channel}}, {"--out", out_channel}, "the detector's");
+      !p.empty())
+    return ld::cli::usage(argv[0], p);
 
   ld::AdaptiveDetector detector;  // with --adaptive: frames are corrected before detection
   try {

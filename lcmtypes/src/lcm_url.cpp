@@ -17,9 +17,10 @@ std::string defaultLcmUrl() {
 }
 
 int lcmOpenFailureStatus(const std::string& url) {
-  const std::string provider = url.substr(0, url.find("://"));
+  const size_t end = url.find("://");
+  if (end == std::string::npos) return 2;
   for (const char* known : {"udpm", "mpudpm", "file", "memq", "tcpq"})
-    if (provider == known && url.find("://") != std::string::npos) return 1;
+    if (url.compare(0, end, known) == 0) return 1;
   return 2;
 }
 
@@ -47,6 +48,17 @@ bool channelPatternTakes(const std::string& pattern, const std::string& channel)
   const bool takes = g_regex_match(re, channel.c_str(), static_cast<GRegexMatchFlags>(0), nullptr);
   g_regex_unref(re);
   return takes;
+}
+
+std::string channelProblem(const std::vector<ChannelOption>& inputs, const ChannelOption& output,
+                           const std::string& whose) {
+  for (const auto& [option, name] : inputs)
+    if (name.empty()) return option + " needs a channel name";
+  if (output.second.empty()) return output.first + " needs a channel name";
+  for (const auto& [option, name] : inputs)
+    if (channelPatternTakes(name, output.second))
+      return option + " " + name + " takes " + whose + " own output " + output.second + ": it would feed itself";
+  return "";
 }
 
 }  // namespace ld

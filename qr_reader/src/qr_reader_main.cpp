@@ -94,14 +94,10 @@ int main(int argc, char** argv) {
   app.add_flag("-v,--verbose", verbose,
                "print each newly read payload, and each track whose stacked frames a jump dropped");
   LD_CLI_PARSE(app, argc, argv);
-  for (const auto& [opt, ch] : {std::pair<const char*, const std::string*>{"--image", &image_ch},
-                                {"--tracks", &tracks_ch}, {"--out", &out_ch}})
-    if (ch->empty()) return ld::cli::usage(argv[0], std::string(opt) + " needs a channel name");
-  for (const auto& [opt, ch] : {std::pair<const char*, const std::string*>{"--image", &image_ch},
-                                {"--tracks", &tracks_ch}})
-    if (ld::channelPatternTakes(*ch, out_ch))
-      return ld::cli::usage(argv[0], std::string(opt) + " " + *ch + " takes the reader's own output " + out_ch +
-                                         ": it would feed itself");
+  if (const std::string p =
+          ld::channelProblem({{"--image", image_ch}, {"--tracks", tracks_ch}}, {"--out", out_ch}, "the reader's");
+      !p.empty())
+    return ld::cli::usage(argv[0], p);
 
   lcm::LCM lcm(url);
   if (!lcm.good()) {

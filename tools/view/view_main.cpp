@@ -2,9 +2,7 @@
 // the frames they were found in, matched by utime and seq. Reads the live
 // bus (IMAGE, LANDMARKS_TRACKED, LANDMARK_CODES) or LCM logs, and shows the
 // result in a window or writes PNGs / a video.
-#include <algorithm>
 #include <atomic>
-#include <cctype>
 #include <cerrno>
 #include <chrono>
 #include <csignal>
@@ -15,7 +13,6 @@
 #include <iostream>
 #include <map>
 #include <optional>
-#include <set>
 
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
@@ -55,6 +52,16 @@ struct Options {
   double fps = 30;
   std::optional<ld::CameraModel> camera;
   double axis_m = 0.1;
+};
+
+// Messages that are not what their channel carries: one line each, naming
+// it (the first ten, then every hundredth, as every process says it), and
+// counted.
+struct Dropped {
+  int64_t count = 0;
+  void operator()(const std::string& what, const std::string& why) {
+    if (ld::printBadLine(++count)) std::cerr << "ld-view: " << what << ": " << why << " " << ld::badSoFar(count) << "\n";
+  }
 };
 
 // Where the annotated frames go: PNG files, a video, a window.
@@ -172,14 +179,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
              const std::string& codes_ch, bool all_frames, const Options& o) {
   std::map<Key, ld::landmark_list_t> lists;
   std::map<Key, ld::qr_code_list_t> codes;
-  int64_t bad = 0;
-  // a message that is not what its channel carries: one line naming it (the
-  // first ten, then every hundredth), and counted
-  const auto dropped = [&](const std::string& path, const std::string& channel, const std::string& why) {
-    if (ld::printBadLine(++bad))
-      std::cerr << "ld-view: " << path << ": dropped message on " << channel << ": " << why << " "
-                << ld::badSoFar(bad) << "\n";
-  };
+  Dropped dropped;
   std::string why;
   for (const auto& path : logs) {
     ld::LcmLogReader log(path);
@@ -191,11 +191,11 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
       if (log.channel == tracked_ch) {
         ld::landmark_list_t l;
         if (ld::decodeMessage(log.data.data(), log.data.size(), l, &why)) lists[{l.utime, l.seq}] = std::move(l);
-        else dropped(path, log.channel, why);
+        else dropped(path + ": dropped message on " + log.channel, why);
       } else if (log.channel == codes_ch) {
         ld::qr_code_list_t c;
         if (ld::decodeMessage(log.data.data(), log.data.size(), c, &why)) codes[{c.utime, c.seq}] = std::move(c);
-        else dropped(path, log.channel, why);
+        else dropped(path + ": dropped message on " + log.channel, why);
       }
     }
     if (!log.problem().empty())  // a cut log: what it holds is drawn
@@ -212,7 +212,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
       ++events;
       if (log.channel != image_ch) continue;
       if (!ld::decodeMessage(log.data.data(), log.data.size(), img, &why)) {
-        dropped(path, log.channel, why);
+        dropped(path + ": dropped message on " + log.channel, why);
         continue;
       }
       ++images;
@@ -226,7 +226,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
       try {
         ld::imageToBgr(img, bgr);
       } catch (const std::exception& e) {
-        dropped(path, log.channel, e.what());
+        dropped(path + ": dropped message on " + log.channel, e.what());
         continue;
       }
       if (l != lists.end()) annotate(bgr, l->second, payloads, o);
@@ -235,7 +235,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
   }
   std::fprintf(stderr, "ld-view: %lld images, %zu tracked lists, %lld frames written%s\n",
                static_cast<long long>(images), lists.size(), static_cast<long long>(sink.count()),
-               bad ? (", " + std::to_string(bad) + " bad").c_str() : "");
+               dropped.count ? (", " + std::to_string(dropped.count) + " bad").c_str() : "");
   if (events == 0) std::fprintf(stderr, "ld-view: the logs hold no message: nothing to draw\n");
   if (sink.count() == 0 && images > 0 && matched == 0 && !all_frames)
     std::fprintf(stderr, "ld-view: %s; --all draws every image\n",
@@ -247,7 +247,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
 // --- live bus: recent images kept, each drawn when its tracked list comes ---
 class Live {
  public:
-  Live(const Options& o, std::string image_ch) : sink_(o), o_(o), o_image_ch_(std::move(image_ch)) {}
+  Live(const Options& o, std::string image_ch) : sink_(o), o_(o), image_ch_(std::move(image_ch)) {}
   void onImage(const lcm::ReceiveBuffer* rb, const std::string& channel) {
     // The last kRecentFrames frames; the one that drops out lends its
     // buffer to the next (no copy, no allocation once they are all there).
@@ -271,9 +271,7 @@ class Live {
       try {
         ld::imageToBgr(it->second, bgr_);
       } catch (const std::exception& e) {
-        if (ld::printBadLine(++bad_))
-          std::cerr << "ld-view: dropped image on " << o_image_ch_ << ": " << e.what() << " " << ld::badSoFar(bad_)
-                    << "\n";
+        dropped_("dropped image on " + image_ch_, e.what());
         return;
       }
       annotate(bgr_, list_, payloads_, o_);
@@ -282,24 +280,21 @@ class Live {
     }
   }
   int64_t frames() const { return sink_.count(); }
-  int64_t bad() const { return bad_; }
+  int64_t bad() const { return dropped_.count; }
   bool failed() const { return sink_.failed(); }
 
  private:
-  // A message that is not what its channel carries: one line naming it (the
-  // first ten, then every hundredth, as every process says it).
   template <class T>
   bool decoded(const lcm::ReceiveBuffer* rb, T& msg, const std::string& channel) {
     std::string why;
     if (ld::decodeMessage(rb->data, rb->data_size, msg, &why)) return true;
-    if (ld::printBadLine(++bad_))
-      std::cerr << "ld-view: dropped message on " << channel << ": " << why << " " << ld::badSoFar(bad_) << "\n";
+    dropped_("dropped message on " + channel, why);
     return false;
   }
-  int64_t bad_ = 0;
+  Dropped dropped_;
   Sink sink_;
   const Options& o_;
-  std::string o_image_ch_;
+  std::string image_ch_;
   static constexpr size_t kRecentFrames = 60;
   ld::image_t spare_;
   ld::landmark_list_t list_;

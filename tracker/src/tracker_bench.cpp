@@ -1,10 +1,9 @@
 #include "ld/tracker_bench.hpp"
 
-#include <cstdio>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <vector>
 

@@ -69,11 +69,9 @@ int main(int argc, char** argv) {
   app.add_flag("--print-params", print_params, "print the effective parameters as YAML and exit");
   app.add_flag("-v,--verbose", verbose, "print a status line every 5 s");
   LD_CLI_PARSE(app, argc, argv);
-  if (in_channel.empty() || out_channel.empty())
-    return ld::cli::usage(argv[0], std::string(in_channel.empty() ? "--in" : "--out") + " needs a channel name");
-  if (ld::channelPatternTakes(in_channel, out_channel))
-    return ld::cli::usage(argv[0], "--in " + in_channel + " takes the tracker's own output " + out_channel +
-                                       ": it would feed itself");
+  if (const std::string p = ld::channelProblem({{"--in", in_channel}}, {"--out", out_channel}, "the tracker's");
+      !p.empty())
+    return ld::cli::usage(argv[0], p);
 
   ld::TrackerParams params;
   try {

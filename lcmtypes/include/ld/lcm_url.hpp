@@ -4,6 +4,8 @@
 #include <atomic>
 #include <cstdint>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace ld {
 
@@ -40,6 +42,15 @@ bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const
 /// process whose input takes its own output feeds itself without end. A
 /// pattern that is no valid expression is taken as a name.
 bool channelPatternTakes(const std::string& pattern, const std::string& channel);
+
+/// What is wrong with a process's channels, for its one-line refusal ("" when
+/// nothing): an empty name ("--in needs a channel name"), or an input that
+/// takes the process's own output, which would feed it itself ("--in X takes
+/// the tracker's own output Y: ..."; `whose`: "the tracker's"). Channels are
+/// (option, name) pairs.
+using ChannelOption = std::pair<std::string, std::string>;
+std::string channelProblem(const std::vector<ChannelOption>& inputs, const ChannelOption& output,
+                           const std::string& whose);
 
 /// Whether a process prints the line of its `bad`'th bad input (1, 2, ...):
 /// the first kBadLinesInFull, then every kBadLinesEvery'th, so that a flood

@@ -1,7 +1,6 @@
 // ld-eval: detection and QR decode rates on ld-synth sweeps, as tables
 // (markdown) and plots (PNG). See README, "Evaluating".
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -332,8 +331,9 @@ int main(int argc, char** argv) {
     for (const auto& [c, sub] : std::vector<std::pair<const Common*, CLI::App*>>{
              {&yc, yaw}, {&dc, dist}, {&qc, qr}, {&sc, size}, {&lc, light}, {&mc, motion}, {&pc, pose}}) {
       if (!sub->parsed()) continue;
-      for (const char* opt : {"--markdown", "--png"})
-        if (sub->get_option_no_throw(opt) && sub->count(opt) && (opt[2] == 'm' ? c->markdown : c->png).empty())
+      for (const auto& [opt, path] : {std::pair<const char*, const std::string*>{"--markdown", &c->markdown},
+                                      {"--png", &c->png}})
+        if (sub->get_option_no_throw(opt) && sub->count(opt) && path->empty())
           throw ld::cli::UsageError(std::string(opt) + " needs a path, not \"\"");
       if (!c->png.empty() && !ld::hasExtension(c->png, ".png"))
         throw ld::cli::UsageError("--png " + c->png + ": the plot is a PNG, its name must end in .png");

@@ -178,7 +178,6 @@ void BusMonitor::trackedSeen(const landmark_list_t& list, Micros rx_us) {
   ages_.clear();
   for (const auto& lm : list.landmarks)
     if (lm.track_id >= 0) ages_.emplace_back(lm.track_id, lm.age);
-  if (run_starts_.empty()) run_starts_.push_back(INT64_MIN);
   if (restarts_.note(ages_)) run_starts_.push_back(list.utime);
   const int run = static_cast<int>(run_starts_.size());
   FrameRecord f;
@@ -223,10 +222,8 @@ void BusMonitor::codesSeen(const qr_code_list_t& codes, Micros rx_us) {
   // a code names the frame it was read from: its track is of the tracker's
   // run that frame belongs to (codes read before a restart come after it)
   for (const auto& c : codes.codes) {
-    int run = 1;
-    while (run < static_cast<int>(run_starts_.size()) && run_starts_[static_cast<size_t>(run)] <= c.utime)
-      ++run;
-    setPayload(run, c.track_id, c.payload);
+    const auto runs_begun = std::upper_bound(run_starts_.begin(), run_starts_.end(), c.utime) - run_starts_.begin();
+    setPayload(std::max(1, static_cast<int>(runs_begun)), c.track_id, c.payload);
   }
 }
 

@@ -50,9 +50,6 @@ inline int parse(CLI::App& app, int argc, char** argv) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     std::string what = e.what();
-    // CLI11 checks required options, and what options need or exclude,
-    // before it looks for unknown ones: a misspelt option would be reported
-    // as the required one it is not
     // CLI11's "Could not convert: --seed = abc" (a value its type cannot
     // hold: not a number, a fraction for a count, beyond the type's range)
     // said as the project's checks say it
@@ -63,6 +60,9 @@ inline int parse(CLI::App& app, int argc, char** argv) {
         what = what.substr(head.size(), eq - head.size()) + ": '" + what.substr(eq + 3) +
                "' is not a value it takes (a number of its kind, in its type's range)";
     }
+    // CLI11 checks required options, and what options need or exclude,
+    // before it looks for unknown ones: a misspelt option would be reported
+    // as the required one it is not
     if (dynamic_cast<const CLI::RequiredError*>(&e) || dynamic_cast<const CLI::RequiresError*>(&e) ||
         dynamic_cast<const CLI::ExcludesError*>(&e))
       if (const std::string unknown = detail::unknownOption(app); !unknown.empty())

@@ -154,7 +154,7 @@ class BusMonitor {
   size_t window_start_ = 0;  // first latency of the current status window
   std::map<std::pair<int, int64_t>, TrackInfo> tracks_;  // (tracker run, id)
   TrackRestartWatch restarts_;
-  std::vector<int64_t> run_starts_;  // utime of each tracker run's first list, the first run's INT64_MIN
+  std::vector<int64_t> run_starts_{INT64_MIN};  // utime of each tracker run's first list (run r: [r - 1])
   std::vector<std::pair<int64_t, int32_t>> ages_;
   std::map<int, int64_t> histogram_;
   std::vector<FrameRecord> frames_;
