@@ -20,6 +20,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <regex>
 #include <string>
 #include <thread>
@@ -164,17 +165,27 @@ std::vector<ld::image_t> renderLoop(const Options& o) {
   return frames;
 }
 
-// "stopped after ..." line of a process's stderr: the numbers in it, in order.
-std::vector<int64_t> exitCounts(const std::string& err_path, const std::string& program) {
+// The counts of a process's "stopped after ..." line, by their labels (the
+// lines gain counts over time; their order is no contract):
+//   ld-detector: stopped after P frames (S skipped, B bad)
+//   ld-tracker: stopped after P frames (S skipped, B bad, N landmarks not tracked), T tracks
+//   ld-qr-reader: stopped after P frames, R tracks read (K from stacked frames), S skipped, U unmatched, B bad
+// Empty when the line, or one of `labels`, is missing.
+std::map<std::string, int64_t> exitCounts(const std::string& err_path, const std::string& program,
+                                          const std::vector<std::string>& labels) {
   std::ifstream f(err_path);
   std::string line, last;
   while (std::getline(f, line))
     if (line.rfind(program + ": stopped after", 0) == 0) last = line;
-  std::vector<int64_t> v;
-  const std::regex num("[0-9]+");
-  for (auto it = std::sregex_iterator(last.begin(), last.end(), num); it != std::sregex_iterator(); ++it)
-    v.push_back(std::stoll(it->str()));
-  return v;
+  std::map<std::string, int64_t> counts;
+  std::smatch m;
+  if (!std::regex_search(last, m, std::regex("stopped after ([0-9]+) frames"))) return {};
+  counts["frames"] = std::stoll(m[1].str());
+  for (const auto& label : labels) {
+    if (!std::regex_search(last, m, std::regex("([0-9]+) " + label + "\\b"))) return {};
+    counts[label] = std::stoll(m[1].str());
+  }
+  return counts;
 }
 
 double secondsSince(Clock::time_point t0) {
@@ -187,21 +198,25 @@ int main(int argc, char** argv) {
   Options o;
   CLI::App app{"ld-soak: the process set under a long camera load; memory, fds and messages lost "
                "over time (run it in a private network namespace: scripts/netns-run.sh)."};
-  app.add_option("-d,--duration", o.duration_s, "seconds of load")->capture_default_str();
-  app.add_option("--fps", o.fps, "frames per second")->capture_default_str();
-  app.add_option("--width", o.width, "frame width")->capture_default_str();
-  app.add_option("--height", o.height, "frame height")->capture_default_str();
-  app.add_option("-k,--landmarks", o.landmarks, "landmarks in view")->capture_default_str();
-  app.add_option("--loop-frames", o.loop_frames, "distinct frames rendered, published in a loop")
-      ->capture_default_str();
+  app.add_option("-d,--duration", o.duration_s, "seconds of load (1 to 1e6)")
+      ->capture_default_str()->check(ld::cli::Between(1, 1e6));
+  app.add_option("--fps", o.fps, "frames per second (0.1 to 1000)")
+      ->capture_default_str()->check(ld::cli::Between(0.1, 1000));
+  app.add_option("--width", o.width, "frame width")->capture_default_str()->check(ld::cli::Between(32, 8192));
+  app.add_option("--height", o.height, "frame height")->capture_default_str()->check(ld::cli::Between(32, 8192));
+  app.add_option("-k,--landmarks", o.landmarks, "landmarks in view (1 to 10)")
+      ->capture_default_str()->check(ld::cli::Between(1, 10));
+  app.add_option("--loop-frames", o.loop_frames, "distinct frames rendered, published in a loop (1 to 300)")
+      ->capture_default_str()->check(ld::cli::Between(1, 300));
   app.add_option("--format", o.format, "pixel format published: mjpeg, yuyv, bgr, gray, ...")
-      ->capture_default_str();
-  app.add_option("--sample-interval", o.sample_s, "seconds between samples")->capture_default_str();
-  app.add_option("--warmup", o.warmup_s, "seconds before the memory baseline is taken")
-      ->capture_default_str();
+      ->capture_default_str()->check(ld::cli::Parses("FORMAT", ld::pixelFormatFromName));
+  app.add_option("--sample-interval", o.sample_s, "seconds between samples")
+      ->capture_default_str()->check(ld::cli::Between(0.1, 3600));
+  app.add_option("--warmup", o.warmup_s, "seconds before the memory baseline is taken (less than --duration)")
+      ->capture_default_str()->check(ld::cli::NonNegative);
   app.add_option("--max-growth-mb", o.max_growth_mb,
                  "largest RSS growth after the warm-up that still counts as flat")
-      ->capture_default_str();
+      ->capture_default_str()->check(ld::cli::NonNegative);
   app.add_option("--bin", o.bin_dir, "folder of ld-detector, ld-tracker, ld-qr-reader (default: ld-soak's)");
   app.add_option("--log-dir", o.log_dir, "where the processes' stderr goes (default: a temporary folder)");
   app.add_option("--csv", o.csv, "also write the samples to this CSV file");
@@ -212,8 +227,10 @@ int main(int argc, char** argv) {
                  "machine: scripts/netns-run.sh " << argv[0] << " ...\n";
     return 2;
   }
-  if (o.duration_s <= 0 || o.fps <= 0 || o.loop_frames < 1 || o.landmarks < 1 || o.sample_s <= 0) {
-    std::cerr << "ld-soak: duration, fps, loop-frames, landmarks and sample-interval must be positive\n";
+  if (o.warmup_s >= o.duration_s) {
+    std::cerr << "ld-soak: --warmup (" << o.warmup_s << " s) must be shorter than --duration ("
+              << o.duration_s << " s): memory is compared from the first sample after the warm-up "
+                 "to the last\n";
     return 2;
   }
   if (o.bin_dir.empty()) o.bin_dir = ld::selfDirectory();
@@ -225,7 +242,25 @@ int main(int argc, char** argv) {
     }
     o.log_dir = tmpl;
   }
-  fs::create_directories(o.log_dir);
+  std::error_code ec;
+  fs::create_directories(o.log_dir, ec);
+  if (ec || access(o.log_dir.c_str(), W_OK) != 0) {
+    std::cerr << "ld-soak: cannot write the process logs in " << o.log_dir << "\n";
+    return 2;
+  }
+  for (const char* name : {"ld-detector", "ld-tracker", "ld-qr-reader"})
+    if (access((o.bin_dir + "/" + name).c_str(), X_OK) != 0) {
+      std::cerr << "ld-soak: no " << name << " to run in " << o.bin_dir << " (--bin)\n";
+      return 2;
+    }
+  std::ofstream csv;
+  if (!o.csv.empty()) {
+    csv.open(o.csv);
+    if (!csv) {
+      std::cerr << "ld-soak: cannot write " << o.csv << " (--csv)\n";
+      return 2;
+    }
+  }
 
   std::cout << "ld-soak: rendering " << o.loop_frames << " frames of " << o.width << "x" << o.height
             << " with " << o.landmarks << " landmarks (" << o.format << ")..." << std::flush;
@@ -256,9 +291,7 @@ int main(int argc, char** argv) {
     set.push_back(spawn(o.bin_dir, name, url, o.log_dir));
   std::this_thread::sleep_for(std::chrono::seconds(1));  // subscriptions in place
 
-  std::ofstream csv;
-  if (!o.csv.empty()) {
-    csv.open(o.csv);
+  if (csv.is_open()) {
     csv << "t_s,published,landmarks,tracked,codes,detector_skipped";
     for (const auto& c : set) csv << "," << c.name << "_rss_mb," << c.name << "_fds";
     csv << "\n";
@@ -292,7 +325,11 @@ int main(int argc, char** argv) {
 
   // Publish at the frame rate; between frames, take what comes back.
   const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / o.fps));
-  const int64_t total = std::llround(o.duration_s * o.fps);
+  // Frames at the rate for the duration; where ld-soak cannot keep the rate
+  // (a size or format too large for this machine), publishing still ends at
+  // the duration and `total` counts what went out.
+  const int64_t planned = std::max<int64_t>(1, std::llround(o.duration_s * o.fps));
+  int64_t total = 0;
   const auto t0 = Clock::now();
   const int64_t utime0 = std::chrono::duration_cast<std::chrono::microseconds>(
                              std::chrono::system_clock::now().time_since_epoch()).count();
@@ -300,8 +337,9 @@ int main(int argc, char** argv) {
   double next_sample = 0;
   int64_t late = 0;
   bool died = false;
-  for (int64_t i = 0; i < total && !died; ++i) {
+  for (int64_t i = 0; i < planned && !died; ++i) {
     const auto due = t0 + i * period;
+    if (i > 0 && secondsSince(t0) >= o.duration_s) break;
     while (Clock::now() < due) {
       const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(due - Clock::now()).count();
       lcm.handleTimeout(static_cast<int>(std::max<int64_t>(left, 0)));
@@ -313,6 +351,7 @@ int main(int argc, char** argv) {
     buf.resize(static_cast<size_t>(msg.getEncodedSize()));
     msg.encode(buf.data(), 0, static_cast<int>(buf.size()));
     lcm.publish("IMAGE", buf.data(), static_cast<unsigned>(buf.size()));
+    total = i + 1;
     if (secondsSince(t0) >= next_sample) {
       sample(secondsSince(t0), i + 1);
       next_sample += o.sample_s;
@@ -340,45 +379,49 @@ int main(int argc, char** argv) {
     }
   }
 
-  // The processes' own counts, from their exit lines:
-  //   ld-detector: stopped after P frames (S skipped, B bad)
-  //   ld-tracker: stopped after P frames (S skipped, B bad), T tracks
-  //   ld-qr-reader: stopped after P frames, R tracks read, S skipped, U unmatched, B bad
-  const auto det = exitCounts(set[0].err_path, "ld-detector");
-  const auto trk = exitCounts(set[1].err_path, "ld-tracker");
-  const auto qr = exitCounts(set[2].err_path, "ld-qr-reader");
-  if (det.size() < 3 || trk.size() < 3 || qr.size() < 5) {
+  // The processes' own counts, from their exit lines.
+  auto det = exitCounts(set[0].err_path, "ld-detector", {"skipped", "bad"});
+  auto trk = exitCounts(set[1].err_path, "ld-tracker", {"skipped", "bad"});
+  auto qr = exitCounts(set[2].err_path, "ld-qr-reader", {"tracks read", "skipped", "unmatched", "bad"});
+  if (det.empty() || trk.empty() || qr.empty()) {
     std::cerr << "ld-soak: missing exit lines in " << o.log_dir << "\n";
     return 1;
   }
-  const int64_t det_in = det[0] + det[1] + det[2], trk_in = trk[0] + trk[1] + trk[2];
-  const int64_t lost_image = total - det_in;          // IMAGE frames ld-detector never saw
-  const int64_t lost_landmarks = det[0] - trk_in;     // LANDMARKS lists ld-tracker never saw
-  const int64_t lost_to_soak = (det[0] - out.landmarks) + (trk[0] - out.tracked) + (qr[0] - out.codes);
+  const int64_t det_in = det["frames"] + det["skipped"] + det["bad"];
+  const int64_t trk_in = trk["frames"] + trk["skipped"] + trk["bad"];
+  const int64_t lost_image = total - det_in;              // IMAGE frames ld-detector never saw
+  const int64_t lost_landmarks = det["frames"] - trk_in;  // LANDMARKS lists ld-tracker never saw
+  const int64_t lost_to_soak =
+      (det["frames"] - out.landmarks) + (trk["frames"] - out.tracked) + (qr["frames"] - out.codes);
 
   std::printf("\nframes published: %lld in %.1f s (%.1f fps; %lld published late), %dx%d %s, %d landmarks\n",
               static_cast<long long>(total), publish_s, total / publish_s, static_cast<long long>(late),
               o.width, o.height, o.format.c_str(), o.landmarks);
+  if (total < planned)
+    std::printf("ld-soak could not keep %g fps: %lld of %lld frames went out in the %g s\n", o.fps,
+                static_cast<long long>(total), static_cast<long long>(planned), o.duration_s);
   std::printf("IMAGE -> ld-detector:       %lld received = %lld processed + %lld skipped (deliberate) + "
               "%lld bad; lost %lld\n",
-              static_cast<long long>(det_in), static_cast<long long>(det[0]),
-              static_cast<long long>(det[1]), static_cast<long long>(det[2]),
+              static_cast<long long>(det_in), static_cast<long long>(det["frames"]),
+              static_cast<long long>(det["skipped"]), static_cast<long long>(det["bad"]),
               static_cast<long long>(lost_image));
   std::printf("LANDMARKS -> ld-tracker:    %lld published, %lld received = %lld processed + %lld skipped "
               "(deliberate) + %lld bad; lost %lld\n",
-              static_cast<long long>(det[0]), static_cast<long long>(trk_in), static_cast<long long>(trk[0]),
-              static_cast<long long>(trk[1]), static_cast<long long>(trk[2]),
+              static_cast<long long>(det["frames"]), static_cast<long long>(trk_in),
+              static_cast<long long>(trk["frames"]), static_cast<long long>(trk["skipped"]),
+              static_cast<long long>(trk["bad"]),
               static_cast<long long>(lost_landmarks));
   std::printf("ld-qr-reader:               %lld frames joined, %lld tracks read, %lld skipped (deliberate), "
               "%lld unmatched, %lld bad\n",
-              static_cast<long long>(qr[0]), static_cast<long long>(qr[1]), static_cast<long long>(qr[2]),
-              static_cast<long long>(qr[3]), static_cast<long long>(qr[4]));
+              static_cast<long long>(qr["frames"]), static_cast<long long>(qr["tracks read"]),
+              static_cast<long long>(qr["skipped"]), static_cast<long long>(qr["unmatched"]),
+              static_cast<long long>(qr["bad"]));
   std::printf("outputs -> ld-soak:         LANDMARKS %lld of %lld (%lld with landmarks), LANDMARKS_TRACKED "
               "%lld of %lld, LANDMARK_CODES %lld of %lld (%lld codes); lost %lld\n",
-              static_cast<long long>(out.landmarks), static_cast<long long>(det[0]),
+              static_cast<long long>(out.landmarks), static_cast<long long>(det["frames"]),
               static_cast<long long>(out.landmarks_with_detections), static_cast<long long>(out.tracked),
-              static_cast<long long>(trk[0]), static_cast<long long>(out.codes),
-              static_cast<long long>(qr[0]), static_cast<long long>(out.codes_entries),
+              static_cast<long long>(trk["frames"]), static_cast<long long>(out.codes),
+              static_cast<long long>(qr["frames"]), static_cast<long long>(out.codes_entries),
               static_cast<long long>(lost_to_soak));
 
   // Memory and fds: the first sample after the warm-up against the last.

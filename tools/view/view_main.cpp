@@ -387,7 +387,7 @@ int main(int argc, char** argv) {
   app.add_option("--out", o.out_dir, "write annotated frames as DIR/SEQ.png");
   app.add_option("--video", o.video, "write annotated frames to this video (MJPG, e.g. .avi)");
   app.add_flag("--window", force_window, "show a window (default when a display exists and no --out/--video)");
-  app.add_option("--fps", o.fps, "frame rate of --video")->check(ld::cli::Positive)->capture_default_str();
+  app.add_option("--fps", o.fps, "frame rate of --video (0.1 to 1000)")->check(ld::cli::Between(0.1, 1000))->capture_default_str();
   app.add_option("--camera", camera_file, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration): draws pose axes");
   app.add_option("--axis-length", o.axis_m, "pose axis length, metres")->check(ld::cli::Positive)->capture_default_str();
   app.add_flag("--all", all_frames, "logs: also frames without tracked landmarks");

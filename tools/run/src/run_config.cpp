@@ -208,7 +208,8 @@ RunConfig RunConfig::fromTree(const Json& j, bool yaml) {
       throw std::runtime_error("restart: need 0 < initial_s <= max_s");
   }
   if (!(c.speed > 0)) throw std::runtime_error("source.speed: must be > 0");
-  if (!(c.play_fps > 0)) throw std::runtime_error("source.fps: must be > 0");
+  if (!(c.play_fps >= 0.001 && c.play_fps <= 1000))
+    throw std::runtime_error("source.fps: must be in [0.001, 1000] (ld-play's range)");
   try {
     checkPlayFormat(c.play_format);
   } catch (const std::runtime_error& e) {

@@ -348,7 +348,7 @@ int main(int argc, char** argv) {
   sequence->add_option("--frames,-n", qo.frames, "number of frames")
       ->capture_default_str()
       ->check(ld::cli::Between(1, 100000));
-  sequence->add_option("--fps", qo.fps, "frame rate of the timestamps")->capture_default_str()->check(ld::cli::Positive);
+  sequence->add_option("--fps", qo.fps, "frame rate of the timestamps (0.1 to 1000)")->capture_default_str()->check(ld::cli::Between(0.1, 1000));
   sequence->add_option("--log", qo.log_path, "LCM log of ld.image_t to write");
   sequence->add_option("--channel", qo.channel, "channel in the log")->capture_default_str();
   sequence->add_option("--format", qo.pixel_format, "pixel format in the log: bgr, rgb, gray, yuyv, uyvy, mjpeg")->capture_default_str();
