@@ -2,6 +2,7 @@
 // and its QR decodes with zbar.
 #include <gtest/gtest.h>
 
+#include <fstream>
 #include <regex>
 #include <set>
 
@@ -253,6 +254,38 @@ TEST(Artwork, SheetImageLabelsInUtf8) {
   EXPECT_LT(top / px_mm + 70, 72.0) << "the label's top";
   EXPECT_GT(top / px_mm + 70, 70.0) << "the label's top";
   EXPECT_LT(bottom / px_mm + 70, 74.5) << "the label's bottom";
+}
+
+// Without DejaVu Sans (a .deb installed without its recommended font, or a
+// file that is not a font), the labels are drawn in OpenCV's own font at the
+// same place: ASCII as written, one '?' for each other character.
+TEST(Artwork, SheetImageLabelsWithoutTheFont) {
+  const double dpi = 150, px_mm = dpi / 25.4;
+  const std::string not_a_font = testing::TempDir() + "not_a_font.ttf";
+  std::ofstream(not_a_font) << "not a font";
+  for (const std::string& font : {std::string(), not_a_font}) {
+    SCOPED_TRACE("font '" + font + "'");
+    const auto labelStrip = [&](const std::string& payload) {
+      const cv::Mat page = ld::artwork::sheetImage({payload}, 60.0, dpi, {}, ld::artwork::QrEcc::Auto, font);
+      cv::Mat gray;
+      cv::cvtColor(page(cv::Rect(0, static_cast<int>(70 * px_mm), static_cast<int>(80 * px_mm),
+                                 static_cast<int>(6 * px_mm))),
+                   gray, cv::COLOR_BGR2GRAY);
+      return gray;
+    };
+    const cv::Mat a = labelStrip("Büro"), b = labelStrip("Bäro"), c = labelStrip("Buro");
+    EXPECT_GT(cv::countNonZero(a < 128), 50);    // a label is there
+    EXPECT_EQ(cv::norm(a, b, cv::NORM_L1), 0);   // both "B?ro (60 mm)"
+    EXPECT_GT(cv::norm(a, c, cv::NORM_L1), 0);   // and not "Buro"
+    int right = 0, top = a.rows, bottom = -1;
+    for (int x = 0; x < a.cols; ++x)
+      if (cv::countNonZero(a.col(x) < 128) > 0) right = x;
+    for (int y = 0; y < a.rows; ++y)
+      if (cv::countNonZero(a.row(y) < 128) > 0) top = std::min(top, y), bottom = y;
+    EXPECT_GT(right, static_cast<int>(20 * px_mm));  // the size follows the payload
+    EXPECT_GT(top / px_mm + 70, 70.0) << "the label's top";
+    EXPECT_LT(bottom / px_mm + 70, 74.5) << "the label's bottom";
+  }
 }
 
 // The PNG's bytes carry the resolution: a pHYs chunk after IHDR, pixels

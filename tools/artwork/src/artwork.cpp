@@ -250,7 +250,7 @@ std::string sheetSvg(const std::vector<std::string>& payloads, double side_mm,
 }
 
 cv::Mat sheetImage(const std::vector<std::string>& payloads, double side_mm, double dpi,
-                   const SheetLayout& page, QrEcc ecc) {
+                   const SheetLayout& page, QrEcc ecc, const std::string& label_font) {
   const Grid g = sheetGrid(payloads.size(), side_mm, page);
   const double px_per_mm = dpi / 25.4;
   cv::Mat img(static_cast<int>(std::lround(page.page_h_mm * px_per_mm)),
@@ -258,10 +258,10 @@ cv::Mat sheetImage(const std::vector<std::string>& payloads, double side_mm, dou
               cv::Scalar(255, 255, 255));
   const int side_px = static_cast<int>(std::lround(side_mm * px_per_mm));
   cv::Ptr<cv::freetype::FreeType2> font;
-  if (const std::string path = labelFontPath(); !path.empty()) {
+  if (!label_font.empty()) {
     try {
       font = cv::freetype::createFreeType2();
-      font->loadFontData(path, 0);
+      font->loadFontData(label_font, 0);
     } catch (const cv::Exception&) {
       font.release();  // (a damaged font file: OpenCV's own font)
     }

@@ -85,15 +85,16 @@ std::string sheetSvg(const std::vector<std::string>& payloads, double side_mm,
 /// How many landmarks of side_mm one page holds (throws std::invalid_argument
 /// when not even one fits): more payloads than that take several pages.
 int landmarksPerPage(double side_mm, const SheetLayout& page = {});
+/// The font sheetImage labels with ("" when not installed).
+std::string labelFontPath();
 /// The same page as a raster image at `dpi`. Labels as the SVG's (the
 /// payload and the side in mm), drawn with DejaVu Sans (fonts-dejavu-core)
 /// through OpenCV's FreeType module, so UTF-8 payloads read as printed;
-/// without the font, OpenCV's own font, which has ASCII alone ('?' for the
-/// rest).
+/// without the font (`label_font` empty or not a font), OpenCV's own font,
+/// which has ASCII alone ('?' for the rest).
 cv::Mat sheetImage(const std::vector<std::string>& payloads, double side_mm, double dpi,
-                   const SheetLayout& page = {}, QrEcc ecc = QrEcc::Auto);
-/// The font sheetImage labels with ("" when not installed).
-std::string labelFontPath();
+                   const SheetLayout& page = {}, QrEcc ecc = QrEcc::Auto,
+                   const std::string& label_font = labelFontPath());
 
 /// A PNG file's bytes for `img`, with its resolution (`dpi`) in a pHYs
 /// chunk, so a viewer or a print dialog at 100 % gives the printed size.
