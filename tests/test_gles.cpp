@@ -570,7 +570,7 @@ TEST(GlesCli, DetectBackendOption) {
 
   EXPECT_EQ(run("LD_EGL_FORCE_FAIL=1 " + detect + " --backend auto -o /dev/null", err), 0) << err;
   EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
-  EXPECT_NE(err.find("warning: GLES backend unavailable"), std::string::npos) << err;
+  EXPECT_NE(err.find("ld-detect: warning: GLES backend unavailable"), std::string::npos) << err;
   EXPECT_EQ(run("LD_EGL_FORCE_FAIL=1 " + detect + " --backend gles -o /dev/null", err), 2) << err;
   EXPECT_NE(err.find("GLES backend unavailable"), std::string::npos) << err;
   EXPECT_EQ(run(detect + " --backend metal -o /dev/null", err), 2) << err;  // a bad command line, one line

@@ -3,6 +3,8 @@
 // and the parameter file.
 #include "ld/detector.hpp"
 
+#include <errno.h>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -417,7 +419,8 @@ std::atomic<bool> g_backend_warned{false};
 
 void warnBackend(const std::string& what) {
   if (g_backend_warned.exchange(true)) return;
-  std::cerr << "landmark detector: warning: " << what << "\n";
+  // (named as the program that runs the detector: ld-detector, ld-detect, ...)
+  std::cerr << program_invocation_short_name << ": warning: " << what << "\n";
 }
 
 }  // namespace
