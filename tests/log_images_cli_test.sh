@@ -16,7 +16,7 @@ grep -q "wrote 2 frames to $T/a.lcmlog (mjpeg, 10 fps), 1 unreadable skipped" "$
 grep -q "000002.png: cannot read as an image, skipped" "$T/err" || fail "folder, skipped: $(cat "$T/err")"
 [ "$("$BIN/ld-dump" "$T/a.lcmlog" -c IMAGE | wc -l)" -eq 2 ] || fail "the log does not hold 2 images"
 "$BIN/ld-log-images" "$T/f/000001.png" "$T/one.lcmlog" --format bgr >"$T/out"
-grep -q "wrote 1 frames" "$T/out" || fail "one image: $(cat "$T/out")"
+grep -q "wrote 1 frame to" "$T/out" || fail "one image: $(cat "$T/out")"
 # A video (MJPG .avi, written by ld-view from the first log): every frame.
 "$BIN/ld-view" --log "$T/a.lcmlog" --all --video "$T/v.avi" >/dev/null 2>&1 || fail "ld-view --video"
 "$BIN/ld-log-images" "$T/v.avi" "$T/v.lcmlog" >"$T/out" 2>"$T/err" || fail "video: $(cat "$T/err")"
@@ -52,4 +52,21 @@ mkdir "$T/bad"; cp "$T/f/000002.png" "$T/bad/"
 refused 1 "$T/e.lcmlog" "no frame could be read from $T/bad; $T/e.lcmlog not written" "$T/bad"
 refused 2 "$T/g.lcmlog" "ld-log-images: --fps: must be in \[0.1, 1000\], not 0" "$T/f" --fps 0
 refused 2 "$T/h.lcmlog" "ld-log-images: --start-utime: must be >= 0, not -5" "$T/f" --start-utime -5
+refused 2 "$T/i.lcmlog" "ld-log-images: --channel: an empty channel name" "$T/f" --channel ""
+refused 2 /proc/j.lcmlog "ld-log-images: /proc/j.lcmlog cannot write in folder /proc: files cannot be created there" \
+  "$T/f/000001.png"
+# The output is never an input image, nor any other file that is not a log
+# (two images given as if both were inputs): refused, the image untouched.
+cp "$T/f/000000.png" "$T/keep.png"
+set +e; "$BIN/ld-log-images" "$T/f/000001.png" "$T/keep.png" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -q "^ld-log-images: $T/keep.png is not an LCM log (it starts with 89 50 4e 47.*: not written over$" "$T/err" ||
+  fail "an image as the output: exit $rc, $(cat "$T/err")"
+cmp -s "$T/keep.png" "$T/f/000000.png" || fail "the image given as the output was changed"
+# A run that reads nothing leaves an earlier log as it was; a log's missing
+# folder is created; nothing of the temporary file is left.
+cp "$T/a.lcmlog" "$T/prev.lcmlog"
+set +e; "$BIN/ld-log-images" "$T/bad" "$T/prev.lcmlog" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 1 ] && cmp -s "$T/a.lcmlog" "$T/prev.lcmlog" || fail "a failed run changed the earlier log: exit $rc"
+"$BIN/ld-log-images" "$T/f" "$T/new/dir/n.lcmlog" >/dev/null || fail "a log in a new folder"
+[ "$(ls -A "$T/new/dir")" = n.lcmlog ] && [ -z "$(ls -A "$T" | grep partial)" ] || fail "left behind: $(ls -A "$T" "$T/new/dir")"
 echo "ld-log-images command line: ok"

@@ -70,6 +70,27 @@ refused "--resolution: 640x480 is another aspect ratio" sequence --out "$T/x" --
   fail "the same aspect ratio, scaled, was refused"
 size=$(od -An -tx1 -j16 -N8 "$T/half/000000.png" | tr -d ' \n')  # the PNG's width and height
 [ "$size" = 0000028000000168 ] || fail "scaled frame: not 640x360 ($size)"
-refused "--fps: must be > 0, not 0 (--help lists the options)" sequence --out "$T/x" --fps 0
+refused "--fps: must be in \[0.1, 1000\], not 0 (--help lists the options)" sequence --out "$T/x" --fps 0
+refused "--size: must be in \[0.01, 2\], not 0" sequence --out "$T/x" --size 0
+refused "--channel: an empty channel name" sequence --log "$T/x.lcmlog" --channel ""
+refused "--format: unknown pixel format 'nv12'" sequence --log "$T/x.lcmlog" --format nv12
+# A log is never written over a file that is not one (an image a user meant
+# as input), and it is checked before anything is written: no frames, no
+# truth.jsonl. A log's missing folder is created.
+cp "$T/half/000000.png" "$T/image.png"
+refused "--log $T/image.png is not an LCM log (it starts with 89 50 4e 47" sequence --out "$T/y" --log "$T/image.png"
+[ ! -e "$T/y" ] && cmp -s "$T/image.png" "$T/half/000000.png" || fail "a refused --log wrote something"
+"$BIN/ld-synth" sequence -n 2 --log "$T/new/folder/s.lcmlog" >"$T/out" || fail "--log in a new folder"
+grep -q "^wrote 2 frames to $T/new/folder/s.lcmlog (bgr)" "$T/out" || fail "$(cat "$T/out")"
+[ -z "$(ls -A "$T/new/folder" | grep -v '^s.lcmlog$')" ] || fail "left behind: $(ls -A "$T/new/folder")"
+# Frames of an earlier, longer run left in the folder are said in a note.
+"$BIN/ld-synth" sequence --out "$T/seq" -n 4 >/dev/null
+"$BIN/ld-synth" sequence --out "$T/seq" -n 1 >"$T/out" 2>"$T/err"
+grep -q "^wrote 1 frame to $T/seq;" "$T/out" || fail "$(cat "$T/out")"
+grep -q "^ld-synth: note: 3 frames of an earlier run are left in $T/seq (truth.jsonl lists this run's 1)$" "$T/err" ||
+  fail "leftover frames: $(cat "$T/err")"
+"$BIN/ld-synth" scene --out "$T/seq" --count 4 --jpg >/dev/null 2>"$T/err"
+grep -q "note: 4 frames of an earlier run are left in $T/seq (truth.jsonl lists this run's 4)" "$T/err" ||
+  fail "leftover PNGs beside JPEGs: $(cat "$T/err")"
 refused "--frames: must be in \[1, 100000\], not 0" sequence --out "$T/x" --frames 0
 echo "ld-synth command line: ok"

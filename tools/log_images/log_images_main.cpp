@@ -1,6 +1,9 @@
 // ld-log-images: an image folder or a video file as an LCM log of ld.image_t
 // on IMAGE, with timestamps at a chosen frame rate, for lcm-logplayer.
 #include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
 
@@ -11,6 +14,7 @@
 #include <opencv2/videoio.hpp>
 
 #include "ld/cli.hpp"
+#include "ld/file_checks.hpp"
 #include "ld/image_convert.hpp"
 
 namespace fs = std::filesystem;
@@ -45,6 +49,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--channel", channel, "channel name")->capture_default_str();
   LD_CLI_PARSE(app, argc, argv);
+  if (channel.empty()) return ld::cli::usage(argv[0], "--channel: an empty channel name");
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);  // our own one-line errors
 
   int32_t pixelformat = 0;
@@ -85,9 +90,17 @@ int main(int argc, char** argv) {
     return 2;
   }
 
-  lcm::LogFile log(output, "w");
+  // Checked before anything is written (never over an input image or
+  // video: only an LCM log is written over), written under a temporary name
+  // and renamed when whole, so a failed run leaves an earlier log as it was.
+  if (const std::string problem = ld::prepareLogOutputFile(output); !problem.empty()) {
+    std::cerr << "ld-log-images: " << output << " " << problem << "\n";
+    return 2;
+  }
+  ld::PendingFile pending(output);
+  lcm::LogFile log(pending.tempPath(), "w");
   if (!log.good()) {
-    std::cerr << "ld-log-images: cannot write " << output << "\n";
+    std::cerr << "ld-log-images: cannot write " << output << ": " << std::strerror(errno) << "\n";
     return 2;
   }
   std::vector<uint8_t> buf;
@@ -131,9 +144,16 @@ int main(int argc, char** argv) {
     }
     ++seq;
   }
-  if (seq == 0) {  // no empty log left behind
-    fs::remove(output, ec);
+  if (seq == 0) {  // no empty log left behind (and what was at the output stays)
     std::cerr << "ld-log-images: no frame could be read from " << input << "; " << output << " not written\n";
+    return 1;
+  }
+  if (std::fflush(log.getFilePtr()) != 0 || std::ferror(log.getFilePtr())) {
+    std::cerr << "ld-log-images: write to " << output << " failed: " << std::strerror(errno) << "\n";
+    return 1;
+  }
+  if (const std::string problem = pending.commit(); !problem.empty()) {
+    std::cerr << "ld-log-images: " << problem << "\n";
     return 1;
   }
   // A video cut short or damaged: OpenCV stops at the first frame it cannot
@@ -144,7 +164,7 @@ int main(int argc, char** argv) {
       std::cerr << "ld-log-images: note: " << input << " says it holds " << static_cast<long long>(said)
                 << " frames and " << seq << " could be read (a file cut short or damaged?)\n";
   }
-  std::cout << "wrote " << seq << " frames to " << output << " (" << format << ", " << fps
+  std::cout << "wrote " << seq << (seq == 1 ? " frame" : " frames") << " to " << output << " (" << format << ", " << fps
             << " fps)" << (skipped ? ", " + std::to_string(skipped) + " unreadable skipped" : "")
             << "\n";
   return 0;

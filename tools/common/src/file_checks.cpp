@@ -56,7 +56,13 @@ std::string prepareOutputFolder(const std::string& folder) {
   // access() says yes to root on any folder; creating a file is the test.
   std::string probe = (fs::path(folder) / ".ld-write-test-XXXXXX").string();
   const int fd = ::mkstemp(probe.data());
-  if (fd < 0) return "cannot write in folder " + folder + ": " + std::strerror(errno);
+  if (fd < 0) {
+    // (a folder of a virtual file system, /proc or /sys, answers "No such
+    // file or directory" for a file it will not create)
+    const int err = errno;
+    return "cannot write in folder " + folder + ": " +
+           (err == ENOENT ? std::string("files cannot be created there") : std::strerror(err));
+  }
   ::close(fd);
   ::unlink(probe.c_str());
   return "";
@@ -72,6 +78,33 @@ std::string prepareOutputFile(const std::string& path) {
     return problem;
   if (fs::exists(path, ec) && ::access(path.c_str(), W_OK) != 0)
     return std::string("cannot be written: ") + std::strerror(errno);
+  return "";
+}
+
+std::string prepareLogOutputFile(const std::string& path) {
+  if (std::string problem = prepareOutputFile(path); !problem.empty()) return problem;
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return "";
+  if (!std::filesystem::is_regular_file(path, ec)) return "is not a file (a device, a pipe?): not written over";
+  const LcmLogCheck check = checkLcmLogStart(path);
+  if (check.start == LcmLogStart::NotALog) return check.problem + ": not written over";
+  if (check.start == LcmLogStart::Unreadable) return check.problem;
+  return "";
+}
+
+PendingFile::PendingFile(std::string path) : path_(std::move(path)) {
+  const std::filesystem::path p(path_);
+  temp_ = (p.parent_path() / ("." + p.filename().string() + ".partial-" + std::to_string(::getpid()))).string();
+}
+
+PendingFile::~PendingFile() {
+  if (!committed_) ::unlink(temp_.c_str());
+}
+
+std::string PendingFile::commit() {
+  if (::rename(temp_.c_str(), path_.c_str()) != 0)
+    return "cannot rename " + temp_ + " to " + path_ + ": " + std::strerror(errno);
+  committed_ = true;
   return "";
 }
 

@@ -12,6 +12,7 @@
 #include <iostream>
 #include <optional>
 #include <random>
+#include <regex>
 #include <stdexcept>
 #include <sstream>
 #include <string>
@@ -22,6 +23,8 @@
 #include <opencv2/imgproc.hpp>
 
 #include "ld/cli.hpp"
+#include "ld/file_checks.hpp"
+#include "ld/image_convert.hpp"
 #include "ld/synth.hpp"
 
 namespace fs = std::filesystem;
@@ -99,6 +102,25 @@ ld::CameraModel makeCamera(const std::string& file, const std::string& resolutio
     cam = ld::CameraModel::pinhole(s, 600.0 * s.width / 640.0);
   }
   return cam;
+}
+
+// Frames of an earlier run left in `dir` (NNNNNN.png or .jpg that this run,
+// `count` frames as `extension`, did not write): said in a note, as
+// ld-generate says of earlier pages; truth.jsonl lists this run's alone.
+void noteLeftoverFrames(const std::string& dir, int count, const std::string& extension) {
+  static const std::regex frame_name("([0-9]{6})\\.(png|jpg)");
+  int left = 0;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    std::smatch m;
+    const std::string name = e.path().filename().string();
+    if (!std::regex_match(name, m, frame_name)) continue;
+    if ("." + m[2].str() != extension || std::stoi(m[1].str()) >= count) ++left;
+  }
+  if (left)
+    std::cerr << "ld-synth: note: " << left << " frame" << (left == 1 ? "" : "s") << " of an earlier run "
+              << (left == 1 ? "is" : "are") << " left in " << dir << " (truth.jsonl lists this run's " << count
+              << ")\n";
 }
 
 void makeFolder(const std::string& dir) {
@@ -296,8 +318,9 @@ int runScene(const SceneArgs& a) {
       in_view += t.in_view;
     }
   }
-  std::cout << "wrote " << a.count << " frames to " << a.out << " (" << in_view << " of " << total
-            << " landmarks fully in view)\n";
+  std::cout << "wrote " << a.count << (a.count == 1 ? " frame" : " frames") << " to " << a.out << " ("
+            << in_view << " of " << total << " landmarks fully in view)\n";
+  noteLeftoverFrames(a.out, a.count, a.jpg ? ".jpg" : ".png");
   return 0;
 }
 
@@ -351,7 +374,9 @@ int main(int argc, char** argv) {
   sequence->add_option("--fps", qo.fps, "frame rate of the timestamps (0.1 to 1000)")->capture_default_str()->check(ld::cli::Between(0.1, 1000));
   sequence->add_option("--log", qo.log_path, "LCM log of ld.image_t to write");
   sequence->add_option("--channel", qo.channel, "channel in the log")->capture_default_str();
-  sequence->add_option("--format", qo.pixel_format, "pixel format in the log: bgr, rgb, gray, yuyv, uyvy, mjpeg")->capture_default_str();
+  sequence->add_option("--format", qo.pixel_format, "pixel format in the log: bgr, rgb, bgra, rgba, gray, yuyv, uyvy, mjpeg")
+      ->capture_default_str()
+      ->check(ld::cli::Parses("FORMAT", ld::pixelFormatFromName));
   sequence->add_option("--quality", qo.jpeg_quality, "JPEG quality for mjpeg")
       ->check(ld::cli::Between(1, 100))
       ->capture_default_str();
@@ -360,7 +385,9 @@ int main(int argc, char** argv) {
   sequence->add_option("--ecc", q_ecc_text, "QR error correction of the landmarks' codes, as ld-generate's: auto, L, M, Q, H")
       ->capture_default_str()
       ->check(ld::cli::Parses("LEVEL", ld::artwork::parseQrEcc));
-  sequence->add_option("--size", qo.side_m, "landmark side S in metres")->capture_default_str();
+  sequence->add_option("--size", qo.side_m, "landmark side S in metres (0.01 to 2)")
+      ->capture_default_str()
+      ->check(ld::cli::Between(0.01, 2));
   sequence->add_option("--seed", qo.seed, "random seed (same seed, same bytes)")->capture_default_str();
   sequence->add_option("--start-utime", qo.start_utime, "utime of the first frame, microseconds")->capture_default_str();
   sequence->add_option("--camera", q_camera, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration; default: 640x480, f = 600 px)");
@@ -377,16 +404,33 @@ int main(int argc, char** argv) {
     }
     qo.ecc = ld::artwork::parseQrEcc(q_ecc_text);
     if (qo.out_dir.empty() && qo.log_path.empty()) throw UsageError("sequence: give --out, --log or both");
+    if (qo.channel.empty()) throw UsageError("--channel: an empty channel name");
     qo.camera = makeCamera(q_camera, q_resolution);
     qo.write_png = !no_png;
+    // The log is checked before anything is written, written under a
+    // temporary name and renamed when whole: a failed run leaves an earlier
+    // log as it was, and nothing is written over a file that is not a log.
+    std::optional<ld::PendingFile> pending_log;
+    if (!qo.log_path.empty()) {
+      if (const std::string problem = ld::prepareLogOutputFile(qo.log_path); !problem.empty())
+        throw std::runtime_error("--log " + qo.log_path + " " + problem);
+      pending_log.emplace(qo.log_path);
+      qo.log_path = pending_log->tempPath();
+    }
     if (qo.payloads.size() > 0 && static_cast<int>(qo.payloads.size()) != qo.landmarks) {
       if (sequence->count("--landmarks") == 0) qo.landmarks = static_cast<int>(qo.payloads.size());
     }
     const SequenceStats st = writeSequence(qo);
-    std::cout << "wrote " << st.frames << " frames";
+    if (pending_log) {
+      qo.log_path = sequence->get_option("--log")->as<std::string>();
+      if (const std::string problem = pending_log->commit(); !problem.empty()) throw std::runtime_error(problem);
+    }
+    std::cout << "wrote " << st.frames << (st.frames == 1 ? " frame" : " frames");
     if (!qo.out_dir.empty()) std::cout << " to " << qo.out_dir;
-    if (!qo.log_path.empty()) std::cout << " and " << qo.log_path << " (" << qo.pixel_format << ")";
+    if (!qo.log_path.empty())
+      std::cout << (qo.out_dir.empty() ? " to " : " and ") << qo.log_path << " (" << qo.pixel_format << ")";
     std::cout << "; a landmark fully in view in " << st.frames_with_landmark_in_view << " of them\n";
+    if (!qo.out_dir.empty() && qo.write_png) noteLeftoverFrames(qo.out_dir, st.frames, ".png");
     return 0;
   } catch (const UsageError& e) {
     return ld::cli::usage(argv[0], e.what());

@@ -55,4 +55,30 @@ std::string prepareOutputFolder(const std::string& folder);
 /// Read-only file system".
 std::string prepareOutputFile(const std::string& path);
 
+/// prepareOutputFile for an LCM log about to be written: besides, a file
+/// already at `path` must be an LCM log (or empty), so that a log is never
+/// written over an image, a video or anything else a user meant as input.
+/// Empty when it can; otherwise why ("is not an LCM log (it starts with
+/// 89 50 4e 47, ...): not written over").
+std::string prepareLogOutputFile(const std::string& path);
+
+/// A file written under a temporary name beside its path and renamed to it
+/// by commit(): a run that fails half-way leaves what was at the path as it
+/// was (an earlier good log, say), and no half-written file behind.
+class PendingFile {
+ public:
+  explicit PendingFile(std::string path);
+  ~PendingFile();
+  PendingFile(const PendingFile&) = delete;
+  PendingFile& operator=(const PendingFile&) = delete;
+  /// Where to write until commit().
+  const std::string& tempPath() const { return temp_; }
+  /// Renames the written file to the path; empty when done, otherwise why.
+  std::string commit();
+
+ private:
+  std::string path_, temp_;
+  bool committed_ = false;
+};
+
 }  // namespace ld
