@@ -414,6 +414,8 @@ TEST(RunConfig, PlayFormatIsOneLdPlayTakes) {
 TEST(RunConfig, ExampleConfigLoads) {
   const auto cfg = ld::RunConfig::load(std::string(LD_SOURCE_DIR) + "/tools/run/ld-run.example.json");
   EXPECT_EQ(cfg.source, "camera");
+  // no bus of its own: $LCM_DEFAULT_URL (/etc/default/landmark) decides
+  EXPECT_EQ(cfg.lcm_url, "");
   EXPECT_FALSE(ld::buildProcessSpecs(cfg, "udpm://239.255.76.67:7667?ttl=0", "").empty());
 }
 
