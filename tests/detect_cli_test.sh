@@ -100,4 +100,10 @@ set +e; "$BIN/ld-detect" "$T/bad.png" --summary >/dev/null 2>"$T/err"; rc=$?; se
 [ $rc -eq 1 ] && grep -q "^ld-detect: 0 images, 0 with landmarks, 0 landmarks; 1 unreadable; backend" "$T/err" || fail "summary of none: $(cat "$T/err")"
 "$BIN/ld-detect" "$T/s/000000.png" --summary >/dev/null 2>"$T/err"
 grep -q "^ld-detect: 1 image, 1 with landmarks, 1 landmark, 1.00 per image" "$T/err" || fail "summary of one: $(cat "$T/err")"
+# results that cannot be written all (a full disk): status 1, said, to a file or stdout
+for out in "-o /dev/full" ""; do
+  set +e; "$BIN/ld-detect" "$T/s/000000.png" $out >/dev/full 2>"$T/err"; rc=$?; set -e
+  [ $rc -eq 1 ] && grep -q "^ld-detect: write to .* failed: No space left on device" "$T/err" ||
+    fail "full disk ($out): exit $rc, $(cat "$T/err")"
+done
 echo "ld-detect command line: ok"

@@ -90,4 +90,19 @@ dump "$T/cut.lcmlog" "$T/lm.png" "$T/in.lcmlog"
 [ $rc -eq 2 ] && [ "$out" -eq 3 ] && [ "$(wc -l <"$T/err")" -eq 2 ] || fail "several: exit $rc, $out lines, $err"
 dump "$T/in.lcmlog" "$T/missing.lcmlog" "$T/in.lcmlog"
 [ $rc -eq 2 ] && [ "$out" -eq 6 ] || fail "several with a missing one: exit $rc, $out lines"
+# a channel pattern that matches none of the logs' channels: a note naming them
+dump "$T/in.lcmlog" -c image
+[ $rc -eq 0 ] && [ "$out" -eq 0 ] &&
+  [ "$err" = "ld-dump: note: no channel of the logs matches -c (a pattern matches the whole name, case and all); their channels: IMAGE" ] ||
+  fail "-c matching nothing: exit $rc, $err"
+dump "$T/in.lcmlog" -c IMAGE
+[ $rc -eq 0 ] && [ "$out" -eq 3 ] && [ -z "$err" ] || fail "-c IMAGE: exit $rc, $out lines, $err"
+# logs and --live, or --lcm-url with logs: refused in one line
+dump "$T/in.lcmlog" --live
+[ $rc -eq 2 ] && [ "$err" = "ld-dump: give log files or --live, not both (--help lists the options)" ] || fail "both: $err"
+dump "$T/in.lcmlog" --lcm-url memq://
+[ $rc -eq 2 ] && grep -q "^ld-dump: --lcm-url is for --live" "$T/err" || fail "--lcm-url with logs: $err"
+# a dump that cannot be written all (a full disk) is status 1, said
+rc=0; "$BIN/ld-dump" "$T/in.lcmlog" >/dev/full 2>"$T/err" || rc=$?
+[ $rc -eq 1 ] && grep -q "^ld-dump: write to stdout failed" "$T/err" || fail "full disk: exit $rc, $(cat "$T/err")"
 echo "ld-dump on files: ok"

@@ -86,6 +86,10 @@ for args in "yaw --step 1e-9|--step 1e-09 from -80 to 80 makes 1.6e+11 sweep poi
 done
 set +e; "$BIN/ld-eval" qr --png "" >/dev/null 2>"$T/err"; rc=$?; set -e
 [ $rc -eq 2 ] && grep -qF -- '--png needs a path, not ""' "$T/err" || fail "--png '': exit $rc, $(cat "$T/err")"
+# A table that cannot be written all (a full disk) is said, not taken as written.
+set +e; "$BIN/ld-eval" distance --trials 1 --from 1 --to 1 --side 0.15 --markdown /dev/full >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -ne 0 ] && grep -q "^ld-eval: cannot write /dev/full: No space left on device" "$T/err" ||
+  fail "--markdown /dev/full: exit $rc, $(cat "$T/err")"
 # A lone --side in motion takes the default distance, 1.5 m.
 "$BIN/ld-eval" motion --trials 1 --side 0.12 --to 5 --step 5 >"$T/m1.md" 2>/dev/null || fail "motion, one side: exit $?"
 head -1 "$T/m1.md" | grep -q '^| motion blur (px) | 12 cm at 1.5 m |$' || fail "motion, one side: $(head -1 "$T/m1.md")"

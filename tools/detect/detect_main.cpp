@@ -1,5 +1,7 @@
 // ld-detect: landmarks in image files, as JSON Lines (docs/landmark.md).
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <cmath>
 #include <chrono>
 #include <cstdio>
@@ -200,6 +202,11 @@ int main(int argc, char** argv) {
     }
   }
   out.flush();
+  if (!out) {  // (a full disk: the results are not all there)
+    std::cerr << "ld-detect: write to " << (out_file.empty() ? std::string("stdout") : out_file)
+              << " failed: " << std::strerror(errno) << "\n";
+    return 1;
+  }
   if (summary) {
     std::sort(times.begin(), times.end());
     // nearest rank: the smallest time that q of the images take at most

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <iostream>
 #include <regex>
+#include <set>
 
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
@@ -131,9 +132,10 @@ int main(int argc, char** argv) {
   } catch (const std::regex_error& e) {
     return ld::cli::usage(argv[0], std::string("bad channel pattern: ") + e.what());
   }
-  if (live == !logs.empty()) {
-    return ld::cli::usage(argv[0], "give log files or --live");
-  }
+  if (live && !logs.empty()) return ld::cli::usage(argv[0], "give log files or --live, not both");
+  if (!live && logs.empty()) return ld::cli::usage(argv[0], "give log files or --live");
+  if (!live && app.count("--lcm-url"))
+    return ld::cli::usage(argv[0], "--lcm-url is for --live (logs are read from their files)");
   if (live) {
     lcm::LCM lcm(url);
     if (!lcm.good()) {
@@ -151,6 +153,8 @@ int main(int argc, char** argv) {
   // (missing, a folder, no permission: as ld-run and ld-play refuse it),
   // else 1 when a log was read only in part, else 0.
   int status = 0;
+  int64_t printed = 0;
+  std::set<std::string> seen_channels;
   for (const auto& path : logs) {
     const ld::LcmLogCheck start = ld::checkLcmLogStart(path);
     if (start.start == ld::LcmLogStart::NotALog) {
@@ -167,7 +171,9 @@ int main(int argc, char** argv) {
       continue;
     }
     while (log.next()) {
+      seen_channels.insert(log.channel);
       if (!printer.wanted(log.channel)) continue;
+      ++printed;
       std::cout << toJson(log.channel, log.timestamp, log.data.data(), log.data.size())
                        .dump(-1, ' ', false, nlohmann::ordered_json::error_handler_t::replace)
                 << "\n";
@@ -177,6 +183,16 @@ int main(int argc, char** argv) {
       std::cerr << "ld-dump: " << path << ": " << log.problem() << "\n";
       status = std::max(status, 1);
     }
+  }
+  if (!channels.empty() && printed == 0 && !seen_channels.empty()) {
+    std::string names;
+    for (const auto& c : seen_channels) names += (names.empty() ? "" : ", ") + c;
+    std::cerr << "ld-dump: note: no channel of the logs matches -c (a pattern matches the whole name, "
+                 "case and all); their channels: " << names << "\n";
+  }
+  if (!std::cout.flush()) {  // (a full disk: the dump is not all there)
+    std::cerr << "ld-dump: write to stdout failed: " << std::strerror(errno) << "\n";
+    return std::max(status, 1);
   }
   return status;
 }

@@ -1,6 +1,8 @@
 // ld-eval: detection and QR decode rates on ld-synth sweeps, as tables
 // (markdown) and plots (PNG). See README, "Evaluating".
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -202,7 +204,9 @@ void emit(const Common& c, const std::string& table) {
   std::cout << table << std::flush;
   if (!c.markdown.empty()) {
     std::ofstream f(c.markdown);
-    if (!(f << table)) throw std::runtime_error("cannot write " + c.markdown);
+    f << table;
+    f.close();  // (a full disk shows when the buffer goes out)
+    if (!f) throw std::runtime_error("cannot write " + c.markdown + ": " + std::strerror(errno));
   }
 }
 
