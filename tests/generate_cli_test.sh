@@ -51,6 +51,8 @@ if "$BIN/ld-generate" -p x --svg /proc/no/x.svg 2>"$T/err"; then fail "unwritabl
 grep -q "cannot write /proc/no/x.svg: cannot create folder /proc/no" "$T/err" || fail "unwritable: $(cat "$T/err")"
 if "$BIN/ld-generate" -p x --png "$T/x" 2>"$T/err"; then fail "a PNG name without .png accepted"; fi
 grep -q "must end in .png" "$T/err" || fail "png name: $(cat "$T/err")"
+if "$BIN/ld-generate" -p x --svg "$T/x.png" 2>"$T/err"; then fail "an SVG named .png accepted"; fi
+grep -q -- "--svg $T/x.png: the file name must end in .svg" "$T/err" && [ ! -e "$T/x.png" ] || fail "svg name: $(cat "$T/err")"
 
 # Error correction: auto says what it chose (100 bytes: level L's version 5; a
 # short payload keeps its version at a higher level); an explicit level is
@@ -98,8 +100,8 @@ if "$BIN/ld-generate" --sheet --size 0.5 -p a --svg "$T/big.svg" >"$T/out" 2>"$T
 [ ! -s "$T/out" ] && [ "$(wc -l <"$T/err")" -eq 1 ] && grep -q "does not fit on a 210x297 mm page" "$T/err" ||
   fail "500 mm on A4: '$(cat "$T/out")' $(cat "$T/err")"
 
-# Page names: a folder with a dot in its name, a file name without an extension.
+# Page names: a folder with a dot in its name, an extension in capitals.
 mkdir -p "$T/out.d"
-"$BIN/ld-generate" --sheet --size 0.15 -p a -p b --svg "$T/out.d/sheet" >/dev/null
-[ -s "$T/out.d/sheet-1" ] && [ -s "$T/out.d/sheet-2" ] || fail "pages of an extensionless name: $(ls "$T/out.d")"
+"$BIN/ld-generate" --sheet --size 0.15 -p a -p b --svg "$T/out.d/sheet.SVG" >/dev/null
+[ -s "$T/out.d/sheet-1.SVG" ] && [ -s "$T/out.d/sheet-2.SVG" ] || fail "pages in a dotted folder: $(ls "$T/out.d")"
 echo ok

@@ -72,6 +72,8 @@ int main(int argc, char** argv) {
   // (a PNG is written whatever the name: one that says so)
   if (!png.empty() && !ld::hasExtension(png, ".png"))
     return ld::cli::usage(argv[0], "--png " + png + ": the file name must end in .png");
+  if (!svg.empty() && !ld::hasExtension(svg, ".svg"))
+    return ld::cli::usage(argv[0], "--svg " + svg + ": the file name must end in .svg");
   if (payloads.size() > 1 && !sheet) return ld::cli::usage(argv[0], "several payloads need --sheet");
   for (const std::string& path : {svg, png}) {
     if (path.empty()) continue;
