@@ -100,6 +100,10 @@ set +e; "$BIN/ld-detect" "$T/bad.png" --summary >/dev/null 2>"$T/err"; rc=$?; se
 [ $rc -eq 1 ] && grep -q "^ld-detect: 0 images, 0 with landmarks, 0 landmarks; 1 unreadable; backend" "$T/err" || fail "summary of none: $(cat "$T/err")"
 "$BIN/ld-detect" "$T/s/000000.png" --summary >/dev/null 2>"$T/err"
 grep -q "^ld-detect: 1 image, 1 with landmarks, 1 landmark, 1.00 per image" "$T/err" || fail "summary of one: $(cat "$T/err")"
+# -o naming a folder (a trailing /): refused, no folder made
+set +e; "$BIN/ld-detect" "$T/s/000000.png" -o "$T/newdir/" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -q "^ld-detect: cannot write $T/newdir/: names a folder (it ends in /), not a file$" "$T/err" &&
+  [ ! -e "$T/newdir" ] || fail "-o DIR/: exit $rc, $(cat "$T/err")"
 # results that cannot be written all (a full disk): status 1, said, to a file or stdout
 for out in "-o /dev/full" ""; do
   set +e; "$BIN/ld-detect" "$T/s/000000.png" $out >/dev/full 2>"$T/err"; rc=$?; set -e

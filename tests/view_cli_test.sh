@@ -59,6 +59,7 @@ refused "--out /proc/x: cannot create folder /proc/x" \
 printf '\x89PNG\r\n\x1a\n an image, not a log' >"$T/lm.png"
 refused "log $T/lm.png is not an LCM log" \
   env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/lm.png" --all --out "$T/frames"
+[ ! -e "$T/frames" ] || fail "a refused log created --out's folder"
 
 # a video in a folder that does not exist yet: written, and only ld-view's own line
 env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --video "$T/new/v.avi" 2>"$T/err" ||
@@ -72,11 +73,15 @@ env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/cut.lcmlog" --all --o
 grep -q "^ld-view: warning: $T/cut.lcmlog: the log ends mid-event after 2 messages" "$T/err" || fail "cut log: $(cat "$T/err")"
 grep -q "^ld-view: 2 images, 0 tracked lists, 2 frames written" "$T/err" || fail "cut log: $(cat "$T/err")"
 # bad numbers, and a log whose images no tracked list matches (without --all): said why
-refused "--fps: must be > 0, not 0" env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --video "$T/v0.avi" --fps 0
+refused "--fps: must be in \[0.1, 1000\], not 0" env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --video "$T/v0.avi" --fps 0
 refused "--axis-length: must be > 0, not -1" env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --axis-length -1 --out "$T/f"
 rc=0; env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --out "$T/none" 2>"$T/err" || rc=$?
 [ $rc -eq 1 ] && grep -q "^ld-view: no tracked lists on LANDMARKS_TRACKED; --all draws every image$" "$T/err" ||
   fail "nothing to draw: exit $rc, $(cat "$T/err")"
+# logs without images (the run's log alone): said so
+rc=0; env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --image CAMERA --all --out "$T/none2" 2>"$T/err" || rc=$?
+[ $rc -eq 1 ] && grep -q "^ld-view: no images on CAMERA in the logs: frames are drawn on their images" "$T/err" ||
+  fail "no images: exit $rc, $(cat "$T/err")"
 # two logs whose seqs overlap, of two sizes: no PNG written over another
 # (the second gets -2), and the video takes every frame, scaled to its size
 "$BIN/ld-synth" sequence --out "$T/small" --frames 2 --log "$T/small.lcmlog" --landmarks 1 --resolution 320x240 >/dev/null

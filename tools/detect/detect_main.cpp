@@ -136,7 +136,7 @@ int main(int argc, char** argv) {
     }
     file.open(out_file);
     if (!file) {
-      std::cerr << "ld-detect: cannot write " << out_file << "\n";
+      std::cerr << "ld-detect: cannot write " << out_file << ": " << std::strerror(errno) << "\n";
       return 2;
     }
   }

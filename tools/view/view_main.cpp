@@ -237,6 +237,10 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
                static_cast<long long>(images), lists.size(), static_cast<long long>(sink.count()),
                dropped.count ? (", " + std::to_string(dropped.count) + " bad").c_str() : "");
   if (events == 0) std::fprintf(stderr, "ld-view: the logs hold no message: nothing to draw\n");
+  else if (images == 0 && !g_stop)
+    std::fprintf(stderr, "ld-view: no images on %s in the logs: frames are drawn on their images (give the "
+                         "image log too: --log images.lcmlog --log run.lcmlog, or --image CHANNEL)\n",
+                 image_ch.c_str());
   if (sink.count() == 0 && images > 0 && matched == 0 && !all_frames)
     std::fprintf(stderr, "ld-view: %s; --all draws every image\n",
                  lists.empty() ? ("no tracked lists on " + tracked_ch).c_str()
@@ -435,6 +439,14 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  // (the logs first: a refused run creates no folder)
+  for (const auto& path : logs) {
+    const ld::LcmLogCheck start = ld::checkLcmLogStart(path);
+    if (start.start == ld::LcmLogStart::NotALog || start.start == ld::LcmLogStart::Unreadable) {
+      std::cerr << "ld-view: log " << path << " " << start.problem << "\n";
+      return 2;
+    }
+  }
   if (!o.out_dir.empty()) {  // created when missing, and written in
     const std::string problem = ld::prepareOutputFolder(o.out_dir);
     if (!problem.empty()) {
@@ -446,13 +458,6 @@ int main(int argc, char** argv) {
     const std::string problem = ld::prepareOutputFile(o.video);  // creates missing folders, as --out does
     if (!problem.empty()) {
       std::cerr << "ld-view: --video " << o.video << ": " << problem << "\n";
-      return 2;
-    }
-  }
-  for (const auto& path : logs) {
-    const ld::LcmLogCheck start = ld::checkLcmLogStart(path);
-    if (start.start == ld::LcmLogStart::NotALog || start.start == ld::LcmLogStart::Unreadable) {
-      std::cerr << "ld-view: log " << path << " " << start.problem << "\n";
       return 2;
     }
   }

@@ -73,6 +73,7 @@ std::string prepareOutputFile(const std::string& path) {
   std::error_code ec;
   if (path.empty()) return "is an empty path";
   if (fs::is_directory(path, ec)) return "is a folder";
+  if (path.back() == '/') return "names a folder (it ends in /), not a file";
   const fs::path folder = fs::path(path).parent_path();
   if (std::string problem = prepareOutputFolder(folder.empty() ? "." : folder.string()); !problem.empty())
     return problem;
