@@ -11,11 +11,19 @@
 #     frame, track ids with payloads, end-to-end latency percentiles);
 #  5. draw the tracked landmarks on the frames with ld-view (PNGs and a video).
 set -euo pipefail
-BUILD=${1:-build}
-BIN=$(cd "$BUILD/bin" && pwd)
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
+BUILD=${1:-$ROOT/build}   # (the repository's build/ wherever the script is run from)
+[ -d "$BUILD/bin" ] || { echo "demo.sh: no programs in $BUILD/bin (make build first, or give the build folder)" >&2; exit 2; }
+BIN=$(cd "$BUILD/bin" && pwd)
+# Where the outputs go (LD_DEMO_OUT, default out/demo): emptied first; a
+# folder given by LD_DEMO_OUT only when it is the demo's own (it holds
+# .ld-demo) or empty, never a folder of anything else.
 OUT=${LD_DEMO_OUT:-$ROOT/out/demo}
-rm -rf "$OUT" && mkdir -p "$OUT"
+if [ -n "${LD_DEMO_OUT:-}" ] && [ -e "$OUT" ] && [ ! -e "$OUT/.ld-demo" ] && [ -n "$(ls -A "$OUT" 2>/dev/null)" ]; then
+  echo "demo.sh: $OUT holds files that are not the demo's: give LD_DEMO_OUT an empty or new folder" >&2
+  exit 2
+fi
+rm -rf "$OUT" && mkdir -p "$OUT" && touch "$OUT/.ld-demo"
 SIDE=0.3   # printed landmark side, metres: QR codes readable along the whole path at 640x480
 
 echo "== 1. printable landmarks"

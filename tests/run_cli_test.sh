@@ -45,9 +45,29 @@ refused "state file /proc/x/st.json: cannot create folder /proc/x" --replay "$T/
 refused "--log-dir /proc/x: cannot create folder /proc/x" --replay "$T/in.lcmlog" --log-dir /proc/x
 refused "--replay and --play name two sources; give one" --replay "$T/in.lcmlog" --play "$T/in.lcmlog"
 refused "--source camera and --replay name two sources; give one" --replay "$T/in.lcmlog" --source camera
-refused "--speed: must be > 0, not -1" --replay "$T/in.lcmlog" --speed -1
-refused "--speed: must be > 0, not 0" --replay "$T/in.lcmlog" --speed 0
-refused "--fps: must be > 0, not 0" --play "$T/in.lcmlog" --fps 0
+refused "--speed: must be in \[0.01, 1000\], not -1" --replay "$T/in.lcmlog" --speed -1
+refused "--speed: must be in \[0.01, 1000\], not 0" --replay "$T/in.lcmlog" --speed 0
+refused "--speed: must be in \[0.01, 1000\], not 1e300" --replay "$T/in.lcmlog" --speed 1e300
+refused "--fps: must be in \[0.001, 1000\], not 0" --play "$T/in.lcmlog" --fps 0
+# no file ld-run writes is the log it plays, nor another file it writes
+cp "$T/in.lcmlog" "$T/keep.lcmlog"
+refused "the recording $T/keep.lcmlog is the log: it would be written over" --replay "$T/keep.lcmlog" --record "$T/keep.lcmlog"
+refused "the summary $T/keep.lcmlog is the log" --play "$T/keep.lcmlog" --summary "$T/keep.lcmlog"
+refused "the summary $T/./r.out is the recording" --replay "$T/keep.lcmlog" --record "$T/r.out" --summary "$T/./r.out"
+cmp -s "$T/in.lcmlog" "$T/keep.lcmlog" || fail "a refused run changed the log"
+# a worker program that is not there (a config's "program" mistyped), an
+# LCM URL without a port, memq (each process's own)
+printf '{"detector": {"program": "ld-detectr"}}\n' >"$T/prog.json"
+refused "the detector's program ld-detectr cannot be run" --config "$T/prog.json" --replay "$T/in.lcmlog"
+refused "LCM URL udpm://239.255.76.67: no port" --replay "$T/in.lcmlog" --lcm-url udpm://239.255.76.67
+refused "LCM URL memq://: memq is within one process" --replay "$T/in.lcmlog" --lcm-url memq://
+# config keys given twice, a config that is a folder
+printf '{"source": {"type": "replay", "log": "%s", "log": "%s"}}\n' "$T/in.lcmlog" "$T/in.lcmlog" >"$T/twice.json"
+refused ".*twice.json: key \"log\" is given twice" --config "$T/twice.json"
+printf 'source:\n  type: replay\n  type: play\n' >"$T/twice.yaml"
+refused ".*twice.yaml: line 3: key \"type\" is given twice" --config "$T/twice.yaml"
+mkdir "$T/cfgdir.json"
+refused "config $T/cfgdir.json is a folder" --config "$T/cfgdir.json"
 refused "--fps: 'nan' is not a number" --play "$T/in.lcmlog" --fps nan
 refused "--duration: must be >= 0, not -2" --play "$T/in.lcmlog" --duration -2
 refused "--stop-grace: must be >= 0, not -1" --replay "$T/in.lcmlog" --stop-grace -1
@@ -80,6 +100,31 @@ timeout 30 "$BIN/ld-run" --netns --status-interval 0 --config "$T/badworker.json
   --exit-when-replay-done >"$T/out" 2>&1 || rc=$?
 [ $rc -eq 1 ] || fail "a worker failing with exit 2: ld-run exit $rc: $(cat "$T/out")"
 grep -q "detector failed (exit 2; its error is above); stopping" "$T/out" || fail "worker failure: $(cat "$T/out")"
+
+# ... and with -q, where its error line is not shown, it says so (and the
+# run does not wait out --wait-ready first)
+rc=0; start=$(date +%s)
+timeout 30 "$BIN/ld-run" --netns --status-interval 0 -q --config "$T/badworker.json" --replay "$T/in.lcmlog" \
+  --exit-when-replay-done --wait-ready 20 >"$T/out" 2>&1 || rc=$?
+[ $rc -eq 1 ] && grep -q "detector failed (exit 2; -q kept its error out: run without it)" "$T/out" ||
+  fail "worker failure, -q: exit $rc, $(cat "$T/out")"
+[ $(( $(date +%s) - start )) -lt 15 ] || fail "worker failure: the run waited out --wait-ready"
+
+# A payload that is not UTF-8 (bytes as printed): the summary holds it with
+# U+FFFD, as ld-detect writes it (ld-run aborted writing the summary).
+"$BIN/ld-synth" sequence --frames 20 --landmarks 1 --size 0.3 --seed 3 -p $'caf\xe9' --log "$T/latin.lcmlog" --no-png >/dev/null
+timeout 60 "$BIN/ld-run" --netns --replay "$T/latin.lcmlog" --exit-when-replay-done --summary "$T/latin.json" \
+  --report -q --status-interval 0 >"$T/out" 2>&1 || fail "a payload that is not UTF-8: $(tail -3 "$T/out")"
+jq -e '[.summary.tracks[].payload] | index("caf\ufffd")' "$T/latin.json" >/dev/null || fail "latin payload: $(cat "$T/latin.json")"
+[ "$(jq .log_images "$T/latin.json")" -eq 20 ] || fail "log_images: $(jq .log_images "$T/latin.json")"
+# A replay log damaged in the middle: lcm-logplayer stops there; ld-run says so.
+{ head -c 5000000 "$T/latin.lcmlog"; head -c 3000 /dev/zero; tail -c +5000001 "$T/latin.lcmlog"; } >"$T/damaged.lcmlog"
+timeout 60 "$BIN/ld-run" --netns --replay "$T/damaged.lcmlog" --exit-when-replay-done --processes none \
+  --status-interval 0 -q >"$T/out" 2>&1 || true
+grep -q "warning: replay log $T/damaged.lcmlog: skipped .* bytes that are no whole LCM event.*lcm-logplayer stops at the damage (--play reads past it)" "$T/out" ||
+  fail "damaged replay log: $(cat "$T/out")"
+grep -q "warning: 15 of the log's 20 images on IMAGE never came (lcm-logplayer stopped at the log's damage" "$T/out" ||
+  fail "damaged replay log, images: $(cat "$T/out")"
 
 # What is accepted: a pixel format in any case, and missing folders of the
 # recording and the summary, which ld-run creates.

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdint>
 #include <fstream>
+#include <sstream>
 
 #include "ld/camera.hpp"
 #include "ld/detector.hpp"
@@ -78,6 +79,62 @@ TEST(CameraFile, NonFiniteAndNonCameraMatricesAreRefused) {
     EXPECT_NE(std::string(e.what()).find("3x2147483647, more than 9 values"), std::string::npos)
         << e.what();
   }
+}
+
+// Values no camera has are refused by name, where they loaded before and
+// took poses (or landmarks) away without a word; real lenses' calibrations,
+// strong wide-angle barrel distortion included, load.
+TEST(CameraFile, ValuesNoCameraHasAreRefused) {
+  const auto file = [](const std::string& size, double f, const std::string& dist) {
+    std::ostringstream focal;
+    focal << f;  // (1e-300 as written)
+    return size +
+           "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ " + focal.str() +
+           ", 0., 319.5, 0., " + focal.str() + ", 239.5, 0., 0., 1. ]\n" +
+           "distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 5\n   dt: d\n   data: [ " + dist + " ]\n";
+  };
+  const std::string vga = "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n";
+  auto load = [&](const std::string& text) {
+    try {
+      ld::CameraModel::load(writeTemp("cam.yml", text));
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  // lenses: a webcam's, a strong wide-angle's (its polynomial folds near the
+  // corners, beyond the calibration's targets), a fisheye-like one's
+  EXPECT_EQ(load(file(vga, 600, "0.1, -0.2, 0., 0., 0.1")), "");
+  EXPECT_EQ(load(file(vga, 400, "-0.35, 0.15, 0., 0., -0.03")), "");
+  EXPECT_EQ(load(file(vga, 250, "-0.3, 0.09, 0., 0., -0.012")), "");
+  // an editor's byte order mark is no part of the first key
+  EXPECT_EQ(load("\xEF\xBB\xBF" + file(vga, 600, "0., 0., 0., 0., 0.")), "");
+  // coefficients mistyped: they fold the image over or squeeze it
+  for (const char* dist : {"1e6, 0., 0., 0., 0.", "0., 0., 5., 5., 0.", "0., 0., 0., 0., 1e12"})
+    EXPECT_NE(load(file(vga, 600, dist)).find("coefficients mistyped, or of another camera"), std::string::npos)
+        << dist << ": " << load(file(vga, 600, dist));
+  EXPECT_NE(load(file(vga, 1e-300, "0., 0., 0., 0., 0.")).find("focal length 1e-300 px is not one a 640x480 camera has"),
+            std::string::npos);
+  EXPECT_NE(load(file(vga, 1e300, "0., 0., 0., 0., 0.")).find("is not one a 640x480 camera has (12.8 to 640000 px)"),
+            std::string::npos);
+  // the image size: whole pixels, as written (a quoted "640" was read as
+  // 2147483647; 1e10 and -640 were "missing"; 4294967936 wrapped to 640)
+  const std::string zero = "0., 0., 0., 0., 0.";
+  EXPECT_NE(load(file("image_width: \"640\"\nimage_height: 480\n", 600, zero))
+                .find("image_width must be a whole number of pixels, 1 to 16384"),
+            std::string::npos);
+  EXPECT_NE(load(file("image_width: 1e10\nimage_height: 480\n", 600, zero)).find("image_width must be a whole number"),
+            std::string::npos);
+  EXPECT_NE(load(file("image_width: 640\nimage_height: -480\n", 600, zero)).find("image_height must be a whole number"),
+            std::string::npos);
+  EXPECT_NE(load(file("image_width: 4294967936\nimage_height: 480\n", 600, zero))
+                .find("line 1: the integer 4294967936 is out of range (-2147483648 to 2147483647)"),
+            std::string::npos)
+      << load(file("image_width: 4294967936\nimage_height: 480\n", 600, zero));
+  // a camera_matrix of OpenCV's kind with too few values: counted, not OpenCV's assertion
+  std::string short_k = file(vga, 600, zero);
+  short_k.replace(short_k.find(", 0., 0., 1. ]"), 14, " ]");
+  EXPECT_NE(load(short_k).find("camera_matrix has 6 values, not 3x3"), std::string::npos) << load(short_k);
 }
 
 // A user's existing calibration loads whichever tool wrote it: ROS's
@@ -166,9 +223,14 @@ TEST(CameraFile, RosAndInteractiveCalibrationFilesLoad) {
 }
 
 // p2 = 20 (tangential distortion): the distortion model does not invert
-// over the frame; the detector used to report NaN corners.
+// over the frame; the detector used to report NaN corners. Such a file is
+// refused on loading now; a camera given in code is still no danger.
 TEST(CameraFile, DivergingDistortionGivesNoNonFiniteLandmark) {
-  const ld::CameraModel cam = ld::CameraModel::load(kCorpus + "fuzz_camera/regress-tangential-20.yml");
+  EXPECT_NE(loadError("regress-tangential-20.yml").find("coefficients mistyped, or of another camera"),
+            std::string::npos)
+      << loadError("regress-tangential-20.yml");
+  ld::CameraModel cam = ld::CameraModel::pinhole({640, 480}, 600);
+  cam.dist = (cv::Mat_<double>(1, 5) << 0, 0, 0, 20, 0);
   const cv::Mat& frame = ld::fuzz::landmarkFrame();
   ld::Detector plain;
   ASSERT_EQ(plain.detect(frame).landmarks.size(), 1u);  // the frame has a landmark

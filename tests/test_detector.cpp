@@ -2086,6 +2086,14 @@ TEST(Params, BadFilesGiveClearErrors) {
   EXPECT_NE(bad_front_end.find(".yaml: front_end must be \"fast\" or \"paper\", not \"papr\""), std::string::npos)
       << bad_front_end;
   EXPECT_NE(loadError("%YAML:1.0\n---\nd_min: -5\n").find(".yaml: d_min must be > 0"), std::string::npos);
+  // integers beyond 32 bits are refused by line (OpenCV wrapped 4294967299 to 3)
+  EXPECT_NE(loadError("%YAML:1.0\n---\nd_min: 1.5 # 99999999999\nmax_candidates: 4294967299\n")
+                .find("line 4: the integer 4294967299 is out of range"),
+            std::string::npos);
+  EXPECT_NE(loadError("max_cycles: -99999999999\n").find("line 1: the integer -99999999999 is out of range"),
+            std::string::npos);
+  // a UTF-8 byte order mark is no part of the first key ("unknown key 'd_min'" before)
+  EXPECT_EQ(loadError("\xEF\xBB\xBF" "d_min: 1.5\n"), "");
 }
 
 // A comment after a string value is a comment (OpenCV's parser keeps it in

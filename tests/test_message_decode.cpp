@@ -69,6 +69,37 @@ TEST(DecodeMessage, WellFormedMessagesDecodeAsLcmDoes) {
   EXPECT_EQ(lcmEncode(codes_out), bq);
 }
 
+// A message reused across decodes (the processes' hot path) holds what the
+// last one said: an empty image's data and a list without stages' times
+// are empty, not the previous message's (lcm-gen's decoder leaves an array
+// of bytes or numbers alone when its length is 0).
+TEST(DecodeMessage, EmptyArraysDoNotKeepTheLastMessagesValues) {
+  std::string why;
+  ld::image_t img = ld::matToImage(cv::Mat(6, 8, CV_8UC3, cv::Scalar(1, 2, 3)), ld::image_t::PIXEL_FORMAT_BGR, 5, 9);
+  ld::image_t reused;
+  const Bytes full = lcmEncode(img);
+  ASSERT_TRUE(ld::decodeMessage(full.data(), full.size(), reused, &why)) << why;
+  ASSERT_EQ(reused.data.size(), 144u);
+  img.size = 0;
+  img.data.clear();
+  const Bytes empty = lcmEncode(img);
+  ASSERT_TRUE(ld::decodeMessage(empty.data(), empty.size(), reused, &why)) << why;
+  EXPECT_TRUE(reused.data.empty());
+  EXPECT_EQ(lcmEncode(reused), empty);
+
+  ld::landmark_list_t list = sampleList(), reused_list;
+  const Bytes with_stages = lcmEncode(list);
+  ASSERT_TRUE(ld::decodeMessage(with_stages.data(), with_stages.size(), reused_list, &why)) << why;
+  list.nstages = 0;
+  list.stage_names.clear();
+  list.stage_ms.clear();
+  const Bytes without = lcmEncode(list);
+  ASSERT_TRUE(ld::decodeMessage(without.data(), without.size(), reused_list, &why)) << why;
+  EXPECT_TRUE(reused_list.stage_ms.empty());
+  EXPECT_TRUE(reused_list.stage_names.empty());
+  EXPECT_EQ(lcmEncode(reused_list), without);
+}
+
 TEST(DecodeMessage, LayoutOfTheSampleIsAsAssumed) {
   const Bytes b = lcmEncode(sampleList());
   EXPECT_EQ(b[kBackendLen + 3], 4);  // "cpu" + NUL
@@ -188,6 +219,55 @@ TEST(ImageLimits, MjpegFrameSizeIsCheckedBeforeDecoding) {
   EXPECT_NE(ld::test::imageError(not_jpeg).find("not a JPEG stream"), std::string::npos);
   EXPECT_EQ(ld::test::imageError(mjpegClaiming(8, 6, true)), "");
   EXPECT_EQ(ld::imageToBgr(mjpegClaiming(8, 6, false)).size(), cv::Size(8, 6));
+}
+
+// A JPEG frame cut short (a copy or a message that lost its end) is refused
+// by name: libjpeg would decode it into grey rows with a warning of its own
+// that names nothing. Padding after the end marker (some cameras send it)
+// is allowed. An empty MJPEG message says it has no data.
+TEST(ImageLimits, MjpegCutShortIsRefused) {
+  ld::image_t whole = ld::matToImage(cv::Mat(48, 64, CV_8UC3, cv::Scalar(10, 20, 200)),
+                                     ld::image_t::PIXEL_FORMAT_MJPEG, 1);
+  EXPECT_EQ(ld::test::imageError(whole), "");
+  EXPECT_TRUE(ld::jpegComplete(whole.data.data(), whole.data.size()));
+  ld::image_t cut = whole;
+  cut.data.resize(cut.data.size() * 2 / 3);
+  cut.size = static_cast<int32_t>(cut.data.size());
+  EXPECT_FALSE(ld::jpegComplete(cut.data.data(), cut.data.size()));
+  EXPECT_NE(ld::test::imageError(cut).find("MJPEG data ends before its image does (no end-of-image marker"),
+            std::string::npos)
+      << ld::test::imageError(cut);
+  ld::image_t padded = whole;
+  padded.data.insert(padded.data.end(), 64, 0);
+  padded.size = static_cast<int32_t>(padded.data.size());
+  EXPECT_EQ(ld::test::imageError(padded), "");
+  ld::image_t empty = whole;
+  empty.data.clear();
+  empty.size = 0;
+  EXPECT_NE(ld::test::imageError(empty).find("MJPEG message has no data"), std::string::npos);
+}
+
+// A raw image's data must fit its header both ways: more bytes than whole
+// rows hold is a width or height that is not the data's (half the height
+// drew the top half as a frame of its own).
+TEST(ImageLimits, RawDataLargerThanItsRowsIsRefused) {
+  ld::image_t img = ld::matToImage(cv::Mat(6, 8, CV_8UC3, cv::Scalar(1, 2, 3)), ld::image_t::PIXEL_FORMAT_BGR, 1);
+  EXPECT_EQ(ld::test::imageError(img), "");
+  img.height = 3;
+  EXPECT_NE(ld::test::imageError(img).find("holds at most 72 bytes, message has 144 (a wrong width or height?)"),
+            std::string::npos)
+      << ld::test::imageError(img);
+  // a padded stride's last row without its padding (as ld-camera sends it) still fits
+  ld::image_t strided = ld::matToImage(cv::Mat(6, 8, CV_8UC3, cv::Scalar(1, 2, 3)), ld::image_t::PIXEL_FORMAT_BGR, 1);
+  std::vector<uint8_t> rows;
+  for (int y = 0; y < 6; ++y) {
+    rows.insert(rows.end(), strided.data.begin() + y * 24, strided.data.begin() + (y + 1) * 24);
+    if (y < 5) rows.insert(rows.end(), 8, 0);
+  }
+  strided.data = rows;
+  strided.size = static_cast<int32_t>(rows.size());
+  strided.row_stride = 32;
+  EXPECT_EQ(ld::test::imageError(strided), "");
 }
 
 TEST(ImageLimits, CheckImageRefusesWhatDecodingWouldWithoutDecoding) {

@@ -383,3 +383,19 @@ TEST(ImageConvert, SeqMetadata) {
   m.metadata[0].n = 5;  // n disagrees with the bytes present
   EXPECT_FALSE(ld::imageSeq(m).has_value());
 }
+
+// An LCM that will not open: 1 where a restart may mend it (a provider LCM
+// has, the network not up yet), 2 where the URL itself is wrong.
+TEST(LcmUrl, OpenFailureStatusTellsAWrongUrl) {
+  EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608"), 1);
+  EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://"), 1);
+  EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://239.255.76.67"), 1);
+  EXPECT_EQ(ld::lcmOpenFailureStatus("file:///tmp/x.lcmlog?mode=r"), 1);
+  EXPECT_EQ(ld::lcmOpenFailureStatus("memq://"), 1);
+  EXPECT_EQ(ld::lcmOpenFailureStatus("bogus://x"), 2);
+  EXPECT_EQ(ld::lcmOpenFailureStatus("239.255.76.67:7667"), 2);
+  EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://999.1.1.1:7667"), 2);   // no address
+  EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://10.0.0.1:7667"), 2);    // not multicast
+  EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://239.255.76.67:70000"), 2);
+  EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://239.255.76.67:port"), 2);
+}

@@ -38,7 +38,14 @@ flags=-n; [ "$(id -u)" -eq 0 ] || flags=-rn
 rc=0; timeout 10 unshare $flags "$BIN/ld-tracker" >/dev/null 2>"$T/err" || rc=$?
 [ $rc -eq 1 ] && grep -q "^ld-tracker: cannot open LCM at udpm://" "$T/err" || { echo "FAIL: no route: $rc $(cat "$T/err")"; exit 1; }
 rc=0; timeout 10 "$BIN/ld-tracker" --lcm-url bogus://x >/dev/null 2>"$T/err" || rc=$?
-[ $rc -eq 2 ] && grep -q "^ld-tracker: cannot open LCM at bogus://x" "$T/err" || { echo "FAIL: bogus URL: $rc $(cat "$T/err")"; exit 1; }
+[ $rc -eq 2 ] && grep -q "^ld-tracker: LCM URL bogus://x: LCM has no provider bogus" "$T/err" || { echo "FAIL: bogus URL: $rc $(cat "$T/err")"; exit 1; }
+# a udpm URL without a port (LCM took it as port 0: it never received, and
+# its wait aborted the process after a while), or with a group that is not
+# multicast: refused at once
+for url in "udpm://239.255.76.67|no port" "udpm://999.1.1.1:7667|999.1.1.1 is not a multicast group"; do
+  rc=0; timeout 10 "$BIN/ld-tracker" --lcm-url "${url%%|*}" >/dev/null 2>"$T/err" || rc=$?
+  [ $rc -eq 2 ] && grep -q "^ld-tracker: LCM URL ${url%%|*}: ${url#*|}" "$T/err" || { echo "FAIL: ${url%%|*}: $rc $(cat "$T/err")"; exit 1; }
+done
 rc=0; timeout 10 "$BIN/ld-tracker" --in "" >/dev/null 2>"$T/err" || rc=$?
 [ $rc -eq 2 ] && grep -qF -- "--in needs a channel name" "$T/err" || { echo "FAIL: --in '': $rc $(cat "$T/err")"; exit 1; }
 

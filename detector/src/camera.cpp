@@ -3,7 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <limits>
+#include <vector>
 #include <stdexcept>
+
+#include <opencv2/calib3d.hpp>
 
 #include "ld/config_file.hpp"
 
@@ -26,15 +31,15 @@ cv::Mat readMatrix(const cv::FileNode& node, int max_elements, const std::string
       throw std::runtime_error("camera file " + path + ": " + name + " is " + std::to_string(r) +
                                "x" + std::to_string(c) + ", more than " +
                                std::to_string(max_elements) + " values");
+    const cv::FileNode data = node["data"];
+    if (!data.isSeq())
+      throw std::runtime_error("camera file " + path + ": " + name + " has no data list");
+    if (static_cast<int64_t>(data.size()) != static_cast<int64_t>(r) * c)
+      throw std::runtime_error("camera file " + path + ": " + name + " has " + std::to_string(data.size()) +
+                               " values, not " + std::to_string(r) + "x" + std::to_string(c));
     if (node["dt"].empty()) {
       // ROS camera_info (camera_calibration's files): rows, cols and data,
       // without OpenCV's element type.
-      const cv::FileNode data = node["data"];
-      if (!data.isSeq())
-        throw std::runtime_error("camera file " + path + ": " + name + " has no data list");
-      if (static_cast<int64_t>(data.size()) != static_cast<int64_t>(r) * c)
-        throw std::runtime_error("camera file " + path + ": " + name + " has " + std::to_string(data.size()) +
-                                 " values, not " + std::to_string(r) + "x" + std::to_string(c));
       if (r * c == 0) return {};
       cv::Mat m(r, c, CV_64F);
       int i = 0;
@@ -117,14 +122,27 @@ CameraModel CameraModel::load(const std::string& path) {
       if (!cv::checkRange(c.dist))
         throw std::runtime_error("camera file " + path + ": " + d_name + " has a value that is not finite");
     }
+    // The image size: whole pixels, as the frames' (a quoted "640" read as
+    // 2147483647, and 1e10 or -640 as missing, before)
+    const auto side = [&](const cv::FileNode& n, const std::string& key) {
+      if (!n.isInt() || static_cast<int>(n) < 1 || static_cast<int>(n) > kMaxImageSide)
+        throw std::runtime_error("camera file " + path + ": " + key + " must be a whole number of pixels, 1 to " +
+                                 std::to_string(kMaxImageSide));
+      return static_cast<int>(n);
+    };
     int w = 0, h = 0;
-    if (!fs["image_width"].empty()) fs["image_width"] >> w;
-    if (!fs["image_height"].empty()) fs["image_height"] >> h;
     const cv::FileNode res = fs["cameraResolution"];
-    if (w <= 0 && h <= 0 && res.isSeq() && res.size() == 2 && res[0].isInt() && res[1].isInt())
-      w = static_cast<int>(res[0]), h = static_cast<int>(res[1]);
-    if (w <= 0 || h <= 0)
+    if (!fs["image_width"].empty() || !fs["image_height"].empty()) {
+      w = side(fs["image_width"], "image_width");
+      h = side(fs["image_height"], "image_height");
+    } else if (!res.empty()) {
+      if (!res.isSeq() || res.size() != 2)
+        throw std::runtime_error("camera file " + path + ": cameraResolution must be [width, height]");
+      w = side(res[0], "cameraResolution's width");
+      h = side(res[1], "cameraResolution's height");
+    } else {
       throw std::runtime_error("camera file " + path + ": image_width/image_height (or cameraResolution) missing");
+    }
     c.size = {w, h};
     // a camera matrix: [fx s cx; 0 fy cy; 0 0 1], its principal point in the image
     if (c.K(1, 0) != 0 || c.K(2, 0) != 0 || c.K(2, 1) != 0 || c.K(2, 2) != 1)
@@ -134,6 +152,18 @@ CameraModel CameraModel::load(const std::string& path) {
                                std::to_string(c.K(0, 2)) + ", " + std::to_string(c.K(1, 2)) +
                                ") is outside the " + std::to_string(w) + "x" + std::to_string(h) +
                                " image");
+    // Focal lengths a lens can have for this image: from a fisheye's (a
+    // fiftieth of the image's side) to a long telephoto's (a thousand sides).
+    const double longest = std::max(w, h);
+    for (const double f : {c.K(0, 0), c.K(1, 1)})
+      if (f < 0.02 * longest || f > 1000 * longest) {
+        char text[160];
+        std::snprintf(text, sizeof text, "focal length %g px is not one a %dx%d camera has (%g to %g px)", f, w, h,
+                      0.02 * longest, 1000 * longest);
+        throw std::runtime_error("camera file " + path + ": " + text);
+      }
+    if (const std::string why = c.distortionProblem(); !why.empty())
+      throw std::runtime_error("camera file " + path + ": " + d_name + ": " + why);
   } catch (const cv::Exception& e) {
     throw std::runtime_error("camera file " + path + ": malformed (" + e.err + ")");
   } catch (const std::runtime_error&) {
@@ -142,6 +172,61 @@ CameraModel CameraModel::load(const std::string& path) {
     throw std::runtime_error("camera file " + path + ": malformed (" + e.what() + ")");
   }
   return c;
+}
+
+std::string CameraModel::distortionProblem() const {
+  if (dist.empty() || cv::countNonZero(dist) == 0 || size.width <= 0 || size.height <= 0) return "";
+  // Along rays from the optical axis in 32 directions, ideal (undistorted)
+  // points are distorted into the image until they are half-way from its
+  // centre to its corners. Any lens's model carries them outward there
+  // without turning back, and puts that half-way point within a factor of 2
+  // of where the ray would reach it without distortion (a strong wide-angle
+  // lens: about 0.9). Coefficients mistyped, or of another camera, fold the
+  // image over or squeeze it into a sliver of the view. (Nearer the corners
+  // a real calibration's polynomial may fold where no calibration target
+  // was: no test there. Nor is taking the image's points back with
+  // cv::undistortPoints and out again one: its fixed-point iteration does
+  // not converge for a wide-angle lens's strong barrel distortion.)
+  const cv::Point2d c(K(0, 2), K(1, 2));
+  const double f = std::sqrt(K(0, 0) * K(1, 1));
+  const double half_way = 0.25 * std::hypot(size.width, size.height);
+  constexpr int kDirections = 32, kSteps = 4000;
+  constexpr double kStep = 0.005, kMaxFactor = 2;  // (ideal radius up to 20 focal lengths)
+  std::vector<cv::Point3d> ray(kSteps);
+  std::vector<cv::Point2d> img;
+  char text[240];
+  for (int d = 0; d < kDirections; ++d) {
+    const double a = 2 * CV_PI * d / kDirections;
+    for (int i = 0; i < kSteps; ++i) ray[i] = {(i + 1) * kStep * std::cos(a), (i + 1) * kStep * std::sin(a), 1.0};
+    cv::projectPoints(ray, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), cv::Mat(K), dist, img);
+    double last = 0;
+    int i = 0;
+    for (; i < kSteps; ++i) {
+      const double r = std::isfinite(img[i].x) && std::isfinite(img[i].y) ? cv::norm(img[i] - c)
+                                                                          : std::numeric_limits<double>::infinity();
+      if (r < last - 1e-6) {
+        std::snprintf(text, sizeof text,
+                      "the distortion folds the %dx%d image over near its centre (towards (%.0f, %.0f) it turns "
+                      "back %.0f px from it): coefficients mistyped, or of another camera",
+                      size.width, size.height, img[i].x, img[i].y, r);
+        return text;
+      }
+      last = r;
+      if (r >= half_way) break;
+    }
+    // where the ray reaches half-way, against where it would without distortion
+    const double ideal = (std::min(i, kSteps - 1) + 1) * kStep * f;
+    const double factor = std::min(last, half_way) / ideal;
+    if (i == kSteps || !(factor <= kMaxFactor && factor * kMaxFactor >= 1)) {
+      std::snprintf(text, sizeof text,
+                    "the distortion puts the points half-way to the corners of the %dx%d image at %.3g times "
+                    "their undistorted distance from its centre (direction %.0f deg): coefficients mistyped, or of "
+                    "another camera",
+                    size.width, size.height, factor, a * 180 / CV_PI);
+      return text;
+    }
+  }
+  return "";
 }
 
 void CameraModel::save(const std::string& path) const {

@@ -68,6 +68,10 @@ int main(int argc, char** argv) {
     return 2;
   }
 
+  if (const std::string problem = ld::lcmUrlProblem(url); !problem.empty()) {
+    std::cerr << "ld-detector: LCM URL " << problem << "\n";
+    return 2;
+  }
   lcm::LCM lcm(url);
   if (!lcm.good()) {
     std::cerr << "ld-detector: cannot open LCM at " << url << "\n";
@@ -89,6 +93,7 @@ int main(int argc, char** argv) {
   auto next_explain = last_status;
   ld::Explanation why_frame;
   std::string pose_error;  // the last frame's Detection::pose_error
+  int64_t pose_errors = 0;  // times it changed to a new one
   while (!g_stop) {
     // waits, then drains the queue: only the newest message is processed
     if (!ld::pumpLcm(lcm, 200, g_stop, "ld-detector")) return 1;
@@ -104,10 +109,17 @@ int main(int argc, char** argv) {
         // a detection more, and is not counted in the published timings).
         const bool explain = explain_s > 0 && std::chrono::steady_clock::now() >= next_explain;
         const ld::Detection& det = explain ? detector.detect(bgr, why_frame) : detector.detect(bgr);
-        // (a calibration that does not fit the frames: said once, and again when it changes)
+        // (a calibration that does not fit the frames: said once, and again
+        // when it changes, as bad input is: frames whose size keeps changing
+        // would otherwise say it for every frame)
         if (det.pose_error != pose_error) {
           pose_error = det.pose_error;
-          if (!pose_error.empty()) std::cerr << "ld-detector: " << pose_error << "\n";
+          if (!pose_error.empty() && ld::printBadLine(++pose_errors))
+            std::cerr << "ld-detector: " << pose_error
+                      << (pose_errors == ld::kBadLinesInFull
+                              ? " (from here on every " + std::to_string(ld::kBadLinesEvery) + "th is printed)"
+                              : std::string())
+                      << "\n";
         }
         if (explain) {
           next_explain = std::chrono::steady_clock::now() +

@@ -57,6 +57,12 @@ cv::Mat rawView(const image_t& msg, const FormatInfo& f) {
     fail(fmt + " " + std::to_string(msg.width) + "x" + std::to_string(msg.height) +
          " with row_stride " + std::to_string(stride) + " needs " + std::to_string(needed) +
          " bytes, message has " + std::to_string(msg.size));
+  // (more than whole rows hold: a width or height that is not the data's,
+  // which would draw part of the frame as a smaller one)
+  if (msg.size > stride * msg.height)
+    fail(fmt + " " + std::to_string(msg.width) + "x" + std::to_string(msg.height) +
+         " with row_stride " + std::to_string(stride) + " holds at most " + std::to_string(stride * msg.height) +
+         " bytes, message has " + std::to_string(msg.size) + " (a wrong width or height?)");
   const int type = CV_8UC(f.bytes_per_pixel);
   return cv::Mat(msg.height, msg.width, type, const_cast<uint8_t*>(msg.data.data()),
                  static_cast<size_t>(stride));
@@ -66,6 +72,31 @@ cv::Mat rawView(const image_t& msg, const FormatInfo& f) {
 // image before it finds out that the data is missing, so a few hundred bytes
 // claiming 30000x30000 would otherwise cost gigabytes.
 constexpr int64_t kMaxMjpegPixels = int64_t{1} << 25;
+
+// Where a JPEG stream's first scan (SOS) starts, or 0 when it has none
+// before its end.
+size_t jpegScanStart(const uint8_t* p, size_t n) {
+  if (n < 4 || p[0] != 0xFF || p[1] != 0xD8) return 0;  // SOI
+  size_t i = 2;
+  while (i + 4 <= n) {
+    if (p[i] != 0xFF) return 0;
+    const uint8_t m = p[i + 1];
+    if (m == 0xFF) {
+      ++i;
+      continue;
+    }
+    if (m == 0x01 || (m >= 0xD0 && m <= 0xD8)) {
+      i += 2;
+      continue;
+    }
+    if (m == 0xD9) return 0;
+    if (m == 0xDA) return i;
+    const size_t len = (static_cast<size_t>(p[i + 2]) << 8) | p[i + 3];
+    if (len < 2) return 0;
+    i += 2 + len;
+  }
+  return 0;
+}
 
 // The frame size in a JPEG stream's SOFn header, read without decoding; an
 // empty size when the stream has no such header before its scan data.
@@ -97,6 +128,7 @@ cv::Size jpegFrameSize(const uint8_t* p, size_t n) {
 
 // The checks of an MJPEG message that need no decoding.
 void checkMjpeg(const image_t& msg) {
+  if (msg.size == 0 && msg.data.empty()) fail("MJPEG message has no data");
   if (static_cast<size_t>(msg.size) != msg.data.size() || msg.size <= 0)
     fail("MJPEG size field " + std::to_string(msg.size) + " does not match " +
          std::to_string(msg.data.size()) + " data bytes");
@@ -110,6 +142,8 @@ void checkMjpeg(const image_t& msg) {
   if (static_cast<int64_t>(frame.width) * frame.height > kMaxMjpegPixels)
     fail("MJPEG frame " + std::to_string(frame.width) + "x" + std::to_string(frame.height) +
          " is larger than " + std::to_string(kMaxMjpegPixels) + " pixels");
+  if (!jpegComplete(msg.data.data(), msg.data.size()))
+    fail("MJPEG data ends before its image does (no end-of-image marker: a frame cut short)");
 }
 
 void decodeMjpeg(const image_t& msg, cv::Mat& out, int flags) {
@@ -187,6 +221,16 @@ int32_t pixelFormatFromName(const std::string& name) {
 }
 
 bool isSupportedPixelFormat(int32_t pixelformat) { return findFormat(pixelformat) != nullptr; }
+
+bool jpegComplete(const uint8_t* data, size_t size) {
+  const size_t scan = jpegScanStart(data, size);
+  if (scan == 0) return false;
+  // In the entropy-coded data a 0xFF byte is followed by 0x00 or a restart
+  // marker (D0-D7): FF D9 after the scan's header is the end of the image.
+  for (size_t i = size; i-- > scan + 1;)
+    if (data[i] == 0xD9 && data[i - 1] == 0xFF) return true;
+  return false;
+}
 
 void checkImage(const image_t& msg) {
   const FormatInfo* f = findFormat(msg.pixelformat);

@@ -6,6 +6,9 @@
 #include <cstring>
 #include <iostream>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+
 #include <glib.h>
 #include <lcm/lcm-cpp.hpp>
 
@@ -16,13 +19,37 @@ std::string defaultLcmUrl() {
   return "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608";
 }
 
-int lcmOpenFailureStatus(const std::string& url) {
+std::string lcmUrlProblem(const std::string& url) {
   const size_t end = url.find("://");
-  if (end == std::string::npos) return 2;
-  for (const char* known : {"udpm", "mpudpm", "file", "memq", "tcpq"})
-    if (url.compare(0, end, known) == 0) return 1;
-  return 2;
+  if (end == std::string::npos) return url + " is not an LCM URL (PROVIDER://..., e.g. " + kLcmUrlExample + ")";
+  const std::string provider = url.substr(0, end);
+  if (provider == "udpm" || provider == "mpudpm") {
+    // udpm://GROUP:PORT?options: LCM takes a missing port as 0, where it
+    // never receives (and its wait then aborts the process)
+    const size_t q = url.find('?');
+    const std::string target = url.substr(end + 3, q == std::string::npos ? std::string::npos : q - end - 3);
+    const size_t colon = target.find(':');
+    const std::string group = target.substr(0, colon);
+    in_addr a{};
+    if (!group.empty() && (inet_pton(AF_INET, group.c_str(), &a) != 1 || !IN_MULTICAST(ntohl(a.s_addr))))
+      return url + ": " + group + " is not a multicast group (224.0.0.0 to 239.255.255.255, e.g. " +
+             kLcmUrlExample + ")";
+    if (!target.empty()) {
+      const std::string port = colon == std::string::npos ? "" : target.substr(colon + 1);
+      char* stop = nullptr;
+      const long p = std::strtol(port.c_str(), &stop, 10);
+      if (port.empty() || *stop != '\0' || p < 1 || p > 65535)
+        return url + ": " + (port.empty() ? std::string("no port") : "port " + port + " is not one") +
+               " (udpm://GROUP:PORT, e.g. " + kLcmUrlExample + ")";
+    }
+    return "";
+  }
+  for (const char* known : {"file", "memq", "tcpq"})
+    if (provider == known) return "";
+  return url + ": LCM has no provider " + provider + " (udpm, mpudpm, file, memq, tcpq)";
 }
+
+int lcmOpenFailureStatus(const std::string& url) { return lcmUrlProblem(url).empty() ? 1 : 2; }
 
 bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const char* program) {
   if (lcm.handleTimeout(timeout_ms) < 0) {

@@ -166,12 +166,18 @@ bool decodeChecked(const void* data, size_t size, T& out, std::string* error, co
 
 }  // namespace
 
+// (lcm-gen's decoder resizes an array of bytes or numbers only when its
+// length is not 0: an empty one would keep a reused message's old values)
 bool decodeMessage(const void* data, size_t size, image_t& out, std::string* error) {
-  return decodeChecked(data, size, out, error, "ld.image_t", walkImage);
+  if (!decodeChecked(data, size, out, error, "ld.image_t", walkImage)) return false;
+  if (out.size == 0) out.data.clear();
+  return true;
 }
 
 bool decodeMessage(const void* data, size_t size, landmark_list_t& out, std::string* error) {
-  return decodeChecked(data, size, out, error, "ld.landmark_list_t", walkLandmarkList);
+  if (!decodeChecked(data, size, out, error, "ld.landmark_list_t", walkLandmarkList)) return false;
+  if (out.nstages == 0) out.stage_ms.clear();
+  return true;
 }
 
 bool decodeMessage(const void* data, size_t size, qr_code_list_t& out, std::string* error) {

@@ -99,6 +99,10 @@ int main(int argc, char** argv) {
       !p.empty())
     return ld::cli::usage(argv[0], p);
 
+  if (const std::string problem = ld::lcmUrlProblem(url); !problem.empty()) {
+    std::cerr << "ld-qr-reader: LCM URL " << problem << "\n";
+    return 2;
+  }
   lcm::LCM lcm(url);
   if (!lcm.good()) {
     std::cerr << "ld-qr-reader: cannot open LCM at " << url << "\n";
@@ -121,6 +125,8 @@ int main(int argc, char** argv) {
   std::vector<int64_t> ids;
   std::vector<std::pair<int64_t, int32_t>> ages;  // (track id, age) of every track of the frame
   bool untracked_said = false;                     // said that the lists carry no track ids
+  bool unjoined_said = false;                      // said that no image and list ever joined
+  constexpr int64_t kUnjoinedNote = 60;            // messages dropped unjoined before that is said
   // Undecoded tracks' frames, averaged (ld::QrStack); at most kMaxStacks.
   constexpr size_t kMaxStacks = 32;
   constexpr int kMinStackFrames = 3;
@@ -130,6 +136,13 @@ int main(int argc, char** argv) {
     // waits, then drains the queue: only the newest message is processed
     if (!ld::pumpLcm(lcm, 200, g_stop, "ld-qr-reader")) return 1;
     if (g_stop) break;
+    // (nothing ever joined: the images and the lists are of different frames)
+    if (frames == 0 && !unjoined_said && in.matcher.unmatchedDropped() >= kUnjoinedNote) {
+      std::cerr << "ld-qr-reader: note: " << in.matcher.unmatchedDropped() << " images and lists on " << image_ch
+                << " and " << tracks_ch << " and none of the same frame (utime and seq) yet: --image must be "
+                << "the images the tracked landmarks were found in\n";
+      unjoined_said = true;
+    }
     if (!in.matcher.takeNewest(pair)) continue;
     const int ni = static_cast<int>(pair.image.size()), nl = static_cast<int>(pair.list.size());
     if (image.decode(pair.image.data(), 0, ni) != ni || list.decode(pair.list.data(), 0, nl) != nl)

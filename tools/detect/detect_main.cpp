@@ -149,14 +149,17 @@ int main(int argc, char** argv) {
   std::string pose_error;       // the last frame's Detection::pose_error
   for (const auto& path : files) {
     cv::Mat img;
+    const std::string cut = ld::truncatedJpegProblem(path);
     try {
-      img = cv::imread(path, cv::IMREAD_COLOR);
+      if (cut.empty()) img = cv::imread(path, cv::IMREAD_COLOR);
     } catch (const cv::Exception&) {
       img.release();
     }
     if (img.empty()) {
       std::error_code ec;
-      const char* why = !fs::exists(path, ec) ? "no such file" : "cannot read as an image";
+      const std::string why = !fs::exists(path, ec) ? "no such file"
+                              : !cut.empty()        ? "cannot read as an image: it " + cut
+                                                    : "cannot read as an image";
       std::cerr << "ld-detect: " << path << ": " << why << "\n";
       out << nlohmann::ordered_json{{"image", path}, {"error", why}}.dump(-1, ' ', false, kReplace) << "\n";
       ++failed;

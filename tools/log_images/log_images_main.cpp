@@ -78,6 +78,10 @@ int main(int argc, char** argv) {
     std::cerr << "ld-log-images: " << input << " does not exist\n";
     return 2;
   } else if (isImageFile(input)) {  // one image: a log of one frame
+    if (const std::string cut = ld::truncatedJpegProblem(input); !cut.empty()) {
+      std::cerr << "ld-log-images: " << input << ": cannot read as an image: it " << cut << "\n";
+      return 2;
+    }
     if (cv::imread(input, cv::IMREAD_COLOR).empty()) {
       std::cerr << "ld-log-images: " << input << ": cannot read as an image\n";
       return 2;
@@ -110,9 +114,11 @@ int main(int argc, char** argv) {
     cv::Mat frame;
     if (!files.empty()) {
       if (i >= files.size()) break;
-      frame = cv::imread(files[i], cv::IMREAD_COLOR);
+      const std::string cut = ld::truncatedJpegProblem(files[i]);
+      if (cut.empty()) frame = cv::imread(files[i], cv::IMREAD_COLOR);
       if (frame.empty()) {
-        std::cerr << "ld-log-images: " << files[i] << ": cannot read as an image, skipped\n";
+        std::cerr << "ld-log-images: " << files[i] << ": cannot read as an image" << (cut.empty() ? "" : ": it " + cut)
+                  << ", skipped\n";
         ++skipped;
         continue;
       }

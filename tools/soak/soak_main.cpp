@@ -9,12 +9,15 @@
 //   scripts/netns-run.sh build/bin/ld-soak --duration 600
 #include <fcntl.h>
 #include <signal.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -62,7 +65,13 @@ struct Child {
   std::string name;
   pid_t pid = -1;
   std::string err_path;
+  bool reaped = false;  // ended during the run (its status was taken then)
 };
+
+// SIGINT / SIGTERM (Ctrl-C, timeout, systemd): the run stops publishing and
+// ends as usual, the set stopped and the verdict printed.
+std::atomic<bool> g_stop{false};
+void onSignal(int) { g_stop = true; }
 
 Child spawn(const std::string& bin_dir, const std::string& name, const std::string& url,
             const std::string& log_dir) {
@@ -71,6 +80,7 @@ Child spawn(const std::string& bin_dir, const std::string& name, const std::stri
   const pid_t pid = fork();
   if (pid < 0) throw std::runtime_error("fork failed");
   if (pid == 0) {
+    prctl(PR_SET_PDEATHSIG, SIGTERM);  // (ld-soak killed outright: the set goes too)
     const int fd = open(c.err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     if (fd >= 0) {
       dup2(fd, 2);
@@ -276,6 +286,10 @@ int main(int argc, char** argv) {
   std::cout << " " << bytes / frames.size() / 1024 << " KiB per frame\n";
 
   const std::string url = ld::defaultLcmUrl();
+  if (const std::string problem = ld::lcmUrlProblem(url); !problem.empty()) {
+    std::cerr << "ld-soak: LCM URL " << problem << "\n";
+    return 2;
+  }
   lcm::LCM lcm(url);
   if (!lcm.good()) {
     std::cerr << "ld-soak: cannot open LCM at " << url << "\n";
@@ -337,10 +351,12 @@ int main(int argc, char** argv) {
   double next_sample = 0;
   int64_t late = 0;
   bool died = false;
-  for (int64_t i = 0; i < planned && !died; ++i) {
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
+  for (int64_t i = 0; i < planned && !died && !g_stop; ++i) {
     const auto due = t0 + i * period;
-    if (i > 0 && secondsSince(t0) >= o.duration_s) break;
-    while (Clock::now() < due) {
+    if ((i > 0 && secondsSince(t0) >= o.duration_s) || g_stop) break;
+    while (Clock::now() < due && !g_stop) {
       const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(due - Clock::now()).count();
       lcm.handleTimeout(static_cast<int>(std::max<int64_t>(left, 0)));
     }
@@ -355,10 +371,10 @@ int main(int argc, char** argv) {
     if (secondsSince(t0) >= next_sample) {
       sample(secondsSince(t0), i + 1);
       next_sample += o.sample_s;
-      for (const auto& c : set)
+      for (auto& c : set)
         if (waitpid(c.pid, nullptr, WNOHANG) == c.pid) {
           std::cerr << "ld-soak: " << c.name << " exited during the run (see " << c.err_path << ")\n";
-          died = true;
+          c.reaped = died = true;
         }
     }
   }
@@ -368,9 +384,11 @@ int main(int argc, char** argv) {
   while (Clock::now() < drain_until) lcm.handleTimeout(100);
   sample(secondsSince(t0), total);
 
-  for (auto& c : set) kill(c.pid, SIGINT);
+  for (auto& c : set)
+    if (!c.reaped) kill(c.pid, SIGINT);
   bool clean_exit = !died;
   for (auto& c : set) {
+    if (c.reaped) continue;  // (said above; not a clean exit)
     int status = 0;
     waitpid(c.pid, &status, 0);
     if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
@@ -385,6 +403,7 @@ int main(int argc, char** argv) {
   auto qr = exitCounts(set[2].err_path, "ld-qr-reader", {"tracks read", "skipped", "unmatched", "bad"});
   if (det.empty() || trk.empty() || qr.empty()) {
     std::cerr << "ld-soak: missing exit lines in " << o.log_dir << "\n";
+    std::printf("verdict: FAIL (a process did not finish its run: see %s)\n", o.log_dir.c_str());
     return 1;
   }
   const int64_t det_in = det["frames"] + det["skipped"] + det["bad"];
@@ -442,7 +461,8 @@ int main(int argc, char** argv) {
                 growth / minutes, peak, a.fds, b.fds);
   }
   const bool none_lost = lost_image == 0 && lost_landmarks == 0 && lost_to_soak == 0 && out.bad == 0;
-  const bool pass = mem_flat && fds_flat && none_lost && clean_exit;
+  const bool pass = mem_flat && fds_flat && none_lost && clean_exit && !g_stop;
+  if (g_stop) std::printf("stopped by a signal after %.1f s of %g\n", publish_s, o.duration_s);
   std::printf("verdict: %s (memory %s, fds %s, %s, %s)\n", pass ? "PASS" : "FAIL",
               mem_flat ? "flat" : "GROWS", fds_flat ? "flat" : "CHANGE",
               none_lost ? "no message lost" : "MESSAGES LOST",

@@ -10,6 +10,9 @@
 namespace ld {
 
 struct CameraModel {
+  /// The largest image side a calibration file may give (as the frames').
+  static constexpr int kMaxImageSide = 16384;
+
   cv::Matx33d K = cv::Matx33d::eye();  // camera matrix
   cv::Mat dist;                        // distortion coefficients (empty: none)
   cv::Size size;                       // image size the calibration is for
@@ -36,6 +39,11 @@ struct CameraModel {
   std::string misfit(cv::Size frame) const;
 
   bool hasDistortion() const;
+  /// Why the distortion coefficients cannot be this camera's: a point of the
+  /// image taken back to ideal coordinates and distorted again does not come
+  /// back to where it was (by a twentieth of the image's diagonal, far beyond
+  /// a real lens model's shortfall). "" when they can, or there are none.
+  std::string distortionProblem() const;
 };
 
 }  // namespace ld

@@ -68,6 +68,41 @@ inline std::optional<std::string> unsafeForOpenCv(const std::string& text) {
   return std::nullopt;
 }
 
+/// The first integer of `text` (outside comments) that OpenCV's parsers
+/// would wrap around: they read integers into 32 bits, so 4294967299 became
+/// 3 without a word. As "line N: the integer X is out of range (...)", or
+/// nullopt.
+inline std::optional<std::string> integerOutOfRange(const std::string& text) {
+  size_t line = 1, start = 0;
+  while (start < text.size()) {
+    size_t end = text.find('\n', start);
+    if (end == std::string::npos) end = text.size();
+    const std::string s = text.substr(start, end - start).substr(0, text.substr(start, end - start).find('#'));
+    for (size_t i = 0; i < s.size();) {
+      // a whole token of digits (an optional sign first), between separators
+      const bool boundary = i == 0 || std::string(" \t\r:[,{>").find(s[i - 1]) != std::string::npos;
+      size_t j = i + (s[i] == '-' || s[i] == '+');
+      const size_t digits = j;
+      while (j < s.size() && s[j] >= '0' && s[j] <= '9') ++j;
+      const bool whole = j > digits && (j == s.size() || std::string(" \t\r,]}<").find(s[j]) != std::string::npos);
+      if (boundary && whole) {
+        const std::string token = s.substr(i, j - i);
+        const std::string mag = token.substr(digits - i);
+        const std::string limit = token[0] == '-' ? "2147483648" : "2147483647";
+        const size_t lead = std::min(mag.find_first_not_of('0'), mag.size());
+        const std::string m = mag.substr(lead);
+        if (m.size() > limit.size() || (m.size() == limit.size() && m > limit))
+          return "line " + std::to_string(line) + ": the integer " + token +
+                 " is out of range (-2147483648 to 2147483647)";
+      }
+      i = std::max(j, i + 1);
+    }
+    start = end + 1;
+    ++line;
+  }
+  return std::nullopt;
+}
+
 /// A name-like string value of a configuration file as written: OpenCV's
 /// YAML parser keeps a trailing comment (`front_end: paper   # or fast`) and
 /// the spaces before it in a plain string; they are cut here. For names
@@ -117,7 +152,10 @@ inline cv::FileStorage openConfigFile(const std::string& path, const std::string
   std::ifstream f(path, std::ios::binary);
   if (!f) fail("cannot open");
   std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  // (an editor's UTF-8 byte order mark: OpenCV takes it as part of the first key)
+  if (text.compare(0, 3, "\xEF\xBB\xBF") == 0) text.erase(0, 3);
   if (const auto why = unsafeForOpenCv(text)) fail(*why);
+  if (const auto why = integerOutOfRange(text)) fail(*why);
   const size_t first = text.find_first_not_of(" \t\r\n");
   if (first == std::string::npos) fail("is empty");
   if (text[first] != '<' && text[first] != '{' && text.compare(first, 5, "%YAML") != 0) {

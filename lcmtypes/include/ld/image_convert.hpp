@@ -48,6 +48,12 @@ bool isSupportedPixelFormat(int32_t pixelformat);
 /// ImageFormatError naming the problem.
 void checkImage(const image_t& msg);
 
+/// Whether JPEG bytes hold a whole image: an end-of-image marker after the
+/// first scan's header. libjpeg decodes a stream cut short into grey rows
+/// (with a warning of its own that names nothing), and OpenCV takes that as
+/// the image. Bytes after the marker (a camera's padding) are allowed.
+bool jpegComplete(const uint8_t* data, size_t size);
+
 /// Decodes any supported format into 8-bit BGR. `out` is reused when it
 /// already has the right size and type, so a warmed-up caller does not
 /// allocate (MJPEG decoding allocates inside libjpeg regardless).

@@ -15,10 +15,20 @@ namespace ld {
 /// let it take effect; see README).
 std::string defaultLcmUrl();
 
+/// An LCM URL of the project's default kind, for messages.
+constexpr const char* kLcmUrlExample = "udpm://239.255.76.67:7667?ttl=0";
+
+/// Why `url` cannot be an LCM URL, or "": a provider LCM does not have, a
+/// udpm group that is not a multicast address, a udpm URL without a port or
+/// with one that is not (LCM takes a missing port as 0: it never receives,
+/// and its wait aborts the process after a while). The processes check it
+/// before they open LCM and refuse such a URL with status 2.
+std::string lcmUrlProblem(const std::string& url);
+
 /// The exit status of a process whose LCM would not open at `url`: 1 (may
-/// pass: a network not up yet at boot; a supervisor restarts it) for a
-/// provider LCM has (udpm, mpudpm, file, memq, tcpq), 2 (a restart will not
-/// mend it: the URL is wrong) for any other.
+/// pass: a network not up yet at boot; a supervisor restarts it) for a URL
+/// without an lcmUrlProblem, 2 (a restart will not mend it: the URL is
+/// wrong) for one with a problem.
 int lcmOpenFailureStatus(const std::string& url);
 
 }  // namespace ld

@@ -7,8 +7,12 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <vector>
 
 #include <unistd.h>
+
+#include "ld/image_convert.hpp"
 
 namespace ld {
 
@@ -80,6 +84,17 @@ std::string prepareOutputFile(const std::string& path) {
   if (fs::exists(path, ec) && ::access(path.c_str(), W_OK) != 0)
     return std::string("cannot be written: ") + std::strerror(errno);
   return "";
+}
+
+std::string truncatedJpegProblem(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  unsigned char head[3] = {0, 0, 0};
+  if (!f.read(reinterpret_cast<char*>(head), 3) || head[0] != 0xFF || head[1] != 0xD8 || head[2] != 0xFF)
+    return "";
+  f.seekg(0);
+  const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  if (jpegComplete(bytes.data(), bytes.size())) return "";
+  return "is a JPEG cut short (no end-of-image marker)";
 }
 
 std::string prepareLogOutputFile(const std::string& path) {

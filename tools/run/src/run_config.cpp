@@ -1,6 +1,7 @@
 #include "ld/run_config.hpp"
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -108,7 +109,11 @@ Json fromYaml(const YAML::Node& n, size_t& count) {
       for (const auto& kv : n) {
         if (!kv.first.IsScalar())
           throw std::runtime_error("line " + std::to_string(kv.first.Mark().line + 1) + ": a key must be text");
-        o[textOf(kv.first)] = fromYaml(kv.second, count);
+        const std::string key = textOf(kv.first);
+        if (o.contains(key))
+          throw std::runtime_error("line " + std::to_string(kv.first.Mark().line + 1) + ": key \"" + key +
+                                   "\" is given twice");
+        o[key] = fromYaml(kv.second, count);
       }
       return o;
     }
@@ -129,6 +134,14 @@ Json fromYaml(const YAML::Node& n, size_t& count) {
     default:
       return nullptr;
   }
+}
+
+// A number for another program's command line, as exact as the double
+// (std::to_string's six decimals made a speed of 1e-7 "0.000000").
+std::string number(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.17g", v);
+  return text;
 }
 
 bool endsWith(const std::string& s, const std::string& tail) {
@@ -207,7 +220,10 @@ RunConfig RunConfig::fromTree(const Json& j, bool yaml) {
     if (!(c.restart.initial_s > 0) || c.restart.max_s < c.restart.initial_s)
       throw std::runtime_error("restart: need 0 < initial_s <= max_s");
   }
-  if (!(c.speed > 0)) throw std::runtime_error("source.speed: must be > 0");
+  if (!(c.speed >= 0.01 && c.speed <= 1000))
+    throw std::runtime_error("source.speed: must be in [0.01, 1000] (lcm-logplayer's speed factor)");
+  if (!(c.play_duration_s >= 0 && c.play_duration_s < 1e9))
+    throw std::runtime_error("source.duration_s: must be >= 0 (0: the log once) and under 1e9");
   if (!(c.play_fps >= 0.001 && c.play_fps <= 1000))
     throw std::runtime_error("source.fps: must be in [0.001, 1000] (ld-play's range)");
   try {
@@ -243,6 +259,8 @@ RunConfig RunConfig::load(const std::string& given) {
       throw std::runtime_error("config " + given + ": both " + found[0] + " and " + found[1] + " exist; give one");
     path = found[0];
   }
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) throw std::runtime_error("config " + path + " is a folder");
   std::ifstream f(path);
   if (!f) throw std::runtime_error("cannot read config " + path);
   Json j;
@@ -260,7 +278,21 @@ RunConfig RunConfig::load(const std::string& given) {
     if (j.is_null()) j = Json::object();  // an empty file: every default
   } else {
     try {
-      j = Json::parse(f, nullptr, true, /*ignore_comments=*/true);
+      // (a key given twice: the parser keeps the last; said instead, as
+      // the other configuration readers say it)
+      std::vector<std::set<std::string>> keys;
+      std::string twice;
+      const Json::parser_callback_t check = [&](int, Json::parse_event_t event, Json& parsed) {
+        if (event == Json::parse_event_t::object_start) keys.emplace_back();
+        else if (event == Json::parse_event_t::object_end && !keys.empty()) keys.pop_back();
+        else if (event == Json::parse_event_t::key && !keys.empty() && !keys.back().insert(parsed.get<std::string>()).second &&
+                 twice.empty())
+          twice = parsed.get<std::string>();
+        return true;
+      };
+      j = Json::parse(f, check, true, /*ignore_comments=*/true);
+      if (!twice.empty())
+        throw std::runtime_error(path + ": key \"" + twice + "\" is given twice (only the last would count)");
     } catch (const Json::exception& e) {  // parse_error, and out_of_range for a number like 3e333
       throw std::runtime_error(path + ": not valid JSON: " + e.what());
     }
@@ -310,7 +342,7 @@ std::vector<ProcessSpec> buildProcessSpecs(const RunConfig& cfg, const std::stri
   } else if (cfg.source == "replay") {
     if (cfg.log.empty()) throw std::runtime_error("replay: no log file given");
     std::vector<std::string> argv{prog("lcm-logplayer"), "--lcm-url=" + url,
-                                  "--speed=" + std::to_string(cfg.speed),
+                                  "--speed=" + number(cfg.speed),
                                   "--regexp=" + (cfg.replay_channels.empty()
                                                      ? "^" + quoteRegex(ch.image) + "$"
                                                      : cfg.replay_channels)};
@@ -320,10 +352,10 @@ std::vector<ProcessSpec> buildProcessSpecs(const RunConfig& cfg, const std::stri
   } else if (cfg.source == "play") {
     if (cfg.log.empty()) throw std::runtime_error("play: no log file given");
     std::vector<std::string> argv{prog("ld-play"), cfg.log, "--lcm-url", url, "--channel", ch.image,
-                                  "--fps", std::to_string(cfg.play_fps), "--format", cfg.play_format};
+                                  "--fps", number(cfg.play_fps), "--format", cfg.play_format};
     if (cfg.play_duration_s > 0) {
       argv.push_back("--duration");
-      argv.push_back(std::to_string(cfg.play_duration_s));
+      argv.push_back(number(cfg.play_duration_s));
     }
     add("play", ProcessRole::Source, argv, cfg.source_args);
   } else if (cfg.source != "none") {

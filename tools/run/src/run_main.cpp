@@ -7,6 +7,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <string>
@@ -20,10 +21,13 @@
 #include "ld/cli.hpp"
 #include "ld/bus_monitor.hpp"
 #include "ld/file_checks.hpp"
+#include "ld/lcm_log_reader.hpp"
 #include "ld/lcm_url.hpp"
 #include "ld/netns.hpp"
 #include "ld/run_config.hpp"
 #include "ld/supervisor.hpp"
+
+namespace fs = std::filesystem;
 
 namespace {
 
@@ -84,6 +88,12 @@ class Console {
       std::fprintf(stderr, "[status] %s\n", text.c_str());
     }
     std::fflush(stderr);
+  }
+  /// Where a process's own lines went, for a message that points to them.
+  std::string whereLinesOf(const std::string& name) const {
+    if (!log_dir_.empty()) return "its error is in " + log_dir_ + "/" + name + ".log";
+    if (quiet_) return "-q kept its error out: run without it";
+    return "its error is above";
   }
   void clearStatus() {
     if (status_shown_) std::fprintf(stderr, "\r\033[K");
@@ -194,7 +204,8 @@ int main(int argc, char** argv) {
   app.add_option("--source", source, "camera, replay, play or none (default: the config's, or camera)")
       ->check(CLI::IsMember({"camera", "replay", "play", "none"}));
   app.add_option("--replay", replay, "replay this LCM log with lcm-logplayer (implies --source replay)");
-  app.add_option("--speed", speed, "replay speed factor (lcm-logplayer -s)")->check(ld::cli::Positive);
+  app.add_option("--speed", speed, "replay speed factor (lcm-logplayer -s; 0.01 to 1000)")
+      ->check(ld::cli::Between(0.01, 1000));
   app.add_option("--play", play,
                  "loop this log's images with ld-play, fresh utime and seq (implies --source play)");
   app.add_option("--fps", play_fps, "--play: frames per second (0.001 to 1000)")->check(ld::cli::Between(0.001, 1000));
@@ -302,7 +313,15 @@ int main(int argc, char** argv) {
     return 2;
   }
   // What lcm-logplayer, ld-play or lcm-logger would fail on at once, and
-  // be restarted for: refused here, in one line.
+  // be restarted for: refused here, in one line. A program that is not
+  // there (a config's "program" mistyped) is the first such.
+  for (const auto& spec : specs)
+    if (spec.argv.empty() || spec.argv[0].empty() || ::access(spec.argv[0].c_str(), X_OK) != 0) {
+      std::cerr << "ld-run: the " << spec.name << "'s program "
+                << (spec.argv.empty() || spec.argv[0].empty() ? std::string("\"\"") : spec.argv[0])
+                << " cannot be run (not in " << ld::selfDirectory() << " nor on PATH, or not executable)\n";
+      return 2;
+    }
   if (!cfg.log.empty() && (cfg.source == "replay" || cfg.source == "play")) {
     const ld::LcmLogCheck log = ld::checkLcmLogStart(cfg.log);
     if (log.start == ld::LcmLogStart::Unreadable) {
@@ -314,7 +333,37 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  // A replayed log's images, counted (the summary says how many came), and
+  // its damage said: lcm-logplayer stops at damaged bytes without a word
+  // ld-run would see.
+  int64_t log_images = -1;
+  std::string log_damage;
+  if (cfg.source == "replay") {
+    ld::LcmLogReader reader(cfg.log);
+    log_images = 0;
+    while (reader.next()) log_images += reader.channel == cfg.channels.image;
+    log_damage = reader.problem();
+  }
   using OutputFile = std::pair<const char*, std::string>;
+  // No file ld-run writes is the log it plays, nor another file it writes (a
+  // recording over the log emptied it before it was played; a summary over
+  // it, or over the recording, replaced it).
+  {
+    const bool plays = cfg.source == "replay" || cfg.source == "play";
+    const std::vector<OutputFile> files{{"log", plays ? cfg.log : ""},
+                                        {"recording", cfg.record},
+                                        {"summary", summary_file},
+                                        {"state file", state_file}};
+    std::error_code ec;
+    for (size_t i = 0; i < files.size(); ++i)
+      for (size_t j = i + 1; j < files.size(); ++j)
+        if (!files[i].second.empty() && !files[j].second.empty() &&
+            fs::weakly_canonical(files[i].second, ec) == fs::weakly_canonical(files[j].second, ec)) {
+          std::cerr << "ld-run: the " << files[j].first << " " << files[j].second << " is the " << files[i].first
+                    << ": it would be written over\n";
+          return 2;
+        }
+  }
   for (const auto& [what, path] : std::initializer_list<OutputFile>{
            {"recording", cfg.record}, {"summary", summary_file}, {"state file", state_file}}) {
     if (path.empty()) continue;
@@ -338,6 +387,13 @@ int main(int argc, char** argv) {
   const auto note = [&](const std::string& text) { console.line("ld-run", text); };
 
   // 2. The monitor subscribes before anything publishes.
+  // (memq:// is each process's own: the set would never hear each other)
+  if (std::string problem = ld::lcmUrlProblem(cfg.lcm_url);
+      !problem.empty() || cfg.lcm_url.rfind("memq:", 0) == 0) {
+    if (problem.empty()) problem = cfg.lcm_url + ": memq is within one process, the set is several (udpm://...)";
+    std::cerr << "ld-run: LCM URL " << problem << "\n";
+    return 2;
+  }
   lcm::LCM lcm(cfg.lcm_url);
   if (!lcm.good()) {
     std::cerr << "ld-run: cannot open LCM at " << cfg.lcm_url << "\n";
@@ -368,7 +424,7 @@ int main(int argc, char** argv) {
     if (state_file.empty()) return;
     Json j{{"pid", ::getpid()}, {"ready", ready}, {"restarts", sup.restarts()},
            {"processes", processesJson(sup, nullptr)}};
-    writeFileAtomically(state_file, j.dump(2) + "\n");
+    writeFileAtomically(state_file, j.dump(2, ' ', false, Json::error_handler_t::replace) + "\n");
   };
 
   // 3. Start the recorder and the workers and wait until each listens: its
@@ -391,17 +447,21 @@ int main(int argc, char** argv) {
     if (all && monitor.selfTests() - self_tests_before >= static_cast<int64_t>(early.size()) &&
         wallMicros() - monitor.lastSelfTest() > 150'000)
       break;
+    if (sup.failedProcess()) break;  // (said below: no use waiting for it)
     if (Clock::now() > ready_deadline) {
       note("not every process listens after " + std::to_string(wait_ready_s).substr(0, 4) +
            " s; starting the source anyway");
       break;
     }
   }
-  if (!g_stop) {
+  if (!g_stop && !sup.failedProcess()) {
     for (size_t i : late) sup.start(i);
     ready = true;
   }
   writeState();
+  if (!log_damage.empty())
+    note("warning: replay log " + cfg.log + ": " + log_damage +
+         "; lcm-logplayer stops at the damage (--play reads past it)");
   {
     std::string names;
     for (const auto& p : sup.processes()) names += " " + p.spec.name;
@@ -464,7 +524,7 @@ int main(int argc, char** argv) {
     // restarting it again and again.
     if (const ld::ProcessState* failed = sup.failedProcess()) {
       end_reason = std::string(failed->spec.role == ld::ProcessRole::Source ? "the source " : "") +
-                   failed->spec.name + " failed (exit 2; its error is above)";
+                   failed->spec.name + " failed (exit 2; " + console.whereLinesOf(failed->spec.name) + ")";
       exit_code = 1;
       break;
     }
@@ -513,12 +573,17 @@ int main(int argc, char** argv) {
          {"rmem_max", ld::rmemMax()},
          {"source", cfg.source},
          {"log", cfg.log},
+         {"log_images", log_images >= 0 ? Json(log_images) : Json(nullptr)},
          {"processes", processesJson(sup, &rss)},
          {"ld_run_rss_kb_max", self_rss_max_kb},
          {"summary", monitor.summary()}};
   if (!summary_file.empty()) {
+    // (payloads are what the codes held: bytes that are not UTF-8, as
+    // printed, are written as U+FFFD, as ld-detect writes them)
     std::ofstream f(summary_file);
-    if (!(f << s.dump(2) << "\n")) {
+    f << s.dump(2, ' ', false, Json::error_handler_t::replace) << "\n";
+    f.close();
+    if (!f) {
       std::cerr << "ld-run: cannot write " << summary_file << "\n";
       exit_code = 1;
     }
@@ -526,6 +591,13 @@ int main(int argc, char** argv) {
   if (report) printReport(s);
   const Json& f = s["summary"]["frames"];
   const Json& lat = s["summary"]["latency_ms"];
+  // (images of a whole replay that never came: lost on the bus, as large
+  // images are with a small receive buffer)
+  if (log_images > 0 && end_reason == "replay done" && f["images"].get<int64_t>() < log_images)
+    note("warning: " + std::to_string(log_images - f["images"].get<int64_t>()) + " of the log's " +
+         std::to_string(log_images) + " images on " + cfg.channels.image +
+         (log_damage.empty() ? " never came (lost on the bus: README, \"LCM URL and large images\")"
+                             : " never came (lcm-logplayer stopped at the log's damage: --play reads past it)"));
   char buf[256];
   std::snprintf(buf, sizeof buf, "%lld images, %lld tracked, e2e p50 %.2f ms p99 %.2f ms, %d restarts; exit %d",
                 f["images"].get<long long>(), f["tracked"].get<long long>(), lat["p50"].get<double>(),

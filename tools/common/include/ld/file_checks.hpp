@@ -55,6 +55,13 @@ std::string prepareOutputFolder(const std::string& folder);
 /// Read-only file system".
 std::string prepareOutputFile(const std::string& path);
 
+/// For an image file about to be read: when it is a JPEG that ends before its
+/// image does (a copy cut short), why ("is a JPEG cut short (no end-of-image
+/// marker)"): OpenCV reads such a file as an image with grey rows. Empty
+/// otherwise (not a JPEG, a whole one, or a file that cannot be read, which
+/// reading it says).
+std::string truncatedJpegProblem(const std::string& path);
+
 /// prepareOutputFile for an LCM log about to be written: besides, a file
 /// already at `path` must be an LCM log (or empty), so that a log is never
 /// written over an image, a video or anything else a user meant as input.
