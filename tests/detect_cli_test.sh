@@ -100,6 +100,15 @@ set +e; "$BIN/ld-detect" "$T/bad.png" --summary >/dev/null 2>"$T/err"; rc=$?; se
 [ $rc -eq 1 ] && grep -q "^ld-detect: 0 images, 0 with landmarks, 0 landmarks; 1 unreadable; backend" "$T/err" || fail "summary of none: $(cat "$T/err")"
 "$BIN/ld-detect" "$T/s/000000.png" --summary >/dev/null 2>"$T/err"
 grep -q "^ld-detect: 1 image, 1 with landmarks, 1 landmark, 1.00 per image" "$T/err" || fail "summary of one: $(cat "$T/err")"
+# A JPEG cut short is no image (OpenCV read it as grey rows, exit 0); a link
+# in a folder whose file is gone is named, not skipped without a word
+"$BIN/ld-synth" scene --out "$T/j" --count 1 --jpg >/dev/null
+head -c 20000 "$T/j/000000.jpg" >"$T/j/cut.jpg"
+ln -s "$T/gone.png" "$T/j/gone.png"
+set +e; "$BIN/ld-detect" "$T/j" >"$T/out" 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 1 ] && grep -q "cut.jpg: cannot read as an image: it is a JPEG cut short (no end-of-image marker)$" "$T/err" &&
+  grep -q "gone.png: no such file$" "$T/err" && [ "$(wc -l <"$T/out")" -eq 3 ] ||
+  fail "cut JPEG, broken link: exit $rc, $(cat "$T/err")"
 # -o naming a folder (a trailing /): refused, no folder made
 set +e; "$BIN/ld-detect" "$T/s/000000.png" -o "$T/newdir/" >/dev/null 2>"$T/err"; rc=$?; set -e
 [ $rc -eq 2 ] && grep -q "^ld-detect: cannot write $T/newdir/: names a folder (it ends in /), not a file$" "$T/err" &&

@@ -131,6 +131,9 @@ TEST(CameraFile, ValuesNoCameraHasAreRefused) {
                 .find("line 1: the integer 4294967936 is out of range (-2147483648 to 2147483647)"),
             std::string::npos)
       << load(file("image_width: 4294967936\nimage_height: 480\n", 600, zero));
+  // under keys it does not read, a long number is no matter (a camera's serial)
+  EXPECT_EQ(load("camera_name: 4103284471\nserial: 12345678901 # lot\n" + file(vga.substr(14), 600, zero).substr(0) ), "")
+      << load("camera_name: 4103284471\nserial: 12345678901 # lot\n" + file(vga.substr(14), 600, zero));
   // a camera_matrix of OpenCV's kind with too few values: counted, not OpenCV's assertion
   std::string short_k = file(vga, 600, zero);
   short_k.replace(short_k.find(", 0., 0., 1. ]"), 14, " ]");

@@ -896,6 +896,39 @@ TEST(Detector, SmallAndSteep) {
   }
 }
 
+// A frame cluttered with more blue squares than max_candidates keeps (400),
+// each larger than a far landmark's: the landmark is still found (its FIPs
+// have a red square of their size within reach and are kept first), and the
+// explanation says that the cap was reached. Kept by size alone, the
+// clutter pushed every square of the landmark out.
+TEST(Detector, ClutterOverTheCandidateCapKeepsTheLandmark) {
+  cv::Mat img = background(kCam.size, 4);
+  const Placed p = place(1.5, 0, 0, 0.09);  // FIPs of 8 px
+  drawSheet(img, kCam, p);
+  const Truth t = truthOf(kCam, p);
+  double x0 = 1e9, y0 = 1e9, x1 = -1e9, y1 = -1e9;
+  for (const auto& c : t.corners) x0 = std::min(x0, c.x), y0 = std::min(y0, c.y), x1 = std::max(x1, c.x), y1 = std::max(y1, c.y);
+  const cv::Rect2d sheet(x0, y0, x1 - x0, y1 - y0);
+  int drawn = 0;
+  for (int y = 4; y + 12 < img.rows; y += 19)
+    for (int x = 4; x + 12 < img.cols; x += 19) {
+      const cv::Rect r(x, y, 12, 12);  // 144 px, over twice a FIP's 64
+      if ((cv::Rect2d(r) & cv::Rect2d(sheet.x - 20, sheet.y - 20, sheet.width + 40, sheet.height + 40)).area() > 0)
+        continue;
+      cv::rectangle(img, r, cv::Scalar(150, 35, 25), cv::FILLED);
+      ++drawn;
+    }
+  ASSERT_GT(drawn, 500);
+  ld::Detector det;
+  ld::Explanation why;
+  const auto& d = det.detect(img, why);
+  EXPECT_TRUE(found(d, t)) << ld::describe(why, det.params());
+  EXPECT_GT(why.fips_over_cap, 0);
+  EXPECT_NE(ld::describe(why, det.params()).find("max_candidates, 400, kept the FIPs near a red square first"),
+            std::string::npos)
+      << ld::describe(why, det.params());
+}
+
 TEST(Detector, TwoLandmarksSideBySide) {
   cv::Mat img = background(kCam.size, 5);
   const Placed a = place(1.0, 0, 0, 0.15, -0.085, 0);
@@ -2197,6 +2230,7 @@ TEST(Params, ValidateNamesTheField) {
   EXPECT_EQ(err([](auto&) {}), "");
   EXPECT_NE(err([](auto& p) { p.front_end = "gpu"; }).find("front_end"), std::string::npos);
   EXPECT_NE(err([](auto& p) { p.blur_kernel = 4; }).find("blur_kernel"), std::string::npos);
+  EXPECT_NE(err([](auto& p) { p.blur_kernel = 33; }).find("blur_kernel must be -1, 0 or an odd number from 1 to 31"), std::string::npos);
   EXPECT_NE(err([](auto& p) { p.saturation_threshold = 1.5; }).find("saturation_threshold"), std::string::npos);
   EXPECT_NE(err([](auto& p) { p.d_max = p.d_min; }).find("d_max"), std::string::npos);
   EXPECT_NE(err([](auto& p) { p.canny_high = 1; }).find("canny_high"), std::string::npos);

@@ -389,7 +389,13 @@ TEST(ImageConvert, SeqMetadata) {
 TEST(LcmUrl, OpenFailureStatusTellsAWrongUrl) {
   EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608"), 1);
   EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://"), 1);
-  EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://239.255.76.67"), 1);
+  EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://?ttl=1"), 1);
+  EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://239.255.76.67:0x1df3"), 1);  // (LCM reads the port as C does)
+  EXPECT_EQ(ld::lcmOpenFailureStatus("mpudpm://239.255.76.67:7667?ttl=0"), 1);
+  EXPECT_EQ(ld::lcmOpenFailureStatus("tcpq://localhost:7700"), 1);
+  EXPECT_EQ(ld::lcmOpenFailureStatus(""), 1);  // (LCM's default)
+  EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://239.255.76.67"), 2);  // no port: LCM took 0 and never received
+  EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://:7667"), 2);
   EXPECT_EQ(ld::lcmOpenFailureStatus("file:///tmp/x.lcmlog?mode=r"), 1);
   EXPECT_EQ(ld::lcmOpenFailureStatus("memq://"), 1);
   EXPECT_EQ(ld::lcmOpenFailureStatus("bogus://x"), 2);

@@ -83,7 +83,14 @@ CameraModel CameraModel::pinhole(cv::Size size, double focal_px) {
 }
 
 CameraModel CameraModel::load(const std::string& path) {
-  const cv::FileStorage fs = openConfigFile(path, "camera file");
+  // (integers beyond 32 bits refused where this reads numbers, not under
+  // other keys: a camera's serial number, say)
+  const cv::FileStorage fs = openConfigFile(path, "camera file", [](const std::string& key) {
+    for (const char* k : {"image_width", "image_height", "cameraResolution", "camera_matrix", "cameraMatrix",
+                          "distortion_coefficients", "dist_coeffs", "rows", "cols", "data", "dt"})
+      if (key == k) return true;
+    return false;
+  });
   CameraModel c;
   try {
     // OpenCV's calibration sample and ROS camera_info: camera_matrix,
@@ -125,10 +132,11 @@ CameraModel CameraModel::load(const std::string& path) {
     // The image size: whole pixels, as the frames' (a quoted "640" read as
     // 2147483647, and 1e10 or -640 as missing, before)
     const auto side = [&](const cv::FileNode& n, const std::string& key) {
-      if (!n.isInt() || static_cast<int>(n) < 1 || static_cast<int>(n) > kMaxImageSide)
+      const double v = n.isInt() ? static_cast<double>(static_cast<int>(n)) : n.isReal() ? static_cast<double>(n) : -1;
+      if (!(v >= 1 && v <= kMaxImageSide) || v != std::floor(v))  // (640.0 is 640)
         throw std::runtime_error("camera file " + path + ": " + key + " must be a whole number of pixels, 1 to " +
                                  std::to_string(kMaxImageSide));
-      return static_cast<int>(n);
+      return static_cast<int>(v);
     };
     int w = 0, h = 0;
     const cv::FileNode res = fs["cameraResolution"];
@@ -179,10 +187,12 @@ std::string CameraModel::distortionProblem() const {
   // Along rays from the optical axis in 32 directions, ideal (undistorted)
   // points are distorted into the image until they are half-way from its
   // centre to its corners. Any lens's model carries them outward there
-  // without turning back, and puts that half-way point within a factor of 2
-  // of where the ray would reach it without distortion (a strong wide-angle
-  // lens: about 0.9). Coefficients mistyped, or of another camera, fold the
-  // image over or squeeze it into a sliver of the view. (Nearer the corners
+  // without turning back, and puts that half-way point between a quarter
+  // and twice as far from the centre as the ray would be without distortion
+  // (a strong wide-angle lens: about 0.9; a fisheye's half-way point 67
+  // degrees off the axis: 0.5). Coefficients mistyped, or of another camera,
+  // fold the image over or stretch it, or squeeze it into a sliver of the
+  // view. (Nearer the corners
   // a real calibration's polynomial may fold where no calibration target
   // was: no test there. Nor is taking the image's points back with
   // cv::undistortPoints and out again one: its fixed-point iteration does
@@ -191,7 +201,7 @@ std::string CameraModel::distortionProblem() const {
   const double f = std::sqrt(K(0, 0) * K(1, 1));
   const double half_way = 0.25 * std::hypot(size.width, size.height);
   constexpr int kDirections = 32, kSteps = 4000;
-  constexpr double kStep = 0.005, kMaxFactor = 2;  // (ideal radius up to 20 focal lengths)
+  constexpr double kStep = 0.005, kMinFactor = 0.25, kMaxFactor = 2;  // (ideal radius up to 20 focal lengths)
   std::vector<cv::Point3d> ray(kSteps);
   std::vector<cv::Point2d> img;
   char text[240];
@@ -199,7 +209,7 @@ std::string CameraModel::distortionProblem() const {
     const double a = 2 * CV_PI * d / kDirections;
     for (int i = 0; i < kSteps; ++i) ray[i] = {(i + 1) * kStep * std::cos(a), (i + 1) * kStep * std::sin(a), 1.0};
     cv::projectPoints(ray, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), cv::Mat(K), dist, img);
-    double last = 0;
+    double last = 0, ideal = 0;
     int i = 0;
     for (; i < kSteps; ++i) {
       const double r = std::isfinite(img[i].x) && std::isfinite(img[i].y) ? cv::norm(img[i] - c)
@@ -211,13 +221,17 @@ std::string CameraModel::distortionProblem() const {
                       size.width, size.height, img[i].x, img[i].y, r);
         return text;
       }
+      if (r >= half_way) {
+        // where the ray reaches half-way (between this step and the last),
+        // against where it would without distortion
+        const double t = (half_way - last) / (r - last);
+        ideal = (i + t) * kStep * f;
+        break;
+      }
       last = r;
-      if (r >= half_way) break;
     }
-    // where the ray reaches half-way, against where it would without distortion
-    const double ideal = (std::min(i, kSteps - 1) + 1) * kStep * f;
-    const double factor = std::min(last, half_way) / ideal;
-    if (i == kSteps || !(factor <= kMaxFactor && factor * kMaxFactor >= 1)) {
+    const double factor = half_way / ideal;
+    if (i == kSteps || !(factor <= kMaxFactor && factor >= kMinFactor)) {
       std::snprintf(text, sizeof text,
                     "the distortion puts the points half-way to the corners of the %dx%d image at %.3g times "
                     "their undistorted distance from its centre (direction %.0f deg): coefficients mistyped, or of "

@@ -291,6 +291,10 @@ std::string describe(const Explanation& e, const DetectorParams& p, const std::s
     s += "\n  off colour (color_ratio_a " + num(p.color_ratio_a) + ", color_ratio_b " + num(p.color_ratio_b) +
          cv::format("): %d blue, %d red", e.blue_off_colour, e.red_off_colour);
   s += cv::format("\nsquares: %d FIP%s, %d AP%s", e.fips, e.fips == 1 ? "" : "s", e.aps, e.aps == 1 ? "" : "s");
+  if (e.fips_over_cap > 0 || e.aps_over_cap > 0)
+    s += cv::format(" (of %d and %d: max_candidates, %d, kept %s)", e.fips + e.fips_over_cap,
+                    e.aps + e.aps_over_cap, p.max_candidates,
+                    e.fips_over_cap > 0 ? "the FIPs near a red square first, then the largest" : "the largest");
   s += "\nFIP graph (d_min " + num(p.d_min) + ", d_max " + num(p.d_max) + ", w " + num(p.w_min) + ".." +
        num(p.w_max) + ", h " + num(p.h_min) + ".." + num(p.h_max) +
        cv::format("): %d pair%s, %d triangle%s, %d right isosceles", e.fip_pairs, e.fip_pairs == 1 ? "" : "s",
@@ -463,6 +467,11 @@ struct Detector::Impl {
   std::vector<std::vector<cv::Point>> contours;
   detail::RunScratch runs;
   std::vector<detail::Region> regions, fips, aps;
+  std::vector<detail::Region> fips_near, fips_far;  // classify()'s, over the cap (kept: no allocation per frame)
+  std::vector<std::pair<double, size_t>> aps_by_x;
+  std::vector<double> near_score;
+  std::vector<size_t> near_order;
+  int fips_found = 0, aps_found = 0;                // classify()'s candidates before the cap
   std::vector<uint8_t> adjacency, used;
   int looks_run = 0;  // this frame's looks so far (Region::pass)
   detail::RegionIndex ap_index;
@@ -528,7 +537,7 @@ struct Detector::Impl {
     if (!rival) return filtered;  // the GPU failed: the CPU runs from now on
     if (on_cpu) labels = rival_labels, edges = rival_edges, ran = rival->name();
     const double ms = std::chrono::duration<double, std::milli>(StageTimer::Clock::now() - t0).count();
-    if (trial % kChoiceBlock != 0) (on_cpu ? cpu_ms : gpu_ms).push_back(ms);
+    if (trial % kChoiceBlock != 0 && !(last_large && !on_cpu)) (on_cpu ? cpu_ms : gpu_ms).push_back(ms);
     ++trial;
     return filtered;
   }
@@ -572,12 +581,27 @@ struct Detector::Impl {
     return filtered;
   }
 
+  std::unique_ptr<detail::Filters> cpu_for_large;  // frames the GPU backend does not take
+  bool large_said = false, last_large = false;  // (last_large: the last frame was one)
   // Stages 1-3 on the backend's filters; a GPU failing mid-run is dropped for
   // the CPU (auto's rival, where it has one), and the frame done again there.
   const cv::Mat* runBackend(const cv::Mat& img, StageTimer& timer) {
     ran = filters->name();
+    last_large = false;
     try {
       return filterOn(*filters, img, labels, edges, timer);
+    } catch (const detail::FrameTooLarge& e) {
+      last_large = true;
+      // (this frame alone on the CPU: a stray huge frame does not cost the GPU for good)
+      if (!large_said) {
+        std::cerr << program_invocation_short_name << ": warning: " << e.what()
+                  << "; frames that large run on the CPU backend\n";
+        large_said = true;
+      }
+      if (!cpu_for_large) cpu_for_large = detail::makeCpuFilters();
+      labels.release();
+      ran = cpu_for_large->name();
+      return filterOn(*cpu_for_large, img, labels, edges, timer);
     } catch (const detail::BackendFailure& e) {
       fallback_why = e.what();
       warnBackend(std::string("GLES backend failed (") + e.what() + "); running the CPU backend from now on");
@@ -789,14 +813,59 @@ void Detector::Impl::classify() {
     if (r.colour == detail::kBlue && detail::isFip(r, p.color_ratio_a, p.color_ratio_b)) fips.push_back(r);
     else if (r.colour == detail::kRed && detail::isAp(r, p.color_ratio_a, p.color_ratio_b)) aps.push_back(r);
   }
-  auto keepLargest = [&](std::vector<detail::Region>& v) {
-    std::sort(v.begin(), v.end(), [](const detail::Region& a, const detail::Region& b) {
-      return std::tie(b.area, a.cy, a.cx) < std::tie(a.area, b.cy, b.cx);
-    });
-    if (static_cast<int>(v.size()) > p.max_candidates) v.resize(static_cast<size_t>(p.max_candidates));
+  const auto larger = [](const detail::Region& a, const detail::Region& b) {
+    return std::tie(b.area, a.cy, a.cx) < std::tie(a.area, b.cy, b.cx);
   };
-  keepLargest(fips);
-  keepLargest(aps);
+  const auto cap = static_cast<size_t>(p.max_candidates);
+  fips_found = static_cast<int>(fips.size());
+  aps_found = static_cast<int>(aps.size());
+  std::sort(aps.begin(), aps.end(), larger);
+  if (aps.size() > cap) aps.resize(cap);
+  if (fips.size() <= cap) {
+    std::sort(fips.begin(), fips.end(), larger);
+    return;
+  }
+  // Over the cap, the FIPs that could be a landmark's first: those with a
+  // red square within reach (a FIP's centre is at most 4.25 of its sides
+  // from its AP's, about 10 at the steepest view; 12 here) and of a size a
+  // landmark's squares share; then the rest, largest first.
+  // (Kept by size alone, hundreds of blue things larger than a far
+  // landmark's squares pushed its squares out.)
+  fips_near.clear();
+  fips_far.clear();
+  aps_by_x.clear();  // (the APs in x order: each FIP looks at those within its reach in x alone)
+  for (size_t i = 0; i < aps.size(); ++i) aps_by_x.emplace_back(aps[i].cx, i);
+  std::sort(aps_by_x.begin(), aps_by_x.end());
+  near_score.clear();
+  for (const auto& f : fips) {
+    const double reach = 12 * std::sqrt(static_cast<double>(f.area));
+    double best = std::numeric_limits<double>::infinity();  // |log| of the area ratio to the likest AP in reach
+    for (auto it = std::lower_bound(aps_by_x.begin(), aps_by_x.end(), std::make_pair(f.cx - reach, size_t{0}));
+         it != aps_by_x.end() && it->first <= f.cx + reach; ++it) {
+      const detail::Region& ap = aps[it->second];
+      const double dx = ap.cx - f.cx, dy = ap.cy - f.cy;
+      if (dx * dx + dy * dy <= reach * reach && ap.area * 9 >= f.area && f.area * 9 >= ap.area)
+        best = std::min(best, std::abs(std::log(static_cast<double>(f.area) / ap.area)));
+    }
+    if (std::isfinite(best)) {
+      fips_near.push_back(f);
+      near_score.push_back(std::round(best * 8));  // (area ratios within about 13 % count as alike)
+    } else {
+      fips_far.push_back(f);
+    }
+  }
+  // The near ones likest their AP in size first (a landmark's squares are
+  // printed the same size), then the largest.
+  near_order.resize(fips_near.size());
+  for (size_t i = 0; i < near_order.size(); ++i) near_order[i] = i;
+  std::sort(near_order.begin(), near_order.end(), [&](size_t a, size_t b) {
+    if (near_score[a] != near_score[b]) return near_score[a] < near_score[b];
+    return larger(fips_near[a], fips_near[b]);
+  });
+  std::sort(fips_far.begin(), fips_far.end(), larger);
+  fips.clear();
+  for (size_t i = 0; fips.size() < cap && i < near_order.size(); ++i) fips.push_back(fips_near[near_order[i]]);
+  for (size_t i = 0; fips.size() < cap && i < fips_far.size(); ++i) fips.push_back(fips_far[i]);
 }
 
 // 6. the FIP graph of `fips` (`adjacency`: the distance and size-ratio
@@ -1313,6 +1382,8 @@ void Detector::Impl::explain(Explanation& e) {
     classify();
     e.fips = static_cast<int>(fips.size());
     e.aps = static_cast<int>(aps.size());
+    e.fips_over_cap = fips_found - e.fips;
+    e.aps_over_cap = aps_found - e.aps;
     e.fip_pairs = graph();
     e.triangles = static_cast<int>(cycles.size());
     // A square of a found landmark: within half its side of one of its centres.

@@ -62,6 +62,14 @@ inline bool envFlag(const char* name) {
 struct BackendFailure : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+/// A frame the GPU backend does not take (beyond its texture size limit, or
+/// its memory: kMaxGlesPixels): that frame runs on the CPU, the backend stays.
+struct FrameTooLarge : BackendFailure {
+  using BackendFailure::BackendFailure;
+};
+/// The largest frame the GLES backend takes, in pixels (4096 x 4096: its
+/// textures take about 45 bytes a pixel, 750 MB there; 8000x6000 took 2.2 GB).
+constexpr int64_t kMaxGlesPixels = int64_t{4096} * 4096;
 
 class Filters {
  public:

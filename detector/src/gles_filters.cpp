@@ -24,8 +24,9 @@
 //          worth a GPU's many passes).
 // All of it is integer arithmetic, the same as the CPU's: labels,
 // saturation, Sobel and suppression exactly; the blur is OpenCV's 8-bit fixed
-// point with the weights rounded to 1/256 as OpenCV rounds them for the usual
-// kernels (where its rounding differed, a blurred pixel would be off by one).
+// point with the weights rounded to 1/256 as OpenCV rounds them (its error
+// carried from the outside in) and its border (reflected again and again
+// for a kernel wider than the frame), for every kernel the parameters take.
 // The colour sums of the regions stay on the CPU: they are taken over the
 // few pixels of the few regions that look like squares, less work than a
 // pass over the frame would be.
@@ -85,9 +86,9 @@ uvec3 pixel(ivec2 p) {
 // the clamp keeps an index further out (a radius wider than the image)
 // inside the image.
 const char* kReflect101 = R"(
-int reflect101(int i, int n) {
-  i = i < 0 ? -i : i;
-  i = i >= n ? 2 * n - 2 - i : i;
+int reflect101(int i, int n) {  // (as OpenCV's borderInterpolate: again and again for a kernel wider than the frame)
+  if (n == 1) return 0;
+  for (int k = 0; k < 64 && (i < 0 || i >= n); ++k) i = i < 0 ? -i : 2 * n - 2 - i;
   return clamp(i, 0, n - 1);
 }
 )";
@@ -551,6 +552,8 @@ GLuint linkCompute(const std::string& src) {
 
 class GlesFilters final : public Filters {
  public:
+  /// LD_GLES_FAIL_AT_FRAME counts from here (the caller's frames, not the self test's).
+  void countFramesFromNow() { frames_ = 0, counting_ = true; }
   /// compute: 0 never, 1 always where OpenGL ES 3.1 has them, -1 where they are measured faster.
   GlesFilters(std::unique_ptr<EglContext> ctx, int compute) : ctx_(std::move(ctx)) {
     glGenVertexArrays(1, &vao_);
@@ -852,6 +855,11 @@ class GlesFilters final : public Filters {
 
   void begin(const cv::Mat& bgr) {
     CV_Assert(bgr.type() == CV_8UC3 && !bgr.empty());
+    // (a test's GPU that fails mid-run: LD_GLES_FAIL_AT_FRAME=N fails the Nth frame)
+    if (counting_ && ++frames_ == fail_at_frame_) throw BackendFailure("GLES: failure forced by LD_GLES_FAIL_AT_FRAME");
+    if (static_cast<int64_t>(bgr.cols) * bgr.rows > kMaxGlesPixels)
+      throw FrameTooLarge("GLES: a " + std::to_string(bgr.cols) + "x" + std::to_string(bgr.rows) +
+                          " frame is over the backend's " + std::to_string(kMaxGlesPixels) + " pixels (its memory)");
     if (!ctx_->makeCurrent()) throw BackendFailure("GLES: cannot make the EGL context current");
     if (bgr.cols != w_ || bgr.rows != h_) allocate(bgr.cols, bgr.rows);
   }
@@ -879,8 +887,8 @@ class GlesFilters final : public Filters {
     GLint max_size = 0;
     glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
     if (w > max_size || h > max_size)
-      throw BackendFailure("GLES: a " + std::to_string(w) + "x" + std::to_string(h) +
-                           " frame exceeds the GPU's texture size limit " + std::to_string(max_size));
+      throw FrameTooLarge("GLES: a " + std::to_string(w) + "x" + std::to_string(h) +
+                          " frame exceeds the GPU's texture size limit " + std::to_string(max_size));
     freeTextures();
     w_ = w, h_ = h, w4_ = (w + 3) / 4;
     src_tex_ = texture(GL_RGBA8UI, w4_ * 3, h);
@@ -958,15 +966,23 @@ class GlesFilters final : public Filters {
   void setWeights(const FilterSettings& s) {
     if (kernel_size_ == s.blur_kernel && kernel_sigma_ == s.blur_sigma) return;
     const int radius = s.blur_kernel / 2;
+    // As OpenCV makes its 8-bit kernel (getGaussianKernelFixedPoint_ED):
+    // from the outside in, each weight in 1/256 rounded to nearest (ties to
+    // even) with the error carried to the next, and the centre the rest.
+    // (Rounded each on its own, kernels of 7 and 11 at sigma 3 came out
+    // otherwise, and so did some blurred pixels and edges.)
     const cv::Mat k = cv::getGaussianKernel(s.blur_kernel, s.blur_sigma, CV_64F);
     weights_.assign(static_cast<size_t>(radius) + 1, 0);
     int sum = 0;
-    for (int i = 0; i < s.blur_kernel; ++i) {
-      const int wq = static_cast<int>(std::lround(k.at<double>(i) * 256.0));
-      sum += wq;
-      if (i >= radius) weights_[static_cast<size_t>(i - radius)] = wq;
+    double err = 0;
+    for (int i = 0; i < radius; ++i) {
+      const double adjusted = k.at<double>(i) * 256.0 + err;
+      const int wq = static_cast<int>(std::nearbyint(adjusted));
+      err = adjusted - wq;
+      weights_[static_cast<size_t>(radius - i)] = wq;
+      sum += 2 * wq;
     }
-    weights_[0] += 256 - sum;
+    weights_[0] = 256 - sum;
     kernel_size_ = s.blur_kernel;
     kernel_sigma_ = s.blur_sigma;
   }
@@ -1045,6 +1061,12 @@ class GlesFilters final : public Filters {
   GLuint src_tex_ = 0, unpacked_tex_ = 0, tmp_tex_ = 0, blurred_tex_ = 0, packed_tex_ = 0;
   GLuint hsum0_tex_ = 0, hsum1_tex_ = 0, gsat_tex_ = 0, ggrad_tex_ = 0;  // groups of four pixels
   int w_ = 0, h_ = 0, w4_ = 0;
+  int64_t frames_ = 0;
+  bool counting_ = false;
+  const int64_t fail_at_frame_ = [] {
+    const char* env = std::getenv("LD_GLES_FAIL_AT_FRAME");
+    return env ? std::atoll(env) : int64_t{-1};
+  }();
   int kernel_size_ = -1;
   double kernel_sigma_ = -1;
   std::vector<int> weights_;
@@ -1068,6 +1090,7 @@ std::unique_ptr<Filters> makeGlesFilters(std::string& why, bool allow_compute, b
     const int compute = !allow_compute ? 0 : env && std::strcmp(env, "0") == 0 ? 0 : env && std::strcmp(env, "1") == 0 ? 1 : -1;
     auto f = std::make_unique<GlesFilters>(std::move(ctx), compute);
     if (!f->selfTest(why)) return nullptr;
+    f->countFramesFromNow();  // (LD_GLES_FAIL_AT_FRAME counts the caller's frames, not the self test's)
     return f;
   } catch (const std::exception& e) {
     why = e.what();

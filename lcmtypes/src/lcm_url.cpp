@@ -20,6 +20,7 @@ std::string defaultLcmUrl() {
 }
 
 std::string lcmUrlProblem(const std::string& url) {
+  if (url.empty()) return "";  // (LCM's own default)
   const size_t end = url.find("://");
   if (end == std::string::npos) return url + " is not an LCM URL (PROVIDER://..., e.g. " + kLcmUrlExample + ")";
   const std::string provider = url.substr(0, end);
@@ -31,13 +32,15 @@ std::string lcmUrlProblem(const std::string& url) {
     const size_t colon = target.find(':');
     const std::string group = target.substr(0, colon);
     in_addr a{};
+    if (group.empty() && !target.empty())
+      return url + ": no multicast group before the port (udpm://GROUP:PORT, e.g. " + kLcmUrlExample + ")";
     if (!group.empty() && (inet_pton(AF_INET, group.c_str(), &a) != 1 || !IN_MULTICAST(ntohl(a.s_addr))))
       return url + ": " + group + " is not a multicast group (224.0.0.0 to 239.255.255.255, e.g. " +
              kLcmUrlExample + ")";
     if (!target.empty()) {
       const std::string port = colon == std::string::npos ? "" : target.substr(colon + 1);
       char* stop = nullptr;
-      const long p = std::strtol(port.c_str(), &stop, 10);
+      const long p = std::strtol(port.c_str(), &stop, 0);  // (as LCM reads it: 0x1df3 too)
       if (port.empty() || *stop != '\0' || p < 1 || p > 65535)
         return url + ": " + (port.empty() ? std::string("no port") : "port " + port + " is not one") +
                " (udpm://GROUP:PORT, e.g. " + kLcmUrlExample + ")";

@@ -171,6 +171,8 @@ bool decodeChecked(const void* data, size_t size, T& out, std::string* error, co
 bool decodeMessage(const void* data, size_t size, image_t& out, std::string* error) {
   if (!decodeChecked(data, size, out, error, "ld.image_t", walkImage)) return false;
   if (out.size == 0) out.data.clear();
+  for (auto& m : out.metadata)
+    if (m.n == 0) m.value.clear();
   return true;
 }
 

@@ -46,7 +46,8 @@ std::vector<std::string> expandInputs(const std::vector<std::string>& inputs) {
     if (fs::is_directory(in, ec)) {
       std::vector<std::string> dir;
       for (const auto& e : fs::directory_iterator(in, ec))
-        if (e.is_regular_file() && isImageFile(e.path())) dir.push_back(e.path().string());
+        // (a link whose file is gone is listed too: reading it says so)
+        if (isImageFile(e.path()) && (e.is_regular_file() || e.is_symlink())) dir.push_back(e.path().string());
       std::sort(dir.begin(), dir.end());
       files.insert(files.end(), dir.begin(), dir.end());
     } else {

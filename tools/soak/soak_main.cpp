@@ -77,10 +77,12 @@ Child spawn(const std::string& bin_dir, const std::string& name, const std::stri
             const std::string& log_dir) {
   Child c{name, -1, log_dir + "/" + name + ".err"};
   const std::string exe = bin_dir + "/" + name;
+  const pid_t parent = getpid();
   const pid_t pid = fork();
   if (pid < 0) throw std::runtime_error("fork failed");
   if (pid == 0) {
     prctl(PR_SET_PDEATHSIG, SIGTERM);  // (ld-soak killed outright: the set goes too)
+    if (getppid() != parent) _exit(1);  // (it died before the line above)
     const int fd = open(c.err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     if (fd >= 0) {
       dup2(fd, 2);
@@ -237,6 +239,8 @@ int main(int argc, char** argv) {
                  "machine: scripts/netns-run.sh " << argv[0] << " ...\n";
     return 2;
   }
+  std::signal(SIGINT, onSignal);  // (from here on: a stop while rendering ends with the verdict too)
+  std::signal(SIGTERM, onSignal);
   if (o.warmup_s >= o.duration_s) {
     std::cerr << "ld-soak: --warmup (" << o.warmup_s << " s) must be shorter than --duration ("
               << o.duration_s << " s): memory is compared from the first sample after the warm-up "
@@ -280,6 +284,10 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) {
     std::cerr << "\nld-soak: " << e.what() << "\n";
     return 2;
+  }
+  if (g_stop) {
+    std::printf("\nverdict: FAIL (stopped by a signal before the run)\n");
+    return 1;
   }
   size_t bytes = 0;
   for (const auto& f : frames) bytes += f.data.size();
@@ -351,8 +359,6 @@ int main(int argc, char** argv) {
   double next_sample = 0;
   int64_t late = 0;
   bool died = false;
-  std::signal(SIGINT, onSignal);
-  std::signal(SIGTERM, onSignal);
   for (int64_t i = 0; i < planned && !died && !g_stop; ++i) {
     const auto due = t0 + i * period;
     if ((i > 0 && secondsSince(t0) >= o.duration_s) || g_stop) break;

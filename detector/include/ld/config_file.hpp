@@ -14,8 +14,10 @@
 #include <exception>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <optional>
+#include <regex>
 #include <stdexcept>
 #include <string>
 #include <unordered_set>
@@ -70,15 +72,40 @@ inline std::optional<std::string> unsafeForOpenCv(const std::string& text) {
 
 /// The first integer of `text` (outside comments) that OpenCV's parsers
 /// would wrap around: they read integers into 32 bits, so 4294967299 became
-/// 3 without a word. As "line N: the integer X is out of range (...)", or
-/// nullopt.
-inline std::optional<std::string> integerOutOfRange(const std::string& text) {
+/// 3 without a word. Only under the keys `checked` takes (the key of a
+/// `key:` line, or of an XML line's first tag, and of the lines after it
+/// until the next: a camera file's other keys, a camera's 10-digit serial
+/// say, are not read as numbers). As "line N: the integer X is out of
+/// range (...)", or nullopt.
+inline std::optional<std::string> integerOutOfRange(
+    const std::string& text, const std::function<bool(const std::string&)>& checked = nullptr) {
+  static const std::regex yaml_key(R"(^\s*(?:-\s+)?["']?([A-Za-z_][A-Za-z0-9_]*)["']?\s*:)");
+  static const std::regex xml_tag(R"(<([A-Za-z_][A-Za-z0-9_]*)[\s>/])");
   size_t line = 1, start = 0;
+  std::string key;
+  bool in_xml_comment = false;
   while (start < text.size()) {
     size_t end = text.find('\n', start);
     if (end == std::string::npos) end = text.size();
-    const std::string s = text.substr(start, end - start).substr(0, text.substr(start, end - start).find('#'));
-    for (size_t i = 0; i < s.size();) {
+    std::string s = text.substr(start, end - start);
+    s = s.substr(0, s.find('#'));
+    // (XML comments, over several lines too)
+    for (size_t at = 0; at < s.size();) {
+      if (in_xml_comment) {
+        const size_t close = s.find("-->", at);
+        s.erase(at, close == std::string::npos ? std::string::npos : close + 3 - at);
+        if (close == std::string::npos) break;
+        in_xml_comment = false;
+      } else {
+        at = s.find("<!--", at);
+        if (at == std::string::npos) break;
+        in_xml_comment = true;
+      }
+    }
+    std::smatch m;
+    if (std::regex_search(s, m, yaml_key) || std::regex_search(s, m, xml_tag)) key = m[1].str();
+    const bool look = !checked || checked(key);
+    for (size_t i = 0; look && i < s.size();) {
       // a whole token of digits (an optional sign first), between separators
       const bool boundary = i == 0 || std::string(" \t\r:[,{>").find(s[i - 1]) != std::string::npos;
       size_t j = i + (s[i] == '-' || s[i] == '+');
@@ -90,8 +117,8 @@ inline std::optional<std::string> integerOutOfRange(const std::string& text) {
         const std::string mag = token.substr(digits - i);
         const std::string limit = token[0] == '-' ? "2147483648" : "2147483647";
         const size_t lead = std::min(mag.find_first_not_of('0'), mag.size());
-        const std::string m = mag.substr(lead);
-        if (m.size() > limit.size() || (m.size() == limit.size() && m > limit))
+        const std::string m2 = mag.substr(lead);
+        if (m2.size() > limit.size() || (m2.size() == limit.size() && m2 > limit))
           return "line " + std::to_string(line) + ": the integer " + token +
                  " is out of range (-2147483648 to 2147483647)";
       }
@@ -144,8 +171,10 @@ inline std::optional<std::string> duplicateKey(const cv::FileNode& node, const s
 /// the path is a directory or cannot be read, the file is empty (a file cut
 /// short or never written; `{}` is an empty map), is unsafe, or does not parse
 /// (OpenCV's cv::Exception and the std::length_error and others its parser
-/// lets out included).
-inline cv::FileStorage openConfigFile(const std::string& path, const std::string& what) {
+/// lets out included), or holds an integer beyond 32 bits under a key
+/// `int_keys` takes (every key when null).
+inline cv::FileStorage openConfigFile(const std::string& path, const std::string& what,
+                                      const std::function<bool(const std::string&)>& int_keys = nullptr) {
   const auto fail = [&](const std::string& why) { throw std::runtime_error(what + " " + path + ": " + why); };
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) fail("is a directory");
@@ -155,7 +184,7 @@ inline cv::FileStorage openConfigFile(const std::string& path, const std::string
   // (an editor's UTF-8 byte order mark: OpenCV takes it as part of the first key)
   if (text.compare(0, 3, "\xEF\xBB\xBF") == 0) text.erase(0, 3);
   if (const auto why = unsafeForOpenCv(text)) fail(*why);
-  if (const auto why = integerOutOfRange(text)) fail(*why);
+  if (const auto why = integerOutOfRange(text, int_keys)) fail(*why);
   const size_t first = text.find_first_not_of(" \t\r\n");
   if (first == std::string::npos) fail("is empty");
   if (text[first] != '<' && text[first] != '{' && text.compare(first, 5, "%YAML") != 0) {

@@ -113,8 +113,9 @@ struct DetectorParams {
   std::string backend = "cpu";
 
   // 1. blur
-  /// Gaussian kernel (odd; 0 = no blur; -1 = the front end's own: none for
-  /// "fast", the paper's 9 for "paper"). Blur costs time and erases small squares.
+  /// Gaussian kernel (odd, 1 to 31; 0 = no blur; -1 = the front end's own:
+  /// none for "fast", the paper's 9 for "paper"). Blur costs time and erases
+  /// small squares.
   int blur_kernel = -1;
   double blur_sigma = 0.0;    ///< Gaussian sigma (0: from the kernel; the paper's 3 with -1)
 
@@ -297,9 +298,10 @@ struct DetectorParams {
   /// subtracted from the window before labelling. Only landmarks whose AP
   /// is the window's red square are taken. A quarter of the frame at most.
   int veil_looks = 8;
-  /// FIP and AP candidates kept (largest first), and 3-cycles of the FIP
-  /// graph examined (those among the largest squares first): what bounds the
-  /// time of frames cluttered with hundreds of small blue and red things.
+  /// FIP and AP candidates kept (largest first; over the cap, the FIPs with
+  /// a red square of a like size within reach first), and 3-cycles of the
+  /// FIP graph examined (those among the largest squares first): what bounds
+  /// the time of frames cluttered with hundreds of small blue and red things.
   int max_candidates = 400;
   int max_cycles = 10000;
 
@@ -396,6 +398,7 @@ struct Explanation {
   int blue_sparse = 0, red_sparse = 0;          ///< of them, filling less than min_fill
   int blue_off_colour = 0, red_off_colour = 0;  ///< of the rest, failing the colour ratios a and b
   int fips = 0, aps = 0;                        ///< FIP and AP candidates
+  int fips_over_cap = 0, aps_over_cap = 0;      ///< candidates beyond max_candidates, left out
   int fip_pairs = 0;                            ///< FIP graph edges (distance and size-ratio constraints)
   int triangles = 0;                            ///< the graph's 3-cycles
   int right_isosceles = 0;                      ///< of them, shaped as a landmark's three FIPs

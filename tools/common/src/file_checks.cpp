@@ -10,6 +10,8 @@
 #include <iterator>
 #include <vector>
 
+#include <signal.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "ld/image_convert.hpp"
@@ -108,16 +110,48 @@ std::string prepareLogOutputFile(const std::string& path) {
   return "";
 }
 
+namespace {
+// The pending file a signal would leave behind: removed by the handler
+// (Ctrl-C during a long conversion left a hidden partial file of gigabytes).
+char g_pending[4096] = {0};
+struct sigaction g_old_int, g_old_term;
+
+void removePendingAndExit(int sig) {
+  if (g_pending[0]) ::unlink(g_pending);
+  ::_exit(128 + sig);
+}
+}  // namespace
+
 PendingFile::PendingFile(std::string path) : path_(std::move(path)) {
+  // (through a link at the path: the file it names is the one replaced)
+  std::error_code ec;
+  const std::filesystem::path real = std::filesystem::weakly_canonical(path_, ec);
+  if (!ec && !real.empty()) path_ = real.string();
   const std::filesystem::path p(path_);
   temp_ = (p.parent_path() / ("." + p.filename().string() + ".partial-" + std::to_string(::getpid()))).string();
+  if (temp_.size() < sizeof g_pending && !g_pending[0]) {
+    std::memcpy(g_pending, temp_.c_str(), temp_.size() + 1);
+    struct sigaction sa {};
+    sa.sa_handler = removePendingAndExit;
+    sigemptyset(&sa.sa_mask);
+    ::sigaction(SIGINT, &sa, &g_old_int);
+    ::sigaction(SIGTERM, &sa, &g_old_term);
+    owns_signals_ = true;
+  }
 }
 
 PendingFile::~PendingFile() {
   if (!committed_) ::unlink(temp_.c_str());
+  if (owns_signals_) {
+    ::sigaction(SIGINT, &g_old_int, nullptr);
+    ::sigaction(SIGTERM, &g_old_term, nullptr);
+    g_pending[0] = 0;
+  }
 }
 
 std::string PendingFile::commit() {
+  struct stat old {};
+  if (::stat(path_.c_str(), &old) == 0) ::chmod(temp_.c_str(), old.st_mode & 07777);  // (the file's mode kept)
   if (::rename(temp_.c_str(), path_.c_str()) != 0)
     return "cannot rename " + temp_ + " to " + path_ + ": " + std::strerror(errno);
   committed_ = true;

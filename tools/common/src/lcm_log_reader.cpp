@@ -19,7 +19,7 @@ LcmLogReader::LcmLogReader(const std::string& path) : f_(path, std::ios::binary)
   f_.seekg(0);
 }
 
-bool LcmLogReader::next() {
+bool LcmLogReader::next(bool read_data) {
   for (;;) {
     const int64_t left = size_ - offset_;
     if (left <= 0) return false;
@@ -51,7 +51,7 @@ bool LcmLogReader::next() {
       return fail("the log ends mid-event", std::to_string(left) + " of the event's " + std::to_string(need) + " bytes");
     timestamp = static_cast<int64_t>(be(12, 8));
     channel.resize(static_cast<size_t>(channel_len));
-    data.resize(static_cast<size_t>(data_len));
+    data.resize(read_data ? static_cast<size_t>(data_len) : 0);
     if (readAt(offset_ + static_cast<int64_t>(sizeof h), reinterpret_cast<uint8_t*>(channel.data()), channel.size()) !=
             channel.size() ||
         readAt(offset_ + static_cast<int64_t>(sizeof h) + channel_len, data.data(), data.size()) != data.size())

@@ -341,7 +341,7 @@ int main(int argc, char** argv) {
   if (cfg.source == "replay") {
     ld::LcmLogReader reader(cfg.log);
     log_images = 0;
-    while (reader.next()) log_images += reader.channel == cfg.channels.image;
+    while (reader.next(false)) log_images += reader.channel == cfg.channels.image;  // (headers alone)
     log_damage = reader.problem();
   }
   using OutputFile = std::pair<const char*, std::string>;
@@ -354,11 +354,16 @@ int main(int argc, char** argv) {
                                         {"recording", cfg.record},
                                         {"summary", summary_file},
                                         {"state file", state_file}};
-    std::error_code ec;
+    // (a path that cannot be resolved is compared as given)
+    const auto resolved = [](const std::string& path) {
+      std::error_code ec;
+      const fs::path p = fs::weakly_canonical(path, ec);
+      return ec || p.empty() ? fs::path(path).lexically_normal() : p;
+    };
     for (size_t i = 0; i < files.size(); ++i)
       for (size_t j = i + 1; j < files.size(); ++j)
         if (!files[i].second.empty() && !files[j].second.empty() &&
-            fs::weakly_canonical(files[i].second, ec) == fs::weakly_canonical(files[j].second, ec)) {
+            resolved(files[i].second) == resolved(files[j].second)) {
           std::cerr << "ld-run: the " << files[j].first << " " << files[j].second << " is the " << files[i].first
                     << ": it would be written over\n";
           return 2;

@@ -7,8 +7,10 @@
 // heading from looking ahead to looking back, comes a little closer to the
 // wall half way, and wobbles slightly as a robot does.
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -309,6 +311,9 @@ SequenceStats writeSequence(const SequenceOptions& options) {
     truth.close();
     if (!truth) throw std::runtime_error("write to " + options.out_dir + "/truth.jsonl failed");
   }
+  // (the log's last bytes go out here: a full disk shows now, not unseen when it closes)
+  if (log && (std::fflush(log->getFilePtr()) != 0 || std::ferror(log->getFilePtr())))
+    throw std::runtime_error("write to " + options.log_path + " failed: " + std::strerror(errno));
   return stats;
 }
 

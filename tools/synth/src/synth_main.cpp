@@ -397,6 +397,7 @@ int main(int argc, char** argv) {
 
   LD_CLI_PARSE(app, argc, argv);
 
+  std::string log_name, pending_name;  // sequence --log, and the temporary name it is written under
   try {
     if (scene->parsed()) {
       sa.ecc = ld::artwork::parseQrEcc(ecc_text);
@@ -415,7 +416,8 @@ int main(int argc, char** argv) {
       if (const std::string problem = ld::prepareLogOutputFile(qo.log_path); !problem.empty())
         throw std::runtime_error("--log " + qo.log_path + " " + problem);
       pending_log.emplace(qo.log_path);
-      qo.log_path = pending_log->tempPath();
+      log_name = qo.log_path;
+      qo.log_path = pending_name = pending_log->tempPath();
     }
     if (qo.payloads.size() > 0 && static_cast<int>(qo.payloads.size()) != qo.landmarks) {
       if (sequence->count("--landmarks") == 0) qo.landmarks = static_cast<int>(qo.payloads.size());
@@ -435,7 +437,12 @@ int main(int argc, char** argv) {
   } catch (const UsageError& e) {
     return ld::cli::usage(argv[0], e.what());
   } catch (const std::exception& e) {
-    std::cerr << "ld-synth: " << e.what() << "\n";
+    // (the log is written under a temporary name: said by its own)
+    std::string what = e.what();
+    if (!pending_name.empty())
+      for (size_t at = what.find(pending_name); at != std::string::npos; at = what.find(pending_name, at))
+        what.replace(at, pending_name.size(), log_name);
+    std::cerr << "ld-synth: " << what << "\n";
     return 2;
   }
 }

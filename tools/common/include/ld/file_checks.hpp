@@ -71,7 +71,10 @@ std::string prepareLogOutputFile(const std::string& path);
 
 /// A file written under a temporary name beside its path and renamed to it
 /// by commit(): a run that fails half-way leaves what was at the path as it
-/// was (an earlier good log, say), and no half-written file behind.
+/// was (an earlier good log, say), and no half-written file behind, a run
+/// stopped by SIGINT or SIGTERM included (while it is pending, they remove
+/// it and end the process, status 128 + the signal). A path that is a link
+/// replaces the file the link names; the file's mode is kept.
 class PendingFile {
  public:
   explicit PendingFile(std::string path);
@@ -85,7 +88,7 @@ class PendingFile {
 
  private:
   std::string path_, temp_;
-  bool committed_ = false;
+  bool committed_ = false, owns_signals_ = false;
 };
 
 }  // namespace ld

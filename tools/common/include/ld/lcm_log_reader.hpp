@@ -17,8 +17,9 @@ class LcmLogReader {
   explicit LcmLogReader(const std::string& path);
   bool good() const { return static_cast<bool>(f_); }
   /// The next event (timestamp, channel, data), or false at the end of the
-  /// file or at a problem that ends it.
-  bool next();
+  /// file or at a problem that ends it. Without `read_data`, `data` is left
+  /// empty (counting a log's events: its headers alone are read).
+  bool next(bool read_data = true);
   /// What went wrong, or "" for a whole log: the bytes skipped and how the
   /// file ended ("the log ends mid-event after 2 messages (...)").
   std::string problem() const;
