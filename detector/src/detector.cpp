@@ -849,13 +849,13 @@ void Detector::Impl::classify() {
     }
     if (std::isfinite(best)) {
       fips_near.push_back(f);
-      near_score.push_back(std::round(best * 8));  // (area ratios within about 13 % count as alike)
+      near_score.push_back(std::floor(best / std::log(1.5)));  // (areas within 1.5 times each other are alike)
     } else {
       fips_far.push_back(f);
     }
   }
-  // The near ones likest their AP in size first (a landmark's squares are
-  // printed the same size), then the largest.
+  // The near ones likest their AP in size first, in steps of 1.5 times (a
+  // landmark's squares are printed the same size), then the largest.
   near_order.resize(fips_near.size());
   for (size_t i = 0; i < near_order.size(); ++i) near_order[i] = i;
   std::sort(near_order.begin(), near_order.end(), [&](size_t a, size_t b) {
