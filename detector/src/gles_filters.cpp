@@ -40,7 +40,9 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <errno.h>
 #include <initializer_list>
+#include <iostream>
 #include <map>
 
 #include <opencv2/imgproc.hpp>
@@ -1087,6 +1089,13 @@ std::unique_ptr<Filters> makeGlesFilters(std::string& why, bool allow_compute, b
   }
   try {
     const char* env = std::getenv("LD_GLES_COMPUTE");
+    if (env && *env && std::strcmp(env, "0") != 0 && std::strcmp(env, "1") != 0) {
+      static bool said = false;  // (once a process)
+      if (!said)
+        std::cerr << program_invocation_short_name << ": warning: LD_GLES_COMPUTE=" << env
+                  << " is neither 0 nor 1: ignored (the faster shader path is measured)\n";
+      said = true;
+    }
     const int compute = !allow_compute ? 0 : env && std::strcmp(env, "0") == 0 ? 0 : env && std::strcmp(env, "1") == 0 ? 1 : -1;
     auto f = std::make_unique<GlesFilters>(std::move(ctx), compute);
     if (!f->selfTest(why)) return nullptr;

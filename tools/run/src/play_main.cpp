@@ -164,11 +164,18 @@ int main(int argc, char** argv) {
   // the rate: frames after the first over the time from the first to the last
   const double span = std::chrono::duration<double>(last - t0).count();
   const double rate = sent > 1 && span > 0 ? static_cast<double>(sent - 1) / span : 0.0;
+  // (the frames' size and format, or that they vary: a log of several runs)
+  std::string kind = std::to_string(images[0].width) + "x" + std::to_string(images[0].height) + " " +
+                     ld::pixelFormatName(images[0].pixelformat);
+  for (const auto& img : images)
+    if (img.width != images[0].width || img.height != images[0].height || img.pixelformat != images[0].pixelformat) {
+      kind = "sizes or formats vary; the first " + kind;
+      break;
+    }
   std::fprintf(stderr,
-               "ld-play: published %lld frames (%dx%d %s) in %.2f s, %.2f frames/s; %lld late, %lld "
+               "ld-play: published %lld frames (%s) in %.2f s, %.2f frames/s; %lld late, %lld "
                "failed\n",
-               static_cast<long long>(sent), images[0].width, images[0].height,
-               ld::pixelFormatName(images[0].pixelformat).c_str(), s, rate,
-               static_cast<long long>(late), static_cast<long long>(failed));
+               static_cast<long long>(sent), kind.c_str(), s, rate, static_cast<long long>(late),
+               static_cast<long long>(failed));
   return g_stop || failed == 0 ? 0 : 1;
 }
