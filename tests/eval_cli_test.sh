@@ -90,6 +90,9 @@ set +e; "$BIN/ld-eval" qr --png "" >/dev/null 2>"$T/err"; rc=$?; set -e
 set +e; "$BIN/ld-eval" distance --trials 1 --from 1 --to 1 --side 0.15 --markdown /dev/full >/dev/null 2>"$T/err"; rc=$?; set -e
 [ $rc -ne 0 ] && grep -q "^ld-eval: cannot write /dev/full: No space left on device" "$T/err" ||
   fail "--markdown /dev/full: exit $rc, $(cat "$T/err")"
+# A side given twice is one series.
+"$BIN/ld-eval" distance --side 0.15 --side 0.15 --trials 1 --from 1 --to 1 >"$T/twice.md" 2>/dev/null || fail "distance, a side twice: exit $?"
+head -1 "$T/twice.md" | grep -q '^| distance (m) | 15 cm |$' || fail "distance, a side twice: $(head -1 "$T/twice.md")"
 # A lone --side in motion takes the default distance, 1.5 m.
 "$BIN/ld-eval" motion --trials 1 --side 0.12 --to 5 --step 5 >"$T/m1.md" 2>/dev/null || fail "motion, one side: exit $?"
 head -1 "$T/m1.md" | grep -q '^| motion blur (px) | 12 cm at 1.5 m |$' || fail "motion, one side: $(head -1 "$T/m1.md")"

@@ -160,6 +160,12 @@ int main(int argc, char** argv) {
     }
   }
 
+  {  // (a resolution given twice: one row)
+    std::vector<std::string> once;
+    for (const auto& res : resolutions)
+      if (std::find(once.begin(), once.end(), res) == once.end()) once.push_back(res);
+    resolutions = once;
+  }
   for (const auto& res : resolutions) {
     const auto wh = *ld::cli::parseSize(res);  // (checked by the option)
     const int w = static_cast<int>(wh.first), h = static_cast<int>(wh.second);

@@ -366,6 +366,12 @@ int main(int argc, char** argv) {
                                       "Detection rate against motion blur", "blur length (pixels)"}
                               : Sweep{dc, d_sides, nullptr, range(d_from, d_to, d_step), "distance (m)",
                                       "Detection rate against distance", "distance (m)"};
+      if (by == By::kDistance) {  // (a side given twice: one series)
+        std::vector<double> once;
+        for (double side : d_sides)
+          if (std::find(once.begin(), once.end(), side) == once.end()) once.push_back(side);
+        d_sides = once;
+      }
       if (by == By::kMotion && !motion->count("--distance") && m_sides.size() != m_dists.size())
         m_dists.assign(m_sides.size(), 1.5);  // (the default distance, the same for every side)
       if (sw.dists && sw.dists->size() != sw.sides.size())
@@ -549,6 +555,7 @@ int main(int argc, char** argv) {
       auto o = sc.options();
       o.ecc = ld::artwork::parseQrEcc(s_ecc);
       std::sort(s_sides.begin(), s_sides.end());
+      s_sides.erase(std::unique(s_sides.begin(), s_sides.end()), s_sides.end());  // (a side given twice: once)
       std::ostringstream t;
       const std::string read_how = s_stack > 0 ? " over " + std::to_string(s_stack) + " frames" : "";
       t << "| side | detected at " << s_detect << " m | read at " << s_read << " m" << read_how
