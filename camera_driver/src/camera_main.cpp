@@ -171,10 +171,7 @@ int main(int argc, char** argv) {
     say(e.what());
     return 1;
   }
-  if (const std::string problem = ld::lcmUrlProblem(url); !problem.empty()) {
-    say("LCM URL " + problem);
-    return 2;
-  }
+  if (!ld::lcmUrlUsable(url, "ld-camera")) return 2;
   lcm::LCM lcm(url);
   if (!lcm.good()) {
     say("cannot open LCM at " + url);

@@ -14,6 +14,7 @@
 #include <cstring>
 #include <functional>
 #include <iostream>
+#include <numeric>
 #include <stdexcept>
 #include <tuple>
 #include <type_traits>
@@ -467,7 +468,8 @@ struct Detector::Impl {
   std::vector<std::vector<cv::Point>> contours;
   detail::RunScratch runs;
   std::vector<detail::Region> regions, fips, aps;
-  std::vector<detail::Region> fips_near, fips_far;  // classify()'s, over the cap (kept: no allocation per frame)
+  // classify()'s scratch over the cap (kept: no allocation per frame)
+  std::vector<detail::Region> kept_fips;
   std::vector<std::pair<double, size_t>> aps_by_x;
   std::vector<double> near_score;
   std::vector<size_t> near_order;
@@ -828,16 +830,16 @@ void Detector::Impl::classify() {
   // Over the cap, the FIPs that could be a landmark's first: those with a
   // red square within reach (a FIP's centre is at most 4.25 of its sides
   // from its AP's, about 10 at the steepest view; 12 here) and of a size a
-  // landmark's squares share; then the rest, largest first.
-  // (Kept by size alone, hundreds of blue things larger than a far
-  // landmark's squares pushed its squares out.)
-  fips_near.clear();
-  fips_far.clear();
+  // landmark's squares share, the likest their AP in size first, in steps
+  // of 1.5 times (a landmark's squares are printed the same size); then the
+  // rest; each the largest first. (Kept by size alone, hundreds of blue
+  // things larger than a far landmark's squares pushed its squares out.)
   aps_by_x.clear();  // (the APs in x order: each FIP looks at those within its reach in x alone)
   for (size_t i = 0; i < aps.size(); ++i) aps_by_x.emplace_back(aps[i].cx, i);
   std::sort(aps_by_x.begin(), aps_by_x.end());
-  near_score.clear();
-  for (const auto& f : fips) {
+  near_score.resize(fips.size());  // (infinite: no AP within reach)
+  for (size_t k = 0; k < fips.size(); ++k) {
+    const detail::Region& f = fips[k];
     const double reach = 12 * std::sqrt(static_cast<double>(f.area));
     double best = std::numeric_limits<double>::infinity();  // |log| of the area ratio to the likest AP in reach
     for (auto it = std::lower_bound(aps_by_x.begin(), aps_by_x.end(), std::make_pair(f.cx - reach, size_t{0}));
@@ -847,25 +849,18 @@ void Detector::Impl::classify() {
       if (dx * dx + dy * dy <= reach * reach && ap.area * 9 >= f.area && f.area * 9 >= ap.area)
         best = std::min(best, std::abs(std::log(static_cast<double>(f.area) / ap.area)));
     }
-    if (std::isfinite(best)) {
-      fips_near.push_back(f);
-      near_score.push_back(std::floor(best / std::log(1.5)));  // (areas within 1.5 times each other are alike)
-    } else {
-      fips_far.push_back(f);
-    }
+    near_score[k] = std::floor(best / std::log(1.5));
   }
-  // The near ones likest their AP in size first, in steps of 1.5 times (a
-  // landmark's squares are printed the same size), then the largest.
-  near_order.resize(fips_near.size());
-  for (size_t i = 0; i < near_order.size(); ++i) near_order[i] = i;
-  std::sort(near_order.begin(), near_order.end(), [&](size_t a, size_t b) {
-    if (near_score[a] != near_score[b]) return near_score[a] < near_score[b];
-    return larger(fips_near[a], fips_near[b]);
-  });
-  std::sort(fips_far.begin(), fips_far.end(), larger);
-  fips.clear();
-  for (size_t i = 0; fips.size() < cap && i < near_order.size(); ++i) fips.push_back(fips_near[near_order[i]]);
-  for (size_t i = 0; fips.size() < cap && i < fips_far.size(); ++i) fips.push_back(fips_far[i]);
+  near_order.resize(fips.size());
+  std::iota(near_order.begin(), near_order.end(), size_t{0});
+  std::partial_sort(near_order.begin(), near_order.begin() + static_cast<std::ptrdiff_t>(cap), near_order.end(),
+                    [&](size_t a, size_t b) {
+                      if (near_score[a] != near_score[b]) return near_score[a] < near_score[b];
+                      return larger(fips[a], fips[b]);
+                    });
+  kept_fips.clear();
+  for (size_t i = 0; i < cap; ++i) kept_fips.push_back(fips[near_order[i]]);
+  fips.swap(kept_fips);
 }
 
 // 6. the FIP graph of `fips` (`adjacency`: the distance and size-ratio

@@ -68,10 +68,7 @@ int main(int argc, char** argv) {
     return 2;
   }
 
-  if (const std::string problem = ld::lcmUrlProblem(url); !problem.empty()) {
-    std::cerr << "ld-detector: LCM URL " << problem << "\n";
-    return 2;
-  }
+  if (!ld::lcmUrlUsable(url, "ld-detector")) return 2;
   lcm::LCM lcm(url);
   if (!lcm.good()) {
     std::cerr << "ld-detector: cannot open LCM at " << url << "\n";

@@ -73,38 +73,20 @@ cv::Mat rawView(const image_t& msg, const FormatInfo& f) {
 // claiming 30000x30000 would otherwise cost gigabytes.
 constexpr int64_t kMaxMjpegPixels = int64_t{1} << 25;
 
-// Where a JPEG stream's first scan (SOS) starts, or 0 when it has none
-// before its end.
-size_t jpegScanStart(const uint8_t* p, size_t n) {
-  if (n < 4 || p[0] != 0xFF || p[1] != 0xD8) return 0;  // SOI
+// What a JPEG stream's headers say, read without decoding: the frame size
+// of its SOFn header (empty when it has none before its scan data), and
+// where its first scan (SOS) starts (0 when it has none before its end).
+struct JpegHeaders {
+  cv::Size frame;
+  size_t scan = 0;
+};
+JpegHeaders jpegHeaders(const uint8_t* p, size_t n) {
+  JpegHeaders h;
+  if (n < 4 || p[0] != 0xFF || p[1] != 0xD8) return h;  // SOI
   size_t i = 2;
+  bool sof = false;  // (the first frame header counts)
   while (i + 4 <= n) {
-    if (p[i] != 0xFF) return 0;
-    const uint8_t m = p[i + 1];
-    if (m == 0xFF) {
-      ++i;
-      continue;
-    }
-    if (m == 0x01 || (m >= 0xD0 && m <= 0xD8)) {
-      i += 2;
-      continue;
-    }
-    if (m == 0xD9) return 0;
-    if (m == 0xDA) return i;
-    const size_t len = (static_cast<size_t>(p[i + 2]) << 8) | p[i + 3];
-    if (len < 2) return 0;
-    i += 2 + len;
-  }
-  return 0;
-}
-
-// The frame size in a JPEG stream's SOFn header, read without decoding; an
-// empty size when the stream has no such header before its scan data.
-cv::Size jpegFrameSize(const uint8_t* p, size_t n) {
-  if (n < 4 || p[0] != 0xFF || p[1] != 0xD8) return {};  // SOI
-  size_t i = 2;
-  while (i + 4 <= n) {
-    if (p[i] != 0xFF) return {};
+    if (p[i] != 0xFF) return h;
     const uint8_t m = p[i + 1];
     if (m == 0xFF) {  // fill byte
       ++i;
@@ -114,16 +96,31 @@ cv::Size jpegFrameSize(const uint8_t* p, size_t n) {
       i += 2;
       continue;
     }
-    if (m == 0xD9 || m == 0xDA) return {};  // EOI or SOS before any frame header
+    if (m == 0xD9) return h;  // EOI before any scan
+    if (m == 0xDA) {
+      h.scan = i;
+      return h;
+    }
     const size_t len = (static_cast<size_t>(p[i + 2]) << 8) | p[i + 3];
-    if (len < 2) return {};
-    if (m >= 0xC0 && m <= 0xCF && m != 0xC4 && m != 0xC8 && m != 0xCC) {  // SOF0..SOF15
-      if (len < 7 || i + 9 > n) return {};
-      return {(p[i + 7] << 8) | p[i + 8], (p[i + 5] << 8) | p[i + 6]};
+    if (len < 2) return h;
+    if (!sof && m >= 0xC0 && m <= 0xCF && m != 0xC4 && m != 0xC8 && m != 0xCC) {  // SOF0..SOF15
+      if (len < 7 || i + 9 > n) return h;
+      h.frame = {(p[i + 7] << 8) | p[i + 8], (p[i + 5] << 8) | p[i + 6]};
+      sof = true;
     }
     i += 2 + len;
   }
-  return {};
+  return h;
+}
+
+// Whether the stream has an end-of-image marker after its scan's header:
+// in the entropy-coded data a 0xFF byte is followed by 0x00 or a restart
+// marker (D0-D7), so FF D9 there is the end of the image.
+bool endsAfterScan(const uint8_t* p, size_t n, size_t scan) {
+  if (scan == 0) return false;
+  for (size_t i = n; i-- > scan + 1;)
+    if (p[i] == 0xD9 && p[i - 1] == 0xFF) return true;
+  return false;
 }
 
 // The checks of an MJPEG message that need no decoding.
@@ -132,7 +129,8 @@ void checkMjpeg(const image_t& msg) {
   if (static_cast<size_t>(msg.size) != msg.data.size() || msg.size <= 0)
     fail("MJPEG size field " + std::to_string(msg.size) + " does not match " +
          std::to_string(msg.data.size()) + " data bytes");
-  const cv::Size frame = jpegFrameSize(msg.data.data(), msg.data.size());
+  const JpegHeaders headers = jpegHeaders(msg.data.data(), msg.data.size());
+  const cv::Size frame = headers.frame;
   if (frame.width <= 0 || frame.height <= 0)
     fail("MJPEG data is not a JPEG stream with a frame size");
   if (msg.width > 0 && msg.height > 0 && (frame.width != msg.width || frame.height != msg.height))
@@ -142,7 +140,7 @@ void checkMjpeg(const image_t& msg) {
   if (static_cast<int64_t>(frame.width) * frame.height > kMaxMjpegPixels)
     fail("MJPEG frame " + std::to_string(frame.width) + "x" + std::to_string(frame.height) +
          " is larger than " + std::to_string(kMaxMjpegPixels) + " pixels");
-  if (!jpegComplete(msg.data.data(), msg.data.size()))
+  if (!endsAfterScan(msg.data.data(), msg.data.size(), headers.scan))
     fail("MJPEG data ends before its image does (no end-of-image marker: a frame cut short)");
 }
 
@@ -223,13 +221,7 @@ int32_t pixelFormatFromName(const std::string& name) {
 bool isSupportedPixelFormat(int32_t pixelformat) { return findFormat(pixelformat) != nullptr; }
 
 bool jpegComplete(const uint8_t* data, size_t size) {
-  const size_t scan = jpegScanStart(data, size);
-  if (scan == 0) return false;
-  // In the entropy-coded data a 0xFF byte is followed by 0x00 or a restart
-  // marker (D0-D7): FF D9 after the scan's header is the end of the image.
-  for (size_t i = size; i-- > scan + 1;)
-    if (data[i] == 0xD9 && data[i - 1] == 0xFF) return true;
-  return false;
+  return endsAfterScan(data, size, jpegHeaders(data, size).scan);
 }
 
 void checkImage(const image_t& msg) {

@@ -52,6 +52,12 @@ std::string lcmUrlProblem(const std::string& url) {
   return url + ": LCM has no provider " + provider + " (udpm, mpudpm, file, memq, tcpq)";
 }
 
+bool lcmUrlUsable(const std::string& url, const std::string& program) {
+  const std::string problem = lcmUrlProblem(url);
+  if (!problem.empty()) std::cerr << program << ": LCM URL " << problem << "\n";
+  return problem.empty();
+}
+
 int lcmOpenFailureStatus(const std::string& url) { return lcmUrlProblem(url).empty() ? 1 : 2; }
 
 bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const char* program) {

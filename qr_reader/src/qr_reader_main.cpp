@@ -99,10 +99,7 @@ int main(int argc, char** argv) {
       !p.empty())
     return ld::cli::usage(argv[0], p);
 
-  if (const std::string problem = ld::lcmUrlProblem(url); !problem.empty()) {
-    std::cerr << "ld-qr-reader: LCM URL " << problem << "\n";
-    return 2;
-  }
+  if (!ld::lcmUrlUsable(url, "ld-qr-reader")) return 2;
   lcm::LCM lcm(url);
   if (!lcm.good()) {
     std::cerr << "ld-qr-reader: cannot open LCM at " << url << "\n";

@@ -160,12 +160,7 @@ int main(int argc, char** argv) {
     }
   }
 
-  {  // (a resolution given twice: one row)
-    std::vector<std::string> once;
-    for (const auto& res : resolutions)
-      if (std::find(once.begin(), once.end(), res) == once.end()) once.push_back(res);
-    resolutions = once;
-  }
+  ld::cli::dropRepeats(resolutions);  // (a resolution given twice: one row)
   for (const auto& res : resolutions) {
     const auto wh = *ld::cli::parseSize(res);  // (checked by the option)
     const int w = static_cast<int>(wh.first), h = static_cast<int>(wh.second);

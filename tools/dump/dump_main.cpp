@@ -137,10 +137,7 @@ int main(int argc, char** argv) {
   if (!live && app.count("--lcm-url"))
     return ld::cli::usage(argv[0], "--lcm-url is for --live (logs are read from their files)");
   if (live) {
-    if (const std::string problem = ld::lcmUrlProblem(url); !problem.empty()) {
-      std::cerr << "ld-dump: LCM URL " << problem << "\n";
-      return 2;
-    }
+    if (!ld::lcmUrlUsable(url, "ld-dump")) return 2;
     lcm::LCM lcm(url);
     if (!lcm.good()) {
       std::cerr << "ld-dump: cannot open LCM at " << url << "\n";

@@ -294,10 +294,7 @@ int main(int argc, char** argv) {
   std::cout << " " << bytes / frames.size() / 1024 << " KiB per frame\n";
 
   const std::string url = ld::defaultLcmUrl();
-  if (const std::string problem = ld::lcmUrlProblem(url); !problem.empty()) {
-    std::cerr << "ld-soak: LCM URL " << problem << "\n";
-    return 2;
-  }
+  if (!ld::lcmUrlUsable(url, "ld-soak")) return 2;
   lcm::LCM lcm(url);
   if (!lcm.good()) {
     std::cerr << "ld-soak: cannot open LCM at " << url << "\n";

@@ -465,10 +465,7 @@ int main(int argc, char** argv) {
   std::signal(SIGTERM, onSignal);
   if (!logs.empty()) return viewLogs(logs, image_ch, tracked_ch, codes_ch, all_frames, o);
 
-  if (const std::string problem = ld::lcmUrlProblem(url); !problem.empty()) {
-    std::cerr << "ld-view: LCM URL " << problem << "\n";
-    return 2;
-  }
+  if (!ld::lcmUrlUsable(url, "ld-view")) return 2;
   lcm::LCM lcm(url);
   if (!lcm.good()) {
     std::cerr << "ld-view: cannot open LCM at " << url << "\n";

@@ -93,10 +93,7 @@ int main(int argc, char** argv) {
   }
   ld::Tracker tracker(params);
 
-  if (const std::string problem = ld::lcmUrlProblem(url); !problem.empty()) {
-    std::cerr << "ld-tracker: LCM URL " << problem << "\n";
-    return 2;
-  }
+  if (!ld::lcmUrlUsable(url, "ld-tracker")) return 2;
   lcm::LCM lcm(url);
   if (!lcm.good()) {
     std::cerr << "ld-tracker: cannot open LCM at " << url << "\n";

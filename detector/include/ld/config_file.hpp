@@ -20,6 +20,7 @@
 #include <regex>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <unordered_set>
 
 #include <opencv2/core/persistence.hpp>
@@ -81,6 +82,7 @@ inline std::optional<std::string> integerOutOfRange(
     const std::string& text, const std::function<bool(const std::string&)>& checked = nullptr) {
   static const std::regex yaml_key(R"(^\s*(?:-\s+)?["']?([A-Za-z_][A-Za-z0-9_]*)["']?\s*:)");
   static const std::regex xml_tag(R"(<([A-Za-z_][A-Za-z0-9_]*)[\s>/])");
+  constexpr std::string_view kBefore = " \t\r:[,{>", kAfter = " \t\r,]}<";  // (what a number token stands between)
   size_t line = 1, start = 0;
   std::string key;
   bool in_xml_comment = false;
@@ -107,11 +109,11 @@ inline std::optional<std::string> integerOutOfRange(
     const bool look = !checked || checked(key);
     for (size_t i = 0; look && i < s.size();) {
       // a whole token of digits (an optional sign first), between separators
-      const bool boundary = i == 0 || std::string(" \t\r:[,{>").find(s[i - 1]) != std::string::npos;
+      const bool boundary = i == 0 || kBefore.find(s[i - 1]) != std::string_view::npos;
       size_t j = i + (s[i] == '-' || s[i] == '+');
       const size_t digits = j;
       while (j < s.size() && s[j] >= '0' && s[j] <= '9') ++j;
-      const bool whole = j > digits && (j == s.size() || std::string(" \t\r,]}<").find(s[j]) != std::string::npos);
+      const bool whole = j > digits && (j == s.size() || kAfter.find(s[j]) != std::string_view::npos);
       if (boundary && whole) {
         const std::string token = s.substr(i, j - i);
         const std::string mag = token.substr(digits - i);

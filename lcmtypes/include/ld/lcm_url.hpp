@@ -24,6 +24,9 @@ constexpr const char* kLcmUrlExample = "udpm://239.255.76.67:7667?ttl=0";
 /// and its wait aborts the process after a while). The processes check it
 /// before they open LCM and refuse such a URL with status 2.
 std::string lcmUrlProblem(const std::string& url);
+/// In a process's main, before it opens LCM: false, with the one line
+/// "PROGRAM: LCM URL <problem>" on stderr, when `url` has an lcmUrlProblem.
+bool lcmUrlUsable(const std::string& url, const std::string& program);
 
 /// The exit status of a process whose LCM would not open at `url`: 1 (may
 /// pass: a network not up yet at boot; a supervisor restarts it) for a URL

@@ -366,12 +366,7 @@ int main(int argc, char** argv) {
                                       "Detection rate against motion blur", "blur length (pixels)"}
                               : Sweep{dc, d_sides, nullptr, range(d_from, d_to, d_step), "distance (m)",
                                       "Detection rate against distance", "distance (m)"};
-      if (by == By::kDistance) {  // (a side given twice: one series)
-        std::vector<double> once;
-        for (double side : d_sides)
-          if (std::find(once.begin(), once.end(), side) == once.end()) once.push_back(side);
-        d_sides = once;
-      }
+      if (by == By::kDistance) ld::cli::dropRepeats(d_sides);  // (a side given twice: one series)
       if (by == By::kMotion && !motion->count("--distance") && m_sides.size() != m_dists.size())
         m_dists.assign(m_sides.size(), 1.5);  // (the default distance, the same for every side)
       if (sw.dists && sw.dists->size() != sw.sides.size())

@@ -126,10 +126,7 @@ int main(int argc, char** argv) {
   if (frames == 0 && duration > 0) frames = std::max<int64_t>(1, std::llround(duration * fps));
   if (frames == 0) frames = static_cast<int64_t>(images.size());
 
-  if (const std::string problem = ld::lcmUrlProblem(url); !problem.empty()) {
-    std::cerr << "ld-play: LCM URL " << problem << "\n";
-    return 2;
-  }
+  if (!ld::lcmUrlUsable(url, "ld-play")) return 2;
   lcm::LCM lcm(url);
   if (!lcm.good()) {
     std::cerr << "ld-play: cannot open LCM at " << url << "\n";

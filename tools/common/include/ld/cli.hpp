@@ -8,6 +8,7 @@
 //   LD_CLI_PARSE(app, argc, argv);
 #pragma once
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -17,6 +18,7 @@
 #include <stdexcept>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -137,6 +139,16 @@ inline CLI::Validator Between(double lo, double hi) {
   std::ostringstream name;
   name << "[" << lo << " - " << hi << "]";
   return detail::numberCheck(name.str(), [lo, hi](double v) { return v >= lo && v <= hi; }, rule.str());
+}
+
+/// A list option given a value twice ("--side 0.15 --side 0.15"): each value
+/// once, in the order first given (measured once, one row).
+template <class T>
+void dropRepeats(std::vector<T>& values) {
+  std::vector<T> once;
+  for (const T& v : values)
+    if (std::find(once.begin(), once.end(), v) == once.end()) once.push_back(v);
+  values.swap(once);
 }
 
 /// A text that `parse` accepts (it throws std::exception with the reason
