@@ -33,10 +33,14 @@ if [ ! -S /tmp/.X11-unix/X97 ]; then
   [ $rc -eq 2 ] && [ "$(wc -l <"$T/err")" -eq 1 ] || fail "DISPLAY=:97: exit $rc: $(cat "$T/err")"
   grep -q "^ld-spy: no X server on display :97 (no /tmp/.X11-unix/X97)" "$T/err" || fail "DISPLAY=:97: $(cat "$T/err")"
 fi
-env -u DISPLAY -u WAYLAND_DISPLAY "$spy" --list-types | grep -qx ld.image_t || fail "--list-types headless"
+# (the list is read whole before it is searched: grep -q ends at the first
+# match, and under pipefail ld-spy's SIGPIPE on the next line failed the test)
+listed=$(env -u DISPLAY -u WAYLAND_DISPLAY "$spy" --list-types) || fail "--list-types headless: exit $?"
+grep -qx ld.image_t <<<"$listed" || fail "--list-types headless: $listed"
 # its own options after lcm-spy's too; a types jar that is not one, or holds no ld.* type, said so
-env -u DISPLAY -u WAYLAND_DISPLAY "$spy" --lcm-url 'udpm://239.255.76.67:7667?ttl=0' --list-types | grep -qx ld.image_t ||
-  fail "--list-types after --lcm-url"
+listed=$(env -u DISPLAY -u WAYLAND_DISPLAY "$spy" --lcm-url 'udpm://239.255.76.67:7667?ttl=0' --list-types) ||
+  fail "--list-types after --lcm-url: exit $?"
+grep -qx ld.image_t <<<"$listed" || fail "--list-types after --lcm-url: $listed"
 rc=0; LD_TYPES_JAR=/etc/passwd "$spy" --list-types >"$T/out" 2>"$T/err" || rc=$?
 [ $rc -eq 2 ] && grep -q "^ld-spy: LD_TYPES_JAR=/etc/passwd is not a jar (a zip file)$" "$T/err" || fail "not a jar: $rc $(cat "$T/err")"
 (cd "$T" && echo x >x.txt && jar cf empty.jar x.txt 2>/dev/null || python3 -c "import zipfile; zipfile.ZipFile('empty.jar','w').writestr('x.txt','x')")
