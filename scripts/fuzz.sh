@@ -14,7 +14,8 @@
 # to DIR/artifacts/ and its path printed. Reproduce with DIR/bin/TARGET FILE.
 # One known kind of finding is reported without failing: a hang or a crash
 # inside OpenCV 4.6's file parsers (cv::FileStorage), which this project
-# cannot fix (the readers refuse the kinds of input they can recognise).
+# cannot fix (the readers refuse the kinds of input they can recognise, and
+# parse every file in a child process first, which meets such a file for them).
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 TARGETS=(fuzz_image fuzz_messages fuzz_detector fuzz_params fuzz_camera fuzz_run_config)

@@ -2180,6 +2180,49 @@ TEST(Params, FilesOpenLikeEveryConfigFile) {
   std::remove(path.c_str());
 }
 
+// Malformed YAML on which OpenCV 4.6's parser never returns (found by
+// fuzzing, tests/fuzz/opencv-hangs) is refused with one line, after the
+// child process that tried it is given up, in the parameter and calibration
+// readers; the process goes on and reads a good file after it.
+TEST(Params, FileOpenCvLoopsOnIsRefused) {
+  const std::string path = tempPath("loops.yml");
+  {
+    const std::string text = "%YAML:1.0\n   rows: 1\nows-02 ]\nx";  // (tests/fuzz/opencv-hangs/yaml-hang-memory.yml)
+    std::ofstream(path) << text;
+    for (const std::string& what : {std::string("detector params"), std::string("camera file")}) {
+      try {
+        if (what == "camera file")
+          ld::CameraModel::load(path);
+        else
+          ld::DetectorParams::load(path);
+        ADD_FAILURE() << what << ": no error for " << text;
+      } catch (const std::runtime_error& e) {
+        EXPECT_EQ(std::string(e.what()), what + " " + path +
+                                             ": OpenCV's parser does not finish on it (given up after 5 s: "
+                                             "malformed YAML?)");
+      }
+    }
+  }
+  std::ofstream(path) << "%YAML:1.0\n---\nd_min: 2.5\n";
+  EXPECT_DOUBLE_EQ(ld::DetectorParams::load(path).d_min, 2.5);
+  std::remove(path.c_str());
+}
+
+// A file OpenCV's parser takes or refuses in its own time is told apart from
+// one it loops on, and leaves no child behind.
+TEST(Params, ParserFailureOnlyForLoops) {
+  EXPECT_EQ(ld::parserFailure("%YAML:1.0\n---\na: 1\n"), std::nullopt);
+  EXPECT_EQ(ld::parserFailure("%YAML:1.0\n---\na: [1\n"), std::nullopt);  // (OpenCV throws: the caller says so)
+  EXPECT_EQ(ld::parserFailure("<?xml version=\"1.0\"?>\n<opencv_storage><a>1</a></opencv_storage>\n"), std::nullopt);
+  const auto loops = ld::parserFailure("%YAML:1.0\n   rows: 1\nows-02 ]\nx", std::chrono::seconds(1));
+  ASSERT_TRUE(loops.has_value());
+  EXPECT_EQ(*loops, "OpenCV's parser does not finish on it (given up after 1 s: malformed YAML?)");
+  const pid_t left = ::waitpid(-1, nullptr, WNOHANG);
+  const int why = errno;
+  EXPECT_EQ(left, -1);  // no child left (ECHILD)
+  EXPECT_EQ(why, ECHILD);
+}
+
 // A key given twice (cv::FileStorage would read the first and ignore the
 // second without a word) is refused, in any format and at any depth, naming
 // the key; a file without one reads as before.

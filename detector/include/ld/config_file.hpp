@@ -8,6 +8,9 @@
 //    by another "---" later, makes the YAML parser loop forever.
 // No configuration file needs either: OpenCV writes "---" on a line of its
 // own, and comments (after '#') are not looked at.
+// Other malformed YAML makes the parser loop forever too (tests/fuzz/
+// opencv-hangs), with no pattern to refuse, so every file is parsed first in
+// a child process that is given up after a time limit (parserFailure).
 #pragma once
 
 #include <algorithm>
@@ -24,6 +27,16 @@
 #include <unordered_set>
 
 #include <opencv2/core/persistence.hpp>
+
+#include <cerrno>
+#include <chrono>
+#include <csignal>
+#include <ctime>
+#include <fcntl.h>
+#include <sys/prctl.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 namespace ld {
 
@@ -166,12 +179,69 @@ inline std::optional<std::string> duplicateKey(const cv::FileNode& node, const s
   return std::nullopt;
 }
 
+/// Why OpenCV's parser must not be run on `text` in this process, found by
+/// running it in a child process first: it did not return within `limit`
+/// (OpenCV 4.6's YAML parser loops forever on some malformed files) or the
+/// child died (a crash inside the parser). nullopt when the child parsed it,
+/// successfully or with an exception, or when the child could not be made or
+/// waited for (the caller then parses as it would without the check). The
+/// child says nothing, leaves no core file and dies with its parent.
+inline std::optional<std::string> parserFailure(const std::string& text,
+                                                std::chrono::seconds limit = std::chrono::seconds(5)) {
+  const pid_t pid = ::fork();
+  if (pid < 0) return std::nullopt;
+  if (pid == 0) {
+    ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+    for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGALRM, SIGSEGV, SIGBUS, SIGABRT, SIGFPE, SIGILL})
+      std::signal(sig, SIG_DFL);  // (the parent's handlers, a fuzzer's or a sanitizer's included)
+    const rlimit no_core{0, 0};
+    ::setrlimit(RLIMIT_CORE, &no_core);
+    const int null = ::open("/dev/null", O_WRONLY);
+    if (null >= 0) {
+      ::dup2(null, 1);
+      ::dup2(null, 2);
+    }
+    ::alarm(static_cast<unsigned>(limit.count() + 2));  // (should the parent be stopped)
+    try {
+      cv::FileStorage fs;
+      fs.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);
+    } catch (...) {
+    }
+    ::_exit(0);
+  }
+  const auto start = std::chrono::steady_clock::now();
+  long nap_ns = 20'000;
+  for (;;) {
+    int status = 0;
+    const pid_t r = ::waitpid(pid, &status, WNOHANG);
+    if (r == pid) {
+      if (WIFSIGNALED(status))
+        return "OpenCV's parser crashes on it (signal " + std::to_string(WTERMSIG(status)) + ")";
+      if (WIFEXITED(status) && WEXITSTATUS(status) != 0)
+        return "OpenCV's parser fails on it (exit " + std::to_string(WEXITSTATUS(status)) + ")";
+      return std::nullopt;
+    }
+    if (r < 0 && errno != EINTR) return std::nullopt;  // (reaped by someone else: SIGCHLD ignored)
+    if (std::chrono::steady_clock::now() - start > limit) {
+      ::kill(pid, SIGKILL);
+      while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+      }
+      return "OpenCV's parser does not finish on it (given up after " + std::to_string(limit.count()) +
+             " s: malformed YAML?)";
+    }
+    const timespec nap{0, nap_ns};
+    ::nanosleep(&nap, nullptr);
+    nap_ns = std::min(nap_ns * 2, 5'000'000L);
+  }
+}
+
 /// A configuration file (YAML, XML or JSON) opened for reading, the way every
 /// reader of the project opens one: the file read once, its text checked by
 /// unsafeForOpenCv, plain YAML given the "%YAML:1.0" header OpenCV wants, and
 /// parsed from memory. Throws std::runtime_error("<what> <path>: <why>") when
 /// the path is a directory or cannot be read, the file is empty (a file cut
-/// short or never written; `{}` is an empty map), is unsafe, or does not parse
+/// short or never written; `{}` is an empty map), is unsafe, makes OpenCV's
+/// parser loop or crash (parserFailure), or does not parse
 /// (OpenCV's cv::Exception and the std::length_error and others its parser
 /// lets out included), or holds an integer beyond 32 bits under a key
 /// `int_keys` takes (every key when null).
@@ -195,6 +265,7 @@ inline cv::FileStorage openConfigFile(const std::string& path, const std::string
   // OpenCV's YAML parser fails on a tab anywhere ("skipSpaces"), where YAML
   // allows one between a value and its comment: spaces do as well.
   if (text[text.find_first_not_of(" \t\r\n")] == '%') std::replace(text.begin(), text.end(), '\t', ' ');
+  if (const auto why = parserFailure(text)) fail(*why);
   cv::FileStorage fs;
   bool opened = false;
   std::string error;
