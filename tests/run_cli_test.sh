@@ -75,13 +75,13 @@ refused "--wait-ready: must be >= 0, not -1" --replay "$T/in.lcmlog" --wait-read
 refused "--drain: must be >= 0, not -1" --replay "$T/in.lcmlog" --drain -1
 
 # A source that fails on its input after starting (ld-play: a log without
-# images, exit 2) ends a run with --exit-when-replay-done (status 1) instead
-# of being restarted again and again.
+# images, exit 2) ends the run (status 2) instead of being restarted again
+# and again.
 "$BIN/ld-synth" sequence --frames 3 --landmarks 1 --channel OTHER --log "$T/noimg.lcmlog" --no-png >/dev/null
 rc=0
 timeout 20 "$BIN/ld-run" --netns --status-interval 0 --play "$T/noimg.lcmlog" --exit-when-replay-done \
   >"$T/out" 2>&1 || rc=$?
-[ $rc -eq 1 ] || fail "a source failing with exit 2: ld-run exit $rc: $(cat "$T/out")"
+[ $rc -eq 2 ] || fail "a source failing with exit 2: ld-run exit $rc: $(cat "$T/out")"
 grep -q "the source play failed (exit 2; its error is above); stopping" "$T/out" || fail "source failure: $(cat "$T/out")"
 grep -q "ld-play: no IMAGE images in" "$T/out" || fail "the source's own error: $(cat "$T/out")"
 # A replay whose log has its images on another channel feeds the set
@@ -92,21 +92,34 @@ timeout 30 "$BIN/ld-run" --netns --status-interval 0 --replay "$T/noimg.lcmlog" 
 [ $rc -eq 1 ] || fail "a replay without images: ld-run exit $rc: $(cat "$T/out")"
 grep -q "replay done, but no image came on IMAGE (are the log's images on another channel?" "$T/out" ||
   fail "a replay without images: $(cat "$T/out")"
-# ... and so does a worker that refuses its options (exit 2): status 1, not
+# ... and so does a worker that refuses its options (exit 2): status 2, not
 # a run that restarts it again and again and ends with status 0.
 printf '{"detector": {"args": ["--bogus-detector-opt"]}}\n' >"$T/badworker.json"
 rc=0
 timeout 30 "$BIN/ld-run" --netns --status-interval 0 --config "$T/badworker.json" --replay "$T/in.lcmlog" \
   --exit-when-replay-done >"$T/out" 2>&1 || rc=$?
-[ $rc -eq 1 ] || fail "a worker failing with exit 2: ld-run exit $rc: $(cat "$T/out")"
+[ $rc -eq 2 ] || fail "a worker failing with exit 2: ld-run exit $rc: $(cat "$T/out")"
 grep -q "detector failed (exit 2; its error is above); stopping" "$T/out" || fail "worker failure: $(cat "$T/out")"
+grep -q "^\[detector\] ld-detector: .*bogus-detector-opt" "$T/out" || fail "worker failure, its own line: $(cat "$T/out")"
+[ "$(grep -c "^\[detector\] ld-detector: " "$T/out")" -eq 1 ] || fail "worker failure: started again: $(cat "$T/out")"
+# Live too (no --exit-when-replay-done: a robot's set, where it was
+# restarted every 5 s for ever): a tracker parameter file with a typo ends
+# the run with status 2 at once, naming the file and the tracker.
+printf 'max_lifetime_s: 2\nmax_lifetme_s: 3\n' >"$T/typo.yaml"
+printf '{"tracker": {"args": ["--params", "%s"]}}\n' "$T/typo.yaml" >"$T/badlive.json"
+rc=0
+timeout 30 "$BIN/ld-run" --netns --status-interval 0 --config "$T/badlive.json" --replay "$T/in.lcmlog" \
+  >"$T/out" 2>&1 || rc=$?
+[ $rc -eq 2 ] || fail "live, a worker failing with exit 2: ld-run exit $rc: $(cat "$T/out")"
+grep -q "tracker failed (exit 2; its error is above); stopping" "$T/out" && grep -q "typo.yaml" "$T/out" ||
+  fail "live worker failure: $(cat "$T/out")"
 
 # ... and with -q, where its error line is not shown, it says so (and the
 # run does not wait out --wait-ready first)
 rc=0; start=$(date +%s)
 timeout 30 "$BIN/ld-run" --netns --status-interval 0 -q --config "$T/badworker.json" --replay "$T/in.lcmlog" \
   --exit-when-replay-done --wait-ready 20 >"$T/out" 2>&1 || rc=$?
-[ $rc -eq 1 ] && grep -q "detector failed (exit 2; -q kept its error out: run without it)" "$T/out" ||
+[ $rc -eq 2 ] && grep -q "detector failed (exit 2; -q kept its error out: run without it)" "$T/out" ||
   fail "worker failure, -q: exit $rc, $(cat "$T/out")"
 [ $(( $(date +%s) - start )) -lt 15 ] || fail "worker failure: the run waited out --wait-ready"
 

@@ -30,4 +30,7 @@ for u in ld-camera ld-detector ld-tracker ld-qr-reader; do
   grep -q '^RestartPreventExitStatus=2$' "$ROOT/tools/systemd/$u.service" || { echo "$u: restarts on status 2"; exit 1; }
 done
 grep -q '^Wants=network-online.target$' "$ROOT/tools/systemd/landmark.target"
+# ld-run ends with status 2 when its set cannot run (a process refuses its
+# arguments): systemd must not restart it into the same failure
+grep -q '^RestartPreventExitStatus=2$' "$ROOT/tools/systemd/ld-run@.service" || { echo "ld-run@: restarts on status 2"; exit 1; }
 echo "1 passed, 0 failed"

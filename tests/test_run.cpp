@@ -105,8 +105,8 @@ TEST(Supervisor, SourceThatFinishesIsDoneNotRestarted) {
 }
 
 // A usage error (exit 2), a source's or a worker's, is final only when the
-// policy says so (ld-run --exit-when-replay-done); otherwise it is restarted
-// as any death.
+// policy says so (ld-run sets it, live and replaying); otherwise it is
+// restarted as any death.
 TEST(Supervisor, UsageErrorIsFinalWhenThePolicySaysSo) {
   // (a source's refused file; a worker's refused option, as the detector's)
   for (const auto& [name, role] :

@@ -2,6 +2,7 @@
 // ld-tracker, ld-qr-reader), restarts whatever dies, prints a live status
 // line measured on the bus, stops everything in order on Ctrl-C / SIGTERM,
 // and writes a JSON summary at exit.
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <csignal>
@@ -412,7 +413,7 @@ int main(int argc, char** argv) {
   std::signal(SIGHUP, onSignal);
   std::signal(SIGPIPE, SIG_IGN);
 
-  cfg.restart.usage_error_is_final = exit_when_done;
+  cfg.restart.usage_error_is_final = true;  // (as the systemd units' RestartPreventExitStatus=2)
   ld::Supervisor sup(cfg.restart, [&](const std::string& n, const std::string& l) { console.line(n, l); });
   std::vector<size_t> early, late;  // late: the image source, started once the rest listens
   for (auto& s : specs) {
@@ -523,14 +524,16 @@ int main(int argc, char** argv) {
       console.status(monitor.statusLine(wallMicros()) + " | restarts " + std::to_string(sup.restarts()));
       next_status = now + std::chrono::milliseconds(static_cast<int64_t>(status_interval * 1000));
     }
-    // A replay that cannot be done (a process exits 2: an argument or an
-    // input a restart will not mend, such as a log without images for the
-    // source, or an option a worker refuses) ends the run instead of
-    // restarting it again and again.
+    // A set that cannot run (a process exits 2: an argument or an input a
+    // restart will not mend, such as a log without images for the source, or
+    // an option a worker refuses) ends the run, live or replaying, instead of
+    // restarting that process again and again; status 2, as for a
+    // configuration ld-run refuses itself (ld-run@.service does not restart
+    // it then).
     if (const ld::ProcessState* failed = sup.failedProcess()) {
       end_reason = std::string(failed->spec.role == ld::ProcessRole::Source ? "the source " : "") +
                    failed->spec.name + " failed (exit 2; " + console.whereLinesOf(failed->spec.name) + ")";
-      exit_code = 1;
+      exit_code = 2;
       break;
     }
     if (exit_when_done && sup.sourcesDone()) {
@@ -567,7 +570,7 @@ int main(int argc, char** argv) {
   }
   if (!sup.stopAll(grace_s)) {
     note("not every process stopped cleanly");
-    exit_code = 1;
+    exit_code = std::max(exit_code, 1);
   }
   writeState();
 
@@ -590,7 +593,7 @@ int main(int argc, char** argv) {
     f.close();
     if (!f) {
       std::cerr << "ld-run: cannot write " << summary_file << "\n";
-      exit_code = 1;
+      exit_code = std::max(exit_code, 1);
     }
   }
   if (report) printReport(s);

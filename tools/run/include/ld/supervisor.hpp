@@ -38,7 +38,7 @@ struct RestartPolicy {
   double stable_after_s = 10.0;
   /// A process that exits with status 2 (a usage error: a file or option it
   /// refuses) is not restarted, as it would fail the same way again; ld-run
-  /// sets it with --exit-when-replay-done.
+  /// sets it (and ends the run).
   bool usage_error_is_final = false;
 };
 
