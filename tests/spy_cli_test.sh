@@ -35,6 +35,12 @@ if [ ! -S /tmp/.X11-unix/X97 ]; then
 fi
 # (the list is read whole before it is searched: grep -q ends at the first
 # match, and under pipefail ld-spy's SIGPIPE on the next line failed the test)
+# a remote display nothing answers on (an ssh -X session that ended): one
+# line too (Java's stack trace before), inside the namespace's loopback
+rc=0; timeout 20 "$netns" env DISPLAY=localhost:97.0 "$spy" --lcm-url 'udpm://239.255.76.67:7667?ttl=0' >"$T/out" 2>"$T/err" || rc=$?
+[ $rc -eq 2 ] && [ "$(wc -l <"$T/err")" -eq 1 ] || fail "DISPLAY=localhost:97.0: exit $rc: $(cat "$T/err")"
+grep -q "^ld-spy: no X server answers on display localhost:97.0 (port 6097 of localhost" "$T/err" ||
+  fail "DISPLAY=localhost:97.0: $(cat "$T/err")"
 listed=$(env -u DISPLAY -u WAYLAND_DISPLAY "$spy" --list-types) || fail "--list-types headless: exit $?"
 grep -qx ld.image_t <<<"$listed" || fail "--list-types headless: $listed"
 # its own options after lcm-spy's too; a types jar that is not one, or holds no ld.* type, said so
