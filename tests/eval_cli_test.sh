@@ -105,4 +105,10 @@ head -1 "$T/m1.md" | grep -q '^| motion blur (px) | 12 cm at 1.5 m |$' || fail "
 # A level given (any case) is taken: codes printed at M read at 0.3 m.
 "$BIN/ld-eval" qr --ecc m --trials 3 --from 0.3 --to 0.3 >"$T/qrm.md" 2>/dev/null || fail "qr --ecc m: exit $?"
 grep -q '^| 0\.3 | 100.0 % | 100.0 % | 100.0 % | 0 |' "$T/qrm.md" || fail "qr --ecc m: $(cat "$T/qrm.md")"
+
+# The lighting tables: a value with a unit as "2000 K", one without as
+# "0.15" (it had a second space); no distractor frames, no false figure.
+"$BIN/ld-eval" lighting --trials 1 --fp-frames 0 --markdown "$T/light.md" >/dev/null 2>&1 || fail "lighting: exit $?"
+grep -q '^| 2000 K | [0-9.]* % | [0-9.]* % | - | - |$' "$T/light.md" && grep -q '^| 0\.15 | [0-9.]* % | [0-9.]* % | - | - |$' "$T/light.md" &&
+  grep -q '^| 1\.2 | ' "$T/light.md" && ! grep -q '  |' "$T/light.md" || fail "lighting: $(cat "$T/light.md")"
 echo ok

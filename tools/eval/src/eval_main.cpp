@@ -483,7 +483,8 @@ int main(int argc, char** argv) {
                          a ? "adaptive" : "fixed", 100 * rate[a], false_rate(a).c_str());
           }
           char row[256];
-          std::snprintf(row, sizeof row, "| %g %s | %.1f %% | %.1f %% | %s | %s |\n", v, sw.unit.c_str(),
+          std::snprintf(row, sizeof row, "| %g%s%s | %.1f %% | %.1f %% | %s | %s |\n", v, sw.unit.empty() ? "" : " ",
+                        sw.unit.c_str(),
                         100 * rate[0], 100 * rate[1], false_rate(0).c_str(), false_rate(1).c_str());
           t << row;
         }
