@@ -460,6 +460,75 @@ TEST(Tracker, GatedPairDoesNotStealAValidMatch) {
   EXPECT_GT(idOf(out, 1), id_b);  // d2 is new
 }
 
+// A robot drives past a row of landmarks 1.5 sizes apart, none ever missed:
+// one leaves the image on the left as another comes in on the right. A
+// rectangular assignment (as many pairs as possible first) moved every id
+// one landmark over at each exit, the newcomer taking an old id; with the
+// gain of each pair inside its gate, every landmark keeps its id from its
+// first frame to its last and a newcomer gets a new one (found by an audit).
+TEST(Tracker, RowOfLandmarksPassingByKeepsItsIds) {
+  for (const double max_distance : {2.0, 3.0}) {
+    ld::TrackerParams p;
+    p.max_distance = max_distance;
+    ld::Tracker tr(p);
+    const double gap = max_distance == 2.0 ? 60 : 100, speed = 8;  // px, px per frame
+    std::map<int, int64_t> id_of;                                  // landmark -> its id
+    std::set<int64_t> ids;
+    for (int k = 0; k < 150; ++k) {
+      std::vector<ld::Landmark> dets;
+      std::vector<int> which;
+      for (int i = 0; i < 12; ++i) {
+        const double x = 700 + i * gap - k * speed;
+        if (x > 20 && x < 620) {
+          dets.push_back(square(x, 240, 40));
+          which.push_back(i);
+        }
+      }
+      const auto& out = tr.update(dets, frameTime(k));
+      for (size_t d = 0; d < dets.size(); ++d) {
+        const int64_t id = idOf(out, static_cast<int>(d));
+        ASSERT_GT(id, 0);
+        const auto [it, first] = id_of.emplace(which[d], id);
+        if (first)
+          EXPECT_TRUE(ids.insert(id).second) << "frame " << k << ": landmark " << which[d] << " took id " << id;
+        else
+          EXPECT_EQ(it->second, id) << "frame " << k << ", landmark " << which[d] << ", max_distance "
+                                    << max_distance;
+      }
+    }
+    EXPECT_EQ(id_of.size(), 12u);
+  }
+}
+
+// Landmarks A and B 1.5 sizes apart; B is missed for a few frames while a new
+// landmark C appears 1.5 sizes on A's other side. A keeps its id (it went to
+// C, and B's to A), C gets a new one, and B has its own again when it is
+// found.
+TEST(Tracker, NewcomerBesideAMissedLandmarkTakesNoId) {
+  ld::Tracker tr;
+  int64_t a = -1, b = -1;
+  for (int k = 0; k < 40; ++k) {
+    std::vector<ld::Landmark> dets{square(300, 240, 40)};
+    const bool b_seen = k < 20 || k >= 30, c_seen = k >= 22;
+    if (b_seen) dets.push_back(square(360, 240, 40));
+    if (c_seen) dets.push_back(square(240, 240, 40));
+    const auto& out = tr.update(dets, frameTime(k));
+    if (k == 0) {
+      a = idOf(out, 0);
+      b = idOf(out, 1);
+      continue;
+    }
+    EXPECT_EQ(idOf(out, 0), a) << "frame " << k;
+    if (b_seen) {
+      EXPECT_EQ(idOf(out, 1), b) << "frame " << k;
+    }
+    if (c_seen) {
+      const int64_t c = idOf(out, b_seen ? 2 : 1);
+      EXPECT_GT(c, std::max(a, b)) << "frame " << k;
+    }
+  }
+}
+
 TEST(Tracker, TracksCarryCornersPoseAndPayload) {
   ld::Tracker tr;
   ld::Landmark a = square(200, 200);

@@ -10,9 +10,10 @@ namespace {
 
 // A detection two pool landmarks could both be (a landmark that left the
 // image where another one left before, a landmark found again next to a
-// duplicate) goes to the one seen more recently, as in a matching cascade:
-// each second unseen adds this many landmark sizes to a pair's cost.
-constexpr double kStaleCost = 1.0;
+// duplicate) goes to the one seen more recently, as in a matching cascade: a
+// pair's margin inside its gate is divided by 1 + this times the seconds the
+// pool landmark has been unseen.
+constexpr double kStaleWeight = 1.0;
 
 // Microseconds from `then` to `now` (now >= then: update() restarts when time
 // goes back), saturated: any two utimes may arrive, and their difference can
@@ -203,8 +204,15 @@ void Tracker::assign(int64_t utime) {
   if (n_pool == 0 || n_det == 0) return;
 
   // c) Both non-empty: the assignment problem, pool landmarks as agents and
-  // new landmarks as tasks, cost = distance. Gated pairs are prohibitive.
-  cost_.resize(n_pool * n_det);
+  // new landmarks as tasks. A pair inside its gate gains its margin (how far
+  // inside: the gate's radius less the distance), weighed down by the time
+  // the pool landmark has been unseen; the assignment with the largest total
+  // gain wins, leaving a pool landmark and a detection apart when no pairing
+  // gains. (Fewest unmatched first, as a plain rectangular assignment does,
+  // moved every id one landmark over along a row of landmarks when one left
+  // the image as another came in: one pair more, each a poor one.)
+  gain_.assign(n_pool * n_det, 0.0);
+  double max_gain = 0;
   for (size_t i = 0; i < n_pool; ++i) {
     const PoolEntry& e = pool_[i];
     const double unseen_s = static_cast<double>(elapsedUs(utime, e.last_seen_utime)) * 1e-6;
@@ -219,29 +227,34 @@ void Tracker::assign(int64_t utime) {
     // where it left).
     const bool two_places = e.frames_since_seen > 0 && e.pred_centre != e.centre;
     for (size_t j = 0; j < n_det; ++j) {
-      double c = gatedDistance(e.pred_centre, e.pred_size, j, max_dist);
-      if (two_places) c = std::min(c, gatedDistance(e.centre, e.size, j, max_dist));
-      if (c != Hungarian::kForbidden) c += kStaleCost * unseen_s * 0.5 * (e.size + det_size_[j]);
-      cost_[i * n_det + j] = c;
+      double margin = gateMargin(e.pred_centre, e.pred_size, j, max_dist);
+      if (two_places) margin = std::max(margin, gateMargin(e.centre, e.size, j, max_dist));
+      if (!(margin >= 0)) continue;  // outside the gate (or not finite): no gain
+      // (a pair on the gate's edge still gains a little: it is allowed)
+      const double g = (margin + 1e-3) / (1.0 + kStaleWeight * unseen_s);
+      gain_[i * n_det + j] = g;
+      max_gain = std::max(max_gain, g);
     }
   }
+  if (max_gain <= 0) return;  // no pair inside its gate
+  // Largest gain = least cost max_gain - gain over a full rectangular
+  // assignment; its pairs without gain are no match.
+  cost_.resize(n_pool * n_det);
+  for (size_t k = 0; k < cost_.size(); ++k) cost_[k] = max_gain - gain_[k];
   hungarian_.solve(cost_.data(), static_cast<int>(n_pool), static_cast<int>(n_det), row_to_col_);
   for (size_t i = 0; i < n_pool; ++i) {
     const int j = row_to_col_[i];
-    if (j < 0) continue;
+    if (j < 0 || !(gain_[i * n_det + static_cast<size_t>(j)] > 0)) continue;
     pool_[i].detection = j;
     det_matched_[static_cast<size_t>(j)] = 1;
     ++stats_.matches;
   }
 }
 
-double Tracker::gatedDistance(const cv::Point2d& centre, double size, size_t j,
-                              double max_dist) const {
+double Tracker::gateMargin(const cv::Point2d& centre, double size, size_t j, double max_dist) const {
   const double s1 = det_size_[j];
-  const double d = dist(centre, det_centre_[j]);
-  const bool ok = d <= max_dist * 0.5 * (size + s1) &&
-                  std::max(size, s1) <= params_.max_size_ratio * std::min(size, s1);
-  return ok ? d : Hungarian::kForbidden;
+  if (!(std::max(size, s1) <= params_.max_size_ratio * std::min(size, s1))) return -1;
+  return max_dist * 0.5 * (size + s1) - dist(centre, det_centre_[j]);
 }
 
 void Tracker::updateMatched(PoolEntry& e, const Landmark& det, int d, int64_t utime) {

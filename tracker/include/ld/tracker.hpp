@@ -10,11 +10,15 @@
 //                 a landmark that left the image comes back where it left)
 //   3. assign     the paper's three cases: empty pool (all new), no detections
 //                 (all age), both non-empty: optimal assignment (Hungarian)
-//                 with cost = distance between the predicted pool landmark and
-//                 the new one; pairs beyond the maximum distance or the size
-//                 ratio are prohibitive, so they never displace a valid match;
-//                 a detection two pool landmarks could both be goes to the one
-//                 seen more recently (each second unseen costs one size)
+//                 on the distance between the predicted pool landmark and the
+//                 new one: pairs beyond the maximum distance or the size ratio
+//                 are never made; a pair within gains its margin (the gate's
+//                 radius less the distance) and the assignment of the largest
+//                 total gain wins, so two poor pairs never displace a good one
+//                 and a landmark that leaves as another comes leaves its id
+//                 behind; a detection two pool landmarks could both be goes to
+//                 the one seen more recently (the margin is divided by 1 + the
+//                 seconds unseen)
 //   4. update     matched tracks take the detection (corners, pose; the track's
 //                 payload is kept when the detection has none) and refresh
 //                 their velocity; unmatched tracks coast; unmatched detections
@@ -165,9 +169,11 @@ class Tracker {
 
   void predict(int64_t utime);
   void assign(int64_t utime);
-  // Distance from a pool landmark at (centre, size) to valid detection j, or
-  // Hungarian::kForbidden when the pair fails the distance or size ratio gate.
-  double gatedDistance(const cv::Point2d& centre, double size, size_t j, double max_dist) const;
+  // How far inside its gate valid detection j is from a pool landmark at
+  // (centre, size), in pixels: the gate's radius (max_dist sizes, the pair's
+  // mean size) less their distance; negative outside it or when the pair
+  // fails the size ratio.
+  double gateMargin(const cv::Point2d& centre, double size, size_t j, double max_dist) const;
   void updateMatched(PoolEntry& e, const Landmark& det, int d, int64_t utime);
   void report(int64_t utime);
 
@@ -184,7 +190,7 @@ class Tracker {
   std::vector<int> det_index_;      // valid detections' indices into the input
   std::vector<char> det_matched_;
   std::vector<double> common_vx_, common_vy_;
-  std::vector<double> cost_;
+  std::vector<double> gain_, cost_;
   std::vector<int> row_to_col_;
   Hungarian hungarian_;
 };
