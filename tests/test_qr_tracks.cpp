@@ -2,6 +2,8 @@
 // per-track decode schedule of ld-qr-reader.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "ld/qr_tracks.hpp"
 #include "ld/track_restarts.hpp"
 
@@ -83,6 +85,42 @@ TEST(QrTrackBook, DecodesOnceThenRechecksRarely) {
   EXPECT_EQ(book.schedule({7}, 6 * s), std::vector<int64_t>{7});
   book.record(7, 6 * s, 9, std::nullopt);  // a failed re-check keeps the payload
   EXPECT_EQ(book.payload(7)->payload, "dock");
+}
+
+// A read track whose landmark jumps (by more than its size per tracker frame)
+// is another landmark: the tracker moved its id over. Its payload is
+// forgotten and the track is the first read again; moving as a landmark
+// moves (less than its size a frame, over frames the reader skipped too),
+// an older frame matched late, and tracks never scheduled keep everything.
+// (An audit: a decoded track moved onto a patch without a QR kept publishing
+// its old payload for the 9 s it was watched.)
+TEST(QrTrackBook, ReadTrackThatJumpsIsReadAgain) {
+  ld::QrTrackBook book;
+  EXPECT_EQ(book.follow(9, 0, 100, 100, 40), std::nullopt);  // (not known: nothing)
+  book.schedule({1, 2}, 0);
+  book.record(1, 0, 0, std::string("room-101"));
+  book.record(2, 0, 0, std::string("room-102"));
+  EXPECT_EQ(book.follow(1, 10, 100, 100, 40), std::nullopt);  // placed
+  EXPECT_EQ(book.follow(2, 10, 400, 100, 40), std::nullopt);
+  EXPECT_EQ(book.follow(1, 11, 130, 100, 40), std::nullopt);  // 30 px in a frame: moving
+  EXPECT_EQ(book.follow(1, 14, 230, 100, 40), std::nullopt);  // 100 px over 3 frames
+  EXPECT_EQ(book.follow(1, 13, 600, 100, 40), std::nullopt);  // an older frame: no news
+  ASSERT_NE(book.payload(1), nullptr);
+  EXPECT_EQ(book.payload(1)->payload, "room-101");
+  EXPECT_EQ(book.follow(2, 11, 405, 100, 40), std::nullopt);
+  // track 1 is now 300 px away in one frame: another landmark
+  EXPECT_EQ(book.follow(1, 15, 530, 300, 40), std::optional<std::string>("room-101"));
+  EXPECT_EQ(book.payload(1), nullptr);
+  EXPECT_NE(book.payload(2), nullptr);
+  const auto todo = book.schedule({2, 1}, 1000);  // 1 at once (2 is read: not due)
+  EXPECT_EQ(todo, std::vector<int64_t>{1});
+  book.record(1, 1000, 15, std::string("room-103"));
+  EXPECT_EQ(book.follow(1, 16, 531, 300, 40), std::nullopt);
+  EXPECT_EQ(book.payload(1)->payload, "room-103");
+  // bad input is ignored
+  EXPECT_EQ(book.follow(1, 17, std::nan(""), 0, 40), std::nullopt);
+  EXPECT_EQ(book.follow(1, 17, 0, 0, 0), std::nullopt);
+  EXPECT_EQ(book.payload(1)->payload, "room-103");
 }
 
 TEST(QrTrackBook, BoundedWorkPerFrameUndecodedFirst) {

@@ -166,6 +166,19 @@ int main(int argc, char** argv) {
       std::cerr << "ld-qr-reader: track ids started again (a track is younger than it can be: the tracker "
                    "restarted); the payloads read so far are forgotten\n";
     }
+    // (a read track whose landmark jumped is another landmark now: the
+    // tracker moved its id over; what was read is forgotten and read again)
+    for (const auto& lm : list.landmarks) {
+      if (lm.track_id < 0) continue;
+      const std::array<cv::Point2f, 4> c = cornersOf(lm);
+      double side = 0;
+      for (int i = 0; i < 4; ++i) side += cv::norm(c[static_cast<size_t>((i + 1) % 4)] - c[static_cast<size_t>(i)]) / 4;
+      const cv::Point2f centre = (c[0] + c[1] + c[2] + c[3]) * 0.25f;
+      const auto forgotten = book.follow(lm.track_id, lm.age, centre.x, centre.y, side);
+      if (forgotten && verbose)
+        std::cerr << "ld-qr-reader: track " << lm.track_id << " jumped by more than its landmark's size: \""
+                  << *forgotten << "\" is forgotten and the track read again (ids moved?)\n";
+    }
     const std::vector<int64_t> todo = book.schedule(ids, list.utime);
     for (auto it = stacks.begin(); it != stacks.end();) {  // tracks gone or read: their stacks go
       const ld::landmark_t* listed = nullptr;  // visible or coasting

@@ -1,6 +1,7 @@
 #include "ld/qr_tracks.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace ld {
 
@@ -121,6 +122,27 @@ std::vector<int64_t> QrTrackBook::schedule(const std::vector<int64_t>& track_ids
     }
   }
   return out;
+}
+
+std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, double cx, double cy, double size) {
+  const auto it = tracks_.find(track_id);
+  if (it == tracks_.end() || !std::isfinite(cx) || !std::isfinite(cy) || !(size > 0) || !std::isfinite(size))
+    return std::nullopt;
+  Track& t = it->second;
+  if (t.placed && age <= t.age) return std::nullopt;  // (an older frame, matched late: no news)
+  const double frames = t.placed ? static_cast<double>(age) - t.age : 1.0;
+  const double moved = std::hypot(cx - t.cx, cy - t.cy);
+  const bool jumped = t.placed && t.known && moved > frames * 0.5 * (size + t.size);
+  t.placed = true;
+  t.cx = cx;
+  t.cy = cy;
+  t.size = size;
+  t.age = age;
+  if (!jumped) return std::nullopt;
+  std::optional<std::string> forgotten = std::move(t.known->payload);
+  t.known.reset();
+  t.last_try = INT64_MIN;  // (first in the next schedule)
+  return forgotten;
 }
 
 void QrTrackBook::record(int64_t track_id, int64_t utime, int64_t seq,

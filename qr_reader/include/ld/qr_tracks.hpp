@@ -85,6 +85,17 @@ class QrTrackBook {
   /// at most max_decodes_per_frame.
   std::vector<int64_t> schedule(const std::vector<int64_t>& track_ids, int64_t utime);
 
+  /// Where a track's landmark is in a frame (visible or coasting): its centre
+  /// and size (mean side of its corners) in pixels, and its age (frames since
+  /// the tracker created it). A track whose payload is known and whose
+  /// landmark moved by more than its size per tracker frame since the last
+  /// frame it was placed in is another landmark now (the tracker moved the id
+  /// over: a landmark vanished and a neighbour took its id): its payload is
+  /// forgotten and it is read again at once: the payload forgotten is
+  /// returned. Tracks the book does not know yet (never scheduled) are left
+  /// alone.
+  std::optional<std::string> follow(int64_t track_id, int32_t age, double cx, double cy, double size);
+
   /// Records the outcome of a decode attempt of `track_id` on the frame
   /// (utime, seq).
   void record(int64_t track_id, int64_t utime, int64_t seq, const std::optional<std::string>& payload);
@@ -103,6 +114,9 @@ class QrTrackBook {
     std::optional<Known> known;
     int64_t last_try = INT64_MIN;
     int64_t last_seen = 0;
+    bool placed = false;  // where it was last (follow)
+    double cx = 0, cy = 0, size = 0;
+    int32_t age = 0;
   };
   QrScheduleParams params_;
   // (tracks not named for 3000 frames read, about 100 s at 30 frames/s,
