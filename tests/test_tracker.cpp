@@ -596,6 +596,31 @@ TEST(Tracker, TimeGoingBackwardsRestartsWithFreshIds) {
   EXPECT_EQ(tr.stats().resets, 1);
 }
 
+// A list that came after a newer one (two messages reordered on the way, 15
+// ms apart) is not tracked: the pool stays, ids go on; it cleared the pool
+// and gave every track a new id (an audit). Older by more than kLateFrameUs
+// is time starting again.
+TEST(Tracker, LateFrameIsSkippedNotARestart) {
+  ld::Tracker tr;
+  int64_t id = -1;
+  for (int k = 0; k < 20; ++k) id = idOf(tr.update({square(200, 200)}, frameTime(k)), 0);
+  const int64_t t21 = frameTime(21);
+  EXPECT_EQ(idOf(tr.update({square(200, 200)}, t21), 0), id);
+  EXPECT_TRUE(tr.update({square(200, 200)}, t21 - 15'000).empty());  // frame 20, late
+  EXPECT_EQ(tr.stats().late_frames, 1);
+  EXPECT_EQ(tr.stats().resets, 0);
+  const auto& out = tr.update({square(200, 200)}, frameTime(22));
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, id);
+  EXPECT_EQ(out[0].hits, 22);  // (the late frame is not counted)
+  EXPECT_EQ(tr.poolSize(), 1u);
+  // exactly the tolerance is late; a microsecond more is a restart
+  EXPECT_TRUE(tr.update({square(200, 200)}, frameTime(22) - ld::Tracker::kLateFrameUs).empty());
+  EXPECT_EQ(tr.update({square(200, 200)}, frameTime(22) - ld::Tracker::kLateFrameUs - 1).size(), 1u);
+  EXPECT_EQ(tr.stats().resets, 1);
+  EXPECT_EQ(tr.stats().late_frames, 2);
+}
+
 TEST(Tracker, DegenerateDetectionsAreIgnored) {
   ld::Tracker tr;
   ld::Landmark nan_lm = square(100, 100);

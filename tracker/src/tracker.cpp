@@ -71,6 +71,11 @@ void Tracker::reset() {
 
 const std::vector<Track>& Tracker::update(const std::vector<Landmark>& detections, int64_t utime) {
   if (has_time_ && utime < last_utime_) {
+    if (elapsedUs(last_utime_, utime) <= kLateFrameUs) {
+      ++stats_.late_frames;
+      out_.clear();
+      return out_;
+    }
     reset();
     ++stats_.resets;
   }

@@ -106,7 +106,7 @@ int main(int argc, char** argv) {
 
   ld::landmark_list_t in, out;
   std::vector<ld::Landmark> detections;
-  int64_t processed = 0, bad = 0, last_processed = 0, resets = 0, rejected = 0, rejected_lists = 0;
+  int64_t processed = 0, bad = 0, last_processed = 0, resets = 0, rejected = 0, rejected_lists = 0, late = 0;
   auto last_status = std::chrono::steady_clock::now();
   while (!g_stop) {
     // waits, then drains the queue: only the newest message is processed
@@ -137,10 +137,18 @@ int main(int argc, char** argv) {
                       << ") not tracked: corners not finite or under a pixel apart "
                       << ld::badSoFar(rejected_lists) << "\n";
         }
+        if (tracker.stats().late_frames > late) {  // (a message that came late: nothing to publish)
+          late = tracker.stats().late_frames;
+          if (ld::printBadLine(late))
+            std::cerr << "ld-tracker: frame " << in.seq << " (utime " << in.utime
+                      << ") came after a newer one: not tracked " << ld::badSoFar(late, "late") << "\n";
+          continue;
+        }
         if (tracker.stats().resets > resets) {
           resets = tracker.stats().resets;
           std::cerr << "ld-tracker: utime " << in.utime
-                    << " is older than the previous frame's (log replayed again?): tracks restarted\n";
+                    << " is older than the previous frame's by more than 0.1 s (a log replayed again, or the "
+                       "clock stepped back): tracks restarted\n";
         }
         ld::toTrackedListMessage(tracks, in, ms, latest.skipped_, out);
         lcm.publish(out_channel, &out);
@@ -162,11 +170,11 @@ int main(int argc, char** argv) {
     }
   }
   std::fprintf(stderr,
-               "ld-tracker: stopped after %lld frames (%lld skipped, %lld bad, %lld %s not tracked), "
+               "ld-tracker: stopped after %lld frames (%lld skipped, %lld bad, %lld %s not tracked, %lld late), "
                "%lld tracks\n",
                static_cast<long long>(processed), static_cast<long long>(latest.skipped_),
                static_cast<long long>(bad), static_cast<long long>(rejected),
-               rejected == 1 ? "landmark" : "landmarks",
+               rejected == 1 ? "landmark" : "landmarks", static_cast<long long>(late),
                static_cast<long long>(tracker.stats().tracks_created));
   return 0;
 }

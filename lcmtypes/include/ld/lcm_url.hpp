@@ -70,10 +70,10 @@ std::string channelProblem(const std::vector<ChannelOption>& inputs, const Chann
 /// of garbage does not flood the log; all are counted.
 constexpr int64_t kBadLinesInFull = 10, kBadLinesEvery = 100;
 inline bool printBadLine(int64_t bad) { return bad <= kBadLinesInFull || bad % kBadLinesEvery == 0; }
-/// The end of that line: "(N bad so far)", and on the last line printed in
+/// The end of that line: "(N bad so far)" (or another word than "bad"), and on the last line printed in
 /// full, that only every kBadLinesEvery'th is printed from there on.
-inline std::string badSoFar(int64_t bad) {
-  return "(" + std::to_string(bad) + " bad so far" +
+inline std::string badSoFar(int64_t bad, const char* what = "bad") {
+  return "(" + std::to_string(bad) + " " + what + " so far" +
          (bad == kBadLinesInFull ? "; from here on every " + std::to_string(kBadLinesEvery) +
                                        "th is printed, all are counted)"
                                  : ")");

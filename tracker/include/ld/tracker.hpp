@@ -116,6 +116,7 @@ struct TrackerStats {
   int64_t matches = 0;              ///< detections assigned to an existing track
   int64_t rejected_detections = 0;  ///< non-finite or degenerate detections, ignored
   int64_t resets = 0;               ///< pool cleared because time went backwards
+  int64_t late_frames = 0;          ///< frames a little older than the previous one, not tracked
 };
 
 /// Centre of a landmark: the mean of its four square centres.
@@ -129,12 +130,18 @@ class Tracker {
   explicit Tracker(const TrackerParams& params = {});
 
   /// Tracks the detections of one frame captured at `utime` (microseconds).
-  /// Frames must come in time order; a frame older than the previous one (a
-  /// log replayed from its start, a restarted camera) clears the pool first,
-  /// ids still never reused. Detections with non-finite coordinates or a size
-  /// under one pixel are ignored. The returned reference stays valid until
-  /// the next call.
+  /// Frames must come in time order. A frame older than the previous one by
+  /// up to kLateFrameUs is a message that came late (reordered on the way):
+  /// it is not tracked, the pool is left as it was, and the result is empty
+  /// (stats().late_frames counts it; ld-tracker publishes nothing for it). A
+  /// frame older by more (a log replayed from its start, a clock stepped
+  /// back) clears the pool first, ids still never reused. Detections with
+  /// non-finite coordinates or a size under one pixel are ignored. The
+  /// returned reference stays valid until the next call.
   const std::vector<Track>& update(const std::vector<Landmark>& detections, int64_t utime);
+  /// How much older than the previous frame a frame may be and still be a
+  /// late message rather than time starting again (three frames at 30/s).
+  static constexpr int64_t kLateFrameUs = 100'000;
 
   /// The tracks reported by the last update().
   const std::vector<Track>& tracks() const { return out_; }
