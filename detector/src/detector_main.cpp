@@ -74,6 +74,15 @@ int main(int argc, char** argv) {
     std::cerr << "ld-detector: cannot open LCM at " << url << "\n";
     return ld::lcmOpenFailureStatus(url);  // (1: may pass, a supervisor restarts it; 2: a wrong URL)
   }
+  // The GPU compiles its shaders on their first use: a frame of coloured
+  // noise runs them all before the camera's first frame comes, which was late
+  // by that much (47 ms on llvmpipe; "auto" times its warm-ups apart). The
+  // plain detector: the adaptive one would learn the noise's colours.
+  if (detector.detector().params().backend == "gles") {
+    cv::Mat noise(480, 640, CV_8UC3);
+    cv::randu(noise, cv::Scalar::all(0), cv::Scalar::all(256));
+    (void)detector.detector().detect(noise);
+  }
   if (verbose) std::fprintf(stderr, "ld-detector: backend %s\n", detector.detector().backendInfo().c_str());
   // backend "auto" on a GPU: -v says its choice too, once made
   bool choosing = verbose && detector.detector().choosingBackend();
