@@ -9,6 +9,10 @@
 #   scripts/fuzz.sh all DIR SECONDS            build, then run every target for SECONDS, keeping
 #                                              the grown corpora in DIR/corpus/ between runs
 #
+# LD_FUZZ_SEED=N gives libFuzzer its -seed (the test suite's runs use 1, so a
+# run explores the same inputs each time and a finding is no matter of luck;
+# unset: a new seed each run, as for `make fuzz`).
+#
 # A crash, a leak, a sanitizer report, a timeout (25 s per input) or an input
 # that needs more than 2 GiB fails the run; the input that did it is copied
 # to DIR/artifacts/ and its path printed. Reproduce with DIR/bin/TARGET FILE.
@@ -39,6 +43,7 @@ run() {
   local rc=0
   (cd "$work" && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
     "$bin" -max_total_time="$seconds" -timeout=25 -rss_limit_mb=2048 -print_final_stats=1 \
+      ${LD_FUZZ_SEED:+-seed="$LD_FUZZ_SEED"} \
       -artifact_prefix="$work/" "$corpus" "$seeds") >"$work/log" 2>&1 || rc=$?
   local runs; runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$work/log" | tail -1)
   local units; units=$(find "$corpus" -type f | wc -l)

@@ -13,12 +13,16 @@ trap cleanup EXIT
 
 now_ms() { date +%s%3N; }
 
-# wait_ready STATE_FILE: up to 10 s for ld-run's set to be up.
+# wait_ready STATE_FILE: up to 30 s for ld-run's set to be up (beyond
+# ld-run's own 10 s --wait-ready, after which it starts the source anyway);
+# status 1, said, when it is not.
 wait_ready() {
-  for _ in $(seq 100); do
+  for _ in $(seq 300); do
     [ -s "$1" ] && [ "$(jq .ready "$1")" = true ] && return 0
     sleep 0.1
   done
+  echo "wait_ready: ld-run's set not up after 30 s: $(cat "$1" 2>/dev/null)" >&2
+  return 1
 }
 
 # pid_of NAME: the pid ld-run's state file ($T/state.json) gives the process.
@@ -28,6 +32,12 @@ pid_of() { jq -r ".processes[] | select(.name == \"$1\") | .pid" "$T/state.json"
 # start it again; sets old, new (its pids) and dt (ms until it was back).
 kill_and_wait() {
   old=$(pid_of "$1")
+  # (a process waiting to be started again has pid -1: kill -KILL -1 would
+  # kill every process this user may signal)
+  if ! [ "$old" -gt 0 ] 2>/dev/null; then
+    echo "kill_and_wait: $1 has no running process (pid '$old')" >&2
+    return 1
+  fi
   kill -KILL "$old"
   local t0
   t0=$(now_ms)

@@ -167,7 +167,15 @@ for args in "--frames 0|--frames: must be in [1, 1e+12], not 0" "--duration 0|--
 done
 # SIGTERM stops it at once, not when the next frame is due (10 s away here)
 "$BIN/ld-play" "$T/in.lcmlog" --lcm-url memq:// --fps 0.1 --frames 5 >/dev/null 2>&1 &
-play=$!; sleep 0.5; kill -TERM $play
+play=$!
+# (once it handles SIGTERM: its SigCgt mask has bit 15; a fixed 0.5 s was
+# too short on a loaded machine, where SIGTERM's default action killed it)
+for _ in $(seq 400); do
+  mask=$(awk '/^SigCgt:/ {print $2}' "/proc/$play/status" 2>/dev/null || true)
+  if [ -n "$mask" ] && (( (16#$mask >> 14) & 1 )); then break; fi
+  sleep 0.05
+done
+kill -TERM $play
 start=$(date +%s%N); rc=0; wait $play || rc=$?
 [ $(( ($(date +%s%N) - start) / 1000000 )) -lt 2000 ] || fail "ld-play took over 2 s to stop on SIGTERM"
 [ $rc -eq 0 ] || fail "ld-play stopped by SIGTERM: exit $rc"
