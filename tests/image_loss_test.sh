@@ -18,7 +18,14 @@ FRAMES=90
   echo "net.core.rmem_max in the namespace: $(cat /proc/sys/net/core/rmem_max)"
   "$BIN/ld-dump" --live -c IMAGE > "$T/recv.jsonl" 2> "$T/dump.err" &
   dump=$!
-  sleep 1   # subscribed, and LCM self test over
+  # subscribed (its socket on port 7667, 0x1DF3: alone in this namespace),
+  # then LCM'"'"'s self test over; ld-dump takes 0.2-1 s to get there
+  for _ in $(seq 300); do
+    if grep -q ":1DF3 " /proc/net/udp; then break; fi
+    sleep 0.05
+  done
+  grep -q ":1DF3 " /proc/net/udp
+  sleep 0.5
   "$BIN/ld-play" "$T/hd.lcmlog" --format bgr --fps 30 --frames "$FRAMES"
   sleep 1
   kill -INT $dump; wait $dump || true

@@ -308,7 +308,15 @@ int main(int argc, char** argv) {
   std::vector<Child> set;
   for (const char* name : {"ld-detector", "ld-tracker", "ld-qr-reader"})
     set.push_back(spawn(o.bin_dir, name, url, o.log_dir));
-  std::this_thread::sleep_for(std::chrono::seconds(1));  // subscriptions in place
+  // Subscriptions in place: each process has its socket on LCM's port (0.2-1.7
+  // s after its start, later on a loaded machine, where a fixed second lost
+  // the first frames and failed the run), then LCM's self test is over.
+  const int port = ld::lcmUdpPort(url);
+  const auto ready_by = Clock::now() + std::chrono::seconds(30);
+  while (port > 0 && !g_stop && Clock::now() < ready_by &&
+         !std::all_of(set.begin(), set.end(), [&](const Child& c) { return ld::hasUdpSocketOnPort(c.pid, port); }))
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
 
   if (csv.is_open()) {
     csv << "t_s,published,landmarks,tracked,codes,detector_skipped";
