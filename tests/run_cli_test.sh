@@ -60,7 +60,9 @@ cmp -s "$T/in.lcmlog" "$T/keep.lcmlog" || fail "a refused run changed the log"
 printf '{"detector": {"program": "ld-detectr"}}\n' >"$T/prog.json"
 refused "the detector's program ld-detectr cannot be run" --config "$T/prog.json" --replay "$T/in.lcmlog"
 refused "LCM URL udpm://239.255.76.67: no port" --replay "$T/in.lcmlog" --lcm-url udpm://239.255.76.67
-refused "LCM URL memq://: memq is within one process" --replay "$T/in.lcmlog" --lcm-url memq://
+refused "LCM URL tcpq://127.0.0.1:7700: ld-run runs its set over udpm:// multicast only (it waits" --replay "$T/in.lcmlog" --lcm-url tcpq://127.0.0.1:7700
+refused "LCM URL file:///tmp/x.lcmlog?mode=w: ld-run runs its set over udpm:// multicast only" --replay "$T/in.lcmlog" --lcm-url 'file:///tmp/x.lcmlog?mode=w'
+refused "LCM URL memq://: ld-run runs its set over udpm:// multicast only (memq is within one process" --replay "$T/in.lcmlog" --lcm-url memq://
 # config keys given twice, a config that is a folder
 printf '{"source": {"type": "replay", "log": "%s", "log": "%s"}}\n' "$T/in.lcmlog" "$T/in.lcmlog" >"$T/twice.json"
 refused ".*twice.json: key \"log\" is given twice" --config "$T/twice.json"

@@ -46,6 +46,12 @@ for url in "udpm://239.255.76.67|no port" "udpm://999.1.1.1:7667|999.1.1.1 is no
   rc=0; timeout 10 "$BIN/ld-tracker" --lcm-url "${url%%|*}" >/dev/null 2>"$T/err" || rc=$?
   [ $rc -eq 2 ] && grep -q "^ld-tracker: LCM URL ${url%%|*}: ${url#*|}" "$T/err" || { echo "FAIL: ${url%%|*}: $rc $(cat "$T/err")"; exit 1; }
 done
+# a tcpq URL whose server is not there (in a private namespace: loopback
+# only): LCM opens without a connection, and its wait aborted the process
+# (SIGABRT, "bit out of range ... on fd_set"): status 1, a supervisor retries
+rc=0; timeout 10 "$ROOT/scripts/netns-run.sh" "$BIN/ld-tracker" --lcm-url tcpq://127.0.0.1:7700 >/dev/null 2>"$T/err" || rc=$?
+[ $rc -eq 1 ] && grep -q "^ld-tracker: cannot open LCM at tcpq://127.0.0.1:7700 (no connection: is its tcpq server running?)$" "$T/err" ||
+  { echo "FAIL: tcpq without a server: $rc $(cat "$T/err")"; exit 1; }
 rc=0; timeout 10 "$BIN/ld-tracker" --in "" >/dev/null 2>"$T/err" || rc=$?
 [ $rc -eq 2 ] && grep -qF -- "--in needs a channel name" "$T/err" || { echo "FAIL: --in '': $rc $(cat "$T/err")"; exit 1; }
 

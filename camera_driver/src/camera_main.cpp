@@ -173,10 +173,7 @@ int main(int argc, char** argv) {
   }
   if (!ld::lcmUrlUsable(url, "ld-camera")) return 2;
   lcm::LCM lcm(url);
-  if (!lcm.good()) {
-    say("cannot open LCM at " + url);
-    return ld::lcmOpenFailureStatus(url);  // (1: may pass, a supervisor restarts it; 2: a wrong URL)
-  }
+  if (const int status = ld::lcmOpenStatus(lcm, url, "ld-camera")) return status;
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
 

@@ -70,10 +70,7 @@ int main(int argc, char** argv) {
 
   if (!ld::lcmUrlUsable(url, "ld-detector")) return 2;
   lcm::LCM lcm(url);
-  if (!lcm.good()) {
-    std::cerr << "ld-detector: cannot open LCM at " << url << "\n";
-    return ld::lcmOpenFailureStatus(url);  // (1: may pass, a supervisor restarts it; 2: a wrong URL)
-  }
+  if (const int status = ld::lcmOpenStatus(lcm, url, "ld-detector")) return status;
   // The GPU compiles its shaders on their first use: a frame of coloured
   // noise runs them all before the camera's first frame comes, which was late
   // by that much (47 ms on llvmpipe; "auto" times its warm-ups apart). The

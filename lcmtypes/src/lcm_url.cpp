@@ -60,6 +60,13 @@ bool lcmUrlUsable(const std::string& url, const std::string& program) {
 
 int lcmOpenFailureStatus(const std::string& url) { return lcmUrlProblem(url).empty() ? 1 : 2; }
 
+int lcmOpenStatus(lcm::LCM& lcm, const std::string& url, const std::string& program) {
+  if (lcm.good() && lcm.getFileno() >= 0) return 0;
+  std::cerr << program << ": cannot open LCM at " << url
+            << (lcm.good() ? " (no connection: is its tcpq server running?)" : "") << "\n";
+  return lcmOpenFailureStatus(url);
+}
+
 bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const char* program) {
   if (lcm.handleTimeout(timeout_ms) < 0) {
     if (stop || errno == EINTR) return true;  // a signal, not a failure

@@ -101,10 +101,7 @@ int main(int argc, char** argv) {
 
   if (!ld::lcmUrlUsable(url, "ld-qr-reader")) return 2;
   lcm::LCM lcm(url);
-  if (!lcm.good()) {
-    std::cerr << "ld-qr-reader: cannot open LCM at " << url << "\n";
-    return ld::lcmOpenFailureStatus(url);  // (1: may pass, a supervisor restarts it; 2: a wrong URL)
-  }
+  if (const int status = ld::lcmOpenStatus(lcm, url, "ld-qr-reader")) return status;
   Inputs in;
   lcm.subscribe(image_ch, &Inputs::onImage, &in);
   lcm.subscribe(tracks_ch, &Inputs::onList, &in);

@@ -139,10 +139,7 @@ int main(int argc, char** argv) {
   if (live) {
     if (!ld::lcmUrlUsable(url, "ld-dump")) return 2;
     lcm::LCM lcm(url);
-    if (!lcm.good()) {
-      std::cerr << "ld-dump: cannot open LCM at " << url << "\n";
-      return 2;
-    }
+    if (const int status = ld::lcmOpenStatus(lcm, url, "ld-dump")) return status;
     lcm.subscribe(".*", &Printer::onMessage, &printer);
     std::signal(SIGINT, onSignal);
     std::signal(SIGTERM, onSignal);

@@ -296,10 +296,7 @@ int main(int argc, char** argv) {
   const std::string url = ld::defaultLcmUrl();
   if (!ld::lcmUrlUsable(url, "ld-soak")) return 2;
   lcm::LCM lcm(url);
-  if (!lcm.good()) {
-    std::cerr << "ld-soak: cannot open LCM at " << url << "\n";
-    return 2;
-  }
+  if (const int status = ld::lcmOpenStatus(lcm, url, "ld-soak")) return status;
   Outputs out;
   lcm.subscribe("LANDMARKS", &Outputs::onLandmarks, &out);
   lcm.subscribe("LANDMARKS_TRACKED", &Outputs::onTracked, &out);

@@ -467,10 +467,7 @@ int main(int argc, char** argv) {
 
   if (!ld::lcmUrlUsable(url, "ld-view")) return 2;
   lcm::LCM lcm(url);
-  if (!lcm.good()) {
-    std::cerr << "ld-view: cannot open LCM at " << url << "\n";
-    return 2;
-  }
+  if (const int status = ld::lcmOpenStatus(lcm, url, "ld-view")) return status;
   Live live(o, image_ch);
   lcm.subscribe(image_ch, &Live::onImage, &live);
   lcm.subscribe(tracked_ch, &Live::onTracked, &live);

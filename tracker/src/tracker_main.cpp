@@ -95,10 +95,7 @@ int main(int argc, char** argv) {
 
   if (!ld::lcmUrlUsable(url, "ld-tracker")) return 2;
   lcm::LCM lcm(url);
-  if (!lcm.good()) {
-    std::cerr << "ld-tracker: cannot open LCM at " << url << "\n";
-    return ld::lcmOpenFailureStatus(url);  // (1: may pass, a supervisor restarts it; 2: a wrong URL)
-  }
+  if (const int status = ld::lcmOpenStatus(lcm, url, "ld-tracker")) return status;
   LatestMessage latest;
   lcm.subscribe(in_channel, &LatestMessage::onMessage, &latest);
   std::signal(SIGINT, onSignal);

@@ -42,6 +42,14 @@ class LCM;
 
 namespace ld {
 
+/// After `lcm::LCM lcm(url)` in a process's main: 0 when LCM opened, else
+/// its exit status (lcmOpenFailureStatus), with the one line "PROGRAM: cannot
+/// open LCM at URL" on stderr. Opened means good() and a file descriptor to
+/// wait on: a tcpq:// URL whose server does not answer gives good() and no
+/// descriptor, and LCM's wait then aborted the process ("bit out of range 0
+/// - FD_SETSIZE on fd_set").
+int lcmOpenStatus(lcm::LCM& lcm, const std::string& url, const std::string& program);
+
 /// One turn of a process's receive loop: waits up to timeout_ms for messages
 /// on `lcm`, then handles every message already queued (for kMaxDrainMs at
 /// most), so that the caller sees only the newest. A signal interrupting

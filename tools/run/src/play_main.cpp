@@ -128,10 +128,7 @@ int main(int argc, char** argv) {
 
   if (!ld::lcmUrlUsable(url, "ld-play")) return 2;
   lcm::LCM lcm(url);
-  if (!lcm.good()) {
-    std::cerr << "ld-play: cannot open LCM at " << url << "\n";
-    return ld::lcmOpenFailureStatus(url);  // (1: the network may come up; 2, a wrong URL, ld-run gives up on)
-  }
+  if (const int status = ld::lcmOpenStatus(lcm, url, "ld-play")) return status;
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
 

@@ -393,18 +393,22 @@ int main(int argc, char** argv) {
   const auto note = [&](const std::string& text) { console.line("ld-run", text); };
 
   // 2. The monitor subscribes before anything publishes.
-  // (memq:// is each process's own: the set would never hear each other)
+  // (udpm:// alone: the set starts once each process has its socket on the
+  // udpm port; memq:// is each process's own, so the set would never hear
+  // each other, tcpq:// needs a server, file:// is a log)
+  const size_t sep = cfg.lcm_url.find("://");
   if (std::string problem = ld::lcmUrlProblem(cfg.lcm_url);
-      !problem.empty() || cfg.lcm_url.rfind("memq:", 0) == 0) {
-    if (problem.empty()) problem = cfg.lcm_url + ": memq is within one process, the set is several (udpm://...)";
+      !problem.empty() || (sep != std::string::npos && cfg.lcm_url.compare(0, sep, "udpm") != 0)) {
+    if (problem.empty())
+      problem = cfg.lcm_url + ": ld-run runs its set over udpm:// multicast only (" +
+                (cfg.lcm_url.compare(0, sep, "memq") == 0 ? "memq is within one process, the set is several"
+                                                          : "it waits for each process's socket on the udpm port") +
+                ")";
     std::cerr << "ld-run: LCM URL " << problem << "\n";
     return 2;
   }
   lcm::LCM lcm(cfg.lcm_url);
-  if (!lcm.good()) {
-    std::cerr << "ld-run: cannot open LCM at " << cfg.lcm_url << "\n";
-    return 2;
-  }
+  if (const int status = ld::lcmOpenStatus(lcm, cfg.lcm_url, "ld-run")) return status;
   ld::BusMonitor monitor(cfg.channels);
   monitor.subscribe(lcm);
 
