@@ -114,6 +114,11 @@ set +e; "$BIN/ld-detect" "$T/s/000000.png" -o "$T/newdir/" >/dev/null 2>"$T/err"
 [ $rc -eq 2 ] && grep -q "^ld-detect: cannot write $T/newdir/: names a folder (it ends in /), not a file$" "$T/err" &&
   [ ! -e "$T/newdir" ] || fail "-o DIR/: exit $rc, $(cat "$T/err")"
 # results that cannot be written all (a full disk): status 1, said, to a file or stdout
+# -o naming the parameters or calibration it reads: refused, left as it was
+printf '%%YAML:1.0\n---\nsecond_looks: 1\n' >"$T/params.yaml"; cp "$T/params.yaml" "$T/params.keep"
+set +e; "$BIN/ld-detect" "$T/s/000000.png" --params "$T/params.yaml" -o "$T/../$(basename "$T")/params.yaml" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -q "is the --params file: it would be written over" "$T/err" && cmp -s "$T/params.yaml" "$T/params.keep" ||
+  { echo "FAIL: -o over --params: $rc $(cat "$T/err")"; exit 1; }
 for out in "-o /dev/full" ""; do
   set +e; "$BIN/ld-detect" "$T/s/000000.png" $out >/dev/full 2>"$T/err"; rc=$?; set -e
   [ $rc -eq 1 ] && grep -q "^ld-detect: write to .* failed: No space left on device" "$T/err" ||

@@ -88,8 +88,16 @@ set +e; "$BIN/ld-eval" qr --png "" >/dev/null 2>"$T/err"; rc=$?; set -e
 [ $rc -eq 2 ] && grep -qF -- '--png needs a path, not ""' "$T/err" || fail "--png '': exit $rc, $(cat "$T/err")"
 # A table that cannot be written all (a full disk) is said, not taken as written.
 set +e; "$BIN/ld-eval" distance --trials 1 --from 1 --to 1 --side 0.15 --markdown /dev/full >/dev/null 2>"$T/err"; rc=$?; set -e
-[ $rc -ne 0 ] && grep -q "^ld-eval: cannot write /dev/full: No space left on device" "$T/err" ||
+[ $rc -eq 1 ] && grep -q "^ld-eval: cannot write /dev/full: No space left on device" "$T/err" ||
   fail "--markdown /dev/full: exit $rc, $(cat "$T/err")"
+# an output that is the calibration or the parameters it reads: refused
+# before the sweep (the table replaced the calibration)
+printf '%%YAML:1.0\n---\nsecond_looks: 1\n' >"$T/p.yaml"; cp "$T/p.yaml" "$T/p.keep"
+for out in "--markdown $T/p.yaml" "--markdown $T/./p.yaml"; do
+  set +e; "$BIN/ld-eval" yaw --trials 1 --params "$T/p.yaml" $out >/dev/null 2>"$T/err"; rc=$?; set -e
+  [ $rc -eq 2 ] && grep -q "is the --params file: it would be written over" "$T/err" && cmp -s "$T/p.yaml" "$T/p.keep" ||
+    fail "$out over --params: exit $rc, $(cat "$T/err")"
+done
 # A side given twice is one series.
 "$BIN/ld-eval" distance --side 0.15 --side 0.15 --trials 1 --from 1 --to 1 >"$T/twice.md" 2>/dev/null || fail "distance, a side twice: exit $?"
 head -1 "$T/twice.md" | grep -q '^| distance (m) | 15 cm |$' || fail "distance, a side twice: $(head -1 "$T/twice.md")"

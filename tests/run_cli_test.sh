@@ -55,6 +55,17 @@ refused "the recording $T/keep.lcmlog is the log: it would be written over" --re
 refused "the summary $T/keep.lcmlog is the log" --play "$T/keep.lcmlog" --summary "$T/keep.lcmlog"
 refused "the summary $T/./r.out is the recording" --replay "$T/keep.lcmlog" --record "$T/r.out" --summary "$T/./r.out"
 cmp -s "$T/in.lcmlog" "$T/keep.lcmlog" || fail "a refused run changed the log"
+# ... nor its config (the summary replaced it), and a recording is written
+# over an LCM log alone, a summary or state file over JSON alone (a PNG or
+# a config named by mistake was replaced without a word)
+printf '{"detector": {"args": []}}\n' >"$T/cfg.json"; cp "$T/cfg.json" "$T/cfg.keep"
+refused "the summary $T/cfg.json is the config: it would be written over" --config "$T/cfg.json" --replay "$T/keep.lcmlog" --summary "$T/cfg.json"
+refused "the state file $T/cfg.json is the config" --config "$T/cfg" --replay "$T/keep.lcmlog" --state-file "$T/cfg.json"
+cmp -s "$T/cfg.json" "$T/cfg.keep" || fail "a refused run changed the config"
+printf '\x89PNG\r\n\x1a\nxxxx' >"$T/photo.png"; printf '# robot notes\n' >"$T/notes.txt"
+refused "recording $T/photo.png: is not an LCM log (it starts with 89 50 4e 47" --replay "$T/keep.lcmlog" --record "$T/photo.png"
+refused "summary $T/notes.txt: is not a JSON file (it starts with \"# robot note\"): not written over" --replay "$T/keep.lcmlog" --summary "$T/notes.txt"
+[ "$(head -c 4 "$T/photo.png" | od -An -tx1 | tr -d ' ')" = 89504e47 ] || fail "a refused run changed the PNG"
 # a worker program that is not there (a config's "program" mistyped), an
 # LCM URL without a port, memq (each process's own)
 printf '{"detector": {"program": "ld-detectr"}}\n' >"$T/prog.json"

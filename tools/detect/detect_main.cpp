@@ -116,6 +116,11 @@ int main(int argc, char** argv) {
     for (const auto& f : files) in.insert(canonical(f));
     if (!out_file.empty() && in.count(canonical(out_file)))
       return ld::cli::usage(argv[0], "-o " + out_file + " is one of the input images: it would be emptied");
+    // (nor the calibration or the parameters it reads)
+    for (const auto& [option, file] : {std::pair<const char*, const std::string*>{"--camera", &detector_options.camera_file},
+                                       {"--params", &detector_options.params_file}})
+      if (!out_file.empty() && !file->empty() && ld::sameFile(out_file, *file))
+        return ld::cli::usage(argv[0], "-o " + out_file + " is the " + option + " file: it would be written over");
     for (const auto& dst : overlays)
       if (in.count(canonical(dst)))
         return ld::cli::usage(argv[0], "--draw " + draw_dir + " would write its overlay over the input " +

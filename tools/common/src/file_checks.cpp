@@ -110,6 +110,35 @@ std::string prepareLogOutputFile(const std::string& path) {
   return "";
 }
 
+std::string prepareJsonOutputFile(const std::string& path) {
+  if (std::string problem = prepareOutputFile(path); !problem.empty()) return problem;
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return "";
+  if (!std::filesystem::is_regular_file(path, ec)) return "is not a file (a device, a pipe?): not written over";
+  std::ifstream f(path, std::ios::binary);
+  char head[256] = {0};
+  f.read(head, sizeof head);
+  const std::string start(head, static_cast<size_t>(f.gcount()));
+  const size_t first = start.find_first_not_of(" \t\r\n");
+  if (first == std::string::npos || start[first] == '{' || start[first] == '[') return "";
+  std::string shown = start.substr(first, 12);
+  for (char& c : shown)
+    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) c = '.';
+  return "is not a JSON file (it starts with \"" + shown + "\"): not written over";
+}
+
+bool sameFile(const std::string& a, const std::string& b) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::exists(a, ec) && fs::exists(b, ec) && fs::equivalent(a, b, ec) && !ec) return true;
+  const auto resolved = [](const std::string& path) {
+    std::error_code e;
+    const fs::path p = fs::weakly_canonical(fs::absolute(path, e), e);
+    return e || p.empty() ? fs::path(path).lexically_normal() : p;
+  };
+  return resolved(a) == resolved(b);
+}
+
 namespace {
 // The pending file a signal would leave behind: removed by the handler
 // (Ctrl-C during a long conversion left a hidden partial file of gigabytes).

@@ -9,6 +9,7 @@
 #include <functional>
 #include <iostream>
 #include <sstream>
+#include <stdexcept>
 
 #include <CLI/CLI.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -24,6 +25,12 @@ namespace {
 struct Series {
   std::string name;
   std::vector<cv::Point2d> points;  // (x, rate 0..1)
+};
+
+// A result that could not be written all (a full disk): status 1, as ld-detect
+// and ld-dump say it, where a refused option or input is 2.
+struct WriteError : std::runtime_error {
+  using std::runtime_error::runtime_error;
 };
 
 // A line chart of rates (0..100 %) against x, one line per series.
@@ -99,7 +106,7 @@ void plot(const std::string& path, const std::string& title, const std::string& 
     cv::line(img, at, at + cv::Point(25, 0), c, 2, cv::LINE_AA);
     text(series[i].name, at + cv::Point(32, 5));
   }
-  if (!cv::imwrite(path, img)) throw std::runtime_error("cannot write plot " + path);
+  if (!cv::imwrite(path, img)) throw WriteError("cannot write plot " + path);
 }
 
 // The sweep's points, from `from` to `to` by `step`; at most kMaxPoints
@@ -206,7 +213,7 @@ void emit(const Common& c, const std::string& table) {
     std::ofstream f(c.markdown);
     f << table;
     f.close();  // (a full disk shows when the buffer goes out)
-    if (!f) throw std::runtime_error("cannot write " + c.markdown + ": " + std::strerror(errno));
+    if (!f) throw WriteError("cannot write " + c.markdown + ": " + std::strerror(errno));
   }
 }
 
@@ -341,6 +348,14 @@ int main(int argc, char** argv) {
           throw ld::cli::UsageError(std::string(opt) + " needs a path, not \"\"");
       if (!c->png.empty() && !ld::hasExtension(c->png, ".png"))
         throw ld::cli::UsageError("--png " + c->png + ": the plot is a PNG, its name must end in .png");
+      // (not over the calibration or the parameters the sweep reads)
+      for (const auto& [out_opt, out] : {std::pair<const char*, const std::string*>{"--markdown", &c->markdown},
+                                         {"--png", &c->png}})
+        for (const auto& [in_opt, in] : {std::pair<const char*, const std::string*>{"--camera", &c->camera_file},
+                                         {"--params", &c->params_file}})
+          if (!out->empty() && !in->empty() && ld::sameFile(*out, *in))
+            throw ld::cli::UsageError(std::string(out_opt) + " " + *out + " is the " + in_opt +
+                                      " file: it would be written over");
       requireWritable(c->markdown, "--markdown");
       requireWritable(c->png, "--png");
     }
@@ -604,6 +619,9 @@ int main(int argc, char** argv) {
     }
   } catch (const ld::cli::UsageError& e) {
     return ld::cli::usage(argv[0], e.what());
+  } catch (const WriteError& e) {
+    std::cerr << "ld-eval: " << e.what() << "\n";
+    return 1;
   } catch (const std::exception& e) {
     std::cerr << "ld-eval: " << e.what() << "\n";
     return 2;

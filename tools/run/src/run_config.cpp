@@ -298,7 +298,9 @@ RunConfig RunConfig::load(const std::string& given) {
     }
   }
   try {
-    return fromTree(j, yaml);
+    RunConfig cfg = fromTree(j, yaml);
+    cfg.file = path;
+    return cfg;
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(path + ": " + e.what());
   }

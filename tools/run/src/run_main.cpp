@@ -346,34 +346,32 @@ int main(int argc, char** argv) {
     log_damage = reader.problem();
   }
   using OutputFile = std::pair<const char*, std::string>;
-  // No file ld-run writes is the log it plays, nor another file it writes (a
-  // recording over the log emptied it before it was played; a summary over
-  // it, or over the recording, replaced it).
+  // No file ld-run writes is the log it plays or its config, nor another file
+  // it writes (a recording over the log emptied it before it was played; a
+  // summary over it, or over the recording, or over the config replaced it).
   {
     const bool plays = cfg.source == "replay" || cfg.source == "play";
     const std::vector<OutputFile> files{{"log", plays ? cfg.log : ""},
+                                        {"config", cfg.file},
                                         {"recording", cfg.record},
                                         {"summary", summary_file},
                                         {"state file", state_file}};
-    // (a path that cannot be resolved is compared as given)
-    const auto resolved = [](const std::string& path) {
-      std::error_code ec;
-      const fs::path p = fs::weakly_canonical(path, ec);
-      return ec || p.empty() ? fs::path(path).lexically_normal() : p;
-    };
     for (size_t i = 0; i < files.size(); ++i)
-      for (size_t j = i + 1; j < files.size(); ++j)
-        if (!files[i].second.empty() && !files[j].second.empty() &&
-            resolved(files[i].second) == resolved(files[j].second)) {
+      for (size_t j = std::max<size_t>(i + 1, 2); j < files.size(); ++j)  // (the log and the config are read)
+        if (!files[i].second.empty() && !files[j].second.empty() && ld::sameFile(files[i].second, files[j].second)) {
           std::cerr << "ld-run: the " << files[j].first << " " << files[j].second << " is the " << files[i].first
                     << ": it would be written over\n";
           return 2;
         }
   }
+  // (missing folders created; a recording is written over an LCM log alone,
+  // the summary and the state file over JSON alone: not over an image or a
+  // config named by mistake)
   for (const auto& [what, path] : std::initializer_list<OutputFile>{
            {"recording", cfg.record}, {"summary", summary_file}, {"state file", state_file}}) {
     if (path.empty()) continue;
-    const std::string problem = ld::prepareOutputFile(path);  // creates missing folders
+    const std::string problem =
+        std::string(what) == "recording" ? ld::prepareLogOutputFile(path) : ld::prepareJsonOutputFile(path);
     if (!problem.empty()) {
       std::cerr << "ld-run: " << what << " " << path << ": " << problem << "\n";
       return 2;

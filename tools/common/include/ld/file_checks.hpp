@@ -69,6 +69,19 @@ std::string truncatedJpegProblem(const std::string& path);
 /// 89 50 4e 47, ...): not written over").
 std::string prepareLogOutputFile(const std::string& path);
 
+/// prepareOutputFile for a JSON file about to be written (a summary, a state
+/// file): besides, a file already at `path` must be JSON (its first
+/// character other than white space '{' or '['), or empty. Empty when it
+/// can; otherwise why ("is not a JSON file (it starts with "# robot"): not
+/// written over").
+std::string prepareJsonOutputFile(const std::string& path);
+
+/// Whether two paths name the same file: the same once made absolute and
+/// resolved (links, "..", "."), or, when both exist, the same file (a hard
+/// link). A path that cannot be resolved is compared as written. For the
+/// tools' refusals of an output that is one of their inputs.
+bool sameFile(const std::string& a, const std::string& b);
+
 /// A file written under a temporary name beside its path and renamed to it
 /// by commit(): a run that fails half-way leaves what was at the path as it
 /// was (an earlier good log, say), and no half-written file behind, a run

@@ -40,6 +40,7 @@ struct RunConfig {
   WorkerConfig qr_reader{true, "ld-qr-reader", {}};
 
   std::string record;  ///< lcm-logger output file ("" none)
+  std::string file;    ///< the file load() read ("" for a tree given otherwise)
   std::string record_channels;  ///< default: LANDMARKS, LANDMARKS_TRACKED and LANDMARK_CODES
 
   RestartPolicy restart;
