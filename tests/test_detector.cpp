@@ -2161,8 +2161,10 @@ TEST(Params, FilesOpenLikeEveryConfigFile) {
     EXPECT_NE(std::string(e.what()).find("camera file /nonexistent/dir/camera.yaml: cannot open"), std::string::npos)
         << e.what();
   }
+  // (a file that never ends, /dev/zero, was read for ever)
   for (const auto& [file, why] : {std::pair{std::string("/tmp"), std::string("is a directory")},
-                                  {tempPath("empty.yaml"), std::string("is empty")}}) {
+                                  {tempPath("empty.yaml"), std::string("is empty")},
+                                  {std::string("/dev/zero"), std::string("is larger than 16 MiB: not a configuration file")}}) {
     if (why == "is empty") std::ofstream(file) << "  \n";
     try {
       ld::DetectorParams::load(file);

@@ -511,6 +511,17 @@ TEST(RunConfig, PathWithoutExtensionFindsTheFile) {
     EXPECT_NE(std::string(e.what()).find("(nor " + dir + "none.yaml, .yml or .json)"), std::string::npos) << e.what();
   }
   std::filesystem::remove_all(dir);
+  // a file that never ends (read for ever before): refused, naming it
+  try {
+    ld::RunConfig::load("/dev/zero");
+    FAIL() << "loaded /dev/zero";
+  } catch (const std::runtime_error& e) {
+    EXPECT_EQ(std::string(e.what()), "config /dev/zero is larger than 16 MiB: not a configuration file");
+  }
+  // the file read is kept (ld-run refuses to write over it)
+  std::ofstream(::testing::TempDir() + "ldrun-file.json") << "{}";
+  EXPECT_EQ(ld::RunConfig::load(::testing::TempDir() + "ldrun-file.json").file, ::testing::TempDir() + "ldrun-file.json");
+  std::remove((::testing::TempDir() + "ldrun-file.json").c_str());
 }
 
 }  // namespace

@@ -252,7 +252,14 @@ inline cv::FileStorage openConfigFile(const std::string& path, const std::string
   if (std::filesystem::is_directory(path, ec)) fail("is a directory");
   std::ifstream f(path, std::ios::binary);
   if (!f) fail("cannot open");
-  std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  // (at most 16 MiB: /dev/zero or a pipe that never ends was read for ever)
+  constexpr size_t kMaxBytes = 16u << 20;
+  std::string text;
+  char chunk[1 << 16];
+  while (f.read(chunk, sizeof chunk) || f.gcount() > 0) {
+    text.append(chunk, static_cast<size_t>(f.gcount()));
+    if (text.size() > kMaxBytes) fail("is larger than 16 MiB: not a configuration file");
+  }
   // (an editor's UTF-8 byte order mark: OpenCV takes it as part of the first key)
   if (text.compare(0, 3, "\xEF\xBB\xBF") == 0) text.erase(0, 3);
   if (const auto why = unsafeForOpenCv(text)) fail(*why);

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <set>
+#include <sstream>
 #include <stdexcept>
 #include <type_traits>
 
@@ -261,8 +262,17 @@ RunConfig RunConfig::load(const std::string& given) {
   }
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) throw std::runtime_error("config " + path + " is a folder");
-  std::ifstream f(path);
-  if (!f) throw std::runtime_error("cannot read config " + path);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot read config " + path);
+  // (at most 16 MiB: /dev/zero or a pipe that never ends was read for ever)
+  std::string text;
+  char chunk[1 << 16];
+  while (in.read(chunk, sizeof chunk) || in.gcount() > 0) {
+    text.append(chunk, static_cast<size_t>(in.gcount()));
+    if (text.size() > (16u << 20))
+      throw std::runtime_error("config " + path + " is larger than 16 MiB: not a configuration file");
+  }
+  std::istringstream f(text);
   Json j;
   const bool yaml = endsWith(path, ".yaml") || endsWith(path, ".yml");
   if (yaml) {
