@@ -489,6 +489,32 @@ TEST(RunConfig, YamlErrorsNameTheKeyOrTheLine) {
 
 // A config path without an extension (ld-run@.service's /etc/landmark/<instance>)
 // is the .yaml, .yml or .json of that name; two of them is an error.
+// An option ld-run passes a program itself, given again in the config's args,
+// is refused naming where it is set: the program refused it as given twice
+// ("--in: At Most 1 required but received 2"), which the user never typed
+// (an audit). Other options, and values that look alike, pass.
+TEST(RunConfig, ArgsThatRepeatLdRunsOwnOptionsAreRefused) {
+  for (const auto& [json, expected] : std::vector<std::pair<std::string, std::string>>{
+           {R"({"detector": {"args": ["--in", "X"]}})",
+            "detector's args give --in, which ld-run passes itself from the config's channels: set it there"},
+           {R"({"tracker": {"args": ["--lcm-url=udpm://239.255.76.67:7667"]}})",
+            "tracker's args give --lcm-url, which ld-run passes itself from the config's lcm_url (or --lcm-url)"},
+           {R"({"qr_reader": {"args": ["-v", "--tracks", "T"]}})", "qr-reader's args give --tracks"},
+           {R"({"source": {"type": "play", "log": "a.lcmlog", "args": ["--fps=5"]}})",
+            "play's args give --fps, which ld-run passes itself from the config's source (fps, format, duration_s)"}}) {
+    const auto cfg = ld::RunConfig::fromJson(nlohmann::json::parse(json));
+    try {
+      ld::buildProcessSpecs(cfg, "udpm://239.255.76.67:7667?ttl=0", "");
+      ADD_FAILURE() << json << ": no error";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
+    }
+  }
+  const auto ok = ld::RunConfig::fromJson(
+      nlohmann::json::parse(R"({"detector": {"args": ["--params", "d.yaml", "--explain", "1", "--input-hint"]}})"));
+  EXPECT_NO_THROW(ld::buildProcessSpecs(ok, "udpm://239.255.76.67:7667?ttl=0", ""));
+}
+
 TEST(RunConfig, PathWithoutExtensionFindsTheFile) {
   const std::string dir = ::testing::TempDir() + "ldrun-ext/";
   std::filesystem::remove_all(dir);

@@ -323,6 +323,20 @@ std::vector<ProcessSpec> buildProcessSpecs(const RunConfig& cfg, const std::stri
   const auto prog = [&](const std::string& name) { return resolveProgram(name, self_dir); };
   const auto add = [&](const std::string& name, ProcessRole role, std::vector<std::string> argv,
                        const std::vector<std::string>& extra) {
+    // An option ld-run passes itself, given again in the config's args: the
+    // program refused it twice ("--in: At Most 1 required but received 2"),
+    // which the user never typed twice.
+    for (const std::string& a : extra)
+      for (size_t k = 1; k < argv.size(); ++k) {
+        const std::string& own = argv[k];
+        if (own.rfind("--", 0) != 0 || (a != own && a.rfind(own + "=", 0) != 0)) continue;
+        const std::string from = own == "--lcm-url" ? "lcm_url (or --lcm-url)"
+                                 : own == "--fps" || own == "--format" || own == "--duration"
+                                     ? "source (fps, format, duration_s)"
+                                     : "channels";
+        throw std::runtime_error(name + "'s args give " + own + ", which ld-run passes itself from the config's " +
+                                 from + ": set it there");
+      }
     argv.insert(argv.end(), extra.begin(), extra.end());
     specs.push_back({name, std::move(argv), role});
   };
