@@ -114,6 +114,14 @@ set +e; "$BIN/ld-detect" "$T/s/000000.png" -o "$T/newdir/" >/dev/null 2>"$T/err"
 [ $rc -eq 2 ] && grep -q "^ld-detect: cannot write $T/newdir/: names a folder (it ends in /), not a file$" "$T/err" &&
   [ ! -e "$T/newdir" ] || fail "-o DIR/: exit $rc, $(cat "$T/err")"
 # results that cannot be written all (a full disk): status 1, said, to a file or stdout
+# no input, or a folder without images: said so, naming the folder ("inputs
+# is required", "no image files found" before)
+set +e; "$BIN/ld-detect" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -q "^ld-detect: no input: give image files or folders" "$T/err" || { echo "FAIL: no input: $rc $(cat "$T/err")"; exit 1; }
+mkdir -p "$T/noimages"; touch "$T/noimages/notes.txt"
+set +e; "$BIN/ld-detect" "$T/noimages" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -q "^ld-detect: no image files in $T/noimages (folders are searched for .png" "$T/err" ||
+  { echo "FAIL: a folder without images: $rc $(cat "$T/err")"; exit 1; }
 # -o naming the parameters or calibration it reads: refused, left as it was
 printf '%%YAML:1.0\n---\nsecond_looks: 1\n' >"$T/params.yaml"; cp "$T/params.yaml" "$T/params.keep"
 set +e; "$BIN/ld-detect" "$T/s/000000.png" --params "$T/params.yaml" -o "$T/../$(basename "$T")/params.yaml" >/dev/null 2>"$T/err"; rc=$?; set -e

@@ -2151,7 +2151,7 @@ TEST(Params, FilesOpenLikeEveryConfigFile) {
     ld::DetectorParams::load("/nonexistent/dir/params.yaml");
     ADD_FAILURE() << "no error";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("detector params /nonexistent/dir/params.yaml: cannot open"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("detector params /nonexistent/dir/params.yaml: cannot open: No such file or directory"), std::string::npos)
         << e.what();
   }
   try {

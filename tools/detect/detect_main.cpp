@@ -64,7 +64,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> inputs;
   std::string draw_dir, out_file;
   bool summary = false, decode = false, explain = false;
-  app.add_option("inputs", inputs, "image files or folders")->required();
+  app.add_option("IMAGES", inputs, "image files or folders");
   ld::DetectorOptions detector_options;
   detector_options.addTo(app);
   app.add_option("--draw", draw_dir, "write overlay images into this folder");
@@ -86,9 +86,13 @@ int main(int argc, char** argv) {
   if ((app.count("--draw") && draw_dir.empty()) || (app.count("--output") && out_file.empty()))
     return ld::cli::usage(argv[0], std::string(draw_dir.empty() && app.count("--draw") ? "--draw" : "--output") +
                                        " needs a path, not \"\"");
+  if (inputs.empty()) return ld::cli::usage(argv[0], "no input: give image files or folders");
   const auto files = expandInputs(inputs);
   if (files.empty()) {
-    std::cerr << "ld-detect: no image files found\n";
+    std::string named;
+    for (const auto& in : inputs) named += (named.empty() ? "" : ", ") + in;
+    std::cerr << "ld-detect: no image files in " << named
+              << " (folders are searched for .png, .jpg, .jpeg, .bmp, .ppm, .pgm, .pnm, .tif, .tiff, .webp)\n";
     return 2;
   }
   // What it writes must not be what it reads: -o naming an input would

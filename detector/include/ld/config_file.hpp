@@ -31,6 +31,7 @@
 #include <cerrno>
 #include <chrono>
 #include <csignal>
+#include <cstring>
 #include <ctime>
 #include <fcntl.h>
 #include <sys/prctl.h>
@@ -251,7 +252,7 @@ inline cv::FileStorage openConfigFile(const std::string& path, const std::string
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) fail("is a directory");
   std::ifstream f(path, std::ios::binary);
-  if (!f) fail("cannot open");
+  if (!f) fail(std::string("cannot open: ") + std::strerror(errno));  // (no such file, no permission)
   // (at most 16 MiB: /dev/zero or a pipe that never ends was read for ever)
   constexpr size_t kMaxBytes = 16u << 20;
   std::string text;
