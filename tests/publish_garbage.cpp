@@ -31,9 +31,29 @@ int main(int argc, char** argv) {
   app.add_option("--channel", channel);
   app.add_option("--interval-ms", interval_ms, "pause between messages (receivers that keep only "
                                                "the newest message then see each one)");
+  int big_list = 0;
+  app.add_option("--big-list", big_list, "instead, one well-formed landmark_list_t of this many landmarks "
+                                         "(more than a tracker takes)");
   LD_CLI_PARSE(app, argc, argv);
   lcm::LCM lcm(url);
   if (!lcm.good()) return 2;
+  if (big_list > 0) {
+    ld::landmark_list_t list{};
+    list.backend = "cpu";
+    list.nlandmarks = big_list;
+    list.landmarks.resize(static_cast<size_t>(big_list));
+    for (int k = 0; k < big_list; ++k) {  // 30 px squares, overlapping, as a clump
+      ld::landmark_t& lm = list.landmarks[static_cast<size_t>(k)];
+      const float x = static_cast<float>(20 + (k * 7) % 600), y = static_cast<float>(20 + (k * 13) % 440);
+      const float c[4][2] = {{x, y}, {x + 30, y}, {x + 30, y + 30}, {x, y + 30}};
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 2; ++j) lm.corners[i][j] = c[i][j];
+      lm.track_id = -1;
+    }
+    lcm.publish(channel, &list);
+    std::cout << "published a list of " << big_list << " landmarks on " << channel << "\n";
+    return 0;
+  }
 
   std::vector<std::vector<uint8_t>> messages;
   std::mt19937 rng(1);

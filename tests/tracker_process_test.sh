@@ -65,6 +65,9 @@ rc=0; timeout 10 "$BIN/ld-tracker" --in "" >/dev/null 2>"$T/err" || rc=$?
   trk=$!
   sleep 1
   "$BIN/ld-publish-garbage" --lcm-url "$URL" --channel LANDMARKS
+  sleep 0.3
+  "$BIN/ld-publish-garbage" --lcm-url "$URL" --channel LANDMARKS --big-list 5000
+  sleep 0.3
   lcm-logplayer --lcm-url="$URL" "$T/in.lcmlog"
   sleep 1
   kill -0 $trk   # still running after the bad messages
@@ -94,6 +97,9 @@ diff "$T/in.keys" "$T/out.keys"                          # each frame once, same
 # The payload read once stays with its track.
 [ "$(jq -r '.landmarks[] | select(.track_id == 1) | .payload' "$T/out.jsonl" | sort -u)" = A ]
 grep -q "dropped message" "$T/tracker.err"               # the garbage was reported
+# a list far beyond what a detector finds: dropped, said (it stalled the
+# tracker for seconds and took hundreds of MB)
+grep -q "^ld-tracker: dropped message: message on LANDMARKS is a list of 5000 landmarks (frame 0), more than the 1000 the tracker takes" "$T/tracker.err"
 grep -q "stopped after" "$T/tracker.err"                  # clean exit on SIGINT
 # a landmark whose corners are not numbers is not tracked, and said so
 grep -q "^ld-tracker: 1 landmark of the list on LANDMARKS for frame 1020 (utime [0-9]*) not tracked: corners not finite" "$T/tracker.err"
