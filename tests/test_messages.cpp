@@ -386,6 +386,20 @@ TEST(ImageConvert, SeqMetadata) {
 
 // An LCM that will not open: 1 where a restart may mend it (a provider LCM
 // has, the network not up yet), 2 where the URL itself is wrong.
+// Frames whose utime stands still (a publisher that does not stamp them) are
+// said once, at the 10th in a row; time moving on in between starts the
+// count again.
+TEST(StillTimeWatch, SaysOnceAtTheTenthFrameInARow) {
+  ld::StillTimeWatch w;
+  for (int k = 0; k < 9; ++k) EXPECT_FALSE(w.note(5)) << k;  // 9 alike
+  EXPECT_FALSE(w.note(6));
+  for (int k = 0; k < 9; ++k) EXPECT_FALSE(w.note(0)) << k;
+  EXPECT_TRUE(w.note(0));  // the 10th 0 in a row
+  for (int k = 0; k < 30; ++k) EXPECT_FALSE(w.note(0));  // once
+  ld::StillTimeWatch moving;
+  for (int64_t t = 0; t < 100; ++t) EXPECT_FALSE(moving.note(t * 33333));
+}
+
 TEST(LcmUrl, OpenFailureStatusTellsAWrongUrl) {
   EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608"), 1);
   EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://"), 1);

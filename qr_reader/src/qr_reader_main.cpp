@@ -111,6 +111,7 @@ int main(int argc, char** argv) {
   ld::QrReader reader;
   ld::QrReader stack_reader;  // its own buffers: the stacks' views have their own size
   ld::QrTrackBook book(sched);
+  ld::StillTimeWatch still;
   ld::FrameMatcher::Pair pair;
   ld::image_t image;
   ld::landmark_list_t list;
@@ -176,6 +177,10 @@ int main(int argc, char** argv) {
         std::cerr << "ld-qr-reader: track " << lm.track_id << " jumped by more than its landmark's size: \""
                   << *forgotten << "\" is forgotten and the track read again (ids moved?)\n";
     }
+    if (still.note(list.utime))
+      std::cerr << "ld-qr-reader: 10 frames in a row with utime " << list.utime
+                << ": retries and re-reads count time from it, so a track not read at once is not tried again "
+                   "while it stands still (does the publisher stamp its frames?)\n";
     const std::vector<int64_t> todo = book.schedule(ids, list.utime);
     for (auto it = stacks.begin(); it != stacks.end();) {  // tracks gone or read: their stacks go
       const ld::landmark_t* listed = nullptr;  // visible or coasting

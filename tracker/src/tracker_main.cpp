@@ -104,6 +104,7 @@ int main(int argc, char** argv) {
   std::signal(SIGTERM, onSignal);
 
   ld::landmark_list_t in, out;
+  ld::StillTimeWatch still;
   std::vector<ld::Landmark> detections;
   int64_t processed = 0, bad = 0, last_processed = 0, resets = 0, rejected = 0, rejected_lists = 0, late = 0;
   auto last_status = std::chrono::steady_clock::now();
@@ -127,6 +128,10 @@ int main(int argc, char** argv) {
                     << ld::badSoFar(bad) << "\n";
       } else {
         const auto t0 = std::chrono::steady_clock::now();
+        if (still.note(in.utime))
+          std::cerr << "ld-tracker: 10 lists in a row with utime " << in.utime
+                    << ": lifetimes count time from it, so tracks unseen do not expire while it stands still "
+                       "(does the publisher stamp its frames?)\n";
         ld::landmarksFromList(in, detections);
         const auto& tracks = tracker.update(detections, in.utime);
         const double ms =

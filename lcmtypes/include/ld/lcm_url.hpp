@@ -50,6 +50,27 @@ namespace ld {
 /// - FD_SETSIZE on fd_set").
 int lcmOpenStatus(lcm::LCM& lcm, const std::string& url, const std::string& program);
 
+/// Watches the utimes of the frames a process handles: a publisher that does
+/// not stamp its frames (utime 0, or one value for ever) stops everything
+/// that counts time from them (a track's lifetime, a QR retry) without a
+/// word. note(utime) returns true once, at the 10th frame in a row with the
+/// same utime, for the caller's one line.
+class StillTimeWatch {
+ public:
+  bool note(int64_t utime) {
+    same_ = utime == last_ ? same_ + 1 : 0;
+    last_ = utime;
+    if (same_ < 9 || said_) return false;
+    said_ = true;
+    return true;
+  }
+
+ private:
+  int64_t last_ = INT64_MIN;
+  int same_ = 0;
+  bool said_ = false;
+};
+
 /// One turn of a process's receive loop: waits up to timeout_ms for messages
 /// on `lcm`, then handles every message already queued (for kMaxDrainMs at
 /// most), so that the caller sees only the newest. A signal interrupting
