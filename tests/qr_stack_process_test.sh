@@ -12,7 +12,8 @@ T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
 # with status 2 (before any LCM is opened).
 for bad in "--max-decodes 0|--max-decodes: must be in \[1, 100\], not 0" \
            "--retry-interval nan|--retry-interval: 'nan' is not a number" \
-           "--recheck-interval -5|--recheck-interval: must be > 0, not -5"; do
+           "--recheck-interval -5|--recheck-interval: must be > 0, not -5" \
+           "--decode-budget-ms 0|--decode-budget-ms: must be in \[1, 10000\], not 0"; do
   rc=0; "$BIN/ld-qr-reader" ${bad%%|*} 2>"$T/err" || rc=$?
   [ $rc -eq 2 ] && [ "$(wc -l <"$T/err")" -eq 1 ] && grep -q "^ld-qr-reader: ${bad#*|}" "$T/err" ||
     { echo "FAIL: ld-qr-reader ${bad%%|*}: exit $rc: $(cat "$T/err")"; exit 1; }

@@ -123,6 +123,21 @@ TEST(QrTrackBook, ReadTrackThatJumpsIsReadAgain) {
   EXPECT_EQ(book.payload(1)->payload, "room-103");
 }
 
+// The first decode of a frame always runs; later ones while the budget lasts.
+TEST(DecodeBudget, FirstAlwaysThenWhileTheBudgetLasts) {
+  using ms = std::chrono::milliseconds;
+  const ld::DecodeBudget::Clock::time_point t0{};
+  ld::DecodeBudget b(30);
+  EXPECT_TRUE(b.allows(t0 + ms(1000)));  // the first, whenever
+  EXPECT_TRUE(b.allows(t0 + ms(1020)));
+  EXPECT_TRUE(b.allows(t0 + ms(1029)));
+  EXPECT_FALSE(b.allows(t0 + ms(1030)));
+  EXPECT_FALSE(b.allows(t0 + ms(1100)));
+  ld::DecodeBudget tight(1);
+  EXPECT_TRUE(tight.allows(t0));
+  EXPECT_FALSE(tight.allows(t0 + ms(80)));  // (one slow decode spends it)
+}
+
 TEST(QrTrackBook, BoundedWorkPerFrameUndecodedFirst) {
   ld::QrScheduleParams params;
   params.max_decodes_per_frame = 2;

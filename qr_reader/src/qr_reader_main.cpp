@@ -85,6 +85,12 @@ int main(int argc, char** argv) {
   app.add_option("--max-decodes", sched.max_decodes_per_frame, "decode attempts per frame")
       ->capture_default_str()
       ->check(ld::cli::Between(1, 100));
+  double budget_ms = 30;
+  app.add_option("--decode-budget-ms", budget_ms,
+                 "milliseconds of decoding per frame: once spent, the frame's other due tracks wait for the next "
+                 "(the first decode always runs)")
+      ->capture_default_str()
+      ->check(ld::cli::Between(1, 10000));
   int stack_frames = 8;
   app.add_option("--stack-frames", stack_frames,
                  "frames of an undecoded track averaged in the sheet's frame and read when single "
@@ -205,9 +211,11 @@ int main(int argc, char** argv) {
       }
     }
     out.codes.clear();
+    ld::DecodeBudget budget(budget_ms);  // (the frame's decodes stop once it is spent)
     for (const auto& lm : list.landmarks) {
       if (lm.track_id < 0) continue;
-      const bool try_now = std::find(todo.begin(), todo.end(), lm.track_id) != todo.end();
+      const bool try_now = std::find(todo.begin(), todo.end(), lm.track_id) != todo.end() &&
+                           budget.allows(std::chrono::steady_clock::now());
       float ms = 0;
       if (try_now) {
         const std::array<cv::Point2f, 4> corners = cornersOf(lm);

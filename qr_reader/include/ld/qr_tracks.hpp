@@ -4,6 +4,7 @@
 // behind the camera.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <deque>
 #include <optional>
@@ -58,6 +59,31 @@ class FrameMatcher {
   std::deque<Pair> ready_;
   std::vector<std::vector<uint8_t>> spare_;  // recycled buffers
   int64_t skipped_ = 0, unmatched_dropped_ = 0;
+};
+
+/// The decoding time a frame may take: the first decode always runs, a later
+/// one only while the time since the first began is under the budget (a
+/// large pattern without a readable QR costs 20 ms a try and its stacked
+/// frames 60 ms more, so a count of decodes alone let a frame take 300 ms).
+/// The tracks not tried stay due and come first in the next frame's schedule.
+class DecodeBudget {
+ public:
+  using Clock = std::chrono::steady_clock;
+  explicit DecodeBudget(double budget_ms) : budget_ms_(budget_ms) {}
+  /// Whether a decode may start at `now`; the first call starts the clock.
+  bool allows(Clock::time_point now) {
+    if (!started_) {
+      started_ = true;
+      t0_ = now;
+      return true;
+    }
+    return std::chrono::duration<double, std::milli>(now - t0_).count() < budget_ms_;
+  }
+
+ private:
+  double budget_ms_;
+  bool started_ = false;
+  Clock::time_point t0_;
 };
 
 struct QrScheduleParams {
