@@ -529,6 +529,72 @@ TEST(Tracker, NewcomerBesideAMissedLandmarkTakesNoId) {
   }
 }
 
+// A landmark in plain view keeps its id against a neighbour unseen for a
+// while: the gate a coasting landmark gets wider lets a pair in, it does not
+// make it a better pair (a review: with the gain measured against the wider
+// gate, the stale neighbour took the landmark's id in each of these).
+TEST(Tracker, LandmarkInViewKeepsItsIdAgainstAStaleNeighbour) {
+  {  // defaults: A and B 35 px apart (size 30), a frame without either, then A alone
+    ld::Tracker tr;
+    const int64_t a = idOf(tr.update({square(100, 200), square(135, 200)}, frameTime(0)), 0);
+    tr.update({}, frameTime(1));
+    for (int k = 2; k < 10; ++k) EXPECT_EQ(idOf(tr.update({square(100, 200)}, frameTime(k)), 0), a) << "frame " << k;
+  }
+  {  // no prediction: a landmark and a duplicate seen once 25 px away
+    ld::TrackerParams p;
+    p.predict = false;
+    ld::Tracker tr(p);
+    const int64_t l = idOf(tr.update({square(100, 200), square(125, 200)}, frameTime(0)), 0);
+    for (int k = 1; k < 6; ++k) EXPECT_EQ(idOf(tr.update({square(100, 200)}, frameTime(k)), 0), l) << "frame " << k;
+  }
+  {  // a gate growing faster than it starts: a neighbour 1 size away vanishes
+    ld::TrackerParams p;
+    p.max_distance = 1.0;
+    p.coast_distance_growth = 4.0;
+    ld::Tracker tr(p);
+    int64_t a = -1;
+    for (int k = 0; k < 10; ++k) a = idOf(tr.update({square(100, 200), square(130, 200)}, frameTime(k)), 0);
+    for (int k = 10; k < 30; ++k) EXPECT_EQ(idOf(tr.update({square(100, 200)}, frameTime(k)), 0), a) << "frame " << k;
+  }
+}
+
+// What the largest total gain gives up: a row of landmarks 1.5 sizes apart
+// that jumps, before any velocity is known, by less than half their spacing
+// keeps its ids; by more, each landmark is nearer its neighbour's old place
+// than its own, and the ids move one over (README, "The tracker").
+TEST(Tracker, UnpredictedJumpAlongARowKeepsIdsUpToHalfTheSpacing) {
+  for (const double jump : {10.0, 20.0, 30.0}) {
+    ld::Tracker tr;
+    std::vector<ld::Landmark> d0, d1;
+    for (int i = 0; i < 5; ++i) {
+      d0.push_back(square(100 + 45 * i, 200));
+      d1.push_back(square(100 + jump + 45 * i, 200));
+    }
+    const auto& first = tr.update(d0, frameTime(0));
+    std::vector<int64_t> ids;
+    for (int i = 0; i < 5; ++i) ids.push_back(idOf(first, i));
+    const auto& out = tr.update(d1, frameTime(1));
+    int kept = 0;
+    for (int i = 0; i < 5; ++i) kept += idOf(out, i) == ids[static_cast<size_t>(i)];
+    if (jump < 22.5)
+      EXPECT_EQ(kept, 5) << "jump " << jump;
+    else
+      EXPECT_EQ(kept, 0) << "jump " << jump;
+  }
+}
+
+// Parameters the assignment cannot work with are refused: a gate of 1e307
+// sizes overflowed its gains into NaN, and ld-tracker aborted (a review).
+TEST(TrackerParams, GateBeyondAThousandSizesIsRefused) {
+  ld::TrackerParams p;
+  p.max_distance = 1e307;
+  EXPECT_THROW(p.validate(), std::invalid_argument);
+  p.max_distance = 1000;
+  EXPECT_NO_THROW(p.validate());
+  p.coast_distance_growth = 1e9;
+  EXPECT_THROW(p.validate(), std::invalid_argument);
+}
+
 TEST(Tracker, TracksCarryCornersPoseAndPayload) {
   ld::Tracker tr;
   ld::Landmark a = square(200, 200);

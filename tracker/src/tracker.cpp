@@ -209,8 +209,10 @@ void Tracker::assign(int64_t utime) {
   if (n_pool == 0 || n_det == 0) return;
 
   // c) Both non-empty: the assignment problem, pool landmarks as agents and
-  // new landmarks as tasks. A pair inside its gate gains its margin (how far
-  // inside: the gate's radius less the distance), weighed down by the time
+  // new landmarks as tasks. A pair inside its gate (widened for a coasting
+  // landmark) gains its margin inside the plain gate (max_distance: the
+  // widening lets a pair in, it does not make it better, or a stale landmark
+  // would take a detection from one sitting on it), weighed down by the time
   // the pool landmark has been unseen; the assignment with the largest total
   // gain wins, leaving a pool landmark and a detection apart when no pairing
   // gains. (Fewest unmatched first, as a plain rectangular assignment does,
@@ -235,8 +237,10 @@ void Tracker::assign(int64_t utime) {
       double margin = gateMargin(e.pred_centre, e.pred_size, j, max_dist);
       if (two_places) margin = std::max(margin, gateMargin(e.centre, e.size, j, max_dist));
       if (!(margin >= 0)) continue;  // outside the gate (or not finite): no gain
-      // (a pair on the gate's edge still gains a little: it is allowed)
-      const double g = (margin + 1e-3) / (1.0 + kStaleWeight * unseen_s);
+      double plain = gateMargin(e.pred_centre, e.pred_size, j, params_.max_distance);
+      if (two_places) plain = std::max(plain, gateMargin(e.centre, e.size, j, params_.max_distance));
+      // (a pair in the gate but beyond the plain one still gains a little: it is allowed)
+      const double g = (std::max(plain, 0.0) + 1e-3) / (1.0 + kStaleWeight * unseen_s);
       gain_[i * n_det + j] = g;
       max_gain = std::max(max_gain, g);
     }

@@ -118,10 +118,10 @@ void TrackerParams::validate() const {
   auto bad = [](const std::string& what) { throw std::invalid_argument(what); };
   if (!(max_lifetime_s > 0) || !std::isfinite(max_lifetime_s))
     bad("max_lifetime_s must be a positive number of seconds");
-  if (!(max_distance > 0) || !std::isfinite(max_distance))
-    bad("max_distance must be positive (landmark sizes)");
-  if (!(coast_distance_growth >= 0) || !std::isfinite(coast_distance_growth))
-    bad("coast_distance_growth must be >= 0 (landmark sizes per second)");
+  // (bounded: a gate of 1e307 sizes overflowed the assignment's gains)
+  if (!(max_distance > 0 && max_distance <= 1000)) bad("max_distance must be in (0, 1000] (landmark sizes)");
+  if (!(coast_distance_growth >= 0 && coast_distance_growth <= 1000))
+    bad("coast_distance_growth must be in [0, 1000] (landmark sizes per second)");
   if (!(max_size_ratio >= 1 && max_size_ratio <= 1000)) bad("max_size_ratio must be in [1, 1000]");
   if (!(velocity_smoothing > 0 && velocity_smoothing <= 1))
     bad("velocity_smoothing must be in (0, 1]");
