@@ -118,6 +118,7 @@ int main(int argc, char** argv) {
   ld::QrReader stack_reader;  // its own buffers: the stacks' views have their own size
   ld::QrTrackBook book(sched);
   ld::StillTimeWatch still;
+  std::vector<std::pair<int64_t, float>> tried_ms;  // (this frame's decodes: track id, ms)
   ld::FrameMatcher::Pair pair;
   ld::image_t image;
   ld::landmark_list_t list;
@@ -178,7 +179,7 @@ int main(int argc, char** argv) {
       double side = 0;
       for (int i = 0; i < 4; ++i) side += cv::norm(c[static_cast<size_t>((i + 1) % 4)] - c[static_cast<size_t>(i)]) / 4;
       const cv::Point2f centre = (c[0] + c[1] + c[2] + c[3]) * 0.25f;
-      const auto forgotten = book.follow(lm.track_id, lm.age, centre.x, centre.y, side);
+      const auto forgotten = book.follow(lm.track_id, lm.age, lm.visible, centre.x, centre.y, side);
       if (forgotten && verbose)
         std::cerr << "ld-qr-reader: track " << lm.track_id << " jumped by more than its landmark's size: \""
                   << *forgotten << "\" is forgotten and the track read again (ids moved?)\n";
@@ -211,35 +212,38 @@ int main(int argc, char** argv) {
       }
     }
     out.codes.clear();
-    ld::DecodeBudget budget(budget_ms);  // (the frame's decodes stop once it is spent)
+    // The due tracks in the schedule's order (undecoded first, least
+    // recently tried first), while the frame's budget lasts: the ones left
+    // stay due and lead the next frame's schedule. (In the list's order, the
+    // first unreadable track took the budget every frame.)
+    ld::DecodeBudget budget(budget_ms);
+    tried_ms.clear();
+    for (const int64_t id : todo) {
+      const auto lm = std::find_if(list.landmarks.begin(), list.landmarks.end(),
+                                   [&](const ld::landmark_t& l) { return l.track_id == id && l.visible; });
+      if (lm == list.landmarks.end() || !budget.allows(std::chrono::steady_clock::now())) continue;
+      const std::array<cv::Point2f, 4> corners = cornersOf(*lm);
+      const auto t0 = std::chrono::steady_clock::now();
+      auto r = reader.decode(bgr, corners);
+      bool from_stack = false;
+      if (!r && stack_frames > 0 && !book.payload(id) && (stacks.count(id) || stacks.size() < kMaxStacks)) {
+        ld::QrStack& stack = stacks.try_emplace(id, stack_frames).first->second;
+        if (stack.add(bgr, corners) && stack.frames() >= std::min(kMinStackFrames, stack_frames))
+          from_stack = static_cast<bool>(r = stack.decode(stack_reader));
+      }
+      tried_ms.emplace_back(id, std::chrono::duration<float, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      const bool is_new = r && !book.payload(id);
+      decoded_stacked += is_new && from_stack;
+      book.record(id, list.utime, list.seq, r ? std::optional<std::string>(r->payload) : std::nullopt);
+      if (is_new) {
+        ++decoded;  // (its stack goes with the next frame's pruning)
+        if (verbose)
+          std::cerr << "ld-qr-reader: track " << id << " reads \"" << r->payload << "\""
+                    << (from_stack ? " (from its stacked frames)" : "") << "\n";
+      }
+    }
     for (const auto& lm : list.landmarks) {
       if (lm.track_id < 0) continue;
-      const bool try_now = std::find(todo.begin(), todo.end(), lm.track_id) != todo.end() &&
-                           budget.allows(std::chrono::steady_clock::now());
-      float ms = 0;
-      if (try_now) {
-        const std::array<cv::Point2f, 4> corners = cornersOf(lm);
-        const auto t0 = std::chrono::steady_clock::now();
-        auto r = reader.decode(bgr, corners);
-        bool from_stack = false;
-        if (!r && stack_frames > 0 && !book.payload(lm.track_id) &&
-            (stacks.count(lm.track_id) || stacks.size() < kMaxStacks)) {
-          ld::QrStack& stack = stacks.try_emplace(lm.track_id, stack_frames).first->second;
-          if (stack.add(bgr, corners) && stack.frames() >= std::min(kMinStackFrames, stack_frames))
-            from_stack = static_cast<bool>(r = stack.decode(stack_reader));
-        }
-        ms = std::chrono::duration<float, std::milli>(std::chrono::steady_clock::now() - t0).count();
-        const bool is_new = r && !book.payload(lm.track_id);
-        decoded_stacked += is_new && from_stack;
-        book.record(lm.track_id, list.utime, list.seq,
-                    r ? std::optional<std::string>(r->payload) : std::nullopt);
-        if (is_new) {
-          ++decoded;  // (its stack goes with the next frame's pruning)
-          if (verbose)
-            std::cerr << "ld-qr-reader: track " << lm.track_id << " reads \"" << r->payload << "\""
-                      << (from_stack ? " (from its stacked frames)" : "") << "\n";
-        }
-      }
       if (const auto* k = book.payload(lm.track_id)) {
         ld::qr_code_t c{};
         c.track_id = lm.track_id;
@@ -248,7 +252,8 @@ int main(int argc, char** argv) {
         c.seq = k->seq;
         for (int i = 0; i < 4; ++i)
           for (int j = 0; j < 2; ++j) c.corners[i][j] = lm.corners[i][j];
-        c.decode_ms = ms;
+        const auto t = std::find_if(tried_ms.begin(), tried_ms.end(), [&](const auto& p) { return p.first == lm.track_id; });
+        c.decode_ms = t == tried_ms.end() ? 0.0f : t->second;
         out.codes.push_back(std::move(c));
       }
     }

@@ -124,15 +124,23 @@ std::vector<int64_t> QrTrackBook::schedule(const std::vector<int64_t>& track_ids
   return out;
 }
 
-std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, double cx, double cy, double size) {
+std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bool visible, double cx, double cy,
+                                               double size) {
   const auto it = tracks_.find(track_id);
-  if (it == tracks_.end() || !std::isfinite(cx) || !std::isfinite(cy) || !(size > 0) || !std::isfinite(size))
+  if (!visible || it == tracks_.end() || !std::isfinite(cx) || !std::isfinite(cy) || !(size > 0) ||
+      !std::isfinite(size))
     return std::nullopt;
   Track& t = it->second;
   if (t.placed && age <= t.age) return std::nullopt;  // (an older frame, matched late: no news)
   const double frames = t.placed ? static_cast<double>(age) - t.age : 1.0;
-  const double moved = std::hypot(cx - t.cx, cy - t.cy);
-  const bool jumped = t.placed && t.known && moved > frames * 0.5 * (size + t.size);
+  const double off = std::hypot(cx - (t.cx + t.vx * frames), cy - (t.cy + t.vy * frames));
+  const bool jumped = t.placed && t.known && off > frames * 0.5 * (size + t.size);
+  if (t.placed && !jumped) {
+    t.vx = (cx - t.cx) / frames;
+    t.vy = (cy - t.cy) / frames;
+  } else {
+    t.vx = t.vy = 0;  // (a new landmark under the id: its motion is not known yet)
+  }
   t.placed = true;
   t.cx = cx;
   t.cy = cy;

@@ -111,16 +111,19 @@ class QrTrackBook {
   /// at most max_decodes_per_frame.
   std::vector<int64_t> schedule(const std::vector<int64_t>& track_ids, int64_t utime);
 
-  /// Where a track's landmark is in a frame (visible or coasting): its centre
-  /// and size (mean side of its corners) in pixels, and its age (frames since
-  /// the tracker created it). A track whose payload is known and whose
-  /// landmark moved by more than its size per tracker frame since the last
-  /// frame it was placed in is another landmark now (the tracker moved the id
-  /// over: a landmark vanished and a neighbour took its id): its payload is
-  /// forgotten and it is read again at once: the payload forgotten is
-  /// returned. Tracks the book does not know yet (never scheduled) are left
-  /// alone.
-  std::optional<std::string> follow(int64_t track_id, int32_t age, double cx, double cy, double size);
+  /// Where a track's landmark is in a frame: its age (frames since the
+  /// tracker created it), whether it was detected (a coasting landmark's
+  /// place is the tracker's guess, and is not looked at), its centre and
+  /// size (mean side of its corners) in pixels. A track whose payload is
+  /// known and whose landmark is further from where its motion so far leads
+  /// (its last detected place, moved on at the velocity between its last two)
+  /// than its size per tracker frame is another landmark now (the tracker
+  /// moved the id over: a landmark vanished and a neighbour took its id): its
+  /// payload is forgotten and it is read again at once; the payload
+  /// forgotten is returned. Tracks the book does not know yet (never
+  /// scheduled) are left alone.
+  std::optional<std::string> follow(int64_t track_id, int32_t age, bool visible, double cx, double cy,
+                                    double size);
 
   /// Records the outcome of a decode attempt of `track_id` on the frame
   /// (utime, seq).
@@ -140,8 +143,8 @@ class QrTrackBook {
     std::optional<Known> known;
     int64_t last_try = INT64_MIN;
     int64_t last_seen = 0;
-    bool placed = false;  // where it was last (follow)
-    double cx = 0, cy = 0, size = 0;
+    bool placed = false;  // where it was last detected (follow)
+    double cx = 0, cy = 0, size = 0, vx = 0, vy = 0;  // (velocity in px per tracker frame)
     int32_t age = 0;
   };
   QrScheduleParams params_;
