@@ -518,7 +518,7 @@ struct Detector::Impl {
       filters = detail::makeGlesFilters(why, true, params.backend == "auto" && !detail::envFlag("LD_GLES_AUTO_SOFTWARE"));
       if (!filters) {
         if (params.backend == "gles")
-          throw std::runtime_error("GLES backend unavailable: " + why + " (backend \"auto\" falls back to the CPU)");
+          throw BackendUnavailable("GLES backend unavailable: " + why + " (backend \"auto\" falls back to the CPU)");
         fallback_why = why;
         warnBackend("GLES backend unavailable (" + why + "); running the CPU backend");
       } else if (params.backend == "auto") {

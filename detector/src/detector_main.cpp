@@ -63,6 +63,11 @@ int main(int argc, char** argv) {
   ld::AdaptiveDetector detector;  // with --adaptive: frames are corrected before detection
   try {
     detector = detector_options.makeAdaptive();
+  } catch (const ld::BackendUnavailable& e) {
+    // (a GPU whose driver is not up yet, at boot: a supervisor starts it
+    // again; 2 is for what a restart will not mend)
+    std::cerr << "ld-detector: " << e.what() << "\n";
+    return 1;
   } catch (const std::exception& e) {
     std::cerr << "ld-detector: " << e.what() << "\n";
     return 2;

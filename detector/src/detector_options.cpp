@@ -1,5 +1,6 @@
 #include "ld/detector_options.hpp"
 
+#include <optional>
 #include <stdexcept>
 
 #include "ld/cli.hpp"
@@ -32,12 +33,17 @@ Detector DetectorOptions::make() const {
   if (!params_file.empty()) params = DetectorParams::load(params_file);
   if (!backend.empty()) params.backend = backend;
   params.validate();
-  Detector detector(params);
+  // Both files read before the detector starts the GPU's threads (a file is
+  // parsed in a child process first: ld::parserFailure), and a bad pose
+  // option refused before any of it.
+  std::optional<CameraModel> camera;
   if (!camera_file.empty() || side_m > 0) {
     if (camera_file.empty()) throw std::invalid_argument("--size without --camera: pose needs both");
     if (side_m <= 0) throw std::invalid_argument("--camera without --size: pose needs both");
-    detector.setCamera(CameraModel::load(camera_file), side_m);
+    camera = CameraModel::load(camera_file);
   }
+  Detector detector(params);
+  if (camera) detector.setCamera(*camera, side_m);
   return detector;
 }
 

@@ -34,6 +34,7 @@
 #include <cstring>
 #include <ctime>
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -189,12 +190,21 @@ inline std::optional<std::string> duplicateKey(const cv::FileNode& node, const s
 /// child says nothing, leaves no core file and dies with its parent.
 inline std::optional<std::string> parserFailure(const std::string& text,
                                                 std::chrono::seconds limit = std::chrono::seconds(5)) {
+  const pid_t parent = ::getpid();
   const pid_t pid = ::fork();
   if (pid < 0) return std::nullopt;
   if (pid == 0) {
     ::prctl(PR_SET_PDEATHSIG, SIGKILL);
-    for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGALRM, SIGSEGV, SIGBUS, SIGABRT, SIGFPE, SIGILL})
-      std::signal(sig, SIG_DFL);  // (the parent's handlers, a fuzzer's or a sanitizer's included)
+    if (::getppid() != parent) ::_exit(0);  // (the parent died before that took)
+    // Ctrl-C or a SIGTERM to the process group is the parent's to handle (it
+    // ends the child, by PR_SET_PDEATHSIG, if it ends); a crash in the parser
+    // dies of its signal (the parent's handlers, a fuzzer's or a sanitizer's,
+    // put back to the default); the alarm ends it should the parent stop.
+    for (int sig : {SIGINT, SIGTERM, SIGHUP}) std::signal(sig, SIG_IGN);
+    for (int sig : {SIGALRM, SIGSEGV, SIGBUS, SIGABRT, SIGFPE, SIGILL}) std::signal(sig, SIG_DFL);
+    sigset_t none;
+    sigemptyset(&none);
+    ::sigprocmask(SIG_SETMASK, &none, nullptr);
     const rlimit no_core{0, 0};
     ::setrlimit(RLIMIT_CORE, &no_core);
     const int null = ::open("/dev/null", O_WRONLY);
@@ -216,8 +226,11 @@ inline std::optional<std::string> parserFailure(const std::string& text,
     int status = 0;
     const pid_t r = ::waitpid(pid, &status, WNOHANG);
     if (r == pid) {
-      if (WIFSIGNALED(status))
-        return "OpenCV's parser crashes on it (signal " + std::to_string(WTERMSIG(status)) + ")";
+      const int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
+      if (sig == SIGSEGV || sig == SIGBUS || sig == SIGABRT || sig == SIGFPE || sig == SIGILL)
+        return "OpenCV's parser crashes on it (signal " + std::to_string(sig) + ")";
+      // (another signal, SIGKILL from the kernel short of memory say, says
+      // nothing of the file: the caller parses it as it would without this)
       if (WIFEXITED(status) && WEXITSTATUS(status) != 0)
         return "OpenCV's parser fails on it (exit " + std::to_string(WEXITSTATUS(status)) + ")";
       return std::nullopt;

@@ -73,6 +73,7 @@
 #include <cmath>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -420,6 +421,13 @@ struct Explanation {
 /// An explanation as lines for people (no trailing newline), each count and
 /// check with the parameters that decide it, each line after `indent`.
 std::string describe(const Explanation& explanation, const DetectorParams& params, const std::string& indent = "");
+
+/// Thrown by the Detector when backend "gles" is asked for and no GPU context
+/// can be made (no EGL display, a driver not up yet): the environment, not
+/// the parameters ("auto" falls back to the CPU instead).
+struct BackendUnavailable : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
 
 class Detector {
  public:
