@@ -16,7 +16,11 @@ FRAMES=90
   set -euo pipefail
   BIN=$1; T=$2; FRAMES=$3
   echo "net.core.rmem_max in the namespace: $(cat /proc/sys/net/core/rmem_max)"
-  "$BIN/ld-dump" --live -c IMAGE > "$T/recv.jsonl" 2> "$T/dump.err" &
+  # (the receiver ahead of other work on the machine, where it may be: a
+  # stall of 40 ms fills the 8 MiB buffer, 1.3 frames; a build beside the
+  # suite lost 5 frames. Without the right to raise it, as it is.)
+  NICE=(); if nice -n -10 true 2>/dev/null; then NICE=(nice -n -10); fi
+  "${NICE[@]}" "$BIN/ld-dump" --live -c IMAGE > "$T/recv.jsonl" 2> "$T/dump.err" &
   dump=$!
   # subscribed (its socket on port 7667, 0x1DF3: alone in this namespace),
   # then LCM'"'"'s self test over; ld-dump takes 0.2-1 s to get there
