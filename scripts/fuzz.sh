@@ -9,8 +9,8 @@
 #   scripts/fuzz.sh all DIR SECONDS            build, then run every target for SECONDS, keeping
 #                                              the grown corpora in DIR/corpus/ between runs
 #
-# LD_FUZZ_SEED=N gives libFuzzer its -seed (the test suite's runs use 1, so a
-# run explores the same inputs each time and a finding is no matter of luck;
+# LD_FUZZ_SEED=N gives libFuzzer its -seed (the test suite's runs use 1: a
+# run tries the same inputs in the same order, as far as its time takes it;
 # unset: a new seed each run, as for `make fuzz`).
 #
 # A crash, a leak, a sanitizer report, a timeout (25 s per input) or an input

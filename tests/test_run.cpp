@@ -500,6 +500,10 @@ TEST(RunConfig, ArgsThatRepeatLdRunsOwnOptionsAreRefused) {
            {R"({"tracker": {"args": ["--lcm-url=udpm://239.255.76.67:7667"]}})",
             "tracker's args give --lcm-url, which ld-run passes itself from the config's lcm_url (or --lcm-url)"},
            {R"({"qr_reader": {"args": ["-v", "--tracks", "T"]}})", "qr-reader's args give --tracks"},
+           {R"({"source": {"type": "replay", "log": "a.lcmlog", "args": ["--speed=3"]}})",
+            "replay's args give --speed, which ld-run passes itself from the config's source's speed"},
+           {R"({"source": {"type": "replay", "log": "a.lcmlog", "args": ["--lcm-url=udpm://239.255.76.67:7000"]}})",
+            "replay's args give --lcm-url"},
            {R"({"source": {"type": "play", "log": "a.lcmlog", "args": ["--fps=5"]}})",
             "play's args give --fps, which ld-run passes itself from the config's source (fps, format, duration_s)"}}) {
     const auto cfg = ld::RunConfig::fromJson(nlohmann::json::parse(json));

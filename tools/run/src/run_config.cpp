@@ -321,22 +321,30 @@ std::vector<ProcessSpec> buildProcessSpecs(const RunConfig& cfg, const std::stri
   const BusChannels& ch = cfg.channels;
   std::vector<ProcessSpec> specs;
   const auto prog = [&](const std::string& name) { return resolveProgram(name, self_dir); };
-  const auto add = [&](const std::string& name, ProcessRole role, std::vector<std::string> argv,
-                       const std::vector<std::string>& extra) {
-    // An option ld-run passes itself, given again in the config's args: the
-    // program refused it twice ("--in: At Most 1 required but received 2"),
-    // which the user never typed twice.
+  // An option ld-run passes itself, given again in the config's args: the
+  // program refused it twice ("--in: At Most 1 required but received 2"),
+  // which the user never typed twice, or (lcm-logplayer) took the last, and
+  // replayed onto another bus. Options are compared by name ("--x=1" is --x).
+  const auto checkArgs = [](const std::string& name, const std::vector<std::string>& argv,
+                            const std::vector<std::string>& extra) {
+    const auto optionName = [](const std::string& a) { return a.substr(0, a.find('=')); };
     for (const std::string& a : extra)
       for (size_t k = 1; k < argv.size(); ++k) {
-        const std::string& own = argv[k];
-        if (own.rfind("--", 0) != 0 || (a != own && a.rfind(own + "=", 0) != 0)) continue;
-        const std::string from = own == "--lcm-url" ? "lcm_url (or --lcm-url)"
+        const std::string own = optionName(argv[k]);
+        if (own.rfind("--", 0) != 0 || optionName(a) != own) continue;
+        const std::string from = own == "--lcm-url"                          ? "lcm_url (or --lcm-url)"
+                                 : own == "--speed"                          ? "source's speed (or --speed)"
+                                 : own == "--regexp"                         ? "source's channels"
                                  : own == "--fps" || own == "--format" || own == "--duration"
                                      ? "source (fps, format, duration_s)"
                                      : "channels";
         throw std::runtime_error(name + "'s args give " + own + ", which ld-run passes itself from the config's " +
                                  from + ": set it there");
       }
+  };
+  const auto add = [&](const std::string& name, ProcessRole role, std::vector<std::string> argv,
+                       const std::vector<std::string>& extra) {
+    checkArgs(name, argv, extra);
     argv.insert(argv.end(), extra.begin(), extra.end());
     specs.push_back({name, std::move(argv), role});
   };
@@ -372,6 +380,7 @@ std::vector<ProcessSpec> buildProcessSpecs(const RunConfig& cfg, const std::stri
                                   "--regexp=" + (cfg.replay_channels.empty()
                                                      ? "^" + quoteRegex(ch.image) + "$"
                                                      : cfg.replay_channels)};
+    checkArgs("replay", argv, cfg.source_args);
     argv.insert(argv.end(), cfg.source_args.begin(), cfg.source_args.end());
     argv.push_back(cfg.log);
     add("replay", ProcessRole::Source, argv, {});
