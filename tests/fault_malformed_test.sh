@@ -17,22 +17,13 @@ done
 
 "$ROOT/scripts/netns-run.sh" bash -c '
   set -euo pipefail
-  BIN=$1; T=$2
+  BIN=$1; T=$2; ROOT=$3
   URL="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608"
-  # sockets: up to 30 s for N sockets on LCM'"'"'s port (7667, 0x1DF3) in this
-  # namespace, then 0.5 s for LCM'"'"'s self test (fixed sleeps were too short
-  # on a loaded machine)
-  sockets() {
-    for _ in $(seq 600); do
-      [ "$(grep -c ":1DF3 " /proc/net/udp)" -ge "$1" ] && { sleep 0.5; return 0; }
-      sleep 0.05
-    done
-    echo "not $1 sockets on port 7667 after 30 s" >&2; return 1
-  }
+  source "$ROOT/tests/lcm_sockets.sh"
   "$BIN/ld-detector" --lcm-url "$URL" 2> "$T/detector.err" & det=$!
   "$BIN/ld-tracker" --lcm-url "$URL" 2> "$T/tracker.err" & trk=$!
   "$BIN/ld-qr-reader" --lcm-url "$URL" 2> "$T/qr.err" & qr=$!
-  sockets 3
+  lcm_sockets 3
   lcm-logplayer --lcm-url="$URL" "$T/in1.lcmlog"   # the set works
   sleep 0.5
   for ch in IMAGE LANDMARKS LANDMARKS_TRACKED LANDMARK_CODES; do
@@ -41,14 +32,14 @@ done
   sleep 0.5
   lcm-logger --lcm-url="$URL" -c "LANDMARKS.*|LANDMARK_CODES" -f "$T/out.lcmlog" >/dev/null 2>&1 &
   logger=$!
-  sockets 4
+  lcm_sockets 4
   lcm-logplayer --lcm-url="$URL" "$T/in2.lcmlog"   # and still works after the garbage
   sleep 1.5
   for p in $det $trk $qr; do kill -0 $p; done      # all still running
   kill -INT $det $trk $qr
   wait $det; wait $trk; wait $qr                   # and exit cleanly (status 0)
   kill -INT $logger; wait $logger || true
-' test "$BIN" "$T"
+' test "$BIN" "$T" "$ROOT"
 
 echo "--- ld-detector"; cat "$T/detector.err"
 echo "--- ld-tracker"; cat "$T/tracker.err"

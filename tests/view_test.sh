@@ -13,23 +13,16 @@ FRAMES=30
 
 "$ROOT/scripts/netns-run.sh" bash -c '
   set -euo pipefail
-  BIN=$1; T=$2
+  BIN=$1; T=$2; ROOT=$3
   "$BIN/ld-view" --out "$T/live" 2> "$T/live.err" &
   view=$!
-  # subscribed (its socket on port 7667, 0x1DF3, alone in this namespace:
-  # 0.4-2.6 s after its start), and the LCM self test (which drops messages)
-  # over, before frames come
-  for _ in $(seq 600); do
-    if grep -q ":1DF3 " /proc/net/udp; then break; fi
-    sleep 0.05
-  done
-  grep -q ":1DF3 " /proc/net/udp
-  sleep 0.5
+  source "$ROOT/tests/lcm_sockets.sh"
+  lcm_sockets 1   # subscribed (0.4-2.6 s after its start), and the LCM self test over, before frames come
   "$BIN/ld-run" --replay "$T/in.lcmlog" --exit-when-replay-done --record "$T/run.lcmlog" \
     --status-interval 0 -q
   sleep 0.5
   kill -INT $view; wait $view
-' view "$BIN" "$T"
+' view "$BIN" "$T" "$ROOT"
 cat "$T/live.err"
 live=$(ls "$T/live" | wc -l)
 "$BIN/ld-view" --log "$T/in.lcmlog" --log "$T/run.lcmlog" --out "$T/logs" --video "$T/view.avi" --fps 10
