@@ -30,10 +30,14 @@ namespace {
 // U+FFFD rather than ending the run.
 constexpr auto kReplace = nlohmann::ordered_json::error_handler_t::replace;
 
+// The extensions a folder is searched for, in any case.
+constexpr const char* kImageExtensions[] = {".png", ".jpg", ".jpeg", ".bmp", ".ppm",
+                                            ".pgm", ".pnm", ".tif", ".tiff", ".webp"};
+
 bool isImageFile(const fs::path& p) {
   std::string ext = p.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  for (const char* e : {".png", ".jpg", ".jpeg", ".bmp", ".ppm", ".pgm", ".pnm", ".tif", ".tiff", ".webp"})
+  for (const char* e : kImageExtensions)
     if (ext == e) return true;
   return false;
 }
@@ -89,10 +93,10 @@ int main(int argc, char** argv) {
   if (inputs.empty()) return ld::cli::usage(argv[0], "no input: give image files or folders");
   const auto files = expandInputs(inputs);
   if (files.empty()) {
-    std::string named;
+    std::string named, extensions;
     for (const auto& in : inputs) named += (named.empty() ? "" : ", ") + in;
-    std::cerr << "ld-detect: no image files in " << named
-              << " (folders are searched for .png, .jpg, .jpeg, .bmp, .ppm, .pgm, .pnm, .tif, .tiff, .webp)\n";
+    for (const char* e : kImageExtensions) extensions += (extensions.empty() ? "" : ", ") + std::string(e);
+    std::cerr << "ld-detect: no image files in " << named << " (folders are searched for " << extensions << ")\n";
     return 2;
   }
   // What it writes must not be what it reads: -o naming an input would

@@ -234,11 +234,13 @@ void Tracker::assign(int64_t utime) {
     // where it left).
     const bool two_places = e.frames_since_seen > 0 && e.pred_centre != e.centre;
     for (size_t j = 0; j < n_det; ++j) {
-      double margin = gateMargin(e.pred_centre, e.pred_size, j, max_dist);
-      if (two_places) margin = std::max(margin, gateMargin(e.centre, e.size, j, max_dist));
+      auto [margin, plain] = gateMargins(e.pred_centre, e.pred_size, j, max_dist);
+      if (two_places) {
+        const auto [there, there_plain] = gateMargins(e.centre, e.size, j, max_dist);
+        margin = std::max(margin, there);
+        plain = std::max(plain, there_plain);
+      }
       if (!(margin >= 0)) continue;  // outside the gate (or not finite): no gain
-      double plain = gateMargin(e.pred_centre, e.pred_size, j, params_.max_distance);
-      if (two_places) plain = std::max(plain, gateMargin(e.centre, e.size, j, params_.max_distance));
       // (a pair in the gate but beyond the plain one still gains a little: it is allowed)
       const double g = (std::max(plain, 0.0) + 1e-3) / (1.0 + kStaleWeight * unseen_s);
       gain_[i * n_det + j] = g;
@@ -260,10 +262,12 @@ void Tracker::assign(int64_t utime) {
   }
 }
 
-double Tracker::gateMargin(const cv::Point2d& centre, double size, size_t j, double max_dist) const {
+std::pair<double, double> Tracker::gateMargins(const cv::Point2d& centre, double size, size_t j,
+                                               double max_dist) const {
   const double s1 = det_size_[j];
-  if (!(std::max(size, s1) <= params_.max_size_ratio * std::min(size, s1))) return -1;
-  return max_dist * 0.5 * (size + s1) - dist(centre, det_centre_[j]);
+  if (!(std::max(size, s1) <= params_.max_size_ratio * std::min(size, s1))) return {-1, -1};
+  const double half = 0.5 * (size + s1), d = dist(centre, det_centre_[j]);  // (one distance for both gates)
+  return {max_dist * half - d, params_.max_distance * half - d};
 }
 
 void Tracker::updateMatched(PoolEntry& e, const Landmark& det, int d, int64_t utime) {

@@ -18,7 +18,6 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
-#include <iterator>
 #include <optional>
 #include <regex>
 #include <stdexcept>
@@ -26,6 +25,7 @@
 #include <string_view>
 #include <unordered_set>
 
+#include <opencv2/core.hpp>  // (cv::Exception)
 #include <opencv2/core/persistence.hpp>
 
 #include <cerrno>
@@ -249,6 +249,20 @@ inline std::optional<std::string> parserFailure(const std::string& text,
   }
 }
 
+/// The whole of `in`, or nullopt when it holds more than `max_bytes`: a
+/// configuration file is read by every reader with kMaxConfigBytes, so that
+/// /dev/zero, or a pipe that never ends, is refused (it was read for ever).
+constexpr size_t kMaxConfigBytes = 16u << 20;
+inline std::optional<std::string> readAtMost(std::istream& in, size_t max_bytes) {
+  std::string text;
+  char chunk[1 << 16];
+  while (in.read(chunk, sizeof chunk) || in.gcount() > 0) {
+    text.append(chunk, static_cast<size_t>(in.gcount()));
+    if (text.size() > max_bytes) return std::nullopt;
+  }
+  return text;
+}
+
 /// A configuration file (YAML, XML or JSON) opened for reading, the way every
 /// reader of the project opens one: the file read once, its text checked by
 /// unsafeForOpenCv, plain YAML given the "%YAML:1.0" header OpenCV wants, and
@@ -266,14 +280,9 @@ inline cv::FileStorage openConfigFile(const std::string& path, const std::string
   if (std::filesystem::is_directory(path, ec)) fail("is a directory");
   std::ifstream f(path, std::ios::binary);
   if (!f) fail(std::string("cannot open: ") + std::strerror(errno));  // (no such file, no permission)
-  // (at most 16 MiB: /dev/zero or a pipe that never ends was read for ever)
-  constexpr size_t kMaxBytes = 16u << 20;
-  std::string text;
-  char chunk[1 << 16];
-  while (f.read(chunk, sizeof chunk) || f.gcount() > 0) {
-    text.append(chunk, static_cast<size_t>(f.gcount()));
-    if (text.size() > kMaxBytes) fail("is larger than 16 MiB: not a configuration file");
-  }
+  std::optional<std::string> read = readAtMost(f, kMaxConfigBytes);
+  if (!read) fail("is larger than 16 MiB: not a configuration file");
+  std::string text = std::move(*read);
   // (an editor's UTF-8 byte order mark: OpenCV takes it as part of the first key)
   if (text.compare(0, 3, "\xEF\xBB\xBF") == 0) text.erase(0, 3);
   if (const auto why = unsafeForOpenCv(text)) fail(*why);

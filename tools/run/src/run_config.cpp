@@ -12,6 +12,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "ld/config_file.hpp"
 #include "ld/image_convert.hpp"
 
 namespace ld {
@@ -264,15 +265,9 @@ RunConfig RunConfig::load(const std::string& given) {
   if (std::filesystem::is_directory(path, ec)) throw std::runtime_error("config " + path + " is a folder");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error("cannot read config " + path);
-  // (at most 16 MiB: /dev/zero or a pipe that never ends was read for ever)
-  std::string text;
-  char chunk[1 << 16];
-  while (in.read(chunk, sizeof chunk) || in.gcount() > 0) {
-    text.append(chunk, static_cast<size_t>(in.gcount()));
-    if (text.size() > (16u << 20))
-      throw std::runtime_error("config " + path + " is larger than 16 MiB: not a configuration file");
-  }
-  std::istringstream f(text);
+  const std::optional<std::string> text = readAtMost(in, kMaxConfigBytes);
+  if (!text) throw std::runtime_error("config " + path + " is larger than 16 MiB: not a configuration file");
+  std::istringstream f(*text);
   Json j;
   const bool yaml = endsWith(path, ".yaml") || endsWith(path, ".yml");
   if (yaml) {

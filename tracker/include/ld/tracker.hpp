@@ -33,6 +33,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -178,9 +179,10 @@ class Tracker {
   void assign(int64_t utime);
   // How far inside its gate valid detection j is from a pool landmark at
   // (centre, size), in pixels: the gate's radius (max_dist sizes, the pair's
-  // mean size) less their distance; negative outside it or when the pair
+  // mean size) less their distance, and the same inside the plain gate
+  // (max_distance sizes); negative outside them, -1 for both when the pair
   // fails the size ratio.
-  double gateMargin(const cv::Point2d& centre, double size, size_t j, double max_dist) const;
+  std::pair<double, double> gateMargins(const cv::Point2d& centre, double size, size_t j, double max_dist) const;
   void updateMatched(PoolEntry& e, const Landmark& det, int d, int64_t utime);
   void report(int64_t utime);
 
