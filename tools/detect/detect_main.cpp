@@ -114,15 +114,9 @@ int main(int argc, char** argv) {
     }
   }
   {
-    // (a path whose canonical form cannot be had is compared as written)
-    const auto canonical = [](const fs::path& p) {
-      std::error_code ec;
-      const fs::path c = fs::weakly_canonical(fs::absolute(p, ec), ec);
-      return ec || c.empty() ? p : c;
-    };
-    std::set<fs::path> in;
-    for (const auto& f : files) in.insert(canonical(f));
-    if (!out_file.empty() && in.count(canonical(out_file)))
+    std::set<fs::path> in;  // (resolved: the same file however it is written)
+    for (const auto& f : files) in.insert(ld::resolvedPath(f));
+    if (!out_file.empty() && in.count(ld::resolvedPath(out_file)))
       return ld::cli::usage(argv[0], "-o " + out_file + " is one of the input images: it would be emptied");
     // (nor the calibration or the parameters it reads)
     for (const auto& [option, file] : {std::pair<const char*, const std::string*>{"--camera", &detector_options.camera_file},
@@ -130,7 +124,7 @@ int main(int argc, char** argv) {
       if (!out_file.empty() && !file->empty() && ld::sameFile(out_file, *file))
         return ld::cli::usage(argv[0], "-o " + out_file + " is the " + option + " file: it would be written over");
     for (const auto& dst : overlays)
-      if (in.count(canonical(dst)))
+      if (in.count(ld::resolvedPath(dst.string())))
         return ld::cli::usage(argv[0], "--draw " + draw_dir + " would write its overlay over the input " +
                                            dst.string() + ": draw into another folder");
   }

@@ -127,16 +127,17 @@ std::string prepareJsonOutputFile(const std::string& path) {
   return "is not a JSON file (it starts with \"" + shown + "\"): not written over";
 }
 
+std::filesystem::path resolvedPath(const std::string& path) {
+  std::error_code ec;
+  const std::filesystem::path p = std::filesystem::weakly_canonical(std::filesystem::absolute(path, ec), ec);
+  return ec || p.empty() ? std::filesystem::path(path).lexically_normal() : p;
+}
+
 bool sameFile(const std::string& a, const std::string& b) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (fs::exists(a, ec) && fs::exists(b, ec) && fs::equivalent(a, b, ec) && !ec) return true;
-  const auto resolved = [](const std::string& path) {
-    std::error_code e;
-    const fs::path p = fs::weakly_canonical(fs::absolute(path, e), e);
-    return e || p.empty() ? fs::path(path).lexically_normal() : p;
-  };
-  return resolved(a) == resolved(b);
+  return resolvedPath(a) == resolvedPath(b);
 }
 
 namespace {

@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <filesystem>
 #include <string>
 
 namespace ld {
@@ -76,10 +77,13 @@ std::string prepareLogOutputFile(const std::string& path);
 /// written over").
 std::string prepareJsonOutputFile(const std::string& path);
 
-/// Whether two paths name the same file: the same once made absolute and
-/// resolved (links, "..", "."), or, when both exist, the same file (a hard
-/// link). A path that cannot be resolved is compared as written. For the
-/// tools' refusals of an output that is one of their inputs.
+/// A path made absolute and resolved (links, "..", "."), as far as it exists;
+/// one that cannot be resolved, only normalized. For comparing paths.
+std::filesystem::path resolvedPath(const std::string& path);
+
+/// Whether two paths name the same file: the same resolvedPath, or, when
+/// both exist, the same file (a hard link). For the tools' refusals of an
+/// output that is one of their inputs.
 bool sameFile(const std::string& a, const std::string& b);
 
 /// A file written under a temporary name beside its path and renamed to it
