@@ -2,12 +2,16 @@
 // with zbar; damaged, missing or degenerate input gives no payload.
 #include <gtest/gtest.h>
 
+#include <sstream>
+
 #include <opencv2/imgproc.hpp>
 #include <qrencode.h>
 
 #include "ld/artwork.hpp"
+#include "ld/image_convert.hpp"
 #include "ld/landmark_layout.hpp"
 #include "ld/qr_reader.hpp"
+#include "ld/qr_track_reader.hpp"
 #include "../qr_reader/src/qr_function_patterns.hpp"
 
 namespace {
@@ -17,8 +21,9 @@ struct Scene {
   std::array<cv::Point2f, 4> corners;
 };
 
-// The artwork warped by a homography onto a grey wall; corners exact.
-Scene warped(const cv::Mat& sheet, const std::array<cv::Point2f, 4>& sheet_corners_in_image) {
+// The artwork warped by a homography onto a grey wall (or onto `onto`); corners exact.
+Scene warped(const cv::Mat& sheet, const std::array<cv::Point2f, 4>& sheet_corners_in_image,
+             const cv::Mat& onto = cv::Mat()) {
   const float s = static_cast<float>(sheet.cols);
   const std::vector<cv::Point2f> src{{0, 0}, {s, 0}, {s, s}, {0, s}};
   std::vector<cv::Point2f> dst(sheet_corners_in_image.begin(), sheet_corners_in_image.end());
@@ -26,7 +31,7 @@ Scene warped(const cv::Mat& sheet, const std::array<cv::Point2f, 4>& sheet_corne
   const cv::Matx33d to_centres(1, 0, -0.5, 0, 1, -0.5, 0, 0, 1);
   const cv::Matx33d H = to_centres * cv::Matx33d(cv::getPerspectiveTransform(src, dst));
   Scene sc;
-  sc.image = cv::Mat(480, 640, CV_8UC3, cv::Scalar(120, 130, 140));
+  sc.image = onto.empty() ? cv::Mat(480, 640, CV_8UC3, cv::Scalar(120, 130, 140)) : onto.clone();
   cv::warpPerspective(sheet, sc.image, H, sc.image.size(), cv::INTER_AREA, cv::BORDER_TRANSPARENT);
   for (size_t i = 0; i < 4; ++i) {
     const auto& c = ld::layout::kCornersU[i];
@@ -35,6 +40,52 @@ Scene warped(const cv::Mat& sheet, const std::array<cv::Point2f, 4>& sheet_corne
   }
   return sc;
 }
+
+// A tracked landmark at `corners` (TL, TR, BR, BL), detected in its frame.
+ld::landmark_t tracked(int64_t id, int32_t age, const std::array<cv::Point2f, 4>& corners) {
+  ld::landmark_t lm{};
+  lm.track_id = id;
+  lm.age = age;
+  lm.visible = true;
+  for (size_t i = 0; i < 4; ++i) {
+    lm.corners[i][0] = corners[i].x;
+    lm.corners[i][1] = corners[i].y;
+  }
+  return lm;
+}
+
+ld::landmark_list_t trackedList(int64_t utime, int64_t seq, std::vector<ld::landmark_t> landmarks) {
+  ld::landmark_list_t list{};
+  list.utime = utime;
+  list.seq = seq;
+  list.width = 640;
+  list.height = 480;
+  list.backend = "tracker";
+  list.landmarks = std::move(landmarks);
+  list.nlandmarks = static_cast<int32_t>(list.landmarks.size());
+  return list;
+}
+
+std::optional<std::string> codeOf(const ld::qr_code_list_t& out, int64_t id) {
+  for (const auto& c : out.codes)
+    if (c.track_id == id) return c.payload;
+  return std::nullopt;
+}
+
+// A large landmark whose QR cannot be read (its middle painted over, 20 ms
+// a try) and a readable one beside it.
+struct TwoTracks {
+  std::array<cv::Point2f, 4> damaged{{{20, 60}, {340, 60}, {340, 380}, {20, 380}}};
+  std::array<cv::Point2f, 4> readable{{{400, 140}, {600, 140}, {600, 340}, {400, 340}}};
+  cv::Mat image;
+  TwoTracks() {
+    cv::Mat sheet = ld::artwork::renderLandmark("damaged", 900);
+    cv::rectangle(sheet, cv::Rect(250, 250, 400, 200), cv::Scalar(255, 255, 255), cv::FILLED);
+    image = warped(ld::artwork::renderLandmark("room-214/door", 900), readable,
+                   warped(sheet, damaged).image)
+                .image;
+  }
+};
 
 }  // namespace
 
@@ -194,4 +245,81 @@ TEST(QrReader, FunctionPatternsAreThoseOfEveryCode) {
     EXPECT_EQ(count, 3 * 64 + 2 * (n - 16) + 25 * alignments + 1) << "version " << version;
     QRcode_free(code);
   }
+}
+
+// ld-qr-reader's frame step: once a frame's decoding budget is spent, the
+// tracks left wait, and lead the next frame. An unreadable track listed
+// first does not take the budget every frame (it did when the tracks were
+// decoded in the list's order).
+TEST(QrTrackReader, BudgetSpentGoesToTheTracksLeftNextFrame) {
+  const TwoTracks scene;
+  const ld::image_t image = ld::matToImage(scene.image, ld::image_t::PIXEL_FORMAT_BGR, 0);
+  ld::QrTrackReaderParams params;
+  params.decode_budget_ms = 1e-9;  // one decode a frame
+  params.stack_frames = 0;
+  params.schedule.retry_interval_s = 0.01;
+  std::ostringstream log;
+  ld::QrTrackReader reader(params, log);
+  ld::qr_code_list_t out;
+  std::optional<std::string> read;
+  for (int f = 0; f < 2 && !read; ++f) {
+    const auto list = trackedList(1'000'000 + f * 33'000, f,
+                                  {tracked(1, f + 1, scene.damaged), tracked(2, f + 1, scene.readable)});
+    reader.process(image, list, out);
+    EXPECT_EQ(out.utime, list.utime);
+    EXPECT_EQ(out.seq, list.seq);
+    EXPECT_FALSE(codeOf(out, 1).has_value());
+    read = codeOf(out, 2);
+  }
+  ASSERT_TRUE(read.has_value()) << "the readable track waited behind the unreadable one";
+  EXPECT_EQ(*read, "room-214/door");
+  EXPECT_EQ(out.ncodes, 1);
+  EXPECT_EQ(reader.tracksRead(), 1);
+
+  // Known now: listed every frame from the book, without being decoded again.
+  const auto later = trackedList(1'100'000, 3, {tracked(1, 4, scene.damaged), tracked(2, 4, scene.readable)});
+  reader.process(image, later, out);
+  ASSERT_EQ(codeOf(out, 2), std::optional<std::string>("room-214/door"));
+  EXPECT_LT(out.codes[0].seq, later.seq);  // the frame it was read from
+  EXPECT_EQ(out.codes[0].utime, 1'000'000 + out.codes[0].seq * 33'000);
+  EXPECT_TRUE(log.str().empty()) << log.str();
+}
+
+// The tracker moved the read track's id onto the other landmark (its own
+// went away): the payload is not published for it, and it is read again.
+TEST(QrTrackReader, ReadTrackThatJumpsLosesItsPayload) {
+  const TwoTracks scene;
+  const ld::image_t image = ld::matToImage(scene.image, ld::image_t::PIXEL_FORMAT_BGR, 0);
+  std::ostringstream log;
+  ld::QrTrackReader reader({}, log, true);
+  ld::qr_code_list_t out;
+  int64_t t = 1'000'000;
+  for (int f = 0; f < 3; ++f, t += 33'000) reader.process(image, trackedList(t, f, {tracked(2, f + 1, scene.readable)}), out);
+  ASSERT_EQ(codeOf(out, 2), std::optional<std::string>("room-214/door"));
+  EXPECT_NE(log.str().find("track 2 reads \"room-214/door\""), std::string::npos) << log.str();
+  reader.process(image, trackedList(t, 3, {tracked(2, 4, scene.damaged)}), out);
+  EXPECT_FALSE(codeOf(out, 2).has_value());
+  EXPECT_EQ(out.ncodes, 0);
+  EXPECT_NE(log.str().find("track 2 jumped"), std::string::npos) << log.str();
+}
+
+// The image's pixels are needed only for a due track; when they cannot be
+// converted the frame is refused whole, and the reader goes on.
+TEST(QrTrackReader, BadImageOnlyWhenATrackIsDue) {
+  const TwoTracks scene;
+  ld::image_t bad = ld::matToImage(scene.image, ld::image_t::PIXEL_FORMAT_BGR, 0);
+  bad.size -= 7;
+  bad.data.resize(static_cast<size_t>(bad.size));
+  std::ostringstream log;
+  ld::QrTrackReader reader({}, log);
+  ld::qr_code_list_t out;
+  out.ncodes = 5;
+  EXPECT_THROW(reader.process(bad, trackedList(1'000'000, 0, {tracked(2, 1, scene.readable)}), out),
+               ld::ImageFormatError);
+  EXPECT_EQ(out.ncodes, 5);  // untouched
+  EXPECT_NO_THROW(reader.process(bad, trackedList(1'033'000, 1, {}), out));
+  EXPECT_EQ(out.ncodes, 0);
+  const ld::image_t good = ld::matToImage(scene.image, ld::image_t::PIXEL_FORMAT_BGR, 0);
+  reader.process(good, trackedList(1'066'000, 2, {tracked(2, 3, scene.readable)}), out);
+  EXPECT_EQ(codeOf(out, 2), std::optional<std::string>("room-214/door"));
 }

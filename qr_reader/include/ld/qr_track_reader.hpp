@@ -1,0 +1,68 @@
+#pragma once
+// What ld-qr-reader does with each frame whose image and tracked landmarks
+// joined: follows the read tracks (a jump is another landmark), schedules
+// the due tracks, decodes them within the frame's time budget, averages an
+// undecoded track's frames when single frames fail, and lists the payloads
+// known for the frame's tracks. The process only wires LCM to it.
+#include <cstdint>
+#include <ostream>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "ld/image_t.hpp"
+#include "ld/landmark_list_t.hpp"
+#include "ld/lcm_url.hpp"
+#include "ld/qr_code_list_t.hpp"
+#include "ld/qr_reader.hpp"
+#include "ld/qr_tracks.hpp"
+
+namespace ld {
+
+struct QrTrackReaderParams {
+  QrScheduleParams schedule;
+  /// Milliseconds of decoding per frame: once spent, the frame's other due
+  /// tracks wait for the next (the first decode always runs). See DecodeBudget.
+  double decode_budget_ms = 30;
+  /// Frames of an undecoded track averaged in the sheet's frame and read
+  /// when single frames fail (QrStack); 0: off.
+  int stack_frames = 8;
+};
+
+class QrTrackReader {
+ public:
+  /// Notes (a tracker that restarted, frames whose utime stands still) go to
+  /// `log`; with `verbose`, each payload read and each jump too.
+  QrTrackReader(const QrTrackReaderParams& params, std::ostream& log, bool verbose = false);
+
+  /// One joined frame: `image` and the tracked landmarks found in it. Fills
+  /// `out` (utime and seq of the frame, one code per track of the list whose
+  /// payload is known). The image's pixels are converted only when a track
+  /// is due; throws ImageFormatError (out untouched) when they cannot be.
+  void process(const image_t& image, const landmark_list_t& list, qr_code_list_t& out);
+
+  int64_t tracksRead() const { return decoded_; }        ///< payloads newly read
+  int64_t tracksReadStacked() const { return decoded_stacked_; }  ///< ... of which from stacked frames
+  const QrTrackBook& book() const { return book_; }
+
+ private:
+  static constexpr size_t kMaxStacks = 32;  // undecoded tracks stacked at once
+  static constexpr int kMinStackFrames = 3;  // frames stacked before the stack is read
+  QrTrackReaderParams params_;
+  std::ostream& log_;
+  bool verbose_;
+  QrReader reader_;
+  QrReader stack_reader_;  // its own buffers: the stacks' views have their own size
+  QrTrackBook book_;
+  StillTimeWatch still_;
+  std::unordered_map<int64_t, QrStack> stacks_;
+  cv::Mat bgr_;
+  std::vector<int64_t> ids_;
+  std::vector<std::pair<int64_t, int32_t>> ages_;  // (track id, age) of every track of the frame
+  std::vector<std::pair<int64_t, float>> tried_ms_;  // this frame's decodes: (track id, ms)
+  int64_t decoded_ = 0, decoded_stacked_ = 0;
+};
+
+}  // namespace ld

@@ -1,0 +1,129 @@
+#include "ld/qr_track_reader.hpp"
+
+#include <algorithm>
+#include <chrono>
+
+#include "ld/image_convert.hpp"
+
+namespace ld {
+
+namespace {
+
+// A tracked landmark's pattern corners (TL, TR, BR, BL) as the reader takes them.
+std::array<cv::Point2f, 4> cornersOf(const landmark_t& lm) {
+  std::array<cv::Point2f, 4> corners;
+  for (size_t i = 0; i < 4; ++i) corners[i] = {lm.corners[i][0], lm.corners[i][1]};
+  return corners;
+}
+
+}  // namespace
+
+QrTrackReader::QrTrackReader(const QrTrackReaderParams& params, std::ostream& log, bool verbose)
+    : params_(params), log_(log), verbose_(verbose), book_(params.schedule) {}
+
+void QrTrackReader::process(const image_t& image, const landmark_list_t& list, qr_code_list_t& out) {
+  // 1. THE FRAME'S TRACKS
+  ids_.clear();
+  ages_.clear();
+  for (const auto& lm : list.landmarks) {
+    if (lm.visible && lm.track_id >= 0) ids_.push_back(lm.track_id);
+    if (lm.track_id >= 0) ages_.emplace_back(lm.track_id, lm.age);
+  }
+  // (a tracker that restarted numbers its tracks from 1 again: what was
+  // read under the old ids belongs to other landmarks)
+  if (book_.noteAges(ages_)) {
+    stacks_.clear();
+    log_ << "ld-qr-reader: track ids started again (a track is younger than it can be: the tracker "
+            "restarted); the payloads read so far are forgotten\n";
+  }
+  // (a read track whose landmark jumped is another landmark now: the
+  // tracker moved its id over; what was read is forgotten and read again)
+  for (const auto& lm : list.landmarks) {
+    if (lm.track_id < 0) continue;
+    const std::array<cv::Point2f, 4> c = cornersOf(lm);
+    double side = 0;
+    for (size_t i = 0; i < 4; ++i) side += cv::norm(c[(i + 1) % 4] - c[i]) / 4;
+    const cv::Point2f centre = (c[0] + c[1] + c[2] + c[3]) * 0.25f;
+    const auto forgotten = book_.follow(lm.track_id, lm.age, lm.visible, centre.x, centre.y, side);
+    if (forgotten && verbose_)
+      log_ << "ld-qr-reader: track " << lm.track_id << " jumped by more than its landmark's size: \"" << *forgotten
+           << "\" is forgotten and the track read again (ids moved?)\n";
+  }
+  if (still_.note(list.utime))
+    log_ << "ld-qr-reader: 10 frames in a row with utime " << list.utime
+         << ": retries and re-reads count time from it, so a track not read at once is not tried again "
+            "while it stands still (does the publisher stamp its frames?)\n";
+
+  // 2. SCHEDULE, AND THE STACKS OF TRACKS GONE OR READ
+  const std::vector<int64_t> todo = book_.schedule(ids_, list.utime);
+  for (auto it = stacks_.begin(); it != stacks_.end();) {
+    const landmark_t* listed = nullptr;  // visible or coasting
+    for (const auto& lm : list.landmarks)
+      if (lm.track_id == it->first) listed = &lm;
+    if (!listed || book_.payload(it->first)) {
+      it = stacks_.erase(it);
+      continue;
+    }
+    // where the track is in every frame: a jump is another landmark
+    if (it->second.follow(cornersOf(*listed)) && verbose_)
+      log_ << "ld-qr-reader: track " << it->first
+           << " jumped by more than its landmark's side: its stacked frames start again (ids swapped?)\n";
+    ++it;
+  }
+  if (!todo.empty()) imageToBgr(image, bgr_);  // (throws before out is touched)
+
+  // 3. DECODE the due tracks in the schedule's order (undecoded first, least
+  // recently tried first), while the frame's budget lasts: the ones left
+  // stay due and lead the next frame's schedule. (In the list's order, the
+  // first unreadable track took the budget every frame.)
+  out.codes.clear();
+  DecodeBudget budget(params_.decode_budget_ms);
+  tried_ms_.clear();
+  const int stack_frames = params_.stack_frames;
+  for (const int64_t id : todo) {
+    const auto lm = std::find_if(list.landmarks.begin(), list.landmarks.end(),
+                                 [&](const landmark_t& l) { return l.track_id == id && l.visible; });
+    if (lm == list.landmarks.end() || !budget.allows(std::chrono::steady_clock::now())) continue;
+    const std::array<cv::Point2f, 4> corners = cornersOf(*lm);
+    const auto t0 = std::chrono::steady_clock::now();
+    auto r = reader_.decode(bgr_, corners);
+    bool from_stack = false;
+    if (!r && stack_frames > 0 && !book_.payload(id) && (stacks_.count(id) || stacks_.size() < kMaxStacks)) {
+      QrStack& stack = stacks_.try_emplace(id, stack_frames).first->second;
+      if (stack.add(bgr_, corners) && stack.frames() >= std::min(kMinStackFrames, stack_frames))
+        from_stack = static_cast<bool>(r = stack.decode(stack_reader_));
+    }
+    tried_ms_.emplace_back(id, std::chrono::duration<float, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    const bool is_new = r && !book_.payload(id);
+    decoded_stacked_ += is_new && from_stack;
+    book_.record(id, list.utime, list.seq, r ? std::optional<std::string>(r->payload) : std::nullopt);
+    if (is_new) {
+      ++decoded_;  // (its stack goes with the next frame's pruning)
+      if (verbose_)
+        log_ << "ld-qr-reader: track " << id << " reads \"" << r->payload << "\""
+             << (from_stack ? " (from its stacked frames)" : "") << "\n";
+    }
+  }
+
+  // 4. THE PAYLOADS KNOWN for the frame's tracks
+  for (const auto& lm : list.landmarks) {
+    if (lm.track_id < 0) continue;
+    if (const auto* k = book_.payload(lm.track_id)) {
+      qr_code_t c{};
+      c.track_id = lm.track_id;
+      c.payload = k->payload;
+      c.utime = k->utime;
+      c.seq = k->seq;
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 2; ++j) c.corners[i][j] = lm.corners[i][j];
+      const auto t = std::find_if(tried_ms_.begin(), tried_ms_.end(), [&](const auto& p) { return p.first == lm.track_id; });
+      c.decode_ms = t == tried_ms_.end() ? 0.0f : t->second;
+      out.codes.push_back(std::move(c));
+    }
+  }
+  out.utime = list.utime;
+  out.seq = list.seq;
+  out.ncodes = static_cast<int32_t>(out.codes.size());
+}
+
+}  // namespace ld
