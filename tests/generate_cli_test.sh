@@ -100,6 +100,27 @@ if "$BIN/ld-generate" --sheet --size 0.5 -p a --svg "$T/big.svg" >"$T/out" 2>"$T
 [ ! -s "$T/out" ] && [ "$(wc -l <"$T/err")" -eq 1 ] && grep -q "does not fit on a 210x297 mm page" "$T/err" ||
   fail "500 mm on A4: '$(cat "$T/out")' $(cat "$T/err")"
 
+# A PNG too large to draw (2 m at 2400 dpi: 188976 px a side) or too small
+# for the layout: refused before anything is written, naming a --dpi that does.
+if "$BIN/ld-generate" -p x -s 2 --dpi 2400 --svg "$T/hu.svg" --png "$T/hu.png" >"$T/out" 2>"$T/err"; then
+  fail "a 188976 px PNG accepted"
+fi
+[ ! -e "$T/hu.svg" ] && [ ! -e "$T/hu.png" ] && [ "$(wc -l <"$T/err")" -eq 1 ] &&
+  grep -q "is 188976x188976 px, over the 20000 px a side it may have: --dpi 253 or less" "$T/err" ||
+  fail "2 m at 2400 dpi: $(ls "$T"/hu.* 2>&1) $(cat "$T/err")"
+if "$BIN/ld-generate" -p x -s 0.01 --dpi 10 --svg "$T/s.svg" --png "$T/s.png" >"$T/out" 2>"$T/err"; then
+  fail "a 4 px landmark accepted"
+fi
+[ ! -e "$T/s.svg" ] && grep -q "a 10 mm landmark at --dpi 10 is 4 px a side, under the 9 px of its layout: --dpi 23 or more" "$T/err" ||
+  fail "10 mm at 10 dpi: $(cat "$T/err")"
+
+# Payloads that are not UTF-8 text, or hold control characters: the QR keeps
+# their bytes; the SVG (XML), the labels and the terminal show U+FFFD.
+"$BIN/ld-generate" --sheet -s 0.09 -p $'ab\xffcd' -p $'ctl\x01x' --svg "$T/u.svg" >"$T/out" 2>"$T/err" || fail "odd bytes: $(cat "$T/err")"
+grep -qF $'>ab\xef\xbf\xbdcd (90 mm)</text>' "$T/u.svg" && grep -qF $'>ctl\xef\xbf\xbdx (90 mm)</text>' "$T/u.svg" ||
+  fail "odd bytes in the labels: $(grep '<text' "$T/u.svg")"
+if LC_ALL=C grep -q $'[\x01\xff]' "$T/u.svg" "$T/out"; then fail "raw odd bytes written: $(cat "$T/out")"; fi
+
 # Page names: a folder with a dot in its name, an extension in capitals.
 mkdir -p "$T/out.d"
 "$BIN/ld-generate" --sheet --size 0.15 -p a -p b --svg "$T/out.d/sheet.SVG" >/dev/null

@@ -223,6 +223,22 @@ TEST(Artwork, SheetHoldsEveryLandmarkAndDecodes) {
                std::invalid_argument);
 }
 
+// A label is cut to its landmark's width (about 1.8 mm a character of 3 mm
+// text, wide scripts twice that), so neighbours' labels do not overlap; the
+// side stays, and what is not text shows as U+FFFD.
+TEST(Artwork, SheetLabelsFitTheirLandmark) {
+  const std::string long_ascii(100, 'a'), long_cjk = "\xe6\x97\xa5\xe6\x9c\xac\xe8\xaa\x9e";  // 3 wide characters
+  const std::string svg = ld::artwork::sheetSvg({long_ascii, long_cjk + long_cjk + long_cjk + long_cjk + long_cjk +
+                                                     long_cjk + long_cjk + long_cjk, "room-101", "a\x01\xff"},
+                                                90.0);
+  EXPECT_NE(svg.find(">" + std::string(39, 'a') + "... (90 mm)<"), std::string::npos) << svg;  // 50 wide, 8 for the size, 3 dots
+  EXPECT_NE(svg.find(">" + long_cjk + long_cjk + long_cjk + long_cjk + long_cjk + long_cjk +
+                     "\xe6\x97\xa5... (90 mm)<"),
+            std::string::npos);
+  EXPECT_NE(svg.find(">room-101 (90 mm)<"), std::string::npos);
+  EXPECT_NE(svg.find(">a\xef\xbf\xbd\xef\xbf\xbd (90 mm)<"), std::string::npos);
+}
+
 // The PNG's labels are the SVG's: the payload in UTF-8, drawn (DejaVu Sans),
 // and the size. Two payloads that differ in a non-ASCII letter alone label
 // differently (OpenCV's own font would draw both "B?ro").

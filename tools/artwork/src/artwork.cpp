@@ -1,5 +1,6 @@
 #include "ld/artwork.hpp"
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -7,6 +8,7 @@
 #include <memory>
 #include <sstream>
 #include <stdexcept>
+#include <vector>
 
 #include <opencv2/freetype.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -44,18 +46,105 @@ std::string fmt(double v) {
   return s;
 }
 
+// The code points of UTF-8 text; a byte that does not start a valid
+// sequence (or an overlong, surrogate or out-of-range one) is U+FFFD.
+std::vector<char32_t> codePoints(const std::string& s) {
+  std::vector<char32_t> out;
+  for (size_t i = 0; i < s.size();) {
+    const auto b = static_cast<unsigned char>(s[i]);
+    const int n = b < 0x80 ? 0 : (b & 0xE0) == 0xC0 ? 1 : (b & 0xF0) == 0xE0 ? 2 : (b & 0xF8) == 0xF0 ? 3 : -1;
+    char32_t cp = n == 0 ? b : n == 1 ? (b & 0x1Fu) : n == 2 ? (b & 0x0Fu) : (b & 0x07u);
+    bool ok = n >= 0 && i + static_cast<size_t>(n) < s.size() + (n == 0 ? 1 : 0);
+    for (int k = 1; ok && k <= n; ++k) {
+      const auto c = static_cast<unsigned char>(s[i + static_cast<size_t>(k)]);
+      ok = (c & 0xC0) == 0x80;
+      cp = (cp << 6) | (c & 0x3Fu);
+    }
+    static constexpr char32_t kLeast[] = {0, 0x80, 0x800, 0x10000};
+    ok = ok && cp >= kLeast[std::max(n, 0)] && cp <= 0x10FFFF && !(cp >= 0xD800 && cp <= 0xDFFF);
+    out.push_back(ok ? cp : 0xFFFD);
+    i += ok ? static_cast<size_t>(n) + 1 : 1;
+  }
+  return out;
+}
+
+void appendUtf8(std::string& out, char32_t cp) {
+  if (cp < 0x80) {
+    out += static_cast<char>(cp);
+  } else if (cp < 0x800) {
+    out += static_cast<char>(0xC0 | (cp >> 6));
+    out += static_cast<char>(0x80 | (cp & 0x3F));
+  } else if (cp < 0x10000) {
+    out += static_cast<char>(0xE0 | (cp >> 12));
+    out += static_cast<char>(0x80 | ((cp >> 6) & 0x3F));
+    out += static_cast<char>(0x80 | (cp & 0x3F));
+  } else {
+    out += static_cast<char>(0xF0 | (cp >> 18));
+    out += static_cast<char>(0x80 | ((cp >> 12) & 0x3F));
+    out += static_cast<char>(0x80 | ((cp >> 6) & 0x3F));
+    out += static_cast<char>(0x80 | (cp & 0x3F));
+  }
+}
+
+// A payload as text to print or to put in XML: bytes that are not UTF-8 and
+// control characters (XML 1.0 allows none but tab and line ends, and a label
+// is one line) become U+FFFD. The QR itself holds the payload's bytes as given.
+std::vector<char32_t> printable(const std::string& s) {
+  std::vector<char32_t> cps = codePoints(s);
+  for (char32_t& cp : cps)
+    if (cp < 0x20 || (cp >= 0x7F && cp < 0xA0) || cp == 0xFFFE || cp == 0xFFFF) cp = 0xFFFD;
+  return cps;
+}
+
 std::string xmlEscape(const std::string& s) {
   std::string out;
-  for (char c : s) {
-    switch (c) {
+  for (const char32_t cp : printable(s)) {
+    switch (cp) {
       case '&': out += "&amp;"; break;
       case '<': out += "&lt;"; break;
       case '>': out += "&gt;"; break;
       case '"': out += "&quot;"; break;
-      default: out += c;
+      default: appendUtf8(out, cp);
     }
   }
   return out;
+}
+
+}  // namespace
+
+std::string shownPayload(const std::string& payload) {
+  const std::vector<char32_t> cps = printable(payload);
+  std::string out;
+  for (size_t i = 0; i < cps.size() && (cps.size() <= 40 || i < 32); ++i) appendUtf8(out, cps[i]);
+  return cps.size() <= 40 ? out : out + "... (" + std::to_string(payload.size()) + " bytes)";
+}
+
+namespace {
+
+// The label under a landmark of a sheet: its payload and its side, in 3 mm
+// text, cut to the landmark's width (about 1.8 mm a character, twice that
+// for the wide scripts) so that neighbours' labels do not run into each
+// other; the side is always there, it tells the prints apart.
+std::string sheetLabel(const std::string& payload, double side_mm) {
+  const std::string size = " (" + fmt(side_mm) + " mm)";
+  const auto width = [](char32_t cp) { return cp >= 0x1100 ? 2 : 1; };
+  const int room = static_cast<int>(side_mm / 1.8) - static_cast<int>(size.size());
+  const std::vector<char32_t> cps = printable(payload);
+  int total = 0;
+  for (const char32_t cp : cps) total += width(cp);
+  std::string out;
+  if (total <= room) {
+    for (const char32_t cp : cps) appendUtf8(out, cp);
+  } else {
+    int used = 3;  // "..."
+    for (const char32_t cp : cps) {
+      if (used + width(cp) > room) break;
+      used += width(cp);
+      appendUtf8(out, cp);
+    }
+    out += "...";
+  }
+  return out + size;
 }
 
 // SVG elements of one landmark of side `side` (user units) at (x0, y0).
@@ -242,8 +331,8 @@ std::string sheetSvg(const std::vector<std::string>& payloads, double side_mm,
        << "\" fill=\"none\" stroke=\"#c0c0c0\" stroke-width=\"0.1\"/>\n";
     appendLandmark(os, encodeQr(payloads[i], ecc), x0, y0, side_mm);
     os << "<text x=\"" << fmt(x0) << "\" y=\"" << fmt(y0 + side_mm + 3.5)
-       << "\" font-family=\"sans-serif\" font-size=\"3\" fill=\"#404040\">" << xmlEscape(payloads[i])
-       << " (" << fmt(side_mm) << " mm)</text>\n";
+       << "\" font-family=\"sans-serif\" font-size=\"3\" fill=\"#404040\">"
+       << xmlEscape(sheetLabel(payloads[i], side_mm)) << "</text>\n";
   }
   os << "</svg>\n";
   return os.str();
@@ -275,7 +364,7 @@ cv::Mat sheetImage(const std::vector<std::string>& payloads, double side_mm, dou
     cv::rectangle(img, roi, cv::Scalar(192, 192, 192), 1);
     renderLandmark(payloads[i], side_px, {}, ecc).copyTo(img(roi));
     // the SVG's label: 3 mm text, its baseline 3.5 mm under the sheet
-    const std::string label = payloads[i] + " (" + fmt(side_mm) + " mm)";
+    const std::string label = sheetLabel(payloads[i], side_mm);
     const cv::Point baseline(x0, y0 + side_px + static_cast<int>(3.5 * px_per_mm));
     const int height = std::max(4, static_cast<int>(std::lround(3.0 * px_per_mm)));
     if (font) {

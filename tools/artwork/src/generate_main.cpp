@@ -18,6 +18,9 @@ namespace {
 
 // Pixels a QR module should have in the PNG for readers to find it.
 constexpr double kMinModulePx = 3.0;
+// A PNG's largest side: 20000 px is 1.2 GB of pixels to draw, a 2 m sheet
+// at 254 dpi or an A3 page at 1700.
+constexpr double kMaxPngSide = 20000;
 
 bool writeFile(const std::string& path, const std::string& bytes) {
   std::ofstream f(path, std::ios::binary);
@@ -75,6 +78,23 @@ int main(int argc, char** argv) {
   if (!svg.empty() && !ld::hasExtension(svg, ".svg"))
     return ld::cli::usage(argv[0], "--svg " + svg + ": the file name must end in .svg");
   if (payloads.size() > 1 && !sheet) return ld::cli::usage(argv[0], "several payloads need --sheet");
+  // (the PNG's size before anything is written: OpenCV cannot allocate a
+  // 2 m sheet at 2400 dpi, 188976 px a side, and says so in its own words)
+  if (!png.empty()) {
+    const double mm_w = sheet ? page.page_w_mm : side_m * 1000, mm_h = sheet ? page.page_h_mm : side_m * 1000;
+    const double px_w = mm_w / 25.4 * dpi, px_h = mm_h / 25.4 * dpi, side_px = side_m / 0.0254 * dpi;
+    std::ostringstream m;
+    if (std::max(px_w, px_h) > kMaxPngSide)
+      m << "--png at --dpi " << dpi << " is " << std::lround(px_w) << "x" << std::lround(px_h) << " px, over the "
+        << kMaxPngSide << " px a side it may have: --dpi "
+        << static_cast<int>(std::floor(dpi * kMaxPngSide / std::max(px_w, px_h))) << " or less, or --svg alone "
+        << "(exact at any size)";
+    else if (std::lround(side_px) < 9)
+      m << "a " << side_m * 1000 << " mm landmark at --dpi " << dpi << " is " << std::lround(side_px)
+        << " px a side, under the 9 px of its layout: --dpi " << static_cast<int>(std::ceil(dpi * 9 / side_px))
+        << " or more";
+    if (!m.str().empty()) return ld::cli::usage(argv[0], m.str());
+  }
   for (const std::string& path : {svg, png}) {
     if (path.empty()) continue;
     if (const std::string problem = ld::prepareOutputFile(path); !problem.empty()) {
@@ -93,7 +113,7 @@ int main(int argc, char** argv) {
     for (const auto& p : payloads) {
       const ld::artwork::QrCode qr = ld::artwork::encodeQr(p, ecc);
       module_u.push_back(ld::artwork::qrPlacement(qr).module_u);
-      const std::string shown = p.size() <= 40 ? p : p.substr(0, 32) + "... (" + std::to_string(p.size()) + " bytes)";
+      const std::string shown = ld::artwork::shownPayload(p);
       std::cout << "QR \"" << shown << "\": " << ld::artwork::describeQr(qr, side_mm) << "\n";
       if (qr.size > 37)
         std::cerr << "ld-generate: note: \"" << shown << "\" needs QR version " << qr.version << " ("

@@ -64,6 +64,11 @@ cv::Mat renderLandmark(const QrCode& qr, int side_px, const Colours& colours = {
 cv::Mat renderLandmark(const std::string& payload, int side_px, const Colours& colours = {},
                        QrEcc ecc = QrEcc::Auto);
 
+/// A payload as a terminal line or a label may show it: bytes that are not
+/// UTF-8 and control characters as U+FFFD, and over 40 characters, its
+/// first 32 and "... (N bytes)".
+std::string shownPayload(const std::string& payload);
+
 /// Pixel side of a sheet of `side_m` metres printed at `dpi`.
 int sidePixels(double side_m, double dpi);
 
@@ -72,7 +77,9 @@ int sidePixels(double side_m, double dpi);
 std::string landmarkSvg(const std::string& payload, double side_mm, QrEcc ecc = QrEcc::Auto);
 
 /// A page of several landmarks (side_mm each) laid out in a grid with the
-/// payload printed under each; page size in millimetres (A4 by default).
+/// payload printed under each (with the side, cut to the landmark's width;
+/// bytes that are not UTF-8 and control characters shown as U+FFFD); page
+/// size in millimetres (A4 by default).
 /// Throws std::invalid_argument when not even one landmark fits the page.
 struct SheetLayout {
   double page_w_mm = 210.0;
