@@ -34,6 +34,11 @@ int main(int argc, char** argv) {
   int big_list = 0;
   app.add_option("--big-list", big_list, "instead, one well-formed landmark_list_t of this many landmarks "
                                          "(more than a tracker takes)");
+  std::string interleave;
+  app.add_option("--interleave", interleave,
+                 "instead, publish this log's messages on --channel, each followed at once by one of the "
+                 "malformed ones (in turn), the pairs --interval-ms apart: a bad message that comes before a "
+                 "good one was processed");
   LD_CLI_PARSE(app, argc, argv);
   lcm::LCM lcm(url);
   if (!lcm.good()) return 2;
@@ -105,6 +110,24 @@ int main(int argc, char** argv) {
   putI32(buf, 8 + 8 + 8, 0x7fffffff);  // 2^31-1 codes
   messages.push_back(buf);
 
+  if (!interleave.empty()) {
+    lcm::LogFile log(interleave, "r");
+    if (!log.good()) {
+      std::cerr << "ld-publish-garbage: cannot read " << interleave << "\n";
+      return 2;
+    }
+    size_t good = 0;
+    while (const lcm::LogEvent* e = log.readNextEvent()) {
+      if (e->channel != channel) continue;
+      const auto& m = messages[good % messages.size()];
+      lcm.publish(channel, e->data, static_cast<unsigned>(e->datalen));
+      lcm.publish(channel, m.data(), static_cast<unsigned>(m.size()));
+      ++good;
+      if (interval_ms > 0) std::this_thread::sleep_for(std::chrono::milliseconds(interval_ms));
+    }
+    std::cout << "published " << good << " messages of the log on " << channel << ", each followed by a malformed one\n";
+    return 0;
+  }
   for (const auto& m : messages) {
     lcm.publish(channel, m.data(), static_cast<unsigned>(m.size()));
     if (interval_ms > 0) std::this_thread::sleep_for(std::chrono::milliseconds(interval_ms));

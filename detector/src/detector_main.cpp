@@ -23,19 +23,38 @@ namespace {
 std::atomic<bool> g_stop{false};
 void onSignal(int) { g_stop = true; }
 
-// Keeps the newest raw message of the input channel; decoding waits until
-// the frame is actually processed, so skipped frames cost nothing.
+// Keeps the newest good frame of the input channel. Each message is decoded
+// and checked as it arrives (decoding copies it once, as keeping its bytes
+// did), so a bad one is said at once and never takes the place of a good
+// frame waiting to be processed; a good one that does counts as skipped.
+// (The JPEG data of an MJPEG frame is checked only by decoding it, later.)
 class LatestFrame {
  public:
+  explicit LatestFrame(std::string channel) : channel_(std::move(channel)) {}
   void onMessage(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    std::string why;
+    try {
+      if (!ld::decodeMessage(static_cast<const uint8_t*>(rbuf->data), rbuf->data_size, incoming_, &why))
+        throw ld::ImageFormatError("message on " + channel_ + " is " + why);
+      ld::checkImage(incoming_);
+    } catch (const ld::ImageFormatError& e) {
+      return reportBad(e.what());
+    }
     if (pending_) ++skipped_;
-    const auto* p = static_cast<const uint8_t*>(rbuf->data);
-    bytes_.assign(p, p + rbuf->data_size);  // reuses capacity
+    std::swap(incoming_, frame_);  // (both keep their buffers: nothing allocated once warm)
     pending_ = true;
   }
+  void reportBad(const std::string& what) {
+    if (ld::printBadLine(++bad_))
+      std::cerr << "ld-detector: dropped frame: " << what << " " << ld::badSoFar(bad_) << "\n";
+  }
   bool pending_ = false;
-  int64_t skipped_ = 0;
-  std::vector<uint8_t> bytes_;
+  int64_t skipped_ = 0, bad_ = 0;
+  ld::image_t frame_;  // the newest good frame, while pending_
+
+ private:
+  std::string channel_;
+  ld::image_t incoming_;
 };
 
 }  // namespace
@@ -88,15 +107,14 @@ int main(int argc, char** argv) {
   if (verbose) std::fprintf(stderr, "ld-detector: backend %s\n", detector.detector().backendInfo().c_str());
   // backend "auto" on a GPU: -v says its choice too, once made
   bool choosing = verbose && detector.detector().choosingBackend();
-  LatestFrame latest;
+  LatestFrame latest(in_channel);
   lcm.subscribe(in_channel, &LatestFrame::onMessage, &latest);
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
 
-  ld::image_t image;
   cv::Mat bgr;
   ld::landmark_list_t out;
-  int64_t processed = 0, bad = 0, last_processed = 0;
+  int64_t processed = 0, last_processed = 0;
   auto last_status = std::chrono::steady_clock::now();
   auto next_explain = last_status;
   ld::Explanation why_frame;
@@ -108,10 +126,8 @@ int main(int argc, char** argv) {
     if (g_stop) break;
     if (latest.pending_) {
       latest.pending_ = false;
+      const ld::image_t& image = latest.frame_;  // (handlers run in pumpLcm alone: it stays while processed)
       try {
-        std::string why;
-        if (!ld::decodeMessage(latest.bytes_.data(), latest.bytes_.size(), image, &why))
-          throw ld::ImageFormatError("message on " + in_channel + " is " + why);
         ld::imageToBgr(image, bgr);
         // Now and then, on --explain, the frame's explanation (it costs about
         // a detection more, and is not counted in the published timings).
@@ -146,9 +162,7 @@ int main(int argc, char** argv) {
           choosing = false;
         }
       } catch (const std::exception& e) {
-        ++bad;
-        if (ld::printBadLine(bad))
-          std::cerr << "ld-detector: dropped frame: " << e.what() << " " << ld::badSoFar(bad) << "\n";
+        latest.reportBad(e.what());
       }
     }
     const auto now = std::chrono::steady_clock::now();
@@ -156,13 +170,13 @@ int main(int argc, char** argv) {
       const double s = std::chrono::duration<double>(now - last_status).count();
       std::fprintf(stderr, "ld-detector: %.1f frames/s, %lld processed, %lld skipped, %lld bad\n",
                    (processed - last_processed) / s, static_cast<long long>(processed),
-                   static_cast<long long>(latest.skipped_), static_cast<long long>(bad));
+                   static_cast<long long>(latest.skipped_), static_cast<long long>(latest.bad_));
       last_processed = processed;
       last_status = now;
     }
   }
   std::fprintf(stderr, "ld-detector: stopped after %lld frames (%lld skipped, %lld bad)\n",
                static_cast<long long>(processed), static_cast<long long>(latest.skipped_),
-               static_cast<long long>(bad));
+               static_cast<long long>(latest.bad_));
   return 0;
 }

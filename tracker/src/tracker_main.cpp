@@ -27,19 +27,40 @@ constexpr int32_t kMaxLandmarks = 1000;  // in one list
 std::atomic<bool> g_stop{false};
 void onSignal(int) { g_stop = true; }
 
-// Keeps the newest raw message of the input channel; decoding waits until it
-// is actually processed.
+// Keeps the newest good list of the input channel. Each message is decoded
+// and checked as it arrives, so a bad one is said at once and never takes
+// the place of a good list waiting to be tracked; a good one that does
+// counts as skipped.
 class LatestMessage {
  public:
+  explicit LatestMessage(std::string channel) : channel_(std::move(channel)) {}
   void onMessage(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    std::string why;
+    // (a list far beyond what a detector finds, about 130 landmarks at its
+    // candidate cap: the assignment's time and memory grow with its square
+    // and cube, 6 s and 400 MB for 5000)
+    if (ld::decodeMessage(static_cast<const uint8_t*>(rbuf->data), rbuf->data_size, incoming_, &why) &&
+        incoming_.nlandmarks > kMaxLandmarks)
+      why = "a list of " + std::to_string(incoming_.nlandmarks) + " landmarks (frame " +
+            std::to_string(incoming_.seq) + "), more than the " + std::to_string(kMaxLandmarks) +
+            " the tracker takes";
+    if (!why.empty()) {
+      if (ld::printBadLine(++bad_))
+        std::cerr << "ld-tracker: dropped message: message on " << channel_ << " is " << why << " "
+                  << ld::badSoFar(bad_) << "\n";
+      return;
+    }
     if (pending_) ++skipped_;
-    const auto* p = static_cast<const uint8_t*>(rbuf->data);
-    bytes_.assign(p, p + rbuf->data_size);  // reuses capacity
+    std::swap(incoming_, list_);
     pending_ = true;
   }
   bool pending_ = false;
-  int64_t skipped_ = 0;
-  std::vector<uint8_t> bytes_;
+  int64_t skipped_ = 0, bad_ = 0;
+  ld::landmark_list_t list_;  // the newest good list, while pending_
+
+ private:
+  std::string channel_;
+  ld::landmark_list_t incoming_;
 };
 
 }  // namespace
@@ -99,15 +120,15 @@ int main(int argc, char** argv) {
   if (!ld::lcmUrlUsable(url, "ld-tracker")) return 2;
   lcm::LCM lcm(url);
   if (const int status = ld::lcmOpenStatus(lcm, url, "ld-tracker")) return status;
-  LatestMessage latest;
+  LatestMessage latest(in_channel);
   lcm.subscribe(in_channel, &LatestMessage::onMessage, &latest);
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
 
-  ld::landmark_list_t in, out;
+  ld::landmark_list_t out;
   ld::StillTimeWatch still;
   std::vector<ld::Landmark> detections;
-  int64_t processed = 0, bad = 0, last_processed = 0, resets = 0, rejected = 0, rejected_lists = 0, late = 0;
+  int64_t processed = 0, last_processed = 0, resets = 0, rejected = 0, rejected_lists = 0, late = 0;
   auto last_status = std::chrono::steady_clock::now();
   while (!g_stop) {
     // waits, then drains the queue: only the newest message is processed
@@ -115,56 +136,43 @@ int main(int argc, char** argv) {
     if (g_stop) break;
     if (latest.pending_) {
       latest.pending_ = false;
-      std::string why;
-      // (a list far beyond what a detector finds, about 130 landmarks at its
-      // candidate cap: the assignment's time and memory grow with its square
-      // and cube, 6 s and 400 MB for 5000)
-      if (ld::decodeMessage(latest.bytes_.data(), latest.bytes_.size(), in, &why) && in.nlandmarks > kMaxLandmarks)
-        why = "a list of " + std::to_string(in.nlandmarks) + " landmarks (frame " + std::to_string(in.seq) +
-              "), more than the " + std::to_string(kMaxLandmarks) + " the tracker takes";
-      if (!why.empty()) {
-        ++bad;
-        if (ld::printBadLine(bad))
-          std::cerr << "ld-tracker: dropped message: message on " << in_channel << " is " << why << " "
-                    << ld::badSoFar(bad) << "\n";
-      } else {
-        const auto t0 = std::chrono::steady_clock::now();
-        if (still.note(in.utime))
-          std::cerr << "ld-tracker: 10 lists in a row with utime " << in.utime
-                    << ": lifetimes count time from it, so tracks unseen do not expire while it stands still "
-                       "(does the publisher stamp its frames?)\n";
-        ld::landmarksFromList(in, detections);
-        const auto& tracks = tracker.update(detections, in.utime);
-        const double ms =
-            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-        // (landmarks with positions that are not numbers, or under a pixel:
-        // not tracked; said as bad input is, and counted)
-        if (tracker.stats().rejected_detections > rejected) {
-          const int64_t n = tracker.stats().rejected_detections - rejected;
-          rejected = tracker.stats().rejected_detections;
-          if (ld::printBadLine(++rejected_lists))
-            std::cerr << "ld-tracker: " << n << (n == 1 ? " landmark" : " landmarks") << " of the list on "
-                      << in_channel << " for frame " << in.seq << " (utime " << in.utime
-                      << ") not tracked: corners not finite or under a pixel apart "
-                      << ld::badSoFar(rejected_lists) << "\n";
-        }
-        if (tracker.stats().late_frames > late) {  // (a message that came late: nothing to publish)
-          late = tracker.stats().late_frames;
-          if (ld::printBadLine(late))
-            std::cerr << "ld-tracker: frame " << in.seq << " (utime " << in.utime
-                      << ") came after a newer one: not tracked " << ld::badSoFar(late, "late") << "\n";
-          continue;
-        }
-        if (tracker.stats().resets > resets) {
-          resets = tracker.stats().resets;
-          std::cerr << "ld-tracker: utime " << in.utime
-                    << " is older than the previous frame's by more than 0.1 s (a log replayed again, or the "
-                       "clock stepped back): tracks restarted\n";
-        }
-        ld::toTrackedListMessage(tracks, in, ms, latest.skipped_, out);
-        lcm.publish(out_channel, &out);
-        ++processed;
+      const ld::landmark_list_t& in = latest.list_;  // (handlers run in pumpLcm alone: it stays while tracked)
+      const auto t0 = std::chrono::steady_clock::now();
+      if (still.note(in.utime))
+        std::cerr << "ld-tracker: 10 lists in a row with utime " << in.utime
+                  << ": lifetimes count time from it, so tracks unseen do not expire while it stands still "
+                     "(does the publisher stamp its frames?)\n";
+      ld::landmarksFromList(in, detections);
+      const auto& tracks = tracker.update(detections, in.utime);
+      const double ms =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      // (landmarks with positions that are not numbers, or under a pixel:
+      // not tracked; said as bad input is, and counted)
+      if (tracker.stats().rejected_detections > rejected) {
+        const int64_t n = tracker.stats().rejected_detections - rejected;
+        rejected = tracker.stats().rejected_detections;
+        if (ld::printBadLine(++rejected_lists))
+          std::cerr << "ld-tracker: " << n << (n == 1 ? " landmark" : " landmarks") << " of the list on "
+                    << in_channel << " for frame " << in.seq << " (utime " << in.utime
+                    << ") not tracked: corners not finite or under a pixel apart "
+                    << ld::badSoFar(rejected_lists) << "\n";
       }
+      if (tracker.stats().late_frames > late) {  // (a message that came late: nothing to publish)
+        late = tracker.stats().late_frames;
+        if (ld::printBadLine(late))
+          std::cerr << "ld-tracker: frame " << in.seq << " (utime " << in.utime
+                    << ") came after a newer one: not tracked " << ld::badSoFar(late, "late") << "\n";
+        continue;
+      }
+      if (tracker.stats().resets > resets) {
+        resets = tracker.stats().resets;
+        std::cerr << "ld-tracker: utime " << in.utime
+                  << " is older than the previous frame's by more than 0.1 s (a log replayed again, or the "
+                     "clock stepped back): tracks restarted\n";
+      }
+      ld::toTrackedListMessage(tracks, in, ms, latest.skipped_, out);
+      lcm.publish(out_channel, &out);
+      ++processed;
     }
     const auto now = std::chrono::steady_clock::now();
     if (verbose && now - last_status > std::chrono::seconds(5)) {
@@ -174,7 +182,7 @@ int main(int argc, char** argv) {
                    "ld-tracker: %.1f frames/s, %lld processed, %lld skipped, %lld bad, "
                    "%zu in pool, %lld tracks so far\n",
                    (processed - last_processed) / s, static_cast<long long>(processed),
-                   static_cast<long long>(latest.skipped_), static_cast<long long>(bad),
+                   static_cast<long long>(latest.skipped_), static_cast<long long>(latest.bad_),
                    tracker.poolSize(), static_cast<long long>(st.tracks_created));
       last_processed = processed;
       last_status = now;
@@ -184,7 +192,7 @@ int main(int argc, char** argv) {
                "ld-tracker: stopped after %lld frames (%lld skipped, %lld bad, %lld %s not tracked, %lld late), "
                "%lld tracks\n",
                static_cast<long long>(processed), static_cast<long long>(latest.skipped_),
-               static_cast<long long>(bad), static_cast<long long>(rejected),
+               static_cast<long long>(latest.bad_), static_cast<long long>(rejected),
                rejected == 1 ? "landmark" : "landmarks", static_cast<long long>(late),
                static_cast<long long>(tracker.stats().tracks_created));
   return 0;
