@@ -151,6 +151,25 @@ grep -q "warning: replay log $T/damaged.lcmlog: skipped .* bytes that are no who
   fail "damaged replay log: $(cat "$T/out")"
 grep -q "warning: 15 of the log's 20 images on IMAGE never came (lcm-logplayer stopped at the log's damage" "$T/out" ||
   fail "damaged replay log, images: $(cat "$T/out")"
+# A replay log whose IMAGE channel holds malformed messages besides its
+# frames: they came, and are said as not images, not as lost on the bus.
+python3 - "$T/latin.lcmlog" "$T/junk.lcmlog" <<'PY'
+import struct, sys
+data = open(sys.argv[1], 'rb').read(); out = bytearray(); pos = n = 0
+while pos + 28 <= len(data):
+    sync, num, ts, clen, dlen = struct.unpack_from('>IqqII', data, pos)
+    event = data[pos + 28:pos + 28 + clen + dlen]
+    out += struct.pack('>IqqII', sync, n, ts, clen, dlen) + event; n += 1
+    if n <= 6 and event[:clen] == b'IMAGE':  # the first 3 frames, each with a message of junk behind
+        out += struct.pack('>IqqII', sync, n, ts + 1, clen, 40) + b'IMAGE' + bytes(range(40)); n += 1
+    pos += 28 + clen + dlen
+open(sys.argv[2], 'wb').write(out)
+PY
+timeout 60 "$BIN/ld-run" --netns --replay "$T/junk.lcmlog" --exit-when-replay-done --processes detector \
+  --status-interval 0 --summary "$T/junk.json" -q >"$T/out" 2>&1 || fail "malformed images in the log: $(cat "$T/out")"
+grep -q "warning: 3 of the log's 23 messages on IMAGE are not images (malformed: the detector's lines say why)" "$T/out" &&
+  ! grep -q "never came" "$T/out" && [ "$(jq .summary.frames.bad_images "$T/junk.json")" -eq 3 ] ||
+  fail "malformed images in the log: $(cat "$T/out")"
 
 # What is accepted: a pixel format in any case, and missing folders of the
 # recording and the summary, which ld-run creates.

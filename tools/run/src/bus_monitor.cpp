@@ -126,6 +126,7 @@ void BusMonitor::onImage(const lcm::ReceiveBuffer* rb, const std::string&) {
   int64_t utime = 0, seq = -1;
   if (!peekImageKey(static_cast<const uint8_t*>(rb->data), rb->data_size, utime, seq)) {
     ++bad_;
+    ++bad_images_;
     return;
   }
   imageSeen(utime, seq, receivedAt(rb));
@@ -267,7 +268,8 @@ nlohmann::ordered_json BusMonitor::summary() const {
                  {"unmatched_images", unmatched_images_ + static_cast<int64_t>(pending_.size())},
                  {"detector_skipped", det_skipped_.sum},
                  {"tracker_skipped", trk_skipped_.sum},
-                 {"bad_messages", bad_}};
+                 {"bad_messages", bad_},
+                 {"bad_images", bad_images_}};
   double sum = 0;
   int maxn = 0;
   J hist = J::object();

@@ -603,8 +603,14 @@ int main(int argc, char** argv) {
   const Json& lat = s["summary"]["latency_ms"];
   // (images of a whole replay that never came: lost on the bus, as large
   // images are with a small receive buffer)
-  if (log_images > 0 && end_reason == "replay done" && f["images"].get<int64_t>() < log_images)
-    note("warning: " + std::to_string(log_images - f["images"].get<int64_t>()) + " of the log's " +
+  // (messages that came and are no image_t are not lost: the processes said
+  // what was wrong with each)
+  const int64_t bad_images = f["bad_images"].get<int64_t>();
+  if (log_images > 0 && end_reason == "replay done" && bad_images > 0)
+    note("warning: " + std::to_string(bad_images) + " of the log's " + std::to_string(log_images) +
+         " messages on " + cfg.channels.image + " are not images (malformed: the detector's lines say why)");
+  if (log_images > 0 && end_reason == "replay done" && f["images"].get<int64_t>() + bad_images < log_images)
+    note("warning: " + std::to_string(log_images - f["images"].get<int64_t>() - bad_images) + " of the log's " +
          std::to_string(log_images) + " images on " + cfg.channels.image +
          (log_damage.empty() ? " never came (lost on the bus: README, \"LCM URL and large images\")"
                              : " never came (lcm-logplayer stopped at the log's damage: --play reads past it)"));

@@ -149,6 +149,7 @@ class BusMonitor {
   int64_t self_tests_ = 0;
   Micros last_self_test_us_ = 0;
   int64_t tracked_frames_ = 0, matched_ = 0, unmatched_images_ = 0, bad_ = 0;
+  int64_t bad_images_ = 0;  // of bad_: on the image channel (not counted as images)
   SkipCounter det_skipped_, trk_skipped_;
   std::vector<double> latencies_ms_;
   size_t window_start_ = 0;  // first latency of the current status window
