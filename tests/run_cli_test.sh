@@ -170,6 +170,21 @@ timeout 60 "$BIN/ld-run" --netns --replay "$T/junk.lcmlog" --exit-when-replay-do
 grep -q "warning: 3 of the log's 23 messages on IMAGE are not images (malformed: the detector's lines say why)" "$T/out" &&
   ! grep -q "never came" "$T/out" && [ "$(jq .summary.frames.bad_images "$T/junk.json")" -eq 3 ] ||
   fail "malformed images in the log: $(cat "$T/out")"
+# A replay log of two sessions an hour apart: lcm-logplayer would wait the
+# hour in silence; ld-run says so as it starts.
+python3 - "$T/latin.lcmlog" "$T/gap.lcmlog" <<'PY'
+import struct, sys
+data = bytearray(open(sys.argv[1], 'rb').read()); pos = n = 0
+while pos + 28 <= len(data):
+    sync, num, ts, clen, dlen = struct.unpack_from('>IqqII', data, pos)
+    if num >= 10: struct.pack_into('>q', data, pos + 12, ts + 3600 * 10**6)
+    pos += 28 + clen + dlen
+open(sys.argv[2], 'wb').write(data)
+PY
+timeout 5 "$BIN/ld-run" --netns --replay "$T/gap.lcmlog" --exit-when-replay-done --processes none \
+  --status-interval 0 -q >"$T/out" 2>&1 || true
+grep -q "warning: replay log $T/gap.lcmlog: 3600.0 s without a message after its message 10 (two sessions in one log, as lcm-logger -a appends?): lcm-logplayer waits 3600.0 s there at speed 1 (--play plays the images without the wait)" "$T/out" ||
+  fail "a log with a gap of an hour: $(cat "$T/out")"
 
 # What is accepted: a pixel format in any case, and missing folders of the
 # recording and the summary, which ld-run creates.

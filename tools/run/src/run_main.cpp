@@ -42,6 +42,9 @@ void onSignal(int s) {
   g_stop = true;
 }
 
+// A pause in a replayed log, at the replay's speed, that is said (microseconds).
+constexpr double kLongReplayGapUs = 10e6;
+
 double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
 
 int64_t wallMicros() {
@@ -337,13 +340,34 @@ int main(int argc, char** argv) {
   // A replayed log's images, counted (the summary says how many came), and
   // its damage said: lcm-logplayer stops at damaged bytes without a word
   // ld-run would see.
+  // Its longest pause too: lcm-logplayer keeps the log's timing, so two
+  // sessions in one log (lcm-logger -a appends) replay with the time between
+  // them, silent.
   int64_t log_images = -1;
-  std::string log_damage;
+  std::string log_damage, log_gap;
   if (cfg.source == "replay") {
     ld::LcmLogReader reader(cfg.log);
     log_images = 0;
-    while (reader.next(false)) log_images += reader.channel == cfg.channels.image;  // (headers alone)
+    int64_t previous = 0, gap = 0, gap_after = 0;
+    while (reader.next(false)) {  // (headers alone)
+      log_images += reader.channel == cfg.channels.image;
+      if (reader.messages() > 1 && reader.timestamp - previous > gap) {
+        gap = reader.timestamp - previous;
+        gap_after = reader.messages() - 1;
+      }
+      previous = reader.timestamp;
+    }
     log_damage = reader.problem();
+    if (gap / cfg.speed > kLongReplayGapUs) {
+      char buf[256];
+      std::snprintf(buf, sizeof buf,
+                    "%.1f s without a message after its message %lld (two sessions in one log, as lcm-logger -a "
+                    "appends?): lcm-logplayer waits %.1f s there at speed %g (--play plays the images without "
+                    "the wait)",
+                    static_cast<double>(gap) / 1e6, static_cast<long long>(gap_after),
+                    static_cast<double>(gap) / 1e6 / cfg.speed, cfg.speed);
+      log_gap = buf;
+    }
   }
   using OutputFile = std::pair<const char*, std::string>;
   // No file ld-run writes is the log it plays or its config, nor another file
@@ -470,6 +494,7 @@ int main(int argc, char** argv) {
   if (!log_damage.empty())
     note("warning: replay log " + cfg.log + ": " + log_damage +
          "; lcm-logplayer stops at the damage (--play reads past it)");
+  if (!log_gap.empty()) note("warning: replay log " + cfg.log + ": " + log_gap);
   {
     std::string names;
     for (const auto& p : sup.processes()) names += " " + p.spec.name;
