@@ -201,6 +201,9 @@ rc=0; "$BIN/ld-play" "$T/lm.png" 2>"$T/err" || rc=$?
 head -c $(( $(stat -c %s "$T/in.lcmlog") - 100 )) "$T/in.lcmlog" >"$T/cut.lcmlog"
 "$BIN/ld-play" "$T/cut.lcmlog" --lcm-url memq:// --fps 100 >"$T/out" 2>"$T/err" || fail "ld-play cut log: $(cat "$T/err")"
 grep -q "^ld-play: warning: $T/cut.lcmlog: the log ends mid-event after 2 messages" "$T/err" || fail "ld-play cut log: $(cat "$T/err")"
+# ... and reads only the frames it plays: with --frames 1 it never gets to the cut.
+"$BIN/ld-play" "$T/cut.lcmlog" --lcm-url memq:// --fps 100 --frames 1 >"$T/out" 2>"$T/err" || fail "ld-play --frames 1: $(cat "$T/err")"
+! grep -q "warning" "$T/err" && grep -q "^ld-play: published 1 frames" "$T/err" || fail "ld-play --frames 1 read on: $(cat "$T/err")"
 # ld-play takes --frames or --duration, not both.
 rc=0; "$BIN/ld-play" "$T/in.lcmlog" --frames 3 --duration 2 2>"$T/err" || rc=$?
 [ $rc -eq 2 ] && grep -q "^ld-play: --frames excludes --duration" "$T/err" || fail "ld-play --frames --duration: $rc $(cat "$T/err")"

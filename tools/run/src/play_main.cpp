@@ -25,6 +25,10 @@
 
 namespace {
 
+// The most image bytes read into memory before playing (2 GiB: 2300 frames of
+// 640x480 BGR, 350 of 1080p).
+constexpr size_t kMaxPreloadBytes = size_t{2} << 30;
+
 std::atomic<bool> g_stop{false};
 void onSignal(int) { g_stop = true; }
 
@@ -83,7 +87,15 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  // (a duration under half a frame is still a frame, not the log once)
+  if (frames == 0 && duration > 0) frames = std::max<int64_t>(1, std::llround(duration * fps));
+  // The frames are read and converted before the first is published, so that
+  // the rate holds (an MJPEG encode of a 1080p frame takes 10 ms): as many as
+  // are played, up to kMaxPreloadBytes (a 10 minute log at 30 frames/s is
+  // 16 GB of 640x480 BGR).
   std::vector<ld::image_t> images;
+  size_t preloaded_bytes = 0;
+  bool cut = false;
   {
     const ld::LcmLogCheck start = ld::checkLcmLogStart(log_path);
     if (start.start != ld::LcmLogStart::Events) {
@@ -95,8 +107,12 @@ int main(int argc, char** argv) {
       std::cerr << "ld-play: cannot read log " << log_path << "\n";
       return 2;
     }
-    while (log.next()) {
+    while ((frames == 0 || static_cast<int64_t>(images.size()) < frames) && log.next()) {
       if (log.channel != channel) continue;
+      if (preloaded_bytes >= kMaxPreloadBytes) {
+        cut = true;
+        break;
+      }
       ld::image_t img;
       std::string why;
       if (!ld::decodeMessage(log.data.data(), log.data.size(), img, &why)) {
@@ -113,8 +129,13 @@ int main(int argc, char** argv) {
         std::cerr << "ld-play: skipping message " << log.messages() << ": " << e.what() << "\n";
         continue;
       }
+      preloaded_bytes += img.data.size();
       images.push_back(std::move(img));
     }
+    if (cut)
+      std::cerr << "ld-play: note: the log's first " << images.size() << " images (" << (preloaded_bytes >> 20)
+                << " MiB" << (pixelformat != -1 ? " converted" : "") << ") are played, looped: more would not fit in "
+                << "memory (" << (kMaxPreloadBytes >> 20) << " MiB)\n";
     if (!log.problem().empty())  // a cut log: what it holds is played
       std::cerr << "ld-play: warning: " << log_path << ": " << log.problem() << "\n";
   }
@@ -122,8 +143,6 @@ int main(int argc, char** argv) {
     std::cerr << "ld-play: no " << channel << " images in " << log_path << "\n";
     return 2;
   }
-  // (a duration under half a frame is still a frame, not the log once)
-  if (frames == 0 && duration > 0) frames = std::max<int64_t>(1, std::llround(duration * fps));
   if (frames == 0) frames = static_cast<int64_t>(images.size());
 
   if (!ld::lcmUrlUsable(url, "ld-play")) return 2;
