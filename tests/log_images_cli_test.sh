@@ -69,4 +69,10 @@ set +e; "$BIN/ld-log-images" "$T/bad" "$T/prev.lcmlog" >/dev/null 2>"$T/err"; rc
 [ $rc -eq 1 ] && cmp -s "$T/a.lcmlog" "$T/prev.lcmlog" || fail "a failed run changed the earlier log: exit $rc"
 "$BIN/ld-log-images" "$T/f" "$T/new/dir/n.lcmlog" >/dev/null || fail "a log in a new folder"
 [ "$(ls -A "$T/new/dir")" = n.lcmlog ] && [ -z "$(ls -A "$T" | grep partial)" ] || fail "left behind: $(ls -A "$T" "$T/new/dir")"
+# An LCM log as the input (FFmpeg takes an MJPEG log for a video): refused,
+# and given as the output too, left as it was.
+cp "$T/a.lcmlog" "$T/same.lcmlog"
+set +e; "$BIN/ld-log-images" "$T/same.lcmlog" "$T/same.lcmlog" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && [ "$(cat "$T/err")" = "ld-log-images: $T/same.lcmlog is an LCM log already (ld-play or lcm-logplayer replays it; ld-log-images makes logs of images and videos)" ] &&
+  cmp -s "$T/a.lcmlog" "$T/same.lcmlog" || fail "a log as the input: exit $rc, $(cat "$T/err")"
 echo "ld-log-images command line: ok"

@@ -77,6 +77,12 @@ int main(int argc, char** argv) {
   } else if (!fs::exists(input, ec)) {
     std::cerr << "ld-log-images: " << input << " does not exist\n";
     return 2;
+  } else if (ld::checkLcmLogStart(input).start == ld::LcmLogStart::Events) {
+    // (FFmpeg finds the JPEG frames of an MJPEG log and takes it as a video:
+    // re-encoded, restamped, and with the same output, written over)
+    std::cerr << "ld-log-images: " << input << " is an LCM log already (ld-play or lcm-logplayer replays it; "
+              << "ld-log-images makes logs of images and videos)\n";
+    return 2;
   } else if (isImageFile(input)) {  // one image: a log of one frame
     if (const std::string cut = ld::truncatedJpegProblem(input); !cut.empty()) {
       std::cerr << "ld-log-images: " << input << ": cannot read as an image: it " << cut << "\n";
