@@ -52,4 +52,12 @@ rc=0; LD_TYPES_JAR=/etc/passwd "$spy" --list-types >"$T/out" 2>"$T/err" || rc=$?
 (cd "$T" && echo x >x.txt && jar cf empty.jar x.txt 2>/dev/null || python3 -c "import zipfile; zipfile.ZipFile('empty.jar','w').writestr('x.txt','x')")
 rc=0; LD_TYPES_JAR="$T/empty.jar" "$spy" --list-types >"$T/out" 2>"$T/err" || rc=$?
 [ $rc -eq 2 ] && grep -q "^ld-spy: no ld.\* message types in $T/empty.jar$" "$T/err" || fail "empty jar: $rc $(cat "$T/err")"
+# ... also when lcm-spy would start (it checked for --list-types alone, and
+# lcm-spy started decoding nothing, or died of Java's stack trace)
+rc=0; timeout 20 "$netns" env LD_TYPES_JAR="$T/empty.jar" DISPLAY=:97 "$spy" >"$T/out" 2>"$T/err" || rc=$?
+[ $rc -eq 2 ] && [ "$(cat "$T/err")" = "ld-spy: no ld.* message types in $T/empty.jar" ] || fail "empty jar, spy: $rc $(cat "$T/err")"
+# a DISPLAY that is no display name: one line (Java's stack trace before)
+rc=0; timeout 20 "$netns" env DISPLAY=nocolon "$spy" >"$T/out" 2>"$T/err" || rc=$?
+[ $rc -eq 2 ] && [ "$(wc -l <"$T/err")" -eq 1 ] && grep -q "^ld-spy: DISPLAY=nocolon is not a display name (:N, unix:N or HOST:N)" "$T/err" ||
+  fail "DISPLAY=nocolon: $rc $(cat "$T/err")"
 echo "ld-spy command line: ok"
