@@ -93,4 +93,18 @@ grep -q "^ld-synth: note: 3 frames of an earlier run are left in $T/seq (truth.j
 grep -q "note: 4 frames of an earlier run are left in $T/seq (truth.jsonl lists this run's 4)" "$T/err" ||
   fail "leftover PNGs beside JPEGs: $(cat "$T/err")"
 refused "--frames: must be in \[1, 100000\], not 0" sequence --out "$T/x" --frames 0
+# Seeds as written (-1 and 2^64 were taken as 2^64-1), times of 0 or more,
+# a payload of a byte or more (scene took "" for room-101).
+refused "--seed: must be a whole number 0 or more, not -1" scene --out "$T/x" --seed -1
+refused "--seed: must be under 2^64, not 18446744073709551616" sequence --out "$T/x" --seed 18446744073709551616
+refused "--start-utime: must be >= 0, not -5" sequence --out "$T/x" --start-utime -5
+refused "--payload: an empty payload" scene --out "$T/x" -p ""
+# Refused before anything is written: a YUYV/UYVY log of odd width, and a
+# log over a file the run writes in --out (it replaced truth.jsonl, status 0).
+refused "--format uyvy needs an even width, and the frames are 641 px wide" sequence --out "$T/odd" --log "$T/odd.lcmlog" --format uyvy --resolution 641x480 -n 2
+[ ! -e "$T/odd" ] || fail "odd width: $(ls "$T/odd")"
+refused "--log $T/own/truth.jsonl is a file this run writes in --out $T/own" sequence --out "$T/own" --log "$T/own/truth.jsonl" -n 2
+refused "--log $T/own/000001.png is a file this run writes in --out $T/own" sequence --out "$T/own" --log "$T/own/000001.png" -n 2
+# The whole range of --landmarks (91 to 100 failed in OpenCV's remap: the wall's texture was too wide).
+"$BIN/ld-synth" sequence --out "$T/k100" -n 1 -k 100 --no-png >/dev/null || fail "-k 100: exit $?"
 echo "ld-synth command line: ok"

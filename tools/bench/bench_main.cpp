@@ -75,7 +75,7 @@ int main(int argc, char** argv) {
   app.add_option("--repeats", repeats, "timed runs per scene (the median is kept)")
       ->check(ld::cli::Positive)
       ->capture_default_str();
-  app.add_option("--seed", seed, "scene seed")->capture_default_str();
+  app.add_option("--seed", seed, "scene seed")->capture_default_str()->check(ld::cli::Seed);
   app.add_option("--size", side_m, "printed side S of landmarks and markers, metres")
       ->check(ld::cli::Between(0.01, 2.0))
       ->capture_default_str();

@@ -165,7 +165,7 @@ void addCommon(CLI::App* app, Common& c, bool png = true) {
                                           "params file's, else cpu)")
       ->check(CLI::IsMember({"cpu", "gles", "auto"}));
   app->add_option("--trials", c.trials, "frames per sweep point")->check(ld::cli::Positive)->capture_default_str();
-  app->add_option("--seed", c.seed, "scene seed (0 or more)")->capture_default_str()->check(ld::cli::NonNegative);
+  app->add_option("--seed", c.seed, "scene seed (0 or more)")->capture_default_str()->check(ld::cli::Seed);
   app->add_option("--markdown", c.markdown, "also write the table to this file");
   if (png) app->add_option("--png", c.png, "write a plot");
 }

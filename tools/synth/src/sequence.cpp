@@ -96,13 +96,13 @@ Sequence::Sequence(const SequenceOptions& options) : options_(options) {
   const double covered = std::min(1.0, kMaxSpeed * duration / (x_end_ - x_start_));
   s0_ = 0.5 - covered / 2;
   s1_ = 0.5 + covered / 2;
-  // The wall's texture has about as many pixels per metre as the image has
-  // at 1.5 m (within 300..700).
-  const double ppm = std::clamp(o.camera.K(0, 0) / 1.5, 300.0, 700.0);
-
   // The wall: painted in pieces about 2.5 m wide, then distractors and cards
-  // on it, kept off the landmarks.
+  // on it, kept off the landmarks. Its texture has about as many pixels per
+  // metre as the image has at 1.5 m (within 300..700), fewer on a wall too
+  // long for OpenCV's remap (under 32767 px a side: 91 landmarks at 400 px/m
+  // were beyond it).
   const double wx0 = x_start_ - kWallMargin, wx1 = x_end_ + kWallMargin;
+  const double ppm = std::min(std::clamp(o.camera.K(0, 0) / 1.5, 300.0, 700.0), 32000.0 / (wx1 - wx0));
   const double wy0 = camera_height_ - kWallHeight;
   Surface wall;
   wall.size_m = {wx1 - wx0, kWallHeight};

@@ -6,6 +6,7 @@
 //
 // Every value option of `scene` takes a number (fixed) or a range "a:b"
 // (drawn uniformly per frame). Errors: one line on stderr, exit code 2.
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -141,7 +142,7 @@ struct SceneArgs {
   uint64_t seed = 1;
   std::string size = "0.15", distance = "1.5", yaw = "0", pitch = "0", roll = "0", x, y = "-0.5:0.5";
   std::string defocus, motion, noise, jpeg;
-  bool no_landmark = false, nominal = false, jpg = false;
+  bool no_landmark = false, nominal = false, jpg = false, payload_given = false;
 };
 
 Background backgroundFrom(const std::string& s) {
@@ -238,6 +239,8 @@ int runScene(const SceneArgs& a) {
     requireWithin("x", *nx, -1.5, 1.5);
   }
   if (a.count < 1) throw UsageError("--count must be at least 1");
+  // (as sequence and ld-generate: an empty payload is no code; it was room-101 without a word)
+  if (a.payload_given && a.payload.empty()) throw UsageError("--payload: an empty payload (a QR code holds 1 byte or more)");
   if (a.landmarks < 0 || a.landmarks > 20) throw UsageError("--landmarks must be 0..20");
   if (a.cards < 0 || a.cards > 50) throw UsageError("--cards must be 0..50");
   if (a.distractors && (*a.distractors < 0 || *a.distractors > 500))
@@ -335,7 +338,7 @@ int main(int argc, char** argv) {
   auto* scene = app.add_subcommand("scene", "still frames with landmarks at chosen poses: DIR/000000.png ..., DIR/truth.jsonl");
   scene->add_option("--out,-o", sa.out, "output folder")->required();
   scene->add_option("--count,-n", sa.count, "number of frames")->capture_default_str();
-  scene->add_option("--seed", sa.seed, "random seed (same seed, same bytes)")->capture_default_str();
+  scene->add_option("--seed", sa.seed, "random seed (same seed, same bytes)")->capture_default_str()->check(ld::cli::Seed);
   scene->add_option("--camera", sa.camera, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration; default: 640x480, f = 600 px)");
   scene->add_option("--resolution", sa.resolution, "image size WxH (scales the camera; f = 600 px per 640 without --camera)");
   scene->add_option("--size", sa.size, "landmark side S in metres, or a range a:b")->capture_default_str();
@@ -388,8 +391,10 @@ int main(int argc, char** argv) {
   sequence->add_option("--size", qo.side_m, "landmark side S in metres (0.01 to 2)")
       ->capture_default_str()
       ->check(ld::cli::Between(0.01, 2));
-  sequence->add_option("--seed", qo.seed, "random seed (same seed, same bytes)")->capture_default_str();
-  sequence->add_option("--start-utime", qo.start_utime, "utime of the first frame, microseconds")->capture_default_str();
+  sequence->add_option("--seed", qo.seed, "random seed (same seed, same bytes)")->capture_default_str()->check(ld::cli::Seed);
+  sequence->add_option("--start-utime", qo.start_utime, "utime of the first frame, microseconds (0 or more)")
+      ->capture_default_str()
+      ->check(ld::cli::NonNegative);
   sequence->add_option("--camera", q_camera, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration; default: 640x480, f = 600 px)");
   sequence->add_option("--resolution", q_resolution, "image size WxH");
   bool no_png = false;
@@ -400,6 +405,7 @@ int main(int argc, char** argv) {
   std::string log_name, pending_name;  // sequence --log, and the temporary name it is written under
   try {
     if (scene->parsed()) {
+      sa.payload_given = scene->count("--payload") > 0;
       sa.ecc = ld::artwork::parseQrEcc(ecc_text);
       return runScene(sa);
     }
@@ -407,11 +413,29 @@ int main(int argc, char** argv) {
     if (qo.out_dir.empty() && qo.log_path.empty()) throw UsageError("sequence: give --out, --log or both");
     if (qo.channel.empty()) throw UsageError("--channel: an empty channel name");
     qo.camera = makeCamera(q_camera, q_resolution);
+    // (found at the first frame's encoding before, with frames written)
+    if (!qo.log_path.empty() && qo.camera.size.width % 2 != 0) {
+      const int32_t f = ld::pixelFormatFromName(qo.pixel_format);
+      if (f == ld::image_t::PIXEL_FORMAT_YUYV || f == ld::image_t::PIXEL_FORMAT_UYVY)
+        throw UsageError("--format " + qo.pixel_format + " needs an even width, and the frames are " +
+                         std::to_string(qo.camera.size.width) + " px wide");
+    }
     qo.write_png = !no_png;
     // The log is checked before anything is written, written under a
     // temporary name and renamed when whole: a failed run leaves an earlier
     // log as it was, and nothing is written over a file that is not a log.
     std::optional<ld::PendingFile> pending_log;
+    // (nor over a file this run writes in --out: the frames and truth.jsonl
+    // were written, then replaced by the log, status 0)
+    if (!qo.log_path.empty() && !qo.out_dir.empty()) {
+      const fs::path log = ld::resolvedPath(qo.log_path);
+      const std::string name = log.filename().string();
+      const bool frame = qo.write_png && name.size() == 10 && name.substr(6) == ".png" &&
+                         std::all_of(name.begin(), name.begin() + 6, [](char c) { return c >= '0' && c <= '9'; }) &&
+                         std::stoi(name.substr(0, 6)) < qo.frames;
+      if (log.parent_path() == ld::resolvedPath(qo.out_dir) && (name == "truth.jsonl" || frame))
+        throw UsageError("--log " + qo.log_path + " is a file this run writes in --out " + qo.out_dir);
+    }
     if (!qo.log_path.empty()) {
       if (const std::string problem = ld::prepareLogOutputFile(qo.log_path); !problem.empty())
         throw std::runtime_error("--log " + qo.log_path + " " + problem);

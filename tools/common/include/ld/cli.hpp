@@ -141,6 +141,21 @@ inline CLI::Validator Between(double lo, double hi) {
   return detail::numberCheck(name.str(), [lo, hi](double v) { return v >= lo && v <= hi; }, rule.str());
 }
 
+/// A random seed: a whole number from 0 to 2^64-1, as written (CLI11 takes
+/// "-1" into a uint64_t as 2^64-1 and 2^64 as the same, without a word).
+inline const CLI::Validator Seed(
+    [](std::string& text) -> std::string {
+      if (text.empty() || text.find_first_not_of("0123456789") != std::string::npos)
+        return "must be a whole number 0 or more, not " + text;
+      try {
+        (void)std::stoull(text);
+      } catch (const std::out_of_range&) {
+        return "must be under 2^64, not " + text;
+      }
+      return std::string();
+    },
+    "SEED", "SEED");
+
 /// A list option given a value twice ("--side 0.15 --side 0.15"): each value
 /// once, in the order first given (measured once, one row).
 template <class T>
