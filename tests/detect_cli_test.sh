@@ -132,4 +132,24 @@ for out in "-o /dev/full" ""; do
   [ $rc -eq 1 ] && grep -q "^ld-detect: write to .* failed: No space left on device" "$T/err" ||
     fail "full disk ($out): exit $rc, $(cat "$T/err")"
 done
+# Files that are no images in a folder: a loop of links (ld-detect aborted
+# on it) and a pipe (it blocked the run for ever), each said in one line,
+# the folder's image still read; a pipe named alone likewise.
+mkdir -p "$T/odd"; cp "$T/s/000000.png" "$T/odd/good.png"
+ln -s l2.png "$T/odd/l1.png"; ln -s l1.png "$T/odd/l2.png"; mkfifo "$T/odd/cam.png"
+set +e; timeout 60 "$BIN/ld-detect" "$T/odd" "$T/odd/cam.png" >"$T/out" 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 1 ] && [ "$(grep -c '"landmarks"' "$T/out")" -eq 1 ] &&
+  [ "$(grep -c "^ld-detect: $T/odd/l[12].png: is a loop of symbolic links$" "$T/err")" -eq 2 ] &&
+  [ "$(grep -c "^ld-detect: $T/odd/cam.png: is not a file (a pipe, a device?)$" "$T/err")" -eq 2 ] ||
+  fail "a loop of links and a pipe: exit $rc, $(cat "$T/err")"
+# -o naming a hard link of an input: refused, the image left as it was
+ln "$T/odd/good.png" "$T/odd/hard.jsonl"
+set +e; "$BIN/ld-detect" "$T/odd/good.png" -o "$T/odd/hard.jsonl" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -q "^ld-detect: -o $T/odd/hard.jsonl is one of the input images: it would be emptied" "$T/err" &&
+  cmp -s "$T/odd/good.png" "$T/s/000000.png" || fail "-o a hard link of an input: exit $rc, $(cat "$T/err")"
+# an overlay that cannot be written: said with why, status 1
+mkdir -p "$T/draw/000000.png"
+set +e; "$BIN/ld-detect" "$T/s/000000.png" --draw "$T/draw" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 1 ] && grep -q "^ld-detect: cannot write $T/draw/000000.png: Is a directory$" "$T/err" ||
+  fail "an overlay not written: exit $rc, $(cat "$T/err")"
 echo "ld-detect command line: ok"

@@ -2125,6 +2125,12 @@ TEST(Params, BadFilesGiveClearErrors) {
             std::string::npos);
   EXPECT_NE(loadError("max_cycles: -99999999999\n").find("line 1: the integer -99999999999 is out of range"),
             std::string::npos);
+  // bounds that keep a frame's time and memory bounded: no infinite number
+  // (d_max .inf let the FIP graph take every pair), max_cycles up to 1e6
+  EXPECT_NE(loadError("d_max: .inf\n").find(".yaml: d_max must be a finite number"), std::string::npos);
+  EXPECT_NE(loadError("w_max: .Inf\n").find(".yaml: w_max must be a finite number"), std::string::npos);
+  EXPECT_NE(loadError("max_cycles: 2000000000\n").find(".yaml: max_cycles must be in [1, 1000000]"), std::string::npos);
+  EXPECT_EQ(loadError("max_cycles: 1000000\n"), "");
   // a UTF-8 byte order mark is no part of the first key ("unknown key 'd_min'" before)
   EXPECT_EQ(loadError("\xEF\xBB\xBF" "d_min: 1.5\n"), "");
 }

@@ -10,6 +10,8 @@
 #include <iostream>
 #include <set>
 
+#include <sys/stat.h>
+
 #include <CLI/CLI.hpp>
 #include <opencv2/core/utils/logger.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -50,8 +52,9 @@ std::vector<std::string> expandInputs(const std::vector<std::string>& inputs) {
     if (fs::is_directory(in, ec)) {
       std::vector<std::string> dir;
       for (const auto& e : fs::directory_iterator(in, ec))
-        // (a link whose file is gone is listed too: reading it says so)
-        if (isImageFile(e.path()) && (e.is_regular_file() || e.is_symlink())) dir.push_back(e.path().string());
+        // (a link whose file is gone, or a loop of links, is listed too:
+        // reading it says so; a pipe would block the run, and is said too)
+        if (isImageFile(e.path()) && !e.is_directory(ec)) dir.push_back(e.path().string());
       std::sort(dir.begin(), dir.end());
       files.insert(files.end(), dir.begin(), dir.end());
     } else {
@@ -115,8 +118,22 @@ int main(int argc, char** argv) {
   }
   {
     std::set<fs::path> in;  // (resolved: the same file however it is written)
-    for (const auto& f : files) in.insert(ld::resolvedPath(f));
-    if (!out_file.empty() && in.count(ld::resolvedPath(out_file)))
+    std::set<std::pair<dev_t, ino_t>> in_ids;  // (and the files themselves: a hard link is another name)
+    const auto id = [](const std::string& f, std::pair<dev_t, ino_t>& out) {
+      struct stat st {};
+      if (::stat(f.c_str(), &st) != 0) return false;
+      out = {st.st_dev, st.st_ino};
+      return true;
+    };
+    for (const auto& f : files) {
+      in.insert(ld::resolvedPath(f));
+      if (std::pair<dev_t, ino_t> i; id(f, i)) in_ids.insert(i);
+    }
+    const auto isInput = [&](const std::string& f) {
+      std::pair<dev_t, ino_t> i;
+      return in.count(ld::resolvedPath(f)) > 0 || (id(f, i) && in_ids.count(i) > 0);
+    };
+    if (!out_file.empty() && isInput(out_file))
       return ld::cli::usage(argv[0], "-o " + out_file + " is one of the input images: it would be emptied");
     // (nor the calibration or the parameters it reads)
     for (const auto& [option, file] : {std::pair<const char*, const std::string*>{"--camera", &detector_options.camera_file},
@@ -124,7 +141,7 @@ int main(int argc, char** argv) {
       if (!out_file.empty() && !file->empty() && ld::sameFile(out_file, *file))
         return ld::cli::usage(argv[0], "-o " + out_file + " is the " + option + " file: it would be written over");
     for (const auto& dst : overlays)
-      if (in.count(ld::resolvedPath(dst.string())))
+      if (isInput(dst.string()))
         return ld::cli::usage(argv[0], "--draw " + draw_dir + " would write its overlay over the input " +
                                            dst.string() + ": draw into another folder");
   }
@@ -152,22 +169,12 @@ int main(int argc, char** argv) {
 
   ld::QrReader qr;
   std::vector<ld::Landmark> found;
-  int failed = 0, with_landmarks = 0, total_landmarks = 0;
+  int failed = 0, with_landmarks = 0, total_landmarks = 0, draw_failed = 0;
   std::vector<double> times;
   std::string pose_error;       // the last frame's Detection::pose_error
   for (const auto& path : files) {
     cv::Mat img;
-    const std::string cut = ld::truncatedJpegProblem(path);
-    try {
-      if (cut.empty()) img = cv::imread(path, cv::IMREAD_COLOR);
-    } catch (const cv::Exception&) {
-      img.release();
-    }
-    if (img.empty()) {
-      std::error_code ec;
-      const std::string why = !fs::exists(path, ec) ? "no such file"
-                              : !cut.empty()        ? "cannot read as an image: it " + cut
-                                                    : "cannot read as an image";
+    if (const std::string why = ld::readImageFile(path, img); !why.empty()) {
       std::cerr << "ld-detect: " << path << ": " << why << "\n";
       out << nlohmann::ordered_json{{"image", path}, {"error", why}}.dump(-1, ' ', false, kReplace) << "\n";
       ++failed;
@@ -209,7 +216,23 @@ int main(int argc, char** argv) {
     if (!draw_dir.empty()) {
       ld::drawLandmarks(img, found);
       const fs::path& dst = overlays[static_cast<size_t>(&path - files.data())];
-      if (!cv::imwrite(dst.string(), img)) std::cerr << "ld-detect: cannot write " << dst << "\n";
+      bool written = false;
+      try {
+        std::vector<uint8_t> png;
+        errno = 0;
+        std::ofstream o;
+        if (cv::imencode(".png", img, png)) {
+          o.open(dst, std::ios::binary);
+          o.write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
+          o.close();
+          written = static_cast<bool>(o);
+        }
+      } catch (const cv::Exception&) {
+      }
+      if (!written) {  // (a full disk: the overlays are not all there; status 1 at the end)
+        std::cerr << "ld-detect: cannot write " << dst.string() << ": " << std::strerror(errno ? errno : EIO) << "\n";
+        ++draw_failed;
+      }
     }
   }
   out.flush();
@@ -235,8 +258,10 @@ int main(int argc, char** argv) {
       line += cv::format(", %.2f per image; detect_ms median %.3f, p95 %.3f, max %.3f",
                          static_cast<double>(total_landmarks) / static_cast<double>(times.size()), pct(0.5),
                          pct(0.95), times.back());
-    line += "; " + std::to_string(failed) + " unreadable; backend " + detector.detector().backendInfo();
+    line += "; " + std::to_string(failed) + " unreadable" +
+            (draw_failed ? "; " + std::to_string(draw_failed) + " overlays not written" : std::string()) +
+            "; backend " + detector.detector().backendInfo();
     std::cerr << line << "\n";
   }
-  return failed > 0 ? 1 : 0;
+  return failed > 0 || draw_failed > 0 ? 1 : 0;
 }

@@ -68,7 +68,7 @@ int main(int argc, char** argv) {
   std::error_code ec;
   if (fs::is_directory(input, ec)) {
     for (const auto& e : fs::directory_iterator(input, ec))
-      if (e.is_regular_file() && isImageFile(e.path())) files.push_back(e.path().string());
+      if (isImageFile(e.path()) && e.is_regular_file(ec)) files.push_back(e.path().string());
     std::sort(files.begin(), files.end());
     if (files.empty()) {
       std::cerr << "ld-log-images: no image files in " << input << "\n";
@@ -84,12 +84,9 @@ int main(int argc, char** argv) {
               << "ld-log-images makes logs of images and videos)\n";
     return 2;
   } else if (isImageFile(input)) {  // one image: a log of one frame
-    if (const std::string cut = ld::truncatedJpegProblem(input); !cut.empty()) {
-      std::cerr << "ld-log-images: " << input << ": cannot read as an image: it " << cut << "\n";
-      return 2;
-    }
-    if (cv::imread(input, cv::IMREAD_COLOR).empty()) {
-      std::cerr << "ld-log-images: " << input << ": cannot read as an image\n";
+    cv::Mat probe;
+    if (const std::string why = ld::readImageFile(input, probe); !why.empty()) {
+      std::cerr << "ld-log-images: " << input << ": " << why << "\n";
       return 2;
     }
     files.push_back(input);
@@ -120,11 +117,8 @@ int main(int argc, char** argv) {
     cv::Mat frame;
     if (!files.empty()) {
       if (i >= files.size()) break;
-      const std::string cut = ld::truncatedJpegProblem(files[i]);
-      if (cut.empty()) frame = cv::imread(files[i], cv::IMREAD_COLOR);
-      if (frame.empty()) {
-        std::cerr << "ld-log-images: " << files[i] << ": cannot read as an image" << (cut.empty() ? "" : ": it " + cut)
-                  << ", skipped\n";
+      if (const std::string why = ld::readImageFile(files[i], frame); !why.empty()) {
+        std::cerr << "ld-log-images: " << files[i] << ": " << why << ", skipped\n";
         ++skipped;
         continue;
       }

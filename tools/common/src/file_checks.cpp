@@ -14,6 +14,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <opencv2/imgcodecs.hpp>
+
 #include "ld/image_convert.hpp"
 
 namespace ld {
@@ -88,15 +90,30 @@ std::string prepareOutputFile(const std::string& path) {
   return "";
 }
 
-std::string truncatedJpegProblem(const std::string& path) {
+std::string readImageFile(const std::string& path, cv::Mat& out) {
+  out.release();
+  constexpr off_t kMaxImageFile = off_t{512} << 20;
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0)
+    return errno == ENOENT ? "no such file"
+           : errno == ELOOP ? "is a loop of symbolic links"
+                            : std::string("cannot read: ") + std::strerror(errno);
+  if (!S_ISREG(st.st_mode)) return "is not a file (a pipe, a device?)";
+  if (st.st_size > kMaxImageFile)
+    return "is " + std::to_string(st.st_size >> 20) + " MiB: more than an image file has (512 MiB at most)";
   std::ifstream f(path, std::ios::binary);
-  unsigned char head[3] = {0, 0, 0};
-  if (!f.read(reinterpret_cast<char*>(head), 3) || head[0] != 0xFF || head[1] != 0xD8 || head[2] != 0xFF)
-    return "";
-  f.seekg(0);
-  const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  if (jpegComplete(bytes.data(), bytes.size())) return "";
-  return "is a JPEG cut short (no end-of-image marker)";
+  std::vector<uint8_t> bytes(static_cast<size_t>(st.st_size));
+  if (!f || !f.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size())))
+    return std::string("cannot read: ") + std::strerror(errno ? errno : EIO);
+  if (bytes.size() >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF &&
+      !jpegComplete(bytes.data(), bytes.size()))
+    return "cannot read as an image: it is a JPEG cut short (no end-of-image marker)";
+  try {
+    out = cv::imdecode(bytes, cv::IMREAD_COLOR);
+  } catch (const cv::Exception&) {
+    out.release();
+  }
+  return out.empty() ? "cannot read as an image" : "";
 }
 
 std::string prepareLogOutputFile(const std::string& path) {

@@ -8,6 +8,8 @@
 #include <filesystem>
 #include <string>
 
+#include <opencv2/core.hpp>
+
 namespace ld {
 
 /// LCM's log format (lcm-logger, lcm_eventlog): each event starts with this
@@ -56,12 +58,15 @@ std::string prepareOutputFolder(const std::string& folder);
 /// Read-only file system".
 std::string prepareOutputFile(const std::string& path);
 
-/// For an image file about to be read: when it is a JPEG that ends before its
-/// image does (a copy cut short), why ("is a JPEG cut short (no end-of-image
-/// marker)"): OpenCV reads such a file as an image with grey rows. Empty
-/// otherwise (not a JPEG, a whole one, or a file that cannot be read, which
-/// reading it says).
-std::string truncatedJpegProblem(const std::string& path);
+/// Reads an image file (any format OpenCV reads) into 8-bit BGR, reading the
+/// file once. Empty when it did; otherwise why, to follow the path in a
+/// message: "no such file", "is a loop of symbolic links", "is not a file
+/// (a pipe, a device?)" (a pipe would block, or be read up to its end),
+/// "is 600 MiB: more than an image file has (512 MiB at most)", "cannot
+/// read as an image: it is a JPEG cut short (no end-of-image marker)"
+/// (OpenCV reads such a file as an image with grey rows), "cannot read as
+/// an image".
+std::string readImageFile(const std::string& path, cv::Mat& out);
 
 /// prepareOutputFile for an LCM log about to be written: besides, a file
 /// already at `path` must be an LCM log (or empty), so that a log is never
