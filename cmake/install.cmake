@@ -118,7 +118,7 @@ set(CPACK_COMPONENT_DEV_DESCRIPTION
     "Colour landmark detection: static libraries, headers and CMake package (find_package(landmark))")
 # What landmarkConfig.cmake finds (find_dependency / pkg-config; lcm.pc
 # requires glib, which liblcm-dev does not pull in), and a compiler.
-set(LD_DEV_DEPENDS "libopencv-dev, liblcm-dev, libglib2.0-dev, libzbar-dev, pkg-config, g++ | c++-compiler")
+set(LD_DEV_DEPENDS "libopencv-dev, liblcm-dev, libglib2.0-dev, libzbar-dev, libjpeg-dev, pkg-config, g++ | c++-compiler")
 if(LD_PACKAGE_HAS_GLES)
   string(APPEND LD_DEV_DEPENDS ", libegl-dev, libgles-dev")
 endif()

@@ -7,7 +7,7 @@ set -euo pipefail
 PACKAGES=(
   build-essential cmake pkg-config make
   liblcm-dev liblcm-bin liblcm-java
-  libopencv-dev
+  libopencv-dev libjpeg-dev   # libjpeg: MJPEG frames decoded with their damage said
   libzbar-dev zbar-tools
   libv4l-dev
   libegl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri libgbm-dev

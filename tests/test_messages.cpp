@@ -7,6 +7,7 @@
 #include <thread>
 
 #include <lcm/lcm-cpp.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "image_error.hpp"
@@ -356,6 +357,48 @@ TEST(ImageConvert, RefusesInconsistentMessages) {
   m.data.clear();
   m.size = 0;
   EXPECT_NE(ld::test::imageError(m).find("MJPEG"), std::string::npos) << ld::test::imageError(m);
+}
+
+// An MJPEG frame whose data is damaged but still ends in an end-of-image
+// marker (a USB transfer that lost packets): libjpeg filled the lost part
+// with grey, said so on stderr in its own words and the frame went on as
+// good. Now it is refused, named, and libjpeg prints nothing; the padding
+// many cameras put before the end marker is no damage.
+TEST(ImageConvert, DamagedMjpegIsRefusedPaddedIsWhole) {
+  const cv::Mat original = testImage(320, 240);
+  const ld::image_t good = ld::matToImage(original, ld::image_t::PIXEL_FORMAT_MJPEG, 0, -1, 90);
+  size_t scan = 0;  // the start of the entropy-coded data: after the SOS segment
+  for (size_t i = 2; i + 3 < good.data.size(); ++i)
+    if (good.data[i] == 0xFF && good.data[i + 1] == 0xDA) {
+      scan = i + 2 + (size_t{good.data[i + 2]} << 8 | good.data[i + 3]);
+      break;
+    }
+  ASSERT_GT(scan, 0u);
+  const size_t end = good.data.size() - 2;  // FF D9
+  ASSERT_EQ(good.data[end], 0xFF);
+  ASSERT_EQ(good.data[end + 1], 0xD9);
+
+  cv::Mat bgr;
+  testing::internal::CaptureStderr();
+  ld::imageToBgr(good, bgr);
+  cv::Mat reference = cv::imdecode(good.data, cv::IMREAD_COLOR);
+  EXPECT_LE(maxAbsDiff(bgr, reference), 1.0);  // as OpenCV decodes it
+
+  ld::image_t cut = good;  // half the data, then the end marker
+  cut.data.erase(cut.data.begin() + static_cast<long>(scan + (end - scan) / 2), cut.data.end() - 2);
+  cut.size = static_cast<int32_t>(cut.data.size());
+  const std::string why = ld::test::imageError(cut);
+  EXPECT_NE(why.find("MJPEG data is damaged (libjpeg: Corrupt JPEG data: premature end of data segment)"),
+            std::string::npos)
+      << why;
+
+  ld::image_t padded = good;  // two bytes of padding before the end marker
+  padded.data.insert(padded.data.end() - 2, {0x00, 0x00});
+  padded.size = static_cast<int32_t>(padded.data.size());
+  EXPECT_EQ(ld::test::imageError(padded), "");
+  ld::imageToBgr(padded, bgr);
+  EXPECT_EQ(maxAbsDiff(bgr, reference), 0.0);
+  EXPECT_EQ(testing::internal::GetCapturedStderr(), "");  // libjpeg's own lines kept off stderr
 }
 
 TEST(ImageConvert, PixelFormatNames) {

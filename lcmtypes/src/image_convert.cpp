@@ -3,10 +3,15 @@
 #include <algorithm>
 #include <cctype>
 #include <charconv>
+#include <csetjmp>
+#include <cstdio>
 #include <vector>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+
+#include <jpeglib.h>
+#include <jerror.h>
 
 namespace ld {
 namespace {
@@ -144,22 +149,73 @@ void checkMjpeg(const image_t& msg) {
     fail("MJPEG data ends before its image does (no end-of-image marker: a frame cut short)");
 }
 
-void decodeMjpeg(const image_t& msg, cv::Mat& out, int flags) {
-  checkMjpeg(msg);
-  const cv::Mat buf(1, msg.size, CV_8UC1, const_cast<uint8_t*>(msg.data.data()));
-  cv::Mat decoded;
-  try {
-    decoded = cv::imdecode(buf, flags);
-  } catch (const cv::Exception& e) {
-    fail("MJPEG data could not be decoded (" + std::string(e.what()) + ")");
+// libjpeg's errors: a fatal one jumps back to the decode; a warning (corrupt
+// data: libjpeg fills what it cannot read with grey and goes on) is kept,
+// not printed on stderr.
+struct JpegErrors {
+  jpeg_error_mgr mgr;
+  std::jmp_buf fatal;
+  int warnings;
+  char first[JMSG_LENGTH_MAX];
+};
+
+void onJpegFatal(j_common_ptr c) {
+  auto* e = reinterpret_cast<JpegErrors*>(c->err);
+  (*c->err->format_message)(c, e->first);  // (the error that ended it, over a warning before)
+  std::longjmp(e->fatal, 1);
+}
+
+void onJpegMessage(j_common_ptr c, int level) {
+  auto* e = reinterpret_cast<JpegErrors*>(c->err);
+  // (level >= 0: a trace. "N extraneous bytes before marker 0xd9": padding
+  // many UVC cameras put before the end of their frames, which are whole)
+  if (level >= 0 || c->err->msg_code == JWRN_EXTRANEOUS_DATA) return;
+  if (e->warnings++ == 0) (*c->err->format_message)(c, e->first);
+}
+
+// The decode itself, without C++ objects alive across its setjmp. `out` is
+// sized by `size` (width, height) once the header is read. Returns 0 when
+// whole, 1 with warnings, 2 when libjpeg gave up; `why` holds its message.
+int decodeJpegRaw(const uint8_t* data, size_t n, bool gray, cv::Mat* out, char* why,
+                  void (*size)(cv::Mat*, int, int, int)) {
+  jpeg_decompress_struct cinfo;
+  JpegErrors errors;
+  cinfo.err = jpeg_std_error(&errors.mgr);
+  errors.mgr.error_exit = onJpegFatal;
+  errors.mgr.emit_message = onJpegMessage;
+  errors.warnings = 0;
+  errors.first[0] = '\0';
+  if (setjmp(errors.fatal)) {
+    jpeg_destroy_decompress(&cinfo);
+    std::snprintf(why, JMSG_LENGTH_MAX, "%s", errors.first);
+    return 2;
   }
-  if (decoded.empty()) fail("MJPEG data could not be decoded");
-  if (msg.width > 0 && msg.height > 0 &&
-      (decoded.cols != msg.width || decoded.rows != msg.height))
-    fail("MJPEG data is " + std::to_string(decoded.cols) + "x" + std::to_string(decoded.rows) +
+  jpeg_create_decompress(&cinfo);
+  jpeg_mem_src(&cinfo, data, static_cast<unsigned long>(n));
+  (void)jpeg_read_header(&cinfo, TRUE);
+  // (CMYK, as Photoshop writes it, comes out as CMYK: converted after)
+  const bool cmyk = cinfo.jpeg_color_space == JCS_CMYK || cinfo.jpeg_color_space == JCS_YCCK;
+  cinfo.out_color_space = cmyk ? JCS_CMYK : gray ? JCS_GRAYSCALE : JCS_EXT_BGR;
+  jpeg_start_decompress(&cinfo);
+  size(out, static_cast<int>(cinfo.output_width), static_cast<int>(cinfo.output_height), cmyk ? 4 : gray ? 1 : 3);
+  while (cinfo.output_scanline < cinfo.output_height) {
+    JSAMPROW row = out->ptr<uint8_t>(static_cast<int>(cinfo.output_scanline));
+    jpeg_read_scanlines(&cinfo, &row, 1);
+  }
+  jpeg_finish_decompress(&cinfo);
+  jpeg_destroy_decompress(&cinfo);
+  std::snprintf(why, JMSG_LENGTH_MAX, "%s", errors.first);
+  return errors.warnings > 0 ? 1 : 0;
+}
+
+void decodeMjpeg(const image_t& msg, cv::Mat& out) {
+  checkMjpeg(msg);
+  const std::string problem = decodeJpeg(msg.data.data(), msg.data.size(), out);
+  if (!problem.empty()) fail("MJPEG data " + problem);
+  if (msg.width > 0 && msg.height > 0 && (out.cols != msg.width || out.rows != msg.height))
+    fail("MJPEG data is " + std::to_string(out.cols) + "x" + std::to_string(out.rows) +
          " but the message says " + std::to_string(msg.width) + "x" +
          std::to_string(msg.height));
-  out = decoded;
 }
 
 // BGR to packed 4:2:2 (BT.601, video range, as V4L2 cameras send it and as
@@ -220,6 +276,32 @@ int32_t pixelFormatFromName(const std::string& name) {
 
 bool isSupportedPixelFormat(int32_t pixelformat) { return findFormat(pixelformat) != nullptr; }
 
+std::string decodeJpeg(const uint8_t* data, size_t size, cv::Mat& out, bool gray) {
+  char why[JMSG_LENGTH_MAX] = "";
+  // (sized in place: a warmed-up caller's buffer is reused)
+  const auto sizeOut = [](cv::Mat* m, int w, int h, int channels) { m->create(h, w, CV_8UC(channels)); };
+  const int result = decodeJpegRaw(data, size, gray, &out, why, sizeOut);
+  if (result == 2) {
+    out.release();
+    return std::string("could not be decoded (libjpeg: ") + why + ")";
+  }
+  if (out.channels() == 4) {  // CMYK as Adobe stores it (inverted): each colour times K
+    cv::Mat bgr(out.rows, out.cols, CV_8UC3);
+    for (int y = 0; y < out.rows; ++y) {
+      const uint8_t* s = out.ptr<uint8_t>(y);
+      uint8_t* d = bgr.ptr<uint8_t>(y);
+      for (int x = 0; x < out.cols; ++x, s += 4, d += 3) {
+        d[0] = static_cast<uint8_t>(s[2] * s[3] / 255);
+        d[1] = static_cast<uint8_t>(s[1] * s[3] / 255);
+        d[2] = static_cast<uint8_t>(s[0] * s[3] / 255);
+      }
+    }
+    if (gray) cv::cvtColor(bgr, out, cv::COLOR_BGR2GRAY);
+    else out = bgr;
+  }
+  return result == 1 ? std::string("is damaged (libjpeg: ") + why + ")" : "";
+}
+
 bool jpegComplete(const uint8_t* data, size_t size) {
   return endsAfterScan(data, size, jpegHeaders(data, size).scan);
 }
@@ -235,7 +317,7 @@ void imageToBgr(const image_t& msg, cv::Mat& out) {
   const FormatInfo* f = findFormat(msg.pixelformat);
   if (!f) fail("unsupported pixel format " + pixelFormatName(msg.pixelformat));
   if (f->bytes_per_pixel == 0) {
-    decodeMjpeg(msg, out, cv::IMREAD_COLOR);
+    decodeMjpeg(msg, out);
     return;
   }
   const cv::Mat src = rawView(msg, *f);

@@ -48,6 +48,14 @@ bool isSupportedPixelFormat(int32_t pixelformat);
 /// ImageFormatError naming the problem.
 void checkImage(const image_t& msg);
 
+/// Decodes JPEG bytes with libjpeg into 8-bit BGR (or GRAY), `out` reused
+/// when it has the size already. Empty when the image was whole; otherwise
+/// why: "is damaged (libjpeg: Corrupt JPEG data: premature end of data
+/// segment)" (libjpeg fills what it cannot read with grey and goes on, and
+/// printed that line on stderr itself, uncounted), "could not be decoded
+/// (libjpeg: Not a JPEG file: ...)" (`out` empty). libjpeg prints nothing.
+std::string decodeJpeg(const uint8_t* data, size_t size, cv::Mat& out, bool gray = false);
+
 /// Whether JPEG bytes hold a whole image: an end-of-image marker after the
 /// first scan's header. libjpeg decodes a stream cut short into grey rows
 /// (with a warning of its own that names nothing), and OpenCV takes that as

@@ -105,9 +105,14 @@ std::string readImageFile(const std::string& path, cv::Mat& out) {
   std::vector<uint8_t> bytes(static_cast<size_t>(st.st_size));
   if (!f || !f.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size())))
     return std::string("cannot read: ") + std::strerror(errno ? errno : EIO);
-  if (bytes.size() >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF &&
-      !jpegComplete(bytes.data(), bytes.size()))
-    return "cannot read as an image: it is a JPEG cut short (no end-of-image marker)";
+  if (bytes.size() >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF) {
+    if (!jpegComplete(bytes.data(), bytes.size()))
+      return "cannot read as an image: it is a JPEG cut short (no end-of-image marker)";
+    // (damaged data: libjpeg fills it with grey, and said so on stderr alone;
+    // OpenCV's decode below turns the image as its EXIF orientation says)
+    if (const std::string damage = decodeJpeg(bytes.data(), bytes.size(), out); !damage.empty())
+      return "cannot read as an image: it is a JPEG that " + damage;
+  }
   try {
     out = cv::imdecode(bytes, cv::IMREAD_COLOR);
   } catch (const cv::Exception&) {

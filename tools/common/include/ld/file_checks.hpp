@@ -65,6 +65,7 @@ std::string prepareOutputFile(const std::string& path);
 /// "is 600 MiB: more than an image file has (512 MiB at most)", "cannot
 /// read as an image: it is a JPEG cut short (no end-of-image marker)"
 /// (OpenCV reads such a file as an image with grey rows), "cannot read as
+/// an image: it is a JPEG that is damaged (libjpeg: ...)", "cannot read as
 /// an image".
 std::string readImageFile(const std::string& path, cv::Mat& out);
 
