@@ -105,4 +105,16 @@ dump "$T/in.lcmlog" --lcm-url memq://
 # a dump that cannot be written all (a full disk) is status 1, said
 rc=0; "$BIN/ld-dump" "$T/in.lcmlog" >/dev/full 2>"$T/err" || rc=$?
 [ $rc -eq 1 ] && grep -q "^ld-dump: write to stdout failed" "$T/err" || fail "full disk: exit $rc, $(cat "$T/err")"
+# a message of the project's type that is damaged: what was wrong with it
+# ("not a project message" before, where ld-play and ld-view said why)
+python3 - "$T/in.lcmlog" "$T/short.lcmlog" <<'PY'
+import struct, sys
+data = open(sys.argv[1], 'rb').read()
+sync, num, ts, clen, dlen = struct.unpack_from('>IqqII', data, 0)
+event = data[28:28 + clen + 50]  # the channel, and the first image's first 50 bytes
+open(sys.argv[2], 'wb').write(struct.pack('>IqqII', sync, num, ts, clen, 50) + event)
+PY
+"$BIN/ld-dump" "$T/short.lcmlog" >"$T/out" 2>"$T/err" || true
+grep -q '"error":"not a valid ld.image_t (50 bytes): image size [0-9]* does not fit in the 14 bytes left at byte 36"' "$T/out" ||
+  fail "a damaged image_t: $(cat "$T/out")"
 echo "ld-dump on files: ok"

@@ -33,9 +33,11 @@ int64_t fingerprint(const uint8_t* data, size_t size) {
   return static_cast<int64_t>(v);
 }
 
+// Whether the bytes are a T; `why` says what was wrong with one that has T's
+// fingerprint and does not decode (a damaged message of the project's).
 template <typename T>
-bool decodeAs(const uint8_t* data, size_t size, T& msg) {
-  return fingerprint(data, size) == T::getHash() && ld::decodeMessage(data, size, msg);
+bool decodeAs(const uint8_t* data, size_t size, T& msg, std::string& why) {
+  return fingerprint(data, size) == T::getHash() && ld::decodeMessage(data, size, msg, &why);
 }
 
 nlohmann::ordered_json landmarkJson(const ld::landmark_t& m) {
@@ -60,7 +62,8 @@ nlohmann::ordered_json toJson(const std::string& channel, int64_t log_utime, con
   ld::image_t img;
   ld::landmark_list_t list;
   ld::qr_code_list_t codes;
-  if (decodeAs(data, size, img)) {
+  std::string why;
+  if (decodeAs(data, size, img, why)) {
     j["type"] = "image_t";
     j["utime"] = img.utime;
     j["seq"] = ld::imageSeq(img) ? nlohmann::ordered_json(*ld::imageSeq(img)) : nlohmann::ordered_json(nullptr);
@@ -69,7 +72,7 @@ nlohmann::ordered_json toJson(const std::string& channel, int64_t log_utime, con
     j["pixelformat"] = ld::pixelFormatName(img.pixelformat);
     j["row_stride"] = img.row_stride;
     j["size"] = img.size;
-  } else if (decodeAs(data, size, list)) {
+  } else if (decodeAs(data, size, list, why)) {
     j["type"] = "landmark_list_t";
     j["utime"] = list.utime;
     j["seq"] = list.seq;
@@ -83,7 +86,7 @@ nlohmann::ordered_json toJson(const std::string& channel, int64_t log_utime, con
     j["stage_ms"] = stages;
     j["landmarks"] = nlohmann::ordered_json::array();
     for (const auto& m : list.landmarks) j["landmarks"].push_back(landmarkJson(m));
-  } else if (decodeAs(data, size, codes)) {
+  } else if (decodeAs(data, size, codes, why)) {
     j["type"] = "qr_code_list_t";
     j["utime"] = codes.utime;
     j["seq"] = codes.seq;
@@ -92,7 +95,7 @@ nlohmann::ordered_json toJson(const std::string& channel, int64_t log_utime, con
       j["codes"].push_back({{"track_id", c.track_id}, {"payload", c.payload}, {"utime", c.utime},
                             {"seq", c.seq}, {"decode_ms", c.decode_ms}});
   } else {
-    j["error"] = "not a project message (" + std::to_string(size) + " bytes)";
+    j["error"] = why.empty() ? "not a project message (" + std::to_string(size) + " bytes)" : why;
   }
   return j;
 }
