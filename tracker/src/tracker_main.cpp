@@ -128,7 +128,8 @@ int main(int argc, char** argv) {
   ld::landmark_list_t out;
   ld::StillTimeWatch still;
   std::vector<ld::Landmark> detections;
-  int64_t processed = 0, last_processed = 0, resets = 0, rejected = 0, rejected_lists = 0, late = 0;
+  int64_t processed = 0, last_processed = 0, resets = 0, rejected = 0, rejected_lists = 0, late = 0, repeated = 0;
+  int64_t last_utime = 0, last_seq = -1;  // the frame tracked last
   auto last_status = std::chrono::steady_clock::now();
   while (!g_stop) {
     // waits, then drains the queue: only the newest message is processed
@@ -137,6 +138,17 @@ int main(int argc, char** argv) {
     if (latest.pending_) {
       latest.pending_ = false;
       const ld::landmark_list_t& in = latest.list_;  // (handlers run in pumpLcm alone: it stays while tracked)
+      // (the list of the frame tracked last, again: a recording replayed onto
+      // the running set, a bridge that repeats; tracked twice, every track
+      // aged a frame more)
+      if (in.seq >= 0 && in.seq == last_seq && in.utime == last_utime) {
+        if (ld::printBadLine(++repeated))
+          std::cerr << "ld-tracker: frame " << in.seq << " (utime " << in.utime
+                    << ") came again: tracked once " << ld::badSoFar(repeated, "repeated") << "\n";
+        continue;
+      }
+      last_utime = in.utime;
+      last_seq = in.seq;
       const auto t0 = std::chrono::steady_clock::now();
       if (still.note(in.utime))
         std::cerr << "ld-tracker: 10 lists in a row with utime " << in.utime
@@ -189,11 +201,13 @@ int main(int argc, char** argv) {
     }
   }
   std::fprintf(stderr,
-               "ld-tracker: stopped after %lld frames (%lld skipped, %lld bad, %lld %s not tracked, %lld late), "
+               "ld-tracker: stopped after %lld frames (%lld skipped, %lld bad, %lld %s not tracked, %lld late, "
+               "%lld repeated), "
                "%lld tracks\n",
                static_cast<long long>(processed), static_cast<long long>(latest.skipped_),
                static_cast<long long>(latest.bad_), static_cast<long long>(rejected),
                rejected == 1 ? "landmark" : "landmarks", static_cast<long long>(late),
+               static_cast<long long>(repeated),
                static_cast<long long>(tracker.stats().tracks_created));
   return 0;
 }
