@@ -99,6 +99,7 @@ refused "--seed: must be a whole number 0 or more, not -1" scene --out "$T/x" --
 refused "--seed: must be under 2^64, not 18446744073709551616" sequence --out "$T/x" --seed 18446744073709551616
 refused "--start-utime: must be >= 0, not -5" sequence --out "$T/x" --start-utime -5
 refused "--payload: an empty payload" scene --out "$T/x" -p ""
+refused "camera file $T/none.yml: cannot open: No such file or directory" scene --out "$T/x" --camera "$T/none.yml"
 # Refused before anything is written: a YUYV/UYVY log of odd width, and a
 # log over a file the run writes in --out (it replaced truth.jsonl, status 0).
 refused "--format uyvy needs an even width, and the frames are 641 px wide" sequence --out "$T/odd" --log "$T/odd.lcmlog" --format uyvy --resolution 641x480 -n 2

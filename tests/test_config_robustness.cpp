@@ -125,6 +125,9 @@ TEST(CameraFile, ValuesNoCameraHasAreRefused) {
             std::string::npos);
   EXPECT_NE(load(file("image_width: 1e10\nimage_height: 480\n", 600, zero)).find("image_width must be a whole number"),
             std::string::npos);
+  // one without the other: said missing (it was "must be a whole number")
+  EXPECT_NE(load(file("image_height: 480\n", 600, zero)).find("image_width is missing (image_width and image_height go together)"),
+            std::string::npos);
   EXPECT_NE(load(file("image_width: 640\nimage_height: -480\n", 600, zero)).find("image_height must be a whole number"),
             std::string::npos);
   EXPECT_NE(load(file("image_width: 4294967936\nimage_height: 480\n", 600, zero))

@@ -132,6 +132,9 @@ CameraModel CameraModel::load(const std::string& path) {
     // The image size: whole pixels, as the frames' (a quoted "640" read as
     // 2147483647, and 1e10 or -640 as missing, before)
     const auto side = [&](const cv::FileNode& n, const std::string& key) {
+      if (n.empty())  // (one of the two given without the other)
+        throw std::runtime_error("camera file " + path + ": " + key + " is missing (image_width and image_height "
+                                 "go together)");
       const double v = n.isInt() ? static_cast<double>(static_cast<int>(n)) : n.isReal() ? static_cast<double>(n) : -1;
       if (!(v >= 1 && v <= kMaxImageSide) || v != std::floor(v))  // (640.0 is 640)
         throw std::runtime_error("camera file " + path + ": " + key + " must be a whole number of pixels, 1 to " +

@@ -89,8 +89,7 @@ ld::CameraModel makeCamera(const std::string& file, const std::string& resolutio
   }
   ld::CameraModel cam;
   if (!file.empty()) {
-    if (!std::ifstream(file)) throw std::runtime_error("camera file " + file + ": cannot open");
-    cam = ld::CameraModel::load(file);  // throws with a one-line reason
+    cam = ld::CameraModel::load(file);  // throws with a one-line reason ("cannot open: No such file ...")
     // (another aspect ratio is another crop of the sensor: the detector
     // refuses such a calibration, so frames made with it scaled would lie)
     if (size && !cam.fits(*size))
