@@ -79,7 +79,9 @@ grep -q -- "--ecc.*not 'Z'" "$T/err" || fail "bad --ecc: $(cat "$T/err")"
 for args in "yaw --step 1e-9|--step 1e-09 from -80 to 80 makes 1.6e+11 sweep points (at most 1000)" \
             "distance --step 1e-6|sweep points (at most 1000)" \
             "yaw --png $T/plot|--png $T/plot: the plot is a PNG, its name must end in .png" \
-            "yaw --seed -1|--seed: must be >= 0, not -1" \
+            "yaw --seed -1|--seed: must be a whole number 0 or more, not -1" \
+            "size --side 5|--side: must be in [0.01, 2], not 5" \
+            "yaw --side 0.001 --distance 1|--side: must be in [0.01, 2], not 0.001" \
             "yaw --side 0.12|give one --distance per --side (1 side, 2 distances: the default distances 1.5 2.5 go with the default sides 0.09 0.15)"; do
   set +e; timeout 20 "$BIN/ld-eval" ${args%%|*} >/dev/null 2>"$T/err"; rc=$?; set -e
   [ $rc -eq 2 ] && [ "$(wc -l <"$T/err")" -eq 1 ] && grep -qF -- "${args#*|}" "$T/err" || fail "${args%%|*}: exit $rc, $(cat "$T/err")"

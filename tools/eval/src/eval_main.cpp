@@ -22,6 +22,10 @@
 
 namespace {
 
+// The sides ld-generate prints (0.01 to 2 m): a side evaluated must be one a
+// user can print.
+const CLI::Validator kPrintableSide = ld::cli::Between(0.01, 2);
+
 struct Series {
   std::string name;
   std::vector<cv::Point2d> points;  // (x, rate 0..1)
@@ -193,7 +197,7 @@ const CLI::Validator kYaw = ld::cli::Between(0, 89);
 
 // One side swept over distance (qr, pose): --side, --from, --to, --step, --max-yaw.
 void addDistanceSweep(CLI::App* app, double& side, double& from, double& to, double& step, double& max_yaw) {
-  app->add_option("--side", side, "printed side S, metres")->capture_default_str()->check(ld::cli::Positive);
+  app->add_option("--side", side, "printed side S, metres")->capture_default_str()->check(kPrintableSide);
   app->add_option("--from", from, "first distance, metres")->capture_default_str()->check(ld::cli::Positive);
   app->add_option("--to", to, "last distance, metres")->capture_default_str()->check(ld::cli::Positive);
   app->add_option("--step", step, "metres between sweep points")->capture_default_str()->check(ld::cli::Positive);
@@ -243,7 +247,7 @@ int main(int argc, char** argv) {
   auto* yaw = app.add_subcommand("yaw", "detection rate against horizontal viewing angle (paper, Fig. 8)");
   addCommon(yaw, yc);
   addCompare(yaw, yc);
-  yaw->add_option("--side", y_sides, "printed sides S, metres (one per series; default 0.09 0.15)")->check(ld::cli::Positive);
+  yaw->add_option("--side", y_sides, "printed sides S, metres (one per series; default 0.09 0.15)")->check(kPrintableSide);
   yaw->add_option("--distance", y_dists, "distance per side, metres (default 1.5 2.5)")->check(ld::cli::Positive);
   yaw->add_option("--max-yaw", y_max, "sweep from -this to +this, degrees")->capture_default_str()->check(kYaw);
   yaw->add_option("--step", y_step, "degrees between sweep points")->capture_default_str()->check(ld::cli::Positive);
@@ -254,7 +258,7 @@ int main(int argc, char** argv) {
   auto* dist = app.add_subcommand("distance", "detection rate against distance for several sizes");
   addCommon(dist, dc);
   addCompare(dist, dc);
-  dist->add_option("--side", d_sides, "printed sides S, metres (default 0.09 0.15)")->check(ld::cli::Positive);
+  dist->add_option("--side", d_sides, "printed sides S, metres (default 0.09 0.15)")->check(kPrintableSide);
   dist->add_option("--from", d_from, "first distance, metres")->capture_default_str()->check(ld::cli::Positive);
   dist->add_option("--to", d_to, "last distance, metres")->capture_default_str()->check(ld::cli::Positive);
   dist->add_option("--step", d_step, "metres between sweep points")->capture_default_str()->check(ld::cli::Positive);
@@ -288,7 +292,7 @@ int main(int argc, char** argv) {
   size->add_option("--payload-bytes", s_payload, "payload length to read")
       ->capture_default_str()
       ->check(ld::cli::Between(1, 1000));
-  size->add_option("--side", s_sides, "candidate sides, metres (default 5 to 40 cm)")->check(ld::cli::Positive);
+  size->add_option("--side", s_sides, "candidate sides, metres (default 5 to 40 cm)")->check(kPrintableSide);
   int s_stack = 0;
   addStack(size, s_stack,
            "count a QR read when read over this many frames, as ld-qr-reader reads a track (a moving camera); "
@@ -301,7 +305,7 @@ int main(int argc, char** argv) {
   int l_fp_frames = 100;
   auto* light = app.add_subcommand("lighting", "fixed defaults against adaptive lighting: colour temperature, level, glare");
   addCommon(light, lc);
-  light->add_option("--side", l_side, "printed side S, metres")->capture_default_str()->check(ld::cli::Positive);
+  light->add_option("--side", l_side, "printed side S, metres")->capture_default_str()->check(kPrintableSide);
   light->add_option("--distance", l_dist, "metres")->capture_default_str()->check(ld::cli::Positive);
   light->add_option("--max-yaw", l_yaw, "yaw drawn within +-this, degrees")->capture_default_str()->check(kYaw);
   light->add_option("--fp-frames", l_fp_frames, "distractor frames per condition for false positives")
@@ -317,7 +321,7 @@ int main(int argc, char** argv) {
   addCommon(motion, mc);
   addCompare(motion, mc);
   motion->add_option("--side", m_sides, "printed sides S, metres (one per series; default 0.09 0.15)")
-      ->check(ld::cli::Positive);
+      ->check(kPrintableSide);
   motion->add_option("--distance", m_dists, "distance per side, metres (default 1.5 1.5)")->check(ld::cli::Positive);
   motion->add_option("--to", m_to, "longest blur, pixels (from 0)")->capture_default_str()->check(ld::cli::Positive);
   motion->add_option("--step", m_step, "pixels between sweep points")->capture_default_str()->check(ld::cli::Positive);
