@@ -215,6 +215,12 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
         dropped(path + ": dropped message on " + log.channel, why);
         continue;
       }
+      try {  // (a message that is no image is bad, not an image, whatever was wrong with it)
+        ld::checkImage(img);
+      } catch (const ld::ImageFormatError& e) {
+        dropped(path + ": dropped message on " + log.channel, e.what());
+        continue;
+      }
       ++images;
       const Key key{img.utime, ld::imageSeq(img).value_or(-1)};
       const auto l = lists.find(key);
