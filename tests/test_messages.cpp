@@ -399,6 +399,49 @@ TEST(ImageConvert, DamagedMjpegIsRefusedPaddedIsWhole) {
   ld::imageToBgr(padded, bgr);
   EXPECT_EQ(maxAbsDiff(bgr, reference), 0.0);
   EXPECT_EQ(testing::internal::GetCapturedStderr(), "");  // libjpeg's own lines kept off stderr
+
+  // Warnings that say nothing of the pixels are no damage: zeros where a
+  // sequential frame's scan parameters go (some cameras write them).
+  ld::image_t zero_sos = good;
+  const size_t sos = [&] {
+    for (size_t i = 2; i + 1 < good.data.size(); ++i)
+      if (good.data[i] == 0xFF && good.data[i + 1] == 0xDA) return i;
+    return size_t{0};
+  }();
+  const size_t ss = sos + 5 + 2 * size_t{good.data[sos + 4]};  // Ss, Se, Ah/Al after the components
+  zero_sos.data[ss] = zero_sos.data[ss + 1] = zero_sos.data[ss + 2] = 0;
+  EXPECT_EQ(ld::test::imageError(zero_sos), "");
+  ld::imageToBgr(zero_sos, bgr);
+  EXPECT_EQ(maxAbsDiff(bgr, reference), 0.0);
+
+  // Bytes that belong to no block before a restart marker (a USB packet
+  // sent twice) are damage, though libjpeg calls them "extraneous" as it
+  // calls a camera's padding before the end marker.
+  std::vector<uint8_t> rst;
+  cv::imencode(".jpg", original, rst, {cv::IMWRITE_JPEG_QUALITY, 90, cv::IMWRITE_JPEG_RST_INTERVAL, 4});
+  size_t marker = 0;  // the third restart marker
+  for (size_t i = 2, found = 0; i + 1 < rst.size() && !marker; ++i)
+    if (rst[i] == 0xFF && rst[i + 1] >= 0xD0 && rst[i + 1] <= 0xD7 && ++found == 3) marker = i;
+  ASSERT_GT(marker, 16u);
+  rst.insert(rst.begin() + static_cast<long>(marker), rst.begin() + static_cast<long>(marker - 12),
+             rst.begin() + static_cast<long>(marker - 4));  // 8 bytes again
+  cv::Mat out;
+  EXPECT_NE(ld::decodeJpeg(rst.data(), rst.size(), out).find("is damaged (libjpeg: Corrupt JPEG data:"),
+            std::string::npos)
+      << ld::decodeJpeg(rst.data(), rst.size(), out);
+
+  // A header may say anything: a size over the limit is refused before
+  // libjpeg allocates for it.
+  ld::image_t huge = good;
+  for (size_t i = 2; i + 9 < huge.data.size(); ++i)
+    if (huge.data[i] == 0xFF && huge.data[i + 1] == 0xC0) {
+      huge.data[i + 5] = huge.data[i + 7] = 0xFF;  // 65500 x 65500
+      huge.data[i + 6] = huge.data[i + 8] = 0xDC;
+      break;
+    }
+  EXPECT_EQ(ld::decodeJpeg(huge.data.data(), huge.data.size(), out),
+            "could not be decoded (libjpeg: its frame 65500x65500 is larger than 1073741824 pixels)");
+  EXPECT_TRUE(out.empty());
 }
 
 TEST(ImageConvert, PixelFormatNames) {

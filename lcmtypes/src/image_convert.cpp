@@ -149,13 +149,13 @@ void checkMjpeg(const image_t& msg) {
     fail("MJPEG data ends before its image does (no end-of-image marker: a frame cut short)");
 }
 
-// libjpeg's errors: a fatal one jumps back to the decode; a warning (corrupt
-// data: libjpeg fills what it cannot read with grey and goes on) is kept,
-// not printed on stderr.
+// libjpeg's errors: a fatal one jumps back to the decode; a warning that the
+// data is damaged (libjpeg fills what it cannot read with grey and goes on)
+// is kept. Nothing is printed on stderr.
 struct JpegErrors {
   jpeg_error_mgr mgr;
   std::jmp_buf fatal;
-  int warnings;
+  int damage;
   char first[JMSG_LENGTH_MAX];
 };
 
@@ -165,25 +165,42 @@ void onJpegFatal(j_common_ptr c) {
   std::longjmp(e->fatal, 1);
 }
 
+// The warnings that say pixels were lost. Others say nothing of the picture:
+// "Invalid SOS parameters for sequential JPEG" (zeros some cameras write),
+// an unknown JFIF revision or Adobe transform; and bytes before the end
+// marker are the padding many UVC cameras put there (before a restart
+// marker, they are data that belongs to no block: damage).
+bool isDamage(const jpeg_error_mgr& err) {
+  switch (err.msg_code) {
+    case JWRN_HIT_MARKER:
+    case JWRN_HUFF_BAD_CODE:
+    case JWRN_ARITH_BAD_CODE:
+    case JWRN_MUST_RESYNC:
+    case JWRN_JPEG_EOF:
+    case JWRN_BOGUS_PROGRESSION: return true;
+    case JWRN_EXTRANEOUS_DATA: return err.msg_parm.i[1] != JPEG_EOI;
+    default: return false;
+  }
+}
+
 void onJpegMessage(j_common_ptr c, int level) {
   auto* e = reinterpret_cast<JpegErrors*>(c->err);
-  // (level >= 0: a trace. "N extraneous bytes before marker 0xd9": padding
-  // many UVC cameras put before the end of their frames, which are whole)
-  if (level >= 0 || c->err->msg_code == JWRN_EXTRANEOUS_DATA) return;
-  if (e->warnings++ == 0) (*c->err->format_message)(c, e->first);
+  if (level >= 0 || !isDamage(*c->err)) return;  // (level >= 0: a trace)
+  if (e->damage++ == 0) (*c->err->format_message)(c, e->first);
 }
 
 // The decode itself, without C++ objects alive across its setjmp. `out` is
-// sized by `size` (width, height) once the header is read. Returns 0 when
-// whole, 1 with warnings, 2 when libjpeg gave up; `why` holds its message.
-int decodeJpegRaw(const uint8_t* data, size_t n, bool gray, cv::Mat* out, char* why,
-                  void (*size)(cv::Mat*, int, int, int)) {
+// sized by `size` (width, height, channels) once the header is read; it
+// returns false when it could not be (no memory). Returns 0 when whole, 1
+// when damaged, 2 when not decoded; `why` holds the reason.
+int decodeJpegRaw(const uint8_t* data, size_t n, bool gray, int64_t max_pixels, cv::Mat* out, char* why,
+                  bool (*size)(cv::Mat*, int, int, int) noexcept) {
   jpeg_decompress_struct cinfo;
   JpegErrors errors;
   cinfo.err = jpeg_std_error(&errors.mgr);
   errors.mgr.error_exit = onJpegFatal;
   errors.mgr.emit_message = onJpegMessage;
-  errors.warnings = 0;
+  errors.damage = 0;
   errors.first[0] = '\0';
   if (setjmp(errors.fatal)) {
     jpeg_destroy_decompress(&cinfo);
@@ -195,9 +212,26 @@ int decodeJpegRaw(const uint8_t* data, size_t n, bool gray, cv::Mat* out, char* 
   (void)jpeg_read_header(&cinfo, TRUE);
   // (CMYK, as Photoshop writes it, comes out as CMYK: converted after)
   const bool cmyk = cinfo.jpeg_color_space == JCS_CMYK || cinfo.jpeg_color_space == JCS_YCCK;
-  cinfo.out_color_space = cmyk ? JCS_CMYK : gray ? JCS_GRAYSCALE : JCS_EXT_BGR;
+#ifdef JCS_EXTENSIONS  // libjpeg-turbo's BGR output; IJG's libjpeg: RGB, swapped after
+  const J_COLOR_SPACE colour = JCS_EXT_BGR;
+#else
+  const J_COLOR_SPACE colour = JCS_RGB;
+#endif
+  cinfo.out_color_space = cmyk ? JCS_CMYK : gray ? JCS_GRAYSCALE : colour;
+  // (before libjpeg allocates a thing for the image: a header may say anything)
+  if (static_cast<int64_t>(cinfo.image_width) * cinfo.image_height > max_pixels) {
+    std::snprintf(why, JMSG_LENGTH_MAX, "its frame %ux%u is larger than %lld pixels", cinfo.image_width,
+                  cinfo.image_height, static_cast<long long>(max_pixels));
+    jpeg_destroy_decompress(&cinfo);
+    return 2;
+  }
   jpeg_start_decompress(&cinfo);
-  size(out, static_cast<int>(cinfo.output_width), static_cast<int>(cinfo.output_height), cmyk ? 4 : gray ? 1 : 3);
+  if (!size(out, static_cast<int>(cinfo.output_width), static_cast<int>(cinfo.output_height),
+            cmyk ? 4 : gray ? 1 : 3)) {
+    std::snprintf(why, JMSG_LENGTH_MAX, "no memory for its %ux%u pixels", cinfo.output_width, cinfo.output_height);
+    jpeg_destroy_decompress(&cinfo);
+    return 2;
+  }
   while (cinfo.output_scanline < cinfo.output_height) {
     JSAMPROW row = out->ptr<uint8_t>(static_cast<int>(cinfo.output_scanline));
     jpeg_read_scanlines(&cinfo, &row, 1);
@@ -205,12 +239,12 @@ int decodeJpegRaw(const uint8_t* data, size_t n, bool gray, cv::Mat* out, char* 
   jpeg_finish_decompress(&cinfo);
   jpeg_destroy_decompress(&cinfo);
   std::snprintf(why, JMSG_LENGTH_MAX, "%s", errors.first);
-  return errors.warnings > 0 ? 1 : 0;
+  return errors.damage > 0 ? 1 : 0;
 }
 
 void decodeMjpeg(const image_t& msg, cv::Mat& out) {
   checkMjpeg(msg);
-  const std::string problem = decodeJpeg(msg.data.data(), msg.data.size(), out);
+  const std::string problem = decodeJpeg(msg.data.data(), msg.data.size(), out, false, kMaxMjpegPixels);
   if (!problem.empty()) fail("MJPEG data " + problem);
   if (msg.width > 0 && msg.height > 0 && (out.cols != msg.width || out.rows != msg.height))
     fail("MJPEG data is " + std::to_string(out.cols) + "x" + std::to_string(out.rows) +
@@ -276,15 +310,26 @@ int32_t pixelFormatFromName(const std::string& name) {
 
 bool isSupportedPixelFormat(int32_t pixelformat) { return findFormat(pixelformat) != nullptr; }
 
-std::string decodeJpeg(const uint8_t* data, size_t size, cv::Mat& out, bool gray) {
+std::string decodeJpeg(const uint8_t* data, size_t size, cv::Mat& out, bool gray, int64_t max_pixels) {
   char why[JMSG_LENGTH_MAX] = "";
   // (sized in place: a warmed-up caller's buffer is reused)
-  const auto sizeOut = [](cv::Mat* m, int w, int h, int channels) { m->create(h, w, CV_8UC(channels)); };
-  const int result = decodeJpegRaw(data, size, gray, &out, why, sizeOut);
+  // (an exception may not cross libjpeg's frames: said as a failure)
+  const auto sizeOut = [](cv::Mat* m, int w, int h, int channels) noexcept {
+    try {
+      m->create(h, w, CV_8UC(channels));
+      return true;
+    } catch (...) {
+      return false;
+    }
+  };
+  const int result = decodeJpegRaw(data, size, gray, max_pixels, &out, why, sizeOut);
   if (result == 2) {
     out.release();
     return std::string("could not be decoded (libjpeg: ") + why + ")";
   }
+#ifndef JCS_EXTENSIONS
+  if (out.channels() == 3) cv::cvtColor(out, out, cv::COLOR_RGB2BGR);
+#endif
   if (out.channels() == 4) {  // CMYK as Adobe stores it (inverted): each colour times K
     cv::Mat bgr(out.rows, out.cols, CV_8UC3);
     for (int y = 0; y < out.rows; ++y) {

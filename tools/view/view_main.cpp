@@ -232,6 +232,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
       try {
         ld::imageToBgr(img, bgr);
       } catch (const std::exception& e) {
+        --images;  // (its JPEG data damaged: bad, not an image)
         dropped(path + ": dropped message on " + log.channel, e.what());
         continue;
       }

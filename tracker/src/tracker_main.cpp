@@ -140,15 +140,15 @@ int main(int argc, char** argv) {
       const ld::landmark_list_t& in = latest.list_;  // (handlers run in pumpLcm alone: it stays while tracked)
       // (the list of the frame tracked last, again: a recording replayed onto
       // the running set, a bridge that repeats; tracked twice, every track
-      // aged a frame more)
-      if (in.seq >= 0 && in.seq == last_seq && in.utime == last_utime) {
+      // aged a frame more. Lists without a time are left to StillTimeWatch.)
+      if (in.utime != 0 && in.seq >= 0 && in.seq == last_seq && in.utime == last_utime) {
         if (ld::printBadLine(++repeated))
           std::cerr << "ld-tracker: frame " << in.seq << " (utime " << in.utime
-                    << ") came again: tracked once " << ld::badSoFar(repeated, "repeated") << "\n";
+                    << ") came again: tracked once (a recording played onto the running set, or a publisher "
+                       "that repeats its frames' utime and seq?) "
+                    << ld::badSoFar(repeated, "repeated") << "\n";
         continue;
       }
-      last_utime = in.utime;
-      last_seq = in.seq;
       const auto t0 = std::chrono::steady_clock::now();
       if (still.note(in.utime))
         std::cerr << "ld-tracker: 10 lists in a row with utime " << in.utime
@@ -182,6 +182,8 @@ int main(int argc, char** argv) {
                   << " is older than the previous frame's by more than 0.1 s (a log replayed again, or the "
                      "clock stepped back): tracks restarted\n";
       }
+      last_utime = in.utime;  // (tracked: not late)
+      last_seq = in.seq;
       ld::toTrackedListMessage(tracks, in, ms, latest.skipped_, out);
       lcm.publish(out_channel, &out);
       ++processed;

@@ -52,9 +52,13 @@ void checkImage(const image_t& msg);
 /// when it has the size already. Empty when the image was whole; otherwise
 /// why: "is damaged (libjpeg: Corrupt JPEG data: premature end of data
 /// segment)" (libjpeg fills what it cannot read with grey and goes on, and
-/// printed that line on stderr itself, uncounted), "could not be decoded
-/// (libjpeg: Not a JPEG file: ...)" (`out` empty). libjpeg prints nothing.
-std::string decodeJpeg(const uint8_t* data, size_t size, cv::Mat& out, bool gray = false);
+/// printed that line on stderr itself, uncounted; warnings that say nothing
+/// of the pixels, and padding before the end marker, are no damage), "could
+/// not be decoded (libjpeg: Not a JPEG file: ...)", "could not be decoded
+/// (libjpeg: its frame 65500x65500 is larger than 1073741824 pixels)"
+/// (`out` empty then). libjpeg prints nothing.
+std::string decodeJpeg(const uint8_t* data, size_t size, cv::Mat& out, bool gray = false,
+                       int64_t max_pixels = int64_t{1} << 30);
 
 /// Whether JPEG bytes hold a whole image: an end-of-image marker after the
 /// first scan's header. libjpeg decodes a stream cut short into grey rows

@@ -134,8 +134,9 @@ int main(int argc, char** argv) {
     }
     if (cut)
       std::cerr << "ld-play: note: the log's first " << images.size() << " images (" << (preloaded_bytes >> 20)
-                << " MiB" << (pixelformat != -1 ? " converted" : "") << ") are played, looped: more would not fit in "
-                << "memory (" << (kMaxPreloadBytes >> 20) << " MiB)\n";
+                << " MiB" << (pixelformat != -1 ? " converted" : "")
+                << (frames > 0 ? ") are played, looped" : ") are played, and the rest of the log is not")
+                << ": more would not fit in memory (" << (kMaxPreloadBytes >> 20) << " MiB)\n";
     if (!log.problem().empty())  // a cut log: what it holds is played
       std::cerr << "ld-play: warning: " << log_path << ": " << log.problem() << "\n";
   }

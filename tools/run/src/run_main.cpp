@@ -413,6 +413,8 @@ int main(int argc, char** argv) {
   if (status_interval < 0) status_interval = tty ? 1 : 5;
   Console console(tty, quiet, log_dir);
   const auto note = [&](const std::string& text) { console.line("ld-run", text); };
+  // (said first: the replay will sit through it)
+  if (!log_gap.empty()) note("warning: replay log " + cfg.log + ": " + log_gap);
 
   // 2. The monitor subscribes before anything publishes.
   // (udpm:// alone: the set starts once each process has its socket on the
@@ -494,7 +496,6 @@ int main(int argc, char** argv) {
   if (!log_damage.empty())
     note("warning: replay log " + cfg.log + ": " + log_damage +
          "; lcm-logplayer stops at the damage (--play reads past it)");
-  if (!log_gap.empty()) note("warning: replay log " + cfg.log + ": " + log_gap);
   {
     std::string names;
     for (const auto& p : sup.processes()) names += " " + p.spec.name;
