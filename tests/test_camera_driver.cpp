@@ -808,6 +808,155 @@ TEST_F(Images, TruncatedFramesAreRefused) {
   EXPECT_THROW(ld::FrameToImage(ld::ImageConversion::Bgr).convert(f, msg), ld::ImageFormatError);
   EXPECT_EQ(ld::imageConversionFromName("GREY"), ld::ImageConversion::Gray);
   EXPECT_THROW(ld::imageConversionFromName("hsv"), std::invalid_argument);
+  // A JPEG whose data was damaged in transfer but ends right: refused when
+  // converted (cv::imdecode filled the lost part with grey and it went on)
+  ld::image_t jpeg = ld::matToImage(ld::FakeV4l2Device::pattern(320, 240, 7), ld::image_t::PIXEL_FORMAT_MJPEG, 0);
+  std::vector<uint8_t> damaged(jpeg.data.begin(), jpeg.data.begin() + static_cast<long>(jpeg.data.size() / 2));
+  damaged.push_back(0xFF);
+  damaged.push_back(0xD9);
+  f.data = damaged.data();
+  f.bytesused = damaged.size();
+  f.width = 320;
+  f.height = 240;
+  try {
+    ld::FrameToImage(ld::ImageConversion::Bgr).convert(f, msg);
+    ADD_FAILURE() << "a damaged JPEG converted";
+  } catch (const ld::ImageFormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("the JPEG data is damaged (libjpeg: Corrupt JPEG data"), std::string::npos)
+        << e.what();
+  }
+}
+
+// ---------------------------------------------------------------------------
+// What real UVC cameras do that the plain webcam does not
+
+// The Logitech C920 sets its exposure time again at STREAMON, automatic
+// exposure off or not: the manual time is set again once streaming, at
+// every start, and close() still puts back what the camera had.
+TEST(Quirks, ExposureResetAtStreamonIsSetAgain) {
+  ld::FakeClock clock;
+  auto spec = ld::FakeCameraSpec::webcam();
+  spec.resets_exposure_at_streamon = true;
+  ld::FakeV4l2Device dev(clock, {spec});
+  ld::V4l2Capture cap(dev, clock);
+  auto r = request(V4L2_PIX_FMT_YUYV, 640, 480);
+  r.exposure_ms = 5;
+  cap.open("/dev/video0", r);
+  cap.start();
+  EXPECT_EQ(dev.exposure().mode, V4L2_EXPOSURE_MANUAL);
+  EXPECT_EQ(dev.exposure().time, 50);  // (156, the default, without the second setting)
+  cap.stop();
+  cap.start();
+  EXPECT_EQ(dev.exposure().time, 50);
+  cap.close();
+  EXPECT_EQ(dev.exposure().mode, V4L2_EXPOSURE_APERTURE_PRIORITY);
+  EXPECT_EQ(dev.exposure().time, 156);
+  expectNoLeaks(dev);
+}
+
+// A stream that stops while the device stays (firmware, USB): no frame for
+// 2 s is a lost stream, reopened as an unplugged device is.
+TEST(Quirks, AStalledStreamIsReopened) {
+  ld::FakeClock clock;
+  ld::FakeV4l2Device dev(clock);
+  std::vector<std::string> log;
+  ld::ReconnectingCapture rc(dev, clock, "/dev/video0", request(V4L2_PIX_FMT_YUYV, 640, 480), {},
+                             [&](const std::string& s) { log.push_back(s); });
+  rc.start();
+  EXPECT_EQ(rc.stallLimitUs(), 2000000);  // (10 frames at 30 fps are less)
+  ld::Frame f;
+  for (int i = 0; i < 3; ++i) {
+    ASSERT_TRUE(rc.grab(f, 1000));
+    rc.requeue(f);
+  }
+  dev.stall();
+  const int64_t t0 = clock.monotonicUs();
+  int polls = 0;
+  while (rc.connected()) {
+    EXPECT_FALSE(rc.grab(f, 200));
+    ASSERT_LT(++polls, 100);
+  }
+  EXPECT_GE(clock.monotonicUs() - t0, 2000000);
+  EXPECT_LT(clock.monotonicUs() - t0, 2300000);
+  ASSERT_EQ(log.size(), 1u);
+  EXPECT_EQ(log[0].rfind("/dev/video0: no frame for 2.", 0), 0u) << log[0];
+  EXPECT_NE(log[0].find(" s while streaming (the camera stalled); reopening every 0.1-2 s"), std::string::npos)
+      << log[0];
+  while (!rc.grab(f, 200)) ASSERT_LT(++polls, 200);
+  EXPECT_EQ(rc.reconnects(), 1);
+  EXPECT_EQ(rc.totals().frames, 4);  // (counted across the reopening)
+  rc.requeue(f);
+  rc.stop();
+  expectNoLeaks(dev);
+}
+
+// uvcvideo checks the size of raw frames alone: an MJPEG frame cut short
+// comes without the error flag. It is skipped and counted, not handed out.
+TEST(Quirks, MjpegCutShortWithoutTheErrorFlagIsSkipped) {
+  ld::FakeClock clock;
+  auto spec = ld::FakeCameraSpec::webcam();
+  spec.mjpeg_cut_every = 3;
+  ld::FakeV4l2Device dev(clock, {spec});
+  ld::V4l2Capture cap(dev, clock);
+  cap.open("/dev/video0", request(V4L2_PIX_FMT_MJPEG, 640, 480));
+  cap.start();
+  ld::Frame f;
+  int good = 0, polls = 0;
+  while (good < 10) {
+    ASSERT_LT(++polls, 100);
+    if (!cap.grab(f, 1000)) continue;
+    EXPECT_TRUE(ld::jpegComplete(f.data, f.bytesused)) << f.sequence;
+    EXPECT_NE(f.sequence % 3, 2u) << "the cut frame handed out";
+    ++good;
+    cap.requeue(f);
+  }
+  EXPECT_GE(cap.stats().truncated, 4);
+  EXPECT_EQ(cap.stats().errored, 0);
+  cap.close();
+  expectNoLeaks(dev);
+}
+
+// Devices that are not the plain webcam: a media-controller camera (the
+// Raspberry Pi's unicam: streaming alone fails with "Broken pipe"), a USB
+// bus without the bandwidth (uvcvideo's ENOSPC at STREAMON), a format that
+// lists no sizes (capture cards: the driver's reply is trusted).
+TEST(Quirks, MediaControllerBandwidthAndUnlistedSizes) {
+  ld::FakeClock clock;
+  {
+    auto spec = ld::FakeCameraSpec::webcam();
+    spec.device_caps |= V4L2_CAP_IO_MC;
+    spec.driver = "unicam";
+    ld::FakeV4l2Device dev(clock, {spec});
+    ld::V4l2Capture cap(dev, clock);
+    EXPECT_EQ(captureError([&] { cap.open("/dev/video0", request(V4L2_PIX_FMT_YUYV, 640, 480)); },
+                           Kind::NotCapture),
+              "/dev/video0 (Fake UVC Camera) is a media-controller camera (unicam): its pipeline needs libcamera "
+              "(libcamerify ld-camera ...) or the legacy camera driver");
+    expectNoLeaks(dev);
+  }
+  {
+    ld::FakeV4l2Device dev(clock);
+    ld::V4l2Capture cap(dev, clock);
+    cap.open("/dev/video0", request(V4L2_PIX_FMT_YUYV, 640, 480));
+    dev.failIoctl(VIDIOC_STREAMON, ENOSPC);
+    EXPECT_EQ(captureError([&] { cap.start(); }, Kind::Io),
+              "/dev/video0: not enough USB bandwidth for YUYV 640x480 @ 30 fps, 4 buffers (VIDIOC_STREAMON: No "
+              "space left on device): use MJPEG, a smaller size or rate, or another USB port or controller");
+    cap.close();
+    expectNoLeaks(dev);
+  }
+  {
+    auto spec = ld::FakeCameraSpec::webcam();
+    for (auto& fmt : spec.formats)
+      if (fmt.fourcc == V4L2_PIX_FMT_GREY) fmt.sizes.clear();
+    ld::FakeV4l2Device dev(clock, {spec});
+    ld::V4l2Capture cap(dev, clock);
+    const auto& got = cap.open("/dev/video0", request(V4L2_PIX_FMT_GREY, 320, 240));
+    EXPECT_EQ(got.width, 320u);
+    EXPECT_EQ(got.height, 240u);
+    cap.close();
+    expectNoLeaks(dev);
+  }
 }
 
 // ---------------------------------------------------------------------------

@@ -182,6 +182,7 @@ int main(int argc, char** argv) {
   std::vector<uint8_t> encoded;  // reused: publishing allocates nothing once warm
   ld::Frame frame;
   int64_t published = 0, bad = 0, gaps = 0, last_seq = -1, last_published = 0;
+  int64_t skipped_said = 0, skipped_lines = 0;  // frames the capture skipped (flagged, cut short), said so far
   auto last_status = std::chrono::steady_clock::now();
   while (!g_stop) {
     bool got = false;
@@ -190,6 +191,15 @@ int main(int argc, char** argv) {
     } catch (const std::exception& e) {
       say(e.what());
       return 1;
+    }
+    // (frames the driver flagged bad or that came cut short: skipped by the
+    // capture, said here, rate-limited as bad input is)
+    const ld::CaptureStats totals = capture.totals();
+    if (totals.errored + totals.truncated > skipped_said) {
+      skipped_said = totals.errored + totals.truncated;
+      if (ld::printBadLine(++skipped_lines))
+        say("skipped frames: " + std::to_string(totals.errored) + " flagged bad by the driver (lost USB packets?), " +
+            std::to_string(totals.truncated) + " cut short, so far " + ld::badSoFar(skipped_lines, "such lines"));
     }
     if (got) {
       if (last_seq >= 0 && frame.seq > last_seq + 1) gaps += frame.seq - last_seq - 1;
@@ -216,9 +226,10 @@ int main(int argc, char** argv) {
       const double s = std::chrono::duration<double>(now - last_status).count();
       std::fprintf(stderr,
                    "ld-camera: %.1f frames/s, %lld published, %lld dropped by the driver, "
-                   "%lld bad, %d reconnects%s\n",
+                   "%lld flagged bad, %lld cut short, %lld bad, %d reconnects%s\n",
                    (published - last_published) / s, static_cast<long long>(published),
-                   static_cast<long long>(gaps), static_cast<long long>(bad),
+                   static_cast<long long>(gaps), static_cast<long long>(capture.totals().errored),
+                   static_cast<long long>(capture.totals().truncated), static_cast<long long>(bad),
                    capture.reconnects(), capture.connected() ? "" : " (device away)");
       last_published = published;
       last_status = now;
@@ -226,9 +237,10 @@ int main(int argc, char** argv) {
   }
   capture.stop();
   std::fprintf(stderr,
-               "ld-camera: stopped after %lld frames (%lld dropped by the driver, %lld bad, "
-               "%d reconnects)\n",
+               "ld-camera: stopped after %lld frames (%lld dropped by the driver, %lld flagged bad, %lld cut "
+               "short, %lld bad, %d reconnects)\n",
                static_cast<long long>(published), static_cast<long long>(gaps),
+               static_cast<long long>(capture.totals().errored), static_cast<long long>(capture.totals().truncated),
                static_cast<long long>(bad), capture.reconnects());
   return 0;
 }

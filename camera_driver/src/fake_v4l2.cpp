@@ -99,6 +99,7 @@ struct FakeV4l2Device::Node {
   uint32_t sequence = 0;
 
   int64_t unplug_after_frames = -1, replug_after_us = -1, replug_at_us = -1;
+  bool stalled = false;
   Stats stats;
 
   bool captures() const { return (spec.device_caps & V4L2_CAP_VIDEO_CAPTURE) != 0; }
@@ -115,7 +116,9 @@ struct FakeV4l2Device::Node {
   v4l2_pix_format adjust(const v4l2_pix_format& want) const {
     const FakeFormat* f = findFormat(want.pixelformat);
     if (!f) f = &spec.formats.front();
-    const FakeFrameSize* best = &f->sizes.front();
+    // (a format that lists no sizes, as some capture cards': any size taken)
+    const FakeFrameSize any{std::max(16u, want.width), std::max(16u, want.height), {}};
+    const FakeFrameSize* best = f->sizes.empty() ? &any : &f->sizes.front();
     int64_t best_d = std::numeric_limits<int64_t>::max();
     for (const auto& s : f->sizes) {
       const int64_t d = std::abs(int64_t{s.width} * s.height - int64_t{want.width} * want.height) +
@@ -261,6 +264,10 @@ void FakeV4l2Device::scheduleUnplug(const std::string& path, int64_t after_frame
   }
 }
 
+void FakeV4l2Device::stall(const std::string& path) {
+  if (Node* n = findNode(path)) n->stalled = true;
+}
+
 void FakeV4l2Device::failIoctl(unsigned long request, int err, int times) {
   faults_.push_back({request, err, times});
 }
@@ -332,6 +339,8 @@ void FakeV4l2Device::capture(Node& node, uint32_t index, int64_t time_us) {
       std::memcpy(dst, m.data.data(), m.data.size());
       std::memset(dst + m.data.size(), 0xEE, b.length - m.data.size());
       b.bytesused = static_cast<uint32_t>(m.data.size());
+      const int cut = node.spec.mjpeg_cut_every;
+      if (cut > 0 && (node.stats.frames + 1) % cut == 0) b.bytesused /= 2;  // (no error flag)
     }
   } else {
     const bool yuyv = f.pixelformat == V4L2_PIX_FMT_YUYV;
@@ -353,7 +362,7 @@ void FakeV4l2Device::capture(Node& node, uint32_t index, int64_t time_us) {
 
 // Produces every frame that is due by now.
 void FakeV4l2Device::pump(Node& node) {
-  if (!node.present || !node.streaming) return;
+  if (!node.present || !node.streaming || node.stalled) return;
   const int64_t now = clock_.monotonicUs();
   const int64_t interval = node.intervalUs();
   // After a long stall (a process stopped in a debugger) skip to the present.
@@ -651,6 +660,8 @@ int FakeV4l2Device::doIoctl(Node& n, int fd, unsigned long request, void* arg) {
       if (n.bufs.empty()) return fail(EINVAL);
       if (n.streaming) return 0;
       n.streaming = true;
+      n.stalled = false;
+      if (n.spec.resets_exposure_at_streamon) n.exposure_time = kExposureDefault;
       n.stream_start_us = clock_.monotonicUs();
       n.frames_due = 0;
       n.sequence = 0;

@@ -131,14 +131,9 @@ void FrameToImage::decodeAndConvert(const Frame& f, image_t& msg) {
   const ImageConversion out = conversion_;
   if (isJpeg(f.fourcc)) {
     if (f.bytesused == 0) fail(f, "empty JPEG frame");
-    const cv::Mat buf(1, static_cast<int>(f.bytesused), CV_8UC1, const_cast<uint8_t*>(f.data));
-    try {
-      cv::imdecode(buf, out == ImageConversion::Gray ? cv::IMREAD_GRAYSCALE : cv::IMREAD_COLOR,
-                   &decoded_);
-    } catch (const cv::Exception&) {
-      decoded_.release();
-    }
-    if (decoded_.empty()) fail(f, "the JPEG data does not decode");
+    // (libjpeg's damage said, not filled with grey and published as good)
+    const std::string problem = decodeJpeg(f.data, f.bytesused, decoded_, out == ImageConversion::Gray);
+    if (!problem.empty()) fail(f, "the JPEG data " + problem);
     if (decoded_.cols != static_cast<int>(f.width) || decoded_.rows != static_cast<int>(f.height))
       fail(f, "the JPEG is " + std::to_string(decoded_.cols) + "x" +
                   std::to_string(decoded_.rows));

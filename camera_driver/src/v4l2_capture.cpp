@@ -1,5 +1,7 @@
 #include "ld/v4l2_capture.hpp"
 
+#include "ld/image_convert.hpp"
+
 #include <fcntl.h>
 #include <sys/mman.h>
 
@@ -380,12 +382,20 @@ const CaptureFormat& V4l2Capture::open(const std::string& device, const CaptureR
     }
     if (!(caps & V4L2_CAP_STREAMING))
       throw CaptureError(K::NotCapture, named + " does not support streaming I/O");
+    // (a media-controller camera, as the Raspberry Pi's unicam: its pipeline
+    // is set up by libcamera, and streaming alone fails with "Broken pipe")
+    if (caps & V4L2_CAP_IO_MC)
+      throw CaptureError(K::NotCapture, named + " is a media-controller camera (" + format_.driver +
+                                            "): its pipeline needs libcamera (libcamerify ld-camera ...) or the "
+                                            "legacy camera driver");
 
     // 2.-3. Formats, sizes, rates; set the format and the rate.
     offered_ = enumerateFormats(io_, fd_, device);
     negotiate(request);
     setFrameRate(request.fps);
-    if (request.exposure_ms > 0) setExposure(request.exposure_ms);
+    // (refused or not here, at open; set again in start(): some cameras reset it at STREAMON)
+    exposure_ms_ = request.exposure_ms;
+    if (exposure_ms_ > 0) setExposure(exposure_ms_);
 
     // 4. Buffers.
     allocateBuffers(std::max(4u, request.buffers));
@@ -416,8 +426,9 @@ void V4l2Capture::negotiate(const CaptureRequest& request) {
   }
   const std::string refused = device_ + " does not offer " + captureFormatName(fourcc) + " " +
                               sizeText(w, h) + "; it offers: " + offeredFormatsText(offered_);
-  // A driver that enumerates nothing is trusted to say what it took in S_FMT.
-  if (!offered_.empty() && (!desc || !desc->offers(w, h)))
+  // A driver that enumerates nothing (or no sizes of the format) is trusted
+  // to say what it took in S_FMT.
+  if (!offered_.empty() && (!desc || (!desc->sizes.empty() && !desc->offers(w, h))))
     throw CaptureError(K::FormatRefused, refused);
 
   v4l2_format f{};
@@ -510,14 +521,22 @@ void V4l2Capture::setExposure(double ms) {
   v4l2_control mode{}, time{};
   mode.id = V4L2_CID_EXPOSURE_AUTO;
   time.id = V4L2_CID_EXPOSURE_ABSOLUTE;
-  saved_exposure_mode_ = xioctl(io_, fd_, VIDIOC_G_CTRL, &mode) == 0 ? mode.value : -1;
-  saved_exposure_time_ = xioctl(io_, fd_, VIDIOC_G_CTRL, &time) == 0 ? time.value : -1;
+  // (once per open: a start() after a stop() finds the values set before)
+  if (saved_exposure_mode_ < 0 && saved_exposure_time_ < 0) {
+    saved_exposure_mode_ = xioctl(io_, fd_, VIDIOC_G_CTRL, &mode) == 0 ? mode.value : -1;
+    saved_exposure_time_ = xioctl(io_, fd_, VIDIOC_G_CTRL, &time) == 0 ? time.value : -1;
+  }
   // Automatic exposure off first: while it is on, drivers may refuse the time
   // (EACCES, as the fake does) or overwrite it. A device without the switch
   // (EINVAL) has only the manual time.
   mode.value = V4L2_EXPOSURE_MANUAL;
-  if (xioctl(io_, fd_, VIDIOC_S_CTRL, &mode) < 0 && errno != EINVAL)
-    fail("VIDIOC_S_CTRL (automatic exposure off)", errno);
+  if (xioctl(io_, fd_, VIDIOC_S_CTRL, &mode) < 0 && errno != EINVAL) {
+    const int e = errno;
+    if (e == EIO || e == EILSEQ)  // (the firmware refused it; the device is there)
+      throw CaptureError(K::ControlRefused, named + " refused to turn its automatic exposure off (" +
+                                                std::strerror(e) + "): run without the exposure");
+    fail("VIDIOC_S_CTRL (automatic exposure off)", e);
+  }
   // In the control's unit (100 us), within its range (clamped as a double:
   // any finite time the command line takes), on its steps.
   const int64_t step = std::max(1, q.step);
@@ -527,7 +546,9 @@ void V4l2Capture::setExposure(double ms) {
   time.value = static_cast<int32_t>(units);
   if (xioctl(io_, fd_, VIDIOC_S_CTRL, &time) < 0) {
     const int e = errno;
-    if (e == EACCES || e == EPERM || e == EBUSY)
+    // (EIO: uvcvideo's answer for a control the firmware lacks; EILSEQ:
+    // older kernels' for a time refused while auto exposure stays on)
+    if (e == EACCES || e == EPERM || e == EBUSY || e == EIO || e == EILSEQ)
       throw CaptureError(K::ControlRefused, named + " refused the exposure time (" + std::strerror(e) +
                                                 "): its automatic exposure could not be turned off");
     fail("VIDIOC_S_CTRL (exposure time)", e);
@@ -604,9 +625,21 @@ void V4l2Capture::start() {
   for (uint32_t i = 0; i < buffers_.size(); ++i)
     if (buffers_[i].state == BufferState::Dequeued) queue(i);
   int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-  if (xioctl(io_, fd_, VIDIOC_STREAMON, &type) < 0) fail("VIDIOC_STREAMON", errno);
+  if (xioctl(io_, fd_, VIDIOC_STREAMON, &type) < 0) {
+    const int err = errno;
+    // (uvcvideo's answer when the USB bus has not the bandwidth the format needs)
+    if (err == ENOSPC)
+      throw CaptureError(CaptureError::Kind::Io,
+                         device_ + ": not enough USB bandwidth for " + format_.describe() +
+                             " (VIDIOC_STREAMON: No space left on device): use MJPEG, a smaller size or rate, or "
+                             "another USB port or controller");
+    fail("VIDIOC_STREAMON", err);
+  }
   streaming_ = true;
   have_sequence_ = false;
+  // The manual exposure again once streaming: cameras such as the Logitech
+  // C920 set their exposure time again at STREAMON, auto exposure off or not.
+  if (exposure_ms_ > 0) setExposure(exposure_ms_);
 }
 
 bool V4l2Capture::grab(Frame& frame, int timeout_ms) {
@@ -655,13 +688,20 @@ bool V4l2Capture::grab(Frame& frame, int timeout_ms) {
   }
   size_t used = b.bytesused;
   if (compressed_) {
-    if (used == 0 || used > buf.length) {
+    // (uvcvideo checks the size of raw frames alone: a JPEG cut short comes
+    // without the error flag)
+    if (used == 0 || used > buf.length ||
+        (format_.fourcc == V4L2_PIX_FMT_MJPEG && !jpegComplete(static_cast<const uint8_t*>(buf.start), used))) {
       ++stats_.truncated;
       queue(b.index);
       return false;
     }
   } else {
-    if (used == 0) used = std::min<size_t>(buf.length, format_.sizeimage);
+    if (used == 0) {  // (an empty buffer without the error flag: nothing new in it)
+      ++stats_.truncated;
+      queue(b.index);
+      return false;
+    }
     const size_t need = bytes_per_pixel_ > 0
                             ? static_cast<size_t>(format_.bytesperline) * (format_.height - 1) +
                                   static_cast<size_t>(format_.width) * bytes_per_pixel_
@@ -771,10 +811,29 @@ const CaptureFormat& ReconnectingCapture::start() {
   capture_.open(device_, request_);
   capture_.start();
   down_ = false;
+  last_frame_us_ = clock_.monotonicUs();
   return capture_.format();
 }
 
+CaptureStats ReconnectingCapture::totals() const {
+  CaptureStats t = closed_;
+  if (!capture_.isOpen()) return t;  // (a closed capture's counts are in closed_)
+  const CaptureStats& now = capture_.stats();
+  t.frames += now.frames;
+  t.spurious += now.spurious;
+  t.errored += now.errored;
+  t.truncated += now.truncated;
+  t.sequence_gaps += now.sequence_gaps;
+  return t;
+}
+
+int64_t ReconnectingCapture::stallLimitUs() const {
+  const double fps = capture_.format().fps > 0 ? capture_.format().fps : 30.0;
+  return std::max<int64_t>(2000000, std::llround(10e6 / fps));
+}
+
 void ReconnectingCapture::lost(const std::string& why) {
+  closed_ = totals();
   capture_.close();
   down_ = true;
   lost_at_us_ = clock_.monotonicUs();
@@ -812,6 +871,7 @@ bool ReconnectingCapture::tryReopen(int timeout_ms) {
   down_ = false;
   rebase_ = true;
   ++reconnects_;
+  last_frame_us_ = clock_.monotonicUs();
   if (log_) {
     char secs[32];
     std::snprintf(secs, sizeof secs, "%.1f", (clock_.monotonicUs() - lost_at_us_) / 1e6);
@@ -824,12 +884,21 @@ bool ReconnectingCapture::tryReopen(int timeout_ms) {
 bool ReconnectingCapture::grab(Frame& frame, int timeout_ms) {
   if (down_ && !tryReopen(timeout_ms)) return false;
   try {
-    if (!capture_.grab(frame, timeout_ms)) return false;
+    if (!capture_.grab(frame, timeout_ms)) {
+      const int64_t quiet = clock_.monotonicUs() - last_frame_us_;
+      if (quiet > stallLimitUs()) {
+        char secs[32];
+        std::snprintf(secs, sizeof secs, "%.1f", quiet / 1e6);
+        lost(device_ + ": no frame for " + secs + " s while streaming (the camera stalled)");
+      }
+      return false;
+    }
   } catch (const CaptureError& e) {
     if (e.kind() != CaptureError::Kind::DeviceLost && e.kind() != CaptureError::Kind::Io) throw;
     lost(e.what());
     return false;
   }
+  last_frame_us_ = clock_.monotonicUs();
   if (rebase_) {
     seq_base_ = next_seq_ - frame.sequence;
     rebase_ = false;
@@ -850,6 +919,7 @@ void ReconnectingCapture::requeue(const Frame& frame) {
 }
 
 void ReconnectingCapture::stop() noexcept {
+  closed_ = totals();
   capture_.close();
   down_ = false;
 }

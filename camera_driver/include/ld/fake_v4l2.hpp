@@ -97,6 +97,12 @@ struct FakeCameraSpec {
   bool exposure_manual_mode = true;   ///< its menu has manual (without it: EINVAL, and the time stays refused)
   int32_t exposure_step = 1;          ///< the time's step, in 100 us
   uint32_t timestamp_flags = V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC | V4L2_BUF_FLAG_TSTAMP_SRC_SOE;
+  /// Sets its exposure time back to the default at STREAMON, automatic
+  /// exposure off or not, as the Logitech C920 does.
+  bool resets_exposure_at_streamon = false;
+  /// Every n-th MJPEG frame comes cut to half its bytes, without the error
+  /// flag (uvcvideo checks the size of raw frames alone); 0: never.
+  int mjpeg_cut_every = 0;
 
   /// A webcam offering YUYV 640x480 (30, 15 fps), 320x240 (30, 15 fps),
   /// 1280x720 (10 fps); MJPEG 1280x720, 640x480, 320x240 (30, 15 fps);
@@ -130,6 +136,9 @@ class FakeV4l2Device final : public V4l2Io {
   /// Unplugs the node right after its `after_frames`-th captured frame (from
   /// now), and plugs it back `replug_after_us` later (never when negative).
   void scheduleUnplug(const std::string& path, int64_t after_frames, int64_t replug_after_us);
+  /// The node stops delivering frames while it stays streaming (a UVC
+  /// camera's firmware or USB stalls), until its next STREAMON.
+  void stall(const std::string& path = "/dev/video0");
   /// The next `times` calls of `request` (on any node) fail with `err`.
   void failIoctl(unsigned long request, int err, int times = 1);
   /// open() of `path` fails with `err` (EACCES, EBUSY...) until set to 0.

@@ -246,6 +246,7 @@ class V4l2Capture {
   int fd_ = -1;
   bool streaming_ = false;
   bool compressed_ = false;
+  double exposure_ms_ = 0;  // the manual exposure asked for, set at each start()
   uint32_t bytes_per_pixel_ = 0;  // 0: compressed or unknown
   std::string device_;
   CaptureFormat format_;
@@ -283,8 +284,11 @@ class Backoff {
 /// V4l2Capture plus ld-camera's policy: errors opening the device at start()
 /// are fatal (thrown); losing it later is not: grab() reports it once
 /// through `log`, closes, and reopens with backoff until the device is back,
-/// then logs once more. grab() never blocks longer than its timeout, so the
-/// caller can check for a stop request between calls.
+/// then logs once more. A stream that stops delivering frames while the
+/// device stays (a UVC camera's firmware or USB stalls) is lost too: no good
+/// frame for max(2 s, 10 frame intervals) closes and reopens it. grab()
+/// never blocks longer than its timeout, so the caller can check for a stop
+/// request between calls.
 class ReconnectingCapture {
  public:
   using Log = std::function<void(const std::string&)>;
@@ -307,6 +311,11 @@ class ReconnectingCapture {
   int reconnects() const { return reconnects_; }
   const CaptureFormat& format() const { return capture_.format(); }
   const V4l2Capture& capture() const { return capture_; }
+  /// The capture's counts summed over every reopening (V4l2Capture's start
+  /// again at each open).
+  CaptureStats totals() const;
+  /// No good frame for this long while streaming: the stream is lost.
+  int64_t stallLimitUs() const;
 
  private:
   void lost(const std::string& why);
@@ -325,6 +334,8 @@ class ReconnectingCapture {
   int reconnects_ = 0, attempts_ = 0;
   bool rebase_ = false;
   int64_t seq_base_ = 0, next_seq_ = 0;
+  int64_t last_frame_us_ = 0;  // the last good frame (or the stream's start)
+  CaptureStats closed_;        // the counts of the captures closed so far
 };
 
 }  // namespace ld
