@@ -422,16 +422,20 @@ TEST_F(Loop, TimeoutAndDroppedFrames) {
   cap.start();
   ld::Frame f;
   EXPECT_FALSE(cap.grab(f, 10));  // the first frame is due after 33 ms
-  // A slow consumer: 10 frame times pass, 4 buffers were filled, 6 frames dropped.
+  // A slow consumer: 10 frame times pass, 4 buffers were filled, 6 frames
+  // dropped by the driver. The newest of the four is handed out, the three
+  // older go back unseen (stale): frames 0, 1, 2 were 300 ms old and more.
   clock.advanceUs(10 * kFrameUs);
   std::vector<uint32_t> seqs;
-  for (int i = 0; i < 5; ++i) {
+  for (int i = 0; i < 3; ++i) {
     ASSERT_TRUE(cap.grab(f, 1000));
     seqs.push_back(f.sequence);
     cap.requeue(f);
   }
-  EXPECT_EQ(seqs, (std::vector<uint32_t>{0, 1, 2, 3, 10}));
+  EXPECT_EQ(seqs, (std::vector<uint32_t>{3, 10, 11}));
+  EXPECT_EQ(cap.stats().stale, 3);
   EXPECT_EQ(cap.stats().sequence_gaps, 6);
+  EXPECT_EQ(cap.stats().frames, 3);
   EXPECT_EQ(dev.stats().dropped, 6);
 }
 

@@ -181,7 +181,7 @@ int main(int argc, char** argv) {
   ld::image_t msg;
   std::vector<uint8_t> encoded;  // reused: publishing allocates nothing once warm
   ld::Frame frame;
-  int64_t published = 0, bad = 0, gaps = 0, last_seq = -1, last_published = 0;
+  int64_t published = 0, bad = 0, last_published = 0;
   int64_t skipped_said = 0, skipped_lines = 0;  // frames the capture skipped (flagged, cut short), said so far
   auto last_status = std::chrono::steady_clock::now();
   while (!g_stop) {
@@ -202,8 +202,6 @@ int main(int argc, char** argv) {
             std::to_string(totals.truncated) + " cut short, so far " + ld::badSoFar(skipped_lines, "such lines"));
     }
     if (got) {
-      if (last_seq >= 0 && frame.seq > last_seq + 1) gaps += frame.seq - last_seq - 1;
-      last_seq = frame.seq;
       bool ok = true;
       try {
         converter.convert(frame, msg);
@@ -225,10 +223,12 @@ int main(int argc, char** argv) {
     if (verbose && now - last_status > std::chrono::seconds(5)) {
       const double s = std::chrono::duration<double>(now - last_status).count();
       std::fprintf(stderr,
-                   "ld-camera: %.1f frames/s, %lld published, %lld dropped by the driver, "
-                   "%lld flagged bad, %lld cut short, %lld bad, %d reconnects%s\n",
+                   "ld-camera: %.1f frames/s, %lld published, %lld skipped to stay current, %lld dropped by "
+                   "the driver, %lld flagged bad, %lld cut short, %lld bad, %d reconnects%s\n",
                    (published - last_published) / s, static_cast<long long>(published),
-                   static_cast<long long>(gaps), static_cast<long long>(capture.totals().errored),
+                   static_cast<long long>(capture.totals().stale),
+                   static_cast<long long>(capture.totals().sequence_gaps),
+                   static_cast<long long>(capture.totals().errored),
                    static_cast<long long>(capture.totals().truncated), static_cast<long long>(bad),
                    capture.reconnects(), capture.connected() ? "" : " (device away)");
       last_published = published;
@@ -237,9 +237,10 @@ int main(int argc, char** argv) {
   }
   capture.stop();
   std::fprintf(stderr,
-               "ld-camera: stopped after %lld frames (%lld dropped by the driver, %lld flagged bad, %lld cut "
-               "short, %lld bad, %d reconnects)\n",
-               static_cast<long long>(published), static_cast<long long>(gaps),
+               "ld-camera: stopped after %lld frames (%lld skipped to stay current, %lld dropped by the driver, "
+               "%lld flagged bad, %lld cut short, %lld bad, %d reconnects)\n",
+               static_cast<long long>(published), static_cast<long long>(capture.totals().stale),
+               static_cast<long long>(capture.totals().sequence_gaps),
                static_cast<long long>(capture.totals().errored), static_cast<long long>(capture.totals().truncated),
                static_cast<long long>(bad), capture.reconnects());
   return 0;

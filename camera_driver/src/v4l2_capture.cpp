@@ -642,6 +642,39 @@ void V4l2Capture::start() {
   if (exposure_ms_ > 0) setExposure(exposure_ms_);
 }
 
+size_t V4l2Capture::usedBytes(const v4l2_buffer& b) {
+  const Buffer& buf = buffers_[b.index];
+  if (b.flags & V4L2_BUF_FLAG_ERROR) {  // e.g. lost USB packets: data unreliable
+    ++stats_.errored;
+    return 0;
+  }
+  size_t used = b.bytesused;
+  if (compressed_) {
+    // (uvcvideo checks the size of raw frames alone: a JPEG cut short comes
+    // without the error flag)
+    if (used == 0 || used > buf.length ||
+        (format_.fourcc == V4L2_PIX_FMT_MJPEG && !jpegComplete(static_cast<const uint8_t*>(buf.start), used))) {
+      ++stats_.truncated;
+      return 0;
+    }
+    return used;
+  }
+  if (used == 0) {  // (an empty buffer without the error flag: nothing new in it)
+    ++stats_.truncated;
+    return 0;
+  }
+  const size_t need = bytes_per_pixel_ > 0
+                          ? static_cast<size_t>(format_.bytesperline) * (format_.height - 1) +
+                                static_cast<size_t>(format_.width) * bytes_per_pixel_
+                          : static_cast<size_t>(format_.bytesperline) * format_.height;
+  used = std::min(used, buf.length);
+  if (used < need) {
+    ++stats_.truncated;
+    return 0;
+  }
+  return used;
+}
+
 bool V4l2Capture::grab(Frame& frame, int timeout_ms) {
   using K = CaptureError::Kind;
   if (!streaming_) throw std::logic_error("V4l2Capture::grab: not streaming");
@@ -659,65 +692,57 @@ bool V4l2Capture::grab(Frame& frame, int timeout_ms) {
   if (r == 0) return false;
   if (p.revents & POLLNVAL) throw CaptureError(K::Io, device_ + ": poll: invalid descriptor");
 
-  v4l2_buffer b{};
-  b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-  b.memory = V4L2_MEMORY_MMAP;
-  if (xioctl(io_, fd_, VIDIOC_DQBUF, &b) < 0) {
-    const int err = errno;
-    if (err == EAGAIN) {
-      // A wakeup with nothing to dequeue. With POLLERR that would repeat at
-      // once forever: the device is in an error state.
-      if (p.revents & POLLERR)
-        throw CaptureError(K::Io, device_ + ": the device reports an error (POLLERR)");
-      ++stats_.spurious;
-      return false;
+  // Then every other filled buffer, without waiting: the newest good frame
+  // is handed out and the older ones go back to the driver, counted as
+  // stale (a consumer slower than the camera gets the present, not frames
+  // up to its buffers old, and the camera drops the oldest, not the newest).
+  v4l2_buffer b{};  // the frame kept
+  size_t used = 0;
+  bool got = false;
+  // (bounded: a driver that filled buffers as fast as they are given back
+  // would keep this loop going)
+  for (size_t n = 0; n < 2 * buffers_.size(); ++n) {
+    const bool first = n == 0;
+    v4l2_buffer d{};
+    d.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    d.memory = V4L2_MEMORY_MMAP;
+    if (xioctl(io_, fd_, VIDIOC_DQBUF, &d) < 0) {
+      const int err = errno;
+      if (err == EAGAIN && !first) break;  // (drained)
+      if (err == EAGAIN) {
+        // A wakeup with nothing to dequeue. With POLLERR that would repeat at
+        // once forever: the device is in an error state.
+        if (p.revents & POLLERR)
+          throw CaptureError(K::Io, device_ + ": the device reports an error (POLLERR)");
+        ++stats_.spurious;
+        return false;
+      }
+      fail("VIDIOC_DQBUF", err);
     }
-    fail("VIDIOC_DQBUF", err);
+    if (d.index >= buffers_.size())
+      throw CaptureError(K::Io, device_ + ": VIDIOC_DQBUF returned buffer " +
+                                    std::to_string(d.index) + " of " +
+                                    std::to_string(buffers_.size()));
+    buffers_[d.index].state = BufferState::Held;
+    const size_t good = usedBytes(d);
+    if (good == 0) {  // (flagged or cut short: counted, and given back)
+      queue(d.index);
+      continue;
+    }
+    if (have_sequence_ && d.sequence > last_sequence_ + 1)
+      stats_.sequence_gaps += d.sequence - last_sequence_ - 1;
+    have_sequence_ = true;
+    last_sequence_ = d.sequence;
+    if (got) {
+      queue(b.index);
+      ++stats_.stale;
+    }
+    b = d;
+    used = good;
+    got = true;
   }
-  if (b.index >= buffers_.size())
-    throw CaptureError(K::Io, device_ + ": VIDIOC_DQBUF returned buffer " +
-                                  std::to_string(b.index) + " of " +
-                                  std::to_string(buffers_.size()));
+  if (!got) return false;
   Buffer& buf = buffers_[b.index];
-  buf.state = BufferState::Held;
-
-  if (b.flags & V4L2_BUF_FLAG_ERROR) {  // e.g. lost USB packets: data unreliable
-    ++stats_.errored;
-    queue(b.index);
-    return false;
-  }
-  size_t used = b.bytesused;
-  if (compressed_) {
-    // (uvcvideo checks the size of raw frames alone: a JPEG cut short comes
-    // without the error flag)
-    if (used == 0 || used > buf.length ||
-        (format_.fourcc == V4L2_PIX_FMT_MJPEG && !jpegComplete(static_cast<const uint8_t*>(buf.start), used))) {
-      ++stats_.truncated;
-      queue(b.index);
-      return false;
-    }
-  } else {
-    if (used == 0) {  // (an empty buffer without the error flag: nothing new in it)
-      ++stats_.truncated;
-      queue(b.index);
-      return false;
-    }
-    const size_t need = bytes_per_pixel_ > 0
-                            ? static_cast<size_t>(format_.bytesperline) * (format_.height - 1) +
-                                  static_cast<size_t>(format_.width) * bytes_per_pixel_
-                            : static_cast<size_t>(format_.bytesperline) * format_.height;
-    used = std::min(used, buf.length);
-    if (used < need) {
-      ++stats_.truncated;
-      queue(b.index);
-      return false;
-    }
-  }
-
-  if (have_sequence_ && b.sequence > last_sequence_ + 1)
-    stats_.sequence_gaps += b.sequence - last_sequence_ - 1;
-  have_sequence_ = true;
-  last_sequence_ = b.sequence;
 
   // The driver's timestamp is CLOCK_MONOTONIC; utime is wall-clock time.
   const int64_t now_mono = clock_.monotonicUs();
@@ -824,6 +849,7 @@ CaptureStats ReconnectingCapture::totals() const {
   t.errored += now.errored;
   t.truncated += now.truncated;
   t.sequence_gaps += now.sequence_gaps;
+  t.stale += now.stale;
   return t;
 }
 

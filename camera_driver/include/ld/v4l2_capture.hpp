@@ -192,6 +192,7 @@ struct CaptureStats {
   int64_t errored = 0;         ///< buffers the driver flagged V4L2_BUF_FLAG_ERROR (skipped)
   int64_t truncated = 0;       ///< raw frames shorter than a full image (skipped)
   int64_t sequence_gaps = 0;   ///< frames the driver dropped (jumps in `sequence`)
+  int64_t stale = 0;           ///< good frames given back unseen: a newer one was waiting
 };
 
 class V4l2Capture {
@@ -205,9 +206,11 @@ class V4l2Capture {
   const CaptureFormat& open(const std::string& device, const CaptureRequest& request);
   /// Step 5.
   void start();
-  /// Waits up to `timeout_ms` for a frame. False on timeout, on a spurious
-  /// wakeup, on EINTR and on a buffer the driver flagged bad (requeued at
-  /// once). Throws CaptureError (DeviceLost when the device went away).
+  /// Waits up to `timeout_ms` for a frame: the newest good one filled (older
+  /// ones waiting are given back at once, counted as stats().stale). False
+  /// on timeout, on a spurious wakeup, on EINTR and when every buffer
+  /// dequeued was flagged bad or cut short (requeued at once). Throws
+  /// CaptureError (DeviceLost when the device went away).
   /// Each frame must be requeued before all buffers are held.
   bool grab(Frame& frame, int timeout_ms);
   /// Gives the frame's buffer back to the driver; `frame` is invalid after.
@@ -236,6 +239,9 @@ class V4l2Capture {
   [[noreturn]] void fail(const std::string& what, int err) const;
   void negotiate(const CaptureRequest& request);
   void setFrameRate(double fps);
+  // The bytes of a dequeued buffer's frame, or 0 when it is flagged bad or
+  // cut short (counted in stats_).
+  size_t usedBytes(const v4l2_buffer& b);
   void setExposure(double ms);
   void restoreExposure() noexcept;
   void allocateBuffers(unsigned count);
