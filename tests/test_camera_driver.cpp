@@ -883,7 +883,7 @@ TEST(Quirks, AStalledStreamIsReopened) {
   EXPECT_GE(clock.monotonicUs() - t0, 2000000);
   EXPECT_LT(clock.monotonicUs() - t0, 2300000);
   ASSERT_EQ(log.size(), 1u);
-  EXPECT_EQ(log[0].rfind("/dev/video0: no frame for 2.", 0), 0u) << log[0];
+  EXPECT_EQ(log[0].rfind("/dev/video0: no good frame for 2.", 0), 0u) << log[0];
   EXPECT_NE(log[0].find(" s while streaming (the camera stalled); reopening every 0.1-2 s"), std::string::npos)
       << log[0];
   while (!rc.grab(f, 200)) ASSERT_LT(++polls, 200);
@@ -891,6 +891,60 @@ TEST(Quirks, AStalledStreamIsReopened) {
   EXPECT_EQ(rc.totals().frames, 4);  // (counted across the reopening)
   rc.requeue(f);
   rc.stop();
+  EXPECT_EQ(rc.totals().frames, 4);  // (and after the stop, as the exit line reads them)
+  expectNoLeaks(dev);
+}
+
+// A camera that stalls again right after each reopening (its firmware
+// stays wedged): reopened with a growing backoff, said once, not every 2 s.
+TEST(Quirks, AStreamThatStaysStalledIsReopenedQuietlyWithBackoff) {
+  ld::FakeClock clock;
+  ld::FakeV4l2Device dev(clock);
+  std::vector<std::string> log;
+  ld::ReconnectingCapture rc(dev, clock, "/dev/video0", request(V4L2_PIX_FMT_YUYV, 640, 480), {},
+                             [&](const std::string& s) { log.push_back(s); });
+  rc.start();
+  ld::Frame f;
+  ASSERT_TRUE(rc.grab(f, 1000));
+  rc.requeue(f);
+  dev.stall("/dev/video0", true);
+  std::vector<int64_t> reopened_at;  // when each reopening happened
+  int reconnects = 0;
+  for (int polls = 0; polls < 2000 && reopened_at.size() < 4; ++polls) {
+    EXPECT_FALSE(rc.grab(f, 200));
+    if (rc.reconnects() > reconnects) {
+      reconnects = rc.reconnects();
+      reopened_at.push_back(clock.monotonicUs());
+    }
+  }
+  ASSERT_EQ(reopened_at.size(), 4u);
+  // each cycle: the 2 s limit, then a backoff that grows (0.1, 0.3, 0.7, ...)
+  for (size_t i = 2; i < reopened_at.size(); ++i)
+    EXPECT_GT(reopened_at[i] - reopened_at[i - 1], reopened_at[i - 1] - reopened_at[i - 2]) << i;
+  ASSERT_EQ(log.size(), 2u);  // lost, reopened; then nothing until a good frame
+  rc.stop();
+  expectNoLeaks(dev);
+}
+
+// A driver that never sets bytesused for its raw frames (some capture
+// cards): its frames are whole. One that has set it hands out an empty
+// buffer as no frame.
+TEST(Quirks, RawFramesOfADriverThatNeverSetsBytesused) {
+  ld::FakeClock clock;
+  auto spec = ld::FakeCameraSpec::webcam();
+  spec.raw_bytesused_zero = true;
+  ld::FakeV4l2Device dev(clock, {spec});
+  ld::V4l2Capture cap(dev, clock);
+  cap.open("/dev/video0", request(V4L2_PIX_FMT_YUYV, 640, 480));
+  cap.start();
+  ld::Frame f;
+  for (int i = 0; i < 3; ++i) {
+    ASSERT_TRUE(cap.grab(f, 1000)) << i;
+    EXPECT_EQ(f.bytesused, 640u * 480u * 2u);
+    cap.requeue(f);
+  }
+  EXPECT_EQ(cap.stats().truncated, 0);
+  cap.close();
   expectNoLeaks(dev);
 }
 
@@ -916,6 +970,8 @@ TEST(Quirks, MjpegCutShortWithoutTheErrorFlagIsSkipped) {
   }
   EXPECT_GE(cap.stats().truncated, 4);
   EXPECT_EQ(cap.stats().errored, 0);
+  EXPECT_EQ(cap.stats().sequence_gaps, 0);  // (a frame cut short is no frame the driver dropped)
+  EXPECT_EQ(dev.stats().dropped, 0);
   cap.close();
   expectNoLeaks(dev);
 }

@@ -199,7 +199,7 @@ int main(int argc, char** argv) {
       skipped_said = totals.errored + totals.truncated;
       if (ld::printBadLine(++skipped_lines))
         say("skipped frames: " + std::to_string(totals.errored) + " flagged bad by the driver (lost USB packets?), " +
-            std::to_string(totals.truncated) + " cut short, so far " + ld::badSoFar(skipped_lines, "such lines"));
+            std::to_string(totals.truncated) + " cut short " + ld::badSoFar(skipped_lines, "such lines"));
     }
     if (got) {
       bool ok = true;

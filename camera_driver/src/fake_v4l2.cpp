@@ -99,7 +99,7 @@ struct FakeV4l2Device::Node {
   uint32_t sequence = 0;
 
   int64_t unplug_after_frames = -1, replug_after_us = -1, replug_at_us = -1;
-  bool stalled = false;
+  bool stalled = false, wedged = false;  // (wedged: stalled through STREAMON too)
   Stats stats;
 
   bool captures() const { return (spec.device_caps & V4L2_CAP_VIDEO_CAPTURE) != 0; }
@@ -162,6 +162,7 @@ struct FakeV4l2Device::Node {
   }
 
   void powerOn() {
+    stalled = wedged = false;
     fmt = {};
     fps = 30;
     exposure_mode = V4L2_EXPOSURE_APERTURE_PRIORITY;
@@ -169,8 +170,9 @@ struct FakeV4l2Device::Node {
     if (captures() && !spec.formats.empty()) {
       v4l2_pix_format want{};
       want.pixelformat = spec.formats.front().fourcc;
-      want.width = spec.formats.front().sizes.front().width;
-      want.height = spec.formats.front().sizes.front().height;
+      const auto& sizes = spec.formats.front().sizes;  // (a format may list none)
+      want.width = sizes.empty() ? 640 : sizes.front().width;
+      want.height = sizes.empty() ? 480 : sizes.front().height;
       fmt = adjust(want);
       fps = nearestFps(fps);
     }
@@ -264,8 +266,11 @@ void FakeV4l2Device::scheduleUnplug(const std::string& path, int64_t after_frame
   }
 }
 
-void FakeV4l2Device::stall(const std::string& path) {
-  if (Node* n = findNode(path)) n->stalled = true;
+void FakeV4l2Device::stall(const std::string& path, bool wedged) {
+  if (Node* n = findNode(path)) {
+    n->stalled = true;
+    n->wedged = wedged;
+  }
 }
 
 void FakeV4l2Device::failIoctl(unsigned long request, int err, int times) {
@@ -350,7 +355,7 @@ void FakeV4l2Device::capture(Node& node, uint32_t index, int64_t time_us) {
     std::memset(dst, 0xEE, b.length);
     for (uint32_t y = 0; y < f.height; ++y)
       std::memcpy(dst + static_cast<size_t>(y) * f.bytesperline, m.data.data() + y * row, row);
-    b.bytesused = f.sizeimage;
+    b.bytesused = node.spec.raw_bytesused_zero ? 0 : f.sizeimage;
   }
   b.sequence = node.sequence++;
   b.timestamp.tv_sec = static_cast<time_t>(time_us / 1000000);
@@ -660,7 +665,7 @@ int FakeV4l2Device::doIoctl(Node& n, int fd, unsigned long request, void* arg) {
       if (n.bufs.empty()) return fail(EINVAL);
       if (n.streaming) return 0;
       n.streaming = true;
-      n.stalled = false;
+      n.stalled = n.wedged;
       if (n.spec.resets_exposure_at_streamon) n.exposure_time = kExposureDefault;
       n.stream_start_us = clock_.monotonicUs();
       n.frames_due = 0;
@@ -729,7 +734,7 @@ int FakeV4l2Device::poll(pollfd* fds, nfds_t nfds, int timeout_ms) {
         else if (!n->streaming || n->owner_fd != p.fd) p.revents = POLLERR;
         else if (!n->done.empty()) p.revents = static_cast<short>(p.events & (POLLIN | POLLRDNORM));
         else if (n->queued.empty()) p.revents = POLLERR;
-        else wake = std::min(wake, nextDueUs(*n));
+        else if (!n->stalled) wake = std::min(wake, nextDueUs(*n));  // (stalled: nothing until the deadline)
       }
       if (p.revents) ++ready;
     }

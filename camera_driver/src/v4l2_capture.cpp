@@ -637,6 +637,7 @@ void V4l2Capture::start() {
   }
   streaming_ = true;
   have_sequence_ = false;
+  raw_bytesused_set_ = false;
   // The manual exposure again once streaming: cameras such as the Logitech
   // C920 set their exposure time again at STREAMON, auto exposure off or not.
   if (exposure_ms_ > 0) setExposure(exposure_ms_);
@@ -659,10 +660,14 @@ size_t V4l2Capture::usedBytes(const v4l2_buffer& b) {
     }
     return used;
   }
-  if (used == 0) {  // (an empty buffer without the error flag: nothing new in it)
+  // (0: a driver that never sets bytesused for raw frames, which has its
+  // frames whole; once it has set it, an empty buffer is no frame)
+  if (used == 0 && raw_bytesused_set_) {
     ++stats_.truncated;
     return 0;
   }
+  if (used == 0) used = std::min<size_t>(buf.length, format_.sizeimage);
+  else raw_bytesused_set_ = true;
   const size_t need = bytes_per_pixel_ > 0
                           ? static_cast<size_t>(format_.bytesperline) * (format_.height - 1) +
                                 static_cast<size_t>(format_.width) * bytes_per_pixel_
@@ -708,7 +713,10 @@ bool V4l2Capture::grab(Frame& frame, int timeout_ms) {
     d.memory = V4L2_MEMORY_MMAP;
     if (xioctl(io_, fd_, VIDIOC_DQBUF, &d) < 0) {
       const int err = errno;
-      if (err == EAGAIN && !first) break;  // (drained)
+      // (drained; or an error with a frame in hand: that frame is handed
+      // out, and the next grab meets the error again)
+      if (got) break;
+      if (err == EAGAIN && !first) break;  // (only bad frames were waiting)
       if (err == EAGAIN) {
         // A wakeup with nothing to dequeue. With POLLERR that would repeat at
         // once forever: the device is in an error state.
@@ -724,15 +732,17 @@ bool V4l2Capture::grab(Frame& frame, int timeout_ms) {
                                     std::to_string(d.index) + " of " +
                                     std::to_string(buffers_.size()));
     buffers_[d.index].state = BufferState::Held;
+    // (every frame dequeued, good or not, counts for the driver's gaps: a
+    // frame cut short is no frame the driver dropped)
+    if (have_sequence_ && d.sequence > last_sequence_ + 1)
+      stats_.sequence_gaps += d.sequence - last_sequence_ - 1;
+    have_sequence_ = true;
+    last_sequence_ = d.sequence;
     const size_t good = usedBytes(d);
     if (good == 0) {  // (flagged or cut short: counted, and given back)
       queue(d.index);
       continue;
     }
-    if (have_sequence_ && d.sequence > last_sequence_ + 1)
-      stats_.sequence_gaps += d.sequence - last_sequence_ - 1;
-    have_sequence_ = true;
-    last_sequence_ = d.sequence;
     if (got) {
       queue(b.index);
       ++stats_.stale;
@@ -855,19 +865,27 @@ CaptureStats ReconnectingCapture::totals() const {
 
 int64_t ReconnectingCapture::stallLimitUs() const {
   const double fps = capture_.format().fps > 0 ? capture_.format().fps : 30.0;
-  return std::max<int64_t>(2000000, std::llround(10e6 / fps));
+  // (a long manual exposure lowers the rate the camera keeps)
+  return std::max<int64_t>({2000000, std::llround(10e6 / fps), std::llround(3e3 * capture_.format().exposure_ms)});
 }
 
 void ReconnectingCapture::lost(const std::string& why) {
   closed_ = totals();
   capture_.close();
   down_ = true;
+  // Lost again before a good frame came since the last reopening (a camera
+  // whose firmware stays stalled, or sends bad frames alone): the backoff
+  // goes on growing and nothing more is logged until a good frame comes.
+  const bool again = reopened_ && !good_since_open_;
   lost_at_us_ = clock_.monotonicUs();
-  backoff_.reset();
-  attempts_ = 0;
-  last_error_.clear();
+  if (!again) {
+    backoff_.reset();
+    attempts_ = 0;
+    last_error_.clear();
+  }
+  quiet_ = again;
   next_attempt_us_ = lost_at_us_ + backoff_.nextDelayUs();
-  if (log_)
+  if (log_ && !again)
     log_(why + "; reopening every " + fpsNumber(policy_.initial_s) + "-" +
          fpsNumber(policy_.max_s) + " s until it is back");
 }
@@ -898,7 +916,9 @@ bool ReconnectingCapture::tryReopen(int timeout_ms) {
   rebase_ = true;
   ++reconnects_;
   last_frame_us_ = clock_.monotonicUs();
-  if (log_) {
+  reopened_ = true;
+  good_since_open_ = false;
+  if (log_ && !quiet_) {
     char secs[32];
     std::snprintf(secs, sizeof secs, "%.1f", (clock_.monotonicUs() - lost_at_us_) / 1e6);
     log_(device_ + ": reopened after " + std::to_string(attempts_) + " attempt" +
@@ -915,7 +935,11 @@ bool ReconnectingCapture::grab(Frame& frame, int timeout_ms) {
       if (quiet > stallLimitUs()) {
         char secs[32];
         std::snprintf(secs, sizeof secs, "%.1f", quiet / 1e6);
-        lost(device_ + ": no frame for " + secs + " s while streaming (the camera stalled)");
+        const CaptureStats now = totals();
+        const int64_t bad = now.errored + now.truncated - bad_at_good_;
+        lost(device_ + ": no good frame for " + secs + " s while streaming (" +
+             (bad > 0 ? std::to_string(bad) + " flagged bad or cut short" : std::string("the camera stalled")) +
+             ")");
       }
       return false;
     }
@@ -925,6 +949,12 @@ bool ReconnectingCapture::grab(Frame& frame, int timeout_ms) {
     return false;
   }
   last_frame_us_ = clock_.monotonicUs();
+  good_since_open_ = true;
+  quiet_ = false;
+  {
+    const CaptureStats now = totals();
+    bad_at_good_ = now.errored + now.truncated;
+  }
   if (rebase_) {
     seq_base_ = next_seq_ - frame.sequence;
     rebase_ = false;

@@ -103,6 +103,8 @@ struct FakeCameraSpec {
   /// Every n-th MJPEG frame comes cut to half its bytes, without the error
   /// flag (uvcvideo checks the size of raw frames alone); 0: never.
   int mjpeg_cut_every = 0;
+  /// Leaves bytesused 0 on raw frames, as some capture cards' drivers do.
+  bool raw_bytesused_zero = false;
 
   /// A webcam offering YUYV 640x480 (30, 15 fps), 320x240 (30, 15 fps),
   /// 1280x720 (10 fps); MJPEG 1280x720, 640x480, 320x240 (30, 15 fps);
@@ -137,8 +139,9 @@ class FakeV4l2Device final : public V4l2Io {
   /// now), and plugs it back `replug_after_us` later (never when negative).
   void scheduleUnplug(const std::string& path, int64_t after_frames, int64_t replug_after_us);
   /// The node stops delivering frames while it stays streaming (a UVC
-  /// camera's firmware or USB stalls), until its next STREAMON.
-  void stall(const std::string& path = "/dev/video0");
+  /// camera's firmware or USB stalls), until its next STREAMON, or for good
+  /// when `wedged` (until replugged).
+  void stall(const std::string& path = "/dev/video0", bool wedged = false);
   /// The next `times` calls of `request` (on any node) fail with `err`.
   void failIoctl(unsigned long request, int err, int times = 1);
   /// open() of `path` fails with `err` (EACCES, EBUSY...) until set to 0.

@@ -253,6 +253,7 @@ class V4l2Capture {
   bool streaming_ = false;
   bool compressed_ = false;
   double exposure_ms_ = 0;  // the manual exposure asked for, set at each start()
+  bool raw_bytesused_set_ = false;  // the driver set bytesused of a raw frame since STREAMON
   uint32_t bytes_per_pixel_ = 0;  // 0: compressed or unknown
   std::string device_;
   CaptureFormat format_;
@@ -290,9 +291,11 @@ class Backoff {
 /// V4l2Capture plus ld-camera's policy: errors opening the device at start()
 /// are fatal (thrown); losing it later is not: grab() reports it once
 /// through `log`, closes, and reopens with backoff until the device is back,
-/// then logs once more. A stream that stops delivering frames while the
-/// device stays (a UVC camera's firmware or USB stalls) is lost too: no good
-/// frame for max(2 s, 10 frame intervals) closes and reopens it. grab()
+/// then logs once more. A stream that stops delivering good frames while
+/// the device stays (a UVC camera's firmware or USB stalls, or every frame
+/// flagged bad) is lost too: no good frame for max(2 s, 10 frame intervals,
+/// 3 exposures) closes and reopens it; lost so again before a good frame
+/// came, the backoff grows on and nothing more is logged. grab()
 /// never blocks longer than its timeout, so the caller can check for a stop
 /// request between calls.
 class ReconnectingCapture {
@@ -342,6 +345,10 @@ class ReconnectingCapture {
   int64_t seq_base_ = 0, next_seq_ = 0;
   int64_t last_frame_us_ = 0;  // the last good frame (or the stream's start)
   CaptureStats closed_;        // the counts of the captures closed so far
+  bool reopened_ = false;        // reopened at least once
+  bool good_since_open_ = false; // a good frame since the last (re)open
+  bool quiet_ = false;           // lost again without a good frame: not logged
+  int64_t bad_at_good_ = 0;      // flagged + cut short at the last good frame
 };
 
 }  // namespace ld
