@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 
@@ -858,18 +859,27 @@ TEST(Quirks, ExposureResetAtStreamonIsSetAgain) {
   expectNoLeaks(dev);
 }
 
-// A stream that stops while the device stays (firmware, USB): no frame for
-// 2 s is a lost stream, reopened as an unplugged device is.
-TEST(Quirks, AStalledStreamIsReopened) {
+// A stream that stops while the device stays (firmware, USB), against a
+// reconnecting capture that has handed out its first frame; what it logs is
+// kept.
+struct Stall : ::testing::Test {
   ld::FakeClock clock;
-  ld::FakeV4l2Device dev(clock);
+  ld::FakeV4l2Device dev{clock};
   std::vector<std::string> log;
-  ld::ReconnectingCapture rc(dev, clock, "/dev/video0", request(V4L2_PIX_FMT_YUYV, 640, 480), {},
-                             [&](const std::string& s) { log.push_back(s); });
-  rc.start();
-  EXPECT_EQ(rc.stallLimitUs(), 2000000);  // (10 frames at 30 fps are less)
+  ld::ReconnectingCapture rc{dev, clock, "/dev/video0", request(V4L2_PIX_FMT_YUYV, 640, 480), {},
+                             [this](const std::string& s) { log.push_back(s); }};
   ld::Frame f;
-  for (int i = 0; i < 3; ++i) {
+  void SetUp() override {
+    rc.start();
+    ASSERT_TRUE(rc.grab(f, 1000));
+    rc.requeue(f);
+  }
+};
+
+// No good frame for 2 s is a lost stream, reopened as an unplugged device is.
+TEST_F(Stall, AStalledStreamIsReopened) {
+  EXPECT_EQ(rc.stallLimitUs(), 2000000);  // (10 frames at 30 fps are less)
+  for (int i = 0; i < 2; ++i) {
     ASSERT_TRUE(rc.grab(f, 1000));
     rc.requeue(f);
   }
@@ -897,16 +907,7 @@ TEST(Quirks, AStalledStreamIsReopened) {
 
 // A camera that stalls again right after each reopening (its firmware
 // stays wedged): reopened with a growing backoff, said once, not every 2 s.
-TEST(Quirks, AStreamThatStaysStalledIsReopenedQuietlyWithBackoff) {
-  ld::FakeClock clock;
-  ld::FakeV4l2Device dev(clock);
-  std::vector<std::string> log;
-  ld::ReconnectingCapture rc(dev, clock, "/dev/video0", request(V4L2_PIX_FMT_YUYV, 640, 480), {},
-                             [&](const std::string& s) { log.push_back(s); });
-  rc.start();
-  ld::Frame f;
-  ASSERT_TRUE(rc.grab(f, 1000));
-  rc.requeue(f);
+TEST_F(Stall, AStreamThatStaysStalledIsReopenedQuietlyWithBackoff) {
   dev.stall("/dev/video0", true);
   std::vector<int64_t> reopened_at;  // when each reopening happened
   int reconnects = 0;
@@ -924,6 +925,23 @@ TEST(Quirks, AStreamThatStaysStalledIsReopenedQuietlyWithBackoff) {
   ASSERT_EQ(log.size(), 2u);  // lost, reopened; then nothing until a good frame
   rc.stop();
   expectNoLeaks(dev);
+}
+
+// Firmware that refuses a control answers EIO (uvcvideo), older kernels
+// EILSEQ: the control is refused, the device is not lost.
+TEST(Quirks, ExposureRefusedByTheFirmwareIsNotALostDevice) {
+  for (const int err : {EIO, EILSEQ}) {
+    ld::FakeClock clock;
+    ld::FakeV4l2Device dev(clock);
+    ld::V4l2Capture cap(dev, clock);
+    auto r = request(V4L2_PIX_FMT_YUYV, 640, 480);
+    r.exposure_ms = 5;
+    dev.failIoctl(VIDIOC_S_CTRL, err);
+    EXPECT_EQ(captureError([&] { cap.open("/dev/video0", r); }, Kind::ControlRefused),
+              "/dev/video0 (Fake UVC Camera) refused to turn its automatic exposure off (" +
+                  std::string(std::strerror(err)) + "): run without the exposure");
+    expectNoLeaks(dev);
+  }
 }
 
 // A driver that never sets bytesused for its raw frames (some capture
