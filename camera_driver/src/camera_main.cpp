@@ -221,27 +221,29 @@ int main(int argc, char** argv) {
     }
     const auto now = std::chrono::steady_clock::now();
     if (verbose && now - last_status > std::chrono::seconds(5)) {
+      const ld::CaptureStats t = capture.totals();
       const double s = std::chrono::duration<double>(now - last_status).count();
       std::fprintf(stderr,
                    "ld-camera: %.1f frames/s, %lld published, %lld skipped to stay current, %lld dropped by "
                    "the driver, %lld flagged bad, %lld cut short, %lld bad, %d reconnects%s\n",
                    (published - last_published) / s, static_cast<long long>(published),
-                   static_cast<long long>(capture.totals().stale),
-                   static_cast<long long>(capture.totals().sequence_gaps),
-                   static_cast<long long>(capture.totals().errored),
-                   static_cast<long long>(capture.totals().truncated), static_cast<long long>(bad),
+                   static_cast<long long>(t.stale),
+                   static_cast<long long>(t.sequence_gaps),
+                   static_cast<long long>(t.errored),
+                   static_cast<long long>(t.truncated), static_cast<long long>(bad),
                    capture.reconnects(), capture.connected() ? "" : " (device away)");
       last_published = published;
       last_status = now;
     }
   }
   capture.stop();
+  const ld::CaptureStats t = capture.totals();
   std::fprintf(stderr,
                "ld-camera: stopped after %lld frames (%lld skipped to stay current, %lld dropped by the driver, "
                "%lld flagged bad, %lld cut short, %lld bad, %d reconnects)\n",
-               static_cast<long long>(published), static_cast<long long>(capture.totals().stale),
-               static_cast<long long>(capture.totals().sequence_gaps),
-               static_cast<long long>(capture.totals().errored), static_cast<long long>(capture.totals().truncated),
+               static_cast<long long>(published), static_cast<long long>(t.stale),
+               static_cast<long long>(t.sequence_gaps),
+               static_cast<long long>(t.errored), static_cast<long long>(t.truncated),
                static_cast<long long>(bad), capture.reconnects());
   return 0;
 }

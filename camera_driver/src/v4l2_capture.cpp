@@ -852,14 +852,7 @@ const CaptureFormat& ReconnectingCapture::start() {
 
 CaptureStats ReconnectingCapture::totals() const {
   CaptureStats t = closed_;
-  if (!capture_.isOpen()) return t;  // (a closed capture's counts are in closed_)
-  const CaptureStats& now = capture_.stats();
-  t.frames += now.frames;
-  t.spurious += now.spurious;
-  t.errored += now.errored;
-  t.truncated += now.truncated;
-  t.sequence_gaps += now.sequence_gaps;
-  t.stale += now.stale;
+  if (capture_.isOpen()) t += capture_.stats();  // (a closed capture's counts are in closed_)
   return t;
 }
 

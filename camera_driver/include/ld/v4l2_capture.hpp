@@ -193,6 +193,16 @@ struct CaptureStats {
   int64_t truncated = 0;       ///< raw frames shorter than a full image (skipped)
   int64_t sequence_gaps = 0;   ///< frames the driver dropped (jumps in `sequence`)
   int64_t stale = 0;           ///< good frames given back unseen: a newer one was waiting
+
+  CaptureStats& operator+=(const CaptureStats& o) {
+    frames += o.frames;
+    spurious += o.spurious;
+    errored += o.errored;
+    truncated += o.truncated;
+    sequence_gaps += o.sequence_gaps;
+    stale += o.stale;
+    return *this;
+  }
 };
 
 class V4l2Capture {
