@@ -218,6 +218,17 @@ TEST(ImageLimits, MjpegFrameSizeIsCheckedBeforeDecoding) {
   says_other.height = 480;
   EXPECT_NE(ld::test::imageError(says_other).find("MJPEG data is 8x6 but the message says 640x480"),
             std::string::npos);
+  // a size given by half, or negative, is not the JPEG's either (only 0x0
+  // says the sender does not know it)
+  ld::image_t half = mjpegClaiming(8, 6, false);
+  half.width = 8;
+  EXPECT_NE(ld::test::imageError(half).find("MJPEG data is 8x6 but the message says 8x0"), std::string::npos)
+      << ld::test::imageError(half);
+  ld::image_t negative = mjpegClaiming(8, 6, false);
+  negative.width = -8;
+  negative.height = -6;
+  EXPECT_NE(ld::test::imageError(negative).find("but the message says -8x-6"), std::string::npos)
+      << ld::test::imageError(negative);
   ld::image_t not_jpeg = mjpegClaiming(8, 6, false);
   not_jpeg.data[0] = 0x89;
   EXPECT_NE(ld::test::imageError(not_jpeg).find("not a JPEG stream"), std::string::npos);

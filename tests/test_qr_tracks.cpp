@@ -126,6 +126,43 @@ TEST(QrTrackBook, ReadTrackThatJumpsIsReadAgain) {
   EXPECT_EQ(book.payload(1)->payload, "room-103");
 }
 
+// A read track seen coasting and then detected again 1.4 sizes from where its
+// motion leads is another landmark, however long it coasted: the tracker's
+// gate let a neighbour in (an audit: a landmark left the image as the next
+// came in, the tracker gave the newcomer its id, and with the allowance of
+// a size per frame over the 21 frames coasted the first one's payload stayed
+// on it for 5 s). Frames the reader skipped, the track detected in them,
+// still allow a size each.
+TEST(QrTrackBook, ReadTrackFoundAgainAfterCoastingIsCheckedByItsSize) {
+  for (bool seen_coasting : {true, false}) {
+    ld::QrTrackBook book;
+    book.schedule({1}, 0);
+    book.record(1, 0, 0, std::string("E1"));
+    for (int k = 0; k < 5; ++k) EXPECT_EQ(book.follow(1, k, true, 300 - 10 * k, 200, 100), std::nullopt);
+    // (at 260, moving 10 px a frame to the left)
+    for (int k = 5; k < 26 && seen_coasting; ++k)
+      EXPECT_EQ(book.follow(1, k, false, 300 - 10 * k, 200, 100), std::nullopt);
+    // where its motion leads at frame 26: 40; detected 140 px from there
+    const auto forgotten = book.follow(1, 26, true, 180, 200, 100);
+    if (seen_coasting) {
+      EXPECT_EQ(forgotten, std::optional<std::string>("E1"));
+      EXPECT_EQ(book.payload(1), nullptr);
+    } else {
+      EXPECT_EQ(forgotten, std::nullopt);
+      ASSERT_NE(book.payload(1), nullptr);
+    }
+  }
+  // found again where its motion leads after coasting: the same landmark
+  ld::QrTrackBook book;
+  book.schedule({1}, 0);
+  book.record(1, 0, 0, std::string("E1"));
+  for (int k = 0; k < 5; ++k) book.follow(1, k, true, 300 - 10 * k, 200, 100);
+  for (int k = 5; k < 26; ++k) book.follow(1, k, false, 300 - 10 * k, 200, 100);
+  EXPECT_EQ(book.follow(1, 26, true, 60, 200, 100), std::nullopt);
+  ASSERT_NE(book.payload(1), nullptr);
+  EXPECT_EQ(book.payload(1)->payload, "E1");
+}
+
 // The first decode of a frame always runs; later ones while the budget lasts.
 TEST(DecodeBudget, FirstAlwaysThenWhileTheBudgetLasts) {
   using ms = std::chrono::milliseconds;

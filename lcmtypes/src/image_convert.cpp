@@ -138,7 +138,9 @@ void checkMjpeg(const image_t& msg) {
   const cv::Size frame = headers.frame;
   if (frame.width <= 0 || frame.height <= 0)
     fail("MJPEG data is not a JPEG stream with a frame size");
-  if (msg.width > 0 && msg.height > 0 && (frame.width != msg.width || frame.height != msg.height))
+  // 0x0: a sender that does not know the size (the JPEG's own is taken);
+  // any other size must be the JPEG's
+  if ((msg.width != 0 || msg.height != 0) && (frame.width != msg.width || frame.height != msg.height))
     fail("MJPEG data is " + std::to_string(frame.width) + "x" + std::to_string(frame.height) +
          " but the message says " + std::to_string(msg.width) + "x" +
          std::to_string(msg.height));
@@ -246,7 +248,7 @@ void decodeMjpeg(const image_t& msg, cv::Mat& out) {
   checkMjpeg(msg);
   const std::string problem = decodeJpeg(msg.data.data(), msg.data.size(), out, false, kMaxMjpegPixels);
   if (!problem.empty()) fail("MJPEG data " + problem);
-  if (msg.width > 0 && msg.height > 0 && (out.cols != msg.width || out.rows != msg.height))
+  if ((msg.width != 0 || msg.height != 0) && (out.cols != msg.width || out.rows != msg.height))
     fail("MJPEG data is " + std::to_string(out.cols) + "x" + std::to_string(out.rows) +
          " but the message says " + std::to_string(msg.width) + "x" +
          std::to_string(msg.height));

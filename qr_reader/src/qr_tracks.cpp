@@ -127,14 +127,19 @@ std::vector<int64_t> QrTrackBook::schedule(const std::vector<int64_t>& track_ids
 std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bool visible, double cx, double cy,
                                                double size) {
   const auto it = tracks_.find(track_id);
-  if (!visible || it == tracks_.end() || !std::isfinite(cx) || !std::isfinite(cy) || !(size > 0) ||
-      !std::isfinite(size))
-    return std::nullopt;
+  if (it == tracks_.end()) return std::nullopt;
   Track& t = it->second;
+  if (!visible) {  // (its place is the tracker's guess; that it coasts is news)
+    if (t.placed && age > t.age) t.coasted = true;
+    return std::nullopt;
+  }
+  if (!std::isfinite(cx) || !std::isfinite(cy) || !(size > 0) || !std::isfinite(size)) return std::nullopt;
   if (t.placed && age <= t.age) return std::nullopt;  // (an older frame, matched late: no news)
   const double frames = t.placed ? static_cast<double>(age) - t.age : 1.0;
   const double off = std::hypot(cx - (t.cx + t.vx * frames), cy - (t.cy + t.vy * frames));
-  const bool jumped = t.placed && t.known && off > frames * 0.5 * (size + t.size);
+  const double allowed = (t.coasted ? 1.0 : frames) * 0.5 * (size + t.size);
+  const bool jumped = t.placed && t.known && off > allowed;
+  t.coasted = false;
   if (t.placed && !jumped) {
     t.vx = (cx - t.cx) / frames;
     t.vy = (cy - t.cy) / frames;

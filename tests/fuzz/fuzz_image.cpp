@@ -6,7 +6,8 @@
 //    and then the pixel bytes, so that every pixel format gets messages that
 //    are consistent, nearly consistent (truncated, short strides, odd widths,
 //    negative sizes) and, for MJPEG, any bytes as the JPEG stream.
-// Decoding may only succeed with an image of the size the message says or
+// Decoding may only succeed with an image of the size the message says (an
+// MJPEG message of 0x0: the JPEG's own), or
 // throw ld::ImageFormatError; anything else (another exception, a crash, a
 // sanitizer report, gigabytes allocated) is a finding.
 #include <cstdint>
@@ -56,7 +57,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
     ld::imageToBgr(msg, bgr);
     if (bgr.type() != CV_8UC3 || bgr.empty()) std::abort();
-    if (msg.width > 0 && msg.height > 0 && (bgr.cols != msg.width || bgr.rows != msg.height))
+    // only an MJPEG message may leave its size out (0x0)
+    if ((msg.width != 0 || msg.height != 0) && (bgr.cols != msg.width || bgr.rows != msg.height))
       std::abort();
   } catch (const ld::ImageFormatError&) {
   }

@@ -155,7 +155,7 @@ int main(int argc, char** argv) {
                   << ": lifetimes count time from it, so tracks unseen do not expire while it stands still "
                      "(does the publisher stamp its frames?)\n";
       ld::landmarksFromList(in, detections);
-      const auto& tracks = tracker.update(detections, in.utime);
+      const auto& tracks = tracker.update(detections, in.utime, cv::Size(in.width, in.height));
       const double ms =
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       // (landmarks with positions that are not numbers, or under a pixel:

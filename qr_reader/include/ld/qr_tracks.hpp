@@ -120,8 +120,12 @@ class QrTrackBook {
   /// than its size per tracker frame is another landmark now (the tracker
   /// moved the id over: a landmark vanished and a neighbour took its id): its
   /// payload is forgotten and it is read again at once; the payload
-  /// forgotten is returned. Tracks the book does not know yet (never
-  /// scheduled) are left alone.
+  /// forgotten is returned. Once it has been seen coasting, it is detected
+  /// again within its size of where its motion leads, however many frames it
+  /// coasted: the tracker found it again by a gate, which a neighbour can
+  /// be in (the allowance growing with the frames, a neighbour coming in as
+  /// it left kept its payload for seconds). Tracks the book does not know
+  /// yet (never scheduled) are left alone.
   std::optional<std::string> follow(int64_t track_id, int32_t age, bool visible, double cx, double cy,
                                     double size);
 
@@ -144,6 +148,7 @@ class QrTrackBook {
     int64_t last_try = INT64_MIN;
     int64_t last_seen = 0;
     bool placed = false;  // where it was last detected (follow)
+    bool coasted = false;  // seen coasting since
     double cx = 0, cy = 0, size = 0, vx = 0, vy = 0;  // (velocity in px per tracker frame)
     int32_t age = 0;
   };

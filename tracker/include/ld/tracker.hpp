@@ -139,7 +139,15 @@ class Tracker {
   /// back) clears the pool first, ids still never reused. Detections with
   /// non-finite coordinates or a size under one pixel are ignored. The
   /// returned reference stays valid until the next call.
-  const std::vector<Track>& update(const std::vector<Landmark>& detections, int64_t utime);
+  ///
+  /// `image`, the frame's size when known: a pool landmark predicted to have
+  /// left the image (a corner of its pattern square past a side) is only
+  /// paired with a detection in that side's half of the image: it comes back
+  /// through the side it left by (large landmarks: as one left through one
+  /// side, the next came in through the other within its gate and took its
+  /// id).
+  const std::vector<Track>& update(const std::vector<Landmark>& detections, int64_t utime,
+                                   cv::Size image = {});
   /// How much older than the previous frame a frame may be and still be a
   /// late message rather than time starting again (three frames at 30/s).
   static constexpr int64_t kLateFrameUs = 100'000;
@@ -176,7 +184,10 @@ class Tracker {
   };
 
   void predict(int64_t utime);
-  void assign(int64_t utime);
+  void assign(int64_t utime, cv::Size image);
+  // Whether detection j may be pool landmark `e`: not when `e` is predicted
+  // to have left the image and j is in the other half of it.
+  bool backThroughItsSide(const PoolEntry& e, size_t j, cv::Size image) const;
   // How far inside its gate valid detection j is from a pool landmark at
   // (centre, size), in pixels: the gate's radius (max_dist sizes, the pair's
   // mean size) less their distance, and the same inside the plain gate
@@ -198,6 +209,7 @@ class Tracker {
   std::vector<double> det_size_;
   std::vector<int> det_index_;      // valid detections' indices into the input
   std::vector<char> det_matched_;
+  std::vector<size_t> det_nearest_entry_;  // the pool landmark nearest each detection
   std::vector<double> common_vx_, common_vy_;
   std::vector<double> gain_, cost_;
   std::vector<int> row_to_col_;
