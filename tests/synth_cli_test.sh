@@ -106,6 +106,8 @@ refused "--format uyvy needs an even width, and the frames are 641 px wide" sequ
 [ ! -e "$T/odd" ] || fail "odd width: $(ls "$T/odd")"
 refused "--log $T/own/truth.jsonl is a file this run writes in --out $T/own" sequence --out "$T/own" --log "$T/own/truth.jsonl" -n 2
 refused "--log $T/own/000001.png is a file this run writes in --out $T/own" sequence --out "$T/own" --log "$T/own/000001.png" -n 2
+# (a folder named with a trailing slash, not there yet, was not its own name)
+refused "--log $T/own2/truth.jsonl is a file this run writes in --out $T/own2/" sequence --out "$T/own2/" --log "$T/own2/truth.jsonl" -n 2
 # The whole range of --landmarks (91 to 100 failed in OpenCV's remap: the wall's texture was too wide).
 "$BIN/ld-synth" sequence --out "$T/k100" -n 1 -k 100 --no-png >/dev/null || fail "-k 100: exit $?"
 echo "ld-synth command line: ok"

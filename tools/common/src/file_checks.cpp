@@ -158,8 +158,12 @@ std::string prepareJsonOutputFile(const std::string& path) {
 
 std::filesystem::path resolvedPath(const std::string& path) {
   std::error_code ec;
-  const std::filesystem::path p = std::filesystem::weakly_canonical(std::filesystem::absolute(path, ec), ec);
-  return ec || p.empty() ? std::filesystem::path(path).lexically_normal() : p;
+  std::filesystem::path p = std::filesystem::weakly_canonical(std::filesystem::absolute(path, ec), ec);
+  if (ec || p.empty()) p = std::filesystem::path(path).lexically_normal();
+  // (a folder named with a trailing slash that does not exist yet kept it:
+  // "out/" was not "out", and a file named in it seemed elsewhere)
+  if (!p.has_filename() && p.has_relative_path()) p = p.parent_path();
+  return p;
 }
 
 bool sameFile(const std::string& a, const std::string& b) {
