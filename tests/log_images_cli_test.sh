@@ -53,6 +53,7 @@ refused 1 "$T/e.lcmlog" "no frame could be read from $T/bad; $T/e.lcmlog not wri
 refused 2 "$T/g.lcmlog" "ld-log-images: --fps: must be in \[0.1, 1000\], not 0" "$T/f" --fps 0
 refused 2 "$T/h.lcmlog" "ld-log-images: --start-utime: must be >= 0, not -5" "$T/f" --start-utime -5
 refused 2 "$T/i.lcmlog" "ld-log-images: --channel: an empty channel name" "$T/f" --channel ""
+refused 2 "$T/j.lcmlog" "^ld-log-images: --format: unknown pixel format 'foo' (expected .*) (--help lists the options)$" "$T/f" --format foo
 refused 2 /proc/j.lcmlog "ld-log-images: /proc/j.lcmlog cannot write in folder /proc: files cannot be created there" \
   "$T/f/000001.png"
 # The output is never an input image, nor any other file that is not a log

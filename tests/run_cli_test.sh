@@ -211,7 +211,8 @@ rc=0; "$BIN/ld-play" "$T/in.lcmlog" --frames 3 --duration 2 2>"$T/err" || rc=$?
 # so long that its frame count wraps (1e19 s published nothing), no negative seq
 for args in "--frames 0|--frames: must be in [1, 1e+12], not 0" "--duration 0|--duration: must be > 0, not 0" \
             "--duration 1e19|--duration 1e+19 at --fps 30 is over 1e12 frames" \
-            "--first-seq -5|--first-seq: must be >= 0, not -5"; do
+            "--first-seq -5|--first-seq: must be >= 0, not -5" \
+            "--format foo|--format: unknown pixel format 'foo' (expected GRAY, RGB, BGR, RGBA, BGRA, YUYV, UYVY or MJPEG) (--help lists the options)"; do
   rc=0; "$BIN/ld-play" "$T/in.lcmlog" --lcm-url memq:// ${args%%|*} 2>"$T/err" || rc=$?
   [ $rc -eq 2 ] && grep -qF -- "ld-play: ${args#*|}" "$T/err" || fail "ld-play ${args%%|*}: $rc $(cat "$T/err")"
 done

@@ -30,6 +30,8 @@ PY
 # parameters named by their option, and channels that would feed a process
 # its own output (LCM reads --in as a pattern) or are empty.
 for args in "ld-tracker --max-lifetime 0|--max-lifetime: must be > 0, not 0" \
+            "ld-tracker --max-distance 0|--max-distance: must be in (0, 1000], not 0" \
+            "ld-tracker --max-distance 1001|--max-distance: must be in (0, 1000], not 1001" \
             "ld-tracker --min-hits 2147483648|--min-hits: must be in [1, 1000], not 2147483648" \
             "ld-tracker --max-size-ratio 0.5|--max-size-ratio: must be in [1, 1000], not 0.5" \
             "ld-tracker --min-hits 1.5|--min-hits: '1.5' is not a value it takes (a number of its kind" \

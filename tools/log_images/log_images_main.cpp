@@ -43,8 +43,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--start-utime", start_utime, "utime of the first frame, microseconds since 1970 (default: now)")
       ->check(ld::cli::NonNegative);
-  app.add_option("--format", format, "pixel format: gray, rgb, bgr, yuyv, uyvy, mjpeg")
-      ->capture_default_str();
+  app.add_option("--format", format, "pixel format: gray, rgb, bgr, rgba, bgra, yuyv, uyvy, mjpeg")
+      ->capture_default_str()->check(ld::cli::Parses("FORMAT", ld::pixelFormatFromName));
   app.add_option("--quality", quality, "JPEG quality for mjpeg")->check(ld::cli::Between(1, 100))
       ->capture_default_str();
   app.add_option("--channel", channel, "channel name")->capture_default_str();
@@ -52,13 +52,7 @@ int main(int argc, char** argv) {
   if (channel.empty()) return ld::cli::usage(argv[0], "--channel: an empty channel name");
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);  // our own one-line errors
 
-  int32_t pixelformat = 0;
-  try {
-    pixelformat = ld::pixelFormatFromName(format);
-  } catch (const std::exception& e) {
-    std::cerr << "ld-log-images: " << e.what() << "\n";
-    return 2;
-  }
+  const int32_t pixelformat = ld::pixelFormatFromName(format);  // (checked by the option)
   if (start_utime == 0)
     start_utime = std::chrono::duration_cast<std::chrono::microseconds>(
                       std::chrono::system_clock::now().time_since_epoch()).count();

@@ -80,8 +80,7 @@ int main(int argc, char** argv) {
                      ->check(ld::cli::Positive);
   auto* o_dist = app.add_option("--max-distance", cli.max_distance,
                                 "largest match distance, in landmark sizes (default 2; up to 1000)")
-                     ->check(ld::cli::Positive)
-                     ->check(ld::cli::Between(0, 1000));
+                     ->check(ld::cli::PositiveUpTo(1000));
   auto* o_ratio = app.add_option("--max-size-ratio", cli.max_size_ratio,
                                  "largest size ratio of a match (default 1.5)")
                       ->check(ld::cli::Between(1, 1000));

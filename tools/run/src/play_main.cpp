@@ -59,8 +59,11 @@ int main(int argc, char** argv) {
   app.add_option("--duration", duration, "seconds to publish, looping the log (default: the log once)")
       ->check(ld::cli::Positive)
       ->excludes(frames_opt);
-  app.add_option("--format", format, "keep, or convert to bgr, rgb, gray, yuyv, uyvy, mjpeg")
-      ->capture_default_str();
+  app.add_option("--format", format, "keep, or convert to bgr, rgb, rgba, bgra, gray, yuyv, uyvy, mjpeg")
+      ->capture_default_str()
+      ->check(ld::cli::Parses("FORMAT", [](const std::string& f) {
+        if (f != "keep") (void)ld::pixelFormatFromName(f);
+      }));
   app.add_option("--quality", quality, "JPEG quality for mjpeg")->capture_default_str()->check(ld::cli::Between(1, 100));
   app.add_option("--first-seq", first_seq, "sequence number of the first frame (0 or more)")
       ->capture_default_str()
@@ -78,15 +81,7 @@ int main(int argc, char** argv) {
     return ld::cli::usage(argv[0], m.str());
   }
 
-  int32_t pixelformat = -1;
-  if (format != "keep") {
-    try {
-      pixelformat = ld::pixelFormatFromName(format);
-    } catch (const std::exception& e) {
-      std::cerr << "ld-play: --format: " << e.what() << "\n";
-      return 2;
-    }
-  }
+  const int32_t pixelformat = format == "keep" ? -1 : ld::pixelFormatFromName(format);  // (checked by the option)
   // (a duration under half a frame is still a frame, not the log once)
   if (frames == 0 && duration > 0) frames = std::max<int64_t>(1, std::llround(duration * fps));
   // The frames are read and converted before the first is published, so that

@@ -141,6 +141,15 @@ inline CLI::Validator Between(double lo, double hi) {
   return detail::numberCheck(name.str(), [lo, hi](double v) { return v >= lo && v <= hi; }, rule.str());
 }
 
+/// A number in (0, hi] ("must be in (0, 1000], not 0").
+inline CLI::Validator PositiveUpTo(double hi) {
+  std::ostringstream rule;
+  rule << "must be in (0, " << hi << "]";
+  std::ostringstream name;
+  name << "(0 - " << hi << "]";
+  return detail::numberCheck(name.str(), [hi](double v) { return v > 0 && v <= hi; }, rule.str());
+}
+
 /// A random seed: a whole number from 0 to 2^64-1, as written (CLI11 takes
 /// "-1" into a uint64_t as 2^64-1 and 2^64 as the same, without a word).
 inline const CLI::Validator Seed(
