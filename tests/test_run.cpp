@@ -241,6 +241,7 @@ TEST(BusMonitor, MatchesFramesByUtimeAndSeqAndSummarises) {
   EXPECT_EQ(s["frames"]["matched"], 2);
   EXPECT_EQ(s["frames"]["unmatched_images"], 1);
   EXPECT_EQ(s["frames"]["tracker_skipped"], 1);
+  EXPECT_EQ(s["frames"]["qr_reader_skipped"], 2);  // (3 tracked frames, 1 codes message)
   EXPECT_EQ(s["latency_ms"]["count"], 2);
   EXPECT_EQ(s["latency_ms"]["from"], "arrival");  // (utimes 9 s before: a replay's)
   EXPECT_DOUBLE_EQ(s["latency_ms"]["p50"].get<double>(), 2.0);
@@ -256,6 +257,42 @@ TEST(BusMonitor, MatchesFramesByUtimeAndSeqAndSummarises) {
   EXPECT_TRUE(s["tracks"][1]["payload"].is_null());
   EXPECT_EQ(s["tracks"][1]["frames_coasting"], 1);
   EXPECT_EQ(s["payloads_decoded"], 1);
+}
+
+// One id that carried two landmarks' payloads (the tracker gave it to
+// another landmark, whose code was read too) lists both, each from the
+// frame it came from; the summary showed the last over the whole track (an
+// audit). Before any codes message, the QR reader's skips are not known.
+TEST(BusMonitor, TrackWithTwoPayloadsListsBoth) {
+  ld::BusMonitor m;
+  for (int i = 0; i < 10; ++i) m.trackedSeen(list(1000 + i, i, {trackedLandmark(2, true)}), 1000 + i);
+  EXPECT_TRUE(m.summary()["frames"]["qr_reader_skipped"].is_null());
+  ld::qr_code_list_t codes{};
+  ld::qr_code_t c{};
+  c.track_id = 2;
+  c.payload = "E1";
+  c.seq = 1;
+  c.utime = 1001;
+  codes.codes = {c};
+  codes.ncodes = 1;
+  m.codesSeen(codes, 1011);
+  m.trackedSeen(list(1011, 11, {trackedLandmark(2, true, "E1")}), 1011);
+  c.payload = "E3";
+  c.seq = 12;
+  codes.codes = {c};
+  m.codesSeen(codes, 1013);
+  m.trackedSeen(list(1013, 13, {trackedLandmark(2, true, "E3")}), 1013);
+  const auto s = m.summary();
+  ASSERT_EQ(s["tracks"].size(), 1u);
+  const auto& t = s["tracks"][0];
+  EXPECT_EQ(t["payload"], "E3");
+  EXPECT_EQ(t["payload_changes"], 1);
+  ASSERT_EQ(t["payloads"].size(), 2u);
+  EXPECT_EQ(t["payloads"][0]["payload"], "E1");
+  EXPECT_EQ(t["payloads"][0]["from_seq"], 1);
+  EXPECT_EQ(t["payloads"][1]["payload"], "E3");
+  EXPECT_EQ(t["payloads"][1]["from_seq"], 12);
+  EXPECT_EQ(s["frames"]["qr_reader_skipped"], 10);  // 12 tracked, 2 codes messages
 }
 
 // An image whose utime is a time of the last second (ld-camera's capture

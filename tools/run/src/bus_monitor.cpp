@@ -35,6 +35,12 @@ bool readI64(const uint8_t* d, size_t size, size_t& off, int64_t& v) {
 
 double round3(double v) { return std::round(v * 1000.0) / 1000.0; }
 
+nlohmann::ordered_json payloadsJson(const std::vector<std::pair<std::string, int64_t>>& payloads) {
+  auto a = nlohmann::ordered_json::array();
+  for (const auto& [payload, seq] : payloads) a.push_back({{"payload", payload}, {"from_seq", seq}});
+  return a;
+}
+
 double rate(int64_t n, int64_t a_us, int64_t b_us) {
   const double s = static_cast<double>(b_us - a_us) * 1e-6;
   return n > 1 && s > 0 ? (static_cast<double>(n) - 1) / s : 0;
@@ -205,15 +211,18 @@ void BusMonitor::trackedSeen(const landmark_list_t& list, Micros rx_us) {
     } else {
       ++t->second.frames_coasting;
     }
-    if (lm.has_payload) setPayload(run, lm.track_id, lm.payload);
+    if (lm.has_payload) setPayload(run, lm.track_id, lm.payload, list.seq);
   }
   ++histogram_[f.landmarks];
   frames_.push_back(std::move(f));
 }
 
-void BusMonitor::setPayload(int run, int64_t id, const std::string& payload) {
+void BusMonitor::setPayload(int run, int64_t id, const std::string& payload, int64_t seq) {
   TrackInfo& t = tracks_[{run, id}];
   if (t.has_payload && t.payload != payload) ++t.payload_changes;
+  // (one id, two landmarks: the tracker gave it to another, its payload
+  // read as well; each in turn, with the frame it came from)
+  if (t.payloads.empty() || t.payloads.back().first != payload) t.payloads.emplace_back(payload, seq);
   t.payload = payload;
   t.has_payload = true;
 }
@@ -224,7 +233,7 @@ void BusMonitor::codesSeen(const qr_code_list_t& codes, Micros rx_us) {
   // run that frame belongs to (codes read before a restart come after it)
   for (const auto& c : codes.codes) {
     const auto runs_begun = std::upper_bound(run_starts_.begin(), run_starts_.end(), c.utime) - run_starts_.begin();
-    setPayload(std::max(1, static_cast<int>(runs_begun)), c.track_id, c.payload);
+    setPayload(std::max(1, static_cast<int>(runs_begun)), c.track_id, c.payload, c.seq);
   }
 }
 
@@ -245,10 +254,11 @@ std::string BusMonitor::statusLine(Micros now_us) {
   char buf[320];
   std::snprintf(buf, sizeof buf,
                 "%s %.1f/s  %s %.1f/s  %s %.1f/s  %s %.1f/s | e2e p50 %.2f ms p99 %.2f ms | "
-                "skipped det %lld trk %lld | tracks %zu, %d read",
+                "skipped det %lld trk %lld qr %lld | tracks %zu, %d read",
                 ch_.image.c_str(), hi, ch_.landmarks.c_str(), hl, ch_.tracked.c_str(), ht,
                 ch_.codes.c_str(), hc, p.p50, p.p99, static_cast<long long>(det_skipped_.sum),
-                static_cast<long long>(trk_skipped_.sum), tracks_.size(), read);
+                static_cast<long long>(trk_skipped_.sum), static_cast<long long>(qrSkipped()), tracks_.size(),
+                read);
   return buf;
 }
 
@@ -268,6 +278,7 @@ nlohmann::ordered_json BusMonitor::summary() const {
                  {"unmatched_images", unmatched_images_ + static_cast<int64_t>(pending_.size())},
                  {"detector_skipped", det_skipped_.sum},
                  {"tracker_skipped", trk_skipped_.sum},
+                 {"qr_reader_skipped", codes_.total > 0 ? J(qrSkipped()) : J(nullptr)},
                  {"bad_messages", bad_},
                  {"bad_images", bad_images_}};
   double sum = 0;
@@ -297,6 +308,7 @@ nlohmann::ordered_json BusMonitor::summary() const {
                       {"tracker_run", key.first},
                       {"payload", t.has_payload ? J(t.payload) : J(nullptr)},
                       {"payload_changes", t.payload_changes},
+                      {"payloads", payloadsJson(t.payloads)},
                       {"first_seq", t.first_seq},
                       {"last_seq", t.last_seq},
                       {"frames_visible", t.frames_visible},

@@ -155,9 +155,12 @@ void printReport(const Json& s) {
   const Json& lat = s["summary"]["latency_ms"];
   const Json& lpf = s["summary"]["landmarks_per_frame"];
   std::printf("run: %.1f s, %s\n", s["duration_s"].get<double>(), s["end"].get<std::string>().c_str());
-  std::printf("frames: %lld images, %lld tracked (skipped: %lld by the detector, %lld by the tracker)\n",
+  std::printf("frames: %lld images, %lld tracked (skipped: %lld by the detector, %lld by the tracker",
               f["images"].get<long long>(), f["tracked"].get<long long>(),
               f["detector_skipped"].get<long long>(), f["tracker_skipped"].get<long long>());
+  if (!f["qr_reader_skipped"].is_null())
+    std::printf(", %lld by the QR reader", f["qr_reader_skipped"].get<long long>());
+  std::printf(")\n");
   std::printf("landmarks per frame: mean %.2f, max %d; frames by count:", lpf["mean"].get<double>(),
               lpf["max"].get<int>());
   for (const auto& [n, c] : lpf["histogram"].items()) std::printf(" %s:%lld", n.c_str(), c.get<long long>());
@@ -173,7 +176,7 @@ void printReport(const Json& s) {
   if (tracker_restarts > 0)
     std::printf("  (the tracker started again %lld time%s: ids are per tracker run, \"id N/RUN\")\n",
                 tracker_restarts, tracker_restarts == 1 ? "" : "s");
-  for (const auto& t : s["summary"]["tracks"])
+  for (const auto& t : s["summary"]["tracks"]) {
     std::printf("  id %-4s %-20s frames %lld-%lld, %lld visible, %lld coasting\n",
                 (std::to_string(t["id"].get<long long>()) +
                  (tracker_restarts > 0 ? "/" + std::to_string(t["tracker_run"].get<int>()) : ""))
@@ -181,6 +184,15 @@ void printReport(const Json& s) {
                 t["payload"].is_null() ? "(no payload)" : ("\"" + t["payload"].get<std::string>() + "\"").c_str(),
                 t["first_seq"].get<long long>(), t["last_seq"].get<long long>(),
                 t["frames_visible"].get<long long>(), t["frames_coasting"].get<long long>());
+    // (an id that carried two landmarks' payloads: each, from its frame)
+    if (t["payloads"].size() > 1) {
+      std::printf("       payloads in turn:");
+      for (const auto& p : t["payloads"])
+        std::printf(" \"%s\" from frame %lld;", p["payload"].get<std::string>().c_str(),
+                    p["from_seq"].get<long long>());
+      std::printf(" one id for more than one landmark?\n");
+    }
+  }
   for (const auto& p : s["processes"]) {
     std::printf("process %-10s restarts %d, last exit: %s", p["name"].get<std::string>().c_str(),
                 p["restarts"].get<int>(), p["last_exit"].get<std::string>().c_str());

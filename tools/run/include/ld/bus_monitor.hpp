@@ -19,6 +19,7 @@
 // and writes its summary.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <map>
 #include <string>
@@ -77,14 +78,17 @@ class BusMonitor {
   /// Everything measured since the start:
   /// {"channels": {name: {"messages", "rate_hz"}},
   ///  "frames": {"images", "tracked", "matched", "unmatched_images", "detector_skipped",
-  ///             "tracker_skipped"},
+  ///             "tracker_skipped", "qr_reader_skipped" (tracked frames without a codes
+  ///             message; null when no codes message came), "bad_messages", "bad_images"},
   ///  "landmarks_per_frame": {"mean", "max", "histogram": {"n": frames}},
   ///  "latency_ms": {"count", "p50", "p90", "p99", "max", "mean", "from"}, from: "capture"
   ///               (every frame timed from its utime), "arrival", "capture and arrival", or
   ///               null (no frame timed),
   ///  "tracker_restarts",
-  ///  "tracks": [{"id", "tracker_run", "payload", "payload_changes", "first_seq", "last_seq",
-  ///              "frames_visible", "frames_coasting"}],
+  ///  "tracks": [{"id", "tracker_run", "payload" (the last), "payload_changes",
+  ///              "payloads": [{"payload", "from_seq"}] (each in turn, from the frame it was
+  ///              first listed or read in), "first_seq", "last_seq", "frames_visible",
+  ///              "frames_coasting"}],
   ///  "payloads_decoded",
   ///  "per_frame": [{"seq", "utime", "latency_ms"|null, "landmarks", "ids", "tracker_run"}]}
   /// tracker_run counts the tracker's runs from 1 (a track is its id and run).
@@ -112,6 +116,7 @@ class BusMonitor {
     std::string payload;
     bool has_payload = false;
     int payload_changes = 0;
+    std::vector<std::pair<std::string, int64_t>> payloads;  // each in turn, from seq
   };
   struct FrameRecord {
     int64_t utime = 0, seq = 0;
@@ -130,7 +135,11 @@ class BusMonitor {
   };
 
   void count(ChannelCount& c, Micros rx_us);
-  void setPayload(int run, int64_t id, const std::string& payload);
+  void setPayload(int run, int64_t id, const std::string& payload, int64_t seq);
+  // Tracked frames the QR reader published no codes for (0 before any came).
+  int64_t qrSkipped() const {
+    return codes_.total > 0 ? std::max<int64_t>(0, tracked_frames_ - codes_.total) : 0;
+  }
   void onImage(const lcm::ReceiveBuffer* rb, const std::string& channel);
   void onLandmarks(const lcm::ReceiveBuffer* rb, const std::string& channel);
   void onTracked(const lcm::ReceiveBuffer* rb, const std::string& channel);
