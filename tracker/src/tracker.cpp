@@ -227,7 +227,9 @@ void Tracker::assign(int64_t utime, cv::Size image) {
   // passed that landmark (an id moved across the image, past landmarks still
   // followed, to one coming in on the other side as this one left).
   det_nearest_entry_.assign(n_det, n_pool);
-  for (size_t j = 0; j < n_det; ++j) {
+  const bool any_coasting =
+      std::any_of(pool_.begin(), pool_.end(), [](const PoolEntry& e) { return e.frames_since_seen > 0; });
+  for (size_t j = 0; j < n_det && any_coasting; ++j) {
     double best = std::numeric_limits<double>::infinity();
     for (size_t i = 0; i < n_pool; ++i) {
       const PoolEntry& e = pool_[i];
