@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
+#include <utility>
 
 #include "ld/qr_tracks.hpp"
 #include "ld/track_restarts.hpp"
@@ -126,41 +128,43 @@ TEST(QrTrackBook, ReadTrackThatJumpsIsReadAgain) {
   EXPECT_EQ(book.payload(1)->payload, "room-103");
 }
 
-// A read track seen coasting and then detected again 1.4 sizes from where its
-// motion leads is another landmark, however long it coasted: the tracker's
-// gate let a neighbour in (an audit: a landmark left the image as the next
-// came in, the tracker gave the newcomer its id, and with the allowance of
-// a size per frame over the 21 frames coasted the first one's payload stayed
-// on it for 5 s). Frames the reader skipped, the track detected in them,
-// still allow a size each.
-TEST(QrTrackBook, ReadTrackFoundAgainAfterCoastingIsCheckedByItsSize) {
-  for (bool seen_coasting : {true, false}) {
-    ld::QrTrackBook book;
-    book.schedule({1}, 0);
-    book.record(1, 0, 0, std::string("E1"));
-    for (int k = 0; k < 5; ++k) EXPECT_EQ(book.follow(1, k, true, 300 - 10 * k, 200, 100), std::nullopt);
-    // (at 260, moving 10 px a frame to the left)
+// A read track seen coasting and then detected again more than two sizes
+// from its path (from its last place to where its motion leads) is another
+// landmark, however long it coasted: the tracker's gate let another in (an
+// audit: a landmark left the image as another came in on the other side,
+// the tracker gave the newcomer its id, and with the allowance of a size per
+// frame over the 21 frames coasted the first one's payload stayed on it for
+// 5 s). Frames the reader skipped, the track detected in them, still allow
+// a size each; anywhere near its path (the robot stopped on the way, or the
+// velocity was a little off) it keeps its payload.
+TEST(QrTrackBook, ReadTrackFoundAgainAfterCoastingIsCheckedAgainstItsPath) {
+  const auto book = [](bool seen_coasting) {
+    auto b = std::make_unique<ld::QrTrackBook>();
+    b->schedule({1}, 0);
+    b->record(1, 0, 0, std::string("E1"));
+    // at 260, moving 10 px a frame to the left; its motion leads to 40 at frame 26
+    for (int k = 0; k < 5; ++k) EXPECT_EQ(b->follow(1, k, true, 300 - 10 * k, 200, 100), std::nullopt);
     for (int k = 5; k < 26 && seen_coasting; ++k)
-      EXPECT_EQ(book.follow(1, k, false, 300 - 10 * k, 200, 100), std::nullopt);
-    // where its motion leads at frame 26: 40; detected 140 px from there
-    const auto forgotten = book.follow(1, 26, true, 180, 200, 100);
-    if (seen_coasting) {
-      EXPECT_EQ(forgotten, std::optional<std::string>("E1"));
-      EXPECT_EQ(book.payload(1), nullptr);
-    } else {
-      EXPECT_EQ(forgotten, std::nullopt);
-      ASSERT_NE(book.payload(1), nullptr);
-    }
+      EXPECT_EQ(b->follow(1, k, false, 300 - 10 * k, 200, 100), std::nullopt);
+    return b;
+  };
+  {  // 260 px right of its last place: across the image from its path
+    auto b = book(true);
+    EXPECT_EQ(b->follow(1, 26, true, 520, 200, 100), std::optional<std::string>("E1"));
+    EXPECT_EQ(b->payload(1), nullptr);
   }
-  // found again where its motion leads after coasting: the same landmark
-  ld::QrTrackBook book;
-  book.schedule({1}, 0);
-  book.record(1, 0, 0, std::string("E1"));
-  for (int k = 0; k < 5; ++k) book.follow(1, k, true, 300 - 10 * k, 200, 100);
-  for (int k = 5; k < 26; ++k) book.follow(1, k, false, 300 - 10 * k, 200, 100);
-  EXPECT_EQ(book.follow(1, 26, true, 60, 200, 100), std::nullopt);
-  ASSERT_NE(book.payload(1), nullptr);
-  EXPECT_EQ(book.payload(1)->payload, "E1");
+  {  // the same, not seen coasting (the lists skipped): 26 sizes allowed
+    auto b = book(false);
+    EXPECT_EQ(b->follow(1, 26, true, 520, 200, 100), std::nullopt);
+    ASSERT_NE(b->payload(1), nullptr);
+  }
+  // on its path (stopped at 180, or where it led), or 1.5 sizes beside it
+  for (const auto& [x, y] : {std::pair{180.0, 200.0}, {40.0, 200.0}, {150.0, 350.0}, {-100.0, 200.0}}) {
+    auto b = book(true);
+    EXPECT_EQ(b->follow(1, 26, true, x, y, 100), std::nullopt) << x << ", " << y;
+    ASSERT_NE(b->payload(1), nullptr) << x << ", " << y;
+    EXPECT_EQ(b->payload(1)->payload, "E1");
+  }
 }
 
 // The first decode of a frame always runs; later ones while the budget lasts.

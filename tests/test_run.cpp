@@ -231,6 +231,7 @@ TEST(BusMonitor, MatchesFramesByUtimeAndSeqAndSummarises) {
   ld::qr_code_t c{};
   c.track_id = 7;
   c.payload = "dock";
+  codes.utime = 1000;  // (the frame the codes message answers)
   codes.codes = {c};
   codes.ncodes = 1;
   m.codesSeen(codes, 9'037'000);
@@ -267,18 +268,24 @@ TEST(BusMonitor, TrackWithTwoPayloadsListsBoth) {
   ld::BusMonitor m;
   for (int i = 0; i < 10; ++i) m.trackedSeen(list(1000 + i, i, {trackedLandmark(2, true)}), 1000 + i);
   EXPECT_TRUE(m.summary()["frames"]["qr_reader_skipped"].is_null());
+  EXPECT_NE(m.statusLine(1010).find("qr - |"), std::string::npos);  // (no QR reader heard yet)
   ld::qr_code_list_t codes{};
   ld::qr_code_t c{};
   c.track_id = 2;
   c.payload = "E1";
   c.seq = 1;
   c.utime = 1001;
+  codes.utime = 1009;  // (the frame the codes message answers)
+  codes.seq = 9;
   codes.codes = {c};
   codes.ncodes = 1;
   m.codesSeen(codes, 1011);
   m.trackedSeen(list(1011, 11, {trackedLandmark(2, true, "E1")}), 1011);
   c.payload = "E3";
-  c.seq = 12;
+  c.seq = 11;
+  c.utime = 1011;
+  codes.utime = 1011;
+  codes.seq = 11;
   codes.codes = {c};
   m.codesSeen(codes, 1013);
   m.trackedSeen(list(1013, 13, {trackedLandmark(2, true, "E3")}), 1013);
@@ -291,8 +298,11 @@ TEST(BusMonitor, TrackWithTwoPayloadsListsBoth) {
   EXPECT_EQ(t["payloads"][0]["payload"], "E1");
   EXPECT_EQ(t["payloads"][0]["from_seq"], 1);
   EXPECT_EQ(t["payloads"][1]["payload"], "E3");
-  EXPECT_EQ(t["payloads"][1]["from_seq"], 12);
-  EXPECT_EQ(s["frames"]["qr_reader_skipped"], 10);  // 12 tracked, 2 codes messages
+  EXPECT_EQ(t["payloads"][1]["from_seq"], 11);
+  EXPECT_EQ(s["frames"]["qr_reader_skipped"], 10);  // 12 tracked, 2 answered by a codes message
+  // the status line counts frames a second old only (one may be decoding)
+  EXPECT_NE(m.statusLine(1013 + 500'000).find("qr 0 |"), std::string::npos);
+  EXPECT_NE(m.statusLine(1013 + 1'500'000).find("qr 10 |"), std::string::npos);
 }
 
 // An image whose utime is a time of the last second (ld-camera's capture

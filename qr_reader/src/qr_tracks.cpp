@@ -136,9 +136,22 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
   if (!std::isfinite(cx) || !std::isfinite(cy) || !(size > 0) || !std::isfinite(size)) return std::nullopt;
   if (t.placed && age <= t.age) return std::nullopt;  // (an older frame, matched late: no news)
   const double frames = t.placed ? static_cast<double>(age) - t.age : 1.0;
-  const double off = std::hypot(cx - (t.cx + t.vx * frames), cy - (t.cy + t.vy * frames));
-  const double allowed = (t.coasted ? 1.0 : frames) * 0.5 * (size + t.size);
-  const bool jumped = t.placed && t.known && off > allowed;
+  const double px = t.cx + t.vx * frames, py = t.cy + t.vy * frames;  // where its motion leads
+  const double mean_size = 0.5 * (size + t.size);
+  bool jumped = false;
+  if (t.placed && t.known) {
+    if (!t.coasted) {
+      jumped = std::hypot(cx - px, cy - py) > frames * mean_size;
+    } else {
+      // Seen coasting, it was found again by the tracker's gate, which a
+      // neighbour may be in: it must be within two sizes of its path from
+      // its last place to where its motion leads (the robot may have
+      // stopped anywhere on it), however long it coasted.
+      const double dx = px - t.cx, dy = py - t.cy, len2 = dx * dx + dy * dy;
+      const double u = len2 > 0 ? std::clamp(((cx - t.cx) * dx + (cy - t.cy) * dy) / len2, 0.0, 1.0) : 0.0;
+      jumped = std::hypot(cx - (t.cx + u * dx), cy - (t.cy + u * dy)) > 2 * mean_size;
+    }
+  }
   t.coasted = false;
   if (t.placed && !jumped) {
     t.vx = (cx - t.cx) / frames;

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <cstdint>
 #include <stdexcept>
 
@@ -220,27 +219,6 @@ void Tracker::assign(int64_t utime, cv::Size image) {
   // gains. (Fewest unmatched first, as a plain rectangular assignment does,
   // moved every id one landmark over along a row of landmarks when one left
   // the image as another came in: one pair more, each a poor one.)
-  //
-  // A coasting landmark is only paired with a detection it is the nearest
-  // pool landmark to (at its predicted place or where it was last seen): a
-  // detection nearer another landmark is not this one come back, unless it
-  // passed that landmark (an id moved across the image, past landmarks still
-  // followed, to one coming in on the other side as this one left).
-  det_nearest_entry_.assign(n_det, n_pool);
-  const bool any_coasting =
-      std::any_of(pool_.begin(), pool_.end(), [](const PoolEntry& e) { return e.frames_since_seen > 0; });
-  for (size_t j = 0; j < n_det && any_coasting; ++j) {
-    double best = std::numeric_limits<double>::infinity();
-    for (size_t i = 0; i < n_pool; ++i) {
-      const PoolEntry& e = pool_[i];
-      double d = dist(e.pred_centre, det_centre_[j]);
-      if (e.frames_since_seen > 0) d = std::min(d, dist(e.centre, det_centre_[j]));
-      if (d < best) {
-        best = d;
-        det_nearest_entry_[j] = i;
-      }
-    }
-  }
   gain_.assign(n_pool * n_det, 0.0);
   double max_gain = 0;
   for (size_t i = 0; i < n_pool; ++i) {
@@ -254,28 +232,15 @@ void Tracker::assign(int64_t utime, cv::Size image) {
         params_.max_distance * frames_of_motion + params_.coast_distance_growth * unseen_s;
     // A coasting landmark may also be where it was last seen: the robot
     // stopped or turned back (a landmark that left the image comes back
-    // where it left). Then it is the detection nearest that place; and the
-    // place is known, not predicted, so its gate does not grow with the
-    // time unseen. (Any detection within a grown gate took the id of a
-    // landmark that left through one side of the image: one coming in on
-    // the other side, past the landmarks still followed.)
+    // where it left).
     const bool two_places = e.frames_since_seen > 0 && e.pred_centre != e.centre;
-    const double max_dist_there = params_.max_distance * frames_of_motion;
-    size_t nearest_there = n_det;
-    if (two_places) {
-      double best = std::numeric_limits<double>::infinity();
-      for (size_t j = 0; j < n_det; ++j)
-        if (const double d = dist(e.centre, det_centre_[j]); d < best) {
-          best = d;
-          nearest_there = j;
-        }
-    }
+    // Predicted past a side of the image, it comes back through that side.
+    const Sides gone = sidesLeftBy(e, image);
     for (size_t j = 0; j < n_det; ++j) {
-      if (e.frames_since_seen > 0 && det_nearest_entry_[j] != i) continue;
-      if (!backThroughItsSide(e, j, image)) continue;
+      if (gone.any() && !gone.towards(det_centre_[j], image)) continue;
       auto [margin, plain] = gateMargins(e.pred_centre, e.pred_size, j, max_dist);
-      if (j == nearest_there) {
-        const auto [there, there_plain] = gateMargins(e.centre, e.size, j, max_dist_there);
+      if (two_places) {
+        const auto [there, there_plain] = gateMargins(e.centre, e.size, j, max_dist);
         margin = std::max(margin, there);
         plain = std::max(plain, there_plain);
       }
@@ -301,21 +266,23 @@ void Tracker::assign(int64_t utime, cv::Size image) {
   }
 }
 
-bool Tracker::backThroughItsSide(const PoolEntry& e, size_t j, cv::Size image) const {
-  if (image.width <= 0 || image.height <= 0) return true;
+Tracker::Sides Tracker::sidesLeftBy(const PoolEntry& e, cv::Size image) const {
+  Sides out;
+  if (image.width <= 0 || image.height <= 0) return out;
   const double w = image.width - 1.0, h = image.height - 1.0, scale = e.pred_size / e.size;
-  bool left = false, right = false, top = false, bottom = false;
   for (const cv::Point2f& c : e.lm.corners) {  // where the prediction puts them
     const cv::Point2d p = e.pred_centre + (cv::Point2d(c) - e.centre) * scale;
-    left |= p.x < 0;
-    right |= p.x > w;
-    top |= p.y < 0;
-    bottom |= p.y > h;
+    out.left |= p.x < 0;
+    out.right |= p.x > w;
+    out.top |= p.y < 0;
+    out.bottom |= p.y > h;
   }
-  if (!(left || right || top || bottom)) return true;  // predicted inside: missed, not gone
-  const cv::Point2d& d = det_centre_[j];
-  return (left && d.x < 0.5 * w) || (right && d.x > 0.5 * w) || (top && d.y < 0.5 * h) ||
-         (bottom && d.y > 0.5 * h);
+  return out;
+}
+
+bool Tracker::Sides::towards(const cv::Point2d& d, cv::Size image) const {
+  const double mx = 0.5 * (image.width - 1.0), my = 0.5 * (image.height - 1.0);
+  return (left && d.x < mx) || (right && d.x > mx) || (top && d.y < my) || (bottom && d.y > my);
 }
 
 std::pair<double, double> Tracker::gateMargins(const cv::Point2d& centre, double size, size_t j,

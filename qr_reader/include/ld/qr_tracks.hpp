@@ -121,11 +121,12 @@ class QrTrackBook {
   /// moved the id over: a landmark vanished and a neighbour took its id): its
   /// payload is forgotten and it is read again at once; the payload
   /// forgotten is returned. Once it has been seen coasting, it is detected
-  /// again within its size of where its motion leads, however many frames it
-  /// coasted: the tracker found it again by a gate, which a neighbour can
-  /// be in (the allowance growing with the frames, a neighbour coming in as
-  /// it left kept its payload for seconds). Tracks the book does not know
-  /// yet (never scheduled) are left alone.
+  /// again within two sizes of its path from its last place to where its
+  /// motion leads (the robot may have stopped anywhere on it), however many
+  /// frames it coasted: the tracker found it again by a gate, which a
+  /// neighbour can be in (the allowance growing with the frames, a landmark
+  /// coming in across the image as it left kept its payload for seconds).
+  /// Tracks the book does not know yet (never scheduled) are left alone.
   std::optional<std::string> follow(int64_t track_id, int32_t age, bool visible, double cx, double cy,
                                     double size);
 

@@ -191,6 +191,7 @@ void BusMonitor::trackedSeen(const landmark_list_t& list, Micros rx_us) {
   f.utime = list.utime;
   f.seq = list.seq;
   f.run = run;
+  f.rx_us = rx_us;
   const auto it = pending_.find({list.utime, list.seq});
   if (it != pending_.end()) {
     f.latency_ms = static_cast<double>(rx_us - it->second.origin) * 1e-3;
@@ -217,6 +218,18 @@ void BusMonitor::trackedSeen(const landmark_list_t& list, Micros rx_us) {
   frames_.push_back(std::move(f));
 }
 
+int64_t BusMonitor::qrSkipped(Micros settled_before) {
+  for (; qr_settled_ < frames_.size() && frames_[qr_settled_].rx_us < settled_before; ++qr_settled_)
+    qr_skipped_ += !frames_[qr_settled_].coded;
+  return qr_skipped_;
+}
+
+int64_t BusMonitor::qrSkippedAll() const {
+  int64_t n = qr_skipped_;
+  for (size_t k = qr_settled_; k < frames_.size(); ++k) n += !frames_[k].coded;
+  return n;
+}
+
 void BusMonitor::setPayload(int run, int64_t id, const std::string& payload, int64_t seq) {
   TrackInfo& t = tracks_[{run, id}];
   if (t.has_payload && t.payload != payload) ++t.payload_changes;
@@ -229,6 +242,12 @@ void BusMonitor::setPayload(int run, int64_t id, const std::string& payload, int
 
 void BusMonitor::codesSeen(const qr_code_list_t& codes, Micros rx_us) {
   count(codes_, rx_us);
+  // (the frame's list, among the last few: the reader answers lists in order)
+  for (size_t k = frames_.size(), n = 0; k-- > qr_settled_ && n < 300; ++n)
+    if (frames_[k].utime == codes.utime && frames_[k].seq == codes.seq) {
+      frames_[k].coded = true;
+      break;
+    }
   // a code names the frame it was read from: its track is of the tracker's
   // run that frame belongs to (codes read before a restart come after it)
   for (const auto& c : codes.codes) {
@@ -254,10 +273,11 @@ std::string BusMonitor::statusLine(Micros now_us) {
   char buf[320];
   std::snprintf(buf, sizeof buf,
                 "%s %.1f/s  %s %.1f/s  %s %.1f/s  %s %.1f/s | e2e p50 %.2f ms p99 %.2f ms | "
-                "skipped det %lld trk %lld qr %lld | tracks %zu, %d read",
+                "skipped det %lld trk %lld qr %s | tracks %zu, %d read",
                 ch_.image.c_str(), hi, ch_.landmarks.c_str(), hl, ch_.tracked.c_str(), ht,
                 ch_.codes.c_str(), hc, p.p50, p.p99, static_cast<long long>(det_skipped_.sum),
-                static_cast<long long>(trk_skipped_.sum), static_cast<long long>(qrSkipped()), tracks_.size(),
+                static_cast<long long>(trk_skipped_.sum),
+                codes_.total > 0 ? std::to_string(qrSkipped(now_us - 1'000'000)).c_str() : "-", tracks_.size(),
                 read);
   return buf;
 }
@@ -278,7 +298,8 @@ nlohmann::ordered_json BusMonitor::summary() const {
                  {"unmatched_images", unmatched_images_ + static_cast<int64_t>(pending_.size())},
                  {"detector_skipped", det_skipped_.sum},
                  {"tracker_skipped", trk_skipped_.sum},
-                 {"qr_reader_skipped", codes_.total > 0 ? J(qrSkipped()) : J(nullptr)},
+                 {"qr_reader_skipped",
+                  codes_.total > 0 ? J(qrSkippedAll()) : J(nullptr)},
                  {"bad_messages", bad_},
                  {"bad_images", bad_images_}};
   double sum = 0;

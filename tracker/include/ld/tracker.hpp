@@ -185,9 +185,15 @@ class Tracker {
 
   void predict(int64_t utime);
   void assign(int64_t utime, cv::Size image);
-  // Whether detection j may be pool landmark `e`: not when `e` is predicted
-  // to have left the image and j is in the other half of it.
-  bool backThroughItsSide(const PoolEntry& e, size_t j, cv::Size image) const;
+  // The sides of the image a pool landmark is predicted to have left by (a
+  // corner of its pattern square past them); none when `image` is empty.
+  struct Sides {
+    bool left = false, right = false, top = false, bottom = false;
+    bool any() const { return left || right || top || bottom; }
+    // Whether a point is in the half of the image towards one of them.
+    bool towards(const cv::Point2d& p, cv::Size image) const;
+  };
+  Sides sidesLeftBy(const PoolEntry& e, cv::Size image) const;
   // How far inside its gate valid detection j is from a pool landmark at
   // (centre, size), in pixels: the gate's radius (max_dist sizes, the pair's
   // mean size) less their distance, and the same inside the plain gate
@@ -209,7 +215,6 @@ class Tracker {
   std::vector<double> det_size_;
   std::vector<int> det_index_;      // valid detections' indices into the input
   std::vector<char> det_matched_;
-  std::vector<size_t> det_nearest_entry_;  // the pool landmark nearest each detection
   std::vector<double> common_vx_, common_vy_;
   std::vector<double> gain_, cost_;
   std::vector<int> row_to_col_;

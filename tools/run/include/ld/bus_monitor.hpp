@@ -78,8 +78,8 @@ class BusMonitor {
   /// Everything measured since the start:
   /// {"channels": {name: {"messages", "rate_hz"}},
   ///  "frames": {"images", "tracked", "matched", "unmatched_images", "detector_skipped",
-  ///             "tracker_skipped", "qr_reader_skipped" (tracked frames without a codes
-  ///             message; null when no codes message came), "bad_messages", "bad_images"},
+  ///             "tracker_skipped", "qr_reader_skipped" (tracked frames no codes message
+  ///             came for; null when none came at all), "bad_messages", "bad_images"},
   ///  "landmarks_per_frame": {"mean", "max", "histogram": {"n": frames}},
   ///  "latency_ms": {"count", "p50", "p90", "p99", "max", "mean", "from"}, from: "capture"
   ///               (every frame timed from its utime), "arrival", "capture and arrival", or
@@ -124,6 +124,8 @@ class BusMonitor {
     double latency_ms = -1;  // < 0: the image was not seen
     int landmarks = 0;       // visible
     std::vector<int64_t> ids;
+    Micros rx_us = 0;        // when the list came
+    bool coded = false;      // a codes message came for the frame
   };
   // Cumulative skip counters of a publisher that may restart (counter drops).
   struct SkipCounter {
@@ -136,10 +138,11 @@ class BusMonitor {
 
   void count(ChannelCount& c, Micros rx_us);
   void setPayload(int run, int64_t id, const std::string& payload, int64_t seq);
-  // Tracked frames the QR reader published no codes for (0 before any came).
-  int64_t qrSkipped() const {
-    return codes_.total > 0 ? std::max<int64_t>(0, tracked_frames_ - codes_.total) : 0;
-  }
+  // Tracked frames received before `settled_before` that no codes message
+  // came for (one may still be decoding a frame that just came).
+  int64_t qrSkipped(Micros settled_before);
+  // ... and of every frame (at the end of a run).
+  int64_t qrSkippedAll() const;
   void onImage(const lcm::ReceiveBuffer* rb, const std::string& channel);
   void onLandmarks(const lcm::ReceiveBuffer* rb, const std::string& channel);
   void onTracked(const lcm::ReceiveBuffer* rb, const std::string& channel);
@@ -157,6 +160,8 @@ class BusMonitor {
   int64_t from_capture_ = 0, from_arrival_ = 0;  // latencies timed from a utime, from an arrival
   int64_t self_tests_ = 0;
   Micros last_self_test_us_ = 0;
+  size_t qr_settled_ = 0;  // frames_ before it are counted in qr_skipped_
+  int64_t qr_skipped_ = 0;
   int64_t tracked_frames_ = 0, matched_ = 0, unmatched_images_ = 0, bad_ = 0;
   int64_t bad_images_ = 0;  // of bad_: on the image channel (not counted as images)
   SkipCounter det_skipped_, trk_skipped_;
