@@ -128,7 +128,7 @@ TEST(QrTrackBook, ReadTrackThatJumpsIsReadAgain) {
   EXPECT_EQ(book.payload(1)->payload, "room-103");
 }
 
-// A read track seen coasting and then detected again more than two sizes
+// A read track seen coasting and then detected again more than 1.5 sizes
 // from its path (from its last place to where its motion leads) is another
 // landmark, however long it coasted: the tracker's gate let another in (an
 // audit: a landmark left the image as another came in on the other side,
@@ -148,6 +148,10 @@ TEST(QrTrackBook, ReadTrackFoundAgainAfterCoastingIsCheckedAgainstItsPath) {
       EXPECT_EQ(b->follow(1, k, false, 300 - 10 * k, 200, 100), std::nullopt);
     return b;
   };
+  {  // 1.6 sizes beside its path
+    auto b = book(true);
+    EXPECT_EQ(b->follow(1, 26, true, 150, 360, 100), std::optional<std::string>("E1"));
+  }
   {  // 260 px right of its last place: across the image from its path
     auto b = book(true);
     EXPECT_EQ(b->follow(1, 26, true, 520, 200, 100), std::optional<std::string>("E1"));
@@ -158,8 +162,8 @@ TEST(QrTrackBook, ReadTrackFoundAgainAfterCoastingIsCheckedAgainstItsPath) {
     EXPECT_EQ(b->follow(1, 26, true, 520, 200, 100), std::nullopt);
     ASSERT_NE(b->payload(1), nullptr);
   }
-  // on its path (stopped at 180, or where it led), or 1.5 sizes beside it
-  for (const auto& [x, y] : {std::pair{180.0, 200.0}, {40.0, 200.0}, {150.0, 350.0}, {-100.0, 200.0}}) {
+  // on its path (stopped at 180, or where it led), or 1.4 sizes beside it
+  for (const auto& [x, y] : {std::pair{180.0, 200.0}, {40.0, 200.0}, {150.0, 340.0}, {-100.0, 200.0}}) {
     auto b = book(true);
     EXPECT_EQ(b->follow(1, 26, true, x, y, 100), std::nullopt) << x << ", " << y;
     ASSERT_NE(b->payload(1), nullptr) << x << ", " << y;

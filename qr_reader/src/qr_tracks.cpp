@@ -144,12 +144,13 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
       jumped = std::hypot(cx - px, cy - py) > frames * mean_size;
     } else {
       // Seen coasting, it was found again by the tracker's gate, which a
-      // neighbour may be in: it must be within two sizes of its path from
+      // neighbour may be in: it must be within 1.5 sizes of its path from
       // its last place to where its motion leads (the robot may have
-      // stopped anywhere on it), however long it coasted.
+      // stopped anywhere on it), however long it coasted. (Closer, the
+      // velocity's error over many frames coasted reads as a jump.)
       const double dx = px - t.cx, dy = py - t.cy, len2 = dx * dx + dy * dy;
       const double u = len2 > 0 ? std::clamp(((cx - t.cx) * dx + (cy - t.cy) * dy) / len2, 0.0, 1.0) : 0.0;
-      jumped = std::hypot(cx - (t.cx + u * dx), cy - (t.cy + u * dy)) > 2 * mean_size;
+      jumped = std::hypot(cx - (t.cx + u * dx), cy - (t.cy + u * dy)) > 1.5 * mean_size;
     }
   }
   t.coasted = false;

@@ -277,6 +277,13 @@ Tracker::Sides Tracker::sidesLeftBy(const PoolEntry& e, cv::Size image) const {
     out.top |= p.y < 0;
     out.bottom |= p.y > h;
   }
+  // Only a side it was last seen near (in that half): one predicted to
+  // have crossed the image while unseen, its motion ended (the robot
+  // stopped), is found where it was.
+  out.left &= e.centre.x < 0.5 * w;
+  out.right &= e.centre.x > 0.5 * w;
+  out.top &= e.centre.y < 0.5 * h;
+  out.bottom &= e.centre.y > 0.5 * h;
   return out;
 }
 

@@ -121,7 +121,7 @@ class QrTrackBook {
   /// moved the id over: a landmark vanished and a neighbour took its id): its
   /// payload is forgotten and it is read again at once; the payload
   /// forgotten is returned. Once it has been seen coasting, it is detected
-  /// again within two sizes of its path from its last place to where its
+  /// again within 1.5 sizes of its path from its last place to where its
   /// motion leads (the robot may have stopped anywhere on it), however many
   /// frames it coasted: the tracker found it again by a gate, which a
   /// neighbour can be in (the allowance growing with the frames, a landmark

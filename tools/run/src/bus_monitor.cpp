@@ -191,7 +191,6 @@ void BusMonitor::trackedSeen(const landmark_list_t& list, Micros rx_us) {
   f.utime = list.utime;
   f.seq = list.seq;
   f.run = run;
-  f.rx_us = rx_us;
   const auto it = pending_.find({list.utime, list.seq});
   if (it != pending_.end()) {
     f.latency_ms = static_cast<double>(rx_us - it->second.origin) * 1e-3;
@@ -218,16 +217,9 @@ void BusMonitor::trackedSeen(const landmark_list_t& list, Micros rx_us) {
   frames_.push_back(std::move(f));
 }
 
-int64_t BusMonitor::qrSkipped(Micros settled_before) {
-  for (; qr_settled_ < frames_.size() && frames_[qr_settled_].rx_us < settled_before; ++qr_settled_)
-    qr_skipped_ += !frames_[qr_settled_].coded;
-  return qr_skipped_;
-}
-
 int64_t BusMonitor::qrSkippedAll() const {
-  int64_t n = qr_skipped_;
-  for (size_t k = qr_settled_; k < frames_.size(); ++k) n += !frames_[k].coded;
-  return n;
+  // (at the end: the frames after the last answered were not answered either)
+  return qr_skipped_ + static_cast<int64_t>(frames_.size() - qr_settled_);
 }
 
 void BusMonitor::setPayload(int run, int64_t id, const std::string& payload, int64_t seq) {
@@ -242,10 +234,14 @@ void BusMonitor::setPayload(int run, int64_t id, const std::string& payload, int
 
 void BusMonitor::codesSeen(const qr_code_list_t& codes, Micros rx_us) {
   count(codes_, rx_us);
-  // (the frame's list, among the last few: the reader answers lists in order)
+  // The frame's list, among the last few. The reader answers lists in
+  // order, so the lists before it that it did not answer it skipped: they
+  // are settled (as they are read, not by the clock: a monitor behind on its
+  // own queue counted frames skipped whose answer it had not read yet).
   for (size_t k = frames_.size(), n = 0; k-- > qr_settled_ && n < 300; ++n)
     if (frames_[k].utime == codes.utime && frames_[k].seq == codes.seq) {
-      frames_[k].coded = true;
+      qr_skipped_ += static_cast<int64_t>(k - qr_settled_);
+      qr_settled_ = k + 1;
       break;
     }
   // a code names the frame it was read from: its track is of the tracker's
@@ -277,7 +273,7 @@ std::string BusMonitor::statusLine(Micros now_us) {
                 ch_.image.c_str(), hi, ch_.landmarks.c_str(), hl, ch_.tracked.c_str(), ht,
                 ch_.codes.c_str(), hc, p.p50, p.p99, static_cast<long long>(det_skipped_.sum),
                 static_cast<long long>(trk_skipped_.sum),
-                codes_.total > 0 ? std::to_string(qrSkipped(now_us - 1'000'000)).c_str() : "-", tracks_.size(),
+                codes_.total > 0 ? std::to_string(qr_skipped_).c_str() : "-", tracks_.size(),
                 read);
   return buf;
 }

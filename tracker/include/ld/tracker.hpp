@@ -7,7 +7,9 @@
 //                 constant velocity (position and size); a landmark that was
 //                 not detected in the previous frame may also be matched
 //                 where it was last seen (the robot stopped or turned back:
-//                 a landmark that left the image comes back where it left)
+//                 a landmark that left the image comes back where it left);
+//                 one predicted past a side of the image it was last seen
+//                 near comes back through that side (given the image size)
 //   3. assign     the paper's three cases: empty pool (all new), no detections
 //                 (all age), both non-empty: optimal assignment (Hungarian)
 //                 on the distance between the predicted pool landmark and the
@@ -140,12 +142,12 @@ class Tracker {
   /// non-finite coordinates or a size under one pixel are ignored. The
   /// returned reference stays valid until the next call.
   ///
-  /// `image`, the frame's size when known: a pool landmark predicted to have
-  /// left the image (a corner of its pattern square past a side) is only
-  /// paired with a detection in that side's half of the image: it comes back
-  /// through the side it left by (large landmarks: as one left through one
-  /// side, the next came in through the other within its gate and took its
-  /// id).
+  /// `image`, the frame's size when known: a pool landmark last seen in one
+  /// half of the image and predicted past that half's side (a corner of its
+  /// pattern square beyond it) is only paired with a detection in that half:
+  /// it comes back through the side it left by (large landmarks: as one left
+  /// through one side, the next came in through the other within its gate
+  /// and took its id).
   const std::vector<Track>& update(const std::vector<Landmark>& detections, int64_t utime,
                                    cv::Size image = {});
   /// How much older than the previous frame a frame may be and still be a
@@ -186,7 +188,8 @@ class Tracker {
   void predict(int64_t utime);
   void assign(int64_t utime, cv::Size image);
   // The sides of the image a pool landmark is predicted to have left by (a
-  // corner of its pattern square past them); none when `image` is empty.
+  // corner of its pattern square past them) and was last seen near (in that
+  // side's half); none when `image` is empty.
   struct Sides {
     bool left = false, right = false, top = false, bottom = false;
     bool any() const { return left || right || top || bottom; }

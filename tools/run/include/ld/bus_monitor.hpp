@@ -124,8 +124,6 @@ class BusMonitor {
     double latency_ms = -1;  // < 0: the image was not seen
     int landmarks = 0;       // visible
     std::vector<int64_t> ids;
-    Micros rx_us = 0;        // when the list came
-    bool coded = false;      // a codes message came for the frame
   };
   // Cumulative skip counters of a publisher that may restart (counter drops).
   struct SkipCounter {
@@ -138,10 +136,8 @@ class BusMonitor {
 
   void count(ChannelCount& c, Micros rx_us);
   void setPayload(int run, int64_t id, const std::string& payload, int64_t seq);
-  // Tracked frames received before `settled_before` that no codes message
-  // came for (one may still be decoding a frame that just came).
-  int64_t qrSkipped(Micros settled_before);
-  // ... and of every frame (at the end of a run).
+  // Tracked frames the QR reader did not answer, at the end of a run
+  // (qr_skipped_: those before the last it answered).
   int64_t qrSkippedAll() const;
   void onImage(const lcm::ReceiveBuffer* rb, const std::string& channel);
   void onLandmarks(const lcm::ReceiveBuffer* rb, const std::string& channel);
@@ -160,7 +156,7 @@ class BusMonitor {
   int64_t from_capture_ = 0, from_arrival_ = 0;  // latencies timed from a utime, from an arrival
   int64_t self_tests_ = 0;
   Micros last_self_test_us_ = 0;
-  size_t qr_settled_ = 0;  // frames_ before it are counted in qr_skipped_
+  size_t qr_settled_ = 0;  // frames_ up to the last the QR reader answered
   int64_t qr_skipped_ = 0;
   int64_t tracked_frames_ = 0, matched_ = 0, unmatched_images_ = 0, bad_ = 0;
   int64_t bad_images_ = 0;  // of bad_: on the image channel (not counted as images)
