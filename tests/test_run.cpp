@@ -300,6 +300,13 @@ TEST(BusMonitor, TrackWithTwoPayloadsListsBoth) {
   EXPECT_EQ(t["payloads"][1]["payload"], "E3");
   EXPECT_EQ(t["payloads"][1]["from_seq"], 11);
   EXPECT_EQ(s["frames"]["qr_reader_skipped"], 10);  // 12 tracked, 2 answered by a codes message
+  // a track known through a code first (its list lost) starts at the code's frame
+  c.track_id = 9;
+  c.seq = 13;
+  c.utime = 1013;
+  codes.codes = {c};
+  m.codesSeen(codes, 1014);
+  EXPECT_EQ(m.summary()["tracks"][1]["first_seq"], 13);
   // the status line counts the frames before the last answered (0-8; 13 may
   // still be decoding), the summary every one
   EXPECT_NE(m.statusLine(2000).find("qr 9 |"), std::string::npos) << m.statusLine(3000);

@@ -223,7 +223,9 @@ int64_t BusMonitor::qrSkippedAll() const {
 }
 
 void BusMonitor::setPayload(int run, int64_t id, const std::string& payload, int64_t seq) {
-  TrackInfo& t = tracks_[{run, id}];
+  auto [it, is_new] = tracks_.try_emplace({run, id});
+  TrackInfo& t = it->second;
+  if (is_new) t.first_seq = t.last_seq = seq;  // (known through a code first: its list was lost)
   if (t.has_payload && t.payload != payload) ++t.payload_changes;
   // (one id, two landmarks: the tracker gave it to another, its payload
   // read as well; each in turn, with the frame it came from)
