@@ -4,7 +4,6 @@
 
 #include <cmath>
 #include <memory>
-#include <random>
 #include <utility>
 
 #include "ld/qr_tracks.hpp"
@@ -170,27 +169,6 @@ TEST(QrTrackBook, ReadTrackFoundAgainAfterCoastingIsCheckedAgainstItsPath) {
     ASSERT_NE(b->payload(1), nullptr) << x << ", " << y;
     EXPECT_EQ(b->payload(1)->payload, "E1");
   }
-}
-
-// A read track moving steadily, its centre measured with 1 px of jitter,
-// found again after coasting 29 frames (just under the tracker's second),
-// keeps its payload: its velocity is smoothed over its steps (from the last
-// step alone, the jitter times 29 frames read as a jump in 54 of these 200).
-TEST(QrTrackBook, JitterDoesNotReadAsAJumpAfterALongCoast) {
-  int forgotten = 0;
-  for (unsigned seed = 0; seed < 200; ++seed) {
-    std::mt19937 rng(seed);
-    std::normal_distribution<double> jitter(0, 1.0);
-    ld::QrTrackBook book;
-    book.schedule({1}, 0);
-    book.record(1, 0, 0, std::string("P"));
-    double x = 100;
-    int k = 0;
-    for (; k < 10; ++k, x += 10) book.follow(1, k, true, x + jitter(rng), 200 + jitter(rng), 40);
-    for (int c = 0; c < 29; ++c, ++k, x += 10) book.follow(1, k, false, x, 200, 40);
-    forgotten += book.follow(1, k, true, x + jitter(rng), 200 + jitter(rng), 40).has_value();
-  }
-  EXPECT_LE(forgotten, 2);
 }
 
 // The first decode of a frame always runs; later ones while the budget lasts.

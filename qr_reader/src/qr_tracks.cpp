@@ -155,15 +155,10 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
   }
   t.coasted = false;
   if (t.placed && !jumped) {
-    // (half the newest step, half the velocity before: the centre's jitter
-    // over one step, multiplied by many frames coasted, read as a jump)
-    const double a = t.measured ? 0.5 : 1.0;
-    t.vx = a * (cx - t.cx) / frames + (1 - a) * t.vx;
-    t.vy = a * (cy - t.cy) / frames + (1 - a) * t.vy;
-    t.measured = true;
+    t.vx = (cx - t.cx) / frames;
+    t.vy = (cy - t.cy) / frames;
   } else {
     t.vx = t.vy = 0;  // (a new landmark under the id: its motion is not known yet)
-    t.measured = false;
   }
   t.placed = true;
   t.cx = cx;

@@ -116,8 +116,7 @@ class QrTrackBook {
   /// place is the tracker's guess, and is not looked at), its centre and
   /// size (mean side of its corners) in pixels. A track whose payload is
   /// known and whose landmark is further from where its motion so far leads
-  /// (its last detected place, moved on at its velocity: half the last step,
-  /// half the velocity before)
+  /// (its last detected place, moved on at the velocity between its last two)
   /// than its size per tracker frame is another landmark now (the tracker
   /// moved the id over: a landmark vanished and a neighbour took its id): its
   /// payload is forgotten and it is read again at once; the payload
@@ -152,7 +151,6 @@ class QrTrackBook {
     bool placed = false;  // where it was last detected (follow)
     bool coasted = false;  // seen coasting since
     double cx = 0, cy = 0, size = 0, vx = 0, vy = 0;  // (velocity in px per tracker frame)
-    bool measured = false;  // vx, vy from its steps (smoothed over them)
     int32_t age = 0;
   };
   QrScheduleParams params_;
