@@ -226,12 +226,9 @@ void BusMonitor::setPayload(int run, int64_t id, const std::string& payload, int
   auto [it, is_new] = tracks_.try_emplace({run, id});
   TrackInfo& t = it->second;
   if (is_new) t.first_seq = t.last_seq = seq;  // (known through a code first: its list was lost)
-  if (t.has_payload && t.payload != payload) ++t.payload_changes;
   // (one id, two landmarks: the tracker gave it to another, its payload
   // read as well; each in turn, with the frame it came from)
   if (t.payloads.empty() || t.payloads.back().first != payload) t.payloads.emplace_back(payload, seq);
-  t.payload = payload;
-  t.has_payload = true;
 }
 
 void BusMonitor::codesSeen(const qr_code_list_t& codes, Micros rx_us) {
@@ -267,7 +264,7 @@ std::string BusMonitor::statusLine(Micros now_us) {
   window_start_ = latencies_ms_.size();
   last_status_us_ = now_us;
   int read = 0;
-  for (const auto& [id, t] : tracks_) read += t.has_payload;
+  for (const auto& [id, t] : tracks_) read += !t.payloads.empty();
   char buf[320];
   std::snprintf(buf, sizeof buf,
                 "%s %.1f/s  %s %.1f/s  %s %.1f/s  %s %.1f/s | e2e p50 %.2f ms p99 %.2f ms | "
@@ -322,11 +319,11 @@ nlohmann::ordered_json BusMonitor::summary() const {
   J tracks = J::array();
   int read = 0;
   for (const auto& [key, t] : tracks_) {
-    read += t.has_payload;
+    read += !t.payloads.empty();
     tracks.push_back({{"id", key.second},
                       {"tracker_run", key.first},
-                      {"payload", t.has_payload ? J(t.payload) : J(nullptr)},
-                      {"payload_changes", t.payload_changes},
+                      {"payload", t.payloads.empty() ? J(nullptr) : J(t.payloads.back().first)},
+                      {"payload_changes", t.payloads.empty() ? 0 : static_cast<int>(t.payloads.size()) - 1},
                       {"payloads", payloadsJson(t.payloads)},
                       {"first_seq", t.first_seq},
                       {"last_seq", t.last_seq},

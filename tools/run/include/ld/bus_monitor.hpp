@@ -113,10 +113,9 @@ class BusMonitor {
   struct TrackInfo {
     int64_t first_seq = 0, last_seq = 0;
     int64_t frames_visible = 0, frames_coasting = 0;
-    std::string payload;
-    bool has_payload = false;
-    int payload_changes = 0;
-    std::vector<std::pair<std::string, int64_t>> payloads;  // each in turn, from seq
+    // each payload in turn, from the frame it came from (the last is the
+    // track's; one more than one: changes)
+    std::vector<std::pair<std::string, int64_t>> payloads;
   };
   struct FrameRecord {
     int64_t utime = 0, seq = 0;
