@@ -310,6 +310,11 @@ TEST(BusMonitor, TrackWithTwoPayloadsListsBoth) {
   // the status line counts the frames before the last answered (0-8; 13 may
   // still be decoding), the summary every one
   EXPECT_NE(m.statusLine(2000).find("qr 9 |"), std::string::npos) << m.statusLine(3000);
+  // and an older list of it arriving after the code starts it there, its
+  // frames still ending at the code's
+  m.trackedSeen(list(1012, 12, {trackedLandmark(9, true, "")}), 1015);
+  EXPECT_EQ(m.summary()["tracks"][1]["first_seq"], 12);
+  EXPECT_EQ(m.summary()["tracks"][1]["last_seq"], 13);
 }
 
 // An image whose utime is a time of the last second (ld-camera's capture

@@ -202,14 +202,22 @@ void BusMonitor::trackedSeen(const landmark_list_t& list, Micros rx_us) {
   for (const auto& lm : list.landmarks) {
     if (lm.track_id < 0) continue;
     auto [t, is_new] = tracks_.try_emplace({run, lm.track_id});
-    if (is_new) t->second.first_seq = list.seq;
-    t->second.last_seq = list.seq;
+    TrackInfo& info = t->second;
+    if (is_new) {
+      info.first_seq = info.last_seq = list.seq;
+    } else if (!info.listed) {  // known through a code first: the list may be older
+      info.first_seq = std::min(info.first_seq, list.seq);
+      info.last_seq = std::max(info.last_seq, list.seq);
+    } else {
+      info.last_seq = list.seq;
+    }
+    info.listed = true;
     if (lm.visible) {
-      ++t->second.frames_visible;
+      ++info.frames_visible;
       ++f.landmarks;
       f.ids.push_back(lm.track_id);
     } else {
-      ++t->second.frames_coasting;
+      ++info.frames_coasting;
     }
     if (lm.has_payload) setPayload(run, lm.track_id, lm.payload, list.seq);
   }

@@ -112,6 +112,7 @@ class BusMonitor {
   };
   struct TrackInfo {
     int64_t first_seq = 0, last_seq = 0;
+    bool listed = false;  // in a tracked list yet (not only in a code)
     int64_t frames_visible = 0, frames_coasting = 0;
     // each payload in turn, from the frame it came from (the last is the
     // track's; one more than one: changes)
