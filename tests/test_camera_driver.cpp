@@ -570,6 +570,26 @@ TEST_F(Unplug, ReopensWithBackoffWhenTheDeviceComesBack) {
   expectNoLeaks(dev);
 }
 
+// Stopped and started again (the driver numbers its frames from 0 again):
+// the frames' numbering goes on, as across a reconnect.
+TEST_F(Unplug, NumberingGoesOnAfterStopAndStart) {
+  ld::ReconnectingCapture rc(dev, clock, "/dev/video0", {}, {}, [](const std::string&) {});
+  std::vector<int64_t> seqs;
+  ld::Frame f;
+  for (int run = 0; run < 2; ++run) {
+    rc.start();
+    for (int calls = 0; seqs.size() < 3u * (run + 1) && calls < 100; ++calls) {
+      if (!rc.grab(f, 200)) continue;
+      seqs.push_back(f.seq);
+      rc.requeue(f);
+    }
+    EXPECT_EQ(f.sequence, 2u);  // the driver's, from 0 each time
+    rc.stop();
+  }
+  EXPECT_EQ(seqs, (std::vector<int64_t>{0, 1, 2, 3, 4, 5}));
+  expectNoLeaks(dev);
+}
+
 TEST_F(Unplug, WhileWaitingInPollAndBackByItself) {
   std::vector<std::string> log;
   ld::ReconnectingCapture rc(dev, clock, "/dev/video0", {}, {},

@@ -846,6 +846,7 @@ const CaptureFormat& ReconnectingCapture::start() {
   capture_.open(device_, request_);
   capture_.start();
   down_ = false;
+  rebase_ = next_seq_ > 0;  // started again after stop(): the numbering goes on
   last_frame_us_ = clock_.monotonicUs();
   return capture_.format();
 }

@@ -318,7 +318,8 @@ class ReconnectingCapture {
   /// Opens and starts streaming. Throws CaptureError.
   const CaptureFormat& start();
   /// A frame (true), or false on timeout / while reconnecting. Frame::seq
-  /// continues across reconnects. Throws only for errors that are not about
+  /// continues across reconnects, and across stop() and start() again.
+  /// Throws only for errors that are not about
   /// the device going away.
   bool grab(Frame& frame, int timeout_ms);
   /// Gives the frame back; a device lost here is handled like in grab().
