@@ -879,6 +879,49 @@ TEST(Quirks, ExposureResetAtStreamonIsSetAgain) {
   expectNoLeaks(dev);
 }
 
+// A camera that takes no control while streaming (EBUSY) keeps the
+// exposure set before STREAMON, and starts; one that also resets it at
+// STREAMON cannot run with it, and says so.
+TEST(Quirks, ControlsRefusedWhileStreaming) {
+  ld::FakeClock clock;
+  auto spec = ld::FakeCameraSpec::webcam();
+  spec.controls_busy_while_streaming = true;
+  {
+    ld::FakeV4l2Device dev(clock, {spec});
+    ld::V4l2Capture cap(dev, clock);
+    auto r = request(V4L2_PIX_FMT_YUYV, 640, 480);
+    r.exposure_ms = 5;
+    cap.open("/dev/video0", r);
+    cap.start();
+    EXPECT_EQ(dev.exposure().mode, V4L2_EXPOSURE_MANUAL);
+    EXPECT_EQ(dev.exposure().time, 50);
+    EXPECT_EQ(cap.format().exposure_ms, 5);
+    cap.stop();
+    cap.start();
+    EXPECT_EQ(dev.exposure().time, 50);
+    cap.close();
+    EXPECT_EQ(dev.exposure().time, 156);  // (put back once streaming stopped)
+    expectNoLeaks(dev);
+  }
+  spec.resets_exposure_at_streamon = true;
+  ld::FakeV4l2Device dev(clock, {spec});
+  ld::V4l2Capture cap(dev, clock);
+  auto r = request(V4L2_PIX_FMT_YUYV, 640, 480);
+  r.exposure_ms = 5;
+  cap.open("/dev/video0", r);
+  try {
+    cap.start();
+    ADD_FAILURE() << "started with the exposure reset";
+  } catch (const ld::CaptureError& e) {
+    EXPECT_EQ(e.kind(), ld::CaptureError::Kind::ControlRefused);
+    EXPECT_EQ(std::string(e.what()),
+              "/dev/video0 (Fake UVC Camera) takes no exposure control while streaming, and STREAMON changed "
+              "its exposure time from 5 to 15.6 ms: run without the exposure");
+  }
+  cap.close();
+  expectNoLeaks(dev);
+}
+
 // A stream that stops while the device stays (firmware, USB), against a
 // reconnecting capture that has handed out its first frame; what it logs is
 // kept.

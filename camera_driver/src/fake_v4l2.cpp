@@ -543,6 +543,7 @@ int FakeV4l2Device::doIoctl(Node& n, int fd, unsigned long request, void* arg) {
         c->value = v;
         return 0;
       }
+      if (n.spec.controls_busy_while_streaming && n.streaming) return fail(EBUSY);
       if (c->id == V4L2_CID_EXPOSURE_AUTO) {
         // a UVC webcam's menu: manual and aperture priority only
         const bool manual_ok = c->value == V4L2_EXPOSURE_MANUAL && n.spec.exposure_manual_mode;

@@ -532,7 +532,8 @@ void V4l2Capture::setExposure(double ms) {
   mode.value = V4L2_EXPOSURE_MANUAL;
   if (xioctl(io_, fd_, VIDIOC_S_CTRL, &mode) < 0 && errno != EINVAL) {
     const int e = errno;
-    if (e == EIO || e == EILSEQ)  // (the firmware refused it; the device is there)
+    // (the firmware refused it, or the driver while streaming; the device is there)
+    if (e == EIO || e == EILSEQ || e == EBUSY)
       throw CaptureError(K::ControlRefused, named + " refused to turn its automatic exposure off (" +
                                                 std::strerror(e) + "): run without the exposure");
     fail("VIDIOC_S_CTRL (automatic exposure off)", e);
@@ -548,7 +549,10 @@ void V4l2Capture::setExposure(double ms) {
     const int e = errno;
     // (EIO: uvcvideo's answer for a control the firmware lacks; EILSEQ:
     // older kernels' for a time refused while auto exposure stays on)
-    if (e == EACCES || e == EPERM || e == EBUSY || e == EIO || e == EILSEQ)
+    if (e == EBUSY)  // (a control the driver takes only while not streaming)
+      throw CaptureError(K::ControlRefused, named + " refused the exposure time while streaming (" +
+                                                std::strerror(e) + ")");
+    if (e == EACCES || e == EPERM || e == EIO || e == EILSEQ)
       throw CaptureError(K::ControlRefused, named + " refused the exposure time (" + std::strerror(e) +
                                                 "): its automatic exposure could not be turned off");
     fail("VIDIOC_S_CTRL (exposure time)", e);
@@ -640,7 +644,25 @@ void V4l2Capture::start() {
   raw_bytesused_set_ = false;
   // The manual exposure again once streaming: cameras such as the Logitech
   // C920 set their exposure time again at STREAMON, auto exposure off or not.
-  if (exposure_ms_ > 0) setExposure(exposure_ms_);
+  if (exposure_ms_ > 0) {
+    const double set_at_open = format_.exposure_ms;
+    try {
+      setExposure(exposure_ms_);
+    } catch (const CaptureError& e) {
+      // A camera that takes no control while streaming (EBUSY) keeps the
+      // exposure set before STREAMON, unless STREAMON reset it.
+      if (e.kind() != CaptureError::Kind::ControlRefused) throw;
+      v4l2_control time{};
+      time.id = V4L2_CID_EXPOSURE_ABSOLUTE;
+      if (xioctl(io_, fd_, VIDIOC_G_CTRL, &time) < 0) throw;
+      if (time.value / 10.0 != set_at_open)
+        throw CaptureError(CaptureError::Kind::ControlRefused,
+                           device_ + " (" + format_.card + ") takes no exposure control while streaming, and "
+                               "STREAMON changed its exposure time from " + fpsNumber(set_at_open) + " to " +
+                               fpsNumber(time.value / 10.0) + " ms: run without the exposure");
+      format_.exposure_ms = set_at_open;
+    }
+  }
 }
 
 size_t V4l2Capture::usedBytes(const v4l2_buffer& b) {

@@ -100,6 +100,8 @@ struct FakeCameraSpec {
   /// Sets its exposure time back to the default at STREAMON, automatic
   /// exposure off or not, as the Logitech C920 does.
   bool resets_exposure_at_streamon = false;
+  /// Refuses its controls (S_CTRL: EBUSY) while streaming.
+  bool controls_busy_while_streaming = false;
   /// Every n-th MJPEG frame comes cut to half its bytes, without the error
   /// flag (uvcvideo checks the size of raw frames alone); 0: never.
   int mjpeg_cut_every = 0;
