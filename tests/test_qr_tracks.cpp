@@ -4,7 +4,6 @@
 
 #include <cmath>
 #include <memory>
-#include <random>
 #include <utility>
 
 #include "ld/qr_tracks.hpp"
@@ -170,29 +169,6 @@ TEST(QrTrackBook, ReadTrackFoundAgainAfterCoastingIsCheckedAgainstItsPath) {
     ASSERT_NE(b->payload(1), nullptr) << x << ", " << y;
     EXPECT_EQ(b->payload(1)->payload, "E1");
   }
-}
-
-// A read track moving steadily with a pixel of jitter on its detected centre
-// (the detector's is a few tenths) coasts for 29 frames and is found again
-// where it should be: it keeps its payload. The last step's velocity alone
-// is a pixel or two off, 29 times over: 54 of these 200 payloads were
-// forgotten. The smoothed velocity lags a track that speeds up, so a
-// track's path is taken both ways.
-TEST(QrTrackBook, ReadTrackWithJitterFoundAgainAfterALongCoastKeepsItsPayload) {
-  int forgotten = 0;
-  for (unsigned seed = 0; seed < 200; ++seed) {
-    std::mt19937 rng(seed);
-    std::normal_distribution<double> jitter(0.0, 1.0);
-    ld::QrTrackBook book;
-    book.schedule({1}, 0);
-    book.record(1, 0, 0, std::string("P"));
-    double x = 100;
-    int k = 0;
-    for (; k < 10; ++k, x += 10) book.follow(1, k, true, x + jitter(rng), 200 + jitter(rng), 40);
-    for (int c = 0; c < 29; ++c, ++k, x += 10) book.follow(1, k, false, x, 200, 40);
-    forgotten += book.follow(1, k, true, x + jitter(rng), 200 + jitter(rng), 40).has_value();
-  }
-  EXPECT_LE(forgotten, 4);
 }
 
 // The first decode of a frame always runs; later ones while the budget lasts.

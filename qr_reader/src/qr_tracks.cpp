@@ -148,32 +148,17 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
       // its last place to where its motion leads (the robot may have
       // stopped anywhere on it), however long it coasted. (Closer, the
       // velocity's error over many frames coasted reads as a jump.)
-      // Its path is taken both at the velocity of its last step and at
-      // its steps' smoothed velocity: over many frames, a pixel of jitter in
-      // the last step alone led tens of pixels astray (1 px of centre jitter
-      // over 29 frames: 54 of 200 payloads forgotten), while the smoothed
-      // one lags a track that speeds up. Near either path, it kept on.
-      const auto off_path = [&](double vx, double vy) {
-        const double dx = vx * frames, dy = vy * frames, len2 = dx * dx + dy * dy;
-        const double u = len2 > 0 ? std::clamp(((cx - t.cx) * dx + (cy - t.cy) * dy) / len2, 0.0, 1.0) : 0.0;
-        return std::hypot(cx - (t.cx + u * dx), cy - (t.cy + u * dy)) > 1.5 * mean_size;
-      };
-      jumped = off_path(t.vx, t.vy) && off_path(t.svx, t.svy);
+      const double dx = px - t.cx, dy = py - t.cy, len2 = dx * dx + dy * dy;
+      const double u = len2 > 0 ? std::clamp(((cx - t.cx) * dx + (cy - t.cy) * dy) / len2, 0.0, 1.0) : 0.0;
+      jumped = std::hypot(cx - (t.cx + u * dx), cy - (t.cy + u * dy)) > 1.5 * mean_size;
     }
   }
   t.coasted = false;
   if (t.placed && !jumped) {
     t.vx = (cx - t.cx) / frames;
     t.vy = (cy - t.cy) / frames;
-    // (a step over several frames is their mean already)
-    const double w = frames > 1 || !t.smoothed ? 1.0 : 0.5;
-    t.svx = w * t.vx + (1 - w) * t.svx;
-    t.svy = w * t.vy + (1 - w) * t.svy;
-    t.smoothed = true;
   } else {
-    // (a new landmark under the id: its motion is not known yet)
-    t.vx = t.vy = t.svx = t.svy = 0;
-    t.smoothed = false;
+    t.vx = t.vy = 0;  // (a new landmark under the id: its motion is not known yet)
   }
   t.placed = true;
   t.cx = cx;

@@ -123,9 +123,7 @@ class QrTrackBook {
   /// forgotten is returned. Once it has been seen coasting, it is detected
   /// again within 1.5 sizes of its path from its last place to where its
   /// motion leads (the robot may have stopped anywhere on it), however many
-  /// frames it coasted, its motion taken either from its last step or from
-  /// its steps smoothed (a step's jitter, times the frames coasted, would
-  /// read as a jump): the tracker found it again by a gate, which a
+  /// frames it coasted: the tracker found it again by a gate, which a
   /// neighbour can be in (the allowance growing with the frames, a landmark
   /// coming in across the image as it left kept its payload for seconds).
   /// Tracks the book does not know yet (never scheduled) are left alone.
@@ -153,8 +151,6 @@ class QrTrackBook {
     bool placed = false;  // where it was last detected (follow)
     bool coasted = false;  // seen coasting since
     double cx = 0, cy = 0, size = 0, vx = 0, vy = 0;  // (velocity in px per tracker frame)
-    double svx = 0, svy = 0;  // the velocity smoothed over its steps (half the last step)
-    bool smoothed = false;    // svx, svy measured (a step since it was placed)
     int32_t age = 0;
   };
   QrScheduleParams params_;
