@@ -17,13 +17,16 @@ namespace {
 
 using ld::artwork::Colours;
 
-std::vector<std::string> zbarDecode(const cv::Mat& bgr) {
+// binary: the bytes as encoded (as ld-qr-reader reads them); otherwise text,
+// as zbar converts it for a reader that shows it (from the code's ECI, or a
+// guess)
+std::vector<std::string> zbarDecode(const cv::Mat& bgr, bool binary = true) {
   cv::Mat gray;
   cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
   zbar::ImageScanner scanner;
   scanner.set_config(zbar::ZBAR_NONE, zbar::ZBAR_CFG_ENABLE, 0);
   scanner.set_config(zbar::ZBAR_QRCODE, zbar::ZBAR_CFG_ENABLE, 1);
-  scanner.set_config(zbar::ZBAR_QRCODE, zbar::ZBAR_CFG_BINARY, 1);  // bytes as encoded
+  scanner.set_config(zbar::ZBAR_QRCODE, zbar::ZBAR_CFG_BINARY, binary ? 1 : 0);
   zbar::Image image(static_cast<unsigned>(gray.cols), static_cast<unsigned>(gray.rows), "Y800",
                     gray.data, static_cast<unsigned long>(gray.total()));
   scanner.scan(image);
@@ -119,6 +122,27 @@ TEST(Artwork, QrDecodesWithZbar) {
     ASSERT_EQ(found.size(), 1u) << p;
     EXPECT_EQ(found[0], p);
   }
+}
+
+// UTF-8 text beyond ASCII says so in its code (ECI 26): a reader that shows
+// text reads it as written. Without it, zbar took short UTF-8 for
+// Shift-JIS ("caf\xc3\xa9" read "caf\xe7\x9f\x87"). Bytes that are not UTF-8
+// are encoded as they are.
+TEST(Artwork, Utf8PayloadsReadAsTextByAnyReader) {
+  const std::vector<std::string> texts{"caf\xc3\xa9", "\xc3\xa9", "\xe5\xae\x9f\xe9\xa8\x93\xe5\xae\xa4",
+                                       "T\xc3\xbcr-214/\xe2\x9c\x93", "room-214/door"};
+  for (const auto& p : texts) {
+    const cv::Mat img = ld::artwork::renderLandmark(p, 540);
+    for (bool binary : {false, true}) {
+      const auto found = zbarDecode(img, binary);
+      ASSERT_EQ(found.size(), 1u) << p;
+      EXPECT_EQ(found[0], p) << (binary ? "bytes" : "text");
+    }
+  }
+  const std::string bytes = "\xff\xfe\x80 raw";
+  const auto found = zbarDecode(ld::artwork::renderLandmark(bytes, 540));
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_EQ(found[0], bytes);
 }
 
 // Auto error correction: level L's symbol (the largest modules the QR square

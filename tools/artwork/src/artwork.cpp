@@ -180,11 +180,29 @@ void appendLandmark(std::ostringstream& os, const QrCode& qr, double x0, double 
   os << "\"/>\n";
 }
 
-// libqrencode's smallest symbol for `payload` at `level`, or null when none holds it.
+// Text beyond ASCII, all of it UTF-8.
+bool isUtf8BeyondAscii(const std::string& s) {
+  if (std::all_of(s.begin(), s.end(), [](char c) { return static_cast<unsigned char>(c) < 0x80; })) return false;
+  std::string again;
+  for (char32_t cp : codePoints(s)) appendUtf8(again, cp);
+  return again == s;  // (a byte that is no UTF-8 came back as U+FFFD)
+}
+
+// libqrencode's smallest symbol for `payload` at `level`, or null when none
+// holds it. UTF-8 text beyond ASCII is announced as such (ECI 26): a QR's
+// bytes are ISO 8859-1 unless it says otherwise, and readers guess (zbar's
+// text mode read "café" as "caf矇", Shift-JIS). (12 bits more: a payload at
+// a symbol's capacity may need the next.)
 std::unique_ptr<QRcode, decltype(&QRcode_free)> encodeAt(const std::string& payload, QRecLevel level) {
-  return {QRcode_encodeData(static_cast<int>(payload.size()),
-                            reinterpret_cast<const unsigned char*>(payload.data()), 0, level),
-          &QRcode_free};
+  const auto* bytes = reinterpret_cast<const unsigned char*>(payload.data());
+  const int size = static_cast<int>(payload.size());
+  if (!isUtf8BeyondAscii(payload)) return {QRcode_encodeData(size, bytes, 0, level), &QRcode_free};
+  std::unique_ptr<QRinput, decltype(&QRinput_free)> input(QRinput_new2(0, level), &QRinput_free);
+  constexpr unsigned int kEciUtf8 = 26;
+  if (!input || QRinput_appendECIheader(input.get(), kEciUtf8) < 0 ||
+      QRinput_append(input.get(), QR_MODE_8, size, bytes) < 0)
+    return {nullptr, &QRcode_free};
+  return {QRcode_encodeInput(input.get()), &QRcode_free};
 }
 
 struct Grid {
