@@ -310,10 +310,14 @@ TEST(BusMonitor, TrackWithTwoPayloadsListsBoth) {
   // the status line counts the frames before the last answered (0-8; 13 may
   // still be decoding), the summary every one
   EXPECT_NE(m.statusLine(2000).find("qr 9 |"), std::string::npos) << m.statusLine(3000);
-  // and an older list of it arriving after the code starts it there, its
-  // frames still ending at the code's
+  // and older lists of it arriving after the code, in any order, start it
+  // at the oldest, its frames still ending at the code's
   m.trackedSeen(list(1012, 12, {trackedLandmark(9, true, "")}), 1015);
   EXPECT_EQ(m.summary()["tracks"][1]["first_seq"], 12);
+  EXPECT_EQ(m.summary()["tracks"][1]["last_seq"], 13);
+  m.trackedSeen(list(1011, 11, {trackedLandmark(9, true, "")}), 1016);
+  m.trackedSeen(list(1012, 12, {trackedLandmark(9, true, "")}), 1017);
+  EXPECT_EQ(m.summary()["tracks"][1]["first_seq"], 11);
   EXPECT_EQ(m.summary()["tracks"][1]["last_seq"], 13);
 }
 

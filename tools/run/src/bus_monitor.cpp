@@ -203,15 +203,7 @@ void BusMonitor::trackedSeen(const landmark_list_t& list, Micros rx_us) {
     if (lm.track_id < 0) continue;
     auto [t, is_new] = tracks_.try_emplace({run, lm.track_id});
     TrackInfo& info = t->second;
-    if (is_new) {
-      info.first_seq = info.last_seq = list.seq;
-    } else if (!info.listed) {  // known through a code first: the list may be older
-      info.first_seq = std::min(info.first_seq, list.seq);
-      info.last_seq = std::max(info.last_seq, list.seq);
-    } else {
-      info.last_seq = list.seq;
-    }
-    info.listed = true;
+    info.seenIn(list.seq, is_new);
     if (lm.visible) {
       ++info.frames_visible;
       ++f.landmarks;
@@ -233,7 +225,7 @@ int64_t BusMonitor::qrSkippedAll() const {
 void BusMonitor::setPayload(int run, int64_t id, const std::string& payload, int64_t seq) {
   auto [it, is_new] = tracks_.try_emplace({run, id});
   TrackInfo& t = it->second;
-  if (is_new) t.first_seq = t.last_seq = seq;  // (known through a code first: its list was lost)
+  if (is_new) t.seenIn(seq, true);  // (known through a code first: its list was lost, or comes later)
   // (one id, two landmarks: the tracker gave it to another, its payload
   // read as well; each in turn, with the frame it came from)
   if (t.payloads.empty() || t.payloads.back().first != payload) t.payloads.emplace_back(payload, seq);

@@ -87,7 +87,8 @@ class BusMonitor {
   ///  "tracker_restarts",
   ///  "tracks": [{"id", "tracker_run", "payload" (the last), "payload_changes",
   ///              "payloads": [{"payload", "from_seq"}] (each in turn, from the frame it was
-  ///              first listed or read in), "first_seq", "last_seq", "frames_visible",
+  ///              first listed or read in), "first_seq", "last_seq" (the lowest and highest
+  ///              frame it was listed in, or read in before any), "frames_visible",
   ///              "frames_coasting"}],
   ///  "payloads_decoded",
   ///  "per_frame": [{"seq", "utime", "latency_ms"|null, "landmarks", "ids", "tracker_run"}]}
@@ -111,8 +112,13 @@ class BusMonitor {
     Micros first = 0, last = 0;
   };
   struct TrackInfo {
+    // the lowest and highest frame it was listed in (or read in, when a
+    // code came before any list: a list of an earlier frame can come after it)
     int64_t first_seq = 0, last_seq = 0;
-    bool listed = false;  // in a tracked list yet (not only in a code)
+    void seenIn(int64_t seq, bool first) {
+      first_seq = first ? seq : std::min(first_seq, seq);
+      last_seq = first ? seq : std::max(last_seq, seq);
+    }
     int64_t frames_visible = 0, frames_coasting = 0;
     // each payload in turn, from the frame it came from (the last is the
     // track's; one more than one: changes)
