@@ -171,6 +171,23 @@ TEST(QrTrackBook, ReadTrackFoundAgainAfterCoastingIsCheckedAgainstItsPath) {
   }
 }
 
+// A track not read yet whose id the tracker moves to another landmark: the
+// move is no motion. Read there, the track keeps its payload in the next
+// list (its velocity was the whole move, 275 px a frame, and the payload just
+// read was forgotten at once, where a far landmark may not read again).
+TEST(QrTrackBook, TrackMovedBeforeItWasReadKeepsWhatItReadsThere) {
+  ld::QrTrackBook book;
+  book.schedule({1}, 0);
+  for (int k = 0; k < 5; ++k) EXPECT_EQ(book.follow(1, k, true, 100 + 5 * k, 200, 30), std::nullopt);
+  EXPECT_EQ(book.follow(1, 5, true, 400, 200, 30), std::nullopt);  // another landmark now
+  book.record(1, 5, 5, std::string("dock-7"));
+  for (int k = 6; k < 10; ++k) {
+    EXPECT_EQ(book.follow(1, k, true, 400 + 5 * (k - 5), 200, 30), std::nullopt) << "frame " << k;
+    ASSERT_NE(book.payload(1), nullptr) << "frame " << k;
+  }
+}
+
+// The first decode of a frame always runs; later ones while the budget lasts.
 // The first decode of a frame always runs; later ones while the budget lasts.
 TEST(DecodeBudget, FirstAlwaysThenWhileTheBudgetLasts) {
   using ms = std::chrono::milliseconds;

@@ -139,7 +139,7 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
   const double px = t.cx + t.vx * frames, py = t.cy + t.vy * frames;  // where its motion leads
   const double mean_size = 0.5 * (size + t.size);
   bool jumped = false;
-  if (t.placed && t.known) {
+  if (t.placed) {  // (read or not: a track not read yet starts its motion again too)
     if (!t.coasted) {
       jumped = std::hypot(cx - px, cy - py) > frames * mean_size;
     } else {
@@ -165,7 +165,7 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
   t.cy = cy;
   t.size = size;
   t.age = age;
-  if (!jumped) return std::nullopt;
+  if (!jumped || !t.known) return std::nullopt;
   std::optional<std::string> forgotten = std::move(t.known->payload);
   t.known.reset();
   t.last_try = INT64_MIN;  // (first in the next schedule)

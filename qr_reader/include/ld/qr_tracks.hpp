@@ -126,7 +126,10 @@ class QrTrackBook {
   /// frames it coasted: the tracker found it again by a gate, which a
   /// neighbour can be in (the allowance growing with the frames, a landmark
   /// coming in across the image as it left kept its payload for seconds).
-  /// Tracks the book does not know yet (never scheduled) are left alone.
+  /// A track not read yet that jumps so has nothing to forget; its motion
+  /// starts again (the move taken for its velocity, a payload read there
+  /// was forgotten in the next list). Tracks the book does not know yet
+  /// (never scheduled) are left alone.
   std::optional<std::string> follow(int64_t track_id, int32_t age, bool visible, double cx, double cy,
                                     double size);
 
