@@ -188,6 +188,19 @@ TEST(QrTrackBook, TrackMovedBeforeItWasReadKeepsWhatItReadsThere) {
 }
 
 // The first decode of a frame always runs; later ones while the budget lasts.
+// A far landmark read in the first list it is in, already moving faster
+// than its size a frame (a turn): its first step is its motion, not a jump
+// (judged against no motion, its payload was forgotten in the third list).
+TEST(QrTrackBook, TrackReadAtFirstSightMovingFastKeepsItsPayload) {
+  ld::QrTrackBook book;
+  book.schedule({1}, 0);
+  book.record(1, 0, 0, std::string("far-3"));  // (read before the book placed it)
+  for (int k = 1; k < 10; ++k) {
+    EXPECT_EQ(book.follow(1, k, true, 100 + 40 * k, 200, 30), std::nullopt) << "frame " << k;
+    ASSERT_NE(book.payload(1), nullptr) << "frame " << k;
+  }
+}
+
 // The first decode of a frame always runs; later ones while the budget lasts.
 TEST(DecodeBudget, FirstAlwaysThenWhileTheBudgetLasts) {
   using ms = std::chrono::milliseconds;

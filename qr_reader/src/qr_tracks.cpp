@@ -139,7 +139,10 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
   const double px = t.cx + t.vx * frames, py = t.cy + t.vy * frames;  // where its motion leads
   const double mean_size = 0.5 * (size + t.size);
   bool jumped = false;
-  if (t.placed) {  // (read or not: a track not read yet starts its motion again too)
+  // Judged against a motion measured (a step since it was placed, or since
+  // it last jumped: its first may be fast), read or not (a track not read yet
+  // that jumps starts its motion again too).
+  if (t.placed && t.measured) {
     if (!t.coasted) {
       jumped = std::hypot(cx - px, cy - py) > frames * mean_size;
     } else {
@@ -157,8 +160,10 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
   if (t.placed && !jumped) {
     t.vx = (cx - t.cx) / frames;
     t.vy = (cy - t.cy) / frames;
+    t.measured = true;
   } else {
     t.vx = t.vy = 0;  // (a new landmark under the id: its motion is not known yet)
+    t.measured = false;
   }
   t.placed = true;
   t.cx = cx;
