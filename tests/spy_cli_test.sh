@@ -60,4 +60,30 @@ rc=0; timeout 20 "$netns" env LD_TYPES_JAR="$T/empty.jar" DISPLAY=:97 "$spy" >"$
 rc=0; timeout 20 "$netns" env DISPLAY=nocolon "$spy" >"$T/out" 2>"$T/err" || rc=$?
 [ $rc -eq 2 ] && [ "$(wc -l <"$T/err")" -eq 1 ] && grep -q "^ld-spy: DISPLAY=nocolon is not a display name (:N, unix:N or HOST:N)" "$T/err" ||
   fail "DISPLAY=nocolon: $rc $(cat "$T/err")"
+# an X server that refuses the connection (no authorisation): one line with
+# Xlib's reason (Java's AWTError stack trace before); a fake server in the
+# namespace answers the X11 connection setup with "Failed"
+cat >"$T/refusing_x.py" <<'PY'
+import socket, struct
+s = socket.socket()
+s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+s.bind(("127.0.0.1", 6095))
+s.listen(8)
+reason = b"Authorization required, but no authorization protocol specified\n"
+pad = -len(reason) % 4
+while True:
+    c, _ = s.accept()
+    try:
+        c.recv(4096)
+        c.sendall(struct.pack("<BBHHH", 0, len(reason), 11, 0, (len(reason) + pad) // 4) + reason + b"\0" * pad)
+    except OSError:
+        pass
+    c.close()
+PY
+rc=0
+timeout 60 "$netns" bash -c 'python3 "$1" & for i in $(seq 50); do (exec 3<>/dev/tcp/127.0.0.1/6095) 2>/dev/null && break; sleep 0.1; done
+  DISPLAY=localhost:95.0 "$2" --lcm-url "udpm://239.255.76.67:7667?ttl=0"' _ "$T/refusing_x.py" "$spy" >"$T/out" 2>"$T/err" || rc=$?
+[ $rc -ne 0 ] && [ "$(wc -l <"$T/err")" -eq 1 ] || fail "refused by the X server: exit $rc: $(cat "$T/err")"
+grep -q "^ld-spy: the X server on display localhost:95.0 refused the connection (Authorization required, but no authorization protocol specified): let this user in (xhost +SI:localuser:.* there, or XAUTHORITY naming the display's cookie file), or on a headless robot" "$T/err" ||
+  fail "refused by the X server: $(cat "$T/err")"
 echo "ld-spy command line: ok"
