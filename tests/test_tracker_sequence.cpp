@@ -122,7 +122,8 @@ TEST(TrackerSequence, GroundTruthWithMissesHasNoIdSwitch) {
           dets.push_back(lm);
           truth_ids.push_back(t.id);
         }
-        const auto& tracks = tracker.update(dets, seq.utime(i));
+        // (with the image's size, as ld-tracker passes it: the side rule at work)
+        const auto& tracks = tracker.update(dets, seq.utime(i), scene.camera.size);
         for (size_t d = 0; d < dets.size(); ++d)
           counter.observe(truth_ids[d], trackOf(tracks, static_cast<int>(d)), seq.utime(i));
       }
@@ -205,7 +206,7 @@ SequenceResult detectAndTrack(double seconds, double fps, int landmarks, uint64_
       if (t.in_view) prev[t.id] = tc; else prev.erase(t.id);
     }
     const ld::Detection& det = detector.detect(frame.bgr);
-    const auto& tracks = tracker.update(det.landmarks, seq.utime(i));
+    const auto& tracks = tracker.update(det.landmarks, seq.utime(i), frame.bgr.size());
     for (const auto& t : frame.truth) r.in_view += t.in_view;
     for (size_t d = 0; d < det.landmarks.size(); ++d) {
       const cv::Point2f c = ld::landmarkCentre(det.landmarks[d]);
