@@ -187,7 +187,6 @@ TEST(QrTrackBook, TrackMovedBeforeItWasReadKeepsWhatItReadsThere) {
   }
 }
 
-// The first decode of a frame always runs; later ones while the budget lasts.
 // A far landmark read in the first list it is in, already moving faster
 // than its size a frame (a turn): its first step is its motion, not a jump
 // (judged against no motion, its payload was forgotten in the third list).
@@ -198,6 +197,38 @@ TEST(QrTrackBook, TrackReadAtFirstSightMovingFastKeepsItsPayload) {
   for (int k = 1; k < 10; ++k) {
     EXPECT_EQ(book.follow(1, k, true, 100 + 40 * k, 200, 30), std::nullopt) << "frame " << k;
     ASSERT_NE(book.payload(1), nullptr) << "frame " << k;
+  }
+}
+
+// ... but a step before the motion is known is still judged, by the
+// tracker's own gate of two sizes a frame, and a track found again after
+// coasting within 1.5 sizes of its last place (a review: not judged at all,
+// an id given to another landmark at its second step kept the payload, and
+// one found 300 px away after 20 frames coasted too).
+TEST(QrTrackBook, StepBeforeTheMotionIsKnownIsStillJudged) {
+  {  // read at list 0, placed at list 1, the id given to another landmark at list 2
+    ld::QrTrackBook book;
+    book.schedule({1}, 0);
+    book.record(1, 0, 0, std::string("A"));
+    EXPECT_EQ(book.follow(1, 1, true, 105, 200, 30), std::nullopt);
+    EXPECT_EQ(book.follow(1, 2, true, 300, 200, 30), std::optional<std::string>("A"));
+  }
+  {  // read, placed once, coasting 20 lists, found at a neighbour 300 px away
+    ld::QrTrackBook book;
+    book.schedule({1}, 0);
+    book.record(1, 0, 0, std::string("A"));
+    EXPECT_EQ(book.follow(1, 1, true, 200, 200, 60), std::nullopt);
+    for (int k = 2; k < 22; ++k) EXPECT_EQ(book.follow(1, k, false, 200, 200, 60), std::nullopt);
+    EXPECT_EQ(book.follow(1, 22, true, 500, 200, 60), std::optional<std::string>("A"));
+  }
+  {  // ... found where it was: kept
+    ld::QrTrackBook book;
+    book.schedule({1}, 0);
+    book.record(1, 0, 0, std::string("A"));
+    EXPECT_EQ(book.follow(1, 1, true, 200, 200, 60), std::nullopt);
+    for (int k = 2; k < 22; ++k) EXPECT_EQ(book.follow(1, k, false, 200, 200, 60), std::nullopt);
+    EXPECT_EQ(book.follow(1, 22, true, 250, 230, 60), std::nullopt);
+    ASSERT_NE(book.payload(1), nullptr);
   }
 }
 

@@ -128,11 +128,13 @@ class QrTrackBook {
   /// coming in across the image as it left kept its payload for seconds).
   /// A track not read yet that jumps so has nothing to forget; its motion
   /// starts again (the move taken for its velocity, a payload read there
-  /// was forgotten in the next list). A step is judged once the motion is
-  /// measured, from a step since the track was placed or since it jumped
-  /// (against no motion, a landmark read at first sight and moving faster
-  /// than its size a frame was forgotten in its third list). Tracks the book
-  /// does not know yet (never scheduled) are left alone.
+  /// was forgotten in the next list). Until its motion is measured (a step
+  /// since the track was placed or since it jumped), a step may be up to
+  /// two sizes a frame, the tracker's own gate (against no motion and one
+  /// size, a landmark read at first sight and moving faster than its size a
+  /// frame was forgotten in its third list); found again after coasting, it
+  /// is then within 1.5 sizes of its last place. Tracks the book does not
+  /// know yet (never scheduled) are left alone.
   std::optional<std::string> follow(int64_t track_id, int32_t age, bool visible, double cx, double cy,
                                     double size);
 
