@@ -6,6 +6,8 @@
 // Last, ld-camera itself runs on its --fake webcam, writing an LCM log file.
 #include <gtest/gtest.h>
 
+#include <tuple>
+
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -920,6 +922,80 @@ TEST(Quirks, ControlsRefusedWhileStreaming) {
   }
   cap.close();
   expectNoLeaks(dev);
+}
+
+// The fake camera, with what some firmware does once streaming: S_CTRL
+// answers `refuse_errno`, and STREAMON may turn automatic exposure on again.
+class StreamingControlQuirks : public ld::V4l2Io {
+ public:
+  StreamingControlQuirks(ld::FakeV4l2Device& dev, int refuse_errno, bool auto_on_at_streamon)
+      : dev_(dev), refuse_(refuse_errno), auto_on_(auto_on_at_streamon) {}
+  int open(const char* path, int flags) override { return dev_.open(path, flags); }
+  int close(int fd) override { return dev_.close(fd); }
+  int ioctl(int fd, unsigned long request, void* arg) override {
+    if (request == VIDIOC_S_CTRL && streaming_) {
+      errno = refuse_;
+      return -1;
+    }
+    const int rc = dev_.ioctl(fd, request, arg);
+    if (rc == 0 && request == VIDIOC_STREAMON) {
+      streaming_ = true;
+      if (auto_on_) {
+        v4l2_control c{};
+        c.id = V4L2_CID_EXPOSURE_AUTO;
+        c.value = V4L2_EXPOSURE_APERTURE_PRIORITY;
+        dev_.ioctl(fd, VIDIOC_S_CTRL, &c);
+      }
+    }
+    if (rc == 0 && request == VIDIOC_STREAMOFF) streaming_ = false;
+    return rc;
+  }
+  void* mmap(void* addr, size_t length, int prot, int flags, int fd, off_t offset) override {
+    return dev_.mmap(addr, length, prot, flags, fd, offset);
+  }
+  int munmap(void* addr, size_t length) override { return dev_.munmap(addr, length); }
+  int poll(pollfd* fds, nfds_t nfds, int timeout_ms) override { return dev_.poll(fds, nfds, timeout_ms); }
+  std::vector<std::string> deviceNodes() override { return dev_.deviceNodes(); }
+
+ private:
+  ld::FakeV4l2Device& dev_;
+  int refuse_;
+  bool auto_on_;
+  bool streaming_ = false;
+};
+
+// Only EBUSY is a camera that takes no control while streaming: one that
+// turns automatic exposure on again at STREAMON is refused naming it, and a
+// control the firmware refuses (EIO) while streaming is refused as before (a
+// review: any refusal was taken for EBUSY, and the mode never looked at).
+TEST(Quirks, OnlyABusyControlKeepsTheExposureSetBefore) {
+  for (const auto& [err, auto_on, starts] : {std::tuple{EBUSY, false, true}, std::tuple{EBUSY, true, false},
+                                             std::tuple{EIO, false, false}, std::tuple{EIO, true, false}}) {
+    ld::FakeClock clock;
+    ld::FakeV4l2Device dev(clock);
+    StreamingControlQuirks io(dev, err, auto_on);
+    ld::V4l2Capture cap(io, clock);
+    auto r = request(V4L2_PIX_FMT_YUYV, 640, 480);
+    r.exposure_ms = 5;
+    cap.open("/dev/video0", r);
+    std::string why;
+    try {
+      cap.start();
+    } catch (const ld::CaptureError& e) {
+      EXPECT_EQ(e.kind(), ld::CaptureError::Kind::ControlRefused) << e.what();
+      why = e.what();
+    }
+    EXPECT_EQ(why.empty(), starts) << err << " " << auto_on << ": " << why;
+    if (err == EBUSY && auto_on) {
+      EXPECT_EQ(why, "/dev/video0 (Fake UVC Camera) takes no exposure control while streaming, and STREAMON turned "
+                     "its automatic exposure on again: run without the exposure");
+    }
+    if (err == EIO) {
+      EXPECT_NE(why.find("refused to turn its automatic exposure off (Input/output error)"), std::string::npos) << why;
+    }
+    cap.close();
+    expectNoLeaks(dev);
+  }
 }
 
 // A stream that stops while the device stays (firmware, USB), against a

@@ -508,6 +508,7 @@ void V4l2Capture::setFrameRate(double fps) {
 
 void V4l2Capture::setExposure(double ms) {
   using K = CaptureError::Kind;
+  exposure_busy_ = false;
   const std::string named = device_ + " (" + format_.card + ")";
   v4l2_queryctrl q{};
   q.id = V4L2_CID_EXPOSURE_ABSOLUTE;
@@ -533,6 +534,7 @@ void V4l2Capture::setExposure(double ms) {
   if (xioctl(io_, fd_, VIDIOC_S_CTRL, &mode) < 0 && errno != EINVAL) {
     const int e = errno;
     // (the firmware refused it, or the driver while streaming; the device is there)
+    exposure_busy_ = e == EBUSY;
     if (e == EIO || e == EILSEQ || e == EBUSY)
       throw CaptureError(K::ControlRefused, named + " refused to turn its automatic exposure off (" +
                                                 std::strerror(e) + "): run without the exposure");
@@ -549,9 +551,11 @@ void V4l2Capture::setExposure(double ms) {
     const int e = errno;
     // (EIO: uvcvideo's answer for a control the firmware lacks; EILSEQ:
     // older kernels' for a time refused while auto exposure stays on)
-    if (e == EBUSY)  // (a control the driver takes only while not streaming)
-      throw CaptureError(K::ControlRefused, named + " refused the exposure time while streaming (" +
-                                                std::strerror(e) + ")");
+    if (e == EBUSY) {  // (a control the driver takes only while not streaming)
+      exposure_busy_ = true;
+      throw CaptureError(K::ControlRefused, named + " refused the exposure time" +
+                                                (streaming_ ? " while streaming" : "") + " (" + std::strerror(e) + ")");
+    }
     if (e == EACCES || e == EPERM || e == EIO || e == EILSEQ)
       throw CaptureError(K::ControlRefused, named + " refused the exposure time (" + std::strerror(e) +
                                                 "): its automatic exposure could not be turned off");
@@ -649,17 +653,33 @@ void V4l2Capture::start() {
     try {
       setExposure(exposure_ms_);
     } catch (const CaptureError& e) {
-      // A camera that takes no control while streaming (EBUSY) keeps the
-      // exposure set before STREAMON, unless STREAMON reset it.
-      if (e.kind() != CaptureError::Kind::ControlRefused) throw;
-      v4l2_control time{};
+      // A camera that takes no control while streaming (EBUSY, and that
+      // alone) keeps the exposure set before STREAMON: manual, at that time,
+      // unless STREAMON changed either.
+      if (e.kind() != CaptureError::Kind::ControlRefused || !exposure_busy_) throw;
+      v4l2_control time{}, mode{};
       time.id = V4L2_CID_EXPOSURE_ABSOLUTE;
-      if (xioctl(io_, fd_, VIDIOC_G_CTRL, &time) < 0) throw;
+      mode.id = V4L2_CID_EXPOSURE_AUTO;
+      if (xioctl(io_, fd_, VIDIOC_G_CTRL, &time) < 0) {
+        const int err = errno;
+        if (deviceGone(err)) fail("VIDIOC_G_CTRL (exposure time)", err);
+        throw;
+      }
+      std::string changed;
+      if (xioctl(io_, fd_, VIDIOC_G_CTRL, &mode) < 0) {
+        const int err = errno;
+        if (deviceGone(err)) fail("VIDIOC_G_CTRL (automatic exposure)", err);
+        if (err != EINVAL) throw;  // (EINVAL: no such switch, the time alone)
+      } else if (mode.value != V4L2_EXPOSURE_MANUAL) {
+        changed = "turned its automatic exposure on again";
+      }
       if (time.value / 10.0 != set_at_open)
+        changed += (changed.empty() ? "" : " and ") + std::string("changed its exposure time from ") +
+                   fpsNumber(set_at_open) + " to " + fpsNumber(time.value / 10.0) + " ms";
+      if (!changed.empty())
         throw CaptureError(CaptureError::Kind::ControlRefused,
-                           device_ + " (" + format_.card + ") takes no exposure control while streaming, and "
-                               "STREAMON changed its exposure time from " + fpsNumber(set_at_open) + " to " +
-                               fpsNumber(time.value / 10.0) + " ms: run without the exposure");
+                           device_ + " (" + format_.card + ") takes no exposure control while streaming, and STREAMON " +
+                               changed + ": run without the exposure");
       format_.exposure_ms = set_at_open;
     }
   }

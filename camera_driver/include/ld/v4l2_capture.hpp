@@ -273,6 +273,7 @@ class V4l2Capture {
   bool have_sequence_ = false;
   uint32_t last_sequence_ = 0;
   int32_t saved_exposure_mode_ = -1, saved_exposure_time_ = -1;  // put back by close(); -1: nothing
+  bool exposure_busy_ = false;  // setExposure()'s refusal was EBUSY (a control taken only while not streaming)
 };
 
 // ---------------------------------------------------------------------------
