@@ -139,6 +139,17 @@ TEST(Artwork, Utf8PayloadsReadAsTextByAnyReader) {
       EXPECT_EQ(found[0], p) << (binary ? "bytes" : "text");
     }
   }
+  // (the mark costs 12 bits: at the largest symbol's capacity, said)
+  std::string full = "\xc3\xa9";
+  while (full.size() < 2953) full += 'x';
+  try {
+    ld::artwork::encodeQr(full);
+    ADD_FAILURE() << "2953 bytes of UTF-8 encoded";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "QR payload of 2953 bytes cannot be encoded (UTF-8 text, with its ECI mark: 12 bits more)");
+  }
+  EXPECT_NO_THROW(ld::artwork::encodeQr(std::string(2953, 'x')));
   const std::string bytes = "\xff\xfe\x80 raw";
   const auto found = zbarDecode(ld::artwork::renderLandmark(bytes, 540));
   ASSERT_EQ(found.size(), 1u);

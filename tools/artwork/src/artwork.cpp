@@ -269,7 +269,8 @@ QrCode encodeQr(const std::string& payload, QrEcc ecc) {
   }
   if (!code)
     throw std::invalid_argument("QR payload of " + std::to_string(payload.size()) + " bytes cannot be encoded" +
-                                (ecc == QrEcc::Auto ? "" : std::string(" at error correction ") + kName[chosen]));
+                                (ecc == QrEcc::Auto ? "" : std::string(" at error correction ") + kName[chosen]) +
+                                (isUtf8BeyondAscii(payload) ? " (UTF-8 text, with its ECI mark: 12 bits more)" : ""));
   QrCode qr;
   qr.size = code->width;
   qr.version = code->version;
