@@ -139,15 +139,9 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
   const double px = t.cx + t.vx * frames, py = t.cy + t.vy * frames;  // where its motion leads
   const double mean_size = 0.5 * (size + t.size);
   bool jumped = false;
-  // Read or not (a track not read yet that jumps starts its motion again too).
-  if (t.placed) {
-    if (!t.coasted && t.measured) {
+  if (t.placed && t.known) {
+    if (!t.coasted) {
       jumped = std::hypot(cx - px, cy - py) > frames * mean_size;
-    } else if (!t.coasted) {
-      // Its motion not known yet (a step since it was placed, or since it
-      // jumped, gives it: its first may be fast, as a far landmark's read at
-      // first sight in a turn), by the tracker's own gate: two sizes a frame.
-      jumped = std::hypot(cx - t.cx, cy - t.cy) > 2 * frames * mean_size;
     } else {
       // Seen coasting, it was found again by the tracker's gate, which a
       // neighbour may be in: it must be within 1.5 sizes of its path from
@@ -163,17 +157,15 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
   if (t.placed && !jumped) {
     t.vx = (cx - t.cx) / frames;
     t.vy = (cy - t.cy) / frames;
-    t.measured = true;
   } else {
     t.vx = t.vy = 0;  // (a new landmark under the id: its motion is not known yet)
-    t.measured = false;
   }
   t.placed = true;
   t.cx = cx;
   t.cy = cy;
   t.size = size;
   t.age = age;
-  if (!jumped || !t.known) return std::nullopt;
+  if (!jumped) return std::nullopt;
   std::optional<std::string> forgotten = std::move(t.known->payload);
   t.known.reset();
   t.last_try = INT64_MIN;  // (first in the next schedule)

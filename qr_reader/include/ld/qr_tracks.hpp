@@ -126,15 +126,7 @@ class QrTrackBook {
   /// frames it coasted: the tracker found it again by a gate, which a
   /// neighbour can be in (the allowance growing with the frames, a landmark
   /// coming in across the image as it left kept its payload for seconds).
-  /// A track not read yet that jumps so has nothing to forget; its motion
-  /// starts again (the move taken for its velocity, a payload read there
-  /// was forgotten in the next list). Until its motion is measured (a step
-  /// since the track was placed or since it jumped), a step may be up to
-  /// two sizes a frame, the tracker's own gate (against no motion and one
-  /// size, a landmark read at first sight and moving faster than its size a
-  /// frame was forgotten in its third list); found again after coasting, it
-  /// is then within 1.5 sizes of its last place. Tracks the book does not
-  /// know yet (never scheduled) are left alone.
+  /// Tracks the book does not know yet (never scheduled) are left alone.
   std::optional<std::string> follow(int64_t track_id, int32_t age, bool visible, double cx, double cy,
                                     double size);
 
@@ -158,7 +150,6 @@ class QrTrackBook {
     int64_t last_seen = 0;
     bool placed = false;  // where it was last detected (follow)
     bool coasted = false;  // seen coasting since
-    bool measured = false;  // vx, vy from a step (since placed, or since it jumped)
     double cx = 0, cy = 0, size = 0, vx = 0, vy = 0;  // (velocity in px per tracker frame)
     int32_t age = 0;
   };
