@@ -150,6 +150,13 @@ TEST(Artwork, Utf8PayloadsReadAsTextByAnyReader) {
               "QR payload of 2953 bytes cannot be encoded (UTF-8 text, with its ECI mark: 12 bits more)");
   }
   EXPECT_NO_THROW(ld::artwork::encodeQr(std::string(2953, 'x')));
+  full += std::string(1000, 'x');  // (too long either way: nothing said of the mark)
+  try {
+    ld::artwork::encodeQr(full);
+    ADD_FAILURE() << "3953 bytes encoded";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()), "QR payload of 3953 bytes cannot be encoded");
+  }
   const std::string bytes = "\xff\xfe\x80 raw";
   const auto found = zbarDecode(ld::artwork::renderLandmark(bytes, 540));
   ASSERT_EQ(found.size(), 1u);

@@ -193,6 +193,15 @@ bool isUtf8BeyondAscii(const std::string& s) {
 // bytes are ISO 8859-1 unless it says otherwise, and readers guess (zbar's
 // text mode read "café" as "caf矇", Shift-JIS). (12 bits more: a payload at
 // a symbol's capacity may need the next.)
+// Whether `payload` fits a symbol at `level` without the ECI mark.
+bool unmarked(const std::string& payload, QRecLevel level) {
+  std::unique_ptr<QRcode, decltype(&QRcode_free)> code(
+      QRcode_encodeData(static_cast<int>(payload.size()), reinterpret_cast<const unsigned char*>(payload.data()), 0,
+                        level),
+      &QRcode_free);
+  return code != nullptr;
+}
+
 std::unique_ptr<QRcode, decltype(&QRcode_free)> encodeAt(const std::string& payload, QRecLevel level) {
   const auto* bytes = reinterpret_cast<const unsigned char*>(payload.data());
   const int size = static_cast<int>(payload.size());
@@ -270,7 +279,9 @@ QrCode encodeQr(const std::string& payload, QrEcc ecc) {
   if (!code)
     throw std::invalid_argument("QR payload of " + std::to_string(payload.size()) + " bytes cannot be encoded" +
                                 (ecc == QrEcc::Auto ? "" : std::string(" at error correction ") + kName[chosen]) +
-                                (isUtf8BeyondAscii(payload) ? " (UTF-8 text, with its ECI mark: 12 bits more)" : ""));
+                                (isUtf8BeyondAscii(payload) && unmarked(payload, kLevel[chosen])
+                                     ? " (UTF-8 text, with its ECI mark: 12 bits more)"
+                                     : ""));
   QrCode qr;
   qr.size = code->width;
   qr.version = code->version;
