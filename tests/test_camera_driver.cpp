@@ -928,13 +928,19 @@ TEST(Quirks, ControlsRefusedWhileStreaming) {
 // answers `refuse_errno`, and STREAMON may turn automatic exposure on again.
 class StreamingControlQuirks : public ld::V4l2Io {
  public:
-  StreamingControlQuirks(ld::FakeV4l2Device& dev, int refuse_errno, bool auto_on_at_streamon)
-      : dev_(dev), refuse_(refuse_errno), auto_on_(auto_on_at_streamon) {}
+  StreamingControlQuirks(ld::FakeV4l2Device& dev, int refuse_errno, bool auto_on_at_streamon,
+                         bool gone_after_refusal = false)
+      : dev_(dev), refuse_(refuse_errno), auto_on_(auto_on_at_streamon), gone_(gone_after_refusal) {}
   int open(const char* path, int flags) override { return dev_.open(path, flags); }
   int close(int fd) override { return dev_.close(fd); }
   int ioctl(int fd, unsigned long request, void* arg) override {
     if (request == VIDIOC_S_CTRL && streaming_) {
       errno = refuse_;
+      refused_ = true;
+      return -1;
+    }
+    if (request == VIDIOC_G_CTRL && refused_ && gone_) {  // (unplugged just then)
+      errno = ENODEV;
       return -1;
     }
     const int rc = dev_.ioctl(fd, request, arg);
@@ -960,8 +966,8 @@ class StreamingControlQuirks : public ld::V4l2Io {
  private:
   ld::FakeV4l2Device& dev_;
   int refuse_;
-  bool auto_on_;
-  bool streaming_ = false;
+  bool auto_on_, gone_;
+  bool streaming_ = false, refused_ = false;
 };
 
 // Only EBUSY is a camera that takes no control while streaming: one that
@@ -992,6 +998,38 @@ TEST(Quirks, OnlyABusyControlKeepsTheExposureSetBefore) {
     }
     if (err == EIO) {
       EXPECT_NE(why.find("refused to turn its automatic exposure off (Input/output error)"), std::string::npos) << why;
+    }
+    cap.close();
+    expectNoLeaks(dev);
+  }
+}
+
+// Both changed at STREAMON are said together; a device gone while the
+// exposure is looked at after the refusal is a lost device.
+TEST(Quirks, BusyControlsWhenStreamonChangedBothOrTheDeviceWent) {
+  ld::FakeClock clock;
+  auto spec = ld::FakeCameraSpec::webcam();
+  spec.resets_exposure_at_streamon = true;
+  for (bool gone : {false, true}) {
+    ld::FakeV4l2Device dev(clock, {spec});
+    StreamingControlQuirks io(dev, EBUSY, true, gone);
+    ld::V4l2Capture cap(io, clock);
+    auto r = request(V4L2_PIX_FMT_YUYV, 640, 480);
+    r.exposure_ms = 5;
+    cap.open("/dev/video0", r);
+    try {
+      cap.start();
+      ADD_FAILURE() << "started";
+    } catch (const ld::CaptureError& e) {
+      if (gone) {
+        EXPECT_EQ(e.kind(), ld::CaptureError::Kind::DeviceLost) << e.what();
+      } else {
+        EXPECT_EQ(e.kind(), ld::CaptureError::Kind::ControlRefused);
+        EXPECT_EQ(std::string(e.what()),
+                  "/dev/video0 (Fake UVC Camera) takes no exposure control while streaming, and STREAMON turned its "
+                  "automatic exposure on again and changed its exposure time from 5 to 15.6 ms: run without the "
+                  "exposure");
+      }
     }
     cap.close();
     expectNoLeaks(dev);
