@@ -509,7 +509,7 @@ void V4l2Capture::setFrameRate(double fps) {
 void V4l2Capture::setExposure(double ms) {
   using K = CaptureError::Kind;
   exposure_busy_ = false;
-  const std::string named = device_ + " (" + format_.card + ")";
+  const std::string named = deviceAndCard();
   v4l2_queryctrl q{};
   q.id = V4L2_CID_EXPOSURE_ABSOLUTE;
   const int rc = xioctl(io_, fd_, VIDIOC_QUERYCTRL, &q);
@@ -657,32 +657,38 @@ void V4l2Capture::start() {
       // alone) keeps the exposure set before STREAMON: manual, at that time,
       // unless STREAMON changed either.
       if (e.kind() != CaptureError::Kind::ControlRefused || !exposure_busy_) throw;
-      v4l2_control time{}, mode{};
-      time.id = V4L2_CID_EXPOSURE_ABSOLUTE;
-      mode.id = V4L2_CID_EXPOSURE_AUTO;
-      if (xioctl(io_, fd_, VIDIOC_G_CTRL, &time) < 0) {
-        const int err = errno;
-        if (deviceGone(err)) fail("VIDIOC_G_CTRL (exposure time)", err);
-        throw;
-      }
-      std::string changed;
-      if (xioctl(io_, fd_, VIDIOC_G_CTRL, &mode) < 0) {
-        const int err = errno;
-        if (deviceGone(err)) fail("VIDIOC_G_CTRL (automatic exposure)", err);
-        if (err != EINVAL) throw;  // (EINVAL: no such switch, the time alone)
-      } else if (mode.value != V4L2_EXPOSURE_MANUAL) {
-        changed = "turned its automatic exposure on again";
-      }
-      if (time.value / 10.0 != set_at_open)
-        changed += (changed.empty() ? "" : " and ") + std::string("changed its exposure time from ") +
-                   fpsNumber(set_at_open) + " to " + fpsNumber(time.value / 10.0) + " ms";
-      if (!changed.empty())
+      const std::optional<std::string> changed = exposureChangedAtStreamon(set_at_open);
+      if (!changed) throw;
+      if (!changed->empty())
         throw CaptureError(CaptureError::Kind::ControlRefused,
-                           device_ + " (" + format_.card + ") takes no exposure control while streaming, and STREAMON " +
-                               changed + ": run without the exposure");
+                           deviceAndCard() + " takes no exposure control while streaming, and STREAMON " + *changed +
+                               ": run without the exposure");
       format_.exposure_ms = set_at_open;
     }
   }
+}
+
+std::optional<std::string> V4l2Capture::exposureChangedAtStreamon(double set_at_open) {
+  v4l2_control time{}, mode{};
+  time.id = V4L2_CID_EXPOSURE_ABSOLUTE;
+  mode.id = V4L2_CID_EXPOSURE_AUTO;
+  if (xioctl(io_, fd_, VIDIOC_G_CTRL, &time) < 0) {
+    const int err = errno;
+    if (deviceGone(err)) fail("VIDIOC_G_CTRL (exposure time)", err);
+    return std::nullopt;
+  }
+  std::string changed;
+  if (xioctl(io_, fd_, VIDIOC_G_CTRL, &mode) < 0) {
+    const int err = errno;
+    if (deviceGone(err)) fail("VIDIOC_G_CTRL (automatic exposure)", err);
+    if (err != EINVAL) return std::nullopt;  // (EINVAL: no such switch, the time alone)
+  } else if (mode.value != V4L2_EXPOSURE_MANUAL) {
+    changed = "turned its automatic exposure on again";
+  }
+  if (time.value / 10.0 != set_at_open)
+    changed += (changed.empty() ? "" : " and ") + std::string("changed its exposure time from ") +
+               fpsNumber(set_at_open) + " to " + fpsNumber(time.value / 10.0) + " ms";
+  return changed;
 }
 
 size_t V4l2Capture::usedBytes(const v4l2_buffer& b) {

@@ -28,6 +28,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -253,7 +254,13 @@ class V4l2Capture {
   // cut short (counted in stats_).
   size_t usedBytes(const v4l2_buffer& b);
   void setExposure(double ms);
+  // After the exposure was refused with EBUSY while streaming: what
+  // STREAMON changed of the exposure set before it ("" for nothing), or
+  // nullopt when that cannot be read (throws when the device went).
+  std::optional<std::string> exposureChangedAtStreamon(double set_at_open);
   void restoreExposure() noexcept;
+  // The device and its card's name, as errors name it.
+  std::string deviceAndCard() const { return device_ + " (" + format_.card + ")"; }
   void allocateBuffers(unsigned count);
   void queue(uint32_t index);
 
