@@ -189,29 +189,26 @@ bool isUtf8BeyondAscii(const std::string& s) {
 }
 
 // libqrencode's smallest symbol for `payload` at `level`, or null when none
-// holds it. UTF-8 text beyond ASCII is announced as such (ECI 26): a QR's
-// bytes are ISO 8859-1 unless it says otherwise, and readers guess (zbar's
-// text mode read "café" as "caf矇", Shift-JIS). (12 bits more: a payload at
-// a symbol's capacity may need the next.)
-// Whether `payload` fits a symbol at `level` without the ECI mark.
-bool unmarked(const std::string& payload, QRecLevel level) {
-  std::unique_ptr<QRcode, decltype(&QRcode_free)> code(
-      QRcode_encodeData(static_cast<int>(payload.size()), reinterpret_cast<const unsigned char*>(payload.data()), 0,
-                        level),
-      &QRcode_free);
-  return code != nullptr;
-}
-
-std::unique_ptr<QRcode, decltype(&QRcode_free)> encodeAt(const std::string& payload, QRecLevel level) {
+// holds it; `utf8_mark`: announced as UTF-8 text (ECI 26, 12 bits more: a
+// payload at a symbol's capacity may need the next).
+std::unique_ptr<QRcode, decltype(&QRcode_free)> encodeAt(const std::string& payload, QRecLevel level,
+                                                         bool utf8_mark) {
   const auto* bytes = reinterpret_cast<const unsigned char*>(payload.data());
   const int size = static_cast<int>(payload.size());
-  if (!isUtf8BeyondAscii(payload)) return {QRcode_encodeData(size, bytes, 0, level), &QRcode_free};
+  if (!utf8_mark) return {QRcode_encodeData(size, bytes, 0, level), &QRcode_free};
   std::unique_ptr<QRinput, decltype(&QRinput_free)> input(QRinput_new2(0, level), &QRinput_free);
   constexpr unsigned int kEciUtf8 = 26;
   if (!input || QRinput_appendECIheader(input.get(), kEciUtf8) < 0 ||
       QRinput_append(input.get(), QR_MODE_8, size, bytes) < 0)
     return {nullptr, &QRcode_free};
   return {QRcode_encodeInput(input.get()), &QRcode_free};
+}
+
+// The same, UTF-8 text beyond ASCII announced as such: a QR's bytes are ISO
+// 8859-1 unless it says otherwise, and readers guess (zbar's text mode read
+// "café" as "caf矇", Shift-JIS).
+std::unique_ptr<QRcode, decltype(&QRcode_free)> encodeAt(const std::string& payload, QRecLevel level) {
+  return encodeAt(payload, level, isUtf8BeyondAscii(payload));
 }
 
 struct Grid {
@@ -279,7 +276,7 @@ QrCode encodeQr(const std::string& payload, QrEcc ecc) {
   if (!code)
     throw std::invalid_argument("QR payload of " + std::to_string(payload.size()) + " bytes cannot be encoded" +
                                 (ecc == QrEcc::Auto ? "" : std::string(" at error correction ") + kName[chosen]) +
-                                (isUtf8BeyondAscii(payload) && unmarked(payload, kLevel[chosen])
+                                (isUtf8BeyondAscii(payload) && encodeAt(payload, kLevel[chosen], false)
                                      ? " (UTF-8 text, with its ECI mark: 12 bits more)"
                                      : ""));
   QrCode qr;
