@@ -56,6 +56,13 @@ ld::CaptureRequest request(uint32_t fourcc, uint32_t w, uint32_t h, double fps =
   return r;
 }
 
+// Opens /dev/video0 at YUYV 640x480 with a manual exposure of 5 ms.
+void openWithExposure(ld::V4l2Capture& cap) {
+  auto r = request(V4L2_PIX_FMT_YUYV, 640, 480);
+  r.exposure_ms = 5;
+  cap.open("/dev/video0", r);
+}
+
 void expectNoLeaks(const ld::FakeV4l2Device& dev, const std::string& path = "/dev/video0") {
   const auto s = dev.stats(path);
   EXPECT_EQ(s.open_fds, 0);
@@ -866,9 +873,7 @@ TEST(Quirks, ExposureResetAtStreamonIsSetAgain) {
   spec.resets_exposure_at_streamon = true;
   ld::FakeV4l2Device dev(clock, {spec});
   ld::V4l2Capture cap(dev, clock);
-  auto r = request(V4L2_PIX_FMT_YUYV, 640, 480);
-  r.exposure_ms = 5;
-  cap.open("/dev/video0", r);
+  openWithExposure(cap);
   cap.start();
   EXPECT_EQ(dev.exposure().mode, V4L2_EXPOSURE_MANUAL);
   EXPECT_EQ(dev.exposure().time, 50);  // (156, the default, without the second setting)
@@ -891,9 +896,7 @@ TEST(Quirks, ControlsRefusedWhileStreaming) {
   {
     ld::FakeV4l2Device dev(clock, {spec});
     ld::V4l2Capture cap(dev, clock);
-    auto r = request(V4L2_PIX_FMT_YUYV, 640, 480);
-    r.exposure_ms = 5;
-    cap.open("/dev/video0", r);
+    openWithExposure(cap);
     cap.start();
     EXPECT_EQ(dev.exposure().mode, V4L2_EXPOSURE_MANUAL);
     EXPECT_EQ(dev.exposure().time, 50);
@@ -908,18 +911,10 @@ TEST(Quirks, ControlsRefusedWhileStreaming) {
   spec.resets_exposure_at_streamon = true;
   ld::FakeV4l2Device dev(clock, {spec});
   ld::V4l2Capture cap(dev, clock);
-  auto r = request(V4L2_PIX_FMT_YUYV, 640, 480);
-  r.exposure_ms = 5;
-  cap.open("/dev/video0", r);
-  try {
-    cap.start();
-    ADD_FAILURE() << "started with the exposure reset";
-  } catch (const ld::CaptureError& e) {
-    EXPECT_EQ(e.kind(), ld::CaptureError::Kind::ControlRefused);
-    EXPECT_EQ(std::string(e.what()),
-              "/dev/video0 (Fake UVC Camera) takes no exposure control while streaming, and STREAMON changed "
-              "its exposure time from 5 to 15.6 ms: run without the exposure");
-  }
+  openWithExposure(cap);
+  EXPECT_EQ(captureError([&] { cap.start(); }, Kind::ControlRefused),
+            "/dev/video0 (Fake UVC Camera) takes no exposure control while streaming, and STREAMON changed "
+            "its exposure time from 5 to 15.6 ms: run without the exposure");
   cap.close();
   expectNoLeaks(dev);
 }
@@ -981,16 +976,12 @@ TEST(Quirks, OnlyABusyControlKeepsTheExposureSetBefore) {
     ld::FakeV4l2Device dev(clock);
     StreamingControlQuirks io(dev, err, auto_on);
     ld::V4l2Capture cap(io, clock);
-    auto r = request(V4L2_PIX_FMT_YUYV, 640, 480);
-    r.exposure_ms = 5;
-    cap.open("/dev/video0", r);
+    openWithExposure(cap);
     std::string why;
-    try {
-      cap.start();
-    } catch (const ld::CaptureError& e) {
-      EXPECT_EQ(e.kind(), ld::CaptureError::Kind::ControlRefused) << e.what();
-      why = e.what();
-    }
+    if (starts)
+      EXPECT_NO_THROW(cap.start()) << err << " " << auto_on;
+    else
+      why = captureError([&] { cap.start(); }, Kind::ControlRefused);
     EXPECT_EQ(why.empty(), starts) << err << " " << auto_on << ": " << why;
     if (err == EBUSY && auto_on) {
       EXPECT_EQ(why, "/dev/video0 (Fake UVC Camera) takes no exposure control while streaming, and STREAMON turned "
@@ -1014,23 +1005,14 @@ TEST(Quirks, BusyControlsWhenStreamonChangedBothOrTheDeviceWent) {
     ld::FakeV4l2Device dev(clock, {spec});
     StreamingControlQuirks io(dev, EBUSY, true, gone);
     ld::V4l2Capture cap(io, clock);
-    auto r = request(V4L2_PIX_FMT_YUYV, 640, 480);
-    r.exposure_ms = 5;
-    cap.open("/dev/video0", r);
-    try {
-      cap.start();
-      ADD_FAILURE() << "started";
-    } catch (const ld::CaptureError& e) {
-      if (gone) {
-        EXPECT_EQ(e.kind(), ld::CaptureError::Kind::DeviceLost) << e.what();
-      } else {
-        EXPECT_EQ(e.kind(), ld::CaptureError::Kind::ControlRefused);
-        EXPECT_EQ(std::string(e.what()),
-                  "/dev/video0 (Fake UVC Camera) takes no exposure control while streaming, and STREAMON turned its "
-                  "automatic exposure on again and changed its exposure time from 5 to 15.6 ms: run without the "
-                  "exposure");
-      }
-    }
+    openWithExposure(cap);
+    if (gone)
+      captureError([&] { cap.start(); }, Kind::DeviceLost);
+    else
+      EXPECT_EQ(captureError([&] { cap.start(); }, Kind::ControlRefused),
+                "/dev/video0 (Fake UVC Camera) takes no exposure control while streaming, and STREAMON turned its "
+                "automatic exposure on again and changed its exposure time from 5 to 15.6 ms: run without the "
+                "exposure");
     cap.close();
     expectNoLeaks(dev);
   }
