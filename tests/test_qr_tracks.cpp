@@ -178,29 +178,27 @@ TEST(QrTrackBook, ReadTrackFoundAgainAfterCoastingIsCheckedAgainstItsPath) {
 // second step keep the payload, and one found 300 px away after 20 frames
 // coasted too).
 TEST(QrTrackBook, StepBeforeTheMotionIsKnownIsStillJudged) {
-  {  // read at list 0, placed at list 1, the id given to another landmark at list 2
-    ld::QrTrackBook book;
-    book.schedule({1}, 0);
-    book.record(1, 0, 0, std::string("A"));
-    EXPECT_EQ(book.follow(1, 1, true, 105, 200, 30), std::nullopt);
-    EXPECT_EQ(book.follow(1, 2, true, 300, 200, 30), std::optional<std::string>("A"));
+  // read "A" at list 0, placed at list 1 (size `size`, at x), coasting until list `coast_to`
+  const auto book = [](double x, double size, int coast_to) {
+    auto b = std::make_unique<ld::QrTrackBook>();
+    b->schedule({1}, 0);
+    b->record(1, 0, 0, std::string("A"));
+    EXPECT_EQ(b->follow(1, 1, true, x, 200, size), std::nullopt);
+    for (int k = 2; k < coast_to; ++k) EXPECT_EQ(b->follow(1, k, false, x, 200, size), std::nullopt);
+    return b;
+  };
+  {  // the id given to another landmark at list 2
+    auto b = book(105, 30, 2);
+    EXPECT_EQ(b->follow(1, 2, true, 300, 200, 30), std::optional<std::string>("A"));
   }
-  {  // read, placed once, coasting 20 lists, found at a neighbour 300 px away
-    ld::QrTrackBook book;
-    book.schedule({1}, 0);
-    book.record(1, 0, 0, std::string("A"));
-    EXPECT_EQ(book.follow(1, 1, true, 200, 200, 60), std::nullopt);
-    for (int k = 2; k < 22; ++k) EXPECT_EQ(book.follow(1, k, false, 200, 200, 60), std::nullopt);
-    EXPECT_EQ(book.follow(1, 22, true, 500, 200, 60), std::optional<std::string>("A"));
+  {  // coasting 20 lists, found at a neighbour 300 px away
+    auto b = book(200, 60, 22);
+    EXPECT_EQ(b->follow(1, 22, true, 500, 200, 60), std::optional<std::string>("A"));
   }
   {  // ... found where it was: kept
-    ld::QrTrackBook book;
-    book.schedule({1}, 0);
-    book.record(1, 0, 0, std::string("A"));
-    EXPECT_EQ(book.follow(1, 1, true, 200, 200, 60), std::nullopt);
-    for (int k = 2; k < 22; ++k) EXPECT_EQ(book.follow(1, k, false, 200, 200, 60), std::nullopt);
-    EXPECT_EQ(book.follow(1, 22, true, 250, 230, 60), std::nullopt);
-    ASSERT_NE(book.payload(1), nullptr);
+    auto b = book(200, 60, 22);
+    EXPECT_EQ(b->follow(1, 22, true, 250, 230, 60), std::nullopt);
+    ASSERT_NE(b->payload(1), nullptr);
   }
 }
 
