@@ -5,6 +5,7 @@
 #include <charconv>
 #include <csetjmp>
 #include <cstdio>
+#include <cstring>
 #include <vector>
 
 #include <opencv2/imgcodecs.hpp>
@@ -79,10 +80,14 @@ cv::Mat rawView(const image_t& msg, const FormatInfo& f) {
 constexpr int64_t kMaxMjpegPixels = int64_t{1} << 25;
 
 // What a JPEG stream's headers say, read without decoding: the frame size
-// of its SOFn header (empty when it has none before its scan data), and
-// where its first scan (SOS) starts (0 when it has none before its end).
+// of its SOFn header (empty when it has none before its scan data), its
+// colour components, whether an Exif block (APP1 "Exif") comes before its
+// scan, and where its first scan (SOS) starts (0 when it has none before
+// its end).
 struct JpegHeaders {
   cv::Size frame;
+  int components = 0;
+  bool exif = false;
   size_t scan = 0;
 };
 JpegHeaders jpegHeaders(const uint8_t* p, size_t n) {
@@ -111,8 +116,10 @@ JpegHeaders jpegHeaders(const uint8_t* p, size_t n) {
     if (!sof && m >= 0xC0 && m <= 0xCF && m != 0xC4 && m != 0xC8 && m != 0xCC) {  // SOF0..SOF15
       if (len < 7 || i + 9 > n) return h;
       h.frame = {(p[i + 7] << 8) | p[i + 8], (p[i + 5] << 8) | p[i + 6]};
+      if (i + 10 <= n) h.components = p[i + 9];
       sof = true;
     }
+    if (m == 0xE1 && len >= 8 && i + 10 <= n && std::memcmp(p + i + 4, "Exif\0", 6) == 0) h.exif = true;
     i += 2 + len;
   }
   return h;
@@ -351,6 +358,11 @@ std::string decodeJpeg(const uint8_t* data, size_t size, cv::Mat& out, bool gray
 
 bool jpegComplete(const uint8_t* data, size_t size) {
   return endsAfterScan(data, size, jpegHeaders(data, size).scan);
+}
+
+bool jpegReadsAsDecoded(const uint8_t* data, size_t size) {
+  const JpegHeaders h = jpegHeaders(data, size);
+  return h.scan != 0 && !h.exif && (h.components == 1 || h.components == 3);
 }
 
 void checkImage(const image_t& msg) {

@@ -66,6 +66,13 @@ std::string decodeJpeg(const uint8_t* data, size_t size, cv::Mat& out, bool gray
 /// the image. Bytes after the marker (a camera's padding) are allowed.
 bool jpegComplete(const uint8_t* data, size_t size);
 
+/// Whether OpenCV's cv::imdecode (IMREAD_COLOR) gives exactly decodeJpeg's
+/// BGR image for these JPEG bytes: both decode with libjpeg's defaults, but
+/// OpenCV turns an image as its Exif orientation says and converts CMYK
+/// its own way. So: grey or three-component colour, with no Exif block
+/// before the scan.
+bool jpegReadsAsDecoded(const uint8_t* data, size_t size);
+
 /// Decodes any supported format into 8-bit BGR. `out` is reused when it
 /// already has the right size and type, so a warmed-up caller does not
 /// allocate (MJPEG decoding allocates inside libjpeg regardless).

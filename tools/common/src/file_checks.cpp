@@ -109,7 +109,6 @@ std::string readImageFile(const std::string& path, cv::Mat& out) {
     if (!jpegComplete(bytes.data(), bytes.size()))
       return "cannot read as an image: it is a JPEG cut short (no end-of-image marker)";
     // (damaged data: libjpeg fills it with grey, and said so on stderr alone;
-    // OpenCV's decode below turns the image as its EXIF orientation says;
     // up to 2^30 pixels, as OpenCV's own limit)
     std::string damage;
     try {
@@ -117,8 +116,14 @@ std::string readImageFile(const std::string& path, cv::Mat& out) {
     } catch (const std::exception& e) {
       damage = std::string("could not be decoded (") + e.what() + ")";
     }
-    out.release();  // (the decode below makes its own)
-    if (!damage.empty()) return "cannot read as an image: it is a JPEG that " + damage;
+    if (!damage.empty()) {
+      out.release();
+      return "cannot read as an image: it is a JPEG that " + damage;
+    }
+    // (OpenCV's image, decoded once: the decode below is for a JPEG that
+    // OpenCV turns as its Exif orientation says, or a CMYK one)
+    if (jpegReadsAsDecoded(bytes.data(), bytes.size())) return "";
+    out.release();
   }
   try {
     out = cv::imdecode(bytes, cv::IMREAD_COLOR);

@@ -1,0 +1,110 @@
+// ld::readImageFile, the image reader of ld-detect and ld-log-images: the
+// image it gives is OpenCV's (cv::imdecode, as cv::imread reads the file),
+// whether it decoded a JPEG once (plain JFIF, grey, progressive) or twice
+// (an Exif orientation, which OpenCV turns the image by).
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "ld/file_checks.hpp"
+#include "ld/image_convert.hpp"
+
+namespace {
+
+// A 320x240 frame with colour, edges and noise (JPEG's every kind of block).
+cv::Mat testFrame() {
+  cv::Mat img(240, 320, CV_8UC3);
+  cv::RNG rng(7);
+  rng.fill(img, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(img, img, cv::Size(9, 9), 3);
+  cv::rectangle(img, {40, 30, 80, 60}, {255, 0, 0}, cv::FILLED);
+  cv::circle(img, {220, 150}, 50, {0, 0, 230}, cv::FILLED);
+  cv::putText(img, "ld", {150, 220}, cv::FONT_HERSHEY_SIMPLEX, 1.5, {0, 0, 0}, 3);
+  return img;
+}
+
+std::vector<uint8_t> encode(const cv::Mat& img, std::vector<int> params = {}) {
+  std::vector<uint8_t> bytes;
+  EXPECT_TRUE(cv::imencode(".jpg", img, bytes, params));
+  return bytes;
+}
+
+// The bytes with an Exif block (APP1) after the JFIF one, whose one IFD
+// entry is the orientation (6: turn 90 degrees clockwise to view).
+std::vector<uint8_t> withExifOrientation(std::vector<uint8_t> jpeg, uint16_t orientation) {
+  const std::vector<uint8_t> exif = {
+      'E', 'x', 'i', 'f', 0, 0,                          // Exif header
+      'I', 'I', 0x2A, 0, 8, 0, 0, 0,                     // TIFF, little-endian, IFD at 8
+      1, 0,                                              // one entry
+      0x12, 0x01, 3, 0, 1, 0, 0, 0,                      // Orientation, SHORT, count 1
+      static_cast<uint8_t>(orientation), static_cast<uint8_t>(orientation >> 8), 0, 0,
+      0, 0, 0, 0};                                       // no next IFD
+  EXPECT_TRUE(jpeg.size() > 6 && jpeg[2] == 0xFF && jpeg[3] == 0xE0);  // JFIF's APP0 first
+  const size_t after_app0 = 4 + ((static_cast<size_t>(jpeg[4]) << 8) | jpeg[5]);
+  const size_t len = exif.size() + 2;
+  std::vector<uint8_t> app1 = {0xFF, 0xE1, static_cast<uint8_t>(len >> 8), static_cast<uint8_t>(len)};
+  app1.insert(app1.end(), exif.begin(), exif.end());
+  jpeg.insert(jpeg.begin() + static_cast<std::ptrdiff_t>(after_app0), app1.begin(), app1.end());
+  return jpeg;
+}
+
+std::string writeFile(const std::string& name, const std::vector<uint8_t>& bytes) {
+  const std::string path = testing::TempDir() + "/file_checks_" + name;
+  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
+                                              static_cast<std::streamsize>(bytes.size()));
+  return path;
+}
+
+// What readImageFile gives for these bytes, checked against cv::imdecode's.
+void expectOpenCvImage(const std::string& name, const std::vector<uint8_t>& bytes, cv::Size size) {
+  SCOPED_TRACE(name);
+  cv::Mat read;
+  ASSERT_EQ(ld::readImageFile(writeFile(name, bytes), read), "");
+  const cv::Mat opencv = cv::imdecode(bytes, cv::IMREAD_COLOR);
+  ASSERT_EQ(read.type(), CV_8UC3);
+  ASSERT_EQ(read.size(), size);
+  ASSERT_EQ(opencv.size(), size);
+  EXPECT_EQ(cv::norm(read, opencv, cv::NORM_INF), 0);
+}
+
+TEST(ReadImageFile, JpegIsOpenCvsImageDecodedOnceOrTwice) {
+  const cv::Mat frame = testFrame();
+  const std::vector<uint8_t> plain = encode(frame, {cv::IMWRITE_JPEG_QUALITY, 85});
+  cv::Mat grey;
+  cv::cvtColor(frame, grey, cv::COLOR_BGR2GRAY);
+  const std::vector<uint8_t> grey_jpeg = encode(grey);
+  const std::vector<uint8_t> progressive = encode(frame, {cv::IMWRITE_JPEG_PROGRESSIVE, 1});
+  const std::vector<uint8_t> restarts = encode(frame, {cv::IMWRITE_JPEG_RST_INTERVAL, 4});
+  // decoded once (4:2:0 colour, grey, progressive, restart markers): what
+  // libjpeg gives is what OpenCV gives
+  for (const auto* bytes : {&plain, &grey_jpeg, &progressive, &restarts})
+    EXPECT_TRUE(ld::jpegReadsAsDecoded(bytes->data(), bytes->size()));
+  expectOpenCvImage("plain.jpg", plain, frame.size());
+  expectOpenCvImage("grey.jpg", grey_jpeg, frame.size());
+  expectOpenCvImage("progressive.jpg", progressive, frame.size());
+  expectOpenCvImage("restarts.jpg", restarts, frame.size());
+  // an Exif orientation: OpenCV's image is turned (240x320), and so is this
+  const std::vector<uint8_t> turned = withExifOrientation(plain, 6);
+  EXPECT_FALSE(ld::jpegReadsAsDecoded(turned.data(), turned.size()));
+  expectOpenCvImage("turned.jpg", turned, {frame.rows, frame.cols});
+  // (an Exif block that keeps the image as it is reads as before too)
+  const std::vector<uint8_t> upright = withExifOrientation(plain, 1);
+  expectOpenCvImage("upright.jpg", upright, frame.size());
+}
+
+TEST(ReadImageFile, JpegHeadersThatAreNotOneGoToOpenCv) {
+  // no scan, or bytes that are no JPEG: not taken as read
+  const std::vector<uint8_t> plain = encode(testFrame());
+  const std::vector<uint8_t> headers_only(plain.begin(), plain.begin() + 20);
+  EXPECT_FALSE(ld::jpegReadsAsDecoded(headers_only.data(), headers_only.size()));
+  const std::vector<uint8_t> png_head = {0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A};
+  EXPECT_FALSE(ld::jpegReadsAsDecoded(png_head.data(), png_head.size()));
+}
+
+}  // namespace
