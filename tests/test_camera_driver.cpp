@@ -16,6 +16,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -1274,6 +1275,16 @@ TEST(Process, ErrorsAndExitCodes) {
   EXPECT_EQ(r.status, 1);
   EXPECT_EQ(r.err.rfind("ld-camera: /dev/video0 does not offer MJPEG 1920x1080; it offers: YUYV", 0),
             0u) << r.err;
+  // an LCM URL that cannot be: said before the camera is opened (the
+  // device's error came first, and the URL's only once it was mended), and a
+  // camera that fails leaves no log behind a file:// URL
+  r = runCamera("--device /dev/video-none-here --lcm-url udpm://239.255.76.67", dir);
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.err, "ld-camera: LCM URL udpm://239.255.76.67: no port (udpm://GROUP:PORT, e.g. "
+                   "udpm://239.255.76.67:7667?ttl=0)\n");
+  r = runCamera("--device /dev/video-none-here --lcm-url 'file://" + dir + "/never.lcm?mode=w'", dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_FALSE(std::filesystem::exists(dir + "/never.lcm"));
   EXPECT_EQ(runCamera("--format h264", dir).status, 2);
   EXPECT_EQ(runCamera("--size 640by480", dir).status, 2);
   EXPECT_EQ(runCamera("--no-such-option", dir).status, 2);

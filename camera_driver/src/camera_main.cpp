@@ -153,6 +153,10 @@ int main(int argc, char** argv) {
     return devices.empty() ? 1 : 0;
   }
 
+  // (a URL LCM cannot take is said before the camera is opened and started;
+  // the bus itself is opened once the camera runs, so that a camera that
+  // fails leaves no empty log behind a file:// URL)
+  if (!ld::lcmUrlUsable(url, "ld-camera")) return 2;
   ld::ReconnectingCapture capture(*io, ld::systemClock(), device, request, {}, say);
   try {
     const ld::CaptureFormat& f = capture.start();
@@ -171,7 +175,6 @@ int main(int argc, char** argv) {
     say(e.what());
     return 1;
   }
-  if (!ld::lcmUrlUsable(url, "ld-camera")) return 2;
   lcm::LCM lcm(url);
   if (const int status = ld::lcmOpenStatus(lcm, url, "ld-camera")) return status;
   std::signal(SIGINT, onSignal);
