@@ -4,11 +4,14 @@
 // tests/fuzz/fuzz_messages) are refused with a reason, quickly.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
+#include <sstream>
 
 #include "image_error.hpp"
 #include "lcm_bytes.hpp"
 #include "ld/image_convert.hpp"
+#include "ld/latest_message.hpp"
 #include "ld/message_decode.hpp"
 
 namespace {
@@ -297,4 +300,83 @@ TEST(ImageLimits, CheckImageRefusesWhatDecodingWouldWithoutDecoding) {
   bad.pixelformat = ld::fourcc('H', '2', '6', '4');
   EXPECT_THROW(ld::checkImage(bad), ld::ImageFormatError);
   EXPECT_THROW(ld::checkImage(mjpegClaiming(30000, 30000, true)), ld::ImageFormatError);
+}
+
+// ld::LatestMessage, the input of ld-detector and ld-tracker: the newest
+// good message waits to be processed; a good one it replaced is counted as
+// skipped; a bad one (not decoded, or refused by the process's check) is
+// said in one line and counted, and loses nothing.
+namespace {
+
+struct Delivered {
+  ld::test::Bytes bytes;
+  void to(ld::LatestMessage<ld::landmark_list_t>& latest) {
+    lcm::ReceiveBuffer rbuf{bytes.data(), static_cast<uint32_t>(bytes.size()), 0};
+    latest.onMessage(&rbuf, "LANDMARKS");
+  }
+};
+
+Delivered listOf(int64_t seq, int n) {
+  ld::landmark_list_t m{};
+  m.seq = seq;
+  m.utime = 1000 * seq;
+  m.nlandmarks = n;
+  m.landmarks.resize(static_cast<size_t>(n));
+  return {ld::test::lcmEncode(m)};
+}
+
+}  // namespace
+
+TEST(LatestMessage, NewestGoodMessageWaitsAndReplacedOnesAreSkipped) {
+  ld::LatestMessage<ld::landmark_list_t> latest("ld-test", "LANDMARKS", "message");
+  EXPECT_EQ(latest.take(), nullptr);
+  listOf(1, 1).to(latest);
+  listOf(2, 2).to(latest);
+  listOf(3, 0).to(latest);
+  const ld::landmark_list_t* got = latest.take();
+  ASSERT_NE(got, nullptr);
+  EXPECT_EQ(got->seq, 3);
+  EXPECT_EQ(got->nlandmarks, 0);
+  EXPECT_EQ(latest.take(), nullptr);  // taken once
+  EXPECT_EQ(latest.skipped(), 2);
+  EXPECT_EQ(latest.bad(), 0);
+  listOf(4, 3).to(latest);
+  got = latest.take();
+  ASSERT_NE(got, nullptr);
+  EXPECT_EQ(got->seq, 4);
+  EXPECT_EQ(got->landmarks.size(), 3u);
+  EXPECT_EQ(latest.skipped(), 2);  // (taken before the next came: none skipped)
+}
+
+TEST(LatestMessage, BadMessagesAreSaidCountedAndLoseNothing) {
+  ld::LatestMessage<ld::landmark_list_t> latest(
+      "ld-test", "LANDMARKS", "message",
+      [](const ld::landmark_list_t& m) { return m.nlandmarks > 2 ? std::string("too many") : std::string(); });
+  listOf(1, 1).to(latest);
+  Delivered cut = listOf(2, 1);
+  cut.bytes.resize(cut.bytes.size() - 5);
+  testing::internal::CaptureStderr();
+  cut.to(latest);           // not decoded
+  listOf(3, 5).to(latest);  // refused by the check
+  const std::string said = testing::internal::GetCapturedStderr();
+  const ld::landmark_list_t* got = latest.take();
+  ASSERT_NE(got, nullptr);
+  EXPECT_EQ(got->seq, 1);  // the good one waiting, not replaced
+  EXPECT_EQ(latest.skipped(), 0);
+  EXPECT_EQ(latest.bad(), 2);
+  std::istringstream lines(said);
+  std::string first, second, more;
+  std::getline(lines, first);
+  std::getline(lines, second);
+  EXPECT_EQ(first.rfind("ld-test: dropped message: message on LANDMARKS is ", 0), 0u) << said;
+  EXPECT_NE(first.find(" (1 bad so far)"), std::string::npos) << said;
+  EXPECT_EQ(second, "ld-test: dropped message: too many (2 bad so far)") << said;
+  EXPECT_FALSE(std::getline(lines, more)) << said;
+  // a flood: the first ten said in full, then every hundredth; all counted
+  testing::internal::CaptureStderr();
+  for (int i = 0; i < 198; ++i) listOf(10 + i, 9).to(latest);
+  const std::string flood = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(latest.bad(), 200);
+  EXPECT_EQ(std::count(flood.begin(), flood.end(), '\n'), 8 + 2) << flood;  // 3..10, 100, 200
+  EXPECT_EQ(latest.take(), nullptr);
 }

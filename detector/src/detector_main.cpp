@@ -15,6 +15,7 @@
 #include "ld/detector_options.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/landmark_msg.hpp"
+#include "ld/latest_message.hpp"
 #include "ld/lcm_url.hpp"
 #include "ld/message_decode.hpp"
 
@@ -22,40 +23,6 @@ namespace {
 
 std::atomic<bool> g_stop{false};
 void onSignal(int) { g_stop = true; }
-
-// Keeps the newest good frame of the input channel. Each message is decoded
-// and checked as it arrives (decoding copies it once, as keeping its bytes
-// did), so a bad one is said at once and never takes the place of a good
-// frame waiting to be processed; a good one that does counts as skipped.
-// (The JPEG data of an MJPEG frame is checked only by decoding it, later.)
-class LatestFrame {
- public:
-  explicit LatestFrame(std::string channel) : channel_(std::move(channel)) {}
-  void onMessage(const lcm::ReceiveBuffer* rbuf, const std::string&) {
-    std::string why;
-    try {
-      if (!ld::decodeMessage(static_cast<const uint8_t*>(rbuf->data), rbuf->data_size, incoming_, &why))
-        throw ld::ImageFormatError("message on " + channel_ + " is " + why);
-      ld::checkImage(incoming_);
-    } catch (const ld::ImageFormatError& e) {
-      return reportBad(e.what());
-    }
-    if (pending_) ++skipped_;
-    std::swap(incoming_, frame_);  // (both keep their buffers: nothing allocated once warm)
-    pending_ = true;
-  }
-  void reportBad(const std::string& what) {
-    if (ld::printBadLine(++bad_))
-      std::cerr << "ld-detector: dropped frame: " << what << " " << ld::badSoFar(bad_) << "\n";
-  }
-  bool pending_ = false;
-  int64_t skipped_ = 0, bad_ = 0;
-  ld::image_t frame_;  // the newest good frame, while pending_
-
- private:
-  std::string channel_;
-  ld::image_t incoming_;
-};
 
 }  // namespace
 
@@ -107,8 +74,18 @@ int main(int argc, char** argv) {
   if (verbose) std::fprintf(stderr, "ld-detector: backend %s\n", detector.detector().backendInfo().c_str());
   // backend "auto" on a GPU: -v says its choice too, once made
   bool choosing = verbose && detector.detector().choosingBackend();
-  LatestFrame latest(in_channel);
-  lcm.subscribe(in_channel, &LatestFrame::onMessage, &latest);
+  // Each frame is decoded and checked as it arrives (decoding copies it
+  // once, as keeping its bytes did); the JPEG data of an MJPEG frame is
+  // checked only by decoding it, later.
+  ld::LatestMessage<ld::image_t> latest("ld-detector", in_channel, "frame", [](const ld::image_t& m) {
+    try {
+      ld::checkImage(m);
+      return std::string();
+    } catch (const ld::ImageFormatError& e) {
+      return std::string(e.what());
+    }
+  });
+  lcm.subscribe(in_channel, &ld::LatestMessage<ld::image_t>::onMessage, &latest);
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
 
@@ -124,9 +101,8 @@ int main(int argc, char** argv) {
     // waits, then drains the queue: only the newest message is processed
     if (!ld::pumpLcm(lcm, 200, g_stop, "ld-detector")) return 1;
     if (g_stop) break;
-    if (latest.pending_) {
-      latest.pending_ = false;
-      const ld::image_t& image = latest.frame_;  // (handlers run in pumpLcm alone: it stays while processed)
+    if (const ld::image_t* newest = latest.take()) {
+      const ld::image_t& image = *newest;  // (handlers run in pumpLcm alone: it stays while processed)
       try {
         ld::imageToBgr(image, bgr);
         // Now and then, on --explain, the frame's explanation (it costs about
@@ -154,7 +130,7 @@ int main(int argc, char** argv) {
                        ld::describe(why_frame, detector.detector().params(), "  ").c_str());
         }
         ld::toListMessage(det, image.utime, ld::imageSeq(image).value_or(-1), bgr.cols, bgr.rows,
-                          detector.detector().backend(), latest.skipped_, out);
+                          detector.detector().backend(), latest.skipped(), out);
         lcm.publish(out_channel, &out);
         ++processed;
         if (choosing && !detector.detector().choosingBackend()) {
@@ -170,13 +146,13 @@ int main(int argc, char** argv) {
       const double s = std::chrono::duration<double>(now - last_status).count();
       std::fprintf(stderr, "ld-detector: %.1f frames/s, %lld processed, %lld skipped, %lld bad\n",
                    (processed - last_processed) / s, static_cast<long long>(processed),
-                   static_cast<long long>(latest.skipped_), static_cast<long long>(latest.bad_));
+                   static_cast<long long>(latest.skipped()), static_cast<long long>(latest.bad()));
       last_processed = processed;
       last_status = now;
     }
   }
   std::fprintf(stderr, "ld-detector: stopped after %lld frames (%lld skipped, %lld bad)\n",
-               static_cast<long long>(processed), static_cast<long long>(latest.skipped_),
-               static_cast<long long>(latest.bad_));
+               static_cast<long long>(processed), static_cast<long long>(latest.skipped()),
+               static_cast<long long>(latest.bad()));
   return 0;
 }

@@ -15,6 +15,7 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include "ld/cli.hpp"
+#include "ld/latest_message.hpp"
 #include "ld/lcm_url.hpp"
 #include "ld/message_decode.hpp"
 #include "ld/tracker.hpp"
@@ -26,42 +27,6 @@ constexpr int32_t kMaxLandmarks = 1000;  // in one list
 
 std::atomic<bool> g_stop{false};
 void onSignal(int) { g_stop = true; }
-
-// Keeps the newest good list of the input channel. Each message is decoded
-// and checked as it arrives, so a bad one is said at once and never takes
-// the place of a good list waiting to be tracked; a good one that does
-// counts as skipped.
-class LatestMessage {
- public:
-  explicit LatestMessage(std::string channel) : channel_(std::move(channel)) {}
-  void onMessage(const lcm::ReceiveBuffer* rbuf, const std::string&) {
-    std::string why;
-    // (a list far beyond what a detector finds, about 130 landmarks at its
-    // candidate cap: the assignment's time and memory grow with its square
-    // and cube, 6 s and 400 MB for 5000)
-    if (ld::decodeMessage(static_cast<const uint8_t*>(rbuf->data), rbuf->data_size, incoming_, &why) &&
-        incoming_.nlandmarks > kMaxLandmarks)
-      why = "a list of " + std::to_string(incoming_.nlandmarks) + " landmarks (frame " +
-            std::to_string(incoming_.seq) + "), more than the " + std::to_string(kMaxLandmarks) +
-            " the tracker takes";
-    if (!why.empty()) {
-      if (ld::printBadLine(++bad_))
-        std::cerr << "ld-tracker: dropped message: message on " << channel_ << " is " << why << " "
-                  << ld::badSoFar(bad_) << "\n";
-      return;
-    }
-    if (pending_) ++skipped_;
-    std::swap(incoming_, list_);
-    pending_ = true;
-  }
-  bool pending_ = false;
-  int64_t skipped_ = 0, bad_ = 0;
-  ld::landmark_list_t list_;  // the newest good list, while pending_
-
- private:
-  std::string channel_;
-  ld::landmark_list_t incoming_;
-};
 
 }  // namespace
 
@@ -119,8 +84,18 @@ int main(int argc, char** argv) {
   if (!ld::lcmUrlUsable(url, "ld-tracker")) return 2;
   lcm::LCM lcm(url);
   if (const int status = ld::lcmOpenStatus(lcm, url, "ld-tracker")) return status;
-  LatestMessage latest(in_channel);
-  lcm.subscribe(in_channel, &LatestMessage::onMessage, &latest);
+  // (a list far beyond what a detector finds, about 130 landmarks at its
+  // candidate cap: the assignment's time and memory grow with its square
+  // and cube, 6 s and 400 MB for 5000)
+  ld::LatestMessage<ld::landmark_list_t> latest(
+      "ld-tracker", in_channel, "message", [&in_channel](const ld::landmark_list_t& m) {
+        return m.nlandmarks <= kMaxLandmarks
+                   ? std::string()
+                   : "message on " + in_channel + " is a list of " + std::to_string(m.nlandmarks) +
+                         " landmarks (frame " + std::to_string(m.seq) + "), more than the " +
+                         std::to_string(kMaxLandmarks) + " the tracker takes";
+      });
+  lcm.subscribe(in_channel, &ld::LatestMessage<ld::landmark_list_t>::onMessage, &latest);
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
 
@@ -134,9 +109,8 @@ int main(int argc, char** argv) {
     // waits, then drains the queue: only the newest message is processed
     if (!ld::pumpLcm(lcm, 200, g_stop, "ld-tracker")) return 1;
     if (g_stop) break;
-    if (latest.pending_) {
-      latest.pending_ = false;
-      const ld::landmark_list_t& in = latest.list_;  // (handlers run in pumpLcm alone: it stays while tracked)
+    if (const ld::landmark_list_t* newest = latest.take()) {
+      const ld::landmark_list_t& in = *newest;  // (handlers run in pumpLcm alone: it stays while tracked)
       // (the list of the frame tracked last, again: a recording replayed onto
       // the running set, a bridge that repeats; tracked twice, every track
       // aged a frame more. Lists without a time are left to StillTimeWatch.)
@@ -183,7 +157,7 @@ int main(int argc, char** argv) {
       }
       last_utime = in.utime;  // (tracked: not late)
       last_seq = in.seq;
-      ld::toTrackedListMessage(tracks, in, ms, latest.skipped_, out);
+      ld::toTrackedListMessage(tracks, in, ms, latest.skipped(), out);
       lcm.publish(out_channel, &out);
       ++processed;
     }
@@ -195,7 +169,7 @@ int main(int argc, char** argv) {
                    "ld-tracker: %.1f frames/s, %lld processed, %lld skipped, %lld bad, "
                    "%zu in pool, %lld tracks so far\n",
                    (processed - last_processed) / s, static_cast<long long>(processed),
-                   static_cast<long long>(latest.skipped_), static_cast<long long>(latest.bad_),
+                   static_cast<long long>(latest.skipped()), static_cast<long long>(latest.bad()),
                    tracker.poolSize(), static_cast<long long>(st.tracks_created));
       last_processed = processed;
       last_status = now;
@@ -205,8 +179,8 @@ int main(int argc, char** argv) {
                "ld-tracker: stopped after %lld frames (%lld skipped, %lld bad, %lld %s not tracked, %lld late, "
                "%lld repeated), "
                "%lld tracks\n",
-               static_cast<long long>(processed), static_cast<long long>(latest.skipped_),
-               static_cast<long long>(latest.bad_), static_cast<long long>(rejected),
+               static_cast<long long>(processed), static_cast<long long>(latest.skipped()),
+               static_cast<long long>(latest.bad()), static_cast<long long>(rejected),
                rejected == 1 ? "landmark" : "landmarks", static_cast<long long>(late),
                static_cast<long long>(repeated),
                static_cast<long long>(tracker.stats().tracks_created));

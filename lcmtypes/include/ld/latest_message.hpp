@@ -1,0 +1,76 @@
+#pragma once
+// The newest good message of a channel, for a process that cannot always
+// keep up with its input: it works on the newest message and counts those it
+// skipped (DESIGN.md), and says each bad one without losing a good one.
+
+#include <cstdint>
+#include <functional>
+#include <iostream>
+#include <string>
+#include <utility>
+
+#include <lcm/lcm-cpp.hpp>
+
+#include "ld/lcm_url.hpp"
+#include "ld/message_decode.hpp"
+
+namespace ld {
+
+/// Keeps the newest good message of one channel. Each message is decoded
+/// (ld::decodeMessage) and checked as it arrives, so a bad one is said at
+/// once, in one line on stderr ("PROGRAM: dropped WHAT: WHY (N bad so far)",
+/// thinned out as printBadLine says), and never takes the place of a good
+/// one waiting to be processed; a good one that does counts as skipped. The
+/// two messages it holds keep their buffers: nothing is allocated once warm.
+template <class Msg>
+class LatestMessage {
+ public:
+  /// Why a decoded message is no good all the same, as said after
+  /// "dropped WHAT: "; "" when it is good.
+  using Check = std::function<std::string(const Msg&)>;
+
+  /// `program` and `what` ("frame", "message") name the dropped line.
+  LatestMessage(std::string program, std::string channel, std::string what, Check check = {})
+      : program_(std::move(program)), channel_(std::move(channel)), what_(std::move(what)),
+        check_(std::move(check)) {}
+
+  /// The LCM handler: lcm.subscribe(channel, &LatestMessage<Msg>::onMessage, &latest).
+  void onMessage(const lcm::ReceiveBuffer* rbuf, const std::string& = {}) {
+    std::string why;
+    if (!decodeMessage(rbuf->data, rbuf->data_size, incoming_, &why))
+      why = "message on " + channel_ + " is " + why;
+    else if (check_)
+      why = check_(incoming_);
+    if (!why.empty()) return reportBad(why);
+    if (pending_) ++skipped_;
+    std::swap(incoming_, newest_);
+    pending_ = true;
+  }
+
+  /// The newest good message not taken yet, or nullptr. It stays as it is
+  /// until the next onMessage (LCM's handlers run within handle() alone).
+  const Msg* take() {
+    if (!pending_) return nullptr;
+    pending_ = false;
+    return &newest_;
+  }
+
+  /// Says a bad input and counts it, as onMessage does (for a message found
+  /// bad only when it is processed, as an MJPEG frame's JPEG data is).
+  void reportBad(const std::string& why) {
+    if (printBadLine(++bad_))
+      std::cerr << program_ << ": dropped " << what_ << ": " << why << " " << badSoFar(bad_) << "\n";
+  }
+
+  int64_t skipped() const { return skipped_; }  ///< good messages that a newer one replaced
+  int64_t bad() const { return bad_; }          ///< messages said bad
+
+ private:
+  std::string program_, channel_, what_;
+  Check check_;
+  Msg incoming_, newest_;
+  bool pending_ = false;
+  int64_t skipped_ = 0, bad_ = 0;
+};
+
+}  // namespace ld
