@@ -81,22 +81,26 @@ while True:
     c.close()
 PY
 rc=0
-timeout 60 "$netns" bash -c 'python3 "$1" & for i in $(seq 50); do (exec 3<>/dev/tcp/127.0.0.1/6095) 2>/dev/null && break; sleep 0.1; done
-  DISPLAY=localhost:95.0 "$2" --lcm-url "udpm://239.255.76.67:7667?ttl=0"' _ "$T/refusing_x.py" "$spy" >"$T/out" 2>"$T/err" || rc=$?
+timeout 60 "$netns" bash -c 'python3 "$1" & server=$!; for i in $(seq 50); do (exec 3<>/dev/tcp/127.0.0.1/6095) 2>/dev/null && break; sleep 0.1; done
+  rc=0; DISPLAY=localhost:95.0 "$2" --lcm-url "udpm://239.255.76.67:7667?ttl=0" || rc=$?; kill $server; exit $rc' _ "$T/refusing_x.py" "$spy" >"$T/out" 2>"$T/err" || rc=$?
 [ $rc -ne 0 ] && [ "$(wc -l <"$T/err")" -eq 1 ] || fail "refused by the X server: exit $rc: $(cat "$T/err")"
 grep -q "^ld-spy: the X server on display localhost:95.0 did not take the connection (Authorization required, but no authorization protocol specified): let this user in (xhost +SI:localuser:.* there, or XAUTHORITY naming the display's cookie file), or on a headless robot" "$T/err" ||
   fail "refused by the X server: $(cat "$T/err")"
-# a signal ends lcm-spy and ld-spy with it, and ld-spy exits as signalled
-# (130 for Ctrl-C's INT; 143 before, Java's status after the TERM it was
-# sent): a stand-in java on PATH runs the real one for the type list, and
-# for lcm-spy only waits, noting the TERM; a listener in the namespace
-# stands for the X server. (Python starts ld-spy with INT at its default: a
-# script's background job would have it ignored.)
+# a signal ends lcm-spy, and then ld-spy by the same signal (so that a
+# script running it stops on Ctrl-C; it exited with Java's status 143 for
+# all three before): a stand-in java on PATH runs the real one for the type
+# list, and as lcm-spy waits, noting its end (by ld-spy's TERM, or a HUP to
+# the group, as Java's shutdown does) and saying a last line on stderr; a listener in the namespace stands for the X server. Python starts
+# ld-spy with INT at its default (a script's background job has it
+# ignored), and sends the signal to ld-spy alone or, as a terminal's Ctrl-C
+# does, to its whole process group (the stderr filter died of it, and
+# lcm-spy's last lines were lost).
 mkdir "$T/bin"
 cat >"$T/bin/java" <<'SH'
 #!/usr/bin/env bash
 case " $* " in
-  *" lcm.spy.Spy "*) trap 'echo TERM >"$SPY_MARK.term"; kill $!; exit 143' TERM
+  *" lcm.spy.Spy "*) ended() { echo "$1" >"$SPY_MARK.ended"; echo "lcm-spy stand-in: ended" >&2; kill $!; exit $2; }
+                     trap 'ended TERM 143' TERM; trap 'ended HUP 129' HUP  # (as Java's shutdown does)
                      sleep 60 </dev/null >/dev/null 2>&1 & echo up >"$SPY_MARK"; wait ;;
   *) exec /usr/bin/java "$@" ;;
 esac
@@ -104,27 +108,33 @@ SH
 chmod +x "$T/bin/java"
 cat >"$T/spy_signal.py" <<'PY'
 import os, signal, socket, subprocess, sys, time
-spy, mark, name = sys.argv[1], sys.argv[2], sys.argv[3]
+spy, mark, name, group = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4] == "group"
 x = socket.socket(); x.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
 x.bind(("127.0.0.1", 6094)); x.listen(8)
 p = subprocess.Popen([spy, "--lcm-url", "udpm://239.255.76.67:7667?ttl=0"],
                      env=dict(os.environ, DISPLAY="localhost:94.0", SPY_MARK=mark),
+                     stderr=subprocess.PIPE, start_new_session=True,
                      preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 for _ in range(300):
     if os.path.exists(mark): break
     time.sleep(0.1)
 else:
     sys.exit("lcm-spy's stand-in never started")
-p.send_signal(getattr(signal, name))
+if group: os.killpg(p.pid, getattr(signal, name))
+else: p.send_signal(getattr(signal, name))
 try:
-    rc = p.wait(timeout=20)
+    _, err = p.communicate(timeout=20)
 except subprocess.TimeoutExpired:
     p.kill(); sys.exit("ld-spy still running 20 s after " + name)
-print(rc, "TERM" if os.path.exists(mark + ".term") else "no TERM")
+print(p.returncode, "ended" if os.path.exists(mark + ".ended") else "not ended",
+      "last line" if b"lcm-spy stand-in: ended" in err else "no last line: " + repr(err))
 PY
-for sig in INT:130 TERM:143 HUP:129; do
-  got=$(timeout 60 "$netns" env PATH="$T/bin:$PATH" python3 "$T/spy_signal.py" "$spy" "$T/mark.${sig%:*}" "SIG${sig%:*}") ||
-    fail "SIG${sig%:*}: $got"
-  [ "$got" = "${sig#*:} TERM" ] || fail "SIG${sig%:*}: exit and lcm-spy's signal: $got (want ${sig#*:} TERM)"
+for sig in INT:2 TERM:15 HUP:1; do
+  for to in alone group; do
+    got=$(timeout 60 "$netns" env PATH="$T/bin:$PATH" python3 "$T/spy_signal.py" "$spy" "$T/mark.${sig%:*}.$to" "SIG${sig%:*}" $to) ||
+      fail "SIG${sig%:*} ($to): $got"
+    [ "$got" = "-${sig#*:} ended last line" ] ||
+      fail "SIG${sig%:*} ($to): ld-spy's end, lcm-spy's, its last line: $got (want -${sig#*:} ended last line)"
+  done
 done
 echo "ld-spy command line: ok"

@@ -1,7 +1,7 @@
 // ld::readImageFile, the image reader of ld-detect and ld-log-images: the
 // image it gives is OpenCV's (cv::imdecode, as cv::imread reads the file),
 // whether it decoded a JPEG once (plain JFIF, grey, progressive) or twice
-// (an Exif orientation, which OpenCV turns the image by).
+// (an APP1 block, which OpenCV reads as Exif and turns the image by).
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -36,10 +36,13 @@ std::vector<uint8_t> encode(const cv::Mat& img, std::vector<int> params = {}) {
 }
 
 // The bytes with an Exif block (APP1) after the JFIF one, whose one IFD
-// entry is the orientation (6: turn 90 degrees clockwise to view).
-std::vector<uint8_t> withExifOrientation(std::vector<uint8_t> jpeg, uint16_t orientation) {
+// entry is the orientation (6: turn 90 degrees clockwise to view); `name`
+// is its header ("Exif").
+std::vector<uint8_t> withExifOrientation(std::vector<uint8_t> jpeg, uint16_t orientation,
+                                         const char (&name)[5] = "Exif") {
   const std::vector<uint8_t> exif = {
-      'E', 'x', 'i', 'f', 0, 0,                          // Exif header
+      static_cast<uint8_t>(name[0]), static_cast<uint8_t>(name[1]), static_cast<uint8_t>(name[2]),
+      static_cast<uint8_t>(name[3]), 0, 0,               // Exif header
       'I', 'I', 0x2A, 0, 8, 0, 0, 0,                     // TIFF, little-endian, IFD at 8
       1, 0,                                              // one entry
       0x12, 0x01, 3, 0, 1, 0, 0, 0,                      // Orientation, SHORT, count 1
@@ -96,6 +99,10 @@ TEST(ReadImageFile, JpegIsOpenCvsImageDecodedOnceOrTwice) {
   // (an Exif block that keeps the image as it is reads as before too)
   const std::vector<uint8_t> upright = withExifOrientation(plain, 1);
   expectOpenCvImage("upright.jpg", upright, frame.size());
+  // OpenCV takes the first APP1 block for Exif whatever its name says
+  const std::vector<uint8_t> misnamed = withExifOrientation(plain, 6, "ZZZZ");
+  EXPECT_FALSE(ld::jpegReadsAsDecoded(misnamed.data(), misnamed.size()));
+  expectOpenCvImage("misnamed.jpg", misnamed, {frame.rows, frame.cols});
 }
 
 TEST(ReadImageFile, JpegHeadersThatAreNotOneGoToOpenCv) {

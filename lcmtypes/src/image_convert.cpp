@@ -5,7 +5,6 @@
 #include <charconv>
 #include <csetjmp>
 #include <cstdio>
-#include <cstring>
 #include <vector>
 
 #include <opencv2/imgcodecs.hpp>
@@ -81,8 +80,8 @@ constexpr int64_t kMaxMjpegPixels = int64_t{1} << 25;
 
 // What a JPEG stream's headers say, read without decoding: the frame size
 // of its SOFn header (empty when it has none before its scan data), its
-// colour components, whether an Exif block (APP1 "Exif") comes before its
-// scan, and where its first scan (SOS) starts (0 when it has none before
+// colour components, whether an APP1 block comes before its scan (OpenCV
+// reads the first as Exif, whatever its name), and where its first scan (SOS) starts (0 when it has none before
 // its end).
 struct JpegHeaders {
   cv::Size frame;
@@ -119,7 +118,7 @@ JpegHeaders jpegHeaders(const uint8_t* p, size_t n) {
       if (i + 10 <= n) h.components = p[i + 9];
       sof = true;
     }
-    if (m == 0xE1 && len >= 8 && i + 10 <= n && std::memcmp(p + i + 4, "Exif\0", 6) == 0) h.exif = true;
+    if (m == 0xE1) h.exif = true;
     i += 2 + len;
   }
   return h;

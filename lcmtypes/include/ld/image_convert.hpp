@@ -68,9 +68,9 @@ bool jpegComplete(const uint8_t* data, size_t size);
 
 /// Whether OpenCV's cv::imdecode (IMREAD_COLOR) gives exactly decodeJpeg's
 /// BGR image for these JPEG bytes: both decode with libjpeg's defaults, but
-/// OpenCV turns an image as its Exif orientation says and converts CMYK
-/// its own way. So: grey or three-component colour, with no Exif block
-/// before the scan.
+/// OpenCV turns an image as its Exif orientation says (it takes the first
+/// APP1 block for Exif, whatever its name) and converts CMYK its own way.
+/// So: grey or three-component colour, with no APP1 block before the scan.
 bool jpegReadsAsDecoded(const uint8_t* data, size_t size);
 
 /// Decodes any supported format into 8-bit BGR. `out` is reused when it
