@@ -263,13 +263,16 @@ int runScene(const SceneArgs& a) {
   const int K = a.no_landmark ? 0 : a.landmarks;
   int in_view = 0, total = 0;
   for (int i = 0; i < a.count; ++i) {
-    // Poses: retried until every landmark is in view and none overlap.
+    // Poses: retried until every landmark is in view and none overlap; one
+    // still overlapping another after 200 tries is refused (the one drawn
+    // over would be counted as in view, and its miss as the detector's).
     std::vector<LandmarkPlacement> lms;
     for (int k = 0; k < K; ++k) {
       const std::string payload = a.payload.empty() ? "room-" + std::to_string(101 + k)
                                   : K == 1            ? a.payload
                                                       : a.payload + "-" + std::to_string(k);
       LandmarkPlacement best;
+      bool overlap = false;
       for (int attempt = 0; attempt < 200; ++attempt) {
         double x;
         if (nx) {
@@ -284,7 +287,7 @@ int runScene(const SceneArgs& a) {
         const LandmarkTruth t = truthFor(camera, best);
         if (!t.in_view) continue;
         const cv::Rect box = cv::boundingRect(std::vector<cv::Point2f>(t.corners.begin(), t.corners.end()));
-        bool overlap = false;
+        overlap = false;
         for (const auto& o : lms) {
           const LandmarkTruth ot = truthFor(camera, o);
           const cv::Rect obox = cv::boundingRect(std::vector<cv::Point2f>(ot.corners.begin(), ot.corners.end()));
@@ -292,6 +295,10 @@ int runScene(const SceneArgs& a) {
         }
         if (!overlap) break;
       }
+      if (overlap)
+        throw std::runtime_error("frame " + std::to_string(i) + ": landmark " + std::to_string(k + 1) + " of " +
+                                 std::to_string(K) + " overlapped another in each of 200 poses drawn: ask for " +
+                                 "fewer landmarks, or give them room (--x, --y, --distance, --size)");
       lms.push_back(best);
     }
     SceneSpec spec = randomConditions(camera, lms, r.next());
