@@ -36,6 +36,13 @@ set +e; "$BIN/ld-detect" --explain "$T/s" >"$T/out" 2>"$T/err"; rc=$?; set -e
 grep -q 'broken.png: cannot read as an image' "$T/err" || fail "broken file: $(cat "$T/err")"
 [ "$(grep -c '"landmarks":\[{' "$T/out")" -eq 2 ] && grep -q '"error":"cannot read as an image"' "$T/out" ||
   fail "broken file, output: $(cat "$T/out")"
+# A PNG cut short: one line, with libpng's own words (libpng printed them
+# on a line of its own, naming no file).
+mkdir "$T/png"; head -c 3000 "$T/s/000000.png" >"$T/png/cut.png"
+set +e; "$BIN/ld-detect" "$T/png/cut.png" >"$T/out" 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 1 ] && [ "$(wc -l <"$T/err")" -eq 1 ] &&
+  grep -q "^ld-detect: $T/png/cut.png: cannot read as an image (libpng error: PNG input buffer is incomplete)$" "$T/err" ||
+  fail "PNG cut short: exit $rc: $(cat "$T/err")"
 # A calibration of another aspect ratio: no pose, said once on stderr, and the landmarks as ever.
 printf '%%YAML:1.0\n---\nimage_width: 1280\nimage_height: 720\ncamera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n  data: [1200, 0, 639.5, 0, 1200, 359.5, 0, 0, 1]\ndistortion_coefficients: !!opencv-matrix\n  rows: 1\n  cols: 5\n  dt: d\n  data: [0, 0, 0, 0, 0]\n' >"$T/wide.yaml"
 "$BIN/ld-detect" --camera "$T/wide.yaml" --size 0.15 "$T/s/000000.png" "$T/s/000001.png" >"$T/out" 2>"$T/err" || fail "wide calibration: exit $?: $(cat "$T/err")"

@@ -4,7 +4,10 @@
 // (an APP1 block, which OpenCV reads as Exif and turns the image by).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -112,6 +115,40 @@ TEST(ReadImageFile, JpegHeadersThatAreNotOneGoToOpenCv) {
   EXPECT_FALSE(ld::jpegReadsAsDecoded(headers_only.data(), headers_only.size()));
   const std::vector<uint8_t> png_head = {0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A};
   EXPECT_FALSE(ld::jpegReadsAsDecoded(png_head.data(), png_head.size()));
+}
+
+}  // namespace
+
+namespace {
+
+TEST(ReadImageFile, DecodersOwnWordsAreInTheOneLine) {
+  // libpng printed "libpng error: ..." on stderr itself, a line that named
+  // no file, before the caller's "cannot read as an image"
+  std::vector<uint8_t> png;
+  ASSERT_TRUE(cv::imencode(".png", testFrame(), png));
+  std::vector<uint8_t> cut(png.begin(), png.begin() + static_cast<std::ptrdiff_t>(png.size() / 2));
+  std::vector<uint8_t> damaged = png;
+  const auto idat = std::search(damaged.begin(), damaged.end(), std::begin("IDAT"), std::end("IDAT") - 1);
+  ASSERT_NE(idat, damaged.end());
+  for (int i = 8; i < 400; i += 7) idat[i] ^= 0x5A;  // (within the compressed data)
+  cv::Mat read;
+  testing::internal::CaptureStderr();
+  const std::string cut_why = ld::readImageFile(writeFile("cut.png", cut), read);
+  const std::string damaged_why = ld::readImageFile(writeFile("damaged.png", damaged), read);
+  const std::string good_why = ld::readImageFile(writeFile("good.png", png), read);
+  const std::string printed = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(cut_why, "cannot read as an image (libpng error: PNG input buffer is incomplete)");
+  EXPECT_EQ(damaged_why.rfind("cannot read as an image (libpng error: ", 0), 0u) << damaged_why;
+  EXPECT_EQ(good_why, "");
+  EXPECT_EQ(read.size(), cv::Size(320, 240));
+  EXPECT_EQ(printed, "");
+  // standard error is as it was after each
+  testing::internal::CaptureStderr();
+  std::fprintf(stderr, "still here\n");
+  EXPECT_EQ(testing::internal::GetCapturedStderr(), "still here\n");
+  // bytes no decoder takes: said as before
+  EXPECT_EQ(ld::readImageFile(writeFile("text.png", {'n', 'o', 't', ' ', 'a', 'n', ' ', 'i', 'm', 'a', 'g', 'e'}), read),
+            "cannot read as an image");
 }
 
 }  // namespace

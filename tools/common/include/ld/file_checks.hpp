@@ -66,7 +66,10 @@ std::string prepareOutputFile(const std::string& path);
 /// read as an image: it is a JPEG cut short (no end-of-image marker)"
 /// (OpenCV reads such a file as an image with grey rows), "cannot read as
 /// an image: it is a JPEG that is damaged (libjpeg: ...)", "cannot read as
-/// an image".
+/// an image (libpng error: PNG input buffer is incomplete)" (what the image
+/// library printed on stderr itself during the decode, caught: standard
+/// error goes elsewhere meanwhile, so call it from one thread), "cannot
+/// read as an image".
 std::string readImageFile(const std::string& path, cv::Mat& out);
 
 /// prepareOutputFile for an LCM log about to be written: besides, a file
