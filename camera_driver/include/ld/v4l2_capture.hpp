@@ -315,7 +315,11 @@ class Backoff {
 /// 3 exposures) closes and reopens it; lost so again before a good frame
 /// came, the backoff grows on and nothing more is logged. grab()
 /// never blocks longer than its timeout, so the caller can check for a stop
-/// request between calls.
+/// request between calls. A frame's data lies in the device's mapped
+/// buffers: a frame still held when a grab() or requeue() loses the stream
+/// (the device gone, or a stall closed) is gone with them, its data no
+/// longer to be read; requeue() of it does nothing. ld-camera holds one
+/// frame at a time, publishing it before the next grab().
 class ReconnectingCapture {
  public:
   using Log = std::function<void(const std::string&)>;
