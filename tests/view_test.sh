@@ -8,6 +8,14 @@ set -euo pipefail
 BIN=$1; ROOT=$2
 T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
 FRAMES=30
+# calibrations of the frames' camera (640x480, f = 600 px), of the same
+# camera at 1280x960, and at 1280x720 (another crop of the sensor)
+calib() {  # W H F
+  printf '%%YAML:1.0\n---\nimage_width: %d\nimage_height: %d\ncamera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n  data: [%d, 0, %s, 0, %d, %s, 0, 0, 1]\ndistortion_coefficients: !!opencv-matrix\n  rows: 1\n  cols: 5\n  dt: d\n  data: [0, 0, 0, 0, 0]\n' \
+    "$1" "$2" "$3" "$(awk "BEGIN{print ($1-1)/2}")" "$3" "$(awk "BEGIN{print ($2-1)/2}")"
+}
+calib 640 480 600 >"$T/cam640.yaml"; calib 1280 960 1200 >"$T/cam1280.yaml"; calib 1280 720 1200 >"$T/cam720.yaml"
+printf '{"detector": {"args": ["--camera", "%s", "--size", "0.3"]}}\n' "$T/cam640.yaml" >"$T/run.json"
 "$BIN/ld-synth" sequence --out "$T/seq" --frames $FRAMES --fps 10 --landmarks 2 --seed 3 --size 0.3 \
   --format mjpeg --log "$T/in.lcmlog" >/dev/null
 
@@ -18,7 +26,7 @@ FRAMES=30
   view=$!
   source "$ROOT/tests/lcm_sockets.sh"
   lcm_sockets 1   # subscribed (0.4-2.6 s after its start), and the LCM self test over, before frames come
-  "$BIN/ld-run" --replay "$T/in.lcmlog" --exit-when-replay-done --record "$T/run.lcmlog" \
+  "$BIN/ld-run" --config "$T/run.json" --replay "$T/in.lcmlog" --exit-when-replay-done --record "$T/run.lcmlog" \
     --status-interval 0 -q
   sleep 0.5
   kill -INT $view; wait $view
@@ -37,6 +45,21 @@ echo "live: $live frames, logs: $logs frames, video: $(stat -c %s "$T/view.avi")
 "$BIN/ld-view" --log "$T/in.lcmlog" --all --out "$T/plain" 2>/dev/null
 [ "$(ls "$T/plain" | wc -l)" -eq $FRAMES ]
 if cmp -s "$T/logs/000015.png" "$T/plain/000015.png"; then echo "frame 15 not annotated"; exit 1; fi
+# pose axes (the run's detector had the calibration): drawn with the
+# frames' calibration, and the same with that camera's at another size
+# (scaled to the frames: drawn unscaled, they missed the landmark); a
+# calibration of another aspect ratio draws none, said once
+"$BIN/ld-view" --log "$T/in.lcmlog" --log "$T/run.lcmlog" --out "$T/axes640" --camera "$T/cam640.yaml" 2>"$T/err"
+"$BIN/ld-view" --log "$T/in.lcmlog" --log "$T/run.lcmlog" --out "$T/axes1280" --camera "$T/cam1280.yaml" 2>>"$T/err"
+"$BIN/ld-view" --log "$T/in.lcmlog" --log "$T/run.lcmlog" --out "$T/axes720" --camera "$T/cam720.yaml" 2>"$T/err720"
+if cmp -s "$T/axes640/000015.png" "$T/logs/000015.png"; then echo "frame 15: no pose axes"; exit 1; fi
+for f in $(ls "$T/logs"); do
+  cmp -s "$T/axes640/$f" "$T/axes1280/$f" || { echo "$f: axes of the 1280x960 calibration differ"; exit 1; }
+  cmp -s "$T/axes720/$f" "$T/logs/$f" || { echo "$f: axes drawn with a calibration of another aspect ratio"; exit 1; }
+done
+! grep -q note "$T/err" || { echo "calibrations that fit: $(cat "$T/err")"; exit 1; }
+[ "$(grep -c 'note: no pose axes: the camera calibration is for 1280x720 images and this frame is 640x480' "$T/err720")" -eq 1 ] ||
+  { echo "another aspect ratio: $(cat "$T/err720")"; exit 1; }
 # no display, no output: a clear error
 rc=0; env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" 2> "$T/err" || rc=$?
 [ "$rc" -eq 2 ]

@@ -46,11 +46,38 @@ void onSignal(int) { g_stop = true; }
 
 using Key = std::pair<int64_t, int64_t>;  // (utime, seq)
 
+// The calibration that draws the pose axes on frames of one size: scaled
+// to it, as ld-detect and ld-detector scale it (axes drawn with a 1280x960
+// calibration on 640x480 frames missed the landmark), or none where the
+// frames have another aspect ratio (another crop of the sensor), said once.
+class AxesCamera {
+ public:
+  explicit AxesCamera(ld::CameraModel model) : model_(std::move(model)) {}
+  const ld::CameraModel* forFrame(cv::Size frame) {
+    if (frame != size_) {
+      size_ = frame;
+      fits_ = model_.fits(frame);
+      if (fits_) {
+        scaled_ = model_.scaledTo(frame);
+      } else if (!misfit_said_) {
+        std::cerr << "ld-view: note: no pose axes: " << model_.misfit(frame) << "\n";
+        misfit_said_ = true;
+      }
+    }
+    return fits_ ? &scaled_ : nullptr;
+  }
+
+ private:
+  ld::CameraModel model_, scaled_;
+  cv::Size size_;
+  bool fits_ = false, misfit_said_ = false;
+};
+
 struct Options {
   std::string out_dir, video;
   bool window = false;
   double fps = 30;
-  std::optional<ld::CameraModel> camera;
+  mutable std::optional<AxesCamera> camera;  // (its scaled calibration kept for the frames' size)
   double axis_m = 0.1;
 };
 
@@ -158,10 +185,11 @@ void annotate(cv::Mat& bgr, const ld::landmark_list_t& list, const std::map<int6
     } else {
       visible.push_back(lm);
     }
-    if (m.visible && m.pose_valid && o.camera) {
+    const ld::CameraModel* camera = m.visible && m.pose_valid && o.camera ? o.camera->forFrame(bgr.size()) : nullptr;
+    if (camera) {
       const cv::Vec3d rvec(m.rvec[0], m.rvec[1], m.rvec[2]), t(m.t[0], m.t[1], m.t[2]);
-      cv::drawFrameAxes(bgr, cv::Mat(o.camera->K), o.camera->dist.empty() ? cv::Mat() : o.camera->dist,
-                        rvec, t, static_cast<float>(o.axis_m), thick);
+      cv::drawFrameAxes(bgr, cv::Mat(camera->K), camera->dist.empty() ? cv::Mat() : camera->dist, rvec, t,
+                        static_cast<float>(o.axis_m), thick);
     }
   }
   ld::drawLandmarks(bgr, visible);
@@ -440,7 +468,7 @@ int main(int argc, char** argv) {
   }
   if (!camera_file.empty()) {
     try {
-      o.camera = ld::CameraModel::load(camera_file);
+      o.camera.emplace(ld::CameraModel::load(camera_file));
     } catch (const std::exception& e) {
       std::cerr << "ld-view: " << e.what() << "\n";
       return 2;
