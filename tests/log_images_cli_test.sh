@@ -50,6 +50,20 @@ refused 2 "$T/c.lcmlog" "^ld-log-images: cannot open $T/noise.mp4 as a video$" "
 refused 2 "$T/d.lcmlog" "^ld-log-images: $T/missing does not exist$" "$T/missing"
 mkdir "$T/bad"; cp "$T/f/000002.png" "$T/bad/"
 refused 1 "$T/e.lcmlog" "no frame could be read from $T/bad; $T/e.lcmlog not written" "$T/bad"
+# Frames that cannot be an image_t of the format: said and skipped (a 1 px
+# wide frame for YUYV died of an exception and left its partial log; a side
+# over 32768 px was logged, and no reader took it).
+printf 'P5\n1 4\n255\n\x10\x20\x30\x40' >"$T/w1.pgm"
+refused 1 "$T/w1.lcmlog" "^ld-log-images: $T/w1.pgm: cannot be logged as yuyv: it is 1 px wide, and the format's pixels come in pairs, skipped$" "$T/w1.pgm" --format yuyv
+grep -q "^ld-log-images: no frame could be logged from $T/w1.pgm; $T/w1.lcmlog not written$" "$T/err" || fail "1 px wide: $(cat "$T/err")"
+mkdir "$T/wide"; cp "$T/f/000001.png" "$T/wide/"
+{ printf 'P5\n40000 2\n255\n'; head -c 80000 /dev/zero; } >"$T/wide/000002.pgm"
+"$BIN/ld-log-images" "$T/wide" "$T/wide.lcmlog" --format gray >"$T/out" 2>"$T/err" || fail "wide: exit $?: $(cat "$T/err")"
+grep -q "^ld-log-images: $T/wide/000002.pgm: cannot be logged as gray: a 40000x2 image is more than the 32768 px a side that image_t takes, skipped$" "$T/err" &&
+  grep -q "wrote 1 frame to $T/wide.lcmlog (gray, 30 fps), 1 that could not be logged skipped" "$T/out" ||
+  fail "wide: $(cat "$T/out" "$T/err")"
+[ "$("$BIN/ld-dump" "$T/wide.lcmlog" -c IMAGE | wc -l)" -eq 1 ] || fail "wide: the log does not hold 1 image"
+! ls -a "$T" | grep -q partial || fail "a partial log left behind: $(ls -a "$T")"
 refused 2 "$T/g.lcmlog" "ld-log-images: --fps: must be in \[0.1, 1000\], not 0" "$T/f" --fps 0
 refused 2 "$T/h.lcmlog" "ld-log-images: --start-utime: must be >= 0, not -5" "$T/f" --start-utime -5
 refused 2 "$T/i.lcmlog" "ld-log-images: --channel: an empty channel name" "$T/f" --channel ""

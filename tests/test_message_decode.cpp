@@ -288,6 +288,27 @@ TEST(ImageLimits, RawDataLargerThanItsRowsIsRefused) {
   EXPECT_EQ(ld::test::imageError(strided), "");
 }
 
+// matToImage makes no message its readers refuse (ld-log-images logged a
+// 70000x2 frame that ld-play and the detector then refused).
+TEST(ImageLimits, MatToImageMakesNothingItsReadersRefuse) {
+  const cv::Mat wide(1, (1 << 15) + 1, CV_8UC1, cv::Scalar(128));
+  for (int32_t format : std::vector<int32_t>{ld::image_t::PIXEL_FORMAT_GRAY, ld::image_t::PIXEL_FORMAT_BGR,
+                                             ld::image_t::PIXEL_FORMAT_MJPEG})
+    EXPECT_THROW(ld::matToImage(wide, format, 0, 0), ld::ImageFormatError) << format;
+  const cv::Mat widest_taken(1, 1 << 15, CV_8UC1, cv::Scalar(128));
+  const ld::image_t taken = ld::matToImage(widest_taken, ld::image_t::PIXEL_FORMAT_GRAY, 0, 0);
+  EXPECT_NO_THROW(ld::checkImage(taken));
+  // MJPEG: 2^25 pixels at most (6000x6000 is 36 million)
+  const cv::Mat big(6000, 6000, CV_8UC1, cv::Scalar(128));
+  try {
+    ld::matToImage(big, ld::image_t::PIXEL_FORMAT_MJPEG, 0, 0);
+    ADD_FAILURE() << "a 6000x6000 MJPEG image_t was made";
+  } catch (const ld::ImageFormatError& e) {
+    EXPECT_STREQ(e.what(), "matToImage: a 6000x6000 image is more than the 33554432 pixels an MJPEG image_t takes");
+  }
+  EXPECT_NO_THROW(ld::checkImage(ld::matToImage(big, ld::image_t::PIXEL_FORMAT_GRAY, 0, 0)));
+}
+
 TEST(ImageLimits, CheckImageRefusesWhatDecodingWouldWithoutDecoding) {
   const ld::image_t good = ld::matToImage(cv::Mat(6, 8, CV_8UC3, cv::Scalar(1, 2, 3)),
                                           ld::image_t::PIXEL_FORMAT_YUYV, 1);

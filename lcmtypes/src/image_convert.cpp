@@ -414,6 +414,14 @@ image_t matToImage(const cv::Mat& image, int32_t pixelformat, int64_t utime, int
   const FormatInfo* f = findFormat(pixelformat);
   if (!f) throw ImageFormatError("matToImage: unsupported pixel format " +
                                  pixelFormatName(pixelformat));
+  // (nothing its readers refuse: checkImage's limits)
+  if (image.cols > kMaxSide || image.rows > kMaxSide)
+    throw ImageFormatError("matToImage: a " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
+                           " image is more than the " + std::to_string(kMaxSide) + " px a side that image_t takes");
+  if (f->bytes_per_pixel == 0 && int64_t{image.cols} * image.rows > kMaxMjpegPixels)
+    throw ImageFormatError("matToImage: a " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
+                           " image is more than the " + std::to_string(kMaxMjpegPixels) +
+                           " pixels an MJPEG image_t takes");
 
   cv::Mat bgr;
   if (image.channels() == 1) cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);

@@ -105,7 +105,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   std::vector<uint8_t> buf;
-  int64_t seq = 0, skipped = 0;
+  int64_t seq = 0, skipped = 0, unlogged = 0;
   bool crop_said = false;
   for (size_t i = 0;; ++i) {
     cv::Mat frame;
@@ -119,8 +119,20 @@ int main(int argc, char** argv) {
     } else if (!video.read(frame) || frame.empty()) {
       break;
     }
-    if ((pixelformat == ld::image_t::PIXEL_FORMAT_YUYV || pixelformat == ld::image_t::PIXEL_FORMAT_UYVY) &&
-        frame.cols % 2) {
+    // A frame that cannot be an image_t of the format (a side over 32768 px,
+    // an MJPEG frame over 2^25 pixels, a YUYV frame 1 px wide): said and
+    // skipped (ld-log-images died of it, leaving its partial log behind).
+    const auto unloggable = [&](const std::string& why) {
+      std::cerr << "ld-log-images: " << (files.empty() ? "frame " + std::to_string(i) + " of " + input : files[i])
+                << ": cannot be logged as " << format << ": " << why << ", skipped\n";
+      ++unlogged;
+    };
+    const bool pairs = pixelformat == ld::image_t::PIXEL_FORMAT_YUYV || pixelformat == ld::image_t::PIXEL_FORMAT_UYVY;
+    if (pairs && frame.cols < 2) {
+      unloggable("it is 1 px wide, and the format's pixels come in pairs");
+      continue;
+    }
+    if (pairs && frame.cols % 2) {
       // (two pixels share their colour in YUYV and UYVY: an odd width loses its last column)
       if (!crop_said)
         std::cerr << "ld-log-images: note: " << frame.cols << " px wide frames are cropped to " << frame.cols - 1
@@ -129,7 +141,15 @@ int main(int argc, char** argv) {
       frame = frame.colRange(0, frame.cols - 1).clone();
     }
     const int64_t utime = start_utime + static_cast<int64_t>(std::llround(seq * 1e6 / fps));
-    const ld::image_t msg = ld::matToImage(frame, pixelformat, utime, seq, quality);
+    ld::image_t msg;
+    try {
+      msg = ld::matToImage(frame, pixelformat, utime, seq, quality);
+    } catch (const std::exception& e) {  // (ImageFormatError; OpenCV's encoder's cv::Exception)
+      std::string why = e.what();
+      if (why.rfind("matToImage: ", 0) == 0) why.erase(0, 12);
+      unloggable(why);
+      continue;
+    }
     buf.resize(static_cast<size_t>(msg.getEncodedSize()));
     msg.encode(buf.data(), 0, static_cast<int>(buf.size()));
     lcm::LogEvent ev;
@@ -145,7 +165,8 @@ int main(int argc, char** argv) {
     ++seq;
   }
   if (seq == 0) {  // no empty log left behind (and what was at the output stays)
-    std::cerr << "ld-log-images: no frame could be read from " << input << "; " << output << " not written\n";
+    std::cerr << "ld-log-images: no frame could be " << (unlogged ? "logged" : "read") << " from " << input << "; "
+              << output << " not written\n";
     return 1;
   }
   if (std::fflush(log.getFilePtr()) != 0 || std::ferror(log.getFilePtr())) {
@@ -166,6 +187,6 @@ int main(int argc, char** argv) {
   }
   std::cout << "wrote " << seq << (seq == 1 ? " frame" : " frames") << " to " << output << " (" << format << ", " << fps
             << " fps)" << (skipped ? ", " + std::to_string(skipped) + " unreadable skipped" : "")
-            << "\n";
+            << (unlogged ? ", " + std::to_string(unlogged) + " that could not be logged skipped" : "") << "\n";
   return 0;
 }

@@ -85,7 +85,8 @@ void imageToMat(const image_t& msg, cv::Mat& out);
 /// Encodes an 8-bit image (1, 3 or 4 channels; 3 and 4 are taken as BGR and
 /// BGRA) into `pixelformat`. Compressed formats use `jpeg_quality`.
 /// Throws ImageFormatError when the conversion is not possible (YUYV/UYVY need an
-/// even width).
+/// even width) or would give a message its readers refuse (a side over
+/// 32768 px; an MJPEG image over 2^25 pixels).
 image_t matToImage(const cv::Mat& image, int32_t pixelformat, int64_t utime,
                    int64_t seq = -1, int jpeg_quality = 90);
 
