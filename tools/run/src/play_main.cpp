@@ -81,6 +81,11 @@ int main(int argc, char** argv) {
     return ld::cli::usage(argv[0], m.str());
   }
 
+  // (seq counts on from it, frame after frame, without end: it wrapped to
+  // negative numbers past 2^63)
+  if (first_seq > (int64_t{1} << 62))
+    return ld::cli::usage(argv[0], "--first-seq: must be at most 2^62 (" + std::to_string(int64_t{1} << 62) +
+                                       "), not " + std::to_string(first_seq));
   const int32_t pixelformat = format == "keep" ? -1 : ld::pixelFormatFromName(format);  // (checked by the option)
   // (a duration under half a frame is still a frame, not the log once)
   if (frames == 0 && duration > 0) frames = std::max<int64_t>(1, std::llround(duration * fps));
@@ -90,7 +95,7 @@ int main(int argc, char** argv) {
   // 16 GB of 640x480 BGR).
   std::vector<ld::image_t> images;
   size_t preloaded_bytes = 0;
-  bool cut = false;
+  bool cut = false, crop_said = false;
   {
     const ld::LcmLogCheck start = ld::checkLcmLogStart(log_path);
     if (start.start != ld::LcmLogStart::Events) {
@@ -117,9 +122,21 @@ int main(int argc, char** argv) {
       // every frame must be an image its readers can read (kept as it is,
       // or converted): a broken one is skipped here, not published
       try {
-        const cv::Mat bgr = ld::imageToBgr(img);
-        if (pixelformat != -1 && img.pixelformat != pixelformat)
+        cv::Mat bgr = ld::imageToBgr(img);
+        if (pixelformat != -1 && img.pixelformat != pixelformat) {
+          // (two pixels share their colour in YUYV and UYVY: an odd width
+          // loses its last column, as ld-log-images does; every frame was
+          // skipped, and the run ended with no images)
+          if ((pixelformat == ld::image_t::PIXEL_FORMAT_YUYV || pixelformat == ld::image_t::PIXEL_FORMAT_UYVY) &&
+              bgr.cols % 2 && bgr.cols > 1) {
+            if (!crop_said)
+              std::cerr << "ld-play: note: " << bgr.cols << " px wide frames are cropped to " << bgr.cols - 1
+                        << " for " << ld::pixelFormatName(pixelformat) << " (its pixels come in pairs)\n";
+            crop_said = true;
+            bgr = bgr.colRange(0, bgr.cols - 1);
+          }
           img = ld::matToImage(bgr, pixelformat, img.utime, -1, quality);
+        }
       } catch (const std::exception& e) {
         std::cerr << "ld-play: skipping message " << log.messages() << ": " << e.what() << "\n";
         continue;
