@@ -66,6 +66,9 @@ grep -q "^ld-log-images: $T/wide/000002.pgm: cannot be logged as gray: a 40000x2
 ! ls -a "$T" | grep -q partial || fail "a partial log left behind: $(ls -a "$T")"
 refused 2 "$T/g.lcmlog" "ld-log-images: --fps: must be in \[0.1, 1000\], not 0" "$T/f" --fps 0
 refused 2 "$T/h.lcmlog" "ld-log-images: --start-utime: must be >= 0, not -5" "$T/f" --start-utime -5
+# --start-utime 0 is 0 (it was taken as not given: now)
+"$BIN/ld-log-images" "$T/f/000001.png" "$T/zero.lcmlog" --start-utime 0 >/dev/null
+"$BIN/ld-dump" "$T/zero.lcmlog" -c IMAGE | grep -q '"utime":0,' || fail "--start-utime 0: $("$BIN/ld-dump" "$T/zero.lcmlog" -c IMAGE)"
 refused 2 "$T/i.lcmlog" "ld-log-images: --channel: an empty channel name" "$T/f" --channel ""
 refused 2 "$T/j.lcmlog" "^ld-log-images: --format: unknown pixel format 'foo' (expected .*) (--help lists the options)$" "$T/f" --format foo
 refused 2 /proc/j.lcmlog "ld-log-images: /proc/j.lcmlog cannot write in folder /proc: files cannot be created there" \

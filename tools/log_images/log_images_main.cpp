@@ -41,7 +41,7 @@ int main(int argc, char** argv) {
   app.add_option("output", output, "LCM log to write")->required();
   app.add_option("--fps", fps, "frame rate of the timestamps")->check(ld::cli::Between(0.1, 1000.0))
       ->capture_default_str();
-  app.add_option("--start-utime", start_utime, "utime of the first frame, microseconds since 1970 (default: now)")
+  auto* start_opt = app.add_option("--start-utime", start_utime, "utime of the first frame, microseconds since 1970 (default: now)")
       ->check(ld::cli::NonNegative);
   app.add_option("--format", format, "pixel format: gray, rgb, bgr, rgba, bgra, yuyv, uyvy, mjpeg")
       ->capture_default_str()->check(ld::cli::Parses("FORMAT", ld::pixelFormatFromName));
@@ -53,7 +53,7 @@ int main(int argc, char** argv) {
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);  // our own one-line errors
 
   const int32_t pixelformat = ld::pixelFormatFromName(format);  // (checked by the option)
-  if (start_utime == 0)
+  if (!start_opt->count())  // (a 0 given is 0: it was taken as not given)
     start_utime = std::chrono::duration_cast<std::chrono::microseconds>(
                       std::chrono::system_clock::now().time_since_epoch()).count();
 
