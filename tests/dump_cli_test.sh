@@ -97,6 +97,26 @@ dump "$T/in.lcmlog" -c image
   fail "-c matching nothing: exit $rc, $err"
 dump "$T/in.lcmlog" -c IMAGE
 [ $rc -eq 0 ] && [ "$out" -eq 3 ] && [ -z "$err" ] || fail "-c IMAGE: exit $rc, $out lines, $err"
+# --live, in a private network namespace: the bus's messages, without LCM's
+# self-test messages (its own and the player's came first, as "not a
+# project message"), unless a pattern asks for them
+"$(dirname "$0")/../scripts/netns-run.sh" bash -c '
+  set -euo pipefail
+  BIN=$1; T=$2
+  "$BIN/ld-dump" --live >"$T/live.out" 2>"$T/live.err" &
+  all=$!
+  "$BIN/ld-dump" --live -c "LCM_.*" >"$T/self.out" 2>"$T/self.err" &
+  self=$!
+  source "$3/lcm_sockets.sh"
+  lcm_sockets 2
+  "$BIN/ld-play" "$T/in.lcmlog" --fps 30 2>/dev/null
+  sleep 0.5
+  kill -INT $all $self; wait $all; wait $self
+' _ "$BIN" "$T" "$(dirname "$0")" || fail "--live: $(cat "$T/live.err" "$T/self.err" 2>/dev/null)"
+[ "$(grep -c '"channel":"IMAGE"' "$T/live.out")" -eq 3 ] && ! grep -q LCM_SELF_TEST "$T/live.out" ||
+  fail "--live: $(cat "$T/live.out" "$T/live.err")"
+grep -q '"channel":"LCM_SELF_TEST"' "$T/self.out" && ! grep -q '"channel":"IMAGE"' "$T/self.out" ||
+  fail "--live -c 'LCM_.*': $(cat "$T/self.out" "$T/self.err")"
 # logs and --live, or --lcm-url with logs: refused in one line
 dump "$T/in.lcmlog" --live
 [ $rc -eq 2 ] && [ "$err" = "ld-dump: give log files or --live, not both (--help lists the options)" ] || fail "both: $err"

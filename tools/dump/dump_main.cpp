@@ -102,8 +102,11 @@ nlohmann::ordered_json toJson(const std::string& channel, int64_t log_utime, con
 
 struct Printer {
   std::vector<std::regex> filters;
+  // (LCM's own self test, one message from each process as it opens LCM,
+  // is no project message: left out unless a pattern asks for it; it was
+  // printed first as "not a project message")
   bool wanted(const std::string& channel) const {
-    if (filters.empty()) return true;
+    if (filters.empty()) return channel != "LCM_SELF_TEST";
     for (const auto& f : filters)
       if (std::regex_match(channel, f)) return true;
     return false;
