@@ -91,4 +91,12 @@ env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --log "$T/
 grep -q "^ld-view: note: 320x240 frames are scaled to the video's " "$T/err" || fail "two logs, video: $(cat "$T/err")"
 "$BIN/ld-log-images" "$T/both.avi" "$T/both.lcmlog" >"$T/out" 2>/dev/null
 grep -q "wrote 5 frames" "$T/out" || fail "the video holds: $(cat "$T/out")"
+# a video the disk has no room for: said in one line, status 1 (OpenCV's
+# writer says nothing: "3 frames written", status 0, and a video cut short)
+mkdir "$T/full"
+rc=0; unshare -m bash -c 'mount -t tmpfs -o size=8k tmpfs "$1" && exec "$2" --log "$3" --all --video "$1/v.avi"' _ \
+  "$T/full" "$BIN/ld-view" "$T/in.lcmlog" 2>"$T/err" || rc=$?
+[ $rc -eq 1 ] && [ "$(wc -l <"$T/err")" -eq 2 ] && grep -q "^ld-view: 3 images, 0 tracked lists, 3 frames written$" "$T/err" &&
+  grep -q "^ld-view: --video $T/full/v.avi holds [0-9]* of the 3 frames written (.*: is the disk full?)$" "$T/err" ||
+  fail "full disk: exit $rc, $(cat "$T/err")"
 echo "ld-view command line: ok"

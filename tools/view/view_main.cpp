@@ -122,6 +122,7 @@ class Sink {
         }
         size_ = img.size();
       }
+      ++video_frames_;
       if (img.size() == size_) {
         writer_.write(img);
       } else {
@@ -145,6 +146,28 @@ class Sink {
   int64_t count() const { return count_; }
   /// A frame could not be written (the run ends with status 1).
   bool failed() const { return failed_; }
+  /// Closes the video and reads back how many frames it holds: OpenCV's
+  /// writer says nothing of a write that failed (a full disk left a video
+  /// of 11 frames, no index, and "30 frames written", status 0). False, said,
+  /// when it holds fewer than were written.
+  bool finish() {
+    if (!writer_.isOpened()) return true;
+    writer_.release();
+    int64_t held = 0;
+    {
+      // (OpenCV's own AVI reader, the writer's counterpart: FFmpeg counted
+      // the frames a cut video's header announced. It prints its own lines
+      // on a video cut short.)
+      ld::CaughtStderr quiet;
+      cv::VideoCapture back(o_.video, cv::CAP_OPENCV_MJPEG);
+      if (back.isOpened()) held = static_cast<int64_t>(back.get(cv::CAP_PROP_FRAME_COUNT));
+    }
+    if (held >= video_frames_) return true;
+    std::cerr << "ld-view: --video " << o_.video << " holds " << held << " of the " << video_frames_
+              << " frames written (" << (held == 0 ? "it cannot be read back" : "cut short") << ": is the disk full?)\n";
+    failed_ = true;
+    return false;
+  }
 
  private:
   bool writtenThisRun(const std::string& path) const {
@@ -160,7 +183,7 @@ class Sink {
   cv::Size size_;
   cv::Mat resized_;
   bool resize_said_ = false, failed_ = false;
-  int64_t count_ = 0;
+  int64_t count_ = 0, video_frames_ = 0;
 };
 
 // Draws one frame: every visible track with its id and payload (LANDMARK.md's
@@ -268,6 +291,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
       if (!sink.put(bgr, key.second)) return 1;
     }
   }
+  const bool video_whole = sink.finish();
   std::fprintf(stderr, "ld-view: %lld images, %zu tracked lists, %lld frames written%s\n",
                static_cast<long long>(images), lists.size(), static_cast<long long>(sink.count()),
                dropped.count ? (", " + std::to_string(dropped.count) + " bad").c_str() : "");
@@ -280,7 +304,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
     std::fprintf(stderr, "ld-view: %s; --all draws every image\n",
                  lists.empty() ? ("no tracked lists on " + tracked_ch).c_str()
                                : "no tracked list has an image's utime and seq (logs of different runs?)");
-  return sink.count() > 0 ? 0 : 1;
+  return sink.count() > 0 && video_whole ? 0 : 1;
 }
 
 // --- live bus: recent images kept, each drawn when its tracked list comes ---
@@ -321,6 +345,7 @@ class Live {
   int64_t frames() const { return sink_.count(); }
   int64_t bad() const { return dropped_.count; }
   bool failed() const { return sink_.failed(); }
+  bool finish() { return sink_.finish(); }
 
  private:
   template <class T>
@@ -509,6 +534,7 @@ int main(int argc, char** argv) {
   lcm.subscribe(codes_ch, &Live::onCodes, &live);
   while (!g_stop)
     if (!ld::pumpLcm(lcm, 200, g_stop, "ld-view")) return 1;
+  live.finish();
   std::fprintf(stderr, "ld-view: %lld frames drawn%s\n", static_cast<long long>(live.frames()),
                live.bad() ? (", " + std::to_string(live.bad()) + " bad").c_str() : "");
   return live.failed() ? 1 : 0;

@@ -21,68 +21,6 @@
 
 namespace ld {
 
-namespace {
-
-// What the image libraries under cv::imdecode print on stderr themselves
-// while it runs (libpng's "libpng error: bad adaptive filter value" for a
-// damaged PNG, a line of its own that named no file), caught so that the
-// caller says it in its one line instead. Standard error goes to an
-// anonymous memory file meanwhile, so nothing the process prints from
-// another thread then may be shown; where it cannot be set up, nothing is
-// caught. Warnings ("libpng warning: iCCP: known incorrect sRGB profile")
-// are dropped.
-class CaughtStderr {
- public:
-  CaughtStderr() {
-    file_ = ::memfd_create("ld-image-decoder-stderr", MFD_CLOEXEC);
-    if (file_ < 0) return;
-    std::fflush(stderr);
-    saved_ = ::dup(STDERR_FILENO);
-    if (saved_ < 0 || ::dup2(file_, STDERR_FILENO) < 0) restore();
-  }
-  ~CaughtStderr() { restore(); }
-  CaughtStderr(const CaughtStderr&) = delete;
-  CaughtStderr& operator=(const CaughtStderr&) = delete;
-
-  /// Standard error back as it was; what was printed meanwhile, without
-  /// warnings, its lines joined by "; " ("" when nothing).
-  std::string end() {
-    restore();
-    if (file_ < 0) return "";
-    std::string text(4096, '\0');
-    const ssize_t n = ::pread(file_, text.data(), text.size(), 0);
-    text.resize(n > 0 ? static_cast<size_t>(n) : 0);
-    std::string said;
-    size_t at = 0;
-    while (at < text.size()) {
-      size_t end = text.find('\n', at);
-      if (end == std::string::npos) end = text.size();
-      std::string line = text.substr(at, end - at);
-      at = end + 1;
-      line.erase(std::remove_if(line.begin(), line.end(),
-                                [](char c) { return static_cast<unsigned char>(c) < 0x20; }),
-                 line.end());
-      if (line.empty() || line.find("warning") != std::string::npos) continue;
-      said += (said.empty() ? "" : "; ") + line;
-    }
-    ::close(file_);
-    file_ = -1;
-    return said;
-  }
-
- private:
-  void restore() {
-    if (saved_ >= 0) {
-      std::fflush(stderr);
-      ::dup2(saved_, STDERR_FILENO);
-      ::close(saved_);
-      saved_ = -1;
-    }
-  }
-  int file_ = -1, saved_ = -1;
-};
-
-}  // namespace
 
 LcmLogCheck checkLcmLogStart(const std::string& path) {
   namespace fs = std::filesystem;
@@ -154,6 +92,51 @@ std::string prepareOutputFile(const std::string& path) {
   return "";
 }
 
+CaughtStderr::CaughtStderr() {
+  file_ = ::memfd_create("ld-caught-stderr", MFD_CLOEXEC);
+  if (file_ < 0) return;
+  std::fflush(stderr);
+  saved_ = ::dup(STDERR_FILENO);
+  if (saved_ < 0 || ::dup2(file_, STDERR_FILENO) < 0) restore();
+}
+
+CaughtStderr::~CaughtStderr() {
+  restore();
+  if (file_ >= 0) ::close(file_);
+}
+
+void CaughtStderr::restore() {
+  if (saved_ >= 0) {
+    std::fflush(stderr);
+    ::dup2(saved_, STDERR_FILENO);
+    ::close(saved_);
+    saved_ = -1;
+  }
+}
+
+std::string CaughtStderr::end() {
+  restore();
+  if (file_ < 0) return "";
+  std::string text(4096, '\0');
+  const ssize_t n = ::pread(file_, text.data(), text.size(), 0);
+  text.resize(n > 0 ? static_cast<size_t>(n) : 0);
+  ::close(file_);
+  file_ = -1;
+  std::string said;
+  size_t at = 0;
+  while (at < text.size()) {
+    size_t end = text.find('\n', at);
+    if (end == std::string::npos) end = text.size();
+    std::string line = text.substr(at, end - at);
+    at = end + 1;
+    line.erase(std::remove_if(line.begin(), line.end(), [](char c) { return static_cast<unsigned char>(c) < 0x20; }),
+               line.end());
+    if (line.empty() || line.find("warning") != std::string::npos) continue;
+    said += (said.empty() ? "" : "; ") + line;
+  }
+  return said;
+}
+
 std::string readImageFile(const std::string& path, cv::Mat& out) {
   out.release();
   constexpr off_t kMaxImageFile = off_t{512} << 20;
@@ -189,7 +172,7 @@ std::string readImageFile(const std::string& path, cv::Mat& out) {
     if (jpegReadsAsDecoded(bytes.data(), bytes.size())) return "";
     out.release();
   }
-  CaughtStderr decoder_said;
+  CaughtStderr decoder_said;  // (libpng prints its errors itself)
   try {
     out = cv::imdecode(bytes, cv::IMREAD_COLOR);
   } catch (const cv::Exception&) {

@@ -58,6 +58,29 @@ std::string prepareOutputFolder(const std::string& folder);
 /// Read-only file system".
 std::string prepareOutputFile(const std::string& path);
 
+/// What a library prints on stderr by itself meanwhile (libpng's "libpng
+/// error: bad adaptive filter value" during cv::imdecode, OpenCV's AVI
+/// reader's lines), caught so that the caller says it in its own one line,
+/// or not at all: from construction to end() (or destruction), standard
+/// error goes to an anonymous memory file, so whatever the process prints
+/// from another thread then is caught too (use it in one thread). Where it
+/// cannot be set up, nothing is caught.
+class CaughtStderr {
+ public:
+  CaughtStderr();
+  ~CaughtStderr();
+  CaughtStderr(const CaughtStderr&) = delete;
+  CaughtStderr& operator=(const CaughtStderr&) = delete;
+  /// Standard error back as it was; what was printed meanwhile (its first
+  /// 4 KiB), its lines joined by "; ", without lines that say "warning"
+  /// ("libpng warning: iCCP: known incorrect sRGB profile"); "" when nothing.
+  std::string end();
+
+ private:
+  void restore();
+  int file_ = -1, saved_ = -1;
+};
+
 /// Reads an image file (any format OpenCV reads) into 8-bit BGR, reading the
 /// file once. Empty when it did; otherwise why, to follow the path in a
 /// message: "no such file", "is a loop of symbolic links", "is not a file
