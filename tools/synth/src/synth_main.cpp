@@ -263,44 +263,55 @@ int runScene(const SceneArgs& a) {
   const int K = a.no_landmark ? 0 : a.landmarks;
   int in_view = 0, total = 0;
   for (int i = 0; i < a.count; ++i) {
-    // Poses: retried until every landmark is in view and none overlap; one
-    // still overlapping another after 200 tries is refused (the one drawn
-    // over would be counted as in view, and its miss as the detector's).
+    // Poses: each landmark's retried until it is in view and overlaps none
+    // placed before it (one still out of view after 200 tries is kept, as
+    // --x 1 asks). One that overlaps another in its last try starts the
+    // frame's poses over, 20 times at most, then the run is refused (the one
+    // drawn over was counted as in view, and its miss as the detector's).
+    // A frame placed at its first round draws what it drew before.
     std::vector<LandmarkPlacement> lms;
-    for (int k = 0; k < K; ++k) {
-      const std::string payload = a.payload.empty() ? "room-" + std::to_string(101 + k)
-                                  : K == 1            ? a.payload
-                                                      : a.payload + "-" + std::to_string(k);
-      LandmarkPlacement best;
-      bool overlap = false;
-      for (int attempt = 0; attempt < 200; ++attempt) {
-        double x;
-        if (nx) {
-          x = nx->draw(r);
-        } else {
-          const double w = 1.6 / K;  // K horizontal slots across the image
-          x = -0.8 + w * (k + r.uni(0.2, 0.8));
+    constexpr int kRounds = 20, kTries = 200;
+    int crowded = -1;  // the landmark that overlapped another in the last round
+    for (int round = 0; round < kRounds && (round == 0 || crowded >= 0); ++round) {
+      lms.clear();
+      crowded = -1;
+      for (int k = 0; k < K && crowded < 0; ++k) {
+        const std::string payload = a.payload.empty() ? "room-" + std::to_string(101 + k)
+                                    : K == 1            ? a.payload
+                                                        : a.payload + "-" + std::to_string(k);
+        LandmarkPlacement best;
+        bool overlap = false;  // (the last try's)
+        for (int attempt = 0; attempt < kTries; ++attempt) {
+          double x;
+          if (nx) {
+            x = nx->draw(r);
+          } else {
+            const double w = 1.6 / K;  // K horizontal slots across the image
+            x = -0.8 + w * (k + r.uni(0.2, 0.8));
+          }
+          best = placeLandmark(camera, dist.draw(r), yaw.draw(r), pitch.draw(r), roll.draw(r), x,
+                               ny.draw(r), size.draw(r), payload, k);
+          best.ecc = a.ecc;
+          overlap = false;
+          const LandmarkTruth t = truthFor(camera, best);
+          if (!t.in_view) continue;
+          const cv::Rect box = cv::boundingRect(std::vector<cv::Point2f>(t.corners.begin(), t.corners.end()));
+          for (const auto& o : lms) {
+            const LandmarkTruth ot = truthFor(camera, o);
+            const cv::Rect obox = cv::boundingRect(std::vector<cv::Point2f>(ot.corners.begin(), ot.corners.end()));
+            overlap = overlap || (box & obox).area() > 0;
+          }
+          if (!overlap) break;
         }
-        best = placeLandmark(camera, dist.draw(r), yaw.draw(r), pitch.draw(r), roll.draw(r), x,
-                             ny.draw(r), size.draw(r), payload, k);
-        best.ecc = a.ecc;
-        const LandmarkTruth t = truthFor(camera, best);
-        if (!t.in_view) continue;
-        const cv::Rect box = cv::boundingRect(std::vector<cv::Point2f>(t.corners.begin(), t.corners.end()));
-        overlap = false;
-        for (const auto& o : lms) {
-          const LandmarkTruth ot = truthFor(camera, o);
-          const cv::Rect obox = cv::boundingRect(std::vector<cv::Point2f>(ot.corners.begin(), ot.corners.end()));
-          overlap = overlap || (box & obox).area() > 0;
-        }
-        if (!overlap) break;
+        if (overlap) crowded = k;
+        lms.push_back(best);
       }
-      if (overlap)
-        throw std::runtime_error("frame " + std::to_string(i) + ": landmark " + std::to_string(k + 1) + " of " +
-                                 std::to_string(K) + " overlapped another in each of 200 poses drawn: ask for " +
-                                 "fewer landmarks, or give them room (--x, --y, --distance, --size)");
-      lms.push_back(best);
     }
+    if (crowded >= 0)
+      throw std::runtime_error("frame " + std::to_string(i) + ": landmark " + std::to_string(crowded + 1) + " of " +
+                               std::to_string(K) + " overlapped another in each of " + std::to_string(kTries) +
+                               " poses drawn, " + std::to_string(kRounds) + " times over: ask for fewer " +
+                               "landmarks, or give them room (--x, --y, --distance, --size)");
     SceneSpec spec = randomConditions(camera, lms, r.next());
     if (background) spec.background = *background;
     if (a.distractors) spec.distractors = *a.distractors;
