@@ -142,6 +142,18 @@ TEST(ReadImageFile, DecodersOwnWordsAreInTheOneLine) {
   EXPECT_EQ(good_why, "");
   EXPECT_EQ(read.size(), cv::Size(320, 240));
   EXPECT_EQ(printed, "");
+  // the error libpng ends with after many warnings of its own (400 text
+  // chunks with a wrong checksum, past the 4 KiB that were read back)
+  std::vector<uint8_t> noisy(png.begin(), png.begin() + 33);  // signature, IHDR
+  for (int i = 0; i < 400; ++i) {
+    const uint8_t chunk[] = {0, 0, 0, 4, 't', 'E', 'X', 't', 'a', 0, 'b', 'c', 0, 0, 0, 0};
+    noisy.insert(noisy.end(), std::begin(chunk), std::end(chunk));
+  }
+  noisy.insert(noisy.end(), png.begin() + 33, png.begin() + static_cast<std::ptrdiff_t>(png.size() / 2));
+  testing::internal::CaptureStderr();
+  const std::string noisy_why = ld::readImageFile(writeFile("noisy.png", noisy), read);
+  EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+  EXPECT_EQ(noisy_why, "cannot read as an image (libpng error: PNG input buffer is incomplete)");
   // standard error is as it was after each
   testing::internal::CaptureStderr();
   std::fprintf(stderr, "still here\n");

@@ -29,6 +29,12 @@ LcmLogCheck checkLcmLogStart(const std::string& path) {
     return LcmLogCheck{LcmLogStart::Unreadable, "cannot be read: " + error, error};
   };
   if (fs::is_directory(path, ec)) return unreadable("it is a folder");
+  // (a pipe, as `<(cat run.lcmlog)` gives, was read here and then again
+  // from where this read stopped: "cannot read log /dev/fd/63", no reason;
+  // the tools read a log from its start more than once)
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+    return unreadable("it is not a file (a pipe, a device?): logs are read from files");
   std::ifstream f(path, std::ios::binary);
   if (!f) return unreadable(std::strerror(errno));
   unsigned char head[kLcmLogHeaderBytes];
@@ -117,9 +123,19 @@ void CaughtStderr::restore() {
 std::string CaughtStderr::end() {
   restore();
   if (file_ < 0) return "";
-  std::string text(4096, '\0');
-  const ssize_t n = ::pread(file_, text.data(), text.size(), 0);
-  text.resize(n > 0 ? static_cast<size_t>(n) : 0);
+  // (all of it: the error libpng ends with may follow many warnings)
+  std::string text;
+  struct stat st {};
+  if (::fstat(file_, &st) == 0 && st.st_size > 0) {
+    text.resize(static_cast<size_t>(std::min<off_t>(st.st_size, off_t{16} << 20)));
+    size_t got = 0;
+    while (got < text.size()) {
+      const ssize_t n = ::pread(file_, text.data() + got, text.size() - got, static_cast<off_t>(got));
+      if (n <= 0) break;
+      got += static_cast<size_t>(n);
+    }
+    text.resize(got);
+  }
   ::close(file_);
   file_ = -1;
   std::string said;
@@ -134,6 +150,8 @@ std::string CaughtStderr::end() {
     if (line.empty() || line.find("warning") != std::string::npos) continue;
     said += (said.empty() ? "" : "; ") + line;
   }
+  constexpr size_t kMaxSaid = 1000;  // (one line, however much was printed)
+  if (said.size() > kMaxSaid) said = said.substr(0, kMaxSaid) + "...";
   return said;
 }
 

@@ -71,9 +71,10 @@ class CaughtStderr {
   ~CaughtStderr();
   CaughtStderr(const CaughtStderr&) = delete;
   CaughtStderr& operator=(const CaughtStderr&) = delete;
-  /// Standard error back as it was; what was printed meanwhile (its first
-  /// 4 KiB), its lines joined by "; ", without lines that say "warning"
-  /// ("libpng warning: iCCP: known incorrect sRGB profile"); "" when nothing.
+  /// Standard error back as it was; what was printed meanwhile, its lines
+  /// joined by "; ", without lines that say "warning" ("libpng warning:
+  /// iCCP: known incorrect sRGB profile"), cut at 1000 characters; "" when
+  /// nothing.
   std::string end();
 
  private:
