@@ -117,6 +117,14 @@ dump "$T/in.lcmlog" -c IMAGE
   fail "--live: $(cat "$T/live.out" "$T/live.err")"
 grep -q '"channel":"LCM_SELF_TEST"' "$T/self.out" && ! grep -q '"channel":"IMAGE"' "$T/self.out" ||
   fail "--live -c 'LCM_.*': $(cat "$T/self.out" "$T/self.err")"
+# a pipe (a log read from its start more than once): refused in one line
+# (it was read from where the first look stopped: "cannot read log /dev/fd/63")
+dump <(cat "$T/in.lcmlog")
+[ $rc -eq 2 ] && [ "$out" -eq 0 ] && [ "$err" = "ld-dump: cannot read log /dev/fd/63: it is not a file (a pipe, a device?): logs are read from files" ] ||
+  fail "a pipe: exit $rc: $err"
+rc=0; "$BIN/ld-view" --log <(cat "$T/in.lcmlog") --all --out "$T/v0" 2>"$T/err" || rc=$?
+[ $rc -eq 2 ] && [ ! -e "$T/v0" ] && grep -q "^ld-view: log /dev/fd/[0-9]* cannot be read: it is not a file (a pipe, a device?)" "$T/err" ||
+  fail "ld-view, a pipe: exit $rc: $(cat "$T/err")"
 # logs and --live, or --lcm-url with logs: refused in one line
 dump "$T/in.lcmlog" --live
 [ $rc -eq 2 ] && [ "$err" = "ld-dump: give log files or --live, not both (--help lists the options)" ] || fail "both: $err"
