@@ -99,4 +99,9 @@ rc=0; unshare -m bash -c 'mount -t tmpfs -o size=8k tmpfs "$1" && exec "$2" --lo
 [ $rc -eq 1 ] && [ "$(wc -l <"$T/err")" -eq 2 ] && grep -q "^ld-view: 3 images, 0 tracked lists, 3 frames written$" "$T/err" &&
   grep -q "^ld-view: --video $T/full/v.avi holds [0-9]* of the 3 frames written (.*: is the disk full?)$" "$T/err" ||
   fail "full disk: exit $rc, $(cat "$T/err")"
+# ... and PNGs: said with the system's reason
+rc=0; unshare -m bash -c 'mount -t tmpfs -o size=8k tmpfs "$1" && exec "$2" --log "$3" --all --out "$1/png"' _ \
+  "$T/full" "$BIN/ld-view" "$T/in.lcmlog" 2>"$T/err" || rc=$?
+[ $rc -eq 1 ] && grep -q "^ld-view: cannot write $T/full/png/000000.png: No space left on device$" "$T/err" ||
+  fail "full disk, PNG: exit $rc, $(cat "$T/err")"
 echo "ld-view command line: ok"

@@ -158,8 +158,10 @@ int main(int argc, char** argv) {
     ev.channel = channel;
     ev.datalen = static_cast<int32_t>(buf.size());
     ev.data = buf.data();
+    errno = 0;
     if (log.writeEvent(&ev) != 0) {
-      std::cerr << "ld-log-images: write to " << output << " failed\n";
+      std::cerr << "ld-log-images: write to " << output << " failed"
+                << (errno ? std::string(": ") + std::strerror(errno) : "") << "\n";
       return 1;
     }
     ++seq;

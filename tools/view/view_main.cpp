@@ -106,8 +106,11 @@ class Sink {
       std::snprintf(name, sizeof name, "%06lld", static_cast<long long>(seq < 0 ? count_ : seq));
       std::string path = o_.out_dir + "/" + name + ".png";
       for (int k = 2; writtenThisRun(path); ++k) path = o_.out_dir + "/" + name + "-" + std::to_string(k) + ".png";
+      errno = 0;
       if (!cv::imwrite(path, img)) {
-        std::cerr << "ld-view: cannot write " << path << "\n";
+        // (the system's reason where the encoder's write left one: a full disk)
+        std::cerr << "ld-view: cannot write " << path << (errno ? std::string(": ") + std::strerror(errno) : "")
+                  << "\n";
         failed_ = true;
         return false;
       }
