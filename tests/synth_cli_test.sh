@@ -104,6 +104,8 @@ refused "camera file $T/none.yml: cannot open: No such file or directory" scene 
 # log over a file the run writes in --out (it replaced truth.jsonl, status 0).
 refused "--format uyvy needs an even width, and the frames are 641 px wide" sequence --out "$T/odd" --log "$T/odd.lcmlog" --format uyvy --resolution 641x480 -n 2
 [ ! -e "$T/odd" ] || fail "odd width: $(ls "$T/odd")"
+refused "--format mjpeg takes 33554432 pixels a frame at most, and the frames are 8192x6144" sequence --out "$T/big" --log "$T/big.lcmlog" --format mjpeg --resolution 8192x6144 -n 2
+[ ! -e "$T/big" ] || fail "too big for mjpeg: $(ls "$T/big")"
 refused "--log $T/own/truth.jsonl is a file this run writes in --out $T/own" sequence --out "$T/own" --log "$T/own/truth.jsonl" -n 2
 refused "--log $T/own/000001.png is a file this run writes in --out $T/own" sequence --out "$T/own" --log "$T/own/000001.png" -n 2
 # (a folder named with a trailing slash, not there yet, was not its own name)

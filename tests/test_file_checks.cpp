@@ -14,6 +14,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
 
 #include "ld/file_checks.hpp"
 #include "ld/image_convert.hpp"
@@ -161,6 +162,72 @@ TEST(ReadImageFile, DecodersOwnWordsAreInTheOneLine) {
   // bytes no decoder takes: said as before
   EXPECT_EQ(ld::readImageFile(writeFile("text.png", {'n', 'o', 't', ' ', 'a', 'n', ' ', 'i', 'm', 'a', 'g', 'e'}), read),
             "cannot read as an image");
+}
+
+}  // namespace
+
+namespace {
+
+// RIFF chunks by hand: ID, little-endian size, data (padded to even).
+void chunk(std::vector<uint8_t>& out, const char* id, const std::vector<uint8_t>& data) {
+  for (int i = 0; i < 4; ++i) out.push_back(static_cast<uint8_t>(id[i]));
+  const auto n = static_cast<uint32_t>(data.size());
+  for (int i = 0; i < 4; ++i) out.push_back(static_cast<uint8_t>(n >> (8 * i)));
+  out.insert(out.end(), data.begin(), data.end());
+  if (data.size() % 2) out.push_back(0);
+}
+std::vector<uint8_t> list(const char* type, const std::vector<uint8_t>& chunks) {
+  std::vector<uint8_t> data;
+  for (int i = 0; i < 4; ++i) data.push_back(static_cast<uint8_t>(type[i]));
+  for (const uint8_t b : chunks) data.push_back(b);
+  return data;
+}
+
+// ld-view reads its video back with it: OpenCV's own reader counted the
+// frames of a video's first GiB alone (FFmpeg's writer goes on in 'AVIX'
+// sections), so a whole 2 GB video was said to be cut short.
+TEST(AviVideoFrames, CountsEverySectionAndStopsAtACut) {
+  const std::string path = testing::TempDir() + "/file_checks_5.avi";
+  {
+    // (frames of noise: large beside the headers, so a cut lands among them)
+    cv::VideoWriter w(path, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 10, cv::Size(320, 240));
+    ASSERT_TRUE(w.isOpened());
+    cv::RNG rng(3);
+    for (int i = 0; i < 5; ++i) {
+      cv::Mat noise(240, 320, CV_8UC3);
+      rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+      w.write(noise);
+    }
+  }
+  EXPECT_EQ(ld::aviVideoFrames(path), 5);
+  std::ifstream in(path, std::ios::binary);
+  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  bytes.resize(bytes.size() * 6 / 10);  // (a full disk: the index and the last frames gone)
+  const int64_t cut = ld::aviVideoFrames(writeFile("cut.avi", bytes));
+  EXPECT_GE(cut, 1);
+  EXPECT_LT(cut, 5);
+  // two sections, as FFmpeg writes past 1 GiB: 2 frames, then 3 (and an
+  // OpenDML index chunk and a 'rec ' list, which are no frames / hold one)
+  const std::vector<uint8_t> jpeg = {0xFF, 0xD8, 0xFF, 0xD9, 0};
+  std::vector<uint8_t> movi1, movi2, first, second, file;
+  chunk(movi1, "00dc", jpeg);
+  chunk(movi1, "00dc", jpeg);
+  chunk(movi2, "00dc", jpeg);
+  chunk(movi2, "ix00", {1, 2, 3, 4});
+  std::vector<uint8_t> rec;
+  chunk(rec, "00dc", jpeg);
+  chunk(movi2, "LIST", list("rec ", rec));
+  chunk(movi2, "00db", jpeg);
+  chunk(first, "LIST", list("hdrl", {}));
+  chunk(first, "LIST", list("movi", movi1));
+  chunk(first, "idx1", {0, 0, 0, 0});
+  chunk(second, "LIST", list("movi", movi2));
+  chunk(file, "RIFF", list("AVI ", first));
+  chunk(file, "RIFF", list("AVIX", second));
+  EXPECT_EQ(ld::aviVideoFrames(writeFile("two.avi", file)), 5);
+  // not an AVI, or no file
+  EXPECT_EQ(ld::aviVideoFrames(writeFile("text.avi", {'h', 'e', 'l', 'l', 'o', ' ', 'w', 'o', 'r', 'l', 'd', '!'})), -1);
+  EXPECT_EQ(ld::aviVideoFrames(testing::TempDir() + "/file_checks_none.avi"), -1);
 }
 
 }  // namespace

@@ -156,15 +156,9 @@ class Sink {
   bool finish() {
     if (!writer_.isOpened()) return true;
     writer_.release();
-    int64_t held = 0;
-    {
-      // (OpenCV's own AVI reader, the writer's counterpart: FFmpeg counted
-      // the frames a cut video's header announced. It prints its own lines
-      // on a video cut short.)
-      ld::CaughtStderr quiet;
-      cv::VideoCapture back(o_.video, cv::CAP_OPENCV_MJPEG);
-      if (back.isOpened()) held = static_cast<int64_t>(back.get(cv::CAP_PROP_FRAME_COUNT));
-    }
+    // (counted in the file: OpenCV's own reader counts the first GiB's
+    // frames alone, and FFmpeg's the frames a cut video's header announced)
+    const int64_t held = std::max<int64_t>(0, ld::aviVideoFrames(o_.video));
     if (held >= video_frames_) return true;
     std::cerr << "ld-view: --video " << o_.video << " holds " << held << " of the " << video_frames_
               << " frames written (" << (held == 0 ? "it cannot be read back" : "cut short") << ": is the disk full?)\n";

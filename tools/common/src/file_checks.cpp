@@ -7,6 +7,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <vector>
 
@@ -153,6 +154,57 @@ std::string CaughtStderr::end() {
   constexpr size_t kMaxSaid = 1000;  // (one line, however much was printed)
   if (said.size() > kMaxSaid) said = said.substr(0, kMaxSaid) + "...";
   return said;
+}
+
+int64_t aviVideoFrames(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) return -1;
+  f.seekg(0, std::ios::end);
+  const int64_t end = static_cast<int64_t>(f.tellg());
+  const auto read = [&f](int64_t at, char* out, std::streamsize n) {
+    f.clear();
+    f.seekg(at);
+    return static_cast<bool>(f.read(out, n));
+  };
+  const auto u32 = [](const char* p) {
+    return static_cast<int64_t>(static_cast<uint8_t>(p[0])) | static_cast<int64_t>(static_cast<uint8_t>(p[1])) << 8 |
+           static_cast<int64_t>(static_cast<uint8_t>(p[2])) << 16 | static_cast<int64_t>(static_cast<uint8_t>(p[3])) << 24;
+  };
+  // The chunks of [from, to): a list's own chunks walked into when it is
+  // 'movi' (frames counted there), every other one stepped over.
+  int64_t frames = 0;
+  const std::function<void(int64_t, int64_t, bool)> walk = [&](int64_t from, int64_t to, bool movi) {
+    char h[12];
+    for (int64_t at = from; at + 8 <= to;) {
+      if (!read(at, h, 8)) return;
+      const int64_t size = u32(h + 4);
+      const int64_t data_end = at + 8 + size;
+      const bool is_list = std::memcmp(h, "LIST", 4) == 0;
+      // (a chunk cut short ends the count; a list, whose size was written
+      // for what it was to hold, is walked as far as the file goes)
+      if (data_end > end && !is_list) return;
+      if (is_list && size >= 4 && read(at + 8, h + 8, 4))
+        walk(at + 12, std::min(data_end, end), movi || std::memcmp(h + 8, "movi", 4) == 0);  // (and 'rec ' in it)
+      else if (movi && (std::memcmp(h + 2, "dc", 2) == 0 || std::memcmp(h + 2, "db", 2) == 0))
+        ++frames;
+      at = data_end + (size & 1);
+    }
+  };
+  char h[12];
+  bool avi = false;
+  for (int64_t at = 0; at + 12 <= end;) {
+    if (!read(at, h, 12) || std::memcmp(h, "RIFF", 4) != 0) break;
+    const bool first = at == 0;
+    if (first && std::memcmp(h + 8, "AVI ", 4) != 0) return -1;
+    if (!first && std::memcmp(h + 8, "AVIX", 4) != 0) break;
+    avi = true;
+    // (a RIFF size the writer left unset or too large: the file's end)
+    const int64_t size = u32(h + 4);
+    const int64_t section_end = size >= 4 && at + 8 + size <= end ? at + 8 + size : end;
+    walk(at + 12, section_end, false);
+    at = section_end + (section_end & 1);
+  }
+  return avi ? frames : -1;
 }
 
 std::string readImageFile(const std::string& path, cv::Mat& out) {

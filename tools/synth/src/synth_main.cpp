@@ -437,6 +437,16 @@ int main(int argc, char** argv) {
         throw UsageError("--format " + qo.pixel_format + " needs an even width, and the frames are " +
                          std::to_string(qo.camera.size.width) + " px wide");
     }
+    // (an MJPEG image_t's limit, which ld::matToImage holds to: found at the
+    // first frame's encoding before, after the frame was rendered and
+    // written; --resolution keeps the sides within image_t's)
+    if (!qo.log_path.empty()) {
+      const cv::Size sz = qo.camera.size;
+      const int32_t f = ld::pixelFormatFromName(qo.pixel_format);
+      if (f == ld::image_t::PIXEL_FORMAT_MJPEG && int64_t{sz.width} * sz.height > (int64_t{1} << 25))
+        throw UsageError("--format mjpeg takes 33554432 pixels a frame at most, and the frames are " +
+                         std::to_string(sz.width) + "x" + std::to_string(sz.height));
+    }
     qo.write_png = !no_png;
     // The log is checked before anything is written, written under a
     // temporary name and renamed when whole: a failed run leaves an earlier

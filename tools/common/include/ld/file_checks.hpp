@@ -82,6 +82,14 @@ class CaughtStderr {
   int file_ = -1, saved_ = -1;
 };
 
+/// The video frames an AVI file holds whole: its '##dc' and '##db' chunks
+/// whose data lies within the file, in the 'movi' lists of its first RIFF
+/// section and of any 'AVIX' sections after it (FFmpeg's writer goes on in
+/// those past 1 GiB; OpenCV's own reader counts the first section alone). A
+/// video cut short (a full disk) counts the frames before the cut. -1 when
+/// the file is not an AVI or cannot be read.
+int64_t aviVideoFrames(const std::string& path);
+
 /// Reads an image file (any format OpenCV reads) into 8-bit BGR, reading the
 /// file once. Empty when it did; otherwise why, to follow the path in a
 /// message: "no such file", "is a loop of symbolic links", "is not a file
