@@ -173,7 +173,9 @@ int64_t aviVideoFrames(const std::string& path) {
   // The chunks of [from, to): a list's own chunks walked into when it is
   // 'movi' (frames counted there), every other one stepped over.
   int64_t frames = 0;
-  const std::function<void(int64_t, int64_t, bool)> walk = [&](int64_t from, int64_t to, bool movi) {
+  // (lists nest 3 deep in an AVI: deeper is no AVI's, and not followed)
+  const std::function<void(int64_t, int64_t, bool, int)> walk = [&](int64_t from, int64_t to, bool movi, int depth) {
+    if (depth > 8) return;
     char h[12];
     for (int64_t at = from; at + 8 <= to;) {
       if (!read(at, h, 8)) return;
@@ -184,7 +186,8 @@ int64_t aviVideoFrames(const std::string& path) {
       // for what it was to hold, is walked as far as the file goes)
       if (data_end > end && !is_list) return;
       if (is_list && size >= 4 && read(at + 8, h + 8, 4))
-        walk(at + 12, std::min(data_end, end), movi || std::memcmp(h + 8, "movi", 4) == 0);  // (and 'rec ' in it)
+        walk(at + 12, std::min(data_end, end), movi || std::memcmp(h + 8, "movi", 4) == 0,
+             depth + 1);  // (and 'rec ' in it)
       else if (movi && (std::memcmp(h + 2, "dc", 2) == 0 || std::memcmp(h + 2, "db", 2) == 0))
         ++frames;
       at = data_end + (size & 1);
@@ -201,7 +204,7 @@ int64_t aviVideoFrames(const std::string& path) {
     // (a RIFF size the writer left unset or too large: the file's end)
     const int64_t size = u32(h + 4);
     const int64_t section_end = size >= 4 && at + 8 + size <= end ? at + 8 + size : end;
-    walk(at + 12, section_end, false);
+    walk(at + 12, section_end, false, 0);
     at = section_end + (section_end & 1);
   }
   return avi ? frames : -1;
