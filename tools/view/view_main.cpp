@@ -149,7 +149,7 @@ class Sink {
   int64_t count() const { return count_; }
   /// A frame could not be written (the run ends with status 1).
   bool failed() const { return failed_; }
-  /// Closes the video and reads back how many frames it holds: OpenCV's
+  /// Closes the video and counts the frames its file holds: OpenCV's
   /// writer says nothing of a write that failed (a full disk left a video
   /// of 11 frames, no index, and "30 frames written", status 0). False, said,
   /// when it holds fewer than were written.

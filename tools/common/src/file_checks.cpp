@@ -22,7 +22,6 @@
 
 namespace ld {
 
-
 LcmLogCheck checkLcmLogStart(const std::string& path) {
   namespace fs = std::filesystem;
   std::error_code ec;
@@ -170,8 +169,8 @@ int64_t aviVideoFrames(const std::string& path) {
     return static_cast<int64_t>(static_cast<uint8_t>(p[0])) | static_cast<int64_t>(static_cast<uint8_t>(p[1])) << 8 |
            static_cast<int64_t>(static_cast<uint8_t>(p[2])) << 16 | static_cast<int64_t>(static_cast<uint8_t>(p[3])) << 24;
   };
-  // The chunks of [from, to): a list's own chunks walked into when it is
-  // 'movi' (frames counted there), every other one stepped over.
+  // The chunks of [from, to): lists walked into, frames counted in the
+  // 'movi' lists (and the 'rec ' lists within them), other chunks stepped over.
   int64_t frames = 0;
   // (lists nest 3 deep in an AVI: deeper is no AVI's, and not followed)
   const std::function<void(int64_t, int64_t, bool, int)> walk = [&](int64_t from, int64_t to, bool movi, int depth) {
