@@ -49,8 +49,7 @@ cv::Mat rawView(const image_t& msg, const FormatInfo& f) {
   if (static_cast<size_t>(msg.size) != msg.data.size() || msg.size < 0)
     fail(fmt + " size field " + std::to_string(msg.size) + " does not match " +
          std::to_string(msg.data.size()) + " data bytes");
-  if ((f.code == image_t::PIXEL_FORMAT_YUYV || f.code == image_t::PIXEL_FORMAT_UYVY) &&
-      msg.width % 2 != 0)
+  if (pixelsInPairs(f.code) && msg.width % 2 != 0)
     fail(fmt + " image needs an even width, got " + std::to_string(msg.width));
   const int64_t row_bytes = static_cast<int64_t>(msg.width) * f.bytes_per_pixel;
   const int64_t stride = msg.row_stride == 0 ? row_bytes : msg.row_stride;
@@ -73,16 +72,11 @@ cv::Mat rawView(const image_t& msg, const FormatInfo& f) {
                  static_cast<size_t>(stride));
 }
 
-// Largest MJPEG frame decoded (8K UHD fits): the decoder allocates the whole
-// image before it finds out that the data is missing, so a few hundred bytes
-// claiming 30000x30000 would otherwise cost gigabytes.
-constexpr int64_t kMaxMjpegPixels = int64_t{1} << 25;
-
 // What a JPEG stream's headers say, read without decoding: the frame size
 // of its SOFn header (empty when it has none before its scan data), its
 // colour components, whether an APP1 block comes before its scan (OpenCV
-// reads the first as Exif, whatever its name), and where its first scan (SOS) starts (0 when it has none before
-// its end).
+// reads the first as Exif, whatever its name), and where its first scan
+// (SOS) starts (0 when it has none before its end).
 struct JpegHeaders {
   cv::Size frame;
   int components = 0;

@@ -127,7 +127,7 @@ int main(int argc, char** argv) {
                 << ": cannot be logged as " << format << ": " << why << ", skipped\n";
       ++unlogged;
     };
-    const bool pairs = pixelformat == ld::image_t::PIXEL_FORMAT_YUYV || pixelformat == ld::image_t::PIXEL_FORMAT_UYVY;
+    const bool pairs = ld::pixelsInPairs(pixelformat);
     if (pairs && frame.cols < 2) {
       unloggable("it is 1 px wide, and the format's pixels come in pairs");
       continue;

@@ -41,6 +41,17 @@ int32_t pixelFormatFromName(const std::string& name);
 /// True for the formats imageToBgr can decode.
 bool isSupportedPixelFormat(int32_t pixelformat);
 
+/// Whether `pixelformat` holds the colour of two pixels together (YUYV,
+/// UYVY): its frames have an even width.
+inline bool pixelsInPairs(int32_t pixelformat) {
+  return pixelformat == image_t::PIXEL_FORMAT_YUYV || pixelformat == image_t::PIXEL_FORMAT_UYVY;
+}
+
+/// The most pixels of an MJPEG image_t (8K UHD fits): a JPEG decoder
+/// allocates the whole image before it finds its data missing, so a few
+/// hundred bytes claiming 30000x30000 would otherwise cost gigabytes.
+constexpr int64_t kMaxMjpegPixels = int64_t{1} << 25;
+
 /// Checks, without decoding the pixels, what imageToBgr checks first: a
 /// supported format, sizes and strides that fit the data, and for MJPEG a
 /// JPEG frame header within the size limit that agrees with width and height

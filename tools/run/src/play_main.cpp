@@ -127,8 +127,7 @@ int main(int argc, char** argv) {
           // (two pixels share their colour in YUYV and UYVY: an odd width
           // loses its last column, as ld-log-images does; every frame was
           // skipped, and the run ended with no images)
-          if ((pixelformat == ld::image_t::PIXEL_FORMAT_YUYV || pixelformat == ld::image_t::PIXEL_FORMAT_UYVY) &&
-              bgr.cols % 2 && bgr.cols > 1) {
+          if (ld::pixelsInPairs(pixelformat) && bgr.cols % 2 && bgr.cols > 1) {
             if (!crop_said)
               std::cerr << "ld-play: note: " << bgr.cols << " px wide frames are cropped to " << bgr.cols - 1
                         << " for " << ld::pixelFormatName(pixelformat) << " (its pixels come in pairs)\n";
