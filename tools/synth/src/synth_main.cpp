@@ -270,16 +270,19 @@ int runScene(const SceneArgs& a) {
     // drawn over was counted as in view, and its miss as the detector's).
     // A frame placed at its first round draws what it drew before.
     std::vector<LandmarkPlacement> lms;
+    std::vector<cv::Rect> boxes;  // (lms' bounding boxes in the image)
     constexpr int kRounds = 20, kTries = 200;
     int crowded = -1;  // the landmark that overlapped another in the last round
     for (int round = 0; round < kRounds && (round == 0 || crowded >= 0); ++round) {
       lms.clear();
+      boxes.clear();
       crowded = -1;
       for (int k = 0; k < K && crowded < 0; ++k) {
         const std::string payload = a.payload.empty() ? "room-" + std::to_string(101 + k)
                                     : K == 1            ? a.payload
                                                         : a.payload + "-" + std::to_string(k);
         LandmarkPlacement best;
+        cv::Rect box;  // (best's)
         bool overlap = false;  // (the last try's)
         for (int attempt = 0; attempt < kTries; ++attempt) {
           double x;
@@ -294,17 +297,14 @@ int runScene(const SceneArgs& a) {
           best.ecc = a.ecc;
           overlap = false;
           const LandmarkTruth t = truthFor(camera, best);
+          box = cv::boundingRect(std::vector<cv::Point2f>(t.corners.begin(), t.corners.end()));
           if (!t.in_view) continue;
-          const cv::Rect box = cv::boundingRect(std::vector<cv::Point2f>(t.corners.begin(), t.corners.end()));
-          for (const auto& o : lms) {
-            const LandmarkTruth ot = truthFor(camera, o);
-            const cv::Rect obox = cv::boundingRect(std::vector<cv::Point2f>(ot.corners.begin(), ot.corners.end()));
-            overlap = overlap || (box & obox).area() > 0;
-          }
+          for (const cv::Rect& o : boxes) overlap = overlap || (box & o).area() > 0;
           if (!overlap) break;
         }
         if (overlap) crowded = k;
         lms.push_back(best);
+        boxes.push_back(box);
       }
     }
     if (crowded >= 0)
@@ -430,21 +430,19 @@ int main(int argc, char** argv) {
     if (qo.out_dir.empty() && qo.log_path.empty()) throw UsageError("sequence: give --out, --log or both");
     if (qo.channel.empty()) throw UsageError("--channel: an empty channel name");
     qo.camera = makeCamera(q_camera, q_resolution);
-    // (found at the first frame's encoding before, with frames written)
-    if (!qo.log_path.empty() && qo.camera.size.width % 2 != 0) {
-      const int32_t f = ld::pixelFormatFromName(qo.pixel_format);
-      if (f == ld::image_t::PIXEL_FORMAT_YUYV || f == ld::image_t::PIXEL_FORMAT_UYVY)
-        throw UsageError("--format " + qo.pixel_format + " needs an even width, and the frames are " +
-                         std::to_string(qo.camera.size.width) + " px wide");
-    }
-    // (an MJPEG image_t's limit, which ld::matToImage holds to: found at the
-    // first frame's encoding before, after the frame was rendered and
-    // written; --resolution keeps the sides within image_t's)
+    // What the log's image_t cannot hold, found at the first frame's
+    // encoding before, after the frame was rendered and written: an odd
+    // width in YUYV or UYVY, an MJPEG frame over its pixel limit
+    // (--resolution keeps the sides within image_t's).
     if (!qo.log_path.empty()) {
       const cv::Size sz = qo.camera.size;
       const int32_t f = ld::pixelFormatFromName(qo.pixel_format);
-      if (f == ld::image_t::PIXEL_FORMAT_MJPEG && int64_t{sz.width} * sz.height > (int64_t{1} << 25))
-        throw UsageError("--format mjpeg takes 33554432 pixels a frame at most, and the frames are " +
+      if (ld::pixelsInPairs(f) && sz.width % 2 != 0)
+        throw UsageError("--format " + qo.pixel_format + " needs an even width, and the frames are " +
+                         std::to_string(sz.width) + " px wide");
+      if (f == ld::image_t::PIXEL_FORMAT_MJPEG && int64_t{sz.width} * sz.height > ld::kMaxMjpegPixels)
+        throw UsageError("--format mjpeg takes " + std::to_string(ld::kMaxMjpegPixels) +
+                         " pixels a frame at most, and the frames are " +
                          std::to_string(sz.width) + "x" + std::to_string(sz.height));
     }
     qo.write_png = !no_png;
