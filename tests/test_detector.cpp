@@ -302,6 +302,33 @@ TEST(ColourFromBrightness, VectorAndScalarAgreeWithTheRule) {
   }
 }
 
+// ====================================================================== window colour
+
+// The faint and veil looks' per-channel gain and tint give cv::multiply's and
+// cv::subtract's values exactly (they replace them: both allocate a buffer
+// at each call), on views into a larger buffer as the looks use them.
+TEST(WindowColour, ScaleAndSubtractAreOpenCvsValues) {
+  cv::RNG rng(7);
+  cv::Mat buffer(40, 60, CV_8UC3, cv::Scalar::all(0));
+  for (int t = 0; t < 200; ++t) {
+    const cv::Size size(1 + rng.uniform(0, 50), 1 + rng.uniform(0, 30));
+    cv::Mat img(size, CV_8UC3);
+    rng.fill(img, cv::RNG::UNIFORM, 0, 256);
+    cv::Vec3d gain(rng.uniform(1.0, 4.0), rng.uniform(1.0, 4.0), rng.uniform(1.0, 4.0));
+    if (t % 4 == 0) gain[t % 3] = 1.0;
+    cv::Scalar tint(rng.uniform(-60.0, 60.0), rng.uniform(-60.0, 60.0), rng.uniform(-60.0, 60.0));
+    if (t % 5 == 0) tint[1] = std::floor(tint[1]) + 0.5;  // (halves: rounded as OpenCV rounds them)
+    cv::Mat want, out = buffer(cv::Rect(0, 0, size.width, size.height));
+    cv::multiply(img, cv::Scalar(gain[0], gain[1], gain[2]), want);
+    ld::detail::scaleChannels(img, gain, out);
+    EXPECT_EQ(cv::norm(out, want, cv::NORM_INF), 0) << "gain " << gain << " at " << size;
+    cv::subtract(img, tint, want);
+    ld::detail::subtractChannels(img, tint, out);
+    EXPECT_EQ(cv::norm(out, want, cv::NORM_INF), 0) << "tint " << tint << " at " << size;
+    EXPECT_EQ(out.data, buffer.data);
+  }
+}
+
 // ====================================================================== regions
 
 TEST(Regions, SmallSquaresStayWhole) {

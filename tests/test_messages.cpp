@@ -13,6 +13,7 @@
 #include "image_error.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/lcm_url.hpp"
+#include "ld/message_publisher.hpp"
 #include "ld/landmark_list_t.hpp"
 #include "ld/qr_code_list_t.hpp"
 
@@ -201,6 +202,41 @@ TEST(Messages, PublishSubscribeOverMemq) {
   EXPECT_EQ(r.channel_, "LANDMARKS");
   EXPECT_EQ(r.list_.seq, 42);
   expectSame(r.list_.landmarks[1], in.landmarks[1]);
+}
+
+// ld::MessagePublisher: what it sends is the message, and its buffer grows
+// to the largest message and is kept (no allocation per message once warm).
+TEST(Messages, PublisherKeepsItsBuffer) {
+  lcm::LCM lcm("memq://");
+  ASSERT_TRUE(lcm.good());
+  Receiver r;
+  lcm.subscribe("LANDMARKS", &Receiver::onList, &r);
+  ld::MessagePublisher publisher(lcm);
+  auto big = sampleList();
+  big.landmarks.push_back(big.landmarks[0]);
+  big.nlandmarks = static_cast<int32_t>(big.landmarks.size());
+  auto small = sampleList();
+  small.landmarks.resize(1);
+  small.nlandmarks = 1;
+  ASSERT_EQ(publisher.publish("LANDMARKS", big), 0);
+  ASSERT_GE(lcm.handleTimeout(1000), 1);
+  EXPECT_EQ(r.list_.landmarks.size(), big.landmarks.size());
+  const uint8_t* buffer = publisher.buffer();
+  EXPECT_EQ(publisher.bufferSize(), static_cast<size_t>(big.getEncodedSize()));
+  for (int k = 0; k < 3; ++k) {
+    small.seq = k;
+    ASSERT_EQ(publisher.publish("LANDMARKS", small), 0);
+    ASSERT_GE(lcm.handleTimeout(1000), 1);
+    EXPECT_EQ(r.list_.seq, k);
+    ASSERT_EQ(r.list_.landmarks.size(), 1u);
+    expectSame(r.list_.landmarks[0], small.landmarks[0]);
+    ASSERT_EQ(publisher.publish("LANDMARKS", big), 0);
+    ASSERT_GE(lcm.handleTimeout(1000), 1);
+    expectSame(r.list_.landmarks[2], big.landmarks[2]);
+  }
+  EXPECT_EQ(r.count_, 7);
+  EXPECT_EQ(publisher.buffer(), buffer);
+  EXPECT_EQ(publisher.bufferSize(), static_cast<size_t>(big.getEncodedSize()));
 }
 
 // ld::pumpLcm under a flood: every message handled brings another (here

@@ -20,6 +20,7 @@
 #include "ld/frame_image.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/lcm_url.hpp"
+#include "ld/message_publisher.hpp"
 #include "ld/v4l2_capture.hpp"
 
 namespace {
@@ -182,7 +183,7 @@ int main(int argc, char** argv) {
 
   ld::FrameToImage converter(conversion);
   ld::image_t msg;
-  std::vector<uint8_t> encoded;  // reused: publishing allocates nothing once warm
+  ld::MessagePublisher publisher(lcm);  // (its buffer kept: nothing allocated once warm)
   ld::Frame frame;
   int64_t published = 0, bad = 0, last_published = 0;
   int64_t skipped_said = 0, skipped_lines = 0;  // frames the capture skipped (flagged, cut short), said so far
@@ -215,10 +216,7 @@ int main(int argc, char** argv) {
       }
       capture.requeue(frame);  // the message holds a copy: give the buffer back first
       if (ok) {
-        const int n = msg.getEncodedSize();
-        encoded.resize(static_cast<size_t>(n));
-        msg.encode(encoded.data(), 0, n);
-        lcm.publish(channel, encoded.data(), static_cast<unsigned>(n));
+        publisher.publish(channel, msg);
         ++published;
       }
     }

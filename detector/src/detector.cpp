@@ -1233,11 +1233,11 @@ int64_t Detector::Impl::veilWindow(const cv::Rect& win, const Anchor& a, const c
     if (cv::norm(t, cv::NORM_INF) < kVeilMinTint) continue;
     if (pick == second && first >= 0 && cv::norm(t - tint[first], cv::NORM_INF) < kVeilMinTint) continue;
     cv::Mat src = faint_src_buf(cv::Rect(0, 0, win.width, win.height));
-    cv::subtract(filtered(win), t, src);
+    detail::subtractChannels(filtered(win), t, src);
     cv::Mat balanced = src;
     if (filtered.data != img.data) {  // blurred: the looks label the filtered image, verify on the frame
       balanced = faint_img_buf(cv::Rect(0, 0, win.width, win.height));
-      cv::subtract(img(win), t, balanced);
+      detail::subtractChannels(img(win), t, balanced);
     }
     look(win, src, balanced, pale, max_area, true);
     pixels += win.area();
@@ -1277,13 +1277,13 @@ void Detector::Impl::faintWindow(const cv::Rect& win, const cv::Mat& img, const 
     if (!steep) look(win, f, img(win), pale, max_area, true);
     return;
   }
-  const cv::Scalar gain(top / white[0], top / white[1], top / white[2]);
+  const cv::Vec3d gain(top / white[0], top / white[1], top / white[2]);
   cv::Mat src = faint_src_buf(cv::Rect(0, 0, win.width, win.height));
-  cv::multiply(f, gain, src);
+  detail::scaleChannels(f, gain, src);
   cv::Mat balanced = src;
   if (filtered.data != img.data) {  // blurred: the looks label the filtered image, verify on the frame
     balanced = faint_img_buf(cv::Rect(0, 0, win.width, win.height));
-    cv::multiply(img(win), gain, balanced);
+    detail::scaleChannels(img(win), gain, balanced);
   }
   if (steep) {
     // The balanced white's level: the mean of its brightest channel.

@@ -18,6 +18,7 @@
 #include "ld/latest_message.hpp"
 #include "ld/lcm_url.hpp"
 #include "ld/message_decode.hpp"
+#include "ld/message_publisher.hpp"
 
 namespace {
 
@@ -61,6 +62,7 @@ int main(int argc, char** argv) {
 
   if (!ld::lcmUrlUsable(url, "ld-detector")) return 2;
   lcm::LCM lcm(url);
+  ld::MessagePublisher publisher(lcm);
   if (const int status = ld::lcmOpenStatus(lcm, url, "ld-detector")) return status;
   // The GPU compiles its shaders on their first use: a frame of coloured
   // noise runs them all before the camera's first frame comes, which was late
@@ -131,7 +133,7 @@ int main(int argc, char** argv) {
         }
         ld::toListMessage(det, image.utime, ld::imageSeq(image).value_or(-1), bgr.cols, bgr.rows,
                           detector.detector().backend(), latest.skipped(), out);
-        lcm.publish(out_channel, &out);
+        publisher.publish(out_channel, out);
         ++processed;
         if (choosing && !detector.detector().choosingBackend()) {
           std::fprintf(stderr, "ld-detector: backend %s\n", detector.detector().backendInfo().c_str());

@@ -169,6 +169,27 @@ double Region::side() const {
 
 // ====================================================================== front ends
 
+void scaleChannels(const cv::Mat& bgr, const cv::Vec3d& gain, cv::Mat& out) {
+  CV_Assert(bgr.type() == CV_8UC3 && out.type() == CV_8UC3 && out.size() == bgr.size());
+  for (int y = 0; y < bgr.rows; ++y) {
+    const uint8_t* p = bgr.ptr<uint8_t>(y);
+    uint8_t* q = out.ptr<uint8_t>(y);
+    for (int x = 0; x < bgr.cols; ++x, p += 3, q += 3)
+      for (int c = 0; c < 3; ++c) q[c] = cv::saturate_cast<uint8_t>(p[c] * gain[c]);
+  }
+}
+
+void subtractChannels(const cv::Mat& bgr, const cv::Scalar& tint, cv::Mat& out) {
+  CV_Assert(bgr.type() == CV_8UC3 && out.type() == CV_8UC3 && out.size() == bgr.size());
+  const int t[3] = {cvRound(tint[0]), cvRound(tint[1]), cvRound(tint[2])};
+  for (int y = 0; y < bgr.rows; ++y) {
+    const uint8_t* p = bgr.ptr<uint8_t>(y);
+    uint8_t* q = out.ptr<uint8_t>(y);
+    for (int x = 0; x < bgr.cols; ++x, p += 3, q += 3)
+      for (int c = 0; c < 3; ++c) q[c] = cv::saturate_cast<uint8_t>(p[c] - t[c]);
+  }
+}
+
 void colourFromBrightness(const cv::Mat& bgr, double white, cv::Mat& out, std::vector<float>& scratch) {
   CV_Assert(bgr.type() == CV_8UC3);
   const int w = bgr.cols, h = bgr.rows;

@@ -59,6 +59,17 @@ struct MaskThresholds {
 /// and above red).
 void saturationMask(const cv::Mat& bgr, const MaskThresholds& t, cv::Mat& labels);
 
+/// `out` = `bgr` with channel c times gain[c], rounded and saturated to 8
+/// bits: cv::multiply(bgr, gain, out) value for value, without the block
+/// buffer cv::multiply allocates at each call. `out` must have bgr's size
+/// and type already (a view of a buffer kept between frames).
+void scaleChannels(const cv::Mat& bgr, const cv::Vec3d& gain, cv::Mat& out);
+
+/// `out` = `bgr` less `tint` per channel, saturated to 8 bits: cv::subtract(
+/// bgr, tint, out) value for value (which rounds the tint to integers first),
+/// without its allocation. `out` as for scaleChannels.
+void subtractChannels(const cv::Mat& bgr, const cv::Scalar& tint, cv::Mat& out);
+
 /// Colour from brightness: `bgr` (8-bit, white-balanced so that its white
 /// of level `white` is grey) with each pixel's colour taken again from the
 /// sharp brightness. Cameras and JPEG carry colour at half resolution or

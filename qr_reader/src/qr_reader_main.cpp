@@ -16,6 +16,7 @@
 #include "ld/landmark_list_t.hpp"
 #include "ld/lcm_url.hpp"
 #include "ld/message_decode.hpp"
+#include "ld/message_publisher.hpp"
 #include "ld/qr_code_list_t.hpp"
 #include "ld/qr_track_reader.hpp"
 #include "ld/qr_tracks.hpp"
@@ -99,6 +100,7 @@ int main(int argc, char** argv) {
 
   if (!ld::lcmUrlUsable(url, "ld-qr-reader")) return 2;
   lcm::LCM lcm(url);
+  ld::MessagePublisher publisher(lcm);
   if (const int status = ld::lcmOpenStatus(lcm, url, "ld-qr-reader")) return status;
   Inputs in;
   lcm.subscribe(image_ch, &Inputs::onImage, &in);
@@ -149,7 +151,7 @@ int main(int argc, char** argv) {
       in.reportBad(image_ch, e.what());
       continue;
     }
-    lcm.publish(out_ch, &out);
+    publisher.publish(out_ch, out);
   }
   std::fprintf(stderr,
                "ld-qr-reader: stopped after %lld frames, %lld tracks read (%lld from stacked frames), "

@@ -18,6 +18,7 @@
 #include "ld/latest_message.hpp"
 #include "ld/lcm_url.hpp"
 #include "ld/message_decode.hpp"
+#include "ld/message_publisher.hpp"
 #include "ld/tracker.hpp"
 #include "ld/tracker_msg.hpp"
 
@@ -83,6 +84,7 @@ int main(int argc, char** argv) {
 
   if (!ld::lcmUrlUsable(url, "ld-tracker")) return 2;
   lcm::LCM lcm(url);
+  ld::MessagePublisher publisher(lcm);
   if (const int status = ld::lcmOpenStatus(lcm, url, "ld-tracker")) return status;
   // (a list far beyond what a detector finds, about 130 landmarks at its
   // candidate cap: the assignment's time and memory grow with its square
@@ -158,7 +160,7 @@ int main(int argc, char** argv) {
       last_utime = in.utime;  // (tracked: not late)
       last_seq = in.seq;
       ld::toTrackedListMessage(tracks, in, ms, latest.skipped(), out);
-      lcm.publish(out_channel, &out);
+      publisher.publish(out_channel, out);
       ++processed;
     }
     const auto now = std::chrono::steady_clock::now();

@@ -22,6 +22,7 @@
 #include "ld/image_convert.hpp"
 #include "ld/lcm_url.hpp"
 #include "ld/message_decode.hpp"
+#include "ld/message_publisher.hpp"
 
 namespace {
 
@@ -159,6 +160,7 @@ int main(int argc, char** argv) {
 
   if (!ld::lcmUrlUsable(url, "ld-play")) return 2;
   lcm::LCM lcm(url);
+  ld::MessagePublisher publisher(lcm);
   if (const int status = ld::lcmOpenStatus(lcm, url, "ld-play")) return status;
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
@@ -181,7 +183,7 @@ int main(int argc, char** argv) {
     ld::image_t& img = images[static_cast<size_t>(k) % images.size()];
     img.utime = wallMicros();
     ld::setImageSeq(img, first_seq + k);
-    if (lcm.publish(out_channel, &img) == 0) ++sent;
+    if (publisher.publish(out_channel, img) == 0) ++sent;
     else ++failed;
     last = std::chrono::steady_clock::now();
   }

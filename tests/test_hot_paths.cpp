@@ -1,0 +1,131 @@
+// Hot paths allocate nothing per frame once warmed up (DESIGN.md). The
+// detector is counted at malloc itself, not at operator new: OpenCV takes its
+// buffers from malloc and posix_memalign. (ld::Tracker is counted in
+// test_tracker; ld::MessagePublisher's kept buffer in test_messages.)
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "ld/detector.hpp"
+#include "ld/synth.hpp"
+
+// The sanitizers replace malloc themselves: no count under them.
+#if defined(__SANITIZE_ADDRESS__)
+#define LD_COUNT_MALLOC 0
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define LD_COUNT_MALLOC 0
+#endif
+#endif
+#ifndef LD_COUNT_MALLOC
+#define LD_COUNT_MALLOC 1
+#endif
+
+namespace {
+std::atomic<bool> g_counting{false};
+std::atomic<long> g_allocations{0};
+}  // namespace
+
+#if LD_COUNT_MALLOC
+// glibc's own entry points, which a program may wrap (free needs no wrapper).
+extern "C" {
+void* __libc_malloc(size_t);
+void* __libc_calloc(size_t, size_t);
+void* __libc_realloc(void*, size_t);
+void* __libc_memalign(size_t, size_t);
+
+void* malloc(size_t n) {
+  if (g_counting) ++g_allocations;
+  return __libc_malloc(n);
+}
+void* calloc(size_t n, size_t size) {
+  if (g_counting) ++g_allocations;
+  return __libc_calloc(n, size);
+}
+void* realloc(void* p, size_t n) {
+  if (g_counting) ++g_allocations;
+  return __libc_realloc(p, n);
+}
+void* memalign(size_t alignment, size_t n) {
+  if (g_counting) ++g_allocations;
+  return __libc_memalign(alignment, n);
+}
+void* aligned_alloc(size_t alignment, size_t n) {
+  if (g_counting) ++g_allocations;
+  return __libc_memalign(alignment, n);
+}
+int posix_memalign(void** p, size_t alignment, size_t n) {
+  if (g_counting) ++g_allocations;
+  *p = __libc_memalign(alignment, n);
+  return *p ? 0 : ENOMEM;
+}
+}
+#endif
+
+namespace {
+
+// Frames of a drive past five landmarks under four lightings: as rendered
+// (the main look), warm tungsten light and dim light (the faint look's white
+// balance), and glare on the wall (the veil look's tint).
+std::vector<cv::Mat> frames() {
+  ld::synth::SequenceOptions o;
+  o.out_dir.clear();
+  o.write_png = false;
+  o.frames = 20;
+  o.landmarks = 5;
+  o.seed = 4;
+  ld::synth::Sequence seq(o);
+  std::vector<cv::Mat> out;
+  for (int light = 0; light < 4; ++light)
+    for (int i = 0; i < seq.frames(); ++i) {
+      ld::synth::SceneSpec scene = seq.scene(i);
+      if (light == 1) scene.lighting.colour_temp_k = 2200, scene.lighting.gain = 0.6;
+      if (light == 2) scene.lighting.gain = 0.25;
+      if (light == 3) scene.lighting.glare = 0.6, scene.lighting.glare_radius = 0.3;
+      out.push_back(ld::synth::render(scene).bgr);
+    }
+  return out;
+}
+
+}  // namespace
+
+TEST(HotPaths, DetectorAllocatesNothingOnceWarmedUp) {
+  if (!LD_COUNT_MALLOC) GTEST_SKIP() << "the sanitizers own malloc";
+  const std::vector<cv::Mat> scenes = frames();
+  ld::Detector detector;  // the CPU backend (Mesa's and a GPU driver's own allocations are theirs)
+  for (int pass = 0; pass < 2; ++pass)  // warm: every buffer at its largest for these frames
+    for (const cv::Mat& f : scenes) detector.detect(f);
+  long allocations = 0;
+  size_t landmarks = 0;
+  int frames_with = 0;
+  for (const cv::Mat& f : scenes) {
+    g_allocations = 0;
+    g_counting = true;
+    const ld::Detection& d = detector.detect(f);
+    g_counting = false;
+    allocations += g_allocations;
+    frames_with += g_allocations > 0;
+    landmarks += d.landmarks.size();
+  }
+  EXPECT_EQ(allocations, 0) << "in " << frames_with << " of " << scenes.size() << " frames";
+  EXPECT_GE(landmarks, scenes.size());  // (the frames hold landmarks, and they were found)
+}
+
+// The count itself works: a frame's worth of cv::Mat is counted.
+TEST(HotPaths, TheCountSeesOpenCvBuffers) {
+  if (!LD_COUNT_MALLOC) GTEST_SKIP() << "the sanitizers own malloc";
+  g_allocations = 0;
+  g_counting = true;
+  {
+    cv::Mat m(480, 640, CV_8UC3);
+    m.setTo(cv::Scalar::all(1));
+  }
+  g_counting = false;
+  EXPECT_GE(g_allocations.load(), 1);
+}
