@@ -316,8 +316,12 @@ TEST(WindowColour, ScaleAndSubtractAreOpenCvsValues) {
     rng.fill(img, cv::RNG::UNIFORM, 0, 256);
     cv::Vec3d gain(rng.uniform(1.0, 4.0), rng.uniform(1.0, 4.0), rng.uniform(1.0, 4.0));
     if (t % 4 == 0) gain[t % 3] = 1.0;
+    if (t % 7 == 0) gain = {1.5, 2.5, 0.5};  // (products on halves: rounded as OpenCV rounds them)
+    if (t % 9 == 0) gain[t % 3] = 1e6;
     cv::Scalar tint(rng.uniform(-60.0, 60.0), rng.uniform(-60.0, 60.0), rng.uniform(-60.0, 60.0));
-    if (t % 5 == 0) tint[1] = std::floor(tint[1]) + 0.5;  // (halves: rounded as OpenCV rounds them)
+    if (t % 5 == 0) tint[1] = std::floor(tint[1]) + 0.5;
+    if (t % 6 == 0) tint = {300, -300, 255.5};
+    if (t % 11 == 0) tint = {-1e6, 1e6, -255.5};
     cv::Mat want, out = buffer(cv::Rect(0, 0, size.width, size.height));
     cv::multiply(img, cv::Scalar(gain[0], gain[1], gain[2]), want);
     ld::detail::scaleChannels(img, gain, out);

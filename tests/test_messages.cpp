@@ -499,6 +499,13 @@ TEST(ImageConvert, SeqMetadata) {
   ld::setImageSeq(m, 123456789012LL);
   EXPECT_EQ(m.nmetadata, 1);
   EXPECT_EQ(*ld::imageSeq(m), 123456789012LL);
+  // rewritten in place: a message kept from frame to frame allocates nothing
+  const uint8_t* value = m.metadata[0].value.data();
+  for (const int64_t seq : {int64_t{0}, INT64_MAX, INT64_MIN, int64_t{42}}) {
+    ld::setImageSeq(m, seq);
+    EXPECT_EQ(*ld::imageSeq(m), seq);
+    EXPECT_EQ(m.metadata[0].value.data(), value);
+  }
   m.metadata[0].value = {'1', 'x'};
   m.metadata[0].n = 2;
   EXPECT_FALSE(ld::imageSeq(m).has_value());

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cctype>
-#include <charconv>
 #include <cstring>
 #include <stdexcept>
 
@@ -85,24 +84,11 @@ std::string imageConversionName(ImageConversion conversion) {
   }
 }
 
-void updateImageSeq(image_t& msg, int64_t seq) {
-  for (auto& m : msg.metadata) {
-    if (m.key != "seq") continue;
-    char buf[24];
-    const auto r = std::to_chars(buf, buf + sizeof buf, seq);
-    m.value.assign(buf, r.ptr);
-    m.n = static_cast<int32_t>(m.value.size());
-    return;
-  }
-  setImageSeq(msg, seq);
-  msg.metadata.back().value.reserve(20);  // room for any later number
-}
-
 void FrameToImage::convert(const Frame& frame, image_t& msg) {
   if (!frame.data) fail(frame, "no data");
   if (conversion_ == ImageConversion::AsCaptured) copyAsCaptured(frame, msg);
   else decodeAndConvert(frame, msg);
-  updateImageSeq(msg, frame.seq);
+  setImageSeq(msg, frame.seq);
 }
 
 void FrameToImage::copyAsCaptured(const Frame& f, image_t& msg) {

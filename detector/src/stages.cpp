@@ -169,24 +169,56 @@ double Region::side() const {
 
 // ====================================================================== front ends
 
-void scaleChannels(const cv::Mat& bgr, const cv::Vec3d& gain, cv::Mat& out) {
+namespace {
+
+// out = each channel's table at bgr's value (a value's result worked out once
+// per channel, not once per pixel).
+void applyChannelTables(const cv::Mat& bgr, const uint8_t (&table)[3][256], cv::Mat& out) {
   CV_Assert(bgr.type() == CV_8UC3 && out.type() == CV_8UC3 && out.size() == bgr.size());
   for (int y = 0; y < bgr.rows; ++y) {
     const uint8_t* p = bgr.ptr<uint8_t>(y);
     uint8_t* q = out.ptr<uint8_t>(y);
-    for (int x = 0; x < bgr.cols; ++x, p += 3, q += 3)
-      for (int c = 0; c < 3; ++c) q[c] = cv::saturate_cast<uint8_t>(p[c] * gain[c]);
+    for (int x = 0; x < bgr.cols; ++x, p += 3, q += 3) {
+      q[0] = table[0][p[0]];
+      q[1] = table[1][p[1]];
+      q[2] = table[2][p[2]];
+    }
   }
+}
+
+}  // namespace
+
+void scaleChannels(const cv::Mat& bgr, const cv::Vec3d& gain, cv::Mat& out) {
+  uint8_t table[3][256];
+  for (int c = 0; c < 3; ++c)
+    for (int v = 0; v < 256; ++v) table[c][v] = cv::saturate_cast<uint8_t>(v * gain[c]);
+  applyChannelTables(bgr, table, out);
 }
 
 void subtractChannels(const cv::Mat& bgr, const cv::Scalar& tint, cv::Mat& out) {
   CV_Assert(bgr.type() == CV_8UC3 && out.type() == CV_8UC3 && out.size() == bgr.size());
-  const int t[3] = {cvRound(tint[0]), cvRound(tint[1]), cvRound(tint[2])};
+  // Saturating byte arithmetic (the loops vectorise): less `down`, plus `up`,
+  // one of them 0 in each channel, laid out over 48 bytes (16 pixels).
+  constexpr int kSpan = 48;
+  uint8_t down[kSpan], up[kSpan];
+  for (int k = 0; k < kSpan; ++k) {
+    // (rounded, as cv::subtract rounds it; beyond 255 the result saturates alike)
+    const double t = std::clamp(static_cast<double>(cvRound(std::clamp(tint[k % 3], -1e9, 1e9))), -255.0, 255.0);
+    down[k] = static_cast<uint8_t>(t > 0 ? t : 0);
+    up[k] = static_cast<uint8_t>(t < 0 ? -t : 0);
+  }
+  const auto sat = [](uint8_t v, uint8_t d, uint8_t u) {
+    const uint8_t a = v > d ? static_cast<uint8_t>(v - d) : 0;
+    return static_cast<uint8_t>(a < 255 - u ? a + u : 255);
+  };
+  const int n = 3 * bgr.cols;
   for (int y = 0; y < bgr.rows; ++y) {
     const uint8_t* p = bgr.ptr<uint8_t>(y);
     uint8_t* q = out.ptr<uint8_t>(y);
-    for (int x = 0; x < bgr.cols; ++x, p += 3, q += 3)
-      for (int c = 0; c < 3; ++c) q[c] = cv::saturate_cast<uint8_t>(p[c] - t[c]);
+    int i = 0;
+    for (; i + kSpan <= n; i += kSpan)
+      for (int k = 0; k < kSpan; ++k) q[i + k] = sat(p[i + k], down[k], up[k]);
+    for (int k = 0; i < n; ++i, ++k) q[i] = sat(p[i], down[k], up[k]);
   }
 }
 

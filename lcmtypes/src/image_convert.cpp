@@ -482,18 +482,23 @@ std::optional<int64_t> imageSeq(const image_t& msg) {
 }
 
 void setImageSeq(image_t& msg, int64_t seq) {
-  const std::string text = std::to_string(seq);
-  image_metadata_t md;
-  md.key = "seq";
-  md.n = static_cast<int32_t>(text.size());
-  md.value.assign(text.begin(), text.end());
+  char text[24];
+  const auto end = std::to_chars(text, text + sizeof text, seq).ptr;
+  const auto n = static_cast<int32_t>(end - text);
   for (auto& m : msg.metadata) {
     if (m.key == "seq") {
-      m = md;
+      m.value.reserve(20);  // (once: any later number fits)
+      m.value.assign(text, end);
+      m.n = n;
       return;
     }
   }
-  msg.metadata.push_back(md);
+  image_metadata_t md;
+  md.key = "seq";
+  md.value.reserve(20);  // room for any later number: rewritten in place from then on
+  md.value.assign(text, end);
+  md.n = n;
+  msg.metadata.push_back(std::move(md));
   msg.nmetadata = static_cast<int32_t>(msg.metadata.size());
 }
 

@@ -49,8 +49,4 @@ class FrameToImage {
   cv::Mat y_to_gray_;  // video-range Y to full-range gray
 };
 
-/// Sets the "seq" metadata as setImageSeq does, but rewrites an existing
-/// entry in place (no allocation once the entry exists).
-void updateImageSeq(image_t& msg, int64_t seq);
-
 }  // namespace ld

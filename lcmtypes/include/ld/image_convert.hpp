@@ -104,7 +104,9 @@ image_t matToImage(const cv::Mat& image, int32_t pixelformat, int64_t utime,
 /// The frame's sequence number from the "seq" metadata, if present and valid.
 std::optional<int64_t> imageSeq(const image_t& msg);
 
-/// Sets (or replaces) the "seq" metadata.
+/// Sets (or replaces) the "seq" metadata; an existing entry is rewritten in
+/// place (no allocation once the message has one: a camera's or a player's
+/// message kept from frame to frame).
 void setImageSeq(image_t& msg, int64_t seq);
 
 }  // namespace ld

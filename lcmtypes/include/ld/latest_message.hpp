@@ -1,7 +1,7 @@
 #pragma once
 // The newest good message of a channel, for a process that cannot always
 // keep up with its input: it works on the newest message and counts those it
-// skipped (DESIGN.md), and says each bad one without losing a good one.
+// skipped (the design's rule), and says each bad one without losing a good one.
 
 #include <cstdint>
 #include <functional>

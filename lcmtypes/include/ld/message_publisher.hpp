@@ -14,7 +14,7 @@ namespace ld {
 /// between calls. lcm::LCM::publish(channel, &msg) allocates a buffer of the
 /// encoded size for every message, a whole frame for an image; this buffer
 /// only grows (to the largest message so far), so nothing is allocated once
-/// warm (DESIGN.md's rule for hot paths).
+/// warm (the design's rule for hot paths).
 class MessagePublisher {
  public:
   explicit MessagePublisher(lcm::LCM& lcm) : lcm_(lcm) {}
