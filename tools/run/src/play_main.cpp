@@ -141,6 +141,7 @@ int main(int argc, char** argv) {
         std::cerr << "ld-play: skipping message " << log.messages() << ": " << e.what() << "\n";
         continue;
       }
+      ld::setImageSeq(img, 0);  // (its entry made now, with room for any number: playing allocates nothing)
       preloaded_bytes += img.data.size();
       images.push_back(std::move(img));
     }
