@@ -203,7 +203,7 @@ void subtractChannels(const cv::Mat& bgr, const cv::Scalar& tint, cv::Mat& out) 
   uint8_t down[kSpan], up[kSpan];
   for (int k = 0; k < kSpan; ++k) {
     // (rounded, as cv::subtract rounds it; beyond 255 the result saturates alike)
-    const double t = std::clamp(static_cast<double>(cvRound(std::clamp(tint[k % 3], -1e9, 1e9))), -255.0, 255.0);
+    const int t = std::clamp(cvRound(std::clamp(tint[k % 3], -1e9, 1e9)), -255, 255);
     down[k] = static_cast<uint8_t>(t > 0 ? t : 0);
     up[k] = static_cast<uint8_t>(t < 0 ? -t : 0);
   }
