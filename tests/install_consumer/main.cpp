@@ -7,9 +7,23 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include <lcm/lcm-cpp.hpp>
+
 #include "ld/detector.hpp"
 #include "ld/landmark_msg.hpp"
+#include "ld/message_publisher.hpp"
 #include "ld/qr_reader.hpp"
+
+namespace {
+struct Receiver {
+  ld::landmark_list_t list;
+  int got = 0;
+  void on(const lcm::ReceiveBuffer*, const std::string&, const ld::landmark_list_t* m) {
+    list = *m;
+    ++got;
+  }
+};
+}  // namespace
 
 int main(int argc, char** argv) {
   if (argc != 2) {
@@ -29,11 +43,14 @@ int main(int argc, char** argv) {
 
   ld::landmark_list_t msg;
   ld::toListMessage(det, 1, 1, image.cols, image.rows, "cpu", 0, msg);
-  std::vector<uint8_t> bytes(msg.getEncodedSize());
-  if (msg.encode(bytes.data(), 0, static_cast<int>(bytes.size())) != static_cast<int>(bytes.size())) return 1;
-  ld::landmark_list_t back;
-  if (back.decode(bytes.data(), 0, static_cast<int>(bytes.size())) != static_cast<int>(bytes.size())) return 1;
-  for (const ld::landmark_t& m : back.landmarks) {
+  // (through LCM in this process, as a robot node publishes it)
+  lcm::LCM lcm("memq://");
+  if (!lcm.good()) return 1;
+  Receiver back;
+  lcm.subscribe("LANDMARKS", &Receiver::on, &back);
+  ld::MessagePublisher publisher(lcm);
+  if (publisher.publish("LANDMARKS", msg) != 0 || lcm.handleTimeout(1000) <= 0 || back.got != 1) return 1;
+  for (const ld::landmark_t& m : back.list.landmarks) {
     const ld::Landmark lm = ld::fromMessage(m);
     std::printf("%s %.1f %.1f\n", lm.payload ? lm.payload->c_str() : "-", lm.corners[0].x, lm.corners[0].y);
   }
