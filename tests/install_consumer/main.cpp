@@ -1,6 +1,7 @@
 // Detects the landmarks of one image with the installed library, reads their
-// QR codes, and sends the list through the LCM message's encode/decode, as a
-// robot program linking the libraries would. Prints one line per landmark:
+// QR codes, and publishes the list over LCM (memq://, in this process) with
+// ld::MessagePublisher and reads it back, as a robot program linking the
+// libraries would. Prints one line per landmark:
 //   <payload> <TL corner x> <TL corner y>
 #include <cstdio>
 #include <vector>
