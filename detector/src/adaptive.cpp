@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "ld/landmark_layout.hpp"
+#include "stages.hpp"
 
 namespace ld {
 
@@ -295,7 +296,8 @@ const cv::Mat& LightingAdapter::correct(const cv::Mat& bgr_in) {
     gains_ = {1, 1, 1};
     return bgr;
   }
-  cv::multiply(bgr, cv::Scalar(gains_[0], gains_[1], gains_[2]), corrected_);
+  corrected_.create(bgr.size(), CV_8UC3);
+  detail::scaleChannels(bgr, gains_, corrected_);  // (cv::multiply's values, without its buffer per call)
   // A strong correction amplifies the weak channel's noise and JPEG blocks
   // (under tungsten: blue) into speckled squares: smooth them back.
   if (params_.denoise_sigma > 0 && std::max({gains_[0], gains_[1], gains_[2]}) > params_.denoise_above_gain)

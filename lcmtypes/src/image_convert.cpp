@@ -485,21 +485,15 @@ void setImageSeq(image_t& msg, int64_t seq) {
   char text[24];
   const auto end = std::to_chars(text, text + sizeof text, seq).ptr;
   const auto n = static_cast<int32_t>(end - text);
-  for (auto& m : msg.metadata) {
-    if (m.key == "seq") {
-      m.value.reserve(20);  // (once: any later number fits)
-      m.value.assign(text, end);
-      m.n = n;
-      return;
-    }
+  auto entry = std::find_if(msg.metadata.begin(), msg.metadata.end(), [](const auto& m) { return m.key == "seq"; });
+  if (entry == msg.metadata.end()) {
+    entry = msg.metadata.emplace(entry);
+    entry->key = "seq";
+    msg.nmetadata = static_cast<int32_t>(msg.metadata.size());
   }
-  image_metadata_t md;
-  md.key = "seq";
-  md.value.reserve(20);  // room for any later number: rewritten in place from then on
-  md.value.assign(text, end);
-  md.n = n;
-  msg.metadata.push_back(std::move(md));
-  msg.nmetadata = static_cast<int32_t>(msg.metadata.size());
+  entry->value.reserve(20);  // (once: any later number fits, rewritten in place)
+  entry->value.assign(text, end);
+  entry->n = n;
 }
 
 }  // namespace ld
