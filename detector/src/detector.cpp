@@ -424,6 +424,18 @@ constexpr double kFaintLookReach = 5.0, kSteepReach = 6.5;  // the windows' radi
 constexpr int kVeilDirections = 8;
 constexpr double kVeilQrReach = 2.12, kVeilTextureDisc = 0.5, kVeilTintDisc = 0.4, kVeilMinTint = 6;
 constexpr int kVeilClipped = 250, kVeilMinTintPixels = 6;
+// The veil round looks first around the red squares with the brightest
+// paper beside them: the hot spot that washed a landmark's blue out clipped
+// its sheet, which reads near white once the veil is out (244-252), where
+// the red clutter of a strongly corrected frame mostly lies on darker
+// things. The paper's brightness: the mean of the kVeilPaperKept brightest
+// of kVeilPaperPoints points one side from the square's centre, each
+// point's weakest channel (around an AP, the points towards TR, BL and the
+// QR lie on the sheet's paper; those on its outer sides are just past the
+// sheet's edge). On the lighting sweep's glare point, seeds 1-3, with each
+// anchor's own window (below): 0.75 272 -> 278 of 300 found, 0.9 122 ->
+// 128, 0.6 296 -> 298; ordered by the QR's texture instead, 0.75 gave 272.
+constexpr int kVeilPaperPoints = 16, kVeilPaperKept = 6;
 
 // One warning per process about the GPU not being used (whether it could
 // not be started or failed later).
@@ -495,6 +507,8 @@ struct Detector::Impl {
     double side = 0;  // faint look: the red square's longest axis
   };
   std::vector<Anchor> anchors, steep_anchors, steep_fip_anchors;
+  std::vector<std::pair<double, int>> veil_order;  // (paper beside, anchor): the veil round's order
+  std::vector<Anchor> veil_anchors;
   std::vector<std::pair<cv::Rect, int64_t>> blobs;  // the first pass's larger regions: bbox, area
   detail::RegionIndex fip_index;
   std::vector<cv::Rect> looked;
@@ -666,9 +680,30 @@ struct Detector::Impl {
     const cv::Point centre(static_cast<int>(std::lround(a.centre.x)), static_cast<int>(std::lround(a.centre.y)));
     for (const auto& w : looked)
       if (w.contains(centre)) return false;
-    const int r = static_cast<int>(std::ceil(a.radius));
-    win = cv::Rect(centre.x - r, centre.y - r, 2 * r + 1, 2 * r + 1) & frame;
+    win = anchorWindow(a, frame);
     return true;
+  }
+  // The window of anchor a: its radius around its centre, within the frame.
+  static cv::Rect anchorWindow(const Anchor& a, const cv::Rect& frame) {
+    const cv::Point centre(static_cast<int>(std::lround(a.centre.x)), static_cast<int>(std::lround(a.centre.y)));
+    const int r = static_cast<int>(std::ceil(a.radius));
+    return cv::Rect(centre.x - r, centre.y - r, 2 * r + 1, 2 * r + 1) & frame;
+  }
+  // The brightness of the paper one side from a red square (kVeilPaperPoints).
+  static double veilPaper(const cv::Mat& img, const Anchor& a) {
+    std::array<int, kVeilPaperPoints> v{};
+    for (int d = 0; d < kVeilPaperPoints; ++d) {
+      const double angle = 2 * CV_PI * d / kVeilPaperPoints;
+      const long x = std::lround(a.centre.x + a.side * std::cos(angle));
+      const long y = std::lround(a.centre.y + a.side * std::sin(angle));
+      if (x < 0 || y < 0 || x >= img.cols || y >= img.rows) continue;  // (0 outside the frame)
+      const uint8_t* q = img.ptr<uint8_t>(static_cast<int>(y)) + 3 * x;
+      v[static_cast<size_t>(d)] = std::min({q[0], q[1], q[2]});
+    }
+    std::partial_sort(v.begin(), v.begin() + kVeilPaperKept, v.end(), std::greater<int>());
+    double sum = 0;
+    for (int i = 0; i < kVeilPaperKept; ++i) sum += v[static_cast<size_t>(i)];
+    return sum / kVeilPaperKept;
   }
   void markUsed() {
     const size_t nf = fips.size();
@@ -1144,7 +1179,13 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
                       [&](const detail::Candidate& c) { return owns(c, a.centre, 0.5, 2.0); }))
         continue;
       cv::Rect win;
-      if (!freshWindow(a, frame, win)) continue;
+      if (veil) {
+        // (the round takes only its own square's landmark from a window, so
+        // a window looked at does not stand for the red squares in it)
+        win = anchorWindow(a, frame);
+      } else if (!freshWindow(a, frame, win)) {
+        continue;
+      }
       if (win.area() > pixels_left || win.area() / 4 > samples_left) continue;
       samples_left -= win.area() / 4;
       // (a window measured, cast or not, stands for the red squares in it)
@@ -1173,7 +1214,16 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   round(anchors, p.faint_looks, Round::kFaint);
   round(steep_anchors, p.steep_looks, Round::kSteep);
   round(steep_fip_anchors, p.steep_looks, Round::kSteepFip);
-  round(anchors, veil_looks, Round::kVeil);
+  if (veil_looks > 0) {
+    // The veil round's order: the brightest paper beside first (kVeilPaperPoints).
+    veil_order.clear();
+    for (size_t k = 0; k < anchors.size(); ++k)
+      veil_order.emplace_back(-veilPaper(img, anchors[k]), static_cast<int>(k));
+    std::sort(veil_order.begin(), veil_order.end());  // (ties: the faint look's order)
+    veil_anchors.clear();
+    for (const auto& o : veil_order) veil_anchors.push_back(anchors[static_cast<size_t>(o.second)]);
+    round(veil_anchors, veil_looks, Round::kVeil);
+  }
   endLooks();
 }
 

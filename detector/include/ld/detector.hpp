@@ -297,7 +297,11 @@ struct DetectorParams {
   /// square where the QR would lie that have the finest texture (its
   /// modules), the mean colour of the unclipped pixels less its grey is
   /// subtracted from the window before labelling. Only landmarks whose AP
-  /// is the window's red square are taken. A quarter of the frame at most.
+  /// is the window's red square are taken, so each red square gets its own
+  /// window (one inside another's window is still looked around), those
+  /// with the brightest paper beside them first (a sheet the hot spot
+  /// clipped reads near white once the veil is out). A quarter of the frame
+  /// at most.
   int veil_looks = 8;
   /// FIP and AP candidates kept (largest first; over the cap, the FIPs with
   /// a red square of a like size within reach first), and 3-cycles of the
