@@ -364,7 +364,7 @@ TEST(AdaptiveDetection, QrWashedOutByAHotSpotCountsByItsTexture) {
 // hot spot clipped reads near white once corrected), each in its own
 // window. On the lighting sweep's glare-0.75 point, seeds 1-3: 94 / 91 /
 // 93 of 100 against 92 / 89 / 91; at 0.9 41 / 45 / 42 against 39 / 44 / 39.
-// This is seed 1 at 0.75.
+// This is seed 1 at 0.75 (94 of 100; 92 before, so a frame's margin).
 TEST(AdaptiveDetection, VeilRoundLooksWhereThePaperIsBrightestFirst) {
   auto o = lit(-1, -1, true);
   o.glare = 0.75;
@@ -372,7 +372,7 @@ TEST(AdaptiveDetection, VeilRoundLooksWhereThePaperIsBrightestFirst) {
   o.seed = 1;
   const auto p = ld::eval::measure(o, 1.5, 0, 40);
   std::printf("glare 0.75, 100 frames of seed 1: %d\n", p.detected);
-  EXPECT_GE(p.detected, 94);
+  EXPECT_GE(p.detected, 93);
 }
 
 // The command line: `ld-detect --adaptive` on frames under tungsten light,

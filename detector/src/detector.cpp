@@ -1181,15 +1181,20 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
       cv::Rect win;
       if (veil) {
         // (the round takes only its own square's landmark from a window, so
-        // a window looked at does not stand for the red squares in it)
+        // a window looked at does not stand for the red squares in it. Two
+        // anchors a fraction of a side apart, one square found twice, get a
+        // window each: their sides differ, and so do the discs where the
+        // QR's tint is measured; skipping the second lost 3 frames of 300
+        // at glare 0.6, seeds 10-12)
         win = anchorWindow(a, frame);
       } else if (!freshWindow(a, frame, win)) {
         continue;
       }
       if (win.area() > pixels_left || win.area() / 4 > samples_left) continue;
       samples_left -= win.area() / 4;
-      // (a window measured, cast or not, stands for the red squares in it)
-      looked.push_back(win);
+      // (a window measured, cast or not, stands for the red squares in it;
+      // not in the veil round, above)
+      if (!veil) looked.push_back(win);
       ++looks;
       const size_t before = all_candidates.size();
       if (veil) {

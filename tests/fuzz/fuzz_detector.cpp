@@ -2,8 +2,10 @@
 //
 // Bytes 0-4 are a header: flags (bits 0-1: channels - 1, bit 2: the paper's
 // front end, bit 3: no completion of missing squares, bit 4: sizes times 8,
-// bit 5: 16-bit pixels), width and height (little-endian, 0..640, or up to
-// 5120 on a side and 16 Mpixel with bit 4). The rest, repeated, fills the
+// bit 5: 16-bit pixels, bit 6: a frame the adaptive detector took a strong
+// glare veil out of, Detector::setGlareCorrected: the faint look's veil
+// round, its wide blue and the washed-QR rule run), width and height
+// (little-endian, 0..640, or up to 5120 on a side and 16 Mpixel with bit 4). The rest, repeated, fills the
 // pixels row by row, so a seed holding a whole frame is that frame. Every
 // size from 0x0 up, any channel count: detect() must return (no landmarks
 // for what it cannot read), and whatever it reports must be finite.
@@ -41,6 +43,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const int variant = ((flags >> 2) & 1) | (((flags >> 3) & 1) << 1);
   const bool large = flags & 16;
   const int depth = flags & 32 ? CV_16U : CV_8U;
+  const bool glare_corrected = flags & 64;
   int width = (data[1] | (data[2] << 8)) % 641;
   int height = (data[3] | (data[4] << 8)) % 641;
   if (large) {
@@ -68,7 +71,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     }
   }
 
-  const ld::Detection& det = detectorFor(variant).detect(image);
+  ld::Detector& detector = detectorFor(variant);
+  detector.setGlareCorrected(glare_corrected);  // (per frame, as ld::AdaptiveDetector sets it)
+  const ld::Detection& det = detector.detect(image);
   if (det.landmarks.size() > 10000) std::abort();
   for (const ld::Landmark& lm : det.landmarks) {
     if (!finite(lm.fip_tl) || !finite(lm.fip_tr) || !finite(lm.fip_bl) || !finite(lm.ap))

@@ -13,6 +13,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "../lcm_bytes.hpp"
+#include "ld/adaptive.hpp"
 #include "ld/camera.hpp"
 #include "ld/detector.hpp"
 #include "ld/image_convert.hpp"
@@ -140,6 +141,25 @@ int main(int argc, char** argv) {
   write(root / "fuzz_detector", "bgr-landmark-paper", detectorSeed(d, 2 | 4));
   write(root / "fuzz_detector", "gray-landmark", detectorSeed(gray, 0));
   write(root / "fuzz_detector", "bgra-small", detectorSeed(bgra(cv::Rect(30, 20, 40, 30)).clone(), 3));
+  {
+    // a landmark under a warm hot spot (glare 0.75, 4200 K), as the adaptive
+    // detector gives it to the detector: its veil taken out (flag 64), where
+    // the fixed look finds nothing and the glare-corrected one the landmark
+    ld::synth::SceneSpec spec;
+    spec.camera = ld::CameraModel::pinhole({160, 120}, 160 * 0.95);
+    spec.background = ld::synth::Background::Plain;
+    spec.distractors = 0;
+    spec.landmarks.push_back(ld::synth::placeLandmark(spec.camera, 0.5, 15, 0, 10));
+    const auto t = ld::synth::truthFor(spec.camera, spec.landmarks[0]);
+    const cv::Point2d c = (t.fip_tl + t.ap) / 2;
+    spec.lighting.colour_temp_k = 4200;
+    spec.lighting.glare = 0.75;
+    spec.lighting.glare_radius = 0.15;
+    spec.lighting.glare_centre = {c.x / 160, c.y / 120};
+    ld::LightingAdapter adapter;
+    write(root / "fuzz_detector", "bgr-glare-corrected",
+          detectorSeed(adapter.correct(ld::synth::render(spec).bgr).clone(), 2 | 64));
+  }
   write(root / "fuzz_detector", "1x1", Bytes{2, 1, 0, 1, 0, 0, 0, 255});
   write(root / "fuzz_detector", "0x0", Bytes{2, 0, 0, 0, 0});
 
