@@ -142,9 +142,10 @@ int main(int argc, char** argv) {
   write(root / "fuzz_detector", "gray-landmark", detectorSeed(gray, 0));
   write(root / "fuzz_detector", "bgra-small", detectorSeed(bgra(cv::Rect(30, 20, 40, 30)).clone(), 3));
   {
-    // a landmark under a warm hot spot (glare 0.75, 4200 K), as the adaptive
-    // detector gives it to the detector: its veil taken out (flag 64), where
-    // the fixed look finds nothing and the glare-corrected one the landmark
+    // a landmark under a warm hot spot (glare 0.75, 4200 K), the frame as
+    // the lighting adapter corrects it, flagged glare-corrected (64): the
+    // detector finds the landmark only with the flag (the adapter itself
+    // would not flag it: its stretch, 2.6, is under the 3 of a strong veil)
     ld::synth::SceneSpec spec;
     spec.camera = ld::CameraModel::pinhole({160, 120}, 160 * 0.95);
     spec.background = ld::synth::Background::Plain;
