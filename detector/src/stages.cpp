@@ -169,12 +169,12 @@ double Region::side() const {
 
 // ====================================================================== front ends
 
-namespace {
-
-// out = each channel's table at bgr's value (a value's result worked out once
-// per channel, not once per pixel).
-void applyChannelTables(const cv::Mat& bgr, const uint8_t (&table)[3][256], cv::Mat& out) {
+void scaleChannels(const cv::Mat& bgr, const cv::Vec3d& gain, cv::Mat& out) {
   CV_Assert(bgr.type() == CV_8UC3 && out.type() == CV_8UC3 && out.size() == bgr.size());
+  // Each channel's products, worked out once per value, not once per pixel.
+  uint8_t table[3][256];
+  for (int c = 0; c < 3; ++c)
+    for (int v = 0; v < 256; ++v) table[c][v] = cv::saturate_cast<uint8_t>(v * gain[c]);
   for (int y = 0; y < bgr.rows; ++y) {
     const uint8_t* p = bgr.ptr<uint8_t>(y);
     uint8_t* q = out.ptr<uint8_t>(y);
@@ -184,15 +184,6 @@ void applyChannelTables(const cv::Mat& bgr, const uint8_t (&table)[3][256], cv::
       q[2] = table[2][p[2]];
     }
   }
-}
-
-}  // namespace
-
-void scaleChannels(const cv::Mat& bgr, const cv::Vec3d& gain, cv::Mat& out) {
-  uint8_t table[3][256];
-  for (int c = 0; c < 3; ++c)
-    for (int v = 0; v < 256; ++v) table[c][v] = cv::saturate_cast<uint8_t>(v * gain[c]);
-  applyChannelTables(bgr, table, out);
 }
 
 void subtractChannels(const cv::Mat& bgr, const cv::Scalar& tint, cv::Mat& out) {
