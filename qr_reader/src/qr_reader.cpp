@@ -11,6 +11,7 @@
 #include <zbar.h>
 
 #include "ld/landmark_layout.hpp"
+#include "qr_codewords.hpp"
 #include "qr_function_patterns.hpp"
 
 namespace ld {
@@ -106,6 +107,9 @@ struct QrReader::Impl {
   zbar::ImageScanner scanner;
   cv::Mat gray, view, work, blurred, map, sampled, samples, sharpened, grid8, bits, clean;
   std::vector<int8_t> known, grid;  // the equaliser's modules: -1 unknown, 0 light, 1 dark
+  std::vector<float> darkness;      // ... and how dark each is, as it estimates (0 light .. 1 dark)
+  std::vector<uint8_t> corrected;   // the symbol as the corrector mends it (1 dark)
+  detail::QrCorrector corrector;
   std::vector<double> fit_a, fit_b;
   cv::Mat profile;                        // followTiming's samples along a line
   std::vector<double> col_at, row_at;     // the modules' middles it found (empty: evenly spaced)
@@ -121,8 +125,9 @@ struct QrReader::Impl {
   // modules thresholded and redrawn as a clean code (its function patterns
   // ideal) for zbar, whose error correction rejects wrong versions and bad
   // reads.
-  // The payload, and 0 when the equaliser's modules gave it, 1 when the
-  // modules thresholded as read or after a fixed sharpening did.
+  // The payload, and 0 when the equaliser's modules gave it, 2 when they did
+  // once their codewords were corrected with erasures, 1 when the modules
+  // thresholded as read or after a fixed sharpening did.
   std::optional<std::pair<std::string, int>> readGrid(const cv::Matx33d& sheet_to_image, double qr_px) {
     std::vector<std::pair<double, int>> candidates;  // (finder score, n)
     for (int version = 1; version <= 15; ++version) {
@@ -243,11 +248,19 @@ struct QrReader::Impl {
     return best;
   }
 
-  // The payload from `samples` (readGrid's pair): equalised, else sharpened
-  // by fixed amounts and thresholded globally (Otsu) and locally.
+  // The payload from `samples` (readGrid's pair): equalised, then its
+  // codewords corrected with the least sure ones erased (qr_codewords.hpp),
+  // else sharpened by fixed amounts and thresholded globally (Otsu) and
+  // locally.
   std::optional<std::pair<std::string, int>> readSamples(int n) {
-    if (equalise(n))
+    if (equalise(n)) {
       if (auto r = scanBits(n)) return std::pair{*r, 0};
+      if (corrector.correct(n, darkness.data(), corrected)) {
+        for (int r = 0; r < n; ++r)
+          for (int c = 0; c < n; ++c) bits.at<uint8_t>(r, c) = corrected[static_cast<size_t>(r) * n + c] ? 0 : 255;
+        if (auto r = scanBits(n)) return std::pair{*r, 2};
+      }
+    }
     for (double k : {0.0, 1.4, 2.5})
       for (bool local : {false, true}) {
         thresholdModules(n, k, local);
@@ -441,6 +454,22 @@ struct QrReader::Impl {
         }
       if (!changed) break;
     }
+    // How dark each module is once its neighbours' share is taken off (known
+    // modules as they are): how sure the last sweep's decision was.
+    darkness.resize(static_cast<size_t>(n) * n);
+    for (int r = 0; r < n; ++r)
+      for (int c = 0; c < n; ++c) {
+        float& d = darkness[static_cast<size_t>(r) * n + c];
+        if (at(known, r, c) >= 0) {
+          d = static_cast<float>(at(known, r, c));
+          continue;
+        }
+        features(grid, r, c, f);
+        double rest = 0;
+        for (int k = 0; k < kFeatures; ++k)
+          if (k != 5) rest += w.at<double>(k) * f[k];
+        d = static_cast<float>((samples.at<float>(r, c) - rest) / own);
+      }
     for (int r = 0; r < n; ++r)
       for (int c = 0; c < n; ++c) bits.at<uint8_t>(r, c) = at(grid, r, c) ? 0 : 255;
     return true;

@@ -35,7 +35,8 @@ struct QrResult {
   /// Which variation decoded it: 0 the plain view; 1 Otsu, 2 sharpened, 3
   /// adaptive threshold, 4 and 5 other scales of the view; 6 the modules read
   /// one by one and equalised against the blur, 7 the same thresholded as
-  /// read or after a fixed sharpening.
+  /// read or after a fixed sharpening, 8 the equalised modules' codewords
+  /// corrected with the least sure ones erased.
   int attempt = 0;
 };
 
