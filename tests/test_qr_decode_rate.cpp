@@ -86,22 +86,24 @@ TEST(QrDecodeRate, Landmark15cmPayloadsUpTo100BytesFrom30To60cm) {
   EXPECT_EQ(t.wrong_payload, 0);
 }
 
-// ld-qr-reader's stack of an undecoded track's frames: 100-byte codes at 1.0
-// to 1.1 m (a pixel per module or less), the same landmark in 8 frames a
-// fraction of a pixel apart, each with its own sensor noise and JPEG, read
-// at the detector's corners. Single frames do not resolve the modules;
-// their mean in the sheet's frame mostly does.
+// ld-qr-reader's stack of an undecoded track's frames: 100-byte codes at
+// 1.05 to 1.15 m (a pixel per module or less), the same landmark in 8 frames
+// a fraction of a pixel apart, each with its own sensor noise and JPEG, read
+// at the detector's corners. Single frames seldom resolve the modules (at
+// 1.0 to 1.1 m, since the reader fits the modules to the pixels, they read
+// 21 of 64); their mean in the sheet's frame mostly does.
 TEST(QrStack, AveragedFramesReadWhatSingleFramesMiss) {
   const ld::CameraModel cam = ld::CameraModel::defaultVga();
   ld::Detector detector;
   ld::QrReader reader;
   std::mt19937_64 rng(77);
   std::uniform_real_distribution<double> U(-1, 1);
-  int single = 0, singles = 0, stacked = 0, wrong = 0;
+  int single = 0, singles = 0, stacked = 0, wrong = 0, only_stacked = 0;
   const int kPoses = 8, kFrames = 8;
   for (int pose = 0; pose < kPoses; ++pose) {
     std::string payload = ld::eval::payloadFor(5 * pose + 4);  // the 99-100-byte kind
-    const double distance = 1.0 + 0.05 * (pose % 3), yaw = 30 * U(rng), roll = 180 * U(rng);
+    const double distance = 1.05 + 0.05 * (pose % 3), yaw = 30 * U(rng), roll = 180 * U(rng);
+    int pose_single = 0;
     const double nx = 0.3 * U(rng), ny = 0.3 * U(rng);
     ld::QrStack stack;
     for (int f = 0; f < kFrames; ++f) {
@@ -119,21 +121,24 @@ TEST(QrStack, AveragedFramesReadWhatSingleFramesMiss) {
       ++singles;
       if (auto r = reader.decode(frame.bgr, d.landmarks[0].corners)) {
         single += r->payload == payload;
+        pose_single += r->payload == payload;
         wrong += r->payload != payload;
       }
       stack.add(frame.bgr, d.landmarks[0].corners);
     }
     if (auto r = stack.decode(reader)) {
       stacked += r->payload == payload;
+      only_stacked += r->payload == payload && pose_single == 0;
       wrong += r->payload != payload;
     }
-    std::printf("pose %d (%.2f m, yaw %.0f): %d frames in the stack\n", pose, distance, yaw, stack.frames());
+    std::printf("pose %d (%.2f m, yaw %.0f): %d frames in the stack, %d read alone\n", pose, distance, yaw, stack.frames(), pose_single);
   }
-  std::printf("single frames decoded %d/%d, stacks decoded %d/%d\n", single, singles, stacked, kPoses);
+  std::printf("single frames decoded %d/%d, stacks decoded %d/%d (%d where no frame alone read)\n", single, singles, stacked, kPoses, only_stacked);
   EXPECT_EQ(wrong, 0);
   EXPECT_GE(singles, kPoses * kFrames * 9 / 10);      // the detector finds the landmark ...
-  EXPECT_LE(single, singles / 10);                    // ... but single frames do not read it
-  EXPECT_GE(stacked, kPoses * 5 / 8);                 // (measured: 0 / 64 frames, 7 / 8 stacks)
+  EXPECT_LE(single, singles / 10);                    // ... but single frames seldom read it
+  EXPECT_GE(stacked, kPoses / 2);                     // (measured: 4 / 64 frames, 5 / 8 stacks,
+  EXPECT_GE(only_stacked, 3);                         //  4 of them where no frame alone read)
 }
 
 // The printed code's error correction: auto takes level L's symbol for 100

@@ -2,6 +2,7 @@
 // with zbar; damaged, missing or degenerate input gives no payload.
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <random>
 #include <set>
 #include <sstream>
@@ -16,6 +17,7 @@
 #include "ld/qr_track_reader.hpp"
 #include "../qr_reader/src/qr_codewords.hpp"
 #include "../qr_reader/src/qr_function_patterns.hpp"
+#include "../qr_reader/src/qr_pixel_model.hpp"
 
 namespace {
 
@@ -155,6 +157,106 @@ TEST(QrReader, EqualisesBlurredModules) {
   ASSERT_TRUE(r.has_value());
   EXPECT_EQ(r->payload, payload);
   EXPECT_EQ(r->attempt, 6) << "decoded by attempt " << r->attempt;
+}
+
+// A 100-byte payload (version 5 at level L: 37 modules) at about 1.04 camera
+// pixels per module, defocused: sampled at the modules' centres, too many
+// modules are wrong even for the erasures; fitted to the pixels through the
+// camera's blur (the pixel model), the code reads.
+Scene defocusedLongCode(const std::string& payload, double sigma) {
+  const auto qr = ld::artwork::encodeQr(payload);
+  EXPECT_EQ(qr.size, 37);
+  const cv::Mat sheet = ld::artwork::renderLandmark(qr, 900);
+  // sheet side about 91 px: QR square 40.5 px for 39 modules (code + quiet
+  // zone); drawn 8 times finer and box-filtered down, as a sensor integrates
+  // over its pixels (warpPerspective alone samples the artwork, aliased)
+  // (the sheet's pixel i spans [i, i + 1) of its edge coordinates, which is
+  // what `sheet_to_fine` maps; the fine image's pixel centres are at +0.5)
+  const std::array<cv::Point2f, 4> corners{{{275, 195}, {365.9f, 198.6f}, {364.1f, 288.6f}, {273.2f, 285.9f}}};
+  const cv::Rect region(240, 160, 160, 160);
+  constexpr float kFine = 8;
+  const float s = static_cast<float>(sheet.cols);
+  std::vector<cv::Point2f> edge{{0, 0}, {s, 0}, {s, s}, {0, s}}, fine;
+  for (const auto& c : corners) fine.push_back((c - cv::Point2f(region.tl()) + cv::Point2f(0.5f, 0.5f)) * kFine);
+  const cv::Matx33d sheet_to_fine(cv::getPerspectiveTransform(edge, fine));
+  // (warpPerspective maps pixel indices: the sheet's index i is its edge
+  // coordinate i + 0.5, the fine image's edge coordinate e its index e - 0.5)
+  const cv::Matx33d index_to_index =
+      cv::Matx33d(1, 0, -0.5, 0, 1, -0.5, 0, 0, 1) * sheet_to_fine * cv::Matx33d(1, 0, 0.5, 0, 1, 0.5, 0, 0, 1);
+  cv::Mat big(static_cast<int>(region.height * kFine), static_cast<int>(region.width * kFine), CV_8UC3,
+              cv::Scalar(120, 130, 140));
+  cv::warpPerspective(sheet, big, index_to_index, big.size(), cv::INTER_LINEAR, cv::BORDER_TRANSPARENT);
+  Scene sc;
+  sc.image = cv::Mat(480, 640, CV_8UC3, cv::Scalar(120, 130, 140));
+  cv::resize(big, sc.image(region), region.size(), 0, 0, cv::INTER_AREA);
+  for (size_t i = 0; i < 4; ++i) {
+    const auto& c = ld::layout::kCornersU[i];
+    const cv::Vec3d p = sheet_to_fine * cv::Vec3d(c[0] * s / 9.0, c[1] * s / 9.0, 1.0);
+    // fine edge coordinates -> image pixel coordinates (centres at integers)
+    sc.corners[i] = cv::Point2f(static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])) / kFine -
+                    cv::Point2f(0.5f, 0.5f) + cv::Point2f(region.tl());
+  }
+  cv::GaussianBlur(sc.image, sc.image, {0, 0}, sigma);
+  cv::Mat noise(sc.image.size(), CV_32FC3);
+  cv::theRNG().state = 42;
+  cv::randn(noise, 0, 2.0);
+  cv::Mat f;
+  sc.image.convertTo(f, CV_32FC3);
+  f += noise;
+  f.convertTo(sc.image, CV_8UC3);
+  return sc;
+}
+
+TEST(QrReader, FitsModulesToThePixelsThroughTheBlur) {
+  std::string payload = "https://example.org/building-7/floor-2/corridor-B/landmark?id=7&v=";
+  while (payload.size() < 100) payload += static_cast<char>('a' + payload.size() % 26);
+  ld::QrReader reader;
+  const Scene sc = defocusedLongCode(payload, 0.4);
+  const auto r = reader.decode(sc.image, sc.corners);
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(r->payload, payload);
+  EXPECT_EQ(r->attempt, 9) << "decoded by attempt " << r->attempt;
+}
+
+// The pixel model on its own: nearly every data module of that code as
+// printed, where the modules' centres sampled get many wrong; and nothing
+// (no crash) for a grid off the image or an image of the wrong type.
+TEST(QrPixelModel, EstimatesTheModulesOfABlurredCode) {
+  std::string payload = "https://example.org/building-7/floor-2/corridor-B/landmark?id=7&v=";
+  while (payload.size() < 100) payload += static_cast<char>('a' + payload.size() % 26);
+  const auto qr = ld::artwork::encodeQr(payload);
+  const Scene sc = defocusedLongCode(payload, 0.4);
+  cv::Mat gray;
+  cv::cvtColor(sc.image, gray, cv::COLOR_BGR2GRAY);
+  const int n = qr.size;
+  const double module = (ld::layout::kQrMax - ld::layout::kQrMin) / (n + 2);
+  const cv::Matx33d module_to_sheet(module, 0, ld::layout::kQrMin + module, 0, module, ld::layout::kQrMin + module, 0, 0, 1);
+  const cv::Matx33d module_to_image = ld::layout::sheetToImage(sc.corners) * module_to_sheet;
+  ld::detail::QrPixelModel model;
+  std::vector<float> darkness;
+  ASSERT_TRUE(model.estimate(gray, module_to_image, n, darkness));
+  ASSERT_EQ(darkness.size(), static_cast<size_t>(n * n));
+  const auto data = ld::detail::qrDataModules(n);
+  int wrong = 0, count = 0, wrong_sampled = 0;
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < n; ++c) {
+      const size_t i = static_cast<size_t>(r) * n + c;
+      if (!data[i]) continue;
+      ++count;
+      wrong += (darkness[i] > 0.5f) != qr.dark(c, r);
+      // the module's centre, thresholded halfway between the code's light and dark
+      const cv::Vec3d p = module_to_image * cv::Vec3d(c + 0.5, r + 0.5, 1);
+      cv::Mat px;
+      cv::getRectSubPix(gray, {1, 1}, {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])}, px);
+      wrong_sampled += (px.at<uint8_t>(0, 0) < 128) != qr.dark(c, r);
+    }
+  std::printf("data modules wrong: pixel model %d, centres sampled %d, of %d\n", wrong, wrong_sampled, count);
+  EXPECT_LT(wrong, count / 50);
+  EXPECT_GT(wrong_sampled, 4 * wrong);
+  // a grid off the image, a colour image: nothing
+  const cv::Matx33d away(1, 0, 5000, 0, 1, 5000, 0, 0, 1);
+  EXPECT_FALSE(model.estimate(gray, away * module_to_image, n, darkness));
+  EXPECT_FALSE(model.estimate(sc.image, module_to_image, n, darkness));
 }
 
 // A track's stack holds one landmark: frames of another (a tracker that

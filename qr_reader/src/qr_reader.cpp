@@ -13,6 +13,7 @@
 #include "ld/landmark_layout.hpp"
 #include "qr_codewords.hpp"
 #include "qr_function_patterns.hpp"
+#include "qr_pixel_model.hpp"
 
 namespace ld {
 namespace {
@@ -69,6 +70,11 @@ cv::Vec2f moduleToImage(const cv::Matx33d& sheet_to_image, double module, double
   return {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
 }
 
+// The pixel model (qr_pixel_model.hpp) is tried for codes whose modules are
+// under this many pixels: its cost grows with the pixels, and where a module
+// has two or more the equaliser reads all a model would.
+constexpr double kPixelModelMaxPx = 2.0;
+
 // The grid as the corners put it: not moved (readBent moves it).
 const cv::Matx23d kFlatGrid(1, 0, 0, 0, 1, 0);
 
@@ -110,6 +116,7 @@ struct QrReader::Impl {
   std::vector<float> darkness;      // ... and how dark each is, as it estimates (0 light .. 1 dark)
   std::vector<uint8_t> corrected;   // the symbol as the corrector mends it (1 dark)
   detail::QrCorrector corrector;
+  detail::QrPixelModel pixel_model;
   std::vector<double> fit_a, fit_b;
   cv::Mat profile;                        // followTiming's samples along a line
   std::vector<double> col_at, row_at;     // the modules' middles it found (empty: evenly spaced)
@@ -127,7 +134,8 @@ struct QrReader::Impl {
   // reads.
   // The payload, and 0 when the equaliser's modules gave it, 2 when they did
   // once their codewords were corrected with erasures, 1 when the modules
-  // thresholded as read or after a fixed sharpening did.
+  // thresholded as read or after a fixed sharpening did, 3 when the pixel
+  // model's did.
   std::optional<std::pair<std::string, int>> readGrid(const cv::Matx33d& sheet_to_image, double qr_px) {
     std::vector<std::pair<double, int>> candidates;  // (finder score, n)
     for (int version = 1; version <= 15; ++version) {
@@ -137,6 +145,10 @@ struct QrReader::Impl {
       candidates.emplace_back(finderScore(samples, n), n);
     }
     std::sort(candidates.rbegin(), candidates.rend());
+    // (the candidate whose finders the aligned grid fits best, for the pixel model)
+    double top_score = -2;
+    int top_n = 0;
+    cv::Matx33d top_grid = sheet_to_image;
     for (size_t k = 0; k < candidates.size() && k < 3; ++k) {
       const int n = candidates[k].second;
       if (candidates[k].first < 0.3) break;
@@ -161,8 +173,15 @@ struct QrReader::Impl {
       // blur, which costs modules from about 1.5 px per module down.
       sampleModules(best, n, 1);
       if (auto r = readSamples(n)) return r;
+      if (best_score > top_score) top_score = best_score, top_n = n, top_grid = best;
     }
-    return readBent(sheet_to_image, qr_px);
+    if (auto r = readBent(sheet_to_image, qr_px)) return r;
+    // Last, the code fitted to the pixels (the slowest way: once, for the
+    // version whose finders fit best, and only where its modules are under
+    // kPixelModelMaxPx: larger ones the ways above read).
+    if (top_n > 0 && qr_px / (top_n + 2) < kPixelModelMaxPx)
+      if (auto r = readPixels(top_grid, top_n)) return std::pair{*r, 3};
+    return std::nullopt;
   }
 
   // A sheet that is not flat (curled, or round a pillar) moves its QR off
@@ -255,11 +274,7 @@ struct QrReader::Impl {
   std::optional<std::pair<std::string, int>> readSamples(int n) {
     if (equalise(n)) {
       if (auto r = scanBits(n)) return std::pair{*r, 0};
-      if (corrector.correct(n, darkness.data(), corrected)) {
-        for (int r = 0; r < n; ++r)
-          for (int c = 0; c < n; ++c) bits.at<uint8_t>(r, c) = corrected[static_cast<size_t>(r) * n + c] ? 0 : 255;
-        if (auto r = scanBits(n)) return std::pair{*r, 2};
-      }
+      if (auto r = scanCorrected(n)) return std::pair{*r, 2};
     }
     for (double k : {0.0, 1.4, 2.5})
       for (bool local : {false, true}) {
@@ -267,6 +282,29 @@ struct QrReader::Impl {
         if (auto r = scanBits(n)) return std::pair{*r, 1};
       }
     return std::nullopt;
+  }
+
+  // The code from the pixel model (qr_pixel_model.hpp) on the grid that
+  // `sheet_to_image` puts: its modules as estimated, else corrected with the
+  // least sure ones erased.
+  std::optional<std::string> readPixels(const cv::Matx33d& sheet_to_image, int n) {
+    const double module = (layout::kQrMax - layout::kQrMin) / (n + 2);
+    const cv::Matx33d module_to_sheet(module, 0, layout::kQrMin + module, 0, module, layout::kQrMin + module, 0, 0, 1);
+    if (!pixel_model.estimate(gray, sheet_to_image * module_to_sheet, n, darkness)) return std::nullopt;
+    bits.create(n, n, CV_8U);
+    for (int r = 0; r < n; ++r)
+      for (int c = 0; c < n; ++c) bits.at<uint8_t>(r, c) = darkness[static_cast<size_t>(r) * n + c] > 0.5f ? 0 : 255;
+    if (auto r = scanBits(n)) return r;
+    return scanCorrected(n);
+  }
+
+  // The code `darkness` holds (n x n), its codewords corrected with the least
+  // sure ones erased, read by zbar.
+  std::optional<std::string> scanCorrected(int n) {
+    if (!corrector.correct(n, darkness.data(), corrected)) return std::nullopt;
+    for (int r = 0; r < n; ++r)
+      for (int c = 0; c < n; ++c) bits.at<uint8_t>(r, c) = corrected[static_cast<size_t>(r) * n + c] ? 0 : 255;
+    return scanBits(n);
   }
 
   // Where each module column's and row's middle lies (in modules, from the

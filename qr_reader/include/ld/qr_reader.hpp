@@ -36,7 +36,8 @@ struct QrResult {
   /// adaptive threshold, 4 and 5 other scales of the view; 6 the modules read
   /// one by one and equalised against the blur, 7 the same thresholded as
   /// read or after a fixed sharpening, 8 the equalised modules' codewords
-  /// corrected with the least sure ones erased.
+  /// corrected with the least sure ones erased, 9 the modules fitted to the
+  /// pixels through a model of the camera's blur (as estimated or corrected).
   int attempt = 0;
 };
 

@@ -1,0 +1,495 @@
+#include "qr_pixel_model.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
+#include "qr_function_patterns.hpp"
+
+namespace ld::detail {
+namespace {
+
+// The blur kernels tried, over 7 x 7 pixels: a round Gaussian of sigma px
+// sampled at the pixels' centres (a sensor's pixels sample the optics' blur;
+// each pixel's own square is the cover's). Motion blur (a line) is not
+// modelled: stretched kernels and lines were tried and read 1 code more in
+// 80 at 0.75 m (1.4 px per module), where frames with motion are the misses.
+constexpr int kKernelReach = 3;
+void blurKernel(double sigma, cv::Mat& k) {
+  k.create(2 * kKernelReach + 1, 2 * kKernelReach + 1, CV_32F);
+  double total = 0;
+  for (int y = -kKernelReach; y <= kKernelReach; ++y)
+    for (int x = -kKernelReach; x <= kKernelReach; ++x) {
+      const double v = std::exp(-0.5 * (x * x + y * y) / (sigma * sigma));
+      k.at<float>(y + kKernelReach, x + kKernelReach) = static_cast<float>(v);
+      total += v;
+    }
+  k /= total;
+}
+
+// The blurs tried, and then one between the best and its neighbours.
+constexpr double kSigmas[] = {0.15, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.15, 1.3};
+const std::vector<cv::Mat>& kernels() {
+  static const std::vector<cv::Mat> k = [] {
+    std::vector<cv::Mat> v;
+    for (double s : kSigmas) blurKernel(s, v.emplace_back());
+    return v;
+  }();
+  return k;
+}
+
+// Sub-samples per pixel side for the modules' shares of a pixel's square.
+constexpr int kCoverSub = 6;
+// A pixel is fitted for the light when this share of it sees known modules.
+constexpr double kKnownShare = 0.98;
+// Least-squares iterations, and its pull towards 0.5 (keeps modules no pixel
+// sees at undecided).
+constexpr int kSolveIterations = 20;
+constexpr double kPull = 0.05;
+constexpr int kMaxSweeps = 30;
+// Steps of moving the grid onto the pixels.
+constexpr int kAlignSteps = 2;
+
+}  // namespace
+
+bool QrPixelModel::cover(const cv::Mat& gray, const cv::Matx33d& module_to_image, int n) {
+  const cv::Matx33d to_module = module_to_image.inv();
+  double x0 = 1e9, y0 = 1e9, x1 = -1e9, y1 = -1e9;
+  for (const auto& [mx, my] : {std::pair{-1.0, -1.0}, {n + 1.0, -1.0}, {n + 1.0, n + 1.0}, {-1.0, n + 1.0}}) {
+    const cv::Vec3d p = module_to_image * cv::Vec3d(mx, my, 1);
+    if (!(p[2] > 0)) return false;
+    x0 = std::min(x0, p[0] / p[2]), x1 = std::max(x1, p[0] / p[2]);
+    y0 = std::min(y0, p[1] / p[2]), y1 = std::max(y1, p[1] / p[2]);
+  }
+  // the QR square and its quiet zone, and room for the blur around them
+  constexpr int kPad = kKernelReach + 1;
+  if (!(x1 > 0 && y1 > 0 && x0 < gray.cols && y0 < gray.rows)) return false;
+  const int u0 = std::max(0, static_cast<int>(std::floor(x0)) - kPad);
+  const int u1 = std::min(gray.cols - 1, static_cast<int>(std::ceil(x1)) + kPad);
+  const int v0 = std::max(0, static_cast<int>(std::floor(y0)) - kPad);
+  const int v1 = std::min(gray.rows - 1, static_cast<int>(std::ceil(y1)) + kPad);
+  if (u1 - u0 < 8 || v1 - v0 < 8) return false;
+  gray(cv::Rect(u0, v0, u1 - u0 + 1, v1 - v0 + 1)).convertTo(value_, CV_32F);
+  roi_x_ = u0, roi_y_ = v0;
+  valid_.create(value_.size(), CV_8U);
+  cover_start_.clear();
+  cover_module_.clear();
+  cover_weight_.clear();
+  int mods[kCoverSub * kCoverSub], counts[kCoverSub * kCoverSub];
+  for (int v = v0; v <= v1; ++v)
+    for (int u = u0; u <= u1; ++u) {
+      const cv::Vec3d c = to_module * cv::Vec3d(u, v, 1);
+      const double mx = c[0] / c[2], my = c[1] / c[2];
+      // pixels in the QR square (code and quiet zone) are fitted
+      valid_.at<uint8_t>(v - v0, u - u0) = mx >= -1 && my >= -1 && mx <= n + 1 && my <= n + 1;
+      // the square's sub-samples, through the homography's local linear map
+      const cv::Vec3d cx = to_module * cv::Vec3d(u + 1, v, 1), cy = to_module * cv::Vec3d(u, v + 1, 1);
+      const double jxx = cx[0] / cx[2] - mx, jyx = cx[1] / cx[2] - my;
+      const double jxy = cy[0] / cy[2] - mx, jyy = cy[1] / cy[2] - my;
+      int count = 0;
+      for (int ky = 0; ky < kCoverSub; ++ky)
+        for (int kx = 0; kx < kCoverSub; ++kx) {
+          const double dx = (kx + 0.5) / kCoverSub - 0.5, dy = (ky + 0.5) / kCoverSub - 0.5;
+          const double px = mx + jxx * dx + jxy * dy, py = my + jyx * dx + jyy * dy;
+          // (outside the grid: the outer light ring, which the sheet is)
+          const int col = std::clamp(static_cast<int>(std::floor(px)) + 2, 0, g_ - 1);
+          const int row = std::clamp(static_cast<int>(std::floor(py)) + 2, 0, g_ - 1);
+          const int m = row * g_ + col;
+          int t = 0;
+          while (t < count && mods[t] != m) ++t;
+          if (t == count) mods[count] = m, counts[count] = 0, ++count;
+          ++counts[t];
+        }
+      cover_start_.push_back(static_cast<int>(cover_module_.size()));
+      for (int t = 0; t < count; ++t) {
+        cover_module_.push_back(mods[t]);
+        cover_weight_.push_back(static_cast<float>(counts[t]) / (kCoverSub * kCoverSub));
+      }
+    }
+  cover_start_.push_back(static_cast<int>(cover_module_.size()));
+  // (what the known modules cover, and how dark: the same for every blur tried)
+  render(ones_, true, known_cover_);
+  render(x_, true, known_dark_cover_);
+  return true;
+}
+
+// C x over the known modules (which 0), the unknown ones (1) or all (2).
+void QrPixelModel::render(const std::vector<float>& x, bool known, cv::Mat& out) {
+  out.create(value_.size(), CV_32F);
+  float* o = out.ptr<float>();
+  const int pixels = value_.rows * value_.cols;
+  for (int j = 0; j < pixels; ++j) {
+    float s = 0;
+    for (int t = cover_start_[static_cast<size_t>(j)]; t < cover_start_[static_cast<size_t>(j) + 1]; ++t) {
+      const auto m = static_cast<size_t>(cover_module_[static_cast<size_t>(t)]);
+      if ((known_[m] != 0) == known) s += cover_weight_[static_cast<size_t>(t)] * x[m];
+    }
+    o[j] = s;
+  }
+}
+
+// The light a + b k (each a plane across the code: 1, u, v) fitted on the
+// pixels that see known modules only, through `kernel`; the fit's rms
+// difference (gray levels), or -1 when too few pixels see known modules.
+double QrPixelModel::fitLight(const cv::Mat& kernel, double coeff[6]) {
+  cv::filter2D(known_cover_, known_share_, CV_32F, kernel, {-1, -1}, 0, cv::BORDER_REPLICATE);
+  cv::filter2D(known_dark_cover_, known_dark_, CV_32F, kernel, {-1, -1}, 0, cv::BORDER_REPLICATE);
+  cv::Matx<double, 6, 6> ata = cv::Matx<double, 6, 6>::zeros();
+  cv::Matx<double, 6, 1> atb = cv::Matx<double, 6, 1>::zeros();
+  double btb = 0;
+  int rows = 0;
+  const double cu = value_.cols / 2.0, cv0 = value_.rows / 2.0, scale = 1.0 / std::max(value_.cols, value_.rows);
+  for (int y = 0; y < value_.rows; ++y)
+    for (int x = 0; x < value_.cols; ++x) {
+      if (!valid_.at<uint8_t>(y, x) || known_share_.at<float>(y, x) < kKnownShare) continue;
+      const double k = known_dark_.at<float>(y, x), u = (x - cu) * scale, v = (y - cv0) * scale;
+      const double f[6] = {1, u, v, k, u * k, v * k};
+      const double p = value_.at<float>(y, x);
+      for (int i = 0; i < 6; ++i) {
+        for (int j = 0; j < 6; ++j) ata(i, j) += f[i] * f[j];
+        atb(i) += f[i] * p;
+      }
+      btb += p * p;
+      ++rows;
+    }
+  if (rows < 40) return -1;
+  cv::Matx<double, 6, 1> w;
+  if (!cv::solve(ata, atb, w, cv::DECOMP_SVD)) return -1;
+  // |A w - b|^2 = w' A'A w - 2 w' A'b + b'b
+  const double res = (w.t() * ata * w)(0) - 2 * (w.t() * atb)(0) + btb;
+  for (int i = 0; i < 6; ++i) coeff[i] = w(i);
+  return std::sqrt(std::max(0.0, res / rows));
+}
+
+// The unknown modules' least-squares darkness: (W'W + kPull I) x = W'y +
+// kPull / 2 over them, W = K C, by conjugate gradients.
+void QrPixelModel::solveLeastSquares(int iterations) {
+  const size_t gg = x_.size();
+  auto apply = [&](const std::vector<float>& x, std::vector<float>& out) {
+    render(x, false, tmp1_);
+    cv::filter2D(tmp1_, tmp2_, CV_32F, kernel_, {-1, -1}, 0, cv::BORDER_CONSTANT);
+    tmp2_ = tmp2_.mul(weight_);
+    cv::filter2D(tmp2_, tmp1_, CV_32F, flipped_, {-1, -1}, 0, cv::BORDER_CONSTANT);
+    out.assign(gg, 0.0f);
+    const float* v = tmp1_.ptr<float>();
+    const int pixels = value_.rows * value_.cols;
+    for (int j = 0; j < pixels; ++j)
+      for (int t = cover_start_[static_cast<size_t>(j)]; t < cover_start_[static_cast<size_t>(j) + 1]; ++t) {
+        const auto m = static_cast<size_t>(cover_module_[static_cast<size_t>(t)]);
+        if (!known_[m]) out[m] += cover_weight_[static_cast<size_t>(t)] * v[j];
+      }
+    for (size_t m = 0; m < gg; ++m)
+      if (!known_[m]) out[m] += static_cast<float>(kPull) * x[m];
+  };
+  // right-hand side W'y + kPull / 2 (target_ is y, zero where not fitted), in cg_r_
+  cv::filter2D(target_, tmp1_, CV_32F, flipped_, {-1, -1}, 0, cv::BORDER_CONSTANT);
+  cg_r_.assign(gg, 0.0f);
+  {
+    const float* v = tmp1_.ptr<float>();
+    const int pixels = value_.rows * value_.cols;
+    for (int j = 0; j < pixels; ++j)
+      for (int t = cover_start_[static_cast<size_t>(j)]; t < cover_start_[static_cast<size_t>(j) + 1]; ++t) {
+        const auto m = static_cast<size_t>(cover_module_[static_cast<size_t>(t)]);
+        if (!known_[m]) cg_r_[m] += cover_weight_[static_cast<size_t>(t)] * v[j];
+      }
+  }
+  // from x = 0.5: r = rhs - A x, p = r
+  cg_x_.assign(gg, 0.0f);
+  for (size_t m = 0; m < gg; ++m)
+    if (!known_[m]) cg_r_[m] += static_cast<float>(kPull * 0.5), cg_x_[m] = 0.5f;
+  apply(cg_x_, cg_q_);
+  for (size_t m = 0; m < gg; ++m) cg_r_[m] = known_[m] ? 0.0f : cg_r_[m] - cg_q_[m];
+  cg_p_ = cg_r_;
+  double rr = 0;
+  for (float r : cg_r_) rr += static_cast<double>(r) * r;
+  for (int it = 0; it < iterations && rr > 1e-9; ++it) {
+    apply(cg_p_, cg_q_);
+    double pq = 0;
+    for (size_t m = 0; m < gg; ++m) pq += static_cast<double>(cg_p_[m]) * cg_q_[m];
+    if (!(pq > 0)) break;
+    const double alpha = rr / pq;
+    double rr_next = 0;
+    for (size_t m = 0; m < gg; ++m) {
+      cg_x_[m] += static_cast<float>(alpha * cg_p_[m]);
+      cg_r_[m] -= static_cast<float>(alpha * cg_q_[m]);
+      rr_next += static_cast<double>(cg_r_[m]) * cg_r_[m];
+    }
+    const double beta = rr_next / rr;
+    rr = rr_next;
+    for (size_t m = 0; m < gg; ++m) cg_p_[m] = cg_r_[m] + static_cast<float>(beta * cg_p_[m]);
+  }
+  for (size_t m = 0; m < gg; ++m)
+    if (!known_[m]) x_[m] = cg_x_[m] > 0.5f ? 1.0f : 0.0f;
+}
+
+// Each unknown module's footprint: the fitted pixels it reaches through the
+// blur, and by how much (its share of each pixel's square, blurred).
+void QrPixelModel::buildFootprints() {
+  const size_t gg = x_.size();
+  const int w = value_.cols, h = value_.rows, pixels = w * h;
+  // the cover by module (unknown modules only)
+  by_module_start_.assign(gg + 1, 0);
+  for (int j = 0; j < pixels; ++j)
+    for (int t = cover_start_[static_cast<size_t>(j)]; t < cover_start_[static_cast<size_t>(j) + 1]; ++t)
+      ++by_module_start_[static_cast<size_t>(cover_module_[static_cast<size_t>(t)]) + 1];
+  for (size_t m = 0; m < gg; ++m) by_module_start_[m + 1] += by_module_start_[m];
+  by_module_pixel_.resize(static_cast<size_t>(by_module_start_[gg]));
+  by_module_weight_.resize(by_module_pixel_.size());
+  slot_.assign(gg, 0);  // (fill positions per module, reused below per pixel)
+  for (int j = 0; j < pixels; ++j)
+    for (int t = cover_start_[static_cast<size_t>(j)]; t < cover_start_[static_cast<size_t>(j) + 1]; ++t) {
+      const auto m = static_cast<size_t>(cover_module_[static_cast<size_t>(t)]);
+      const auto at = static_cast<size_t>(by_module_start_[m] + slot_[m]++);
+      by_module_pixel_[at] = j;
+      by_module_weight_[at] = cover_weight_[static_cast<size_t>(t)];
+    }
+  // through the kernel (filter2D's correlation: pixel j feeds j - offset)
+  slot_.assign(static_cast<size_t>(pixels), -1);
+  foot_start_.assign(gg + 1, 0);
+  foot_pixel_.clear();
+  foot_weight_.clear();
+  const float* wt = weight_.ptr<float>();
+  for (size_t m = 0; m < gg; ++m) {
+    foot_start_[m] = static_cast<int>(foot_pixel_.size());
+    if (known_[m]) continue;
+    const size_t first = foot_pixel_.size();
+    for (int t = by_module_start_[m]; t < by_module_start_[m + 1]; ++t) {
+      const int j = by_module_pixel_[static_cast<size_t>(t)], y = j / w, x = j % w;
+      for (int ky = 0; ky < kernel_.rows; ++ky)
+        for (int kx = 0; kx < kernel_.cols; ++kx) {
+          const int y2 = y - (ky - kKernelReach), x2 = x - (kx - kKernelReach);
+          if (y2 < 0 || x2 < 0 || y2 >= h || x2 >= w) continue;
+          const int j2 = y2 * w + x2;
+          if (wt[j2] == 0) continue;
+          const float add = by_module_weight_[static_cast<size_t>(t)] * kernel_.at<float>(ky, kx);
+          int& s = slot_[static_cast<size_t>(j2)];
+          if (s < 0) {
+            s = static_cast<int>(foot_pixel_.size());
+            foot_pixel_.push_back(j2);
+            foot_weight_.push_back(add);
+          } else {
+            foot_weight_[static_cast<size_t>(s)] += add;
+          }
+        }
+    }
+    for (size_t i = first; i < foot_pixel_.size(); ++i) slot_[static_cast<size_t>(foot_pixel_[i])] = -1;
+  }
+  foot_start_[gg] = static_cast<int>(foot_pixel_.size());
+}
+
+// How much the squared difference between the pixels and their prediction
+// changes when module m is flipped; `energy`, when given: what the flip
+// changes the prediction by, squared.
+double QrPixelModel::flipChange(size_t m, double* energy) const {
+  const float delta = x_[m] > 0.5f ? -1.0f : 1.0f;
+  const float* b = b_.ptr<float>();
+  double change = 0, e = 0;
+  for (int t = foot_start_[m]; t < foot_start_[m + 1]; ++t) {
+    const auto j = static_cast<size_t>(foot_pixel_[static_cast<size_t>(t)]);
+    const double d = b[j] * delta * foot_weight_[static_cast<size_t>(t)];
+    const double r = residual_[j];
+    change += (r - d) * (r - d) - r * r;
+    e += d * d;
+  }
+  if (energy) *energy = e;
+  return change;
+}
+
+void QrPixelModel::flip(size_t m) {
+  const float delta = x_[m] > 0.5f ? -1.0f : 1.0f;
+  const float* b = b_.ptr<float>();
+  for (int t = foot_start_[m]; t < foot_start_[m + 1]; ++t) {
+    const auto j = static_cast<size_t>(foot_pixel_[static_cast<size_t>(t)]);
+    residual_[j] -= b[j] * delta * foot_weight_[static_cast<size_t>(t)];
+  }
+  x_[m] = 1.0f - x_[m];
+}
+
+// Flips modules, one at a time and then a module with its right or lower
+// neighbour, while a flip lowers the squared difference.
+void QrPixelModel::descend() {
+  const size_t gg = x_.size();
+  auto movable = [&](size_t m) { return m < gg && !known_[m] && foot_start_[m] < foot_start_[m + 1]; };
+  for (int sweep = 0; sweep < kMaxSweeps; ++sweep) {
+    int flips = 0;
+    for (size_t m = 0; m < gg; ++m)
+      if (movable(m) && flipChange(m, nullptr) < 0) flip(m), ++flips;
+    for (size_t m = 0; m < gg; ++m) {
+      if (!movable(m)) continue;
+      for (size_t m2 : {m + 1, m + static_cast<size_t>(g_)}) {
+        if (!movable(m2)) continue;
+        const double first = flipChange(m, nullptr);
+        flip(m);
+        if (first + flipChange(m2, nullptr) < -1e-6) {
+          flip(m2);
+          ++flips;
+        } else {
+          flip(m);  // (back)
+        }
+      }
+    }
+    if (flips == 0) break;
+  }
+}
+
+// One step of moving the grid onto the pixels (Lucas-Kanade): where the
+// light fit predicts the known pixels (light, through known_dark_), the
+// image's difference from the prediction against the prediction's gradient
+// gives, by least squares, an affine move of the image points; `moved` is
+// the grid after it. False when the move cannot be solved or is more than
+// half a pixel anywhere in the code.
+bool QrPixelModel::alignStep(const double light[6], const cv::Matx33d& grid, cv::Matx33d& moved) {
+  const int w = value_.cols, h = value_.rows;
+  const double cu = w / 2.0, cv0 = h / 2.0, scale = 1.0 / std::max(w, h);
+  auto predict = [&](int x, int y) {
+    const double u = (x - cu) * scale, v = (y - cv0) * scale;
+    return light[0] + light[1] * u + light[2] * v + (light[3] + light[4] * u + light[5] * v) * known_dark_.at<float>(y, x);
+  };
+  cv::Matx<double, 6, 6> ata = cv::Matx<double, 6, 6>::zeros();
+  cv::Matx<double, 6, 1> atb = cv::Matx<double, 6, 1>::zeros();
+  int rows = 0;
+  for (int y = 1; y < h - 1; ++y)
+    for (int x = 1; x < w - 1; ++x) {
+      if (!valid_.at<uint8_t>(y, x) || known_share_.at<float>(y, x) < kKnownShare) continue;
+      const double gx = (predict(x + 1, y) - predict(x - 1, y)) / 2, gy = (predict(x, y + 1) - predict(x, y - 1)) / 2;
+      if (gx == 0 && gy == 0) continue;
+      const double u = (x - cu) * scale, v = (y - cv0) * scale;
+      const double f[6] = {gx, gx * u, gx * v, gy, gy * u, gy * v};
+      const double r = value_.at<float>(y, x) - predict(x, y);  // = -(gx dx + gy dy)
+      for (int i = 0; i < 6; ++i) {
+        for (int j = 0; j < 6; ++j) ata(i, j) += f[i] * f[j];
+        atb(i) -= f[i] * r;
+      }
+      ++rows;
+    }
+  if (rows < 40) return false;
+  cv::Matx<double, 6, 1> d;
+  if (!cv::solve(ata, atb, d, cv::DECOMP_SVD)) return false;
+  // the move at the ROI's corners: at most half a pixel
+  for (double u : {-0.5, 0.5})
+    for (double v : {-0.5, 0.5})
+      if (std::hypot(d(0) + d(1) * u + d(2) * v, d(3) + d(4) * u + d(5) * v) > 0.5) return false;
+  // image point X -> X + d(X), with u = (X - roi_x0 - cu) * scale
+  const double xc = roi_x_ + cu, yc = roi_y_ + cv0;
+  const cv::Matx33d move(1 + d(1) * scale, d(2) * scale, d(0) - d(1) * scale * xc - d(2) * scale * yc,  //
+                         d(4) * scale, 1 + d(5) * scale, d(3) - d(4) * scale * xc - d(5) * scale * yc,  //
+                         0, 0, 1);
+  moved = move * grid;
+  return true;
+}
+
+bool QrPixelModel::estimate(const cv::Mat& gray, const cv::Matx33d& module_to_image, int n,
+                            std::vector<float>& darkness) {
+  if (gray.empty() || gray.type() != CV_8UC1 || n < 21) return false;
+  // 1. The grid: the code, its quiet zone and one more light ring (known).
+  g_ = n + 4;
+  const size_t gg = static_cast<size_t>(g_) * g_;
+  known_.assign(gg, 1);
+  x_.assign(gg, 0.0f);
+  ones_.assign(gg, 1.0f);
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < n; ++c) known_[static_cast<size_t>(r + 2) * g_ + c + 2] = 0;
+  forEachFunctionModule(n, [&](int r, int c, bool dark) {
+    const size_t m = static_cast<size_t>(r + 2) * g_ + c + 2;
+    known_[m] = 1;
+    x_[m] = dark ? 1.0f : 0.0f;
+  });
+  // 2. Each pixel's share of each module.
+  if (!cover(gray, module_to_image, n)) return false;
+  // 3. The blur and the light: the kernel that predicts the known pixels best.
+  double best = -1, coeff[6] = {}, light[6] = {};
+  size_t best_k = 0;
+  const auto& tried = kernels();
+  for (size_t i = 0; i < tried.size(); ++i) {
+    const double res = fitLight(tried[i], coeff);
+    if (res >= 0 && (best < 0 || res < best)) best = res, best_k = i, kernel_ = tried[i], std::copy(coeff, coeff + 6, light);
+  }
+  if (best < 0) return false;
+  // (between the blurs tried: the parabola through the best and its neighbours)
+  if (best_k > 0 && best_k + 1 < tried.size()) {
+    double r[3], sg[3];
+    for (int i = 0; i < 3; ++i) {
+      sg[i] = kSigmas[best_k + static_cast<size_t>(i) - 1];
+      r[i] = fitLight(tried[best_k + static_cast<size_t>(i) - 1], coeff);
+    }
+    const double denom = (sg[0] - sg[1]) * (sg[0] - sg[2]) * (sg[1] - sg[2]);
+    const double pa = (sg[2] * (r[1] - r[0]) + sg[1] * (r[0] - r[2]) + sg[0] * (r[2] - r[1])) / denom;
+    const double pb = (sg[2] * sg[2] * (r[0] - r[1]) + sg[1] * sg[1] * (r[2] - r[0]) + sg[0] * sg[0] * (r[1] - r[2])) / denom;
+    if (pa > 0 && r[0] >= 0 && r[2] >= 0) {
+      const double at = std::clamp(-pb / (2 * pa), sg[0], sg[2]);
+      blurKernel(at, between_);
+      const double res = fitLight(between_, coeff);
+      if (res >= 0 && res < best) best = res, kernel_ = between_, std::copy(coeff, coeff + 6, light);
+    }
+  }
+  if (!(light[3] < -8)) return false;  // a dark module must read darker
+  // 4. The grid moved onto the pixels (the corners are off by a tenth of a
+  // pixel or two, and a module is about one): kept while the known pixels
+  // fit better.
+  fitLight(kernel_, coeff);  // (known_dark_ for the chosen kernel)
+  cv::Matx33d grid = module_to_image;
+  for (int step = 0; step < kAlignSteps; ++step) {
+    cv::Matx33d moved;
+    if (!alignStep(light, grid, moved) || !cover(gray, moved, n)) break;
+    const double res = fitLight(kernel_, coeff);
+    if (!(res >= 0 && res < best)) {
+      cover(gray, grid, n);
+      fitLight(kernel_, coeff);
+      break;
+    }
+    best = res, grid = moved;
+    std::copy(coeff, coeff + 6, light);
+  }
+  if (!(light[3] < -8)) return false;
+  cv::flip(kernel_, flipped_, -1);
+  // 5. The targets: what the unknown modules must add to each fitted pixel.
+  a_.create(value_.size(), CV_32F);
+  b_.create(value_.size(), CV_32F);
+  target_.create(value_.size(), CV_32F);
+  weight_.create(value_.size(), CV_32F);
+  const double cu = value_.cols / 2.0, cv0 = value_.rows / 2.0, scale = 1.0 / std::max(value_.cols, value_.rows);
+  for (int y = 0; y < value_.rows; ++y)
+    for (int x = 0; x < value_.cols; ++x) {
+      const double u = (x - cu) * scale, v = (y - cv0) * scale;
+      const double a = light[0] + light[1] * u + light[2] * v, b = light[3] + light[4] * u + light[5] * v;
+      a_.at<float>(y, x) = static_cast<float>(a);
+      b_.at<float>(y, x) = static_cast<float>(b);
+      const bool fitted = valid_.at<uint8_t>(y, x) && b < -1;
+      weight_.at<float>(y, x) = fitted ? 1.0f : 0.0f;
+      target_.at<float>(y, x) =
+          fitted ? static_cast<float>((value_.at<float>(y, x) - a) / b - known_dark_.at<float>(y, x)) : 0.0f;
+    }
+  // 6. The least-squares start, then flips while they fit the pixels better.
+  solveLeastSquares(kSolveIterations);
+  buildFootprints();
+  render(x_, true, tmp1_);
+  render(x_, false, tmp2_);
+  tmp1_ += tmp2_;
+  cv::filter2D(tmp1_, tmp2_, CV_32F, kernel_, {-1, -1}, 0, cv::BORDER_REPLICATE);
+  residual_.assign(static_cast<size_t>(value_.rows) * value_.cols, 0.0f);
+  for (int j = 0; j < value_.rows * value_.cols; ++j)
+    if (weight_.ptr<float>()[j] != 0)
+      residual_[static_cast<size_t>(j)] =
+          value_.ptr<float>()[j] - a_.ptr<float>()[j] - b_.ptr<float>()[j] * tmp2_.ptr<float>()[j];
+  descend();
+  // 7. How sure each module is: what flipping it would cost, against what
+  // it adds to its pixels (1: the whole of it).
+  darkness.resize(static_cast<size_t>(n) * n);
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < n; ++c) {
+      const size_t m = static_cast<size_t>(r + 2) * g_ + c + 2;
+      float& d = darkness[static_cast<size_t>(r) * n + c];
+      if (known_[m]) {
+        d = x_[m];
+        continue;
+      }
+      double energy = 0;
+      const double cost = flipChange(m, &energy);
+      const double sure = energy > 0 ? 0.5 * std::clamp(cost / energy, 0.0, 1.0) : 0.0;
+      d = static_cast<float>(x_[m] > 0.5f ? 0.5 + sure : 0.5 - sure);
+    }
+  return true;
+}
+
+}  // namespace ld::detail
