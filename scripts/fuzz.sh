@@ -22,7 +22,7 @@
 # parse every file in a child process first, which meets such a file for them).
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
-TARGETS=(fuzz_image fuzz_messages fuzz_detector fuzz_params fuzz_camera fuzz_run_config)
+TARGETS=(fuzz_image fuzz_messages fuzz_detector fuzz_params fuzz_camera fuzz_run_config fuzz_qr)
 
 build() {
   local dir=$1

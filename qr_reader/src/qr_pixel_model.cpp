@@ -64,11 +64,12 @@ bool QrPixelModel::cover(const cv::Mat& gray, const cv::Matx33d& module_to_image
   }
   // the QR square and its quiet zone, and room for the blur around them
   constexpr int kPad = kKernelReach + 1;
-  if (!(x1 > 0 && y1 > 0 && x0 < gray.cols && y0 < gray.rows)) return false;
-  const int u0 = std::max(0, static_cast<int>(std::floor(x0)) - kPad);
-  const int u1 = std::min(gray.cols - 1, static_cast<int>(std::ceil(x1)) + kPad);
-  const int v0 = std::max(0, static_cast<int>(std::floor(y0)) - kPad);
-  const int v1 = std::min(gray.rows - 1, static_cast<int>(std::ceil(y1)) + kPad);
+  if (!(x1 > 0 && y1 > 0 && x0 < gray.cols && y0 < gray.rows)) return false;  // (NaN too)
+  // (clamped to the image before the casts: a grid may reach far outside it)
+  const int u0 = static_cast<int>(std::max(0.0, std::floor(x0) - kPad));
+  const int u1 = static_cast<int>(std::min(gray.cols - 1.0, std::ceil(x1) + kPad));
+  const int v0 = static_cast<int>(std::max(0.0, std::floor(y0) - kPad));
+  const int v1 = static_cast<int>(std::min(gray.rows - 1.0, std::ceil(y1) + kPad));
   if (u1 - u0 < 8 || v1 - v0 < 8) return false;
   gray(cv::Rect(u0, v0, u1 - u0 + 1, v1 - v0 + 1)).convertTo(value_, CV_32F);
   roi_x_ = u0, roi_y_ = v0;
@@ -92,9 +93,11 @@ bool QrPixelModel::cover(const cv::Mat& gray, const cv::Matx33d& module_to_image
         for (int kx = 0; kx < kCoverSub; ++kx) {
           const double dx = (kx + 0.5) / kCoverSub - 0.5, dy = (ky + 0.5) / kCoverSub - 0.5;
           const double px = mx + jxx * dx + jxy * dy, py = my + jyx * dx + jyy * dy;
-          // (outside the grid: the outer light ring, which the sheet is)
-          const int col = std::clamp(static_cast<int>(std::floor(px)) + 2, 0, g_ - 1);
-          const int row = std::clamp(static_cast<int>(std::floor(py)) + 2, 0, g_ - 1);
+          // (outside the grid: the outer light ring, which the sheet is; a
+          // point beyond the sheet's horizon, not finite, too)
+          const double fx = std::isfinite(px) ? std::clamp(std::floor(px) + 2, 0.0, g_ - 1.0) : 0.0;
+          const double fy = std::isfinite(py) ? std::clamp(std::floor(py) + 2, 0.0, g_ - 1.0) : 0.0;
+          const int col = static_cast<int>(fx), row = static_cast<int>(fy);
           const int m = row * g_ + col;
           int t = 0;
           while (t < count && mods[t] != m) ++t;
@@ -114,7 +117,7 @@ bool QrPixelModel::cover(const cv::Mat& gray, const cv::Matx33d& module_to_image
   return true;
 }
 
-// C x over the known modules (which 0), the unknown ones (1) or all (2).
+// C x over the known modules (`known`) or the unknown ones.
 void QrPixelModel::render(const std::vector<float>& x, bool known, cv::Mat& out) {
   out.create(value_.size(), CV_32F);
   float* o = out.ptr<float>();

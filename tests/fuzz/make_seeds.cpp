@@ -2,12 +2,14 @@
 // (tests/fuzz/corpus/<target>/): a few small valid inputs of each kind, from
 // which libFuzzer's mutations start. Run once after a change of the formats:
 //   build-fuzz/bin/ld-fuzz-seeds tests/fuzz/corpus
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <iterator>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
@@ -163,6 +165,33 @@ int main(int argc, char** argv) {
   }
   write(root / "fuzz_detector", "1x1", Bytes{2, 1, 0, 1, 0, 0, 0, 255});
   write(root / "fuzz_detector", "0x0", Bytes{2, 0, 0, 0, 0});
+
+  // fuzz_qr: header (version - 1, width - 8, height - 8, four corners in
+  // eighths of a pixel) + gray pixels; a far landmark's QR (a 100-byte
+  // payload, version 5, about 1.1 px a module; a 23-byte one, version 2) in
+  // a 135 x 135 crop, at its true corners
+  for (const auto& [name, payload, version] :
+       {std::tuple{"far-v5", std::string(100, 'Q'), 5}, std::tuple{"far-v2", std::string("salle-107 caf\xc3\xa9"), 2}}) {
+    ld::synth::SceneSpec spec;
+    spec.camera = ld::CameraModel::defaultVga();
+    spec.background = ld::synth::Background::Plain;
+    spec.distractors = 0;
+    spec.landmarks.push_back(ld::synth::placeLandmark(spec.camera, 1.0, 15, 0, 10, 0, 0, 0.15, payload));
+    const auto t = ld::synth::truthFor(spec.camera, spec.landmarks[0]);
+    cv::Mat g;
+    cv::cvtColor(ld::synth::render(spec).bgr, g, cv::COLOR_BGR2GRAY);
+    const cv::Point2d mid = (t.corners[0] + t.corners[2]) / 2;
+    const cv::Rect crop(static_cast<int>(mid.x) - 67, static_cast<int>(mid.y) - 67, 135, 135);
+    Bytes b{static_cast<uint8_t>(version - 1), 127, 127};
+    for (const auto& c : t.corners)
+      for (double v : {c.x - crop.x, c.y - crop.y}) {
+        const auto e = static_cast<int16_t>(std::lround(v * 8));
+        b.push_back(static_cast<uint8_t>(e & 0xff));
+        b.push_back(static_cast<uint8_t>((e >> 8) & 0xff));
+      }
+    for (int y = crop.y; y < crop.y + crop.height; ++y) b.insert(b.end(), g.ptr<uint8_t>(y) + crop.x, g.ptr<uint8_t>(y) + crop.x + crop.width);
+    write(root / "fuzz_qr", name, b);
+  }
 
   // fuzz_params: byte 0 even = detector, odd = tracker
   const fs::path tmp = fs::temp_directory_path() / "ld-fuzz-seeds.yml";

@@ -1,0 +1,70 @@
+// Fuzz target: the QR reader on arbitrary images and corners
+// (ld/qr_reader.hpp), and its module-by-module parts on their own: the
+// codeword corrector on any modules' darkness (qr_codewords.hpp) and the
+// pixel model on any grid (qr_pixel_model.hpp).
+//
+// Bytes 0-18 are a header: byte 0 the version the parts are given (1-15),
+// bytes 1 and 2 the image's width and height (8-135 px, small: the pixel
+// model runs where a module is under 2 px), bytes 3-18 the four corners (TL,
+// TR, BR, BL) as little-endian int16 in eighths of a pixel (on the image,
+// far off it, crossed, degenerate). The rest, repeated, fills the gray
+// pixels row by row, and gives the corrector one byte per module (0-255 as
+// darkness -0.5 .. 1.5: sure, unsure and out of range). Nothing may crash;
+// a payload must be text zbar gave, a corrected symbol n x n modules of 0
+// and 1, and an estimate n x n finite values.
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "ld/landmark_layout.hpp"
+#include "ld/qr_reader.hpp"
+#include "../../qr_reader/src/qr_codewords.hpp"
+#include "../../qr_reader/src/qr_pixel_model.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  constexpr size_t kHeader = 19;
+  if (size <= kHeader) return 0;
+  const int version = 1 + data[0] % 15, n = 17 + 4 * version;
+  const int w = 8 + data[1] % 128, h = 8 + data[2] % 128;
+  std::array<cv::Point2f, 4> corners;
+  for (size_t k = 0; k < 4; ++k) {
+    const auto x = static_cast<int16_t>(data[3 + 4 * k] | data[4 + 4 * k] << 8);
+    const auto y = static_cast<int16_t>(data[5 + 4 * k] | data[6 + 4 * k] << 8);
+    corners[k] = {x / 8.0f, y / 8.0f};
+  }
+  const uint8_t* rest = data + kHeader;
+  const size_t rest_size = size - kHeader;
+  cv::Mat gray(h, w, CV_8UC1);
+  for (int i = 0; i < w * h; ++i) gray.data[i] = rest[static_cast<size_t>(i) % rest_size];
+
+  // kept between inputs, as the process keeps its reader between frames
+  static ld::QrReader reader;
+  if (const auto r = reader.decode(gray, corners))
+    if (r->attempt < 0 || r->attempt > 9) std::abort();
+
+  static ld::detail::QrCorrector corrector;
+  std::vector<float> darkness(static_cast<size_t>(n) * n);
+  for (size_t i = 0; i < darkness.size(); ++i) darkness[i] = rest[i % rest_size] / 127.5f - 0.5f;
+  std::vector<uint8_t> modules;
+  if (corrector.correct(n, darkness.data(), modules)) {
+    if (modules.size() != darkness.size()) std::abort();
+    for (uint8_t m : modules)
+      if (m > 1) std::abort();
+  }
+
+  static ld::detail::QrPixelModel model;
+  const double module = (ld::layout::kQrMax - ld::layout::kQrMin) / (n + 2);
+  const cv::Matx33d module_to_sheet(module, 0, ld::layout::kQrMin + module, 0, module, ld::layout::kQrMin + module,
+                                    0, 0, 1);
+  std::vector<float> estimate;
+  if (model.estimate(gray, ld::layout::sheetToImage(corners) * module_to_sheet, n, estimate)) {
+    if (estimate.size() != darkness.size()) std::abort();
+    for (float d : estimate)
+      if (!std::isfinite(d)) std::abort();
+  }
+  return 0;
+}
