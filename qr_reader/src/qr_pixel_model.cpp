@@ -39,6 +39,49 @@ const std::vector<cv::Mat>& kernels() {
   return k;
 }
 
+// `out` = the kernel `k` applied to `in` (a correlation, as cv::filter2D's;
+// the kernels are symmetric, so it is their convolution too), outside the
+// image its edge (`replicate`) or 0. By hand: filter2D takes buffers at each
+// call, and the fit makes about a hundred.
+void convolve(const cv::Mat& in, cv::Mat& out, const cv::Mat& k, bool replicate) {
+  const int w = in.cols, h = in.rows, r = k.rows / 2;
+  for (int y = 0; y < h; ++y) {
+    float* o = out.ptr<float>(y);
+    for (int x = 0; x < w; ++x) {
+      float sum = 0;
+      for (int ky = -r; ky <= r; ++ky) {
+        int yy = y + ky;
+        if (yy < 0 || yy >= h) {
+          if (!replicate) continue;
+          yy = std::clamp(yy, 0, h - 1);
+        }
+        const float* row = in.ptr<float>(yy);
+        const float* kr = k.ptr<float>(ky + r);
+        for (int kx = -r; kx <= r; ++kx) {
+          int xx = x + kx;
+          if (xx < 0 || xx >= w) {
+            if (!replicate) continue;
+            xx = std::clamp(xx, 0, w - 1);
+          }
+          sum += kr[kx + r] * row[xx];
+        }
+      }
+      o[x] = sum;
+    }
+  }
+}
+
+// The 6 x 6 normal equations a x = b solved in place (x in b; a small ridge
+// keeps them solvable); false when they are not.
+bool solve6(cv::Matx<double, 6, 6> a, cv::Matx<double, 6, 1>& b) {
+  const double ridge = 1e-9 * (cv::trace(a) + 1);
+  for (int i = 0; i < 6; ++i) a(i, i) += ridge;
+  if (!cv::Cholesky(a.val, 6 * sizeof(double), 6, b.val, sizeof(double), 1)) return false;
+  for (int i = 0; i < 6; ++i)
+    if (!std::isfinite(b(i))) return false;
+  return true;
+}
+
 // Sub-samples per pixel side for the modules' shares of a pixel's square.
 constexpr int kCoverSub = 6;
 // A pixel is fitted for the light when this share of it sees known modules.
@@ -47,7 +90,7 @@ constexpr double kKnownShare = 0.98;
 // sees at undecided).
 constexpr int kSolveIterations = 20;
 constexpr double kPull = 0.05;
-constexpr int kMaxSweeps = 30;
+constexpr int kMaxSweeps = 10;
 // Steps of moving the grid onto the pixels.
 constexpr int kAlignSteps = 2;
 
@@ -71,9 +114,20 @@ bool QrPixelModel::cover(const cv::Mat& gray, const cv::Matx33d& module_to_image
   const int v0 = static_cast<int>(std::max(0.0, std::floor(y0) - kPad));
   const int v1 = static_cast<int>(std::min(gray.rows - 1.0, std::ceil(y1) + kPad));
   if (u1 - u0 < 8 || v1 - v0 < 8) return false;
-  gray(cv::Rect(u0, v0, u1 - u0 + 1, v1 - v0 + 1)).convertTo(value_, CV_32F);
+  // the ROI's images, over buffers that only grow (a header over a buffer
+  // of the right size is not reallocated by OpenCV)
+  const int rows = v1 - v0 + 1, cols = u1 - u0 + 1;
+  cv::Mat* images[] = {&value_, &a_, &b_, &target_, &weight_, &tmp1_, &tmp2_,
+                       &known_cover_, &known_dark_cover_, &known_share_, &known_dark_};
+  static_assert(sizeof(images) / sizeof(images[0]) == kImages);
+  for (size_t i = 0; i < kImages; ++i) {
+    store_[i].resize(static_cast<size_t>(rows) * cols);
+    *images[i] = cv::Mat(rows, cols, CV_32F, store_[i].data());
+  }
+  valid_store_.resize(static_cast<size_t>(rows) * cols);
+  valid_ = cv::Mat(rows, cols, CV_8U, valid_store_.data());
+  gray(cv::Rect(u0, v0, cols, rows)).convertTo(value_, CV_32F);
   roi_x_ = u0, roi_y_ = v0;
-  valid_.create(value_.size(), CV_8U);
   cover_start_.clear();
   cover_module_.clear();
   cover_weight_.clear();
@@ -93,8 +147,10 @@ bool QrPixelModel::cover(const cv::Mat& gray, const cv::Matx33d& module_to_image
         for (int kx = 0; kx < kCoverSub; ++kx) {
           const double dx = (kx + 0.5) / kCoverSub - 0.5, dy = (ky + 0.5) / kCoverSub - 0.5;
           const double px = mx + jxx * dx + jxy * dy, py = my + jyx * dx + jyy * dy;
-          // (outside the grid: the outer light ring, which the sheet is; a
-          // point beyond the sheet's horizon, not finite, too)
+          // (outside the grid: the outer light ring, which the sheet is,
+          // but for the QR square's corners, where the coloured squares
+          // touch it diagonally: a small misfit; a point beyond the
+          // sheet's horizon, not finite, too)
           const double fx = std::isfinite(px) ? std::clamp(std::floor(px) + 2, 0.0, g_ - 1.0) : 0.0;
           const double fy = std::isfinite(py) ? std::clamp(std::floor(py) + 2, 0.0, g_ - 1.0) : 0.0;
           const int col = static_cast<int>(fx), row = static_cast<int>(fy);
@@ -119,7 +175,6 @@ bool QrPixelModel::cover(const cv::Mat& gray, const cv::Matx33d& module_to_image
 
 // C x over the known modules (`known`) or the unknown ones.
 void QrPixelModel::render(const std::vector<float>& x, bool known, cv::Mat& out) {
-  out.create(value_.size(), CV_32F);
   float* o = out.ptr<float>();
   const int pixels = value_.rows * value_.cols;
   for (int j = 0; j < pixels; ++j) {
@@ -136,8 +191,8 @@ void QrPixelModel::render(const std::vector<float>& x, bool known, cv::Mat& out)
 // pixels that see known modules only, through `kernel`; the fit's rms
 // difference (gray levels), or -1 when too few pixels see known modules.
 double QrPixelModel::fitLight(const cv::Mat& kernel, double coeff[6]) {
-  cv::filter2D(known_cover_, known_share_, CV_32F, kernel, {-1, -1}, 0, cv::BORDER_REPLICATE);
-  cv::filter2D(known_dark_cover_, known_dark_, CV_32F, kernel, {-1, -1}, 0, cv::BORDER_REPLICATE);
+  convolve(known_cover_, known_share_, kernel, true);
+  convolve(known_dark_cover_, known_dark_, kernel, true);
   cv::Matx<double, 6, 6> ata = cv::Matx<double, 6, 6>::zeros();
   cv::Matx<double, 6, 1> atb = cv::Matx<double, 6, 1>::zeros();
   double btb = 0;
@@ -157,8 +212,8 @@ double QrPixelModel::fitLight(const cv::Mat& kernel, double coeff[6]) {
       ++rows;
     }
   if (rows < 40) return -1;
-  cv::Matx<double, 6, 1> w;
-  if (!cv::solve(ata, atb, w, cv::DECOMP_SVD)) return -1;
+  cv::Matx<double, 6, 1> w = atb;
+  if (!solve6(ata, w)) return -1;
   // |A w - b|^2 = w' A'A w - 2 w' A'b + b'b
   const double res = (w.t() * ata * w)(0) - 2 * (w.t() * atb)(0) + btb;
   for (int i = 0; i < 6; ++i) coeff[i] = w(i);
@@ -171,9 +226,11 @@ void QrPixelModel::solveLeastSquares(int iterations) {
   const size_t gg = x_.size();
   auto apply = [&](const std::vector<float>& x, std::vector<float>& out) {
     render(x, false, tmp1_);
-    cv::filter2D(tmp1_, tmp2_, CV_32F, kernel_, {-1, -1}, 0, cv::BORDER_CONSTANT);
-    tmp2_ = tmp2_.mul(weight_);
-    cv::filter2D(tmp2_, tmp1_, CV_32F, flipped_, {-1, -1}, 0, cv::BORDER_CONSTANT);
+    convolve(tmp1_, tmp2_, kernel_, false);
+    float* t = tmp2_.ptr<float>();
+    const float* wt = weight_.ptr<float>();
+    for (int j = 0; j < value_.rows * value_.cols; ++j) t[j] *= wt[j];
+    convolve(tmp2_, tmp1_, kernel_, false);
     out.assign(gg, 0.0f);
     const float* v = tmp1_.ptr<float>();
     const int pixels = value_.rows * value_.cols;
@@ -186,7 +243,7 @@ void QrPixelModel::solveLeastSquares(int iterations) {
       if (!known_[m]) out[m] += static_cast<float>(kPull) * x[m];
   };
   // right-hand side W'y + kPull / 2 (target_ is y, zero where not fitted), in cg_r_
-  cv::filter2D(target_, tmp1_, CV_32F, flipped_, {-1, -1}, 0, cv::BORDER_CONSTANT);
+  convolve(target_, tmp1_, kernel_, false);
   cg_r_.assign(gg, 0.0f);
   {
     const float* v = tmp1_.ptr<float>();
@@ -247,7 +304,7 @@ void QrPixelModel::buildFootprints() {
       by_module_pixel_[at] = j;
       by_module_weight_[at] = cover_weight_[static_cast<size_t>(t)];
     }
-  // through the kernel (filter2D's correlation: pixel j feeds j - offset)
+  // through the kernel (convolve's correlation: pixel j feeds j - offset)
   slot_.assign(static_cast<size_t>(pixels), -1);
   foot_start_.assign(gg + 1, 0);
   foot_pixel_.clear();
@@ -282,20 +339,17 @@ void QrPixelModel::buildFootprints() {
 }
 
 // How much the squared difference between the pixels and their prediction
-// changes when module m is flipped; `energy`, when given: what the flip
-// changes the prediction by, squared.
-double QrPixelModel::flipChange(size_t m, double* energy) const {
+// changes when module m is flipped.
+double QrPixelModel::flipChange(size_t m) const {
   const float delta = x_[m] > 0.5f ? -1.0f : 1.0f;
   const float* b = b_.ptr<float>();
-  double change = 0, e = 0;
+  double change = 0;
   for (int t = foot_start_[m]; t < foot_start_[m + 1]; ++t) {
     const auto j = static_cast<size_t>(foot_pixel_[static_cast<size_t>(t)]);
     const double d = b[j] * delta * foot_weight_[static_cast<size_t>(t)];
     const double r = residual_[j];
     change += (r - d) * (r - d) - r * r;
-    e += d * d;
   }
-  if (energy) *energy = e;
   return change;
 }
 
@@ -317,14 +371,14 @@ void QrPixelModel::descend() {
   for (int sweep = 0; sweep < kMaxSweeps; ++sweep) {
     int flips = 0;
     for (size_t m = 0; m < gg; ++m)
-      if (movable(m) && flipChange(m, nullptr) < 0) flip(m), ++flips;
+      if (movable(m) && flipChange(m) < 0) flip(m), ++flips;
     for (size_t m = 0; m < gg; ++m) {
       if (!movable(m)) continue;
       for (size_t m2 : {m + 1, m + static_cast<size_t>(g_)}) {
         if (!movable(m2)) continue;
-        const double first = flipChange(m, nullptr);
+        const double first = flipChange(m);
         flip(m);
-        if (first + flipChange(m2, nullptr) < -1e-6) {
+        if (first + flipChange(m2) < -1e-6) {
           flip(m2);
           ++flips;
         } else {
@@ -367,8 +421,8 @@ bool QrPixelModel::alignStep(const double light[6], const cv::Matx33d& grid, cv:
       ++rows;
     }
   if (rows < 40) return false;
-  cv::Matx<double, 6, 1> d;
-  if (!cv::solve(ata, atb, d, cv::DECOMP_SVD)) return false;
+  cv::Matx<double, 6, 1> d = atb;
+  if (!solve6(ata, d)) return false;
   // the move at the ROI's corners: at most half a pixel
   for (double u : {-0.5, 0.5})
     for (double v : {-0.5, 0.5})
@@ -383,7 +437,7 @@ bool QrPixelModel::alignStep(const double light[6], const cv::Matx33d& grid, cv:
 }
 
 bool QrPixelModel::estimate(const cv::Mat& gray, const cv::Matx33d& module_to_image, int n,
-                            std::vector<float>& darkness) {
+                            std::vector<uint8_t>& modules) {
   if (gray.empty() || gray.type() != CV_8UC1 || n < 21) return false;
   // 1. The grid: the code, its quiet zone and one more light ring (known).
   g_ = n + 4;
@@ -445,12 +499,7 @@ bool QrPixelModel::estimate(const cv::Mat& gray, const cv::Matx33d& module_to_im
     std::copy(coeff, coeff + 6, light);
   }
   if (!(light[3] < -8)) return false;
-  cv::flip(kernel_, flipped_, -1);
   // 5. The targets: what the unknown modules must add to each fitted pixel.
-  a_.create(value_.size(), CV_32F);
-  b_.create(value_.size(), CV_32F);
-  target_.create(value_.size(), CV_32F);
-  weight_.create(value_.size(), CV_32F);
   const double cu = value_.cols / 2.0, cv0 = value_.rows / 2.0, scale = 1.0 / std::max(value_.cols, value_.rows);
   for (int y = 0; y < value_.rows; ++y)
     for (int x = 0; x < value_.cols; ++x) {
@@ -469,29 +518,18 @@ bool QrPixelModel::estimate(const cv::Mat& gray, const cv::Matx33d& module_to_im
   render(x_, true, tmp1_);
   render(x_, false, tmp2_);
   tmp1_ += tmp2_;
-  cv::filter2D(tmp1_, tmp2_, CV_32F, kernel_, {-1, -1}, 0, cv::BORDER_REPLICATE);
+  convolve(tmp1_, tmp2_, kernel_, true);
   residual_.assign(static_cast<size_t>(value_.rows) * value_.cols, 0.0f);
   for (int j = 0; j < value_.rows * value_.cols; ++j)
     if (weight_.ptr<float>()[j] != 0)
       residual_[static_cast<size_t>(j)] =
           value_.ptr<float>()[j] - a_.ptr<float>()[j] - b_.ptr<float>()[j] * tmp2_.ptr<float>()[j];
   descend();
-  // 7. How sure each module is: what flipping it would cost, against what
-  // it adds to its pixels (1: the whole of it).
-  darkness.resize(static_cast<size_t>(n) * n);
+  // 7. The modules (known ones as every code has them).
+  modules.resize(static_cast<size_t>(n) * n);
   for (int r = 0; r < n; ++r)
-    for (int c = 0; c < n; ++c) {
-      const size_t m = static_cast<size_t>(r + 2) * g_ + c + 2;
-      float& d = darkness[static_cast<size_t>(r) * n + c];
-      if (known_[m]) {
-        d = x_[m];
-        continue;
-      }
-      double energy = 0;
-      const double cost = flipChange(m, &energy);
-      const double sure = energy > 0 ? 0.5 * std::clamp(cost / energy, 0.0, 1.0) : 0.0;
-      d = static_cast<float>(x_[m] > 0.5f ? 0.5 + sure : 0.5 - sure);
-    }
+    for (int c = 0; c < n; ++c)
+      modules[static_cast<size_t>(r) * n + c] = x_[static_cast<size_t>(r + 2) * g_ + c + 2] > 0.5f ? 1 : 0;
   return true;
 }
 

@@ -25,9 +25,6 @@
 // that lowers the squared difference between the pixels and their
 // prediction (iterated conditional modes: pairs get out of the many
 // minima that single flips stop in, where two neighbours share pixels).
-// How much a module's flip would raise that difference, against what the
-// module adds to its pixels, says how sure it is (the QR corrector's
-// erasures, qr_codewords.hpp).
 #pragma once
 
 #include <cstdint>
@@ -39,14 +36,13 @@ namespace ld::detail {
 
 class QrPixelModel {
  public:
-  /// The darkness of each module of an n-module code (n x n, row-major, 1
-  /// dark, 0 light, 0.5 unsure; function patterns as every code has them)
-  /// from the 8-bit gray image. `module_to_image` maps module coordinates
+  /// The modules of an n-module code (n x n, row-major, 1 dark, 0 light;
+  /// function patterns as every code has them) from the 8-bit gray image. `module_to_image` maps module coordinates
   /// (x right, y down, 0 at the symbol's top-left edge, one module a unit)
   /// to image pixels. False when the code is not in the image, too few pixels
   /// see known modules, or dark modules do not read darker than light ones.
   /// Nothing is allocated once warm for codes of the sizes seen before.
-  bool estimate(const cv::Mat& gray, const cv::Matx33d& module_to_image, int n, std::vector<float>& darkness);
+  bool estimate(const cv::Mat& gray, const cv::Matx33d& module_to_image, int n, std::vector<uint8_t>& modules);
 
  private:
   bool cover(const cv::Mat& gray, const cv::Matx33d& module_to_image, int n);
@@ -55,16 +51,20 @@ class QrPixelModel {
   void render(const std::vector<float>& x, bool known, cv::Mat& out);
   void solveLeastSquares(int iterations);
   void buildFootprints();
-  double flipChange(size_t m, double* energy) const;
+  double flipChange(size_t m) const;
   void flip(size_t m);
   void descend();
 
   int g_ = 0;                                  // modules across the model's grid: the code and two light rings
   std::vector<uint8_t> known_;                 // g x g: 1 for a module every code has (or the rings)
   std::vector<float> x_;                       // g x g: darkness (known: as known)
-  cv::Mat value_, valid_, a_, b_, target_, weight_;  // ROI images
+  // the ROI's images (headers over store_ and valid_store_, which only grow)
+  static constexpr size_t kImages = 11;
+  std::vector<float> store_[kImages];
+  std::vector<uint8_t> valid_store_;
+  cv::Mat value_, valid_, a_, b_, target_, weight_;
   int roi_x_ = 0, roi_y_ = 0;                        // the ROI's top-left pixel in the image
-  cv::Mat kernel_, between_, flipped_, tmp1_, tmp2_, known_cover_, known_dark_cover_, known_share_, known_dark_;
+  cv::Mat kernel_, between_, tmp1_, tmp2_, known_cover_, known_dark_cover_, known_share_, known_dark_;
   std::vector<int> cover_start_, cover_module_;      // per ROI pixel: the modules in its square
   std::vector<float> cover_weight_;
   std::vector<int> foot_start_, foot_pixel_;         // per module: the pixels it reaches through the blur

@@ -11,7 +11,6 @@
 #include <zbar.h>
 
 #include "ld/landmark_layout.hpp"
-#include "qr_codewords.hpp"
 #include "qr_function_patterns.hpp"
 #include "qr_pixel_model.hpp"
 
@@ -113,9 +112,7 @@ struct QrReader::Impl {
   zbar::ImageScanner scanner;
   cv::Mat gray, view, work, blurred, map, sampled, samples, sharpened, grid8, bits, clean;
   std::vector<int8_t> known, grid;  // the equaliser's modules: -1 unknown, 0 light, 1 dark
-  std::vector<float> darkness;      // ... and how dark each is, as it estimates (0 light .. 1 dark)
-  std::vector<uint8_t> corrected;   // the symbol as the corrector mends it (1 dark)
-  detail::QrCorrector corrector;
+  std::vector<uint8_t> fitted;      // the pixel model's modules (1 dark)
   detail::QrPixelModel pixel_model;
   std::vector<double> fit_a, fit_b;
   cv::Mat profile;                        // followTiming's samples along a line
@@ -132,10 +129,9 @@ struct QrReader::Impl {
   // modules thresholded and redrawn as a clean code (its function patterns
   // ideal) for zbar, whose error correction rejects wrong versions and bad
   // reads.
-  // The payload, and 0 when the equaliser's modules gave it, 2 when they did
-  // once their codewords were corrected with erasures, 1 when the modules
-  // thresholded as read or after a fixed sharpening did, 3 when the pixel
-  // model's did.
+  // The payload, and 0 when the equaliser's modules gave it, 1 when the
+  // modules thresholded as read or after a fixed sharpening did, 2 when the
+  // pixel model's did.
   std::optional<std::pair<std::string, int>> readGrid(const cv::Matx33d& sheet_to_image, double qr_px) {
     std::vector<std::pair<double, int>> candidates;  // (finder score, n)
     for (int version = 1; version <= 15; ++version) {
@@ -179,8 +175,8 @@ struct QrReader::Impl {
     // Last, the code fitted to the pixels (the slowest way: once, for the
     // version whose finders fit best, and only where its modules are under
     // kPixelModelMaxPx: larger ones the ways above read).
-    if (top_n > 0 && qr_px / (top_n + 2) < kPixelModelMaxPx)
-      if (auto r = readPixels(top_grid, top_n)) return std::pair{*r, 3};
+    if (params.fit_pixels && top_n > 0 && qr_px / (top_n + 2) < kPixelModelMaxPx)
+      if (auto r = readPixels(top_grid, top_n)) return std::pair{*r, 2};
     return std::nullopt;
   }
 
@@ -267,15 +263,11 @@ struct QrReader::Impl {
     return best;
   }
 
-  // The payload from `samples` (readGrid's pair): equalised, then its
-  // codewords corrected with the least sure ones erased (qr_codewords.hpp),
-  // else sharpened by fixed amounts and thresholded globally (Otsu) and
-  // locally.
+  // The payload from `samples` (readGrid's pair): equalised, else sharpened
+  // by fixed amounts and thresholded globally (Otsu) and locally.
   std::optional<std::pair<std::string, int>> readSamples(int n) {
-    if (equalise(n)) {
+    if (equalise(n))
       if (auto r = scanBits(n)) return std::pair{*r, 0};
-      if (auto r = scanCorrected(n)) return std::pair{*r, 2};
-    }
     for (double k : {0.0, 1.4, 2.5})
       for (bool local : {false, true}) {
         thresholdModules(n, k, local);
@@ -285,25 +277,14 @@ struct QrReader::Impl {
   }
 
   // The code from the pixel model (qr_pixel_model.hpp) on the grid that
-  // `sheet_to_image` puts: its modules as estimated, else corrected with the
-  // least sure ones erased.
+  // `sheet_to_image` puts.
   std::optional<std::string> readPixels(const cv::Matx33d& sheet_to_image, int n) {
     const double module = (layout::kQrMax - layout::kQrMin) / (n + 2);
     const cv::Matx33d module_to_sheet(module, 0, layout::kQrMin + module, 0, module, layout::kQrMin + module, 0, 0, 1);
-    if (!pixel_model.estimate(gray, sheet_to_image * module_to_sheet, n, darkness)) return std::nullopt;
+    if (!pixel_model.estimate(gray, sheet_to_image * module_to_sheet, n, fitted)) return std::nullopt;
     bits.create(n, n, CV_8U);
     for (int r = 0; r < n; ++r)
-      for (int c = 0; c < n; ++c) bits.at<uint8_t>(r, c) = darkness[static_cast<size_t>(r) * n + c] > 0.5f ? 0 : 255;
-    if (auto r = scanBits(n)) return r;
-    return scanCorrected(n);
-  }
-
-  // The code `darkness` holds (n x n), its codewords corrected with the least
-  // sure ones erased, read by zbar.
-  std::optional<std::string> scanCorrected(int n) {
-    if (!corrector.correct(n, darkness.data(), corrected)) return std::nullopt;
-    for (int r = 0; r < n; ++r)
-      for (int c = 0; c < n; ++c) bits.at<uint8_t>(r, c) = corrected[static_cast<size_t>(r) * n + c] ? 0 : 255;
+      for (int c = 0; c < n; ++c) bits.at<uint8_t>(r, c) = fitted[static_cast<size_t>(r) * n + c] ? 0 : 255;
     return scanBits(n);
   }
 
@@ -492,22 +473,6 @@ struct QrReader::Impl {
         }
       if (!changed) break;
     }
-    // How dark each module is once its neighbours' share is taken off (known
-    // modules as they are): how sure the last sweep's decision was.
-    darkness.resize(static_cast<size_t>(n) * n);
-    for (int r = 0; r < n; ++r)
-      for (int c = 0; c < n; ++c) {
-        float& d = darkness[static_cast<size_t>(r) * n + c];
-        if (at(known, r, c) >= 0) {
-          d = static_cast<float>(at(known, r, c));
-          continue;
-        }
-        features(grid, r, c, f);
-        double rest = 0;
-        for (int k = 0; k < kFeatures; ++k)
-          if (k != 5) rest += w.at<double>(k) * f[k];
-        d = static_cast<float>((samples.at<float>(r, c) - rest) / own);
-      }
     for (int r = 0; r < n; ++r)
       for (int c = 0; c < n; ++c) bits.at<uint8_t>(r, c) = at(grid, r, c) ? 0 : 255;
     return true;

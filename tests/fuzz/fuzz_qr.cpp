@@ -1,17 +1,14 @@
 // Fuzz target: the QR reader on arbitrary images and corners
-// (ld/qr_reader.hpp), and its module-by-module parts on their own: the
-// codeword corrector on any modules' darkness (qr_codewords.hpp) and the
-// pixel model on any grid (qr_pixel_model.hpp).
+// (ld/qr_reader.hpp), and its pixel model on its own on any grid
+// (qr_pixel_model.hpp).
 //
-// Bytes 0-18 are a header: byte 0 the version the parts are given (1-15),
+// Bytes 0-18 are a header: byte 0 the version the pixel model is given (1-15),
 // bytes 1 and 2 the image's width and height (8-135 px, small: the pixel
 // model runs where a module is under 2 px), bytes 3-18 the four corners (TL,
 // TR, BR, BL) as little-endian int16 in eighths of a pixel (on the image,
 // far off it, crossed, degenerate). The rest, repeated, fills the gray
-// pixels row by row, and gives the corrector one byte per module (0-255 as
-// darkness -0.5 .. 1.5: sure, unsure and out of range). Nothing may crash;
-// a payload must be text zbar gave, a corrected symbol n x n modules of 0
-// and 1, and an estimate n x n finite values.
+// pixels row by row. Nothing may crash; an estimate must be n x n modules
+// of 0 and 1.
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -22,7 +19,6 @@
 
 #include "ld/landmark_layout.hpp"
 #include "ld/qr_reader.hpp"
-#include "../../qr_reader/src/qr_codewords.hpp"
 #include "../../qr_reader/src/qr_pixel_model.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
@@ -44,27 +40,17 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   // kept between inputs, as the process keeps its reader between frames
   static ld::QrReader reader;
   if (const auto r = reader.decode(gray, corners))
-    if (r->attempt < 0 || r->attempt > 9) std::abort();
-
-  static ld::detail::QrCorrector corrector;
-  std::vector<float> darkness(static_cast<size_t>(n) * n);
-  for (size_t i = 0; i < darkness.size(); ++i) darkness[i] = rest[i % rest_size] / 127.5f - 0.5f;
-  std::vector<uint8_t> modules;
-  if (corrector.correct(n, darkness.data(), modules)) {
-    if (modules.size() != darkness.size()) std::abort();
-    for (uint8_t m : modules)
-      if (m > 1) std::abort();
-  }
+    if (r->attempt < 0 || r->attempt > 8) std::abort();
 
   static ld::detail::QrPixelModel model;
   const double module = (ld::layout::kQrMax - ld::layout::kQrMin) / (n + 2);
   const cv::Matx33d module_to_sheet(module, 0, ld::layout::kQrMin + module, 0, module, ld::layout::kQrMin + module,
                                     0, 0, 1);
-  std::vector<float> estimate;
-  if (model.estimate(gray, ld::layout::sheetToImage(corners) * module_to_sheet, n, estimate)) {
-    if (estimate.size() != darkness.size()) std::abort();
-    for (float d : estimate)
-      if (!std::isfinite(d)) std::abort();
+  std::vector<uint8_t> modules;
+  if (model.estimate(gray, ld::layout::sheetToImage(corners) * module_to_sheet, n, modules)) {
+    if (modules.size() != static_cast<size_t>(n) * n) std::abort();
+    for (uint8_t m : modules)
+      if (m > 1) std::abort();
   }
   return 0;
 }

@@ -54,7 +54,14 @@ class QrTrackReader {
   std::ostream& log_;
   bool verbose_;
   QrReader reader_;
-  QrReader stack_reader_;  // its own buffers: the stacks' views have their own size
+  // its own buffers (the stacks' views have their own size), and no pixel
+  // model (QrReaderParams::fit_pixels)
+  QrReader stack_reader_{stackReaderParams()};
+  static QrReaderParams stackReaderParams() {
+    QrReaderParams p;
+    p.fit_pixels = false;
+    return p;
+  }
   QrTrackBook book_;
   StillTimeWatch still_;
   std::unordered_map<int64_t, QrStack> stacks_;

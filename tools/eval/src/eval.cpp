@@ -99,7 +99,7 @@ struct FramesRead {
 };
 FramesRead readOverFrames(const SweepOptions& o, synth::SceneSpec spec, const synth::LandmarkPlacement& lm,
                           const std::array<cv::Point2f, 4>& corners, const cv::Mat& first,
-                          AdaptiveDetector& detector, QrReader& reader) {
+                          AdaptiveDetector& detector, QrReader& reader, QrReader& stack_reader) {
   FramesRead read;
   QrStack stack(o.stack_frames);
   stack.add(first, corners);
@@ -120,7 +120,7 @@ FramesRead readOverFrames(const SweepOptions& o, synth::SceneSpec spec, const sy
         break;
       }
   }
-  if (const auto r = stack.decode(reader)) read.mean = r->payload;
+  if (const auto r = stack.decode(stack_reader)) read.mean = r->payload;
   return read;
 }
 
@@ -143,6 +143,10 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
     marker_texture = markers::sheetTexture(marker_detector->kind(), 0, 540);
   }
   QrReader reader;
+  // the stack's mean decoded as ld-qr-reader decodes it (QrTrackReader)
+  QrReaderParams stack_params;
+  stack_params.fit_pixels = false;
+  QrReader stack_reader(stack_params);
   std::mt19937_64 rng(pointSeed(o.seed, distance_m, yaw_deg));
   std::uniform_real_distribution<double> U(0, 1);
   std::vector<Point> points(marker ? 1 : detectors.size());
@@ -189,7 +193,7 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
           bool right = r && r->payload == payload, wrong = r && r->payload != payload;
           p.decoded += right;
           if (o.stack_frames > 0) {
-            const FramesRead more = readOverFrames(o, spec, lm, d.corners, frame.bgr, detectors[i], reader);
+            const FramesRead more = readOverFrames(o, spec, lm, d.corners, frame.bgr, detectors[i], reader, stack_reader);
             for (const std::string& s : more.alone) (s == payload ? right : wrong) = true;
             if (more.mean) (*more.mean == payload ? right : wrong) = true;
             p.decoded_stacked += right;
