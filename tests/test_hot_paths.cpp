@@ -14,6 +14,8 @@
 
 #include "ld/adaptive.hpp"
 #include "ld/detector.hpp"
+#include "ld/landmark_layout.hpp"
+#include "../qr_reader/src/qr_pixel_model.hpp"
 #include "ld/synth.hpp"
 
 // The sanitizers replace malloc themselves: no count under them.
@@ -136,6 +138,53 @@ TEST(HotPaths, DetectorAllocatesNothingOnceWarmedUp) {
   EXPECT_EQ(allocations, 0) << "in " << frames_with << " of " << scenes.size() << " frames";
   EXPECT_GE(landmarks, scenes.size());  // (the frames hold landmarks, and they were found)
   EXPECT_GE(veiled, 10);                // (and the veil look ran)
+}
+
+// The QR reader's pixel model (its own code: the reader around it calls
+// OpenCV's warps and zbar, which allocate): far landmarks' codes (100-byte
+// payloads at 0.8-1.2 m, modules of about 1 px) fitted to the pixels, then
+// fitted again once every buffer is at its largest.
+TEST(HotPaths, QrPixelModelAllocatesNothingOnceWarmedUp) {
+  if (!LD_COUNT_MALLOC) GTEST_SKIP() << "the sanitizers own malloc";
+  const ld::CameraModel cam = ld::CameraModel::defaultVga();
+  struct Code {
+    cv::Mat gray;
+    cv::Matx33d module_to_image;
+  };
+  std::vector<Code> codes;
+  const std::string payload(100, 'Q');  // version 5 at level L: 37 modules
+  constexpr int n = 37;
+  for (int k = 0; k < 5; ++k) {
+    ld::synth::SceneSpec spec;
+    spec.camera = cam;
+    spec.landmarks = {ld::synth::placeLandmark(cam, 0.8 + 0.1 * k, 20.0 - 10 * k, 5, 30.0 * k, 0, 0, 0.15, payload)};
+    spec.seed = 10 + static_cast<uint64_t>(k);
+    const ld::synth::Frame frame = ld::synth::render(spec);
+    std::array<cv::Point2f, 4> corners;
+    for (size_t i = 0; i < 4; ++i) corners[i] = cv::Point2f(frame.truth[0].corners[i]);
+    const double module = (ld::layout::kQrMax - ld::layout::kQrMin) / (n + 2);
+    const cv::Matx33d module_to_sheet(module, 0, ld::layout::kQrMin + module, 0, module,
+                                      ld::layout::kQrMin + module, 0, 0, 1);
+    Code c;
+    cv::cvtColor(frame.bgr, c.gray, cv::COLOR_BGR2GRAY);
+    c.module_to_image = ld::layout::sheetToImage(corners) * module_to_sheet;
+    codes.push_back(c);
+  }
+  ld::detail::QrPixelModel model;
+  std::vector<uint8_t> modules;
+  int fitted = 0;
+  for (int pass = 0; pass < 2; ++pass)
+    for (const Code& c : codes) fitted += model.estimate(c.gray, c.module_to_image, n, modules);
+  EXPECT_EQ(fitted, 2 * static_cast<int>(codes.size()));
+  long allocations = 0;
+  for (const Code& c : codes) {
+    g_allocations = 0;
+    g_counting = true;
+    model.estimate(c.gray, c.module_to_image, n, modules);
+    g_counting = false;
+    allocations += g_allocations;
+  }
+  EXPECT_EQ(allocations, 0);
 }
 
 // The count itself works: a frame's worth of cv::Mat is counted.
