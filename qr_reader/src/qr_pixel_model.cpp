@@ -41,32 +41,43 @@ const std::vector<cv::Mat>& kernels() {
 
 // `out` = the kernel `k` applied to `in` (a correlation, as cv::filter2D's;
 // the kernels are symmetric, so it is their convolution too), outside the
-// image its edge (`replicate`) or 0. By hand: filter2D takes buffers at each
-// call, and the fit makes about a hundred.
-void convolve(const cv::Mat& in, cv::Mat& out, const cv::Mat& k, bool replicate) {
+// image its edge (`replicate`) or 0, through `scratch`. The kernels are round
+// Gaussians, a row times a column, so it goes in two passes of 7 taps. By
+// hand: filter2D takes buffers at each call, and the fit makes about a
+// hundred.
+void convolve(const cv::Mat& in, cv::Mat& out, const cv::Mat& k, bool replicate, cv::Mat& scratch) {
   const int w = in.cols, h = in.rows, r = k.rows / 2;
-  for (int y = 0; y < h; ++y) {
-    float* o = out.ptr<float>(y);
+  float g[2 * kKernelReach + 1];
+  float sum = 0;
+  for (int i = 0; i <= 2 * r; ++i) sum += g[i] = k.at<float>(r, i);
+  for (int i = 0; i <= 2 * r; ++i) g[i] /= sum;
+  auto tap = [&](int i, int n, bool& skip) {  // the index to read, or skip it
+    skip = false;
+    if (i >= 0 && i < n) return i;
+    if (!replicate) skip = true;
+    return std::clamp(i, 0, n - 1);
+  };
+  bool skip;
+  for (int y = 0; y < h; ++y) {  // along rows
+    const float* row = in.ptr<float>(y);
+    float* o = scratch.ptr<float>(y);
     for (int x = 0; x < w; ++x) {
-      float sum = 0;
-      for (int ky = -r; ky <= r; ++ky) {
-        int yy = y + ky;
-        if (yy < 0 || yy >= h) {
-          if (!replicate) continue;
-          yy = std::clamp(yy, 0, h - 1);
-        }
-        const float* row = in.ptr<float>(yy);
-        const float* kr = k.ptr<float>(ky + r);
-        for (int kx = -r; kx <= r; ++kx) {
-          int xx = x + kx;
-          if (xx < 0 || xx >= w) {
-            if (!replicate) continue;
-            xx = std::clamp(xx, 0, w - 1);
-          }
-          sum += kr[kx + r] * row[xx];
-        }
+      float acc = 0;
+      for (int t = -r; t <= r; ++t) {
+        const int xx = tap(x + t, w, skip);
+        if (!skip) acc += g[t + r] * row[xx];
       }
-      o[x] = sum;
+      o[x] = acc;
+    }
+  }
+  for (int y = 0; y < h; ++y) {  // along columns
+    float* o = out.ptr<float>(y);
+    for (int x = 0; x < w; ++x) o[x] = 0;
+    for (int t = -r; t <= r; ++t) {
+      const int yy = tap(y + t, h, skip);
+      if (skip) continue;
+      const float* row = scratch.ptr<float>(yy);
+      for (int x = 0; x < w; ++x) o[x] += g[t + r] * row[x];
     }
   }
 }
@@ -118,7 +129,7 @@ bool QrPixelModel::cover(const cv::Mat& gray, const cv::Matx33d& module_to_image
   // of the right size is not reallocated by OpenCV)
   const int rows = v1 - v0 + 1, cols = u1 - u0 + 1;
   cv::Mat* images[] = {&value_, &a_, &b_, &target_, &weight_, &tmp1_, &tmp2_,
-                       &known_cover_, &known_dark_cover_, &known_share_, &known_dark_};
+                       &known_cover_, &known_dark_cover_, &known_share_, &known_dark_, &scratch_};
   static_assert(sizeof(images) / sizeof(images[0]) == kImages);
   for (size_t i = 0; i < kImages; ++i) {
     store_[i].resize(static_cast<size_t>(rows) * cols);
@@ -191,8 +202,8 @@ void QrPixelModel::render(const std::vector<float>& x, bool known, cv::Mat& out)
 // pixels that see known modules only, through `kernel`; the fit's rms
 // difference (gray levels), or -1 when too few pixels see known modules.
 double QrPixelModel::fitLight(const cv::Mat& kernel, double coeff[6]) {
-  convolve(known_cover_, known_share_, kernel, true);
-  convolve(known_dark_cover_, known_dark_, kernel, true);
+  convolve(known_cover_, known_share_, kernel, true, scratch_);
+  convolve(known_dark_cover_, known_dark_, kernel, true, scratch_);
   cv::Matx<double, 6, 6> ata = cv::Matx<double, 6, 6>::zeros();
   cv::Matx<double, 6, 1> atb = cv::Matx<double, 6, 1>::zeros();
   double btb = 0;
@@ -226,11 +237,11 @@ void QrPixelModel::solveLeastSquares(int iterations) {
   const size_t gg = x_.size();
   auto apply = [&](const std::vector<float>& x, std::vector<float>& out) {
     render(x, false, tmp1_);
-    convolve(tmp1_, tmp2_, kernel_, false);
+    convolve(tmp1_, tmp2_, kernel_, false, scratch_);
     float* t = tmp2_.ptr<float>();
     const float* wt = weight_.ptr<float>();
     for (int j = 0; j < value_.rows * value_.cols; ++j) t[j] *= wt[j];
-    convolve(tmp2_, tmp1_, kernel_, false);
+    convolve(tmp2_, tmp1_, kernel_, false, scratch_);
     out.assign(gg, 0.0f);
     const float* v = tmp1_.ptr<float>();
     const int pixels = value_.rows * value_.cols;
@@ -243,7 +254,7 @@ void QrPixelModel::solveLeastSquares(int iterations) {
       if (!known_[m]) out[m] += static_cast<float>(kPull) * x[m];
   };
   // right-hand side W'y + kPull / 2 (target_ is y, zero where not fitted), in cg_r_
-  convolve(target_, tmp1_, kernel_, false);
+  convolve(target_, tmp1_, kernel_, false, scratch_);
   cg_r_.assign(gg, 0.0f);
   {
     const float* v = tmp1_.ptr<float>();
@@ -518,7 +529,7 @@ bool QrPixelModel::estimate(const cv::Mat& gray, const cv::Matx33d& module_to_im
   render(x_, true, tmp1_);
   render(x_, false, tmp2_);
   tmp1_ += tmp2_;
-  convolve(tmp1_, tmp2_, kernel_, true);
+  convolve(tmp1_, tmp2_, kernel_, true, scratch_);
   residual_.assign(static_cast<size_t>(value_.rows) * value_.cols, 0.0f);
   for (int j = 0; j < value_.rows * value_.cols; ++j)
     if (weight_.ptr<float>()[j] != 0)

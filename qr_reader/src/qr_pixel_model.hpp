@@ -59,12 +59,12 @@ class QrPixelModel {
   std::vector<uint8_t> known_;                 // g x g: 1 for a module every code has (or the rings)
   std::vector<float> x_;                       // g x g: darkness (known: as known)
   // the ROI's images (headers over store_ and valid_store_, which only grow)
-  static constexpr size_t kImages = 11;
+  static constexpr size_t kImages = 12;
   std::vector<float> store_[kImages];
   std::vector<uint8_t> valid_store_;
   cv::Mat value_, valid_, a_, b_, target_, weight_;
   int roi_x_ = 0, roi_y_ = 0;                        // the ROI's top-left pixel in the image
-  cv::Mat kernel_, between_, tmp1_, tmp2_, known_cover_, known_dark_cover_, known_share_, known_dark_;
+  cv::Mat kernel_, between_, tmp1_, tmp2_, scratch_, known_cover_, known_dark_cover_, known_share_, known_dark_;
   std::vector<int> cover_start_, cover_module_;      // per ROI pixel: the modules in its square
   std::vector<float> cover_weight_;
   std::vector<int> foot_start_, foot_pixel_;         // per module: the pixels it reaches through the blur
