@@ -198,6 +198,17 @@ void QrPixelModel::render(const std::vector<float>& x, bool known, cv::Mat& out)
   }
 }
 
+// C' img over the unknown modules, added to `out` (g x g).
+void QrPixelModel::coverTransposed(const cv::Mat& img, std::vector<float>& out) const {
+  const float* v = img.ptr<float>();
+  const int pixels = value_.rows * value_.cols;
+  for (int j = 0; j < pixels; ++j)
+    for (int t = cover_start_[static_cast<size_t>(j)]; t < cover_start_[static_cast<size_t>(j) + 1]; ++t) {
+      const auto m = static_cast<size_t>(cover_module_[static_cast<size_t>(t)]);
+      if (!known_[m]) out[m] += cover_weight_[static_cast<size_t>(t)] * v[j];
+    }
+}
+
 // The light a + b k (each a plane across the code: 1, u, v) fitted on the
 // pixels that see known modules only, through `kernel`; the fit's rms
 // difference (gray levels), or -1 when too few pixels see known modules.
@@ -243,28 +254,14 @@ void QrPixelModel::solveLeastSquares(int iterations) {
     for (int j = 0; j < value_.rows * value_.cols; ++j) t[j] *= wt[j];
     convolve(tmp2_, tmp1_, kernel_, false, scratch_);
     out.assign(gg, 0.0f);
-    const float* v = tmp1_.ptr<float>();
-    const int pixels = value_.rows * value_.cols;
-    for (int j = 0; j < pixels; ++j)
-      for (int t = cover_start_[static_cast<size_t>(j)]; t < cover_start_[static_cast<size_t>(j) + 1]; ++t) {
-        const auto m = static_cast<size_t>(cover_module_[static_cast<size_t>(t)]);
-        if (!known_[m]) out[m] += cover_weight_[static_cast<size_t>(t)] * v[j];
-      }
+    coverTransposed(tmp1_, out);
     for (size_t m = 0; m < gg; ++m)
       if (!known_[m]) out[m] += static_cast<float>(kPull) * x[m];
   };
   // right-hand side W'y + kPull / 2 (target_ is y, zero where not fitted), in cg_r_
   convolve(target_, tmp1_, kernel_, false, scratch_);
   cg_r_.assign(gg, 0.0f);
-  {
-    const float* v = tmp1_.ptr<float>();
-    const int pixels = value_.rows * value_.cols;
-    for (int j = 0; j < pixels; ++j)
-      for (int t = cover_start_[static_cast<size_t>(j)]; t < cover_start_[static_cast<size_t>(j) + 1]; ++t) {
-        const auto m = static_cast<size_t>(cover_module_[static_cast<size_t>(t)]);
-        if (!known_[m]) cg_r_[m] += cover_weight_[static_cast<size_t>(t)] * v[j];
-      }
-  }
+  coverTransposed(tmp1_, cg_r_);
   // from x = 0.5: r = rhs - A x, p = r
   cg_x_.assign(gg, 0.0f);
   for (size_t m = 0; m < gg; ++m)

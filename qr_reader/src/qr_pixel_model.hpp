@@ -49,6 +49,7 @@ class QrPixelModel {
   double fitLight(const cv::Mat& kernel, double coeff[6]);
   bool alignStep(const double light[6], const cv::Matx33d& grid, cv::Matx33d& moved);
   void render(const std::vector<float>& x, bool known, cv::Mat& out);
+  void coverTransposed(const cv::Mat& img, std::vector<float>& out) const;
   void solveLeastSquares(int iterations);
   void buildFootprints();
   double flipChange(size_t m) const;
