@@ -140,7 +140,7 @@ TEST(QrStack, AveragedFramesReadWhatSingleFramesMiss) {
   EXPECT_EQ(wrong, 0);
   EXPECT_GE(singles, kPoses * kFrames * 9 / 10);      // the detector finds the landmark ...
   EXPECT_LE(single, singles / 10);                    // ... but single frames seldom read it
-  EXPECT_GE(stacked, kPoses / 2);                     // (measured: 4 / 64 frames, 5 / 8 stacks,
+  EXPECT_GE(stacked, kPoses / 2);                     // (measured: 3 / 64 frames, 5 / 8 stacks,
   EXPECT_GE(only_stacked, 3);                         //  4 of them where no frame alone read)
 }
 
@@ -161,6 +161,22 @@ TEST(QrDecodeRate, AutoErrorCorrectionReadsLongPayloadsFurther) {
   }
   std::printf("100 bytes at 0.8-1.0 m: auto (L) %d/120, M %d/120\n", read[0], read[1]);
   EXPECT_GE(read[0], read[1] + 5);  // (measured: 72 against 62; the same symbols would tie)
+}
+
+// 100-byte codes at 0.9 and 1 m (about a pixel a module): read from single
+// frames by fitting the modules to the pixels (the pixel model; before it,
+// 39 and 11 % of 100 frames a point, since it 54 and 35 %).
+TEST(QrDecodeRate, FarLongPayloadsReadFromTheirPixels) {
+  const ld::eval::SweepOptions o = readingOptions(40, 53, 3, 2);
+  int read = 0, trials = 0;
+  for (double d : {0.9, 1.0}) {
+    const auto p = ld::eval::measure(o, d, 0, 40);
+    EXPECT_EQ(p.wrong_payload, 0);
+    std::printf("%.1f m, 100 bytes: %d/%d\n", d, p.decoded, p.trials);
+    read += p.decoded;
+    trials += p.trials;
+  }
+  EXPECT_GE(read, 32);  // (measured: 25 + 15 of 80; 19 + 4 before the pixel model)
 }
 
 // ld-eval qr --stack: each trial read over several frames as ld-qr-reader

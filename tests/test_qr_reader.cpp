@@ -158,7 +158,7 @@ TEST(QrReader, EqualisesBlurredModules) {
 
 // A 100-byte payload (version 5 at level L: 37 modules) at about 1.04 camera
 // pixels per module, defocused: sampled at the modules' centres, too many
-// modules are wrong even for the erasures; fitted to the pixels through the
+// modules are wrong for the code's error correction; fitted to the pixels through the
 // camera's blur (the pixel model), the code reads.
 Scene defocusedLongCode(const std::string& payload, double sigma) {
   const auto qr = ld::artwork::encodeQr(payload);

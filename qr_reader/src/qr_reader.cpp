@@ -73,6 +73,11 @@ cv::Vec2f moduleToImage(const cv::Matx33d& sheet_to_image, double module, double
 // under this many pixels: its cost grows with the pixels, and where a module
 // has two or more the equaliser reads all a model would.
 constexpr double kPixelModelMaxPx = 2.0;
+// ... and whose QR square is at most this many pixels across: the fit's cost
+// grows with the pixels (a 100-byte code at level H, 0.4 m away, took 120
+// ms a try), and the far codes it reads are smaller (a 37-module code at
+// 0.6 m is 67 px).
+constexpr double kPixelModelMaxSide = 72.0;
 
 // The grid as the corners put it: not moved (readBent moves it).
 const cv::Matx23d kFlatGrid(1, 0, 0, 0, 1, 0);
@@ -174,8 +179,9 @@ struct QrReader::Impl {
     if (auto r = readBent(sheet_to_image, qr_px)) return r;
     // Last, the code fitted to the pixels (the slowest way: once, for the
     // version whose finders fit best, and only where its modules are under
-    // kPixelModelMaxPx: larger ones the ways above read).
-    if (params.fit_pixels && top_n > 0 && qr_px / (top_n + 2) < kPixelModelMaxPx)
+    // kPixelModelMaxPx in a QR square of kPixelModelMaxSide at most: larger
+    // ones the ways above read).
+    if (params.fit_pixels && top_n > 0 && qr_px / (top_n + 2) < kPixelModelMaxPx && qr_px <= kPixelModelMaxSide)
       if (auto r = readPixels(top_grid, top_n)) return std::pair{*r, 2};
     return std::nullopt;
   }

@@ -28,7 +28,8 @@ struct QrReaderParams {
   /// plain view does not decode.
   bool retry_variations = true;
   /// Last, fit the code to the pixels (qr_pixel_model.hpp) where a module is
-  /// under 2 px: the farthest reads, at 7-13 ms a try. ld-qr-reader's
+  /// under 2 px and the QR square at most 72 px: the farthest reads, at 7-13
+  /// ms a try for a 37-module code. ld-qr-reader's
   /// stacks of frames decode without it (their averaged view is upsampled
   /// twice, and the fit there read 2 stacks in 26 at 1.05 m for 17 ms more).
   bool fit_pixels = true;
