@@ -140,7 +140,7 @@ TEST(QrStack, AveragedFramesReadWhatSingleFramesMiss) {
   EXPECT_EQ(wrong, 0);
   EXPECT_GE(singles, kPoses * kFrames * 9 / 10);      // the detector finds the landmark ...
   EXPECT_LE(single, singles / 10);                    // ... but single frames seldom read it
-  EXPECT_GE(stacked, kPoses / 2);                     // (measured: 3 / 64 frames, 5 / 8 stacks,
+  EXPECT_GE(stacked, kPoses / 2);                     // (measured: 4 / 64 frames, 5 / 8 stacks,
   EXPECT_GE(only_stacked, 3);                         //  4 of them where no frame alone read)
 }
 
@@ -182,7 +182,8 @@ TEST(QrDecodeRate, FarLongPayloadsReadFromTheirPixels) {
 // ld-eval qr --stack: each trial read over several frames as ld-qr-reader
 // reads an undecoded track. 100-byte codes at 1.15 m (at 0.95 m, since the
 // reader fits single frames' modules to the pixels, they read 9 of 20 and
-// the frames 11): the frames' mean reads codes no single frame does.
+// the frames 11): the frames' mean reads codes, and the 8 frames more than
+// single frames.
 TEST(QrDecodeRate, OverSeveralFramesAsTheProcessReads) {
   ld::eval::SweepOptions o = readingOptions(20, 31, 3, 2);
   o.stack_frames = 8;
@@ -190,6 +191,8 @@ TEST(QrDecodeRate, OverSeveralFramesAsTheProcessReads) {
   std::printf("1.15 m, 100 bytes: single frames %d/%d, over 8 frames %d/%d (the mean: %d)\n", p.decoded,
               p.trials, p.decoded_stacked, p.trials, p.decoded_mean);
   EXPECT_EQ(p.wrong_payload, 0);
-  EXPECT_GE(p.decoded_stacked, p.decoded + 3);  // (measured: 3 and 6 of 20, the mean 5)
+  // (measured: 5 and 6 of 20, the mean 5; before the pixel model at 0.95 m
+  // 3 and 8: single frames now read most of what the mean reads)
+  EXPECT_GT(p.decoded_stacked, p.decoded);
   EXPECT_GE(p.decoded_mean, 3);  // the mean itself reads, not only one of the 8 frames alone
 }
