@@ -162,12 +162,9 @@ TEST(HotPaths, QrPixelModelAllocatesNothingOnceWarmedUp) {
     const ld::synth::Frame frame = ld::synth::render(spec);
     std::array<cv::Point2f, 4> corners;
     for (size_t i = 0; i < 4; ++i) corners[i] = cv::Point2f(frame.truth[0].corners[i]);
-    const double module = (ld::layout::kQrMax - ld::layout::kQrMin) / (n + 2);
-    const cv::Matx33d module_to_sheet(module, 0, ld::layout::kQrMin + module, 0, module,
-                                      ld::layout::kQrMin + module, 0, 0, 1);
     Code c;
     cv::cvtColor(frame.bgr, c.gray, cv::COLOR_BGR2GRAY);
-    c.module_to_image = ld::layout::sheetToImage(corners) * module_to_sheet;
+    c.module_to_image = ld::layout::sheetToImage(corners) * ld::detail::moduleToSheet(n);
     codes.push_back(c);
   }
   ld::detail::QrPixelModel model;

@@ -96,9 +96,7 @@ TEST(QrStack, AveragedFramesReadWhatSingleFramesMiss) {
   const ld::CameraModel cam = ld::CameraModel::defaultVga();
   ld::Detector detector;
   ld::QrReader reader;
-  ld::QrReaderParams stack_params;  // as ld-qr-reader decodes its stacks
-  stack_params.fit_pixels = false;
-  ld::QrReader stack_reader(stack_params);
+  ld::QrReader stack_reader(ld::QrStack::readerParams());  // as ld-qr-reader decodes its stacks
   std::mt19937_64 rng(77);
   std::uniform_real_distribution<double> U(-1, 1);
   int single = 0, singles = 0, stacked = 0, wrong = 0, only_stacked = 0;

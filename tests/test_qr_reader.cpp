@@ -225,9 +225,7 @@ TEST(QrPixelModel, EstimatesTheModulesOfABlurredCode) {
   cv::Mat gray;
   cv::cvtColor(sc.image, gray, cv::COLOR_BGR2GRAY);
   const int n = qr.size;
-  const double module = (ld::layout::kQrMax - ld::layout::kQrMin) / (n + 2);
-  const cv::Matx33d module_to_sheet(module, 0, ld::layout::kQrMin + module, 0, module, ld::layout::kQrMin + module, 0, 0, 1);
-  const cv::Matx33d module_to_image = ld::layout::sheetToImage(sc.corners) * module_to_sheet;
+  const cv::Matx33d module_to_image = ld::layout::sheetToImage(sc.corners) * ld::detail::moduleToSheet(n);
   ld::detail::QrPixelModel model;
   std::vector<uint8_t> modules;
   ASSERT_TRUE(model.estimate(gray, module_to_image, n, modules));

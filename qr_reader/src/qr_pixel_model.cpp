@@ -5,6 +5,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "ld/landmark_layout.hpp"
 #include "qr_function_patterns.hpp"
 
 namespace ld::detail {
@@ -82,16 +83,51 @@ void convolve(const cv::Mat& in, cv::Mat& out, const cv::Mat& k, bool replicate,
   }
 }
 
-// The 6 x 6 normal equations a x = b solved in place (x in b; a small ridge
-// keeps them solvable); false when they are not.
-bool solve6(cv::Matx<double, 6, 6> a, cv::Matx<double, 6, 1>& b) {
-  const double ridge = 1e-9 * (cv::trace(a) + 1);
-  for (int i = 0; i < 6; ++i) a(i, i) += ridge;
-  if (!cv::Cholesky(a.val, 6 * sizeof(double), 6, b.val, sizeof(double), 1)) return false;
-  for (int i = 0; i < 6; ++i)
-    if (!std::isfinite(b(i))) return false;
-  return true;
-}
+// Least squares in 6 unknowns (the light's two planes, an affine move), by
+// their normal equations, a row at a time.
+struct LeastSquares6 {
+  cv::Matx<double, 6, 6> ata = cv::Matx<double, 6, 6>::zeros();
+  cv::Matx<double, 6, 1> atb = cv::Matx<double, 6, 1>::zeros();
+  double btb = 0;
+  int rows = 0;
+  void add(const double (&f)[6], double target) {
+    for (int i = 0; i < 6; ++i) {
+      for (int j = 0; j < 6; ++j) ata(i, j) += f[i] * f[j];
+      atb(i) += f[i] * target;
+    }
+    btb += target * target;
+    ++rows;
+  }
+  // x, by Cholesky (a small ridge keeps it solvable); false when it is not.
+  bool solve(cv::Matx<double, 6, 1>& x) const {
+    cv::Matx<double, 6, 6> a = ata;
+    const double ridge = 1e-9 * (cv::trace(a) + 1);
+    for (int i = 0; i < 6; ++i) a(i, i) += ridge;
+    x = atb;
+    if (!cv::Cholesky(a.val, 6 * sizeof(double), 6, x.val, sizeof(double), 1)) return false;
+    for (int i = 0; i < 6; ++i)
+      if (!std::isfinite(x(i))) return false;
+    return true;
+  }
+  // the rms of the rows' differences from x: |A x - b|^2 = x'A'A x - 2 x'A'b + b'b
+  double rms(const cv::Matx<double, 6, 1>& x) const {
+    const double res = (x.t() * ata * x)(0) - 2 * (x.t() * atb)(0) + btb;
+    return std::sqrt(std::max(0.0, res / rows));
+  }
+};
+
+// A pixel of the ROI in the coordinates of the light's planes and of the
+// affine move: from its middle, in units of its longer side.
+struct RoiPlane {
+  double cx, cy, scale;
+  explicit RoiPlane(const cv::Mat& roi)
+      : cx(roi.cols / 2.0), cy(roi.rows / 2.0), scale(1.0 / std::max(roi.cols, roi.rows)) {}
+  double u(int x) const { return (x - cx) * scale; }
+  double v(int y) const { return (y - cy) * scale; }
+  // the light's a and b at (x, y), of coefficients a0, au, av, b0, bu, bv
+  double a(const double (&light)[6], int x, int y) const { return light[0] + light[1] * u(x) + light[2] * v(y); }
+  double b(const double (&light)[6], int x, int y) const { return light[3] + light[4] * u(x) + light[5] * v(y); }
+};
 
 // Sub-samples per pixel side for the modules' shares of a pixel's square.
 constexpr int kCoverSub = 6;
@@ -110,6 +146,11 @@ constexpr int kAlignSteps = 2;
 constexpr double kAlignDamping = 0.6;
 
 }  // namespace
+
+cv::Matx33d moduleToSheet(int n) {
+  const double module = (layout::kQrMax - layout::kQrMin) / (n + 2);
+  return {module, 0, layout::kQrMin + module, 0, module, layout::kQrMin + module, 0, 0, 1};
+}
 
 bool QrPixelModel::cover(const cv::Mat& gray, const cv::Matx33d& module_to_image, int n) {
   const cv::Matx33d to_module = module_to_image.inv();
@@ -219,31 +260,18 @@ void QrPixelModel::coverTransposed(const cv::Mat& img, std::vector<float>& out) 
 double QrPixelModel::fitLight(const cv::Mat& kernel, double coeff[6]) {
   convolve(known_cover_, known_share_, kernel, true, scratch_);
   convolve(known_dark_cover_, known_dark_, kernel, true, scratch_);
-  cv::Matx<double, 6, 6> ata = cv::Matx<double, 6, 6>::zeros();
-  cv::Matx<double, 6, 1> atb = cv::Matx<double, 6, 1>::zeros();
-  double btb = 0;
-  int rows = 0;
-  const double cu = value_.cols / 2.0, cv0 = value_.rows / 2.0, scale = 1.0 / std::max(value_.cols, value_.rows);
+  LeastSquares6 ls;
+  const RoiPlane plane(value_);
   for (int y = 0; y < value_.rows; ++y)
     for (int x = 0; x < value_.cols; ++x) {
       if (!valid_.at<uint8_t>(y, x) || known_share_.at<float>(y, x) < kKnownShare) continue;
-      const double k = known_dark_.at<float>(y, x), u = (x - cu) * scale, v = (y - cv0) * scale;
-      const double f[6] = {1, u, v, k, u * k, v * k};
-      const double p = value_.at<float>(y, x);
-      for (int i = 0; i < 6; ++i) {
-        for (int j = 0; j < 6; ++j) ata(i, j) += f[i] * f[j];
-        atb(i) += f[i] * p;
-      }
-      btb += p * p;
-      ++rows;
+      const double k = known_dark_.at<float>(y, x), u = plane.u(x), v = plane.v(y);
+      ls.add({1, u, v, k, u * k, v * k}, value_.at<float>(y, x));
     }
-  if (rows < 40) return -1;
-  cv::Matx<double, 6, 1> w = atb;
-  if (!solve6(ata, w)) return -1;
-  // |A w - b|^2 = w' A'A w - 2 w' A'b + b'b
-  const double res = (w.t() * ata * w)(0) - 2 * (w.t() * atb)(0) + btb;
+  cv::Matx<double, 6, 1> w;
+  if (ls.rows < 40 || !ls.solve(w)) return -1;
   for (int i = 0; i < 6; ++i) coeff[i] = w(i);
-  return std::sqrt(std::max(0.0, res / rows));
+  return ls.rms(w);
 }
 
 // The unknown modules' least-squares darkness: (W'W + kPull I) x = W'y +
@@ -408,40 +436,31 @@ void QrPixelModel::descend() {
 // gives, by least squares, an affine move of the image points; `moved` is
 // the grid after it. False when the move cannot be solved or is more than
 // half a pixel anywhere in the code.
-bool QrPixelModel::alignStep(const double light[6], const cv::Matx33d& grid, cv::Matx33d& moved) {
+bool QrPixelModel::alignStep(const double (&light)[6], const cv::Matx33d& grid, cv::Matx33d& moved) {
   const int w = value_.cols, h = value_.rows;
-  const double cu = w / 2.0, cv0 = h / 2.0, scale = 1.0 / std::max(w, h);
+  const RoiPlane plane(value_);
   auto predict = [&](int x, int y) {
-    const double u = (x - cu) * scale, v = (y - cv0) * scale;
-    return light[0] + light[1] * u + light[2] * v + (light[3] + light[4] * u + light[5] * v) * known_dark_.at<float>(y, x);
+    return plane.a(light, x, y) + plane.b(light, x, y) * known_dark_.at<float>(y, x);
   };
-  cv::Matx<double, 6, 6> ata = cv::Matx<double, 6, 6>::zeros();
-  cv::Matx<double, 6, 1> atb = cv::Matx<double, 6, 1>::zeros();
-  int rows = 0;
+  LeastSquares6 ls;
   for (int y = 1; y < h - 1; ++y)
     for (int x = 1; x < w - 1; ++x) {
       if (!valid_.at<uint8_t>(y, x) || known_share_.at<float>(y, x) < kKnownShare) continue;
       const double gx = (predict(x + 1, y) - predict(x - 1, y)) / 2, gy = (predict(x, y + 1) - predict(x, y - 1)) / 2;
       if (gx == 0 && gy == 0) continue;
-      const double u = (x - cu) * scale, v = (y - cv0) * scale;
-      const double f[6] = {gx, gx * u, gx * v, gy, gy * u, gy * v};
-      const double r = value_.at<float>(y, x) - predict(x, y);  // = -(gx dx + gy dy)
-      for (int i = 0; i < 6; ++i) {
-        for (int j = 0; j < 6; ++j) ata(i, j) += f[i] * f[j];
-        atb(i) -= f[i] * r;
-      }
-      ++rows;
+      const double u = plane.u(x), v = plane.v(y);
+      // the difference from the prediction is -(gx dx + gy dy)
+      ls.add({gx, gx * u, gx * v, gy, gy * u, gy * v}, predict(x, y) - value_.at<float>(y, x));
     }
-  if (rows < 40) return false;
-  cv::Matx<double, 6, 1> d = atb;
-  if (!solve6(ata, d)) return false;
+  cv::Matx<double, 6, 1> d;
+  if (ls.rows < 40 || !ls.solve(d)) return false;
   d *= kAlignDamping;
   // the move at the ROI's corners: at most half a pixel
   for (double u : {-0.5, 0.5})
     for (double v : {-0.5, 0.5})
       if (std::hypot(d(0) + d(1) * u + d(2) * v, d(3) + d(4) * u + d(5) * v) > 0.5) return false;
-  // image point X -> X + d(X), with u = (X - roi_x0 - cu) * scale
-  const double xc = roi_x_ + cu, yc = roi_y_ + cv0;
+  // image point X -> X + d(X), with u = (X - roi_x0 - cx) * scale
+  const double xc = roi_x_ + plane.cx, yc = roi_y_ + plane.cy, scale = plane.scale;
   const cv::Matx33d move(1 + d(1) * scale, d(2) * scale, d(0) - d(1) * scale * xc - d(2) * scale * yc,  //
                          d(4) * scale, 1 + d(5) * scale, d(3) - d(4) * scale * xc - d(5) * scale * yc,  //
                          0, 0, 1);
@@ -513,11 +532,10 @@ bool QrPixelModel::estimate(const cv::Mat& gray, const cv::Matx33d& module_to_im
   }
   if (!(light[3] < -8)) return false;
   // 5. The targets: what the unknown modules must add to each fitted pixel.
-  const double cu = value_.cols / 2.0, cv0 = value_.rows / 2.0, scale = 1.0 / std::max(value_.cols, value_.rows);
+  const RoiPlane plane(value_);
   for (int y = 0; y < value_.rows; ++y)
     for (int x = 0; x < value_.cols; ++x) {
-      const double u = (x - cu) * scale, v = (y - cv0) * scale;
-      const double a = light[0] + light[1] * u + light[2] * v, b = light[3] + light[4] * u + light[5] * v;
+      const double a = plane.a(light, x, y), b = plane.b(light, x, y);
       a_.at<float>(y, x) = static_cast<float>(a);
       b_.at<float>(y, x) = static_cast<float>(b);
       const bool fitted = valid_.at<uint8_t>(y, x) && b < -1;

@@ -34,6 +34,12 @@
 
 namespace ld::detail {
 
+/// An n-module code's module coordinates (x right, y down, 0 at the
+/// symbol's top-left edge, one module a unit) in the sheet frame (units u):
+/// the QR square holds the symbol and one module of quiet zone
+/// (docs/landmark.md). Times ld::layout::sheetToImage, `module_to_image`.
+cv::Matx33d moduleToSheet(int n);
+
 class QrPixelModel {
  public:
   /// The modules of an n-module code (n x n, row-major, 1 dark, 0 light;
@@ -47,7 +53,7 @@ class QrPixelModel {
  private:
   bool cover(const cv::Mat& gray, const cv::Matx33d& module_to_image, int n);
   double fitLight(const cv::Mat& kernel, double coeff[6]);
-  bool alignStep(const double light[6], const cv::Matx33d& grid, cv::Matx33d& moved);
+  bool alignStep(const double (&light)[6], const cv::Matx33d& grid, cv::Matx33d& moved);
   void render(const std::vector<float>& x, bool known, cv::Mat& out);
   void coverTransposed(const cv::Mat& img, std::vector<float>& out) const;
   void solveLeastSquares(int iterations);

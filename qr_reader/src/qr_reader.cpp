@@ -285,9 +285,7 @@ struct QrReader::Impl {
   // The code from the pixel model (qr_pixel_model.hpp) on the grid that
   // `sheet_to_image` puts.
   std::optional<std::string> readPixels(const cv::Matx33d& sheet_to_image, int n) {
-    const double module = (layout::kQrMax - layout::kQrMin) / (n + 2);
-    const cv::Matx33d module_to_sheet(module, 0, layout::kQrMin + module, 0, module, layout::kQrMin + module, 0, 0, 1);
-    if (!pixel_model.estimate(gray, sheet_to_image * module_to_sheet, n, fitted)) return std::nullopt;
+    if (!pixel_model.estimate(gray, sheet_to_image * detail::moduleToSheet(n), n, fitted)) return std::nullopt;
     bits.create(n, n, CV_8U);
     for (int r = 0; r < n; ++r)
       for (int c = 0; c < n; ++c) bits.at<uint8_t>(r, c) = fitted[static_cast<size_t>(r) * n + c] ? 0 : 255;

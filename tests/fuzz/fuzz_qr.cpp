@@ -43,11 +43,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     if (r->attempt < 0 || r->attempt > 8) std::abort();
 
   static ld::detail::QrPixelModel model;
-  const double module = (ld::layout::kQrMax - ld::layout::kQrMin) / (n + 2);
-  const cv::Matx33d module_to_sheet(module, 0, ld::layout::kQrMin + module, 0, module, ld::layout::kQrMin + module,
-                                    0, 0, 1);
   std::vector<uint8_t> modules;
-  if (model.estimate(gray, ld::layout::sheetToImage(corners) * module_to_sheet, n, modules)) {
+  if (model.estimate(gray, ld::layout::sheetToImage(corners) * ld::detail::moduleToSheet(n), n, modules)) {
     if (modules.size() != static_cast<size_t>(n) * n) std::abort();
     for (uint8_t m : modules)
       if (m > 1) std::abort();

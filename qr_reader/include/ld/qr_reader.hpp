@@ -96,8 +96,18 @@ class QrStack {
   /// Frames in the mean (at most max_frames: older ones have faded).
   int frames() const { return std::min(n_, std::max(1, max_frames_)); }
 
-  /// Decodes the mean view with `reader` (every variation of QrReader::decode).
+  /// Decodes the mean view with `reader` (every variation of QrReader::decode
+  /// that its parameters allow).
   std::optional<QrResult> decode(QrReader& reader);
+
+  /// The parameters of the reader ld-qr-reader decodes its stacks with: no
+  /// pixel model (QrReaderParams::fit_pixels) on the mean, a view upsampled
+  /// twice.
+  static QrReaderParams readerParams() {
+    QrReaderParams p;
+    p.fit_pixels = false;
+    return p;
+  }
 
   /// The mean view (8-bit gray), empty before the first frame. Valid until
   /// the next call. Once warmed up, adding and decoding do not allocate for

@@ -54,14 +54,9 @@ class QrTrackReader {
   std::ostream& log_;
   bool verbose_;
   QrReader reader_;
-  // its own buffers (the stacks' views have their own size), and no pixel
-  // model (QrReaderParams::fit_pixels)
-  QrReader stack_reader_{stackReaderParams()};
-  static QrReaderParams stackReaderParams() {
-    QrReaderParams p;
-    p.fit_pixels = false;
-    return p;
-  }
+  // its own buffers (the stacks' views have their own size), and the
+  // stacks' parameters (QrStack::readerParams)
+  QrReader stack_reader_{QrStack::readerParams()};
   QrTrackBook book_;
   StillTimeWatch still_;
   std::unordered_map<int64_t, QrStack> stacks_;

@@ -144,9 +144,7 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
   }
   QrReader reader;
   // the stack's mean decoded as ld-qr-reader decodes it (QrTrackReader)
-  QrReaderParams stack_params;
-  stack_params.fit_pixels = false;
-  QrReader stack_reader(stack_params);
+  QrReader stack_reader(QrStack::readerParams());
   std::mt19937_64 rng(pointSeed(o.seed, distance_m, yaw_deg));
   std::uniform_real_distribution<double> U(0, 1);
   std::vector<Point> points(marker ? 1 : detectors.size());
