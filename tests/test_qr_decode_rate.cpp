@@ -158,7 +158,7 @@ TEST(QrDecodeRate, AutoErrorCorrectionReadsLongPayloadsFurther) {
     }
   }
   std::printf("100 bytes at 0.8-1.0 m: auto (L) %d/120, M %d/120\n", read[0], read[1]);
-  EXPECT_GE(read[0], read[1] + 5);  // (measured: 72 against 62; the same symbols would tie)
+  EXPECT_GE(read[0], read[1] + 5);  // (measured: 73 against 61; the same symbols would tie)
 }
 
 // 100-byte codes at 0.9 and 1 m (about a pixel a module): read from single
