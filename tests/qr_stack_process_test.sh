@@ -33,6 +33,9 @@ for frames in 8 0; do
   timeout 60 "$BIN/ld-run" --config "$T/cfg$frames.yaml" --netns --replay "$T/sc.lcmlog" \
     --exit-when-replay-done --summary "$T/sum$frames.json" --log-dir "$T/log$frames" --status-interval 0 -q
   jq -r '.summary.tracks[] | "\(.id) \(.payload)"' "$T/sum$frames.json" >"$T/tracks$frames"
+  # (the log's utimes, made a moment ago, are not capture times: timed from arrival)
+  [ "$(jq -r .summary.latency_ms.from "$T/sum$frames.json")" = arrival ] ||
+    { echo "FAIL: a replay's latency timed from $(jq -c .summary.latency_ms "$T/sum$frames.json")"; exit 1; }
   echo "--stack-frames $frames: $(cut -c1-40 "$T/tracks$frames")"
 done
 [ "$(wc -l <"$T/tracks8")" -eq 1 ] || { echo "FAIL: not one track"; exit 1; }

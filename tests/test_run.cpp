@@ -350,6 +350,20 @@ TEST(BusMonitor, TimesLiveImagesFromTheirUtime) {
   EXPECT_DOUBLE_EQ(e["per_frame"][1]["latency_ms"].get<double>(), 0.005);
 }
 
+// ld-run's replay source publishes a log's utimes: a log made a moment
+// before its replay has utimes of the last second, which are still not
+// capture times. (Timed from them, a replay started 0.4 s after ld-log-images
+// made its log read a constant 400 ms.)
+TEST(BusMonitor, TimesALogsImagesFromTheirArrivalHoweverRecent) {
+  ld::BusMonitor m;
+  m.setUtimesLogged(true);
+  m.imageSeen(5'000'000, 0, 5'400'000);  // logged 0.4 s before its replay
+  m.trackedSeen(list(5'000'000, 0, {}), 5'403'000);
+  const auto s = m.summary();
+  EXPECT_EQ(s["latency_ms"]["from"], "arrival");
+  EXPECT_DOUBLE_EQ(s["per_frame"][0]["latency_ms"].get<double>(), 3.0);
+}
+
 // A tracker that restarts numbers its tracks from 1 again: the summary keeps
 // the two runs' track 1 apart (they are different landmarks), and a payload
 // read from a frame of the first run stays with the first run's track even

@@ -160,7 +160,7 @@ void BusMonitor::onCodes(const lcm::ReceiveBuffer* rb, const std::string&) {
 
 void BusMonitor::imageSeen(int64_t utime, int64_t seq, Micros rx_us) {
   count(images_, rx_us);
-  const bool live = utime <= rx_us && rx_us - utime <= kLiveUtimeUs;
+  const bool live = !utimes_logged_ && utime <= rx_us && rx_us - utime <= kLiveUtimeUs;
   pending_[{utime, seq}] = PendingImage{rx_us, live ? utime : rx_us};
   // Frames never tracked (skipped by the detector) are forgotten after 5 s.
   while (!pending_.empty()) {

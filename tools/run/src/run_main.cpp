@@ -446,6 +446,8 @@ int main(int argc, char** argv) {
   lcm::LCM lcm(cfg.lcm_url);
   if (const int status = ld::lcmOpenStatus(lcm, cfg.lcm_url, "ld-run")) return status;
   ld::BusMonitor monitor(cfg.channels);
+  // (lcm-logplayer publishes the logged utimes: not capture times, however recent)
+  monitor.setUtimesLogged(cfg.source == "replay");
   monitor.subscribe(lcm);
 
   std::signal(SIGINT, onSignal);

@@ -62,6 +62,10 @@ class BusMonitor {
   using Micros = int64_t;  ///< wall-clock time, microseconds (LCM's recv_utime)
 
   explicit BusMonitor(BusChannels channels = {});
+  /// The images' utimes are a log's (ld-run's replay source): every frame is
+  /// timed from its image's arrival, even a utime of the last second (a log
+  /// made a moment before its replay).
+  void setUtimesLogged(bool logged) { utimes_logged_ = logged; }
   /// Subscribes the four channels on `lcm` (the object must outlive it).
   void subscribe(lcm::LCM& lcm);
 
@@ -103,7 +107,8 @@ class BusMonitor {
   Micros lastSelfTest() const { return last_self_test_us_; }
   size_t latencyCount() const { return latencies_ms_.size(); }
   /// An image's utime within this long before its arrival is its capture or
-  /// publication time; older (a replayed log), it is not.
+  /// publication time; older (a replayed log), it is not. (A log replayed
+  /// within a second of its making would look live: see setUtimesLogged.)
   static constexpr Micros kLiveUtimeUs = 1'000'000;
 
  private:
@@ -159,6 +164,7 @@ class BusMonitor {
     Micros origin = 0;    // what its latency is timed from: its utime, or its arrival
   };
   std::map<std::pair<int64_t, int64_t>, PendingImage> pending_;  // by (utime, seq)
+  bool utimes_logged_ = false;
   int64_t from_capture_ = 0, from_arrival_ = 0;  // latencies timed from a utime, from an arrival
   int64_t self_tests_ = 0;
   Micros last_self_test_us_ = 0;
