@@ -15,10 +15,19 @@ T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
 for bad in "--max-decodes 0|--max-decodes: must be in \[1, 100\], not 0" \
            "--retry-interval nan|--retry-interval: 'nan' is not a number" \
            "--recheck-interval -5|--recheck-interval: must be > 0, not -5" \
-           "--decode-budget-ms 0|--decode-budget-ms: must be in \[1, 10000\], not 0"; do
+           "--decode-budget-ms 0|--decode-budget-ms: must be in \[1, 10000\], not 0" \
+           "--nice 20|--nice: must be in \[0, 19\], not 20"; do
   rc=0; "$BIN/ld-qr-reader" ${bad%%|*} 2>"$T/err" || rc=$?
   [ $rc -eq 2 ] && [ "$(wc -l <"$T/err")" -eq 1 ] && grep -q "^ld-qr-reader: ${bad#*|}" "$T/err" ||
     { echo "FAIL: ld-qr-reader ${bad%%|*}: exit $rc: $(cat "$T/err")"; exit 1; }
+done
+# It runs 10 steps of nice below where it was started (--nice), so that the
+# detector and the tracker come first on shared cores; --nice 0 leaves it.
+for case in "|10" "--nice 0|0" "--nice 3|3"; do
+  "$BIN/ld-qr-reader" --lcm-url memq:// ${case%%|*} 2>/dev/null & pid=$!
+  for _ in $(seq 50); do [ "$(awk '{print $19}' /proc/$pid/stat)" = "${case#*|}" ] && break; sleep 0.1; done
+  ni=$(awk '{print $19}' /proc/$pid/stat); kill $pid; wait $pid || true
+  [ "$ni" = "${case#*|}" ] || { echo "FAIL: ld-qr-reader ${case%%|*}: nice $ni, not ${case#*|}"; exit 1; }
 done
 payload=$(printf 'stacked-frames-%085d' 7)
 "$BIN/ld-synth" scene --out "$T/sc" --count 10 --seed 5 --size 0.15 --distance 1.0 --yaw 5 --roll 10 \

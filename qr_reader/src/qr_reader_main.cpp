@@ -4,9 +4,13 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cerrno>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <iostream>
+
+#include <sys/resource.h>
 
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
@@ -90,6 +94,12 @@ int main(int argc, char** argv) {
                  "frames fail (0: off)")
       ->capture_default_str()
       ->check(ld::cli::Between(0, 64));
+  int nice_steps = 10;
+  app.add_option("--nice", nice_steps,
+                 "run this many steps of nice below the priority it was started with, so that the detector "
+                 "and the tracker on the same cores come first (0: as started)")
+      ->capture_default_str()
+      ->check(ld::cli::Between(0, 19));
   app.add_flag("-v,--verbose", verbose,
                "print each newly read payload, and each track whose stacked frames a jump dropped");
   LD_CLI_PARSE(app, argc, argv);
@@ -98,6 +108,14 @@ int main(int argc, char** argv) {
       !p.empty())
     return ld::cli::usage(argv[0], p);
 
+  // (before LCM starts its receive thread, which inherits it)
+  if (nice_steps > 0) {
+    errno = 0;
+    const int now = getpriority(PRIO_PROCESS, 0);
+    if ((errno != 0 || setpriority(PRIO_PROCESS, 0, std::min(now + nice_steps, 19)) != 0))
+      std::cerr << "ld-qr-reader: note: --nice " << nice_steps << " not applied (" << std::strerror(errno)
+                << "): it runs at the priority it was started with\n";
+  }
   if (!ld::lcmUrlUsable(url, "ld-qr-reader")) return 2;
   lcm::LCM lcm(url);
   ld::MessagePublisher publisher(lcm);
