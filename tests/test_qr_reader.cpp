@@ -255,6 +255,53 @@ TEST(QrPixelModel, EstimatesTheModulesOfABlurredCode) {
   EXPECT_FALSE(model.estimate(sc.image, module_to_image, n, modules));
 }
 
+// Moving the grid onto the pixels: the same code, a little sharper, with
+// the corners a third of a pixel off (0.3 px right, 0.24 px up). The
+// affine step's least squares come out with scale and rotation as large as
+// the shift, a move of more than half a pixel, and are refused; the shift
+// alone is right, and two steps of it bring the grid within 0.1 px. Without
+// the alignment (or with the affine step alone) 143 modules are wrong.
+TEST(QrPixelModel, MovesAGridAThirdOfAPixelOffOntoThePixels) {
+  std::string payload = "https://example.org/building-7/floor-2/corridor-B/landmark?id=7&v=";
+  while (payload.size() < 100) payload += static_cast<char>('a' + payload.size() % 26);
+  const auto qr = ld::artwork::encodeQr(payload);
+  const int n = qr.size;
+  const Scene sc = defocusedLongCode(payload, 0.5);
+  cv::Mat gray;
+  cv::cvtColor(sc.image, gray, cv::COLOR_BGR2GRAY);
+  const cv::Matx33d truth = ld::layout::sheetToImage(sc.corners) * ld::detail::moduleToSheet(n);
+  const cv::Matx33d off = cv::Matx33d(1, 0, 0.3, 0, 1, -0.24, 0, 0, 1) * truth;
+  std::vector<uint8_t> function(static_cast<size_t>(n * n), 0);
+  ld::detail::forEachFunctionModule(n, [&](int r, int c, bool) { function[static_cast<size_t>(r) * n + c] = 1; });
+  auto run = [&](ld::detail::QrPixelModelStages stages, double& grid_error) {
+    ld::detail::QrPixelModel model(stages);
+    std::vector<uint8_t> modules;
+    EXPECT_TRUE(model.estimate(gray, off, n, modules));
+    int wrong = 0;
+    for (int r = 0; r < n; ++r)
+      for (int c = 0; c < n; ++c) {
+        const size_t i = static_cast<size_t>(r) * n + c;
+        if (!function[i] && i < modules.size()) wrong += (modules[i] != 0) != qr.dark(c, r);
+      }
+    grid_error = 0;  // the worst of the code's corners
+    for (auto [x, y] : {std::pair{0, 0}, {n, 0}, {n, n}, {0, n}}) {
+      const cv::Vec3d a = model.grid() * cv::Vec3d(x, y, 1), b = truth * cv::Vec3d(x, y, 1);
+      grid_error = std::max(grid_error, std::hypot(a[0] / a[2] - b[0] / b[2], a[1] / a[2] - b[1] / b[2]));
+    }
+    return wrong;
+  };
+  double aligned_error = 0, unaligned_error = 0;
+  ld::detail::QrPixelModelStages none;
+  none.align_steps = 0;
+  const int aligned = run({}, aligned_error), unaligned = run(none, unaligned_error);
+  std::printf("modules wrong: aligned %d (grid %.3f px off), not aligned %d (%.3f px)\n", aligned, aligned_error,
+              unaligned, unaligned_error);
+  EXPECT_LT(aligned_error, 0.1);
+  EXPECT_NEAR(unaligned_error, 0.384, 0.001);
+  EXPECT_LT(aligned, 20);
+  EXPECT_GT(unaligned, 5 * aligned + 50);
+}
+
 // A track's stack holds one landmark: frames of another (a tracker that
 // swapped two tracks' ids), a pattern side or more away from where the track
 // was in the last frame seen, restart it, so the mean is never a blend of two

@@ -133,16 +133,15 @@ struct RoiPlane {
 constexpr int kCoverSub = 6;
 // A pixel is fitted for the light when this share of it sees known modules.
 constexpr double kKnownShare = 0.98;
-// Least-squares iterations, and its pull towards 0.5 (keeps modules no pixel
-// sees at undecided).
-constexpr int kSolveIterations = 20;
+// The least squares' pull towards 0.5 (keeps modules no pixel sees at
+// undecided).
 constexpr double kPull = 0.05;
 constexpr int kMaxSweeps = 10;
-// Steps of moving the grid onto the pixels, each this part of the move the
+// Each step moving the grid onto the pixels makes this part of the move the
 // least squares give: the central differences of a blurred prediction
 // understate its slope, and the full move overshoots (a grid 0.1 / 0.2 px
-// off was moved back by 0.16 / 0.33 px, a review measured).
-constexpr int kAlignSteps = 2;
+// off was moved back by 0.16 / 0.33 px, a review measured). (The number of
+// steps, the least squares' iterations and the pair flips: QrPixelModelStages.)
 constexpr double kAlignDamping = 0.6;
 
 }  // namespace
@@ -412,7 +411,7 @@ void QrPixelModel::descend() {
     int flips = 0;
     for (size_t m = 0; m < gg; ++m)
       if (movable(m) && flipChange(m) < 0) flip(m), ++flips;
-    for (size_t m = 0; m < gg; ++m) {
+    for (size_t m = 0; m < gg && stages_.pair_flips; ++m) {
       if (!movable(m)) continue;
       for (size_t m2 : {m + 1, m + static_cast<size_t>(g_)}) {
         if (!movable(m2)) continue;
@@ -433,9 +432,10 @@ void QrPixelModel::descend() {
 // One step of moving the grid onto the pixels (Lucas-Kanade): where the
 // light fit predicts the known pixels (light, through known_dark_), the
 // image's difference from the prediction against the prediction's gradient
-// gives, by least squares, an affine move of the image points; `moved` is
-// the grid after it. False when the move cannot be solved or is more than
-// half a pixel anywhere in the code.
+// gives, by least squares, an affine move of the image points (or a shift
+// alone, where the affine move is more than half a pixel somewhere in the
+// code); `moved` is the grid after it. False when neither can be solved or
+// is within half a pixel.
 bool QrPixelModel::alignStep(const double (&light)[6], const cv::Matx33d& grid, cv::Matx33d& moved) {
   const int w = value_.cols, h = value_.rows;
   const RoiPlane plane(value_);
@@ -456,15 +456,62 @@ bool QrPixelModel::alignStep(const double (&light)[6], const cv::Matx33d& grid, 
   if (ls.rows < 40 || !ls.solve(d)) return false;
   d *= kAlignDamping;
   // the move at the ROI's corners: at most half a pixel
-  for (double u : {-0.5, 0.5})
-    for (double v : {-0.5, 0.5})
-      if (std::hypot(d(0) + d(1) * u + d(2) * v, d(3) + d(4) * u + d(5) * v) > 0.5) return false;
+  auto too_far = [&] {
+    for (double u : {-0.5, 0.5})
+      for (double v : {-0.5, 0.5})
+        if (std::hypot(d(0) + d(1) * u + d(2) * v, d(3) + d(4) * u + d(5) * v) > 0.5) return true;
+    return false;
+  };
+  if (too_far()) {
+    // A shift alone (its two unknowns' normal equations): where the grid is
+    // a third of a pixel off, the affine terms come out wrong, as large as
+    // the shift, while the shift is right.
+    const double a = ls.ata(0, 0), b = ls.ata(0, 3), c = ls.ata(3, 3), det = a * c - b * b;
+    if (!(det > 1e-12 * (a * c + 1))) return false;
+    d = cv::Matx<double, 6, 1>::zeros();
+    d(0) = kAlignDamping * (c * ls.atb(0) - b * ls.atb(3)) / det;
+    d(3) = kAlignDamping * (a * ls.atb(3) - b * ls.atb(0)) / det;
+    if (too_far()) return false;
+  }
   // image point X -> X + d(X), with u = (X - roi_x0 - cx) * scale
   const double xc = roi_x_ + plane.cx, yc = roi_y_ + plane.cy, scale = plane.scale;
   const cv::Matx33d move(1 + d(1) * scale, d(2) * scale, d(0) - d(1) * scale * xc - d(2) * scale * yc,  //
                          d(4) * scale, 1 + d(5) * scale, d(3) - d(4) * scale * xc - d(5) * scale * yc,  //
                          0, 0, 1);
   moved = move * grid;
+  return true;
+}
+
+// The blur (kernel_) and the light (`light`) that predict the known pixels
+// best (`best`, their rms): each kernel tried, then one between the best and
+// its neighbours (the parabola through their fits). False when none fits.
+bool QrPixelModel::chooseBlur(double& best, double (&light)[6]) {
+  double coeff[6];
+  best = -1;
+  size_t best_k = 0;
+  const auto& tried = kernels();
+  for (size_t i = 0; i < tried.size(); ++i) {
+    const double res = fitLight(tried[i], coeff);
+    if (res >= 0 && (best < 0 || res < best)) best = res, best_k = i, kernel_ = tried[i], std::copy(coeff, coeff + 6, light);
+  }
+  if (best < 0) return false;
+  if (best_k > 0 && best_k + 1 < tried.size()) {
+    double r[3], sg[3];
+    for (int i = 0; i < 3; ++i) {
+      sg[i] = kSigmas[best_k + static_cast<size_t>(i) - 1];
+      r[i] = fitLight(tried[best_k + static_cast<size_t>(i) - 1], coeff);
+    }
+    const double denom = (sg[0] - sg[1]) * (sg[0] - sg[2]) * (sg[1] - sg[2]);
+    const double pa = (sg[2] * (r[1] - r[0]) + sg[1] * (r[0] - r[2]) + sg[0] * (r[2] - r[1])) / denom;
+    const double pb = (sg[2] * sg[2] * (r[0] - r[1]) + sg[1] * sg[1] * (r[2] - r[0]) + sg[0] * sg[0] * (r[1] - r[2])) / denom;
+    if (pa > 0 && r[0] >= 0 && r[2] >= 0) {
+      const double at = std::clamp(-pb / (2 * pa), sg[0], sg[2]);
+      blurKernel(at, between_);
+      const double res = fitLight(between_, coeff);
+      if (res >= 0 && res < best) best = res, kernel_ = between_, std::copy(coeff, coeff + 6, light);
+    }
+  }
+  fitLight(kernel_, coeff);  // (known_dark_ and known_share_ for the chosen kernel)
   return true;
 }
 
@@ -488,37 +535,13 @@ bool QrPixelModel::estimate(const cv::Mat& gray, const cv::Matx33d& module_to_im
   if (!cover(gray, module_to_image, n)) return false;
   // 3. The blur and the light: the kernel that predicts the known pixels best.
   double best = -1, coeff[6] = {}, light[6] = {};
-  size_t best_k = 0;
-  const auto& tried = kernels();
-  for (size_t i = 0; i < tried.size(); ++i) {
-    const double res = fitLight(tried[i], coeff);
-    if (res >= 0 && (best < 0 || res < best)) best = res, best_k = i, kernel_ = tried[i], std::copy(coeff, coeff + 6, light);
-  }
-  if (best < 0) return false;
-  // (between the blurs tried: the parabola through the best and its neighbours)
-  if (best_k > 0 && best_k + 1 < tried.size()) {
-    double r[3], sg[3];
-    for (int i = 0; i < 3; ++i) {
-      sg[i] = kSigmas[best_k + static_cast<size_t>(i) - 1];
-      r[i] = fitLight(tried[best_k + static_cast<size_t>(i) - 1], coeff);
-    }
-    const double denom = (sg[0] - sg[1]) * (sg[0] - sg[2]) * (sg[1] - sg[2]);
-    const double pa = (sg[2] * (r[1] - r[0]) + sg[1] * (r[0] - r[2]) + sg[0] * (r[2] - r[1])) / denom;
-    const double pb = (sg[2] * sg[2] * (r[0] - r[1]) + sg[1] * sg[1] * (r[2] - r[0]) + sg[0] * sg[0] * (r[1] - r[2])) / denom;
-    if (pa > 0 && r[0] >= 0 && r[2] >= 0) {
-      const double at = std::clamp(-pb / (2 * pa), sg[0], sg[2]);
-      blurKernel(at, between_);
-      const double res = fitLight(between_, coeff);
-      if (res >= 0 && res < best) best = res, kernel_ = between_, std::copy(coeff, coeff + 6, light);
-    }
-  }
+  if (!chooseBlur(best, light)) return false;
   if (!(light[3] < -8)) return false;  // a dark module must read darker
   // 4. The grid moved onto the pixels (the corners are off by a tenth of a
   // pixel or two, and a module is about one): kept while the known pixels
   // fit better.
-  fitLight(kernel_, coeff);  // (known_dark_ for the chosen kernel)
   cv::Matx33d grid = module_to_image;
-  for (int step = 0; step < kAlignSteps; ++step) {
+  for (int step = 0; step < stages_.align_steps; ++step) {
     cv::Matx33d moved;
     if (!alignStep(light, grid, moved) || !cover(gray, moved, n)) break;
     const double res = fitLight(kernel_, coeff);
@@ -544,7 +567,8 @@ bool QrPixelModel::estimate(const cv::Mat& gray, const cv::Matx33d& module_to_im
           fitted ? static_cast<float>((value_.at<float>(y, x) - a) / b - known_dark_.at<float>(y, x)) : 0.0f;
     }
   // 6. The least-squares start, then flips while they fit the pixels better.
-  solveLeastSquares(kSolveIterations);
+  grid_ = grid;
+  solveLeastSquares(stages_.least_squares_iterations);
   buildFootprints();
   render(x_, true, tmp1_);
   render(x_, false, tmp2_);

@@ -18,8 +18,9 @@
 // patterns, the quiet zone): each blur of a small set (round Gaussians) is
 // tried and the one that predicts those pixels best is kept; then the grid
 // is moved onto those pixels by a small affine step or two (Lucas-Kanade:
-// the corners are a tenth of a pixel or two off, a module about one), kept
-// while they fit better. The data modules are then first the least-squares
+// the corners are a tenth of a pixel or two off, a module about one; a
+// shift alone where the affine step would move the grid more than half a
+// pixel), kept while they fit better. The data modules are then first the least-squares
 // fit to the pixels (conjugate gradients), then moved one or two at a time
 // (a module, or a module and its right or lower neighbour, flipped) while
 // that lowers the squared difference between the pixels and their
@@ -40,8 +41,17 @@ namespace ld::detail {
 /// (docs/landmark.md). Times ld::layout::sheetToImage, `module_to_image`.
 cv::Matx33d moduleToSheet(int n);
 
+/// The model's stages that can be left out: the reader uses them all;
+/// tests leave one out to see what it does.
+struct QrPixelModelStages {
+  int align_steps = 2;                ///< steps moving the grid onto the pixels (0: the grid as given)
+  int least_squares_iterations = 20;  ///< of the start (0: every data module light)
+  bool pair_flips = true;             ///< flip neighbour pairs too, not only single modules
+};
+
 class QrPixelModel {
  public:
+  explicit QrPixelModel(QrPixelModelStages stages = {}) : stages_(stages) {}
   /// The modules of an n-module code (n x n, row-major, 1 dark, 0 light;
   /// function patterns as every code has them) from the 8-bit gray image. `module_to_image` maps module coordinates
   /// (x right, y down, 0 at the symbol's top-left edge, one module a unit)
@@ -49,10 +59,14 @@ class QrPixelModel {
   /// see known modules, or dark modules do not read darker than light ones.
   /// Nothing is allocated once warm for codes of the sizes seen before.
   bool estimate(const cv::Mat& gray, const cv::Matx33d& module_to_image, int n, std::vector<uint8_t>& modules);
+  /// The grid the last estimate that returned true fitted the modules on:
+  /// its `module_to_image` moved onto the pixels.
+  const cv::Matx33d& grid() const { return grid_; }
 
  private:
   bool cover(const cv::Mat& gray, const cv::Matx33d& module_to_image, int n);
   double fitLight(const cv::Mat& kernel, double coeff[6]);
+  bool chooseBlur(double& best, double (&light)[6]);
   bool alignStep(const double (&light)[6], const cv::Matx33d& grid, cv::Matx33d& moved);
   void render(const std::vector<float>& x, bool known, cv::Mat& out);
   void coverTransposed(const cv::Mat& img, std::vector<float>& out) const;
@@ -62,6 +76,8 @@ class QrPixelModel {
   void flip(size_t m);
   void descend();
 
+  QrPixelModelStages stages_;
+  cv::Matx33d grid_ = cv::Matx33d::eye();
   int g_ = 0;                                  // modules across the model's grid: the code and two light rings
   std::vector<uint8_t> known_;                 // g x g: 1 for a module every code has (or the rings)
   std::vector<float> x_;                       // g x g: darkness (known: as known)
