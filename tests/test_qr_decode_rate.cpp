@@ -97,7 +97,8 @@ TEST(QrDecodeRate, Landmark15cmPayloadsUpTo100BytesFrom30To60cm) {
 // a fraction of a pixel apart, each with its own sensor noise and JPEG, read
 // at the detector's corners. Single frames seldom resolve the modules (at
 // 1.0 to 1.1 m, since the reader fits the modules to the pixels, they read
-// 21 of 64); their mean in the sheet's frame mostly does.
+// 21 of 64; here 7 of 64 since the fit's pull towards undecided was cut,
+// 4 before); their mean in the sheet's frame mostly does.
 TEST(QrStack, AveragedFramesReadWhatSingleFramesMiss) {
   const ld::CameraModel cam = ld::CameraModel::defaultVga();
   ld::Detector detector;
@@ -143,9 +144,9 @@ TEST(QrStack, AveragedFramesReadWhatSingleFramesMiss) {
   std::printf("single frames decoded %d/%d, stacks decoded %d/%d (%d where no frame alone read)\n", single, singles, stacked, kPoses, only_stacked);
   EXPECT_EQ(wrong, 0);
   EXPECT_GE(singles, kPoses * kFrames * 9 / 10);      // the detector finds the landmark ...
-  EXPECT_LE(single, singles / 10);                    // ... but single frames seldom read it
-  EXPECT_GE(stacked, kPoses / 2);                     // (measured: 4 / 64 frames, 5 / 8 stacks,
-  EXPECT_GE(only_stacked, 3);                         //  4 of them where no frame alone read)
+  EXPECT_LE(single, singles / 8);                     // ... but single frames seldom read it
+  EXPECT_GE(stacked, kPoses / 2);                     // (measured: 7 / 64 frames, 5 / 8 stacks,
+  EXPECT_GE(only_stacked, 3);                         //  3 of them where no frame alone read)
 }
 
 // The printed code's error correction: auto takes level L's symbol for 100
@@ -164,7 +165,7 @@ TEST(QrDecodeRate, AutoErrorCorrectionReadsLongPayloadsFurther) {
     }
   }
   std::printf("100 bytes at 0.8-1.0 m: auto (L) %d/120, M %d/120\n", read[0], read[1]);
-  EXPECT_GE(read[0], read[1] + 5);  // (measured: 73 against 61; the same symbols would tie)
+  EXPECT_GE(read[0], read[1] + 5);  // (measured: 75 against 66; the same symbols would tie)
 }
 
 // 100-byte codes at 0.9 and 1 m (about a pixel a module): read from single
@@ -180,7 +181,7 @@ TEST(QrDecodeRate, FarLongPayloadsReadFromTheirPixels) {
     read += p.decoded;
     trials += p.trials;
   }
-  EXPECT_GE(read, 32);  // (measured: 25 + 15 of 80; 19 + 4 before the pixel model)
+  EXPECT_GE(read, 32);  // (measured: 25 + 16 of 80; 19 + 4 before the pixel model)
 }
 
 // ld-eval qr --stack: each trial read over several frames as ld-qr-reader

@@ -260,7 +260,7 @@ TEST(QrPixelModel, EstimatesTheModulesOfABlurredCode) {
 // affine step's least squares come out with scale and rotation as large as
 // the shift, a move of more than half a pixel, and are refused; the shift
 // alone is right, and two steps of it bring the grid within 0.1 px. Without
-// the alignment (or with the affine step alone) 143 modules are wrong.
+// the alignment (or with the affine step alone) 153 modules are wrong.
 TEST(QrPixelModel, MovesAGridAThirdOfAPixelOffOntoThePixels) {
   std::string payload = "https://example.org/building-7/floor-2/corridor-B/landmark?id=7&v=";
   while (payload.size() < 100) payload += static_cast<char>('a' + payload.size() % 26);
