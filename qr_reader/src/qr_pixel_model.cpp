@@ -436,8 +436,8 @@ void QrPixelModel::descend() {
 // image's difference from the prediction against the prediction's gradient
 // gives, by least squares, an affine move of the image points (or a shift
 // alone, where the affine move is more than half a pixel somewhere in the
-// code); `moved` is the grid after it. False when neither can be solved or
-// is within half a pixel.
+// code); `moved` is the grid after it. False when the affine move cannot be
+// solved, or neither it nor the shift is within half a pixel.
 bool QrPixelModel::alignStep(const double (&light)[6], const cv::Matx33d& grid, cv::Matx33d& moved) {
   const int w = value_.cols, h = value_.rows;
   const RoiPlane plane(value_);

@@ -11,8 +11,10 @@
 // the time it publishes: both clocks must be one (the camera on this
 // machine, or machines kept in step by NTP/PTP; a camera clock behind adds
 // its lag, one ahead makes every frame "arrival"). An image whose utime is
-// not a time of the last second (lcm-logplayer replays the logged utimes)
-// is timed from its arrival instead, which LCM (1.3.1, as built here) does
+// not a time of the last second (lcm-logplayer replays the logged utimes),
+// or any image where the source is known to be a log (setUtimesLogged:
+// ld-run's replay source, whose log may have been made a moment ago), is
+// timed from its arrival instead, which LCM (1.3.1, as built here) does
 // not take from the kernel for a message of several datagrams (an image):
 // it is when LCM's receive thread read the last one, which a loaded machine
 // delays, so replays' latencies can read low. ld-run prints its status line
