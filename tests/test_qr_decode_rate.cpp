@@ -95,10 +95,10 @@ TEST(QrDecodeRate, Landmark15cmPayloadsUpTo100BytesFrom30To60cm) {
 // ld-qr-reader's stack of an undecoded track's frames: 100-byte codes at
 // 1.05 to 1.15 m (a pixel per module or less), the same landmark in 8 frames
 // a fraction of a pixel apart, each with its own sensor noise and JPEG, read
-// at the detector's corners. Single frames seldom resolve the modules (at
-// 1.0 to 1.1 m, since the reader fits the modules to the pixels, they read
-// 21 of 64; here 7 of 64 since the fit's pull towards undecided was cut,
-// 4 before); their mean in the sheet's frame mostly does.
+// at the detector's corners. Single frames seldom resolve the modules (here
+// 7 of 64 since the fit's pull towards undecided was cut, 4 before; at 1.0
+// to 1.1 m, since the reader fits the modules to the pixels, 23 of 64, 21
+// with the old pull); their mean in the sheet's frame mostly does.
 TEST(QrStack, AveragedFramesReadWhatSingleFramesMiss) {
   const ld::CameraModel cam = ld::CameraModel::defaultVga();
   ld::Detector detector;
