@@ -20,8 +20,8 @@
 // is moved onto those pixels by a small affine step or two (Lucas-Kanade:
 // the corners are a tenth of a pixel or two off, a module about one; a
 // shift alone where the affine step would move the grid more than half a
-// pixel), kept while they fit better. The data modules are then first the least-squares
-// fit to the pixels (conjugate gradients), then moved one or two at a time
+// pixel), kept while they fit better. The data modules are then first the
+// least-squares fit to the pixels (conjugate gradients), then moved one or two at a time
 // (a module, or a module and its right or lower neighbour, flipped) while
 // that lowers the squared difference between the pixels and their
 // prediction (iterated conditional modes: pairs get out of the many

@@ -112,7 +112,7 @@ int main(int argc, char** argv) {
   if (nice_steps > 0) {
     errno = 0;
     const int now = getpriority(PRIO_PROCESS, 0);
-    if ((errno != 0 || setpriority(PRIO_PROCESS, 0, std::min(now + nice_steps, 19)) != 0))
+    if (errno != 0 || setpriority(PRIO_PROCESS, 0, std::min(now + nice_steps, 19)) != 0)
       std::cerr << "ld-qr-reader: note: --nice " << nice_steps << " not applied (" << std::strerror(errno)
                 << "): it runs at the priority it was started with\n";
   }
