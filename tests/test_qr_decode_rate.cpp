@@ -186,21 +186,20 @@ TEST(QrDecodeRate, FarLongPayloadsReadFromTheirPixels) {
 }
 
 // ld-eval qr --stack: each trial read over several frames as ld-qr-reader
-// reads an undecoded track. 100-byte codes at 1.15 m (at 0.95 m, since the
-// reader fits single frames' modules to the pixels, they read 9 of 20 and
-// the frames 11): the frames' mean reads codes, and the 8 frames more than
-// single frames.
+// reads an undecoded track. 100-byte codes at 1.2 m, 40 trials (at 1.15 m,
+// since the reader fits single frames' modules to the pixels, single frames
+// read 9 of 40 and the 8 frames 11; at 0.95 m before the pixel model, 20
+// trials, 3 and 8): the 8 frames read more than single frames, and the
+// frames' mean reads codes itself.
 TEST(QrDecodeRate, OverSeveralFramesAsTheProcessReads) {
-  ld::eval::SweepOptions o = readingOptions(20, 31, 3, 2);
+  ld::eval::SweepOptions o = readingOptions(40, 31, 3, 2);
   o.stack_frames = 8;
-  const auto p = ld::eval::measure(o, 1.15, 0, 30);
-  std::printf("1.15 m, 100 bytes: single frames %d/%d, over 8 frames %d/%d (the mean: %d)\n", p.decoded,
+  const auto p = ld::eval::measure(o, 1.2, 0, 30);
+  std::printf("1.2 m, 100 bytes: single frames %d/%d, over 8 frames %d/%d (the mean: %d)\n", p.decoded,
               p.trials, p.decoded_stacked, p.trials, p.decoded_mean);
   EXPECT_EQ(p.wrong_payload, 0);
-  // (measured: 5 and 6 of 20, the mean 5; before the pixel model at 0.95 m
-  // 3 and 8: single frames now read most of what the mean reads)
-  EXPECT_GT(p.decoded_stacked, p.decoded);
-  EXPECT_GE(p.decoded_mean, 3);  // the mean itself reads, not only one of the 8 frames alone
+  EXPECT_GE(p.decoded_stacked, p.decoded + 5);  // (measured: 3 and 12 of 40, the mean 4)
+  EXPECT_GE(p.decoded_mean, 2);  // the mean itself reads, not only one of the 8 frames alone
 }
 
 // The QR reader's pixel model, stage by stage, on ld-synth frames of
