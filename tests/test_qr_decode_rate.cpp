@@ -15,8 +15,8 @@
 #include "ld/landmark_layout.hpp"
 #include "ld/qr_reader.hpp"
 #include "ld/synth.hpp"
-#include "../qr_reader/src/qr_function_patterns.hpp"
 #include "../qr_reader/src/qr_pixel_model.hpp"
+#include "qr_modules.hpp"
 
 namespace {
 
@@ -235,8 +235,6 @@ TEST(QrPixelModel, EachStageGetsFewerModulesWrongOnSynthFrames) {
     if (d.landmarks.size() != 1) continue;
     const auto qr = ld::artwork::encodeQr(payload);
     const int n = qr.size;
-    std::vector<uint8_t> function(static_cast<size_t>(n) * n, 0);
-    ld::detail::forEachFunctionModule(n, [&](int r, int c, bool) { function[static_cast<size_t>(r) * n + c] = 1; });
     cv::Mat gray;
     cv::cvtColor(frame.bgr, gray, cv::COLOR_BGR2GRAY);
     const cv::Matx33d grid = ld::layout::sheetToImage(d.landmarks[0].corners) * ld::detail::moduleToSheet(n);
@@ -244,12 +242,7 @@ TEST(QrPixelModel, EachStageGetsFewerModulesWrongOnSynthFrames) {
     const cv::Matx33d off = cv::Matx33d(1, 0, dx, 0, 1, dy, 0, 0, 1) * grid;
     auto wrongModules = [&](ld::detail::QrPixelModel& model, const cv::Matx33d& g) {
       std::vector<uint8_t> modules;
-      if (!model.estimate(gray, g, n, modules)) return -1;
-      int w = 0;
-      for (int r = 0; r < n; ++r)
-        for (int c = 0; c < n; ++c)
-          if (!function[static_cast<size_t>(r) * n + c]) w += (modules[static_cast<size_t>(r) * n + c] != 0) != qr.dark(c, r);
-      return w;
+      return model.estimate(gray, g, n, modules) ? ld::test::wrongDataModules(qr, modules).wrong : -1;
     };
     const int w[5] = {wrongModules(all, grid), wrongModules(without_ls, grid), wrongModules(without_pairs, grid),
                       wrongModules(all, off), wrongModules(without_align, off)};
@@ -259,9 +252,7 @@ TEST(QrPixelModel, EachStageGetsFewerModulesWrongOnSynthFrames) {
     moved_back += std::hypot(a[0] / a[2] - b[0] / b[2], a[1] / a[2] - b[1] / b[2]);
     for (int k = 0; k < 5; ++k) wrong[k] += w[k];
     ++frames;
-    int count = 0;
-    for (uint8_t f : function) count += !f;
-    data_modules += count;
+    data_modules += ld::test::wrongDataModules(qr, {}).count;  // (an empty estimate: the count alone)
   }
   std::printf("%d frames, %d data modules: wrong with every stage %d, without the least-squares start %d, "
               "without pair flips %d; corners 0.36 px off: every stage %d, without alignment %d "

@@ -15,6 +15,7 @@
 #include "ld/qr_track_reader.hpp"
 #include "../qr_reader/src/qr_function_patterns.hpp"
 #include "../qr_reader/src/qr_pixel_model.hpp"
+#include "qr_modules.hpp"
 
 namespace {
 
@@ -135,14 +136,20 @@ TEST(QrReader, ReadsModuleByModuleWhereModulesAreUnderTwoPixels) {
   EXPECT_GE(r->attempt, 6) << "decoded by attempt " << r->attempt;  // the grid, after the views failed
 }
 
+// A 100-byte URL-like payload with `id` in it.
+std::string longPayload(int id) {
+  std::string payload = "https://example.org/building-7/floor-2/corridor-B/landmark?id=" + std::to_string(id) + "&v=";
+  while (payload.size() < 100) payload += static_cast<char>('a' + payload.size() % 26);
+  return payload;
+}
+
 // A 100-byte payload at level M (version 6: 41 modules) at about 1.5 camera pixels per
 // module with motion blur across it: a fixed sharpening of the module grid
 // leaves too many modules wrong; the equaliser, its blur model fitted on the
 // code's function patterns, reads it.
 TEST(QrReader, EqualisesBlurredModules) {
   ld::QrReader reader;
-  std::string payload = "https://example.org/building-7/floor-2/corridor-B/landmark?id=42&v=";
-  while (payload.size() < 100) payload += static_cast<char>('a' + payload.size() % 26);
+  const std::string payload = longPayload(42);
   const auto qr = ld::artwork::encodeQr(payload, ld::artwork::QrEcc::M);
   ASSERT_EQ(qr.size, 41);
   const cv::Mat sheet = ld::artwork::renderLandmark(qr, 900);
@@ -205,8 +212,7 @@ Scene defocusedLongCode(const std::string& payload, double sigma) {
 }
 
 TEST(QrReader, FitsModulesToThePixelsThroughTheBlur) {
-  std::string payload = "https://example.org/building-7/floor-2/corridor-B/landmark?id=7&v=";
-  while (payload.size() < 100) payload += static_cast<char>('a' + payload.size() % 26);
+  const std::string payload = longPayload(7);
   ld::QrReader reader;
   const Scene sc = defocusedLongCode(payload, 0.4);
   const auto r = reader.decode(sc.image, sc.corners);
@@ -218,8 +224,7 @@ TEST(QrReader, FitsModulesToThePixelsThroughTheBlur) {
 // The pixel model on its own: nearly every module of that code as printed, where the modules' centres sampled get many wrong; and nothing
 // (no crash) for a grid off the image or an image of the wrong type.
 TEST(QrPixelModel, EstimatesTheModulesOfABlurredCode) {
-  std::string payload = "https://example.org/building-7/floor-2/corridor-B/landmark?id=7&v=";
-  while (payload.size() < 100) payload += static_cast<char>('a' + payload.size() % 26);
+  const std::string payload = longPayload(7);
   const auto qr = ld::artwork::encodeQr(payload);
   const Scene sc = defocusedLongCode(payload, 0.4);
   cv::Mat gray;
@@ -230,15 +235,12 @@ TEST(QrPixelModel, EstimatesTheModulesOfABlurredCode) {
   std::vector<uint8_t> modules;
   ASSERT_TRUE(model.estimate(gray, module_to_image, n, modules));
   ASSERT_EQ(modules.size(), static_cast<size_t>(n * n));
-  std::vector<uint8_t> function(static_cast<size_t>(n * n), 0);
-  ld::detail::forEachFunctionModule(n, [&](int r, int c, bool) { function[static_cast<size_t>(r) * n + c] = 1; });
-  int wrong = 0, count = 0, wrong_sampled = 0;
+  const auto [wrong, count] = ld::test::wrongDataModules(qr, modules);
+  const std::vector<uint8_t> function = ld::test::functionModules(n);
+  int wrong_sampled = 0;
   for (int r = 0; r < n; ++r)
     for (int c = 0; c < n; ++c) {
-      const size_t i = static_cast<size_t>(r) * n + c;
-      if (function[i]) continue;
-      ++count;
-      wrong += (modules[i] != 0) != qr.dark(c, r);
+      if (function[static_cast<size_t>(r) * n + c]) continue;
       // the module's centre, thresholded halfway between the code's light and dark
       const cv::Vec3d p = module_to_image * cv::Vec3d(c + 0.5, r + 0.5, 1);
       cv::Mat px;
@@ -262,8 +264,7 @@ TEST(QrPixelModel, EstimatesTheModulesOfABlurredCode) {
 // alone is right, and two steps of it bring the grid within 0.1 px. Without
 // the alignment (or with the affine step alone) 153 modules are wrong.
 TEST(QrPixelModel, MovesAGridAThirdOfAPixelOffOntoThePixels) {
-  std::string payload = "https://example.org/building-7/floor-2/corridor-B/landmark?id=7&v=";
-  while (payload.size() < 100) payload += static_cast<char>('a' + payload.size() % 26);
+  const std::string payload = longPayload(7);
   const auto qr = ld::artwork::encodeQr(payload);
   const int n = qr.size;
   const Scene sc = defocusedLongCode(payload, 0.5);
@@ -271,18 +272,11 @@ TEST(QrPixelModel, MovesAGridAThirdOfAPixelOffOntoThePixels) {
   cv::cvtColor(sc.image, gray, cv::COLOR_BGR2GRAY);
   const cv::Matx33d truth = ld::layout::sheetToImage(sc.corners) * ld::detail::moduleToSheet(n);
   const cv::Matx33d off = cv::Matx33d(1, 0, 0.3, 0, 1, -0.24, 0, 0, 1) * truth;
-  std::vector<uint8_t> function(static_cast<size_t>(n * n), 0);
-  ld::detail::forEachFunctionModule(n, [&](int r, int c, bool) { function[static_cast<size_t>(r) * n + c] = 1; });
   auto run = [&](ld::detail::QrPixelModelStages stages, double& grid_error) {
     ld::detail::QrPixelModel model(stages);
     std::vector<uint8_t> modules;
     EXPECT_TRUE(model.estimate(gray, off, n, modules));
-    int wrong = 0;
-    for (int r = 0; r < n; ++r)
-      for (int c = 0; c < n; ++c) {
-        const size_t i = static_cast<size_t>(r) * n + c;
-        if (!function[i] && i < modules.size()) wrong += (modules[i] != 0) != qr.dark(c, r);
-      }
+    const int wrong = ld::test::wrongDataModules(qr, modules).wrong;
     grid_error = 0;  // the worst of the code's corners
     for (auto [x, y] : {std::pair{0, 0}, {n, 0}, {n, n}, {0, n}}) {
       const cv::Vec3d a = model.grid() * cv::Vec3d(x, y, 1), b = truth * cv::Vec3d(x, y, 1);

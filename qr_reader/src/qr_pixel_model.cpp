@@ -556,6 +556,7 @@ bool QrPixelModel::estimate(const cv::Mat& gray, const cv::Matx33d& module_to_im
     std::copy(coeff, coeff + 6, light);
   }
   if (!(light[3] < -8)) return false;
+  grid_ = grid;
   // 5. The targets: what the unknown modules must add to each fitted pixel.
   const RoiPlane plane(value_);
   for (int y = 0; y < value_.rows; ++y)
@@ -569,7 +570,6 @@ bool QrPixelModel::estimate(const cv::Mat& gray, const cv::Matx33d& module_to_im
           fitted ? static_cast<float>((value_.at<float>(y, x) - a) / b - known_dark_.at<float>(y, x)) : 0.0f;
     }
   // 6. The least-squares start, then flips while they fit the pixels better.
-  grid_ = grid;
   solveLeastSquares(stages_.least_squares_iterations);
   buildFootprints();
   render(x_, true, tmp1_);

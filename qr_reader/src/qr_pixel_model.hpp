@@ -21,8 +21,8 @@
 // the corners are a tenth of a pixel or two off, a module about one; a
 // shift alone where the affine step would move the grid more than half a
 // pixel), kept while they fit better. The data modules are then first the
-// least-squares fit to the pixels (conjugate gradients), then moved one or two at a time
-// (a module, or a module and its right or lower neighbour, flipped) while
+// least-squares fit to the pixels (conjugate gradients), then moved one or
+// two at a time (a module, or a module and its right or lower neighbour, flipped) while
 // that lowers the squared difference between the pixels and their
 // prediction (iterated conditional modes: pairs get out of the many
 // minima that single flips stop in, where two neighbours share pixels).
@@ -53,8 +53,9 @@ class QrPixelModel {
  public:
   explicit QrPixelModel(QrPixelModelStages stages = {}) : stages_(stages) {}
   /// The modules of an n-module code (n x n, row-major, 1 dark, 0 light;
-  /// function patterns as every code has them) from the 8-bit gray image. `module_to_image` maps module coordinates
-  /// (x right, y down, 0 at the symbol's top-left edge, one module a unit)
+  /// function patterns as every code has them) from the 8-bit gray image.
+  /// `module_to_image` maps module coordinates (x right, y down, 0 at the
+  /// symbol's top-left edge, one module a unit)
   /// to image pixels. False when the code is not in the image, too few pixels
   /// see known modules, or dark modules do not read darker than light ones.
   /// Nothing is allocated once warm for codes of the sizes seen before.
