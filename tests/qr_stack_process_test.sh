@@ -26,10 +26,11 @@ done
 # leaves it. (Steps from this shell's own nice: the suite may run niced.)
 base=$(awk '{print $19}' /proc/$$/stat)
 [ "$base" -le 15 ] || echo "note: the test runs at nice $base: --nice's steps are not told apart at the top (19)"
+# (the nice of the reader $pid; nothing once it has ended)
+niceOf() { [ -r /proc/$pid/stat ] && awk '$3 != "Z" { print $19 }' /proc/$pid/stat 2>/dev/null; }
 for case in "--nice 3|3" "|10" "--nice 0|0"; do
   opt=${case%%|*}; want=$((base + ${case#*|} > 19 ? 19 : base + ${case#*|}))
   "$BIN/ld-qr-reader" --lcm-url memq:// $opt 2>"$T/nice.err" & pid=$!
-  niceOf() { [ -r /proc/$pid/stat ] && awk '$3 != "Z" { print $19 }' /proc/$pid/stat 2>/dev/null; }
   # (a step above where it started shows it applied; then a moment more, so
   # that nothing after it would have moved it again)
   for _ in $(seq 50); do
