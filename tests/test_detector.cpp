@@ -1091,6 +1091,59 @@ TEST(Detector, SquareMergedWithALargeObjectIsCompletedFromTwoFips) {
   EXPECT_TRUE(onlyLandmark(det.detect(img), t));
 }
 
+// The AP missing from three FIPs is completed from red ink only. A sheet
+// drawn without its AP, its blue pale (as glare leaves it), gets in the
+// AP's square: red ink joined to a red object beside the sheet (found);
+// a quarter of its pixels orange, scattered (the colour speckle that the
+// adaptive glare pass's stretch leaves around a hot spot); or a warm tint
+// (red 23 levels over green on white paper, a chroma of 0.097). Before the
+// completed AP had to fill its square and be red for its brightness, both
+// made a landmark, as on look-alike cards under glare (seeds 7-12 of
+// `ld-synth scene --no-landmark --cards 5 --lighting glare`).
+TEST(Detector, CompletesAnApOnlyFromRedInk) {
+  ld::artwork::Colours ink = inkColours();
+  ink.blue = {205, 160, 150};  // blue excess 45, saturation 0.27
+  ink.red = ink.white;
+  Placed p = place(1.0, 0, 0, 0.15, 0, 0);
+  p.artwork = ld::artwork::renderLandmark("room-214/door", 720, ink);
+  const Truth t = truthOf(kCam, p);
+  cv::Mat base = background(kCam.size, 21, true);
+  drawSheet(base, kCam, p);
+  // The AP's square in the image: [6.5u, 8.5u]^2 of the sheet, projected.
+  const double u = p.side_m / 9;
+  std::vector<cv::Point> square;
+  for (const auto& [x, y] : {std::pair{6.5, 6.5}, {8.5, 6.5}, {8.5, 8.5}, {6.5, 8.5}}) {
+    const cv::Point2d q = project(kCam, p, {x * u - p.side_m / 2, y * u - p.side_m / 2, 0});
+    square.emplace_back(static_cast<int>(std::lround(q.x)), static_cast<int>(std::lround(q.y)));
+  }
+  cv::Mat inside(kCam.size, CV_8UC1, cv::Scalar(0));
+  cv::fillConvexPoly(inside, square, cv::Scalar(255));
+  const cv::Rect box = cv::boundingRect(square);
+  for (int kind = 0; kind < 3; ++kind) {
+    cv::Mat img = base.clone();
+    cv::RNG rng(5);
+    for (int y = box.y; y < box.br().y; ++y)
+      for (int x = box.x; x < box.br().x; ++x) {
+        if (!inside.at<uint8_t>(y, x)) continue;
+        auto& px = img.at<cv::Vec3b>(y, x);
+        if (kind == 0) px = {45, 60, 215};
+        if (kind == 1 && rng.uniform(0, 4) == 0) px = {120, 170, 250};  // red excess 80
+        if (kind == 2) px = {228, 231, 254};
+      }
+    if (kind == 0) {  // a red object beside the sheet, joined to the AP across its margin
+      img(cv::Rect(box.br().x + 8, box.y - 10, 60, 50)).setTo(cv::Scalar(45, 60, 215));
+      img(cv::Rect(box.br().x - 2, box.y + 4, 12, 8)).setTo(cv::Scalar(45, 60, 215));
+    }
+    ld::Detector det;
+    const auto& d = det.detect(img);
+    if (kind == 0) {
+      EXPECT_TRUE(onlyLandmark(d, t));
+    } else {
+      EXPECT_TRUE(d.landmarks.empty()) << kind;
+    }
+  }
+}
+
 // Two FIPs joined to a blue object behind the sheet through a faintly
 // tinted margin (as JPEG's half-resolution colour and blur make it): one FIP
 // and the AP are left, too few for the completion. The second look around

@@ -362,6 +362,18 @@ constexpr int kAlignNearPerUnit = 16;
 constexpr int kMaxCompletionTrials = 400;
 constexpr int kMaxCompletionPairs = 20000;
 
+// A completed AP is a square of red ink. Its pixels over half its peak
+// cover at least this share of the square the three FIPs predict: the
+// colour speckle a glare pass's stretch leaves around a hot spot peaks in
+// scattered pixels (about a quarter of such a square), a printed square,
+// whole or clipped in part by the hot spot, 0.34 or more (the lighting and
+// yaw sweeps' completed APs) ...
+constexpr double kCompletedApMinFill = 0.3;
+// ... and red for its brightness: their mean red excess at least this share
+// of their mean level. A warm tint left on white paper is 0.03-0.07 of it;
+// printed red, under every light of the lighting sweep, 0.13 or more.
+constexpr double kCompletedApMinChroma = 0.1;
+
 // Squares the second look starts from are at most this long (pixels, the
 // longest axis): a landmark with larger ones has a sheet margin of 4 px or
 // more, which neither blur nor JPEG's colour tints across. The faint look
@@ -830,11 +842,13 @@ void Detector::Impl::complete(const cv::Mat& img, const cv::Mat& label_map) {
       if (labelAt(pred) == detail::kBlue || labelAt(pred) < 0) continue;
       detail::Region r;
       const cv::Point2d tl(c0.cx, c0.cy);
-      if (!squaresFit({&c0, &a, &b}, cv::Point2d(a.cx, a.cy) - tl, cv::Point2d(b.cx, b.cy) - tl)) continue;
+      const cv::Point2d e1 = cv::Point2d(a.cx, a.cy) - tl, e2 = cv::Point2d(b.cx, b.cy) - tl;
+      if (!squaresFit({&c0, &a, &b}, e1, e2)) continue;
       --budget;
-      if (!detail::completeSquare(img, pred, detail::kRed, cv::Point2d(a.cx, a.cy) - tl, cv::Point2d(b.cx, b.cy) - tl,
-                                  min_peak, r))
-        continue;
+      if (!detail::completeSquare(img, pred, detail::kRed, e1, e2, min_peak, r)) continue;
+      const double square_px = 4 * std::abs(e1.cross(e2)) / 36;  // (2u)^2, u a sixth of TL to TR
+      const double level = (r.sum_b + r.sum_g + r.sum_r) / (3 * r.n_sum);
+      if (r.area < kCompletedApMinFill * square_px || detail::meanExcess(r) < kCompletedApMinChroma * level) continue;
       r.pass = -1;
       aps.push_back(r);
       detail::Candidate c;

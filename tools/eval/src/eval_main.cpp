@@ -313,6 +313,16 @@ int main(int argc, char** argv) {
       ->check(ld::cli::NonNegative);
   light->get_option("--png")->description(
       "write three plots: FILE's name with _temperature, _gain and _glare before .png");
+  std::vector<std::string> l_sweeps{"temperature", "gain", "glare"};
+  light->add_option("--sweeps", l_sweeps, "which sweeps, comma-separated: temperature, gain, glare (default all)")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"temperature", "gain", "glare"}));
+  std::vector<double> l_glare{0.0, 0.3, 0.6, 0.9, 1.2};
+  light->add_option("--glare", l_glare,
+                    "the glare sweep's strengths, comma-separated: the hot spot's peak in linear light, 1 = white "
+                    "(default 0,0.3,0.6,0.9,1.2)")
+      ->delimiter(',')
+      ->check(CLI::Range(0.0, 3.0));
 
   Common mc;
   std::vector<double> m_sides{0.09, 0.15}, m_dists{1.5, 1.5};
@@ -479,9 +489,10 @@ int main(int argc, char** argv) {
       const std::vector<Sweep> sweeps{
           {"colour temperature", "temperature", "K", {2000, 2700, 3200, 4000, 5000, 6500, 8000, 10000}, &ld::eval::SweepOptions::colour_temp_k},
           {"light level (gain)", "gain", "", {0.15, 0.2, 0.3, 0.4, 0.6, 0.8, 1.0, 1.3}, &ld::eval::SweepOptions::gain},
-          {"glare on the landmark", "glare", "", {0.0, 0.3, 0.6, 0.9, 1.2}, &ld::eval::SweepOptions::glare}};
+          {"glare on the landmark", "glare", "", l_glare, &ld::eval::SweepOptions::glare}};
       std::ostringstream t;
       for (const auto& sw : sweeps) {
+        if (std::find(l_sweeps.begin(), l_sweeps.end(), sw.png_suffix) == l_sweeps.end()) continue;
         t << "| " << sw.name << " | fixed: detected | adaptive: detected | fixed: false per frame | adaptive: false per frame |\n"
           << "|---|---|---|---|---|\n";
         std::vector<Series> series{{"fixed defaults", {}}, {"adaptive", {}}};
