@@ -190,16 +190,18 @@ TEST(QrDecodeRate, FarLongPayloadsReadFromTheirPixels) {
 // since the reader fits single frames' modules to the pixels, single frames
 // read 9 of 40 and the 8 frames 11; at 0.95 m before the pixel model, 20
 // trials, 3 and 8): the 8 frames read more than single frames, and the
-// frames' mean reads codes itself.
+// stack reads codes itself: the frames' mean, or the vote of their fits
+// (measured: single frames 3 of 40, the 8 frames 20, the stack 20; before
+// the vote 12, the mean 4).
 TEST(QrDecodeRate, OverSeveralFramesAsTheProcessReads) {
   ld::eval::SweepOptions o = readingOptions(40, 31, 3, 2);
   o.stack_frames = 8;
   const auto p = ld::eval::measure(o, 1.2, 0, 30);
-  std::printf("1.2 m, 100 bytes: single frames %d/%d, over 8 frames %d/%d (the mean: %d)\n", p.decoded,
+  std::printf("1.2 m, 100 bytes: single frames %d/%d, over 8 frames %d/%d (the stack: %d)\n", p.decoded,
               p.trials, p.decoded_stacked, p.trials, p.decoded_mean);
   EXPECT_EQ(p.wrong_payload, 0);
-  EXPECT_GE(p.decoded_stacked, p.decoded + 5);  // (measured: 3 and 12 of 40, the mean 4)
-  EXPECT_GE(p.decoded_mean, 2);  // the mean itself reads, not only one of the 8 frames alone
+  EXPECT_GE(p.decoded_stacked, p.decoded + 10);
+  EXPECT_GE(p.decoded_mean, 10);  // the stack itself reads, not only one of the 8 frames alone
 }
 
 // The QR reader's pixel model, stage by stage, on ld-synth frames of

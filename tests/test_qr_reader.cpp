@@ -340,6 +340,50 @@ TEST(QrStack, AnotherLandmarkRestartsTheStack) {
   EXPECT_EQ(turning.frames(), 1);
 }
 
+// The stack's vote over frames' pixel-model fits: five fits of a 100-byte
+// code, each with its own 8 % of the data modules wrong (frames seen at
+// other sub-pixel positions, with their own noise), none of which reads
+// alone, read as most of them read each module; two fits are no vote, and
+// a restart of the stack (another landmark) drops them.
+TEST(QrStack, VotesTheFramesFittedModules) {
+  const std::string payload = longPayload(3);
+  const ld::artwork::QrCode qr = ld::artwork::encodeQr(payload);
+  const int n = qr.size;
+  const std::vector<uint8_t> function = ld::test::functionModules(n);
+  // the frames the stack averages show no code: its mean reads nothing
+  cv::Mat blank = ld::artwork::renderLandmark("x", 900);
+  cv::rectangle(blank, cv::Rect(250, 250, 400, 400), cv::Scalar(255, 255, 255), cv::FILLED);
+  const Scene frame = warped(blank, {{{170, 90}, {470, 90}, {470, 390}, {170, 390}}});
+  ld::QrReader reader;
+  ld::QrStack stack;
+  cv::RNG rng(11);
+  int read_alone = 0, wrong = 0;
+  std::optional<ld::QrResult> r;
+  for (int f = 0; f < 5; ++f) {
+    std::vector<uint8_t> fit = qr.modules;
+    for (size_t i = 0; i < fit.size(); ++i)
+      if (!function[i] && rng.uniform(0.0, 1.0) < 0.08) fit[i] ^= 1, ++wrong;
+    read_alone += reader.decodeModules(n, fit).has_value();
+    ASSERT_TRUE(stack.add(frame.image, frame.corners));
+    stack.addModules(n, fit);
+    r = stack.decode(reader);
+    if (f < 2) {
+      EXPECT_FALSE(r.has_value()) << f + 1 << " fits";
+    }
+  }
+  std::printf("%d-module code, %d data modules wrong in 5 fits; read alone %d of 5\n", n, wrong, read_alone);
+  EXPECT_EQ(read_alone, 0);
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(r->payload, payload);
+  EXPECT_EQ(r->attempt, 9);
+  // another landmark a sheet away: the stack and its vote start again
+  ASSERT_TRUE(stack.follow({{{600, 90}, {900, 90}, {900, 390}, {600, 390}}}));
+  ASSERT_TRUE(stack.add(frame.image, frame.corners));
+  EXPECT_FALSE(stack.decode(reader).has_value());
+  // a fit of the wrong size for its modules is not taken
+  EXPECT_FALSE(reader.decodeModules(n, std::vector<uint8_t>(10, 0)).has_value());
+}
+
 TEST(QrReader, DamagedOrMissingQrGivesNothing) {
   ld::QrReader reader;
   cv::Mat sheet = ld::artwork::renderLandmark("damaged", 900);

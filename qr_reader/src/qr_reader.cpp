@@ -118,6 +118,7 @@ struct QrReader::Impl {
   cv::Mat gray, view, work, blurred, map, sampled, samples, sharpened, grid8, bits, clean;
   std::vector<int8_t> known, grid;  // the equaliser's modules: -1 unknown, 0 light, 1 dark
   std::vector<uint8_t> fitted;      // the pixel model's modules (1 dark)
+  int fitted_n = 0;                 // ... of a code this many modules across (0: none fitted this decode)
   detail::QrPixelModel pixel_model;
   std::vector<double> fit_a, fit_b;
   cv::Mat profile;                        // followTiming's samples along a line
@@ -286,9 +287,15 @@ struct QrReader::Impl {
   // `sheet_to_image` puts.
   std::optional<std::string> readPixels(const cv::Matx33d& sheet_to_image, int n) {
     if (!pixel_model.estimate(gray, sheet_to_image * detail::moduleToSheet(n), n, fitted)) return std::nullopt;
+    fitted_n = n;
+    return scanModules(n, fitted);
+  }
+
+  // The payload of an n-module code given module by module (1 dark).
+  std::optional<std::string> scanModules(int n, const std::vector<uint8_t>& modules) {
     bits.create(n, n, CV_8U);
     for (int r = 0; r < n; ++r)
-      for (int c = 0; c < n; ++c) bits.at<uint8_t>(r, c) = fitted[static_cast<size_t>(r) * n + c] ? 0 : 255;
+      for (int c = 0; c < n; ++c) bits.at<uint8_t>(r, c) = modules[static_cast<size_t>(r) * n + c] ? 0 : 255;
     return scanBits(n);
   }
 
@@ -544,10 +551,22 @@ QrReader& QrReader::operator=(QrReader&&) noexcept = default;
 
 const cv::Mat& QrReader::lastView() const { return impl_->view; }
 
+const std::vector<uint8_t>* QrReader::lastFittedModules(int& n) const {
+  n = impl_->fitted_n;
+  return n > 0 ? &impl_->fitted : nullptr;
+}
+
+std::optional<QrResult> QrReader::decodeModules(int n, const std::vector<uint8_t>& modules) {
+  if (n < 21 || n > 177 || (n - 17) % 4 != 0 || modules.size() != static_cast<size_t>(n) * n) return std::nullopt;
+  if (auto s = impl_->scanModules(n, modules)) return QrResult{*s, 9};
+  return std::nullopt;
+}
+
 std::optional<QrResult> QrReader::decode(const cv::Mat& image,
                                          const std::array<cv::Point2f, 4>& corners) {
   Impl& m = *impl_;
   const QrReaderParams& p = m.params;
+  m.fitted_n = 0;
   const auto readable = readableQrSide(image, corners);
   if (!readable) return std::nullopt;  // nothing to read
   const double qr_px = *readable;
@@ -612,7 +631,7 @@ bool QrStack::add(const cv::Mat& image, const std::array<cv::Point2f, 4>& corner
   if (!qr_px) return false;
   // Another landmark (a tracker's ids swapped between two), not this one
   // seen again: a QR of another size, or one that jumped.
-  if (n_ > 0 && std::abs(*qr_px - qr_px_) > 0.25 * qr_px_) n_ = 0;
+  if (n_ > 0 && std::abs(*qr_px - qr_px_) > 0.25 * qr_px_) restart();
   checkJump(corners, *qr_px);
   if (n_ == 0) qr_px_ = *qr_px;
   toGray(image, gray_);
@@ -641,7 +660,7 @@ bool QrStack::checkJump(const std::array<cv::Point2f, 4>& corners, double qr_px)
   const cv::Point2f centre = (corners[0] + corners[1] + corners[2] + corners[3]) * 0.25f;
   const double pattern_px = qr_px * (layout::kPatternMax - layout::kPatternMin) / (layout::kQrMax - layout::kQrMin);
   const bool jumped = n_ > 0 && cv::norm(centre - centre_) > kMaxJump * pattern_px;
-  if (jumped) n_ = 0;
+  if (jumped) restart();
   centre_ = centre;
   return jumped;
 }
@@ -652,8 +671,42 @@ const cv::Mat& QrStack::meanView() {
   return mean8_;
 }
 
+void QrStack::addModules(int n, const std::vector<uint8_t>& modules) {
+  if (n_ == 0 || n <= 0 || modules.size() != static_cast<size_t>(n) * n) return;
+  const size_t slots = static_cast<size_t>(std::max(1, max_frames_));
+  if (fits_.size() < slots) fits_.resize(slots), fit_n_.resize(slots);
+  fits_[static_cast<size_t>(next_fit_)].assign(modules.begin(), modules.end());  // (no allocation once warm)
+  fit_n_[static_cast<size_t>(next_fit_)] = n;
+  next_fit_ = (next_fit_ + 1) % static_cast<int>(slots);
+  votes_ = std::min(votes_ + 1, static_cast<int>(slots));
+}
+
 std::optional<QrResult> QrStack::decode(QrReader& reader) {
   if (n_ == 0) return std::nullopt;
+  if (auto r = decodeMean(reader)) return r;
+  // The vote, over the fits of the code size most of them have.
+  const int slots = static_cast<int>(fits_.size());
+  int n = 0, most = 0, latest = -1;
+  for (int k = 0; k < votes_; ++k) {
+    const int i = (next_fit_ - 1 - k + 2 * slots) % slots;  // latest first
+    const int count = static_cast<int>(std::count(fit_n_.begin(), fit_n_.begin() + votes_, fit_n_[static_cast<size_t>(i)]));
+    if (count > most) most = count, n = fit_n_[static_cast<size_t>(i)], latest = i;
+  }
+  if (most < kMinVotes) return std::nullopt;
+  const size_t cells = static_cast<size_t>(n) * n;
+  dark_.assign(cells, 0);
+  for (int k = 0; k < votes_; ++k)
+    if (fit_n_[static_cast<size_t>(k)] == n) {
+      const auto& f = fits_[static_cast<size_t>(k)];
+      for (size_t m = 0; m < cells; ++m) dark_[m] += f[m];
+    }
+  voted_.resize(cells);
+  const auto& last = fits_[static_cast<size_t>(latest)];
+  for (size_t m = 0; m < cells; ++m) voted_[m] = 2 * dark_[m] == most ? last[m] : 2 * dark_[m] > most;
+  return reader.decodeModules(n, voted_);
+}
+
+std::optional<QrResult> QrStack::decodeMean(QrReader& reader) {
   // The pattern square's corners in the view's pixels: the view maps sheet
   // u = q0 + (x + 0.5) * span / side.
   const int side = mean_.cols;

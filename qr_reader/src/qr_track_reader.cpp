@@ -90,8 +90,12 @@ void QrTrackReader::process(const image_t& image, const landmark_list_t& list, q
     bool from_stack = false;
     if (!r && stack_frames > 0 && !book_.payload(id) && (stacks_.count(id) || stacks_.size() < kMaxStacks)) {
       QrStack& stack = stacks_.try_emplace(id, stack_frames).first->second;
-      if (stack.add(bgr_, corners) && stack.frames() >= std::min(kMinStackFrames, stack_frames))
-        from_stack = static_cast<bool>(r = stack.decode(stack_reader_));
+      if (stack.add(bgr_, corners)) {
+        int n = 0;
+        if (const auto* modules = reader_.lastFittedModules(n)) stack.addModules(n, *modules);
+        if (stack.frames() >= std::min(kMinStackFrames, stack_frames))
+          from_stack = static_cast<bool>(r = stack.decode(stack_reader_));
+      }
     }
     tried_ms_.emplace_back(id, std::chrono::duration<float, std::milli>(std::chrono::steady_clock::now() - t0).count());
     const bool is_new = r && !book_.payload(id);

@@ -9,6 +9,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -42,7 +43,8 @@ struct QrResult {
   /// adaptive threshold, 4 and 5 other scales of the view; 6 the modules read
   /// one by one and equalised against the blur, 7 the same thresholded as
   /// read or after a fixed sharpening, 8 the modules fitted to the pixels
-  /// through a model of the camera's blur (QrReaderParams::fit_pixels).
+  /// through a model of the camera's blur (QrReaderParams::fit_pixels), 9
+  /// modules given (decodeModules: QrStack's vote over frames' fits).
   int attempt = 0;
 };
 
@@ -60,6 +62,16 @@ class QrReader {
 
   /// The upright gray view of the last decode() call (for debugging, ld-view).
   const cv::Mat& lastView() const;
+
+  /// The modules the pixel model (QrReaderParams::fit_pixels) fitted in the
+  /// last decode() call, n x n row-major, 1 dark, with `n` the modules
+  /// across; nullptr where it did not run (a nearer code, one read another
+  /// way first) or fitted none. Valid until the next call.
+  const std::vector<uint8_t>* lastFittedModules(int& n) const;
+
+  /// Decodes an n-module code given module by module (n x n row-major, 1
+  /// dark; the function patterns drawn as every code has them): attempt 9.
+  std::optional<QrResult> decodeModules(int n, const std::vector<uint8_t>& modules);
 
  private:
   struct Impl;
@@ -96,9 +108,20 @@ class QrStack {
   /// Frames in the mean (at most max_frames: older ones have faded).
   int frames() const { return std::min(n_, std::max(1, max_frames_)); }
 
+  /// Adds the modules the pixel model fitted on a frame of this landmark
+  /// (QrReader::lastFittedModules, right after the frame's own decode, and
+  /// with the frame add()ed) to the stack's vote: the last max_frames
+  /// frames' fits. Each frame's pixels see the modules at other sub-pixel
+  /// positions and with their own noise, so a module one frame's fit gets
+  /// wrong most others get right. A restart of the stack drops them too.
+  void addModules(int n, const std::vector<uint8_t>& modules);
+
   /// Decodes the mean view with `reader` (every variation of QrReader::decode
-  /// that its parameters allow).
+  /// that its parameters allow), else, once kMinVotes or more frames' fits
+  /// of one code size are in the vote, each module as most of them read
+  /// it (QrReader::decodeModules; a tie goes to the latest frame's).
   std::optional<QrResult> decode(QrReader& reader);
+  static constexpr int kMinVotes = 3;
 
   /// The parameters of the reader ld-qr-reader decodes its stacks with: no
   /// pixel model (QrReaderParams::fit_pixels) on the mean, a view upsampled
@@ -114,11 +137,22 @@ class QrStack {
   /// a QR of the same size.
   const cv::Mat& meanView();
 
-  void clear() { n_ = 0; }
+  void clear() { restart(); }
 
  private:
+  std::optional<QrResult> decodeMean(QrReader& reader);
+  void restart() {
+    n_ = 0;
+    votes_ = next_fit_ = 0;
+  }
   int max_frames_;
   int n_ = 0;
+  // The vote: the last max_frames fits (a ring), each with its code size.
+  std::vector<std::vector<uint8_t>> fits_;
+  std::vector<int> fit_n_;
+  int votes_ = 0, next_fit_ = 0;
+  std::vector<uint8_t> voted_;
+  std::vector<int> dark_;
   // Restarts the stack when the pattern (centre, QR side) jumped by more
   // than kMaxJump pattern sides since the last frame seen (true then, with
   // frames in the stack); remembers it.

@@ -92,7 +92,7 @@ namespace {
 // and the scene rendered again with its own sensor noise, the landmark moved
 // by up to a third of a pixel, each found by the detector (frames where it
 // is not are left out); each further frame read alone, and their mean
-// (ld::QrStack).
+// or the vote of their pixel-model fits (ld::QrStack).
 struct FramesRead {
   std::vector<std::string> alone;
   std::optional<std::string> mean;
@@ -102,7 +102,12 @@ FramesRead readOverFrames(const SweepOptions& o, synth::SceneSpec spec, const sy
                           AdaptiveDetector& detector, QrReader& reader, QrReader& stack_reader) {
   FramesRead read;
   QrStack stack(o.stack_frames);
-  stack.add(first, corners);
+  // each frame's pixel-model fit (where the reader ran it) into the stack's vote
+  const auto addFit = [&] {
+    int n = 0;
+    if (const auto* modules = reader.lastFittedModules(n)) stack.addModules(n, *modules);
+  };
+  if (stack.add(first, corners)) addFit();  // (the reader's last decode was this frame's)
   std::mt19937_64 rng(spec.seed * 0x9E3779B97F4A7C15ULL + 1);  // the trial's own: the sweep's draws stay as they are
   std::uniform_real_distribution<double> U(-1, 1);
   const cv::Vec3d t = lm.tvec;  // the sheet's centre in the camera frame
@@ -116,7 +121,7 @@ FramesRead readOverFrames(const SweepOptions& o, synth::SceneSpec spec, const sy
     for (const Landmark& d : detectFresh(detector, frame.bgr).landmarks)
       if (matchesTruth(d, {truth.fip_tl, truth.fip_tr, truth.fip_bl, truth.ap})) {
         if (const auto r = reader.decode(frame.bgr, d.corners)) read.alone.push_back(r->payload);
-        stack.add(frame.bgr, d.corners);
+        if (stack.add(frame.bgr, d.corners)) addFit();
         break;
       }
   }
