@@ -122,11 +122,11 @@ grep -q '^| 0\.3 | 100.0 % | 100.0 % | 100.0 % | 0 |' "$T/qrm.md" || fail "qr --
 grep -q '^| 2000 K | [0-9.]* % | [0-9.]* % | - | - |$' "$T/light.md" && grep -q '^| 0\.15 | [0-9.]* % | [0-9.]* % | - | - |$' "$T/light.md" &&
   grep -q '^| 1\.2 | ' "$T/light.md" && ! grep -q '  |' "$T/light.md" || fail "lighting: $(cat "$T/light.md")"
 # --sweeps and --glare: the glare sweep alone, at the strengths given, in
-# their order; a sweep not known and a strength out of range refused.
-"$BIN/ld-eval" lighting --sweeps glare --glare 0.75,0.45 --trials 1 --fp-frames 0 >"$T/glare.md" 2>/dev/null ||
+# rising order, each once; a sweep not known and a strength out of range refused.
+"$BIN/ld-eval" lighting --sweeps glare --glare 0.75,0.45,0.75 --trials 1 --fp-frames 0 >"$T/glare.md" 2>/dev/null ||
   fail "lighting --glare: exit $?"
 [ "$(grep -c '^| [0-9]' "$T/glare.md")" -eq 2 ] && [ "$(grep -c '^| glare on the landmark |' "$T/glare.md")" -eq 1 ] &&
-  [ "$(grep '^| [0-9]' "$T/glare.md" | cut -d' ' -f2 | tr '\n' ' ')" = "0.75 0.45 " ] ||
+  [ "$(grep '^| [0-9]' "$T/glare.md" | cut -d' ' -f2 | tr '\n' ' ')" = "0.45 0.75 " ] ||
   fail "lighting --glare: $(cat "$T/glare.md")"
 for args in "--sweeps glow|--sweeps: glow not in {temperature,gain,glare}" "--glare 0.3,5|--glare: Value 5 not in range"; do
   set +e; "$BIN/ld-eval" lighting ${args%%|*} >/dev/null 2>"$T/err"; rc=$?; set -e

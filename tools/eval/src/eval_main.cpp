@@ -113,6 +113,14 @@ void plot(const std::string& path, const std::string& title, const std::string& 
   if (!cv::imwrite(path, img)) throw WriteError("cannot write plot " + path);
 }
 
+// Points given on the command line, in rising order, each once (a plot's
+// line then runs one way).
+std::vector<double> sortedUnique(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  v.erase(std::unique(v.begin(), v.end()), v.end());
+  return v;
+}
+
 // The sweep's points, from `from` to `to` by `step`; at most kMaxPoints
 // (a step of 1e-9 would ask for billions: a usage error naming the count).
 constexpr double kMaxPoints = 1000;
@@ -312,7 +320,7 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(ld::cli::NonNegative);
   light->get_option("--png")->description(
-      "write three plots: FILE's name with _temperature, _gain and _glare before .png");
+      "write a plot per sweep run: FILE's name with _temperature, _gain and _glare before .png");
   std::vector<std::string> l_sweeps{"temperature", "gain", "glare"};
   light->add_option("--sweeps", l_sweeps, "which sweeps, comma-separated: temperature, gain, glare (default all)")
       ->delimiter(',')
@@ -320,7 +328,7 @@ int main(int argc, char** argv) {
   std::vector<double> l_glare{0.0, 0.3, 0.6, 0.9, 1.2};
   light->add_option("--glare", l_glare,
                     "the glare sweep's strengths, comma-separated: the hot spot's peak in linear light, 1 = white "
-                    "(default 0,0.3,0.6,0.9,1.2)")
+                    "(default 0,0.3,0.6,0.9,1.2; measured in rising order, each once)")
       ->delimiter(',')
       ->check(CLI::Range(0.0, 3.0));
 
@@ -489,7 +497,7 @@ int main(int argc, char** argv) {
       const std::vector<Sweep> sweeps{
           {"colour temperature", "temperature", "K", {2000, 2700, 3200, 4000, 5000, 6500, 8000, 10000}, &ld::eval::SweepOptions::colour_temp_k},
           {"light level (gain)", "gain", "", {0.15, 0.2, 0.3, 0.4, 0.6, 0.8, 1.0, 1.3}, &ld::eval::SweepOptions::gain},
-          {"glare on the landmark", "glare", "", l_glare, &ld::eval::SweepOptions::glare}};
+          {"glare on the landmark", "glare", "", sortedUnique(l_glare), &ld::eval::SweepOptions::glare}};
       std::ostringstream t;
       for (const auto& sw : sweeps) {
         if (std::find(l_sweeps.begin(), l_sweeps.end(), sw.png_suffix) == l_sweeps.end()) continue;
