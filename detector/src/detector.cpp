@@ -362,12 +362,15 @@ constexpr int kAlignNearPerUnit = 16;
 constexpr int kMaxCompletionTrials = 400;
 constexpr int kMaxCompletionPairs = 20000;
 
-// A completed AP is a square of red ink. Its pixels over half its peak
-// cover at least this share of the square the three FIPs predict: the
-// colour speckle a glare pass's stretch leaves around a hot spot peaks in
-// scattered pixels (about a quarter of such a square), a printed square,
-// whole or clipped in part by the hot spot, 0.34 or more (the lighting and
-// yaw sweeps' completed APs) ...
+// A completed AP is a square of red ink. In frames the adaptive glare pass
+// took a strong veil out of (setGlareCorrected), its pixels over half its
+// peak cover at least this share of the square the three FIPs predict (of
+// its part in the image: a look's window may cut it): the colour speckle
+// the pass's stretch leaves around a hot spot peaks in scattered pixels
+// (about a quarter of such a square), a printed square, whole or clipped in
+// part by the hot spot, 0.34 or more (the lighting sweep's glare points).
+// Not in other frames: a steeply seen AP, a few pixels wide, may cover
+// less (0.297 in one frame of DetectionRate.IssueTargetAtExtremeYaw9cm) ...
 constexpr double kCompletedApMinFill = 0.3;
 // ... and red for its brightness: their mean red excess at least this share
 // of their mean level. A warm tint left on white paper is 0.03-0.07 of it;
@@ -846,9 +849,18 @@ void Detector::Impl::complete(const cv::Mat& img, const cv::Mat& label_map) {
       if (!squaresFit({&c0, &a, &b}, e1, e2)) continue;
       --budget;
       if (!detail::completeSquare(img, pred, detail::kRed, e1, e2, min_peak, r)) continue;
-      const double square_px = 4 * std::abs(e1.cross(e2)) / 36;  // (2u)^2, u a sixth of TL to TR
+      // (2u)^2, u a sixth of TL to TR; only its part in the image (a look's
+      // window, or the frame, may cut it), sampled at 8 x 8 points
+      int in_image = 0;
+      for (int k = 0; k < 64; ++k) {
+        const cv::Point2d q = pred + (e1 * ((k % 8 + 0.5) / 4 - 1) + e2 * ((k / 8 + 0.5) / 4 - 1)) * (1.0 / 6);
+        in_image += q.x >= -0.5 && q.y >= -0.5 && q.x < img.cols - 0.5 && q.y < img.rows - 0.5;
+      }
+      const double square_px = 4 * std::abs(e1.cross(e2)) / 36 * in_image / 64;
       const double level = (r.sum_b + r.sum_g + r.sum_r) / (3 * r.n_sum);
-      if (r.area < kCompletedApMinFill * square_px || detail::meanExcess(r) < kCompletedApMinChroma * level) continue;
+      if ((glare_corrected && r.area < kCompletedApMinFill * square_px) ||
+          detail::meanExcess(r) < kCompletedApMinChroma * level)
+        continue;
       r.pass = -1;
       aps.push_back(r);
       detail::Candidate c;
