@@ -382,6 +382,59 @@ TEST(QrStack, VotesTheFramesFittedModules) {
   EXPECT_FALSE(stack.decode(reader).has_value());
   // a fit of the wrong size for its modules is not taken
   EXPECT_FALSE(reader.decodeModules(n, std::vector<uint8_t>(10, 0)).has_value());
+
+  // Fits that read alone: two are no vote, the third makes one.
+  ld::QrStack votes;
+  const auto fitted = [&](ld::QrStack& st, const std::vector<uint8_t>& fit) {
+    EXPECT_TRUE(st.add(frame.image, frame.corners));
+    st.addModules(n, fit);
+    return st.decode(reader);
+  };
+  EXPECT_FALSE(fitted(votes, qr.modules).has_value());
+  EXPECT_FALSE(fitted(votes, qr.modules).has_value()) << "two fits";
+  auto three = fitted(votes, qr.modules);
+  ASSERT_TRUE(three.has_value());
+  EXPECT_EQ(three->payload, payload);
+  // After a restart (clear(), or a QR of another size in add()), only the
+  // new landmark's fits vote: three of another code of the same size.
+  const std::string other = longPayload(4);
+  const ld::artwork::QrCode qr2 = ld::artwork::encodeQr(other);
+  ASSERT_EQ(qr2.size, n);
+  for (bool by_size : {false, true}) {
+    ld::QrStack st;
+    for (int k = 0; k < 5; ++k) fitted(st, qr.modules);
+    if (by_size) {
+      const Scene smaller = warped(blank, {{{170, 90}, {370, 90}, {370, 290}, {170, 290}}});
+      ASSERT_TRUE(st.add(smaller.image, smaller.corners));  // two thirds the size: restarted
+      st.addModules(n, qr2.modules);
+    } else {
+      st.clear();
+      fitted(st, qr2.modules);
+    }
+    EXPECT_FALSE(st.decode(reader).has_value()) << "one fit after the restart, by_size " << by_size;
+    // (the next frames as the first after a size change: the same size again restarts nothing)
+    const Scene& at = by_size ? warped(blank, {{{170, 90}, {370, 90}, {370, 290}, {170, 290}}}) : frame;
+    std::optional<ld::QrResult> after;
+    for (int k = 0; k < 2; ++k) {
+      ASSERT_TRUE(st.add(at.image, at.corners));
+      st.addModules(n, qr2.modules);
+      after = st.decode(reader);
+    }
+    ASSERT_TRUE(after.has_value()) << "by_size " << by_size;
+    EXPECT_EQ(after->payload, other) << "by_size " << by_size;
+  }
+  // A tie goes to the latest fit: two fits with the same 8 % of the data
+  // modules wrong and two right, in either order.
+  std::vector<uint8_t> bad = qr.modules;
+  for (size_t i = 0; i < bad.size(); ++i)
+    if (!function[i] && rng.uniform(0.0, 1.0) < 0.08) bad[i] ^= 1;
+  ASSERT_FALSE(reader.decodeModules(n, bad).has_value());
+  for (bool right_last : {true, false}) {
+    ld::QrStack st;
+    std::optional<ld::QrResult> tied;
+    for (int k = 0; k < 4; ++k) tied = fitted(st, (k < 2) == right_last ? bad : qr.modules);
+    EXPECT_EQ(tied.has_value(), right_last) << "the right fits " << (right_last ? "last" : "first");
+  }
 }
 
 TEST(QrReader, DamagedOrMissingQrGivesNothing) {

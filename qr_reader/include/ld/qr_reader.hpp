@@ -110,10 +110,12 @@ class QrStack {
 
   /// Adds the modules the pixel model fitted on a frame of this landmark
   /// (QrReader::lastFittedModules, right after the frame's own decode, and
-  /// with the frame add()ed) to the stack's vote: the last max_frames
-  /// frames' fits. Each frame's pixels see the modules at other sub-pixel
-  /// positions and with their own noise, so a module one frame's fit gets
-  /// wrong most others get right. A restart of the stack drops them too.
+  /// with the frame add()ed) to the stack's vote: the last max_frames fits
+  /// (frames without one push none out). Each frame's pixels see the
+  /// modules at other sub-pixel positions and with their own noise, so a
+  /// module one frame's fit gets wrong most others get right. A restart of
+  /// the stack drops them too. With max_frames under kMinVotes there is no
+  /// vote.
   void addModules(int n, const std::vector<uint8_t>& modules);
 
   /// Decodes the mean view with `reader` (every variation of QrReader::decode

@@ -95,7 +95,7 @@ namespace {
 // or the vote of their pixel-model fits (ld::QrStack).
 struct FramesRead {
   std::vector<std::string> alone;
-  std::optional<std::string> mean;
+  std::optional<std::string> stack;  // the stack's read: the frames' mean, or their fits' vote
 };
 FramesRead readOverFrames(const SweepOptions& o, synth::SceneSpec spec, const synth::LandmarkPlacement& lm,
                           const std::array<cv::Point2f, 4>& corners, const cv::Mat& first,
@@ -125,7 +125,7 @@ FramesRead readOverFrames(const SweepOptions& o, synth::SceneSpec spec, const sy
         break;
       }
   }
-  if (const auto r = stack.decode(stack_reader)) read.mean = r->payload;
+  if (const auto r = stack.decode(stack_reader)) read.stack = r->payload;
   return read;
 }
 
@@ -198,9 +198,9 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
           if (o.stack_frames > 0) {
             const FramesRead more = readOverFrames(o, spec, lm, d.corners, frame.bgr, detectors[i], reader, stack_reader);
             for (const std::string& s : more.alone) (s == payload ? right : wrong) = true;
-            if (more.mean) (*more.mean == payload ? right : wrong) = true;
+            if (more.stack) (*more.stack == payload ? right : wrong) = true;
             p.decoded_stacked += right;
-            p.decoded_mean += more.mean == payload;
+            p.decoded_mean += more.stack == payload;
           }
           p.wrong_payload += wrong;  // once per trial, whichever frame or the mean gave it
         }
