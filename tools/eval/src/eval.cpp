@@ -202,7 +202,7 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
             p.decoded_stacked += right;
             p.decoded_mean += more.stack == payload;
           }
-          p.wrong_payload += wrong;  // once per trial, whichever frame or the mean gave it
+          p.wrong_payload += wrong;  // once per trial, whichever frame or the stack gave it
         }
         break;
       }
