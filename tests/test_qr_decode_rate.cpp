@@ -198,10 +198,10 @@ TEST(QrDecodeRate, OverSeveralFramesAsTheProcessReads) {
   o.stack_frames = 8;
   const auto p = ld::eval::measure(o, 1.2, 0, 30);
   std::printf("1.2 m, 100 bytes: single frames %d/%d, over 8 frames %d/%d (the stack: %d)\n", p.decoded,
-              p.trials, p.decoded_stacked, p.trials, p.decoded_mean);
+              p.trials, p.decoded_stacked, p.trials, p.decoded_stack);
   EXPECT_EQ(p.wrong_payload, 0);
   EXPECT_GE(p.decoded_stacked, p.decoded + 10);
-  EXPECT_GE(p.decoded_mean, 10);  // the stack itself reads, not only one of the 8 frames alone
+  EXPECT_GE(p.decoded_stack, 10);  // the stack itself reads, not only one of the 8 frames alone
 }
 
 // The QR reader's pixel model, stage by stage, on ld-synth frames of

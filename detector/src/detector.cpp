@@ -857,9 +857,8 @@ void Detector::Impl::complete(const cv::Mat& img, const cv::Mat& label_map) {
         in_image += q.x >= -0.5 && q.y >= -0.5 && q.x < img.cols - 0.5 && q.y < img.rows - 0.5;
       }
       const double square_px = 4 * std::abs(e1.cross(e2)) / 36 * in_image / 64;
-      const double level = (r.sum_b + r.sum_g + r.sum_r) / (3 * r.n_sum);
       if ((glare_corrected && r.area < kCompletedApMinFill * square_px) ||
-          detail::meanExcess(r) < kCompletedApMinChroma * level)
+          detail::meanChroma(r) < kCompletedApMinChroma)
         continue;
       r.pass = -1;
       aps.push_back(r);

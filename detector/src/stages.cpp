@@ -1428,6 +1428,12 @@ double meanExcess(const Region& r) {
   return (r.colour == kBlue ? r.sum_b - std::max(r.sum_g, r.sum_r) : r.sum_r - std::max(r.sum_g, r.sum_b)) / r.n_sum;
 }
 
+double meanChroma(const Region& r) {
+  if (!(r.n_sum > 0)) return 0;
+  const double c[3] = {r.sum_b / r.n_sum, r.sum_g / r.n_sum, r.sum_r / r.n_sum};
+  return chroma(c, r.colour);
+}
+
 bool completeSquare(const cv::Mat& bgr, cv::Point2d guess, uint8_t colour, cv::Point2d e1, cv::Point2d e2,
                     double min_peak, Region& out) {
   // The layout frame at the guess: layout units u -> pixels is A = [e1 e2] / 6.

@@ -293,6 +293,9 @@ bool completeSquare(const cv::Mat& bgr, cv::Point2d guess, uint8_t colour, cv::P
 /// Colour excess of a region's own colour, per pixel: its mean colour's
 /// (blue: b - max(g, r), red: r - max(g, b)).
 double meanExcess(const Region& r);
+/// ... over its mean colour's brightness (the colour's strength whatever the
+/// light's level).
+double meanChroma(const Region& r);
 
 /// How a square's measured moments compare with those the layout predicts
 /// from the centres (the affine frame of TL, TR, BL: a square of side 2u has

@@ -91,8 +91,7 @@ void QrTrackReader::process(const image_t& image, const landmark_list_t& list, q
     if (!r && stack_frames > 0 && !book_.payload(id) && (stacks_.count(id) || stacks_.size() < kMaxStacks)) {
       QrStack& stack = stacks_.try_emplace(id, stack_frames).first->second;
       if (stack.add(bgr_, corners)) {
-        int n = 0;
-        if (const auto* modules = reader_.lastFittedModules(n)) stack.addModules(n, *modules);
+        stack.addFit(reader_);
         if (stack.frames() >= std::min(kMinStackFrames, stack_frames))
           from_stack = static_cast<bool>(r = stack.decode(stack_reader_));
       }

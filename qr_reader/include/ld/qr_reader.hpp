@@ -117,6 +117,11 @@ class QrStack {
   /// the stack drops them too. With max_frames under kMinVotes there is no
   /// vote.
   void addModules(int n, const std::vector<uint8_t>& modules);
+  /// addModules() of `reader`'s last fit, where its last decode() made one.
+  void addFit(const QrReader& reader) {
+    int n = 0;
+    if (const auto* modules = reader.lastFittedModules(n)) addModules(n, *modules);
+  }
 
   /// Decodes the mean view with `reader` (every variation of QrReader::decode
   /// that its parameters allow), else, once kMinVotes or more frames' fits

@@ -103,11 +103,7 @@ FramesRead readOverFrames(const SweepOptions& o, synth::SceneSpec spec, const sy
   FramesRead read;
   QrStack stack(o.stack_frames);
   // each frame's pixel-model fit (where the reader ran it) into the stack's vote
-  const auto addFit = [&] {
-    int n = 0;
-    if (const auto* modules = reader.lastFittedModules(n)) stack.addModules(n, *modules);
-  };
-  if (stack.add(first, corners)) addFit();  // (the reader's last decode was this frame's)
+  if (stack.add(first, corners)) stack.addFit(reader);  // (the reader's last decode was this frame's)
   std::mt19937_64 rng(spec.seed * 0x9E3779B97F4A7C15ULL + 1);  // the trial's own: the sweep's draws stay as they are
   std::uniform_real_distribution<double> U(-1, 1);
   const cv::Vec3d t = lm.tvec;  // the sheet's centre in the camera frame
@@ -121,7 +117,7 @@ FramesRead readOverFrames(const SweepOptions& o, synth::SceneSpec spec, const sy
     for (const Landmark& d : detectFresh(detector, frame.bgr).landmarks)
       if (matchesTruth(d, {truth.fip_tl, truth.fip_tr, truth.fip_bl, truth.ap})) {
         if (const auto r = reader.decode(frame.bgr, d.corners)) read.alone.push_back(r->payload);
-        if (stack.add(frame.bgr, d.corners)) addFit();
+        if (stack.add(frame.bgr, d.corners)) stack.addFit(reader);
         break;
       }
   }
@@ -200,7 +196,7 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
             for (const std::string& s : more.alone) (s == payload ? right : wrong) = true;
             if (more.stack) (*more.stack == payload ? right : wrong) = true;
             p.decoded_stacked += right;
-            p.decoded_mean += more.stack == payload;
+            p.decoded_stack += more.stack == payload;
           }
           p.wrong_payload += wrong;  // once per trial, whichever frame or the stack gave it
         }

@@ -86,7 +86,7 @@ struct Point {
   int decoded = 0;        ///< ... and its QR read to exactly its payload
   int wrong_payload = 0;  ///< a payload other than the printed one (must stay 0)
   int decoded_stacked = 0;  ///< read over stack_frames frames, alone or stacked (stack_frames > 0)
-  int decoded_mean = 0;     ///< ... of which the stack (ld::QrStack: the frames' mean, or their fits' vote) read it
+  int decoded_stack = 0;    ///< ... of which the stack (ld::QrStack: the frames' mean, or their fits' vote) read it
   /// With SweepOptions::pose, one entry per found landmark or marker, its
   /// pose from its corners (a pose that did not solve adds a corner error
   /// only).
