@@ -451,6 +451,14 @@ constexpr int kVeilClipped = 250, kVeilMinTintPixels = 6;
 // anchor's own window (below): 0.75 272 -> 278 of 300 found, 0.9 122 ->
 // 128, 0.6 296 -> 298; ordered by the QR's texture instead, 0.75 gave 272.
 constexpr int kVeilPaperPoints = 16, kVeilPaperKept = 6;
+// The veil round's windows reach this many of the red square's longest
+// axes (the faint look's, kFaintLookReach, at least): the hot spot
+// shrinks the thresholded AP as it pales its edges (a 14 px AP read 9.6 px
+// long), and the FIP diagonal from it, 4.24 printed sides away, fell
+// outside a window of 5 such sides, where the completion cannot measure
+// it. On the glare point of the lighting sweep at 0.75, seeds 1-6 (100
+// frames each): 5 sides 561 of 600 found, 5.5 566, 6 570, 6.5 569.
+constexpr double kVeilReach = 6.0;
 
 // One warning per process about the GPU not being used (whether it could
 // not be started or failed later).
@@ -1211,7 +1219,9 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
         // window each: their sides differ, and so do the discs where the
         // QR's tint is measured; skipping the second lost 3 frames of 300
         // at glare 0.6, seeds 10-12)
-        win = anchorWindow(a, frame);
+        Anchor wide = a;
+        wide.radius = std::min(max_radius, std::max(a.radius, kVeilReach * a.side));
+        win = anchorWindow(wide, frame);
       } else if (!freshWindow(a, frame, win)) {
         continue;
       }
