@@ -324,6 +324,18 @@ std::array<ld::eval::Point, 2> glareWithAndWithout(double glare, int trials, uin
   return {with, ld::eval::measure(o, 1.5, 0, 40)};
 }
 
+// The adaptive detector's finds in 100 frames of `seed` at the lighting
+// sweep's glare point of strength `glare`, printed.
+int foundUnderGlare(double glare, uint64_t seed) {
+  auto o = lit(-1, -1, true);
+  o.glare = glare;
+  o.trials = 100;
+  o.seed = seed;
+  const int found = ld::eval::measure(o, 1.5, 0, 40).detected;
+  std::printf("glare %g, 100 frames of seed %llu: %d\n", glare, static_cast<unsigned long long>(seed), found);
+  return found;
+}
+
 }  // namespace
 
 // Under glare 0.6 the veil's subtraction leaves a tint (a veil a few levels
@@ -366,15 +378,7 @@ TEST(AdaptiveDetection, QrWashedOutByAHotSpotCountsByItsTexture) {
 // 93 of 100 against 92 / 89 / 91; at 0.9 41 / 45 / 42 against 39 / 44 / 39.
 // This is seed 1 at 0.75 (94 of 100; 92 before, so a frame's margin; 95
 // since the wider windows below).
-TEST(AdaptiveDetection, VeilRoundLooksWhereThePaperIsBrightestFirst) {
-  auto o = lit(-1, -1, true);
-  o.glare = 0.75;
-  o.trials = 100;
-  o.seed = 1;
-  const auto p = ld::eval::measure(o, 1.5, 0, 40);
-  std::printf("glare 0.75, 100 frames of seed 1: %d\n", p.detected);
-  EXPECT_GE(p.detected, 93);
-}
+TEST(AdaptiveDetection, VeilRoundLooksWhereThePaperIsBrightestFirst) { EXPECT_GE(foundUnderGlare(0.75, 1), 93); }
 
 // The hot spot pales the AP's edges, and the thresholded square the veil
 // round starts from reads shorter than printed (9.6 px for 14); its window,
@@ -382,15 +386,7 @@ TEST(AdaptiveDetection, VeilRoundLooksWhereThePaperIsBrightestFirst) {
 // (4.24 printed sides away), which the completion then could not measure.
 // The round's windows now reach 6 sides. On the lighting sweep's
 // glare-0.75 point, seeds 1-6: 561 -> 570 of 600; this seed 93 -> 97.
-TEST(AdaptiveDetection, VeilRoundReachesTheFipBeyondAShrunkenAp) {
-  auto o = lit(-1, -1, true);
-  o.glare = 0.75;
-  o.trials = 100;
-  o.seed = 3;
-  const auto p = ld::eval::measure(o, 1.5, 0, 40);
-  std::printf("glare 0.75, 100 frames of seed 3: %d\n", p.detected);
-  EXPECT_GE(p.detected, 96);
-}
+TEST(AdaptiveDetection, VeilRoundReachesTheFipBeyondAShrunkenAp) { EXPECT_GE(foundUnderGlare(0.75, 3), 96); }
 
 // The command line: `ld-detect --adaptive` on frames under tungsten light,
 // and on frames with glare on the landmark, finds what the fixed defaults
