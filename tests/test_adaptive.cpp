@@ -382,10 +382,11 @@ TEST(AdaptiveDetection, VeilRoundLooksWhereThePaperIsBrightestFirst) { EXPECT_GE
 
 // The hot spot pales the AP's edges, and the thresholded square the veil
 // round starts from reads shorter than printed (9.6 px for 14); its window,
-// 5 of those sides across each way, left out the FIP diagonal from it
-// (4.24 printed sides away), which the completion then could not measure.
-// The round's windows now reach 6 sides. On the lighting sweep's
-// glare-0.75 point, seeds 1-6: 561 -> 570 of 600; this seed 93 -> 97.
+// reaching 5 of those sides each way from it, left out the FIP diagonal
+// from it (4.24 printed sides away), which the completion then could not
+// measure (frames 71 and 87 of this seed). The round's windows now reach 6
+// sides. On the lighting sweep's glare-0.75 point, seeds 1-6: 561 -> 570
+// of 600; this seed 93 -> 97 (the other two frames gained not traced).
 TEST(AdaptiveDetection, VeilRoundReachesTheFipBeyondAShrunkenAp) { EXPECT_GE(foundUnderGlare(0.75, 3), 96); }
 
 // The command line: `ld-detect --adaptive` on frames under tungsten light,

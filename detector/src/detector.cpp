@@ -452,12 +452,16 @@ constexpr int kVeilClipped = 250, kVeilMinTintPixels = 6;
 // 128, 0.6 296 -> 298; ordered by the QR's texture instead, 0.75 gave 272.
 constexpr int kVeilPaperPoints = 16, kVeilPaperKept = 6;
 // The veil round's windows reach this many of the red square's longest
-// axes (the faint look's, kFaintLookReach, at least): the hot spot
-// shrinks the thresholded AP as it pales its edges (a 14 px AP read 9.6 px
-// long), and the FIP diagonal from it, 4.24 printed sides away, fell
-// outside a window of 5 such sides, where the completion cannot measure
-// it. On the glare point of the lighting sweep at 0.75, seeds 1-6 (100
-// frames each): 5 sides 561 of 600 found, 5.5 566, 6 570, 6.5 569.
+// axes each way from it (the faint look's window, kFaintLookReach, at
+// least): the hot spot shrinks the thresholded AP as it pales its edges (a
+// 14 px AP read 9.6 px long), and the FIP diagonal from it lies 4.24
+// printed sides away (3 along each of the image's axes for a landmark
+// upright in the image, up to 4.24 along one turned by 45 degrees): 4.4-6.2
+// of the shrunken sides, outside a window of 5 for most turns, where the
+// completion cannot measure it (2 of the misses traced at glare 0.75). The
+// reach is the sweep's best, on the glare point of the lighting sweep at
+// 0.75, seeds 1-6 (100 frames each): 5 561 of 600 found, 5.5 566, 6 570,
+// 6.5 569.
 constexpr double kVeilReach = 6.0;
 
 // One warning per process about the GPU not being used (whether it could
