@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # ld-eval's command line: the size advisor's answer, exit codes and plot,
 # the QR table with and without --stack, its plot, the motion and pose
-# tables, and bad options refused before any sweep.
+# tables, the lighting sweeps' choices, the missed frames kept (--misses),
+# and bad options refused before any sweep.
 # usage: eval_cli_test.sh BIN_DIR
 set -euo pipefail
 BIN=$(cd "$1" && pwd)
@@ -132,4 +133,31 @@ for args in "--sweeps glow|--sweeps: glow not in {temperature,gain,glare}" "--gl
   set +e; "$BIN/ld-eval" lighting ${args%%|*} >/dev/null 2>"$T/err"; rc=$?; set -e
   [ $rc -eq 2 ] && grep -qF -- "${args#*|}" "$T/err" || fail "lighting ${args%%|*}: exit $rc, $(cat "$T/err")"
 done
+# --misses: each frame our detector missed, as a PNG and a line of
+# misses.jsonl; ld-detect on the PNG misses it too (the same pixels). A
+# second run starts the list anew; no folder, or a file for one, refused.
+"$BIN/ld-eval" yaw --side 0.15 --distance 2.5 --max-yaw 80 --step 160 --trials 4 --misses "$T/misses" \
+  >/dev/null 2>"$T/misses.err" || fail "yaw --misses: exit $?"
+missed=$(awk '/detected/ { split($NF, a, "/"); m += a[2] - a[1] } END { print m + 0 }' "$T/misses.err")
+[ "$missed" -gt 0 ] && [ "$(wc -l <"$T/misses/misses.jsonl")" -eq "$missed" ] &&
+  [ "$(ls "$T/misses" | grep -c '^side15_2\.50m_yaw[-+]80_seed1_trial00[0-3]_fixed\.png$')" -eq "$missed" ] ||
+  fail "yaw --misses: $missed missed, $(ls "$T/misses" | tr '\n' ' ')"
+"$BIN/ld-detect" "$T/misses" >"$T/misses.det" 2>/dev/null || fail "ld-detect on the misses: exit $?"
+python3 - "$T/misses/misses.jsonl" "$T/misses.det" <<'PY' || fail "the misses: $(cat "$T/misses.det")"
+import json, math, os, sys
+truth = {l["image"]: l["truth"] for l in map(json.loads, open(sys.argv[1]))}
+for line in open(sys.argv[2]):
+    d = json.loads(line)
+    t = truth[os.path.basename(d["image"])]
+    for lm in d["landmarks"]:
+        assert math.dist(lm["ap"], t["ap"]) > 3, d["image"]
+assert len(truth) > 0 and all(l["detector"] == "fixed" and l["side_m"] == 0.15 for l in map(json.loads, open(sys.argv[1])))
+PY
+"$BIN/ld-eval" yaw --side 0.15 --distance 2.5 --max-yaw 0 --trials 2 --misses "$T/misses" >/dev/null 2>&1 || fail "yaw --misses again: exit $?"
+[ ! -s "$T/misses/misses.jsonl" ] || fail "yaw --misses again: $(cat "$T/misses/misses.jsonl")"
+: >"$T/afile"
+set +e; "$BIN/ld-eval" yaw --trials 1 --misses "" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -qF -- "--misses needs a folder" "$T/err" || fail "yaw --misses \"\": exit $rc, $(cat "$T/err")"
+set +e; "$BIN/ld-eval" yaw --trials 1 --misses "$T/afile" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -qF -- "not a folder that can be made" "$T/err" || fail "yaw --misses FILE: exit $rc, $(cat "$T/err")"
 echo ok

@@ -2,13 +2,18 @@
 
 #include <algorithm>
 #include <array>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <memory>
 #include <optional>
 #include <random>
 #include <stdexcept>
 
 #include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "ld/adaptive.hpp"
@@ -125,6 +130,43 @@ FramesRead readOverFrames(const SweepOptions& o, synth::SceneSpec spec, const sy
   return read;
 }
 
+// A trial our detector `who` ("fixed" or "adaptive") missed, into
+// o.misses_dir: the frame and its line in misses.jsonl.
+struct Trial {
+  double yaw_deg, pitch_deg, roll_deg;
+  int index;
+};
+void writeMiss(const SweepOptions& o, double distance_m, double yaw_point_deg, const Trial& trial, const char* who,
+               const synth::SceneSpec& spec, const synth::Frame& frame) {
+  char name[160], extra[96] = "";
+  int at = 0;
+  if (o.colour_temp_k > 0) at += std::snprintf(extra + at, sizeof extra - at, "_%.0fK", o.colour_temp_k);
+  if (o.gain > 0) at += std::snprintf(extra + at, sizeof extra - at, "_gain%g", o.gain);
+  if (o.glare >= 0) at += std::snprintf(extra + at, sizeof extra - at, "_glare%g", o.glare);
+  if (o.motion_px >= 0) std::snprintf(extra + at, sizeof extra - at, "_motion%g", o.motion_px);
+  std::snprintf(name, sizeof name, "side%g_%.2fm_yaw%+g%s_seed%llu_trial%03d_%s.png", o.side_m * 100, distance_m,
+                yaw_point_deg, extra, static_cast<unsigned long long>(o.seed), trial.index, who);
+  const std::filesystem::path dir(o.misses_dir);
+  if (!cv::imwrite((dir / name).string(), frame.bgr))
+    throw std::runtime_error("--misses: cannot write " + (dir / name).string());
+  const synth::LandmarkTruth& t = frame.truth[0];
+  char line[768];
+  std::snprintf(line, sizeof line,
+                "{\"image\": \"%s\", \"detector\": \"%s\", \"side_m\": %g, \"distance_m\": %g, "
+                "\"yaw_deg\": %.3f, \"pitch_deg\": %.3f, \"roll_deg\": %.3f, \"seed\": %llu, \"trial\": %d, "
+                "\"colour_temp_k\": %.0f, \"gain\": %.3f, \"glare\": %.3f, \"motion_px\": %.2f, "
+                "\"truth\": {\"fip_tl\": [%.2f, %.2f], \"fip_tr\": [%.2f, %.2f], \"fip_bl\": [%.2f, %.2f], "
+                "\"ap\": [%.2f, %.2f]}}\n",
+                name, who, o.side_m, distance_m, trial.yaw_deg, trial.pitch_deg, trial.roll_deg,
+                static_cast<unsigned long long>(o.seed), trial.index, spec.lighting.colour_temp_k, spec.lighting.gain,
+                spec.lighting.glare, spec.degradation.motion_px, t.fip_tl.x, t.fip_tl.y, t.fip_tr.x, t.fip_tr.y,
+                t.fip_bl.x, t.fip_bl.y, t.ap.x, t.ap.y);
+  std::ofstream f(dir / "misses.jsonl", std::ios::app);
+  f << line;
+  f.close();
+  if (!f) throw std::runtime_error("--misses: cannot write " + (dir / "misses.jsonl").string() + ": " + std::strerror(errno));
+}
+
 // With options.pose, the errors of `corners` and the pose from them against the truth `t` into `p`.
 void addPoseErrors(const SweepOptions& o, const std::array<cv::Point2f, 4>& corners, const synth::LandmarkTruth& t,
                    Point& p) {
@@ -183,6 +225,7 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
     for (size_t i = 0; i < detectors.size(); ++i) {
       Point& p = points[i];
       const Detection& det = detectFresh(detectors[i], frame.bgr);
+      const int detected_before = p.detected;
       for (const Landmark& d : det.landmarks) {
         if (!matchesTruth(d, {t.fip_tl, t.fip_tr, t.fip_bl, t.ap})) continue;
         ++p.detected;
@@ -201,6 +244,11 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
           p.wrong_payload += wrong;  // once per trial, whichever frame or the stack gave it
         }
         break;
+      }
+      if (p.detected == detected_before && !o.misses_dir.empty()) {
+        // (measure() runs the options' one detector; the lighting sweeps the fixed one, then the adaptive)
+        const bool adaptive = detectors.size() > 1 ? i > 0 : o.adaptive;
+        writeMiss(o, distance_m, yaw_deg, {yaw, pitch, roll, k}, adaptive ? "adaptive" : "fixed", spec, frame);
       }
     }
   }
@@ -235,6 +283,17 @@ std::vector<AdaptiveDetector> fixedAndAdaptive(const SweepOptions& o) {
 }
 
 }  // namespace
+
+void startMisses(const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (!std::filesystem::is_directory(dir))
+    throw std::runtime_error("--misses " + dir + ": not a folder that can be made" + (ec ? ": " + ec.message() : ""));
+  const auto list = std::filesystem::path(dir) / "misses.jsonl";
+  std::ofstream f(list, std::ios::trunc);
+  f.close();
+  if (!f) throw std::runtime_error("--misses " + dir + ": cannot write " + list.string() + ": " + std::strerror(errno));
+}
 
 Point measure(const SweepOptions& o, double distance_m, double yaw_deg, double yaw_jitter_deg) {
   std::vector<AdaptiveDetector> detectors;  // ours; markers have their own

@@ -155,7 +155,7 @@ std::string cm(double m) {
 }
 
 struct Common {
-  std::string camera_file, params_file, markdown, png, backend;
+  std::string camera_file, params_file, markdown, png, backend, misses;
   bool compare = false;
   int trials = 20;
   uint64_t seed = 1;
@@ -166,6 +166,7 @@ struct Common {
     if (!backend.empty()) o.params.backend = backend;
     o.trials = trials;
     o.seed = seed;
+    o.misses_dir = misses;
     return o;
   }
 };
@@ -180,6 +181,9 @@ void addCommon(CLI::App* app, Common& c, bool png = true) {
   app->add_option("--seed", c.seed, "scene seed (0 or more)")->capture_default_str()->check(ld::cli::Seed);
   app->add_option("--markdown", c.markdown, "also write the table to this file");
   if (png) app->add_option("--png", c.png, "write a plot");
+  app->add_option("--misses", c.misses,
+                  "write each frame our detector missed into this folder (PNG), with a line per frame in its "
+                  "misses.jsonl (pose, light, the truth's centres): for ld-detect --explain");
 }
 
 // The QR sweeps' --stack: frames read as ld-qr-reader reads a track (0-64, as its --stack-frames).
@@ -380,6 +384,8 @@ int main(int argc, char** argv) {
                                       " file: it would be written over");
       requireWritable(c->markdown, "--markdown");
       requireWritable(c->png, "--png");
+      if (sub->count("--misses") && c->misses.empty()) throw ld::cli::UsageError("--misses needs a folder, not \"\"");
+      if (!c->misses.empty()) ld::eval::startMisses(c->misses);
     }
     if ((dist->parsed() && d_from > d_to) || (qr->parsed() && q_from > q_to) || (pose->parsed() && p_from > p_to))
       throw ld::cli::UsageError("--from must not be beyond --to");

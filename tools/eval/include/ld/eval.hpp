@@ -65,7 +65,19 @@ struct SweepOptions {
   /// (ld::poseFromCorners: IPPE_SQUARE with `camera` and `side_m`), against
   /// the truth: Point::pose_errors.
   bool pose = false;
+  /// A folder to write each frame our detector missed into (empty: none):
+  /// the frame as rendered (PNG, named by the side, the sweep point, the
+  /// seed, the trial and the detector: fixed or adaptive), with a line
+  /// appended to misses.jsonl there (writeMissesHeader() starts it) giving
+  /// the trial's pose, light and the truth's centres: what `ld-detect
+  /// --explain` (with `--adaptive` for the adaptive detector's) can be run
+  /// on to see why.
+  std::string misses_dir;
 };
+
+/// Starts `dir`'s misses.jsonl (the folder made where missing; an earlier
+/// run's file emptied). Throws std::runtime_error naming what failed.
+void startMisses(const std::string& dir);
 
 /// How far found landmarks' (or markers') corners and poses lie from the
 /// truth, one entry per add(): the corners' mean distance from the truth's
