@@ -68,7 +68,7 @@ struct SweepOptions {
   /// A folder to write each frame our detector missed into (empty: none):
   /// the frame as rendered (PNG, named by the side, the sweep point, the
   /// seed, the trial and the detector: fixed or adaptive), with a line
-  /// appended to misses.jsonl there (writeMissesHeader() starts it) giving
+  /// appended to misses.jsonl there (startMisses() starts it) giving
   /// the trial's pose, light and the truth's centres: what `ld-detect
   /// --explain` (with `--adaptive` for the adaptive detector's) can be run
   /// on to see why.
