@@ -138,33 +138,42 @@ struct Trial {
 };
 void writeMiss(const SweepOptions& o, double distance_m, double yaw_point_deg, const Trial& trial, const char* who,
                const synth::SceneSpec& spec, const synth::Frame& frame) {
-  char name[160], extra[96] = "";
-  int at = 0;
-  if (o.colour_temp_k > 0) at += std::snprintf(extra + at, sizeof extra - at, "_%.0fK", o.colour_temp_k);
-  if (o.gain > 0) at += std::snprintf(extra + at, sizeof extra - at, "_gain%g", o.gain);
-  if (o.glare >= 0) at += std::snprintf(extra + at, sizeof extra - at, "_glare%g", o.glare);
-  if (o.motion_px >= 0) std::snprintf(extra + at, sizeof extra - at, "_motion%g", o.motion_px);
-  std::snprintf(name, sizeof name, "side%g_%.2fm_yaw%+g%s_seed%llu_trial%03d_%s.png", o.side_m * 100, distance_m,
-                yaw_point_deg, extra, static_cast<unsigned long long>(o.seed), trial.index, who);
+  const auto g = [](double v) { return cv::format("%g", v + 0.0); };  // (+ 0.0: no "-0")
+  std::string name = "side" + g(o.side_m * 100) + "_" + g(distance_m) + "m_yaw" + (yaw_point_deg >= 0 ? "+" : "") +
+                     g(yaw_point_deg);
+  if (o.colour_temp_k > 0) name += "_" + g(o.colour_temp_k) + "K";
+  if (o.gain > 0) name += "_gain" + g(o.gain);
+  if (o.glare >= 0) name += "_glare" + g(o.glare);
+  if (o.motion_px >= 0) name += "_motion" + g(o.motion_px);
+  name += cv::format("_seed%llu_trial%03d", static_cast<unsigned long long>(o.seed), trial.index);
+  if (!o.misses_tag.empty()) name += "_" + o.misses_tag;
+  name += std::string("_") + who + ".png";
   const std::filesystem::path dir(o.misses_dir);
-  if (!cv::imwrite((dir / name).string(), frame.bgr))
-    throw std::runtime_error("--misses: cannot write " + (dir / name).string());
+  bool written = false;
+  try {
+    written = cv::imwrite((dir / name).string(), frame.bgr);
+  } catch (const cv::Exception&) {
+  }
+  if (!written) throw MissesError("--misses: cannot write " + (dir / name).string());
+  // (a number JSON can hold, else null)
+  const auto num = [](double v, const char* fmt) { return std::isfinite(v) ? cv::format(fmt, v) : std::string("null"); };
+  const auto point = [&](const cv::Point2d& p) { return "[" + num(p.x, "%.2f") + ", " + num(p.y, "%.2f") + "]"; };
   const synth::LandmarkTruth& t = frame.truth[0];
-  char line[768];
-  std::snprintf(line, sizeof line,
-                "{\"image\": \"%s\", \"detector\": \"%s\", \"side_m\": %g, \"distance_m\": %g, "
-                "\"yaw_deg\": %.3f, \"pitch_deg\": %.3f, \"roll_deg\": %.3f, \"seed\": %llu, \"trial\": %d, "
-                "\"colour_temp_k\": %.0f, \"gain\": %.3f, \"glare\": %.3f, \"motion_px\": %.2f, "
-                "\"truth\": {\"fip_tl\": [%.2f, %.2f], \"fip_tr\": [%.2f, %.2f], \"fip_bl\": [%.2f, %.2f], "
-                "\"ap\": [%.2f, %.2f]}}\n",
-                name, who, o.side_m, distance_m, trial.yaw_deg, trial.pitch_deg, trial.roll_deg,
-                static_cast<unsigned long long>(o.seed), trial.index, spec.lighting.colour_temp_k, spec.lighting.gain,
-                spec.lighting.glare, spec.degradation.motion_px, t.fip_tl.x, t.fip_tl.y, t.fip_tr.x, t.fip_tr.y,
-                t.fip_bl.x, t.fip_bl.y, t.ap.x, t.ap.y);
+  const std::string line =
+      "{\"image\": \"" + name + "\", \"detector\": \"" + who + "\", \"tag\": \"" + o.misses_tag +
+      "\", \"side_m\": " + num(o.side_m, "%g") + ", \"distance_m\": " + num(distance_m, "%g") +
+      ", \"yaw_deg\": " + num(trial.yaw_deg, "%.3f") + ", \"pitch_deg\": " + num(trial.pitch_deg, "%.3f") +
+      ", \"roll_deg\": " + num(trial.roll_deg, "%.3f") +
+      cv::format(", \"seed\": %llu, \"trial\": %d", static_cast<unsigned long long>(o.seed), trial.index) +
+      ", \"colour_temp_k\": " + num(spec.lighting.colour_temp_k, "%.0f") + ", \"gain\": " +
+      num(spec.lighting.gain, "%.3f") + ", \"glare\": " + num(spec.lighting.glare, "%.3f") +
+      ", \"motion_px\": " + num(spec.degradation.motion_px, "%.2f") + ", \"truth\": {\"fip_tl\": " +
+      point(t.fip_tl) + ", \"fip_tr\": " + point(t.fip_tr) + ", \"fip_bl\": " + point(t.fip_bl) +
+      ", \"ap\": " + point(t.ap) + "}}\n";
   std::ofstream f(dir / "misses.jsonl", std::ios::app);
   f << line;
   f.close();
-  if (!f) throw std::runtime_error("--misses: cannot write " + (dir / "misses.jsonl").string() + ": " + std::strerror(errno));
+  if (!f) throw MissesError("--misses: cannot write " + (dir / "misses.jsonl").string() + ": " + std::strerror(errno));
 }
 
 // With options.pose, the errors of `corners` and the pose from them against the truth `t` into `p`.
@@ -245,11 +254,9 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
         }
         break;
       }
-      if (p.detected == detected_before && !o.misses_dir.empty()) {
-        // (measure() runs the options' one detector; the lighting sweeps the fixed one, then the adaptive)
-        const bool adaptive = detectors.size() > 1 ? i > 0 : o.adaptive;
-        writeMiss(o, distance_m, yaw_deg, {yaw, pitch, roll, k}, adaptive ? "adaptive" : "fixed", spec, frame);
-      }
+      if (p.detected == detected_before && !o.misses_dir.empty())
+        writeMiss(o, distance_m, yaw_deg, {yaw, pitch, roll, k}, detectors[i].enabled() ? "adaptive" : "fixed", spec,
+                  frame);
     }
   }
   return points;
@@ -284,13 +291,13 @@ std::vector<AdaptiveDetector> fixedAndAdaptive(const SweepOptions& o) {
 
 }  // namespace
 
-void startMisses(const std::string& dir) {
+void startMisses(const std::string& dir, bool start) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (!std::filesystem::is_directory(dir))
     throw std::runtime_error("--misses " + dir + ": not a folder that can be made" + (ec ? ": " + ec.message() : ""));
   const auto list = std::filesystem::path(dir) / "misses.jsonl";
-  std::ofstream f(list, std::ios::trunc);
+  std::ofstream f(list, start ? std::ios::trunc : std::ios::app);
   f.close();
   if (!f) throw std::runtime_error("--misses " + dir + ": cannot write " + list.string() + ": " + std::strerror(errno));
 }

@@ -159,6 +159,8 @@ struct Common {
   bool compare = false;
   int trials = 20;
   uint64_t seed = 1;
+  // The sweep's options (each subcommand calls it once its own refusals
+  // are past; the first call empties --misses' list of an earlier run).
   ld::eval::SweepOptions options() const {
     ld::eval::SweepOptions o;
     if (!camera_file.empty()) o.camera = ld::CameraModel::load(camera_file);
@@ -167,8 +169,10 @@ struct Common {
     o.trials = trials;
     o.seed = seed;
     o.misses_dir = misses;
+    if (!misses.empty() && !misses_started) ld::eval::startMisses(misses), misses_started = true;
     return o;
   }
+  mutable bool misses_started = false;
 };
 
 void addCommon(CLI::App* app, Common& c, bool png = true) {
@@ -385,7 +389,7 @@ int main(int argc, char** argv) {
       requireWritable(c->markdown, "--markdown");
       requireWritable(c->png, "--png");
       if (sub->count("--misses") && c->misses.empty()) throw ld::cli::UsageError("--misses needs a folder, not \"\"");
-      if (!c->misses.empty()) ld::eval::startMisses(c->misses);
+      if (!c->misses.empty()) ld::eval::startMisses(c->misses, false);  // (emptied by options())
     }
     if ((dist->parsed() && d_from > d_to) || (qr->parsed() && q_from > q_to) || (pose->parsed() && p_from > p_to))
       throw ld::cli::UsageError("--from must not be beyond --to");
@@ -457,12 +461,12 @@ int main(int argc, char** argv) {
       emit(c, t.str());
       if (!c.png.empty()) plot(c.png, sw.title, sw.axis, series);
     } else if (qr->parsed()) {
+      const std::vector<double> ds = range(q_from, q_to, q_step);
       auto o = qc.options();
       o.side_m = q_side;
       o.decode = true;
       o.stack_frames = q_stack;
       o.ecc = ld::artwork::parseQrEcc(q_ecc);
-      const std::vector<double> ds = range(q_from, q_to, q_step);
       // payloadFor's kinds: 0-2 are 8-23 bytes, 3-4 are 99-100 bytes.
       struct Kind { std::string name; int first, count; };
       const std::vector<Kind> kinds{{"8-23 bytes", 0, 3}, {"99-100 bytes", 3, 2}};
@@ -470,6 +474,7 @@ int main(int argc, char** argv) {
       std::vector<std::vector<ld::eval::Point>> all;
       for (const auto& k : kinds) {
         o.payload = [k](int i) { return ld::eval::payloadFor(5 * i + k.first + i % k.count); };
+        o.misses_tag = k.first == 0 ? "short" : "long";
         all.push_back(ld::eval::overDistance(o, ds, q_yaw, progress(q_yaw, o.decode)));
         Series s{k.name, {}};
         for (const auto& p : all.back()) s.points.emplace_back(p.distance_m, p.decodeRate());
@@ -547,6 +552,7 @@ int main(int argc, char** argv) {
       // own align_iterations when they set one above 0), AprilTag 3 and
       // ArUco with --compare; the pose from each one's four corners by the
       // same solver.
+      const std::vector<double> ds = range(p_from, p_to, p_step);
       auto o = pc.options();
       o.side_m = p_side;
       o.pose = true;
@@ -556,16 +562,17 @@ int main(int argc, char** argv) {
       };
       std::vector<Row> rows{{"ours, centroids", o}};
       rows[0].o.params.align_iterations = 0;
+      rows[0].o.misses_tag = "centroids";
       if (o.params.align_iterations > 0 || p_align > 0) {
         rows.push_back({"ours, sheet alignment", o});
         if (o.params.align_iterations <= 0) rows.back().o.params.align_iterations = p_align;
+        rows.back().o.misses_tag = "aligned";
       }
       if (pc.compare)
         for (const char* target : {"apriltag", "aruco"}) {
           rows.push_back({ld::markers::name(ld::markers::parse(target)), o});
           rows.back().o.target = target;
         }
-      const std::vector<double> ds = range(p_from, p_to, p_step);
       std::vector<std::vector<ld::eval::Point>> all;
       for (const Row& r : rows) all.push_back(ld::eval::overDistance(r.o, ds, p_yaw, progress(p_yaw, r.o.decode)));
       const auto pair = [](const std::vector<double>& v, double scale, int digits) {
@@ -606,8 +613,10 @@ int main(int argc, char** argv) {
       for (double side : s_sides) {
         o.side_m = side;
         o.decode = false;
+        o.misses_tag = "detect";
         const auto det = ld::eval::measure(o, s_detect, 0, s_yaw);
         o.decode = true;
+        o.misses_tag = "read";
         o.payload = [s_payload](int i) {
           std::string p = "id-" + std::to_string(i) + "-";
           while (static_cast<int>(p.size()) < s_payload) p += static_cast<char>('a' + p.size() % 26);
@@ -649,6 +658,9 @@ int main(int argc, char** argv) {
   } catch (const ld::cli::UsageError& e) {
     return ld::cli::usage(argv[0], e.what());
   } catch (const WriteError& e) {
+    std::cerr << "ld-eval: " << e.what() << "\n";
+    return 1;
+  } catch (const ld::eval::MissesError& e) {  // (a frame not kept: as a table not written)
     std::cerr << "ld-eval: " << e.what() << "\n";
     return 1;
   } catch (const std::exception& e) {

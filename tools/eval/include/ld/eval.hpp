@@ -67,17 +67,26 @@ struct SweepOptions {
   bool pose = false;
   /// A folder to write each frame our detector missed into (empty: none):
   /// the frame as rendered (PNG, named by the side, the sweep point, the
-  /// seed, the trial and the detector: fixed or adaptive), with a line
-  /// appended to misses.jsonl there (startMisses() starts it) giving
-  /// the trial's pose, light and the truth's centres: what `ld-detect
+  /// seed, the trial, `misses_tag` and the detector: fixed or adaptive),
+  /// with a line appended to misses.jsonl there (startMisses() empties it)
+  /// giving the trial's pose, light and the truth's centres: what `ld-detect
   /// --explain` (with `--adaptive` for the adaptive detector's) can be run
-  /// on to see why.
+  /// on to see why. A frame or line that cannot be written: MissesError.
   std::string misses_dir;
+  /// Tells apart the missed frames of sweeps over the same points (the QR
+  /// sweep's short and long payloads, say): in their names and lines.
+  std::string misses_tag;
 };
 
-/// Starts `dir`'s misses.jsonl (the folder made where missing; an earlier
-/// run's file emptied). Throws std::runtime_error naming what failed.
-void startMisses(const std::string& dir);
+/// What writing a missed frame or its line failed on (a full disk).
+struct MissesError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// Checks that `dir` is a folder misses can be written into (made where
+/// missing); with `start`, also empties its misses.jsonl (an earlier run's).
+/// Throws std::runtime_error naming what failed.
+void startMisses(const std::string& dir, bool start = true);
 
 /// How far found landmarks' (or markers') corners and poses lie from the
 /// truth, one entry per add(): the corners' mean distance from the truth's
