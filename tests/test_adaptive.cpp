@@ -392,9 +392,10 @@ TEST(AdaptiveDetection, VeilRoundReachesTheFipBeyondAShrunkenAp) { EXPECT_GE(fou
 // Where a veil window's look finds nothing, the round looks at the window
 // again at thresholds raised by second_look_raise, as the second look
 // does: the squares come out without the pale pixels around them. Of seed
-// 2's 9 misses it finds 3 (frames 14, 26 and 78: in 14 and 78 the pale
-// look had all four squares, refused by verification for other squares,
-// a saturated sheet or a side ratio; in 26 two squares whole). On the
+// 2's 9 misses it finds 3: in frame 14 the pale look had all four squares,
+// refused for other squares in the sheet; in 78 all four, refused for a
+// saturated sheet or a side ratio; in 26 only BL and the AP whole, TL and
+// TR in pieces. On the
 // lighting sweep's glare-0.75 point, seeds 1-9: 857 -> 862 of 900; seeds
 // 2 and 7 91 + 91 -> 94 + 93.
 TEST(AdaptiveDetection, VeilRoundLooksAgainAtRaisedThresholds) {

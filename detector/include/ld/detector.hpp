@@ -248,7 +248,7 @@ struct DetectorParams {
   /// eighth of the frame. More windows find more such landmarks in cluttered
   /// frames and cost more time (stage "second look").
   int second_looks = 8;
-  double second_look_raise = 0.1;  ///< higher parts more merges and loses fainter squares
+  double second_look_raise = 0.1;  ///< higher parts more merges and loses fainter squares (the veil round's windows too)
   /// Fast front end, the faint look: windows per frame (0: none) around red
   /// squares (up to 16 px long, of 6 pixels or more) that no landmark took, larger
   /// squares first, each white-balanced by its own white (the mean of its
@@ -300,8 +300,9 @@ struct DetectorParams {
   /// is the window's red square are taken, so each red square gets its own
   /// window (one inside another's window is still looked around), those
   /// with the brightest paper beside them first (a sheet the hot spot
-  /// clipped reads near white once the veil is out). A quarter of the frame
-  /// at most.
+  /// clipped reads near white once the veil is out). A window whose look
+  /// adds no landmark is looked at again at thresholds raised by
+  /// second_look_raise. A quarter of the frame at most.
   int veil_looks = 8;
   /// FIP and AP candidates kept (largest first; over the cap, the FIPs with
   /// a red square of a like size within reach first), and 3-cycles of the
