@@ -464,6 +464,14 @@ constexpr int kVeilPaperPoints = 16, kVeilPaperKept = 6;
 // 6.5 569.
 constexpr double kVeilReach = 6.0;
 
+// `mask` with its colour thresholds raised by `raise` (second_look_raise):
+// the second look's, and the veil round's look again.
+detail::MaskThresholds raisedMask(detail::MaskThresholds mask, double raise) {
+  mask.blue = std::min(0.95, mask.blue + raise);
+  mask.red = std::min(0.95, mask.red + raise);
+  return mask;
+}
+
 // One warning per process about the GPU not being used (whether it could
 // not be started or failed later).
 std::atomic<bool> g_backend_warned{false};
@@ -1050,9 +1058,7 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
     return std::tie(b.second, a.first.y, a.first.x) < std::tie(a.second, b.first.y, b.first.x);
   });  // largest first
 
-  detail::MaskThresholds strict = filter_settings.mask;
-  strict.blue = std::min(0.95, strict.blue + p.second_look_raise);
-  strict.red = std::min(0.95, strict.red + p.second_look_raise);
+  const detail::MaskThresholds strict = raisedMask(filter_settings.mask, p.second_look_raise);
   // The first pass's lists stay aside; each look's squares and landmarks join them.
   swapLooksLists();
   const cv::Rect frame(0, 0, img.cols, img.rows);
@@ -1345,11 +1351,8 @@ int64_t Detector::Impl::veilWindow(const cv::Rect& win, const Anchor& a, const c
     // squares in the sheet, or run into its margin. On the lighting sweep's
     // glare point at 0.75, seeds 1-9: 857 -> 862 of 900 found; seeds 10-15,
     // not looked at while choosing: 562 -> 570 of 600.
-    if (all_candidates.size() == before && params.second_look_raise > 0 && pixels + win.area() <= pixels_left) {
-      detail::MaskThresholds strict = pale;
-      strict.blue = std::min(0.95, strict.blue + params.second_look_raise);
-      strict.red = std::min(0.95, strict.red + params.second_look_raise);
-      look(win, src, balanced, strict, max_area, true);
+    if (all_candidates.size() == before && pixels + win.area() <= pixels_left) {
+      look(win, src, balanced, raisedMask(pale, params.second_look_raise), max_area, true);
       pixels += win.area();
     }
   }

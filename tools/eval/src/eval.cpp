@@ -291,13 +291,9 @@ std::vector<AdaptiveDetector> fixedAndAdaptive(const SweepOptions& o) {
 
 }  // namespace
 
-void startMisses(const std::string& dir, bool start) {
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (!std::filesystem::is_directory(dir))
-    throw std::runtime_error("--misses " + dir + ": not a folder that can be made" + (ec ? ": " + ec.message() : ""));
+void startMisses(const std::string& dir) {
   const auto list = std::filesystem::path(dir) / "misses.jsonl";
-  std::ofstream f(list, start ? std::ios::trunc : std::ios::app);
+  std::ofstream f(list, std::ios::trunc);
   f.close();
   if (!f) throw std::runtime_error("--misses " + dir + ": cannot write " + list.string() + ": " + std::strerror(errno));
 }

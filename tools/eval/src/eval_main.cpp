@@ -389,7 +389,9 @@ int main(int argc, char** argv) {
       requireWritable(c->markdown, "--markdown");
       requireWritable(c->png, "--png");
       if (sub->count("--misses") && c->misses.empty()) throw ld::cli::UsageError("--misses needs a folder, not \"\"");
-      if (!c->misses.empty()) ld::eval::startMisses(c->misses, false);  // (emptied by options())
+      if (!c->misses.empty())  // (its list emptied by options())
+        if (const std::string why = ld::prepareOutputFolder(c->misses); !why.empty())
+          throw std::runtime_error("--misses " + c->misses + ": not a folder that can be made: " + why);
     }
     if ((dist->parsed() && d_from > d_to) || (qr->parsed() && q_from > q_to) || (pose->parsed() && p_from > p_to))
       throw ld::cli::UsageError("--from must not be beyond --to");
@@ -601,8 +603,7 @@ int main(int argc, char** argv) {
     } else if (size->parsed()) {
       auto o = sc.options();
       o.ecc = ld::artwork::parseQrEcc(s_ecc);
-      std::sort(s_sides.begin(), s_sides.end());
-      s_sides.erase(std::unique(s_sides.begin(), s_sides.end()), s_sides.end());  // (a side given twice: once)
+      s_sides = sortedUnique(s_sides);  // (a side given twice: once)
       std::ostringstream t;
       const std::string read_how = s_stack > 0 ? " over " + std::to_string(s_stack) + " frames" : "";
       t << "| side | detected at " << s_detect << " m | read at " << s_read << " m" << read_how

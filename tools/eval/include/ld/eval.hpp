@@ -83,10 +83,10 @@ struct MissesError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// Checks that `dir` is a folder misses can be written into (made where
-/// missing); with `start`, also empties its misses.jsonl (an earlier run's).
-/// Throws std::runtime_error naming what failed.
-void startMisses(const std::string& dir, bool start = true);
+/// Empties the misses.jsonl of `dir` (an earlier run's), a folder that
+/// exists (ld::prepareOutputFolder). Throws std::runtime_error naming what
+/// failed.
+void startMisses(const std::string& dir);
 
 /// How far found landmarks' (or markers') corners and poses lie from the
 /// truth, one entry per add(): the corners' mean distance from the truth's
