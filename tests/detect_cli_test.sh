@@ -29,6 +29,19 @@ grep -q 'AP (.*): cover (cover_min, cover_max; where the colour is smeared, the 
 # --adaptive: the adapter's gains are part of the account.
 "$BIN/ld-detect" --explain --adaptive "$T/s/000001.png" >/dev/null 2>"$T/err"
 grep -q '000001.png: 1 landmark; adaptive gains B [0-9.]* G [0-9.]* R [0-9.]*' "$T/err" || fail "adaptive: $(cat "$T/err")"
+# --adaptive --explain on glare frames (ld-eval's glare point, the frames
+# the fixed detector missed): the looks after the first pass are listed,
+# round by round, and in some frame a veil window, its tint taken out, found
+# the landmark.
+"$BIN/ld-eval" lighting --sweeps glare --glare 0.75 --trials 24 --fp-frames 0 --seed 1 --misses "$T/glare" \
+  >/dev/null 2>&1 || fail "ld-eval glare frames: exit $?"
+"$BIN/ld-detect" --adaptive --explain "$T/glare"/*_fixed.png >"$T/out" 2>"$T/err" || fail "glare frames: exit $?"
+[ "$(grep -c '^  looks after the first pass:$' "$T/err")" -eq "$(ls "$T/glare"/*_fixed.png | wc -l)" ] ||
+  fail "glare frames, no looks: $(cat "$T/err")"
+grep -q '^    veil round (veil_looks 8): [0-9]* red squares\{0,1\} no landmark took, [0-9]* windows\{0,1\} looked at' "$T/err" ||
+  fail "glare frames, no veil round: $(cat "$T/err")"
+veil_found=$(awk '/^    [a-z]/ { round = $1 " " $2 } round == "veil round" && /^      window .*, tint B [-+][0-9]* G [-+][0-9]* R [-+][0-9]* taken out.*; 1 landmark found/ { n++ } END { print n + 0 }' "$T/err")
+[ "$veil_found" -ge 1 ] || fail "glare frames, no veil window found a landmark: $(cat "$T/err")"
 # An unreadable file: one line on stderr, an error object, the others still done, exit 1.
 echo "not an image" >"$T/s/broken.png"
 set +e; "$BIN/ld-detect" --explain "$T/s" >"$T/out" 2>"$T/err"; rc=$?; set -e

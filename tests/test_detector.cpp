@@ -1167,15 +1167,16 @@ TEST(Detector, CompletesAnApOnlyFromRedInk) {
   }
 }
 
+namespace {
+
 // Two FIPs joined to a blue object behind the sheet through a faintly
 // tinted margin (as JPEG's half-resolution colour and blur make it): one FIP
-// and the AP are left, too few for the completion. The second look around
-// that pair, at raised thresholds, parts the squares from the object.
-TEST(Detector, SecondLookPartsSquaresJoinedToAnObject) {
+// and the AP are left, too few for the completion.
+cv::Mat joinedToAnObject(Truth& t) {
   cv::Mat img = background(kCam.size, 18, true);
   // squares of 12.5 px, a margin of 3 px
   const Placed p = place(1.6, 0, 0, 0.15, 0, 0);
-  const Truth t = truthOf(kCam, p);
+  t = truthOf(kCam, p);
   const int x0 = static_cast<int>(t.corners[0].x), x1 = static_cast<int>(t.corners[1].x);
   const int y = static_cast<int>(t.corners[0].y);
   img(cv::Rect(x0 - 40, y - 50, x1 - x0 + 80, 45)).setTo(cv::Scalar(150, 60, 40));  // above the sheet
@@ -1183,7 +1184,16 @@ TEST(Detector, SecondLookPartsSquaresJoinedToAnObject) {
   const cv::Scalar tint(150, 112, 106);  // saturation 0.29: above the blue threshold (0.25), under 0.35
   for (const auto& c : {t.centres[0], t.centres[1]})
     img(cv::Rect(static_cast<int>(c.x) - 3, y - 6, 6, 8)).setTo(tint);
+  return img;
+}
 
+}  // namespace
+
+// The second look around the pair left (joinedToAnObject), at raised
+// thresholds, parts the squares from the object.
+TEST(Detector, SecondLookPartsSquaresJoinedToAnObject) {
+  Truth t;
+  const cv::Mat img = joinedToAnObject(t);
   ld::DetectorParams once;
   once.second_looks = 0;
   EXPECT_TRUE(ld::Detector(once).detect(img).landmarks.empty());
@@ -1919,6 +1929,143 @@ TEST(Explain, NamesTheCheckThatRefusedTheLandmark) {
     EXPECT_NE(ld::describe(why, q).find("off colour (color_ratio_a 20, color_ratio_b 20): "), std::string::npos)
         << ld::describe(why, q);
   }
+}
+
+namespace {
+
+const ld::Explanation::Round* roundNamed(const ld::Explanation& e, const std::string& name) {
+  for (const auto& r : e.rounds)
+    if (r.round == name) return &r;
+  return nullptr;
+}
+
+int skipped(const ld::Explanation::Round& r, const std::string& why) {
+  for (const auto& [reason, n] : r.skipped)
+    if (reason == why) return n;
+  return 0;
+}
+
+bool inside(const cv::Rect& r, const cv::Point2d& q) { return r.contains(cv::Point(cvRound(q.x), cvRound(q.y))); }
+
+}  // namespace
+
+// The landmark the second look found (joinedToAnObject): the explanation
+// lists the look's window, around the pair the first pass left, with its
+// squares and its raised thresholds; only that look counts the landmark;
+// and the detection is the one detect() alone gives.
+TEST(Explain, ListsTheLookThatFoundTheLandmark) {
+  Truth t;
+  const cv::Mat img = joinedToAnObject(t);
+  ld::Detector det;
+  const std::vector<ld::Landmark> alone = det.detect(img).landmarks;
+  ld::Explanation why;
+  const auto& d = det.detect(img, why);
+  ASSERT_TRUE(onlyLandmark(d, t));
+  ASSERT_EQ(alone.size(), 1u);
+  EXPECT_EQ(alone[0].corners, d.landmarks[0].corners);
+  const std::string text = ld::describe(why, {});
+  const auto* second = roundNamed(why, "second look");
+  ASSERT_NE(second, nullptr) << text;
+  EXPECT_GE(second->anchors, 1);
+  EXPECT_GE(second->windows, 1);
+  const ld::Explanation::Look* found = nullptr;
+  int finding = 0;
+  for (const auto& l : why.looks)
+    if (l.landmarks > 0) found = &l, ++finding;
+  ASSERT_EQ(finding, 1) << text;
+  EXPECT_EQ(found->round, "second look");
+  EXPECT_EQ(found->how, "raised by second_look_raise");
+  EXPECT_EQ(found->landmarks, 1);
+  EXPECT_EQ(found->dropped, 0);
+  for (const auto& c : t.centres) EXPECT_TRUE(inside(found->window, c)) << text;
+  EXPECT_GE(found->fips, 3);
+  EXPECT_GE(found->aps, 1);
+  EXPECT_GE(found->right_isosceles, 1);
+  EXPECT_TRUE(found->refused.empty()) << text;
+  EXPECT_NE(text.find("\nlooks after the first pass:\n  second look (second_looks 8): "), std::string::npos) << text;
+  EXPECT_NE(text.find(", raised by second_look_raise: "), std::string::npos) << text;
+  EXPECT_NE(text.find("shaped as a landmark's; 1 landmark found"), std::string::npos) << text;
+}
+
+// A steeply seen landmark under warm light whose middle is blank: the faint
+// look's white-balanced window sees its violet blue squares and refuses them
+// as no QR, and says so. The group's positions are the frame's (the
+// window's own coordinates moved back).
+TEST(Explain, LooksNameTheCheckThatRefusedInTheirWindow) {
+  cv::Mat art = artworkImage().clone();
+  const int u = art.cols / 9;
+  art(cv::Rect(5 * u / 2, 5 * u / 2, 4 * u, 4 * u)).setTo(cv::Scalar(225, 228, 230));
+  int named = 0, tried = 0;
+  for (double roll : {0.0, 60.0, 150.0}) {
+    cv::Mat img = background(kCam.size, 25, true);
+    Placed p = place(1.5, 68, roll, 0.09, 0, 0);
+    p.artwork = art;
+    drawSheet(img, kCam, p);
+    cv::GaussianBlur(img, img, cv::Size(), 0.7);
+    const Truth t = truthOf(kCam, p);
+    warmLight(img);
+    ld::Detector det;
+    ld::Explanation why;
+    EXPECT_TRUE(det.detect(img, why).landmarks.empty());
+    ++tried;
+    auto near = [](const cv::Point2f& a, const cv::Point2d& b) { return cv::norm(cv::Point2d(a) - b) < 2.0; };
+    for (const auto& l : why.looks) {
+      if (l.round != "faint look") continue;
+      for (const auto& r : l.refused)
+        if (near(r.fips[0], t.centres[0]) && near(r.fips[1], t.centres[1]) && near(r.fips[2], t.centres[2]) &&
+            r.ap && near(*r.ap, t.centres[3]) && r.check == "no QR" && inside(l.window, t.centres[3]) &&
+            l.how == "white-balanced") {
+          ++named;
+          const std::string text = ld::describe(why, {});
+          EXPECT_NE(text.find("refused: 1 no QR\n      FIPs "), std::string::npos) << text;
+        }
+    }
+  }
+  std::printf("the faint look named no QR in %d of %d\n", named, tried);
+  EXPECT_GE(named, tried - 1);
+}
+
+// A round's squares it did not look around are counted with the reason: a
+// red card larger than the AP takes the faint look's only window
+// (faint_looks 1; the larger squares go first), and the AP's is left,
+// "faint_looks spent".
+TEST(Explain, RoundsCountTheSquaresTheyDidNotLookAround) {
+  cv::Mat img = background(kCam.size, 25, true);
+  const Placed p = place(1.5, 68, 0, 0.09, 0, 0);
+  drawSheet(img, kCam, p);
+  cv::GaussianBlur(img, img, cv::Size(), 0.7);
+  const Truth t = truthOf(kCam, p);
+  img(cv::Rect(60, 60, 14, 14)).setTo(cv::Scalar(40, 50, 200));  // the red card, far from the landmark
+  warmLight(img);
+  ld::DetectorParams q;
+  q.faint_looks = 1;
+  ld::Detector det(q);
+  ld::Explanation why;
+  det.detect(img, why);
+  const std::string text = ld::describe(why, q);
+  const auto* faint = roundNamed(why, "faint look");
+  ASSERT_NE(faint, nullptr) << text;
+  EXPECT_GE(faint->anchors, 2) << text;
+  EXPECT_EQ(faint->windows, 1) << text;
+  EXPECT_EQ(skipped(*faint, "faint_looks spent"), faint->anchors - 1) << text;
+  bool card = false;
+  for (const auto& l : why.looks)
+    if (l.round == "faint look") {
+      card |= inside(l.window, {67, 67});
+      EXPECT_FALSE(inside(l.window, t.centres[3])) << text;
+    }
+  EXPECT_TRUE(card) << text;
+  EXPECT_NE(text.find("  faint look (faint_looks 1): "), std::string::npos) << text;
+  EXPECT_NE(text.find(cv::format("1 window looked at; %d not: faint_looks spent", faint->anchors - 1)),
+            std::string::npos)
+      << text;
+  // The paper's front end has no looks, and says nothing of them.
+  ld::Detector paper(ld::DetectorParams::paper());
+  ld::Explanation none;
+  paper.detect(img, none);
+  EXPECT_TRUE(none.rounds.empty());
+  EXPECT_TRUE(none.looks.empty());
+  EXPECT_EQ(ld::describe(none, ld::DetectorParams::paper()).find("looks after"), std::string::npos);
 }
 
 // Gray and empty images: nothing counted, nothing refused.

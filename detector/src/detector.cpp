@@ -288,6 +288,49 @@ int checkIndex(const std::string& name) {
 
 }  // namespace
 
+// The looks after the first pass, as describe() gives them.
+template <typename Pt>
+std::string describeLooks(const Explanation& e, const DetectorParams& p, const Pt& pt) {
+  if (p.front_end == "paper") return "";  // (the paper's front end has no looks)
+  if (e.rounds.empty()) return "\nlooks after the first pass: none (no square left that one starts from)";
+  auto plural = [](int n, const char* one, const char* many) { return cv::format("%d %s", n, n == 1 ? one : many); };
+  std::string s = "\nlooks after the first pass:";
+  for (const auto& r : e.rounds) {
+    const bool second = r.round == "second look", blue = r.round == "steep round (around blue squares)";
+    const bool steep = r.round == "steep round";
+    const bool veil = r.round == "veil round";
+    const int limit = second ? p.second_looks : steep || blue ? p.steep_looks : veil ? p.veil_looks : p.faint_looks;
+    const char* limit_name = second ? "second_looks" : steep || blue ? "steep_looks" : veil ? "veil_looks" : "faint_looks";
+    s += "\n  " + r.round + cv::format(" (%s %d): ", limit_name, limit) +
+         plural(r.anchors, second ? "pair of squares" : blue ? "blue square" : "red square",
+                second ? "pairs of squares" : blue ? "blue squares" : "red squares") +
+         (second ? " no landmark took" : steep ? " shaped as a steeply seen AP" : blue ? " shaped as a steeply seen FIP"
+                                                                                       : " no landmark took") +
+         ", " + plural(r.windows, "window", "windows") + " looked at";
+    for (const auto& [why, n] : r.skipped) s += cv::format("; %d not: ", n) + why;
+    for (const auto& l : e.looks) {
+      if (l.round != r.round) continue;
+      s += cv::format("\n    window %dx%d at (%d, %d) around ", l.window.width, l.window.height, l.window.x, l.window.y) +
+           pt(l.around) + ", " + l.how + ": " + plural(l.fips, "FIP", "FIPs") + ", " + plural(l.aps, "AP", "APs") +
+           ", " + plural(l.right_isosceles, "group of three FIPs", "groups of three FIPs") + " shaped as a landmark's; " +
+           plural(l.landmarks, "landmark", "landmarks") + " found";
+      if (l.dropped > 0) s += cv::format(" (%d not around its square: left out)", l.dropped);
+      if (!l.refusals.empty()) {
+        std::string by;
+        for (const auto& [check, n] : l.refusals) by += cv::format("%s%d %s", by.empty() ? "" : ", ", n, check.c_str());
+        s += "; refused: " + by;
+      }
+      for (const auto& g : l.refused) {
+        s += "\n      FIPs " + pt(g.fips[0]) + " " + pt(g.fips[1]) + " " + pt(g.fips[2]);
+        if (g.ap) s += ", AP " + pt(*g.ap);
+        s += ": " + g.check;
+      }
+    }
+  }
+  if (e.looks_more > 0) s += "\n  " + plural(e.looks_more, "more look", "more looks") + " not listed";
+  return s;
+}
+
 std::string describe(const Explanation& e, const DetectorParams& p, const std::string& indent) {
   auto num = [](double v) { return cv::format("%g", v); };
   auto pt = [](const cv::Point2f& q) { return cv::format("(%.1f, %.1f)", q.x, q.y); };
@@ -327,6 +370,7 @@ std::string describe(const Explanation& e, const DetectorParams& p, const std::s
     const char* hint = i < detail::kNumChecks ? checkHint(static_cast<detail::Check>(i)) : "";
     if (first && *hint) s += std::string(" (") + hint + ")";
   }
+  s += describeLooks(e, p, pt);
   if (indent.empty()) return s;
   s.insert(0, indent);
   for (size_t at = s.find('\n'); at != std::string::npos; at = s.find('\n', at + 1)) s.insert(at + 1, indent);
@@ -556,6 +600,43 @@ struct Detector::Impl {
   // at the first alignment; the alignment's buffers
   detail::SheetModel align_model, align_model_near;
   detail::AlignScratch align_scratch;
+  // Explaining the looks (detect() with an Explanation runs the detection
+  // once more with `trace` set): the current look's labelling and square.
+  Explanation* trace = nullptr;
+  std::string trace_how;
+  cv::Point2f trace_around;
+  // A new round in the trace (nullptr when not tracing), and a reason its
+  // squares were not looked around, `n` more times.
+  Explanation::Round* traceRound(const char* name, size_t anchors_n) {
+    if (!trace) return nullptr;
+    trace->rounds.push_back({name, static_cast<int>(anchors_n), 0, {}});
+    return &trace->rounds.back();
+  }
+  // (a C string: nothing is made when not tracing)
+  static void traceSkip(Explanation::Round* r, const char* reason, size_t n = 1) {
+    if (!r || n == 0) return;
+    for (auto& [why, count] : r->skipped)
+      if (why == reason) {
+        count += static_cast<int>(n);
+        return;
+      }
+    r->skipped.emplace_back(reason, static_cast<int>(n));
+  }
+  size_t tracedLooks() const { return trace ? trace->looks.size() + static_cast<size_t>(trace->looks_more) : 0; }
+  // The groups of three FIPs shaped as a landmark's (of `cycles` over `fips`
+  // and `aps`, graph()'s) that make none, each with the check that refused
+  // it (verification's on `img`) and its positions moved by `offset`; `found`
+  // tells a square of a landmark found. Returns how many are shaped so.
+  struct RefusedGroup {
+    int check;      // its place in detail::Check
+    double unlike;  // |log| of the triangle's size over a landmark's, in the squares' frame
+    Explanation::Refused group;
+  };
+  int refusedGroups(const cv::Mat& img, const std::function<bool(const detail::Region&)>& found,
+                    const cv::Point2f& offset, std::vector<RefusedGroup>& out);
+  // The counts per check of `groups`, and the `keep` that came furthest.
+  static void tally(std::vector<RefusedGroup>& groups, size_t keep,
+                    std::vector<std::pair<std::string, int>>& refusals, std::vector<Explanation::Refused>& refused);
   int white_hist[766];                     // the faint look's histogram of b + g + r ...
   cv::Vec3i white_sums[766];               // ... and its pixels' channel sums per bin
   std::vector<detail::Region> all_fips, all_aps;
@@ -747,6 +828,10 @@ struct Detector::Impl {
   }
   void look(const cv::Rect& win, const cv::Mat& src, const cv::Mat& img, const detail::MaskThresholds& t, int max_area,
             bool in_window);
+  // The trace's record of the look whose squares and landmarks are in
+  // fips, aps and candidates (in the window's coordinates when `in_window`);
+  // nullptr beyond Explanation::kMaxLooks.
+  Explanation::Look* traceLook(const cv::Rect& win, const cv::Mat& img, bool in_window);
 };
 
 // Landmarks with one square merged into a same-coloured background (the
@@ -1066,11 +1151,23 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
   int64_t pixels_left = static_cast<int64_t>(img.total()) / 8;
   int looks = 0;
   looked.clear();
+  Explanation::Round* traced = traceRound("second look", anchors.size());
+  if (trace) trace_how = "raised by second_look_raise";
   for (const auto& a : anchors) {
-    if (looks >= p.second_looks || pixels_left < 25 * 25) break;  // 25 x 25: the smallest window
+    if (looks >= p.second_looks || pixels_left < 25 * 25) {  // 25 x 25: the smallest window
+      traceSkip(traced, looks >= p.second_looks ? "second_looks spent" : "pixel budget spent (an eighth of the frame)",
+                static_cast<size_t>(anchors.data() + anchors.size() - &a));
+      break;
+    }
     cv::Rect win;
-    if (!freshWindow(a, frame, win)) continue;
-    if (win.area() > pixels_left) continue;
+    if (!freshWindow(a, frame, win)) {
+      traceSkip(traced, "inside a window looked at");
+      continue;
+    }
+    if (win.area() > pixels_left) {
+      traceSkip(traced, "window larger than the pixel budget left");
+      continue;
+    }
     bool merged = false;
     for (const auto& b : blobs) {
       if (b.second < 2.5 * a.area) break;  // the rest are smaller
@@ -1079,10 +1176,14 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
         break;
       }
     }
-    if (!merged) continue;
+    if (!merged) {
+      traceSkip(traced, "no region there 2.5 times the pair's larger square (no merge)");
+      continue;
+    }
     pixels_left -= win.area();
     ++looks;
     looked.push_back(win);
+    if (traced) ++traced->windows, trace_around = cv::Point2f(a.centre);
     look(win, filtered(win), img, strict, max_area, false);
   }
   endLooks();
@@ -1214,13 +1315,25 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
     int64_t samples_left = pixels_left;
     int looks = 0;
     looked.clear();
+    static constexpr const char* kRoundNames[] = {"faint look", "steep round", "steep round (around blue squares)",
+                                                  "veil round"};
+    static constexpr const char* kLimitNames[] = {"faint_looks spent", "steep_looks spent", "steep_looks spent",
+                                                  "veil_looks spent"};
+    Explanation::Round* traced =
+        from.empty() || max_looks <= 0 ? nullptr : traceRound(kRoundNames[static_cast<int>(kind)], from.size());
     for (const auto& a : from) {
-      if (looks >= max_looks || pixels_left < 25 * 25) break;
+      if (looks >= max_looks || pixels_left < 25 * 25) {
+        traceSkip(traced, looks >= max_looks ? kLimitNames[static_cast<int>(kind)] : "pixel budget spent",
+                  static_cast<size_t>(from.data() + from.size() - &a));
+        break;
+      }
       // (a landmark found so far holds the anchor's square: nothing to look for)
       if (kind != Round::kFaint &&
           std::any_of(all_candidates.begin(), all_candidates.end(),
-                      [&](const detail::Candidate& c) { return owns(c, a.centre, 0.5, 2.0); }))
+                      [&](const detail::Candidate& c) { return owns(c, a.centre, 0.5, 2.0); })) {
+        traceSkip(traced, "a landmark found holds its square");
         continue;
+      }
       cv::Rect win;
       if (veil) {
         // (the round takes only its own square's landmark from a window, so
@@ -1233,15 +1346,21 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
         wide.radius = std::min(max_radius, std::max(a.radius, kVeilReach * a.side));
         win = anchorWindow(wide, frame);
       } else if (!freshWindow(a, frame, win)) {
+        traceSkip(traced, "inside a window looked at");
         continue;
       }
-      if (win.area() > pixels_left || win.area() / 4 > samples_left) continue;
+      if (win.area() > pixels_left || win.area() / 4 > samples_left) {
+        traceSkip(traced, "window larger than the pixel budget left");
+        continue;
+      }
       samples_left -= win.area() / 4;
       // (a window measured, cast or not, stands for the red squares in it;
       // not in the veil round, above)
       if (!veil) looked.push_back(win);
       ++looks;
       const size_t before = all_candidates.size();
+      const size_t looks_before = tracedLooks();
+      if (trace) trace_around = cv::Point2f(a.centre);
       if (veil) {
         pixels_left -= veilWindow(win, a, img, filtered, pale, max_area, pixels_left);
       } else {
@@ -1255,9 +1374,19 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
         // shows are not taken (dark stripes on a warm wall beside an orange
         // bar, under adaptive white balance, made one).
         const auto other = [&](const detail::Candidate& c) { return !owns(c, a.centre, 1.0, 3.0); };
+        if (trace) {  // (each look's landmarks were added in turn)
+          size_t k = before;
+          for (size_t i = looks_before; i < trace->looks.size(); ++i)
+            for (int n = 0; n < trace->looks[i].landmarks && k < all_candidates.size(); ++n, ++k)
+              trace->looks[i].dropped += other(all_candidates[k]);
+        }
         all_candidates.erase(std::remove_if(all_candidates.begin() + static_cast<std::ptrdiff_t>(before),
                                             all_candidates.end(), other),
                              all_candidates.end());
+      }
+      if (traced) {
+        if (tracedLooks() > looks_before) ++traced->windows;
+        else traceSkip(traced, veil ? "no tint to take out (under kVeilMinTint)" : "no white in its window");
       }
     }
   };
@@ -1341,6 +1470,7 @@ int64_t Detector::Impl::veilWindow(const cv::Rect& win, const Anchor& a, const c
       detail::subtractChannels(img(win), t, balanced);
     }
     const size_t before = all_candidates.size();
+    if (trace) trace_how = cv::format("tint B %+.0f G %+.0f R %+.0f taken out", t[0], t[1], t[2]);
     look(win, src, balanced, pale, max_area, true);
     pixels += win.area();
     // No landmark added (none at all: the round keeps only the anchor's
@@ -1352,6 +1482,7 @@ int64_t Detector::Impl::veilWindow(const cv::Rect& win, const Anchor& a, const c
     // glare point at 0.75, seeds 1-9: 857 -> 862 of 900 found; seeds 10-15,
     // not looked at while choosing: 562 -> 570 of 600.
     if (all_candidates.size() == before && pixels + win.area() <= pixels_left) {
+      if (trace) trace_how += ", raised by second_look_raise";
       look(win, src, balanced, raisedMask(pale, params.second_look_raise), max_area, true);
       pixels += win.area();
     }
@@ -1388,6 +1519,7 @@ void Detector::Impl::faintWindow(const cv::Rect& win, const cv::Mat& img, const 
   const double top = std::max({white[0], white[1], white[2]}), low = std::min({white[0], white[1], white[2]});
   if (!(low > 0) || (!steep && top < kFaintLookMinCast * low)) {
     // A white already white (or none): the window as it is.
+    if (trace) trace_how = "as it is (no cast)";
     if (!steep) look(win, f, img(win), pale, max_area, true);
     return;
   }
@@ -1399,6 +1531,7 @@ void Detector::Impl::faintWindow(const cv::Rect& win, const cv::Mat& img, const 
     balanced = faint_img_buf(cv::Rect(0, 0, win.width, win.height));
     detail::scaleChannels(img(win), gain, balanced);
   }
+  if (trace) trace_how = steep ? "white-balanced, colour from brightness" : "white-balanced";
   if (steep) {
     // The balanced white's level: the mean of its brightest channel.
     const double level = top / n_white;
@@ -1441,6 +1574,7 @@ void Detector::Impl::look(const cv::Rect& win, const cv::Mat& src, const cv::Mat
   for (auto& q : regions) q.pass = looks_run;
   classify();
   geometry(img, in_window ? look_labels : labels);
+  Explanation::Look* traced = trace ? traceLook(win, img, in_window) : nullptr;
   if (in_window) {
     toFrame(fips);
     toFrame(aps);
@@ -1461,9 +1595,41 @@ void Detector::Impl::look(const cv::Rect& win, const cv::Mat& src, const cv::Mat
     if (again) continue;
     c.tl += of, c.tr += of, c.bl += of, c.ap += oa;
     all_candidates.push_back(c);
+    if (traced) ++traced->landmarks;
   }
   all_fips.insert(all_fips.end(), fips.begin(), fips.end());
   all_aps.insert(all_aps.end(), aps.begin(), aps.end());
+}
+
+Explanation::Look* Detector::Impl::traceLook(const cv::Rect& win, const cv::Mat& img, bool in_window) {
+  if (trace->looks.size() >= Explanation::kMaxLooks) {
+    ++trace->looks_more;
+    return nullptr;
+  }
+  Explanation::Look l;
+  l.round = trace->rounds.empty() ? std::string() : trace->rounds.back().round;
+  l.how = trace_how;
+  l.window = win;
+  l.around = trace_around;
+  l.fips = static_cast<int>(fips.size());
+  l.aps = static_cast<int>(aps.size());
+  const cv::Point2f offset = in_window ? cv::Point2f(static_cast<float>(win.x), static_cast<float>(win.y)) : cv::Point2f();
+  // A square of a landmark this look found, or of one found before it.
+  auto found = [&](const detail::Region& r) {
+    for (const auto& c : candidates)
+      for (const detail::Region* q : {&fips[c.tl], &fips[c.tr], &fips[c.bl], &aps[c.ap]})
+        if (detail::nearCentre(r, {q->cx, q->cy})) return true;
+    for (const auto& c : all_candidates)
+      for (const detail::Region* q : {&all_fips[c.tl], &all_fips[c.tr], &all_fips[c.bl], &all_aps[c.ap]})
+        if (detail::nearCentre(r, {q->cx - offset.x, q->cy - offset.y})) return true;
+    return false;
+  };
+  graph();  // (geometry() builds it only where three FIPs and an AP, or a completion, could make a landmark)
+  std::vector<RefusedGroup> groups;
+  l.right_isosceles = refusedGroups(img, found, offset, groups);
+  tally(groups, Explanation::kMaxLookRefused, l.refusals, l.refused);
+  trace->looks.push_back(std::move(l));
+  return &trace->looks.back();
 }
 
 const cv::Mat* Detector::Impl::colourImage(const cv::Mat& input) {
@@ -1480,7 +1646,15 @@ const cv::Mat* Detector::Impl::colourImage(const cv::Mat& input) {
 // landmark (with the AP it was tried with: the nearest of its choices).
 void Detector::Impl::explain(Explanation& e) {
   const auto t0 = std::chrono::steady_clock::now();
-  e = Explanation();
+  {
+    // (the looks' trace, from the run before, stays)
+    Explanation first;
+    first.rounds = std::move(e.rounds);
+    first.looks = std::move(e.looks);
+    first.looks_more = e.looks_more;
+    first.ms = e.ms;
+    e = std::move(first);
+  }
   if (const cv::Mat* img = last_img) {
     const DetectorParams& p = params;
     const cv::Mat* src = last_src;
@@ -1509,63 +1683,74 @@ void Detector::Impl::explain(Explanation& e) {
           if (detail::nearCentre(r, q)) return true;
       return false;
     };
-    auto at = [](const detail::Region& r) { return cv::Point2f(static_cast<float>(r.cx), static_cast<float>(r.cy)); };
-    struct RefusedGroup {
-      int check;      // its place in detail::Check
-      double unlike;  // |log| of the triangle's size over a landmark's, in the squares' frame
-      Explanation::Refused group;
-    };
     std::vector<RefusedGroup> refused;
-    for (const auto& cyc : cycles) {
-      int corner = 0;
-      if (!detail::rightIsosceles(cyc, fips, kTriangleTolerance, &corner)) continue;
-      ++e.right_isosceles;
-      if (found(fips[cyc[0]]) || found(fips[cyc[1]]) || found(fips[cyc[2]])) continue;
-      detail::apChoices(cyc, fips, aps, p, choices, &ap_index);
-      Explanation::Refused r;
-      detail::Check check = detail::Check::kNoAp;
-      if (choices.empty()) {
-        // As TL, TR, BL would be: the corner, then clockwise in the image.
-        const cv::Point2f tl = at(fips[cyc[corner]]), a = at(fips[cyc[(corner + 1) % 3]]),
-                          b = at(fips[cyc[(corner + 2) % 3]]);
-        const bool clockwise = (a - tl).cross(b - tl) > 0;
-        r.fips = {tl, clockwise ? a : b, clockwise ? b : a};
-        r.check = detail::checkName(check);
-      } else {
-        bool verified = false;
-        detail::Check first = detail::Check::kNoAp;
-        for (size_t k = 0; k < choices.size() && !verified; ++k) {
-          detail::Candidate c = choices[k];
-          detail::Check why = detail::Check::kNoAp;
-          verified = detail::verify(c, fips, aps, *img, p, &why, glare_corrected);
-          if (k == 0) first = why;
-        }
-        if (verified) continue;  // a landmark that lost to an overlapping one
-        const detail::Candidate& c = choices[0];
-        r.fips = {at(fips[c.tl]), at(fips[c.tr]), at(fips[c.bl])};
-        r.ap = at(aps[c.ap]);
-        check = first;
-        r.check = detail::checkName(check);
-      }
-      // How like a landmark's the triangle is: neighbours 3 apart in the
-      // frame of the squares' moments (far-apart large things make triangles too).
-      double d = 0;
-      for (int k = 0; k < 3; ++k) d += detail::normalisedDistance(fips[cyc[k]], fips[cyc[(k + 1) % 3]]);
-      const double unlike = std::abs(std::log(d / (3 * (2 + std::sqrt(2.0)))));
-      refused.push_back({static_cast<int>(check), unlike, std::move(r)});
-    }
-    // Counts per check; the groups that came furthest first, then the most landmark-like.
-    for (int i = 0; i < detail::kNumChecks; ++i) {
-      int n = 0;
-      for (const auto& r : refused) n += r.check == i;
-      if (n > 0) e.refusals.emplace_back(detail::checkName(static_cast<detail::Check>(i)), n);
-    }
-    std::stable_sort(refused.begin(), refused.end(), [](const RefusedGroup& a, const RefusedGroup& b) {
-      return std::tie(b.check, a.unlike) < std::tie(a.check, b.unlike);
-    });
-    for (size_t k = 0; k < refused.size() && k < Explanation::kMaxRefused; ++k) e.refused.push_back(refused[k].group);
+    e.right_isosceles = refusedGroups(*img, found, {0, 0}, refused);
+    tally(refused, Explanation::kMaxRefused, e.refusals, e.refused);
   }
-  e.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  e.ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+int Detector::Impl::refusedGroups(const cv::Mat& img, const std::function<bool(const detail::Region&)>& found,
+                                  const cv::Point2f& offset, std::vector<RefusedGroup>& out) {
+  const DetectorParams& p = params;
+  auto at = [&offset](const detail::Region& r) {
+    return cv::Point2f(static_cast<float>(r.cx), static_cast<float>(r.cy)) + offset;
+  };
+  int right_isosceles = 0;
+  for (const auto& cyc : cycles) {
+    int corner = 0;
+    if (!detail::rightIsosceles(cyc, fips, kTriangleTolerance, &corner)) continue;
+    ++right_isosceles;
+    if (found(fips[cyc[0]]) || found(fips[cyc[1]]) || found(fips[cyc[2]])) continue;
+    detail::apChoices(cyc, fips, aps, p, choices, &ap_index);
+    Explanation::Refused r;
+    detail::Check check = detail::Check::kNoAp;
+    if (choices.empty()) {
+      // As TL, TR, BL would be: the corner, then clockwise in the image.
+      const cv::Point2f tl = at(fips[cyc[corner]]), a = at(fips[cyc[(corner + 1) % 3]]),
+                        b = at(fips[cyc[(corner + 2) % 3]]);
+      const bool clockwise = (a - tl).cross(b - tl) > 0;
+      r.fips = {tl, clockwise ? a : b, clockwise ? b : a};
+      r.check = detail::checkName(check);
+    } else {
+      bool verified = false;
+      detail::Check first = detail::Check::kNoAp;
+      for (size_t k = 0; k < choices.size() && !verified; ++k) {
+        detail::Candidate c = choices[k];
+        detail::Check why = detail::Check::kNoAp;
+        verified = detail::verify(c, fips, aps, img, p, &why, glare_corrected);
+        if (k == 0) first = why;
+      }
+      if (verified) continue;  // a landmark that lost to an overlapping one
+      const detail::Candidate& c = choices[0];
+      r.fips = {at(fips[c.tl]), at(fips[c.tr]), at(fips[c.bl])};
+      r.ap = at(aps[c.ap]);
+      check = first;
+      r.check = detail::checkName(check);
+    }
+    // How like a landmark's the triangle is: neighbours 3 apart in the
+    // frame of the squares' moments (far-apart large things make triangles too).
+    double d = 0;
+    for (int k = 0; k < 3; ++k) d += detail::normalisedDistance(fips[cyc[k]], fips[cyc[(k + 1) % 3]]);
+    const double unlike = std::abs(std::log(d / (3 * (2 + std::sqrt(2.0)))));
+    out.push_back({static_cast<int>(check), unlike, std::move(r)});
+  }
+  return right_isosceles;
+}
+
+void Detector::Impl::tally(std::vector<RefusedGroup>& groups, size_t keep,
+                           std::vector<std::pair<std::string, int>>& refusals,
+                           std::vector<Explanation::Refused>& refused) {
+  // Counts per check; the groups that came furthest first, then the most landmark-like.
+  for (int i = 0; i < detail::kNumChecks; ++i) {
+    int n = 0;
+    for (const auto& r : groups) n += r.check == i;
+    if (n > 0) refusals.emplace_back(detail::checkName(static_cast<detail::Check>(i)), n);
+  }
+  std::stable_sort(groups.begin(), groups.end(), [](const RefusedGroup& a, const RefusedGroup& b) {
+    return std::tie(b.check, a.unlike) < std::tie(a.check, b.unlike);
+  });
+  for (size_t k = 0; k < groups.size() && k < keep; ++k) refused.push_back(std::move(groups[k].group));
 }
 
 void Detector::Impl::run(const cv::Mat& input) {
@@ -1687,6 +1872,20 @@ const Detection& Detector::detect(const cv::Mat& bgr) {
 }
 
 const Detection& Detector::detect(const cv::Mat& bgr, Explanation& why) {
+  // The looks as a run of their own records them; then the detection
+  // itself, untraced (its times are its own), and the first pass explained.
+  const auto t0 = std::chrono::steady_clock::now();
+  why = Explanation();
+  struct Untrace {
+    Impl& impl;
+    ~Untrace() { impl.trace = nullptr; }
+  };
+  {
+    Untrace untrace{*impl_};
+    impl_->trace = &why;
+    impl_->run(bgr);
+  }
+  why.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   impl_->run(bgr);
   impl_->explain(why);
   return impl_->det;

@@ -40,7 +40,7 @@ int main(int argc, char** argv) {
   double explain_s = 0;
   app.add_option("--explain", explain_s,
                  "every this many seconds, explain one frame on stderr as ld-detect --explain does (what each "
-                 "stage kept, why groups of squares were refused); 0: never")
+                 "stage kept, why groups of squares were refused, what each later look found); 0: never")
       ->check(ld::cli::NonNegative);
   LD_CLI_PARSE(app, argc, argv);
   if (const std::string p = ld::channelProblem({{"--in", in_channel}}, {"--out", out_channel}, "the detector's");
@@ -108,7 +108,7 @@ int main(int argc, char** argv) {
       try {
         ld::imageToBgr(image, bgr);
         // Now and then, on --explain, the frame's explanation (it costs about
-        // a detection more, and is not counted in the published timings).
+        // two detections more, and is not counted in the published timings).
         const bool explain = explain_s > 0 && std::chrono::steady_clock::now() >= next_explain;
         const ld::Detection& det = explain ? detector.detect(bgr, why_frame) : detector.detect(bgr);
         // (a calibration that does not fit the frames: said once, and again

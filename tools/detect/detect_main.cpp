@@ -78,7 +78,8 @@ int main(int argc, char** argv) {
   app.add_option("-o,--output", out_file, "write JSON Lines here instead of stdout");
   app.add_flag("--decode", decode, "read each landmark's QR payload too (zbar)");
   app.add_flag("--explain", explain,
-               "say on stderr, per image, what each stage kept and why groups of squares shaped as a landmark were refused");
+               "say on stderr, per image, what each stage kept and why groups of squares shaped as a landmark were refused, "
+               "and what each look after the first pass looked at, found and refused");
   app.add_flag("--summary", summary, "print a summary (frames, landmarks, detect_ms) on stderr");
   LD_CLI_PARSE(app, argc, argv);
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);  // our own one-line errors

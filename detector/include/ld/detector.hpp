@@ -397,8 +397,11 @@ struct Detection {
 /// Why a frame gave the landmarks it gave: what the first pass kept at each
 /// stage and, for each group of squares shaped as a landmark's that gave
 /// none, the check that refused it (Detector::detect with an Explanation;
-/// `ld-detect --explain`). Counts are the first pass's: the completion of a
-/// missing square, the second look and the faint look add squares of their own.
+/// `ld-detect --explain`); then each look after it (the second look, the
+/// faint look, the steep and veil rounds): the windows it looked at, what
+/// each found and refused, and the squares it did not look around, and why.
+/// The first pass's counts are its own: the completion of a missing square
+/// and the looks add squares of their own.
 struct Explanation {
   int blue_regions = 0, red_regions = 0;        ///< labelled regions within min_area_px and max_area_frac_1000
   int blue_sparse = 0, red_sparse = 0;          ///< of them, filling less than min_fill
@@ -420,7 +423,35 @@ struct Explanation {
   std::vector<Refused> refused;
   static constexpr size_t kMaxRefused = 10;
   std::vector<std::pair<std::string, int>> refusals;  ///< how many groups each check refused, in check order
-  double ms = 0;  ///< what explaining took (not counted in the detection's times)
+
+  /// One look after the first pass: a window labelled again (at raised
+  /// thresholds, white-balanced, or with a glare veil's tint taken out) and
+  /// run through colour, geometry and verification.
+  struct Look {
+    std::string round;        ///< "second look", "faint look", "steep round", "steep round (blue)" or "veil round"
+    std::string how;          ///< how the window was labelled ("raised", "white-balanced", "tint B -3 G +5 R -2", ...)
+    cv::Rect window;          ///< in the frame
+    cv::Point2f around;       ///< the square it looked around (the second look: the pair's midpoint)
+    int fips = 0, aps = 0;    ///< FIP and AP candidates in the window
+    int right_isosceles = 0;  ///< groups of three FIPs shaped as a landmark's
+    int landmarks = 0;        ///< landmarks it found that were not found before it
+    int dropped = 0;          ///< of them, not the round's own square's (the steep and veil rounds keep only that one)
+    std::vector<std::pair<std::string, int>> refusals;  ///< as the first pass's, for this window
+    std::vector<Refused> refused;  ///< those that came furthest, at most kMaxLookRefused
+  };
+  /// A round of looks: the squares (the second look: pairs of squares) it
+  /// could look around, the windows it looked at, and why the others were
+  /// not looked at, with how many.
+  struct Round {
+    std::string round;
+    int anchors = 0, windows = 0;
+    std::vector<std::pair<std::string, int>> skipped;
+  };
+  std::vector<Round> rounds;  ///< in the order they ran
+  std::vector<Look> looks;    ///< in the order run, at most kMaxLooks
+  int looks_more = 0;         ///< looks run beyond kMaxLooks
+  static constexpr size_t kMaxLooks = 48, kMaxLookRefused = 3;
+  double ms = 0;  ///< what explaining took, the looks' own run included (not counted in the detection's times)
 };
 
 /// An explanation as lines for people (no trailing newline), each count and
@@ -465,8 +496,10 @@ class Detector {
   /// returned reference stays valid until the next call.
   const Detection& detect(const cv::Mat& bgr);
   /// detect(), then the first pass again, counted and with each refused
-  /// group's check, into `why`: slower, for finding out why a landmark is
-  /// missed, not for the hot path. The detection's times are its own.
+  /// group's check, into `why`, and the looks as a run of their own records
+  /// them (the detection runs twice): slower, for finding out why a landmark
+  /// is missed, not for the hot path. The detection's times are the
+  /// untraced run's.
   const Detection& detect(const cv::Mat& bgr, Explanation& why);
 
   const DetectorParams& params() const;
