@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # ld-eval's command line: the size advisor's answer, exit codes and plot,
 # the QR table with and without --stack, its plot, the motion and pose
-# tables, the lighting sweeps' choices, the missed frames kept (--misses),
+# tables, the lighting sweeps' choices, the frames kept by --misses (missed,
+# found but not read, false landmarks among distractors),
 # and bad options refused before any sweep.
 # usage: eval_cli_test.sh BIN_DIR
 set -euo pipefail
@@ -158,6 +159,59 @@ for line in open(sys.argv[2]):
     for lm in d["landmarks"]:
         assert not all(math.dist(lm[k], t[k]) < tol for k in ("fip_tl", "fip_tr", "fip_bl", "ap")), d["image"]
 assert seen == len(lines) > 0 and all(l["detector"] == "fixed" and l["side_m"] == 0.15 for l in lines)
+PY
+python3 - "$T/misses/misses.jsonl" <<'PY' || fail "kind of the misses: $(cat "$T/misses/misses.jsonl")"
+import json, sys
+assert all(json.loads(l)["kind"] == "not detected" for l in open(sys.argv[1]))
+PY
+# Found but not read (qr: 100-byte payloads at 1 m, mostly unread): kept
+# with "_unread", the payload printed and what the frame read; ld-detect
+# --decode on the frame reads what the line says it read.
+"$BIN/ld-eval" qr --from 1 --to 1 --trials 4 --misses "$T/unread" >/dev/null 2>&1 || fail "qr --misses: exit $?"
+[ "$(ls "$T/unread" | grep -c '^side15_1m_yaw+0_seed1_trial00[0-3]_long_fixed_unread\.png$')" -ge 1 ] &&
+  [ "$(ls "$T/unread" | grep -c '\.png$')" -eq "$(wc -l <"$T/unread/misses.jsonl")" ] ||
+  fail "qr --misses: $(ls "$T/unread" | tr '\n' ' ')"
+"$BIN/ld-detect" --decode "$T/unread"/*_unread.png >"$T/unread.det" 2>/dev/null || fail "ld-detect --decode on the unread: exit $?"
+python3 - "$T/unread/misses.jsonl" "$T/unread.det" <<'PY' || fail "the unread: $(cat "$T/unread/misses.jsonl" "$T/unread.det")"
+import json, math, os, sys
+lines = {l["image"]: l for l in map(json.loads, open(sys.argv[1])) if l["kind"] == "not read"}
+seen = 0
+for out in map(json.loads, open(sys.argv[2])):
+    l = lines[os.path.basename(out["image"])]
+    t = l["truth"]
+    tol = max(2.0, 0.3 * math.dist(t["fip_tr"], t["fip_tl"]) / 3)
+    mine = [lm for lm in out["landmarks"] if all(math.dist(lm[k], t[k]) < tol for k in ("fip_tl", "fip_tr", "fip_bl", "ap"))]
+    assert len(mine) == 1 and mine[0].get("payload") == l["read"] != l["payload"], out["image"]
+    assert l["tag"] == "long" and len(l["payload"].encode()) >= 99, l
+    seen += 1
+assert seen == len(lines) > 0
+PY
+# False landmarks (lighting's distractor frames, with checks loosened so
+# that there are some): kept as distractors_..., with the landmarks found,
+# which ld-detect finds there too, fixed and adaptive alike.
+printf 'qr_max_brightness: 1.0\nsheet_uniformity: 0\nsheet_max_saturation: 1\nsheet_min_value: 0\ncover_min: 0\ncover_max: 1\nshape_tolerance: 1\nap_max_offset: 3\nmax_anisotropy: 10\nsquare_scale_min: 0.01\nsquare_scale_max: 10\n' >"$T/loose.yaml"
+"$BIN/ld-eval" lighting --sweeps glare --glare 0.3 --trials 1 --fp-frames 4 --params "$T/loose.yaml" --misses "$T/fp" \
+  >/dev/null 2>&1 || fail "lighting --misses: exit $?"
+[ "$(ls "$T/fp" | grep -c '^distractors_glare0\.3_seed1_frame00[0-3]_fixed\.png$')" -ge 1 ] &&
+  [ "$(ls "$T/fp" | grep -c '^distractors_glare0\.3_seed1_frame00[0-3]_adaptive\.png$')" -ge 1 ] ||
+  fail "lighting --misses: $(ls "$T/fp" | tr '\n' ' ')"
+for who in fixed adaptive; do
+  flag=; [ $who = adaptive ] && flag=--adaptive
+  for f in "$T/fp"/distractors_*_$who.png; do
+    "$BIN/ld-detect" $flag --params "$T/loose.yaml" "$f" >>"$T/fp.det" 2>/dev/null || fail "ld-detect $flag on $f: exit $?"
+  done
+done
+python3 - "$T/fp/misses.jsonl" "$T/fp.det" <<'PY' || fail "the false landmarks: $(cat "$T/fp/misses.jsonl" "$T/fp.det")"
+import json, math, os, sys
+lines = {l["image"]: l for l in map(json.loads, open(sys.argv[1])) if l["kind"] == "false landmarks"}
+seen = 0
+for out in map(json.loads, open(sys.argv[2])):
+    l = lines[os.path.basename(out["image"])]
+    assert l["detector"] in out["image"] and l["glare"] == 0.3 and len(l["landmarks"]) == len(out["landmarks"]) > 0, l
+    for a, b in zip(l["landmarks"], out["landmarks"]):
+        assert all(math.dist(a[k], b[k]) < 0.02 for k in ("fip_tl", "fip_tr", "fip_bl", "ap")), (a, b)
+    seen += 1
+assert seen == len(lines) > 0
 PY
 # (a refused run: the list stays)
 set +e; "$BIN/ld-eval" yaw --side 0.15 --trials 1 --misses "$T/misses" >/dev/null 2>&1; rc=$?; set -e

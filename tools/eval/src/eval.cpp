@@ -12,6 +12,7 @@
 #include <random>
 #include <stdexcept>
 
+#include <nlohmann/json.hpp>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -130,50 +131,109 @@ FramesRead readOverFrames(const SweepOptions& o, synth::SceneSpec spec, const sy
   return read;
 }
 
-// A trial our detector `who` ("fixed" or "adaptive") missed, into
-// o.misses_dir: the frame and its line in misses.jsonl.
+// Frames kept in o.misses_dir (SweepOptions::misses_dir).
 struct Trial {
   double yaw_deg, pitch_deg, roll_deg;
   int index;
 };
-void writeMiss(const SweepOptions& o, double distance_m, double yaw_point_deg, const Trial& trial, const char* who,
-               const synth::SceneSpec& spec, const synth::Frame& frame) {
+
+// The sweep point's light and blur in a kept frame's name.
+std::string lightTags(const SweepOptions& o) {
   const auto g = [](double v) { return cv::format("%g", v + 0.0); };  // (+ 0.0: no "-0")
-  std::string name = "side" + g(o.side_m * 100) + "_" + g(distance_m) + "m_yaw" + (yaw_point_deg >= 0 ? "+" : "") +
-                     g(yaw_point_deg);
-  if (o.colour_temp_k > 0) name += "_" + g(o.colour_temp_k) + "K";
-  if (o.gain > 0) name += "_gain" + g(o.gain);
-  if (o.glare >= 0) name += "_glare" + g(o.glare);
-  if (o.motion_px >= 0) name += "_motion" + g(o.motion_px);
-  name += cv::format("_seed%llu_trial%03d", static_cast<unsigned long long>(o.seed), trial.index);
-  if (!o.misses_tag.empty()) name += "_" + o.misses_tag;
-  name += std::string("_") + who + ".png";
+  std::string tags;
+  if (o.colour_temp_k > 0) tags += "_" + g(o.colour_temp_k) + "K";
+  if (o.gain > 0) tags += "_gain" + g(o.gain);
+  if (o.glare >= 0) tags += "_glare" + g(o.glare);
+  if (o.motion_px >= 0) tags += "_motion" + g(o.motion_px);
+  return tags;
+}
+
+// A number rounded to `places` decimals for the list (NaN and infinities: null).
+nlohmann::ordered_json rounded(double v, int places) {
+  if (!std::isfinite(v)) return nullptr;
+  if (places == 0) return static_cast<long long>(std::llround(v));
+  const double f = std::pow(10.0, places);
+  return std::round(v * f) / f + 0.0;
+}
+
+nlohmann::ordered_json pointJson(const cv::Point2d& p) { return {rounded(p.x, 2), rounded(p.y, 2)}; }
+
+// The four centres (TL, TR, BL, AP) as LANDMARK.md names them.
+nlohmann::ordered_json centresJson(const cv::Point2d& tl, const cv::Point2d& tr, const cv::Point2d& bl,
+                                   const cv::Point2d& ap) {
+  return {{"fip_tl", pointJson(tl)}, {"fip_tr", pointJson(tr)}, {"fip_bl", pointJson(bl)}, {"ap", pointJson(ap)}};
+}
+
+// The frame as `name` (PNG) and `line` appended to misses.jsonl.
+void keepFrame(const SweepOptions& o, const std::string& name, const cv::Mat& bgr, const nlohmann::ordered_json& line) {
   const std::filesystem::path dir(o.misses_dir);
   bool written = false;
   try {
-    written = cv::imwrite((dir / name).string(), frame.bgr);
+    written = cv::imwrite((dir / name).string(), bgr);
   } catch (const cv::Exception&) {
   }
   if (!written) throw MissesError("--misses: cannot write " + (dir / name).string());
-  // (a number JSON can hold, else null)
-  const auto num = [](double v, const char* fmt) { return std::isfinite(v) ? cv::format(fmt, v) : std::string("null"); };
-  const auto point = [&](const cv::Point2d& p) { return "[" + num(p.x, "%.2f") + ", " + num(p.y, "%.2f") + "]"; };
-  const synth::LandmarkTruth& t = frame.truth[0];
-  const std::string line =
-      "{\"image\": \"" + name + "\", \"detector\": \"" + who + "\", \"tag\": \"" + o.misses_tag +
-      "\", \"side_m\": " + num(o.side_m, "%g") + ", \"distance_m\": " + num(distance_m, "%g") +
-      ", \"yaw_deg\": " + num(trial.yaw_deg, "%.3f") + ", \"pitch_deg\": " + num(trial.pitch_deg, "%.3f") +
-      ", \"roll_deg\": " + num(trial.roll_deg, "%.3f") +
-      cv::format(", \"seed\": %llu, \"trial\": %d", static_cast<unsigned long long>(o.seed), trial.index) +
-      ", \"colour_temp_k\": " + num(spec.lighting.colour_temp_k, "%.0f") + ", \"gain\": " +
-      num(spec.lighting.gain, "%.3f") + ", \"glare\": " + num(spec.lighting.glare, "%.3f") +
-      ", \"motion_px\": " + num(spec.degradation.motion_px, "%.2f") + ", \"truth\": {\"fip_tl\": " +
-      point(t.fip_tl) + ", \"fip_tr\": " + point(t.fip_tr) + ", \"fip_bl\": " + point(t.fip_bl) +
-      ", \"ap\": " + point(t.ap) + "}}\n";
   std::ofstream f(dir / "misses.jsonl", std::ios::app);
-  f << line;
+  f << line.dump(-1, ' ', false, nlohmann::ordered_json::error_handler_t::replace) << "\n";
   f.close();
   if (!f) throw MissesError("--misses: cannot write " + (dir / "misses.jsonl").string() + ": " + std::strerror(errno));
+}
+
+// A trial of a landmark sweep our detector `who` ("fixed" or "adaptive")
+// missed (`read`: empty) or found without reading its payload (`read`: what
+// the frame alone read, or null), into o.misses_dir.
+void writeMiss(const SweepOptions& o, double distance_m, double yaw_point_deg, const Trial& trial, const char* who,
+               const synth::SceneSpec& spec, const synth::Frame& frame, const std::string& payload = {},
+               const std::optional<nlohmann::ordered_json>& read = std::nullopt) {
+  const auto g = [](double v) { return cv::format("%g", v + 0.0); };
+  std::string name = "side" + g(o.side_m * 100) + "_" + g(distance_m) + "m_yaw" + (yaw_point_deg >= 0 ? "+" : "") +
+                     g(yaw_point_deg) + lightTags(o) +
+                     cv::format("_seed%llu_trial%03d", static_cast<unsigned long long>(o.seed), trial.index);
+  if (!o.misses_tag.empty()) name += "_" + o.misses_tag;
+  name += std::string("_") + who + (read ? "_unread" : "") + ".png";
+  const synth::LandmarkTruth& t = frame.truth[0];
+  nlohmann::ordered_json line{{"image", name},
+                              {"kind", read ? "not read" : "not detected"},
+                              {"detector", who},
+                              {"tag", o.misses_tag},
+                              {"side_m", rounded(o.side_m, 4)},
+                              {"distance_m", rounded(distance_m, 4)},
+                              {"yaw_deg", rounded(trial.yaw_deg, 3)},
+                              {"pitch_deg", rounded(trial.pitch_deg, 3)},
+                              {"roll_deg", rounded(trial.roll_deg, 3)},
+                              {"seed", o.seed},
+                              {"trial", trial.index},
+                              {"colour_temp_k", rounded(spec.lighting.colour_temp_k, 0)},
+                              {"gain", rounded(spec.lighting.gain, 3)},
+                              {"glare", rounded(spec.lighting.glare, 3)},
+                              {"motion_px", rounded(spec.degradation.motion_px, 2)},
+                              {"truth", centresJson(t.fip_tl, t.fip_tr, t.fip_bl, t.ap)}};
+  if (read) {
+    line["payload"] = payload;
+    line["read"] = *read;
+  }
+  keepFrame(o, name, frame.bgr, line);
+}
+
+// A distractor frame (no landmark) where our detector `who` found
+// landmarks, into o.misses_dir.
+void writeFalseLandmarks(const SweepOptions& o, int index, const char* who, const synth::SceneSpec& spec,
+                         const synth::Frame& frame, const std::vector<Landmark>& found) {
+  const std::string name = "distractors" + lightTags(o) +
+                           cv::format("_seed%llu_frame%03d_", static_cast<unsigned long long>(o.seed), index) + who +
+                           ".png";
+  nlohmann::ordered_json landmarks = nlohmann::ordered_json::array();
+  for (const Landmark& lm : found) landmarks.push_back(centresJson(lm.fip_tl, lm.fip_tr, lm.fip_bl, lm.ap));
+  const nlohmann::ordered_json line{{"image", name},
+                                    {"kind", "false landmarks"},
+                                    {"detector", who},
+                                    {"seed", o.seed},
+                                    {"frame", index},
+                                    {"colour_temp_k", rounded(spec.lighting.colour_temp_k, 0)},
+                                    {"gain", rounded(spec.lighting.gain, 3)},
+                                    {"glare", rounded(spec.lighting.glare, 3)},
+                                    {"landmarks", landmarks}};
+  keepFrame(o, name, frame.bgr, line);
 }
 
 // With options.pose, the errors of `corners` and the pose from them against the truth `t` into `p`.
@@ -251,6 +311,9 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
             p.decoded_stack += more.stack == payload;
           }
           p.wrong_payload += wrong;  // once per trial, whichever frame or the stack gave it
+          if (!right && !o.misses_dir.empty())
+            writeMiss(o, distance_m, yaw_deg, {yaw, pitch, roll, k}, detectors[i].enabled() ? "adaptive" : "fixed",
+                      spec, frame, payload, r ? nlohmann::ordered_json(r->payload) : nlohmann::ordered_json(nullptr));
         }
         break;
       }
@@ -273,8 +336,12 @@ std::vector<double> falsePositivesOn(const SweepOptions& o, std::vector<Adaptive
     spec.landmark_like_cards = static_cast<int>(rng() % 3);
     applyLighting(o, spec);
     const synth::Frame frame = synth::render(spec);
-    for (size_t i = 0; i < detectors.size(); ++i)
-      found[i] += static_cast<int>(detectFresh(detectors[i], frame.bgr).landmarks.size());
+    for (size_t i = 0; i < detectors.size(); ++i) {
+      const Detection& det = detectFresh(detectors[i], frame.bgr);
+      found[i] += static_cast<int>(det.landmarks.size());
+      if (!det.landmarks.empty() && !o.misses_dir.empty())
+        writeFalseLandmarks(o, k, detectors[i].enabled() ? "adaptive" : "fixed", spec, frame, det.landmarks);
+    }
   }
   std::vector<double> rate(detectors.size(), 0.0);
   for (size_t i = 0; i < detectors.size(); ++i) rate[i] = frames > 0 ? static_cast<double>(found[i]) / frames : 0.0;

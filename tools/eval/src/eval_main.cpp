@@ -186,8 +186,9 @@ void addCommon(CLI::App* app, Common& c, bool png = true) {
   app->add_option("--markdown", c.markdown, "also write the table to this file");
   if (png) app->add_option("--png", c.png, "write a plot");
   app->add_option("--misses", c.misses,
-                  "write each frame our detector missed into this folder (PNG), with a line per frame in its "
-                  "misses.jsonl (pose, light, the truth's centres): for ld-detect --explain");
+                  "write each frame where our detector missed the landmark, found it but did not read its "
+                  "payload, or found landmarks among distractors into this folder (PNG), with a line per frame in "
+                  "its misses.jsonl (kind, pose, light, the truth's centres): for ld-detect --explain");
 }
 
 // The QR sweeps' --stack: frames read as ld-qr-reader reads a track (0-64, as its --stack-frames).

@@ -65,13 +65,18 @@ struct SweepOptions {
   /// (ld::poseFromCorners: IPPE_SQUARE with `camera` and `side_m`), against
   /// the truth: Point::pose_errors.
   bool pose = false;
-  /// A folder to write each frame our detector missed into (empty: none):
-  /// the frame as rendered (PNG, named by the side, the sweep point, the
-  /// seed, the trial, `misses_tag` and the detector: fixed or adaptive),
-  /// with a line appended to misses.jsonl there (startMisses() empties it)
-  /// giving the trial's pose, light and the truth's centres: what `ld-detect
-  /// --explain` (with `--adaptive` for the adaptive detector's) can be run
-  /// on to see why. A frame or line that cannot be written: MissesError.
+  /// A folder to write each frame our detector went wrong on into (empty:
+  /// none): a landmark it missed; with `decode`, one it found and did not
+  /// read (named with "_unread"); a distractor frame where it found
+  /// landmarks (named "distractors..."). The frame as rendered (PNG, named by
+  /// the side, the sweep point, the seed, the trial, `misses_tag` and the
+  /// detector: fixed or adaptive), with a line appended to misses.jsonl
+  /// there (startMisses() empties it) giving its kind, the trial's pose,
+  /// light and the truth's centres (a false landmark's: the landmarks
+  /// found; one not read: the payload and what the frame read): what
+  /// `ld-detect --explain` (with `--adaptive` for the adaptive detector's)
+  /// can be run on to see why. A frame or line that cannot be written:
+  /// MissesError.
   std::string misses_dir;
   /// Tells apart the missed frames of sweeps over the same points (the QR
   /// sweep's short and long payloads, say): in their names and lines.
