@@ -307,9 +307,11 @@ TEST(ColourFromBrightness, VectorAndScalarAgreeWithTheRule) {
 // The faint and veil looks' per-channel gain and tint give cv::multiply's and
 // cv::subtract's values exactly (they replace them: both allocate a buffer
 // at each call), on views into a larger buffer as the looks use them.
+// (and pixels at the clip, for the veil round, kept as they are)
 TEST(WindowColour, ScaleAndSubtractAreOpenCvsValues) {
   cv::RNG rng(7);
   cv::Mat buffer(40, 60, CV_8UC3, cv::Scalar::all(0));
+  int kept = 0;
   for (int t = 0; t < 200; ++t) {
     const cv::Size size(1 + rng.uniform(0, 50), 1 + rng.uniform(0, 30));
     cv::Mat img(size, CV_8UC3);
@@ -330,7 +332,20 @@ TEST(WindowColour, ScaleAndSubtractAreOpenCvsValues) {
     ld::detail::subtractChannels(img, tint, out);
     EXPECT_EQ(cv::norm(out, want, cv::NORM_INF), 0) << "tint " << tint << " at " << size;
     EXPECT_EQ(out.data, buffer.data);
+    // Pixels whose largest channel is keep_from or more stay as they are.
+    const int keep_from = t % 3 == 0 ? 256 : rng.uniform(200, 256);
+    for (int y = 0; y < img.rows; ++y)
+      for (int x = 0; x < img.cols; ++x) {
+        const cv::Vec3b v = img.at<cv::Vec3b>(y, x);
+        if (std::max({v[0], v[1], v[2]}) >= keep_from) {
+          want.at<cv::Vec3b>(y, x) = v;
+          ++kept;
+        }
+      }
+    ld::detail::subtractChannels(img, tint, out, keep_from);
+    EXPECT_EQ(cv::norm(out, want, cv::NORM_INF), 0) << "tint " << tint << ", keep_from " << keep_from << " at " << size;
   }
+  EXPECT_GT(kept, 100);  // (the keeping was tried)
 }
 
 // ====================================================================== regions

@@ -1462,12 +1462,20 @@ int64_t Detector::Impl::veilWindow(const cv::Rect& win, const Anchor& a, const c
     // one the first look took out already.
     if (cv::norm(t, cv::NORM_INF) < kVeilMinTint) continue;
     if (pick == second && first >= 0 && cv::norm(t - tint[first], cv::NORM_INF) < kVeilMinTint) continue;
+    // (pixels clipped in some channel, the sheet's white at the hot spot,
+    // carry no tint, as where it was measured, and keep their colour:
+    // taken out of them, a tint of B -83 G +18 R +65 turned the clipped
+    // sheet pale blue, and the window around a landmark's AP showed 1 FIP
+    // and no AP, 14 FIPs and 4 APs now; in another the sheet broke into
+    // 276 blue specks. On the lighting sweep's glare point at 0.75, seeds
+    // 1-6: 574 -> 581 of 600 found; seeds 7-15: 858 -> 872 of 900; at 0.9,
+    // seeds 1-3: 133 -> 150 of 300)
     cv::Mat src = faint_src_buf(cv::Rect(0, 0, win.width, win.height));
-    detail::subtractChannels(filtered(win), t, src);
+    detail::subtractChannels(filtered(win), t, src, kVeilClipped);
     cv::Mat balanced = src;
     if (filtered.data != img.data) {  // blurred: the looks label the filtered image, verify on the frame
       balanced = faint_img_buf(cv::Rect(0, 0, win.width, win.height));
-      detail::subtractChannels(img(win), t, balanced);
+      detail::subtractChannels(img(win), t, balanced, kVeilClipped);
     }
     const size_t before = all_candidates.size();
     if (trace) trace_how = cv::format("tint B %+.0f G %+.0f R %+.0f taken out", t[0], t[1], t[2]);

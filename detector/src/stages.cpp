@@ -186,7 +186,7 @@ void scaleChannels(const cv::Mat& bgr, const cv::Vec3d& gain, cv::Mat& out) {
   }
 }
 
-void subtractChannels(const cv::Mat& bgr, const cv::Scalar& tint, cv::Mat& out) {
+void subtractChannels(const cv::Mat& bgr, const cv::Scalar& tint, cv::Mat& out, int keep_from) {
   CV_Assert(bgr.type() == CV_8UC3 && out.type() == CV_8UC3 && out.size() == bgr.size());
   // Saturating byte arithmetic (the loops vectorise): less `down`, plus `up`,
   // one of them 0 in each channel, laid out over 48 bytes (16 pixels).
@@ -210,6 +210,9 @@ void subtractChannels(const cv::Mat& bgr, const cv::Scalar& tint, cv::Mat& out) 
     for (; i + kSpan <= n; i += kSpan)
       for (int k = 0; k < kSpan; ++k) q[i + k] = sat(p[i + k], down[k], up[k]);
     for (int k = 0; i < n; ++i, ++k) q[i] = sat(p[i], down[k], up[k]);
+    if (keep_from > 255) continue;
+    for (int x = 0; x < n; x += 3)
+      if (std::max({p[x], p[x + 1], p[x + 2]}) >= keep_from) q[x] = p[x], q[x + 1] = p[x + 1], q[x + 2] = p[x + 2];
   }
 }
 

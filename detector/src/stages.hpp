@@ -67,8 +67,9 @@ void scaleChannels(const cv::Mat& bgr, const cv::Vec3d& gain, cv::Mat& out);
 
 /// `out` = `bgr` less `tint` per channel, saturated to 8 bits: cv::subtract(
 /// bgr, tint, out) value for value (which rounds the tint to integers first),
-/// without its allocation. `out` as for scaleChannels.
-void subtractChannels(const cv::Mat& bgr, const cv::Scalar& tint, cv::Mat& out);
+/// without its allocation; but pixels whose largest channel is `keep_from`
+/// or more (256: none) as they are in `bgr`. `out` as for scaleChannels.
+void subtractChannels(const cv::Mat& bgr, const cv::Scalar& tint, cv::Mat& out, int keep_from = 256);
 
 /// Colour from brightness: `bgr` (8-bit, white-balanced so that its white
 /// of level `white` is grey) with each pixel's colour taken again from the
