@@ -1962,6 +1962,15 @@ int skipped(const ld::Explanation::Round& r, const std::string& why) {
 
 bool inside(const cv::Rect& r, const cv::Point2d& q) { return r.contains(cv::Point(cvRound(q.x), cvRound(q.y))); }
 
+// Each round's squares are each either looked around or not, with a reason.
+void expectRoundsAddUp(const ld::Explanation& e) {
+  for (const auto& r : e.rounds) {
+    int not_looked = 0;
+    for (const auto& [reason, n] : r.skipped) not_looked += n;
+    EXPECT_EQ(r.windows + not_looked, r.anchors) << r.round;
+  }
+}
+
 }  // namespace
 
 // The landmark the second look found (joinedToAnObject): the explanation
@@ -1988,7 +1997,14 @@ TEST(Explain, ListsTheLookThatFoundTheLandmark) {
   for (const auto& l : why.looks)
     if (l.landmarks > 0) found = &l, ++finding;
   ASSERT_EQ(finding, 1) << text;
+  expectRoundsAddUp(why);
   EXPECT_EQ(found->round, "second look");
+  // (around the midpoint of the pair the first pass left: two of its squares)
+  bool midpoint = false;
+  for (int i = 0; i < 4; ++i)
+    for (int j = i + 1; j < 4; ++j)
+      midpoint |= cv::norm(cv::Point2d(found->around) - (t.centres[i] + t.centres[j]) / 2) < 1.5;
+  EXPECT_TRUE(midpoint) << text;
   EXPECT_EQ(found->how, "raised by second_look_raise");
   EXPECT_EQ(found->landmarks, 1);
   EXPECT_EQ(found->dropped, 0);
@@ -2022,6 +2038,7 @@ TEST(Explain, LooksNameTheCheckThatRefusedInTheirWindow) {
     ld::Detector det;
     ld::Explanation why;
     EXPECT_TRUE(det.detect(img, why).landmarks.empty());
+    expectRoundsAddUp(why);
     ++tried;
     auto near = [](const cv::Point2f& a, const cv::Point2d& b) { return cv::norm(cv::Point2d(a) - b) < 2.0; };
     for (const auto& l : why.looks) {
@@ -2058,6 +2075,7 @@ TEST(Explain, RoundsCountTheSquaresTheyDidNotLookAround) {
   ld::Explanation why;
   det.detect(img, why);
   const std::string text = ld::describe(why, q);
+  expectRoundsAddUp(why);
   const auto* faint = roundNamed(why, "faint look");
   ASSERT_NE(faint, nullptr) << text;
   EXPECT_GE(faint->anchors, 2) << text;
@@ -2081,6 +2099,37 @@ TEST(Explain, RoundsCountTheSquaresTheyDidNotLookAround) {
   EXPECT_TRUE(none.rounds.empty());
   EXPECT_TRUE(none.looks.empty());
   EXPECT_EQ(ld::describe(none, ld::DetectorParams::paper()).find("looks after"), std::string::npos);
+}
+
+// Confetti of small blue and red squares over a large frame, the looks'
+// limits raised: more looks than an explanation lists (48; the rest
+// counted), and more pairs of squares than the second look takes (256).
+TEST(Explain, ListsAtMost48LooksAndCountsTheRest) {
+  cv::Mat img(960, 1280, CV_8UC3, cv::Scalar(200, 205, 210));
+  cv::RNG rng(5);
+  for (int k = 0; k < 600; ++k) {
+    const cv::Point at(rng.uniform(4, 1276), rng.uniform(4, 956));
+    img(cv::Rect(at.x - 2, at.y - 2, 5, 5)).setTo(k % 2 ? cv::Scalar(160, 50, 40) : cv::Scalar(40, 60, 200));
+  }
+  ld::DetectorParams q;
+  q.faint_looks = q.second_looks = 64;
+  ld::Detector det(q);
+  ld::Explanation why;
+  det.detect(img, why);
+  const std::string text = ld::describe(why, q);
+  expectRoundsAddUp(why);
+  int windows = 0;  // (one look each: no veil round here)
+  for (const auto& r : why.rounds) windows += r.windows;
+  EXPECT_EQ(why.looks.size(), ld::Explanation::kMaxLooks) << text;
+  EXPECT_GT(why.looks_more, 0) << text;
+  EXPECT_EQ(static_cast<int>(why.looks.size()) + why.looks_more, windows) << text;
+  EXPECT_NE(text.find(cv::format("\n  %d more look", why.looks_more)), std::string::npos) << text;
+  const auto* second = roundNamed(why, "second look");
+  ASSERT_NE(second, nullptr) << text;
+  EXPECT_GT(second->anchors, 256) << text;
+  EXPECT_EQ(skipped(*second, "beyond the first kMaxAnchors (256), the AP pairs and the smaller windows first"),
+            second->anchors - 256)
+      << text;
 }
 
 // Gray and empty images: nothing counted, nothing refused.

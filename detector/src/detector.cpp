@@ -288,11 +288,13 @@ int checkIndex(const std::string& name) {
 
 }  // namespace
 
+namespace {
+
 // The looks after the first pass, as describe() gives them.
 template <typename Pt>
 std::string describeLooks(const Explanation& e, const DetectorParams& p, const Pt& pt) {
   if (p.front_end == "paper") return "";  // (the paper's front end has no looks)
-  if (e.rounds.empty()) return "\nlooks after the first pass: none (no square left that one starts from)";
+  if (e.rounds.empty()) return "\nlooks after the first pass: none ran";
   auto plural = [](int n, const char* one, const char* many) { return cv::format("%d %s", n, n == 1 ? one : many); };
   std::string s = "\nlooks after the first pass:";
   for (const auto& r : e.rounds) {
@@ -330,6 +332,8 @@ std::string describeLooks(const Explanation& e, const DetectorParams& p, const P
   if (e.looks_more > 0) s += "\n  " + plural(e.looks_more, "more look", "more looks") + " not listed";
   return s;
 }
+
+}  // namespace
 
 std::string describe(const Explanation& e, const DetectorParams& p, const std::string& indent) {
   auto num = [](double v) { return cv::format("%g", v); };
@@ -604,6 +608,7 @@ struct Detector::Impl {
   // once more with `trace` set): the current look's labelling and square.
   Explanation* trace = nullptr;
   std::string trace_how;
+  bool veil_measured = false;  // whether the last veil window measured a tint
   cv::Point2f trace_around;
   // A new round in the trace (nullptr when not tracing), and a reason its
   // squares were not looked around, `n` more times.
@@ -1128,6 +1133,7 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
   const auto first = [](const Anchor& a, const Anchor& b) {
     return std::tie(a.rank, a.radius, a.centre.x, a.centre.y) < std::tie(b.rank, b.radius, b.centre.x, b.centre.y);
   };
+  const size_t pairs = anchors.size();  // (for the trace: before the cut)
   if (anchors.size() > kMaxAnchors) {
     std::nth_element(anchors.begin(), anchors.begin() + kMaxAnchors, anchors.end(), first);
     anchors.resize(kMaxAnchors);
@@ -1151,7 +1157,9 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
   int64_t pixels_left = static_cast<int64_t>(img.total()) / 8;
   int looks = 0;
   looked.clear();
-  Explanation::Round* traced = traceRound("second look", anchors.size());
+  Explanation::Round* traced = traceRound("second look", pairs);
+  traceSkip(traced, "beyond the first kMaxAnchors (256), the AP pairs and the smaller windows first",
+            pairs - anchors.size());
   if (trace) trace_how = "raised by second_look_raise";
   for (const auto& a : anchors) {
     if (looks >= p.second_looks || pixels_left < 25 * 25) {  // 25 x 25: the smallest window
@@ -1386,7 +1394,9 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
       }
       if (traced) {
         if (tracedLooks() > looks_before) ++traced->windows;
-        else traceSkip(traced, veil ? "no tint to take out (under kVeilMinTint)" : "no white in its window");
+        else if (!veil) traceSkip(traced, "no white in its window");
+        else if (!veil_measured) traceSkip(traced, "no tint measured (the QR's discs off the frame or clipped)");
+        else traceSkip(traced, "no tint to take out (under kVeilMinTint)");
       }
     }
   };
@@ -1454,6 +1464,7 @@ int64_t Detector::Impl::veilWindow(const cv::Rect& win, const Anchor& a, const c
     if (first < 0 || texture[d] > texture[first]) second = first, first = d;
     else if (second < 0 || texture[d] > texture[second]) second = d;
   }
+  veil_measured = first >= 0;
   int64_t pixels = 0;
   for (const int pick : {first, second}) {
     if (pick < 0 || pixels + win.area() > pixels_left) break;
@@ -1880,9 +1891,13 @@ const Detection& Detector::detect(const cv::Mat& bgr) {
 }
 
 const Detection& Detector::detect(const cv::Mat& bgr, Explanation& why) {
-  // The looks as a run of their own records them; then the detection
-  // itself, untraced (its times are its own), and the first pass explained.
+  // The detection, untraced (its times are its own); then again as a run
+  // that records the looks (the same landmarks), its times put back to the
+  // untraced run's; then the first pass explained.
+  impl_->run(bgr);
   const auto t0 = std::chrono::steady_clock::now();
+  const std::vector<StageTime> stages = impl_->det.stages;
+  const double total_ms = impl_->det.total_ms;
   why = Explanation();
   struct Untrace {
     Impl& impl;
@@ -1893,8 +1908,9 @@ const Detection& Detector::detect(const cv::Mat& bgr, Explanation& why) {
     impl_->trace = &why;
     impl_->run(bgr);
   }
+  impl_->det.stages = stages;
+  impl_->det.total_ms = total_ms;
   why.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  impl_->run(bgr);
   impl_->explain(why);
   return impl_->det;
 }

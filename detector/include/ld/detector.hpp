@@ -428,8 +428,10 @@ struct Explanation {
   /// thresholds, white-balanced, or with a glare veil's tint taken out) and
   /// run through colour, geometry and verification.
   struct Look {
-    std::string round;        ///< "second look", "faint look", "steep round", "steep round (blue)" or "veil round"
-    std::string how;          ///< how the window was labelled ("raised", "white-balanced", "tint B -3 G +5 R -2", ...)
+    std::string round;        ///< "second look", "faint look", "steep round", "steep round (around blue squares)" or "veil round"
+    std::string how;          ///< how the window was labelled: "raised by second_look_raise", "as it is (no cast)",
+                              ///< "white-balanced", "white-balanced, colour from brightness", "tint B -3 G +5 R -2
+                              ///< taken out" (and ", raised by second_look_raise" after it)
     cv::Rect window;          ///< in the frame
     cv::Point2f around;       ///< the square it looked around (the second look: the pair's midpoint)
     int fips = 0, aps = 0;    ///< FIP and AP candidates in the window
@@ -497,9 +499,10 @@ class Detector {
   const Detection& detect(const cv::Mat& bgr);
   /// detect(), then the first pass again, counted and with each refused
   /// group's check, into `why`, and the looks as a run of their own records
-  /// them (the detection runs twice): slower, for finding out why a landmark
-  /// is missed, not for the hot path. The detection's times are the
-  /// untraced run's.
+  /// them (the detection runs twice: with backend "auto" still choosing,
+  /// both count as its trials): slower, for finding out why a landmark is
+  /// missed, not for the hot path. The detection's times are the untraced
+  /// run's.
   const Detection& detect(const cv::Mat& bgr, Explanation& why);
 
   const DetectorParams& params() const;
