@@ -40,6 +40,10 @@ grep -q '000001.png: 1 landmark; adaptive gains B [0-9.]* G [0-9.]* R [0-9.]*' "
   fail "glare frames, no looks: $(cat "$T/err")"
 grep -q '^    veil round (veil_looks 8): [0-9]* red squares\{0,1\} no landmark took, [0-9]* windows\{0,1\} looked at' "$T/err" ||
   fail "glare frames, no veil round: $(cat "$T/err")"
+# (the landmarks --explain reports are those ld-detect gives without it)
+"$BIN/ld-detect" --adaptive "$T/glare"/*_fixed.png 2>/dev/null | sed 's/"detect_ms":[0-9.]*,//' >"$T/plain" ||
+  fail "glare frames without --explain: exit $?"
+sed 's/"detect_ms":[0-9.]*,//' "$T/out" | cmp -s - "$T/plain" || fail "glare frames: --explain changed the landmarks"
 veil_found=$(awk '/^    [a-z]/ { round = $1 " " $2 } round == "veil round" && /^      window .*, tint B [-+][0-9]* G [-+][0-9]* R [-+][0-9]* taken out.*; 1 landmark found($|;)/ { n++ } END { print n + 0 }' "$T/err")
 [ "$veil_found" -ge 1 ] || fail "glare frames, no veil window found a landmark: $(cat "$T/err")"
 # An unreadable file: one line on stderr, an error object, the others still done, exit 1.

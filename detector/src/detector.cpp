@@ -1480,7 +1480,8 @@ int64_t Detector::Impl::veilWindow(const cv::Rect& win, const Anchor& a, const c
     // and no AP, 14 FIPs and 4 APs now; in another the sheet broke into
     // 276 blue specks. On the lighting sweep's glare point at 0.75, seeds
     // 1-6: 574 -> 581 of 600 found; seeds 7-15: 858 -> 872 of 900; at 0.9,
-    // seeds 1-3: 133 -> 150 of 300)
+    // seeds 1-3: 133 -> 150 of 300. With a blurring front end the labelled
+    // image keeps its own clipped pixels, the verified one the frame's)
     cv::Mat src = faint_src_buf(cv::Rect(0, 0, win.width, win.height));
     detail::subtractChannels(filtered(win), t, src, kVeilClipped);
     cv::Mat balanced = src;
@@ -1898,6 +1899,7 @@ const Detection& Detector::detect(const cv::Mat& bgr, Explanation& why) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::vector<StageTime> stages = impl_->det.stages;
   const double total_ms = impl_->det.total_ms;
+  const char* ran = impl_->ran;  // (backend "auto" still choosing may run the traced one on the other)
   why = Explanation();
   struct Untrace {
     Impl& impl;
@@ -1910,6 +1912,7 @@ const Detection& Detector::detect(const cv::Mat& bgr, Explanation& why) {
   }
   impl_->det.stages = stages;
   impl_->det.total_ms = total_ms;
+  impl_->ran = ran;
   why.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   impl_->explain(why);
   return impl_->det;

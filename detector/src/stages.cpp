@@ -188,6 +188,7 @@ void scaleChannels(const cv::Mat& bgr, const cv::Vec3d& gain, cv::Mat& out) {
 
 void subtractChannels(const cv::Mat& bgr, const cv::Scalar& tint, cv::Mat& out, int keep_from) {
   CV_Assert(bgr.type() == CV_8UC3 && out.type() == CV_8UC3 && out.size() == bgr.size());
+  CV_Assert(keep_from > 255 || out.data != bgr.data);  // (the kept pixels are read from bgr after the pass)
   // Saturating byte arithmetic (the loops vectorise): less `down`, plus `up`,
   // one of them 0 in each channel, laid out over 48 bytes (16 pixels).
   constexpr int kSpan = 48;

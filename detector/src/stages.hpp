@@ -68,7 +68,8 @@ void scaleChannels(const cv::Mat& bgr, const cv::Vec3d& gain, cv::Mat& out);
 /// `out` = `bgr` less `tint` per channel, saturated to 8 bits: cv::subtract(
 /// bgr, tint, out) value for value (which rounds the tint to integers first),
 /// without its allocation; but pixels whose largest channel is `keep_from`
-/// or more (256: none) as they are in `bgr`. `out` as for scaleChannels.
+/// or more (256: none) as they are in `bgr`. `out` as for scaleChannels,
+/// and not `bgr` itself when keep_from is 255 or less.
 void subtractChannels(const cv::Mat& bgr, const cv::Scalar& tint, cv::Mat& out, int keep_from = 256);
 
 /// Colour from brightness: `bgr` (8-bit, white-balanced so that its white
