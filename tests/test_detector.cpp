@@ -1834,6 +1834,18 @@ const ld::Explanation::Refused* refusedAt(const ld::Explanation& e, const Truth&
   return nullptr;
 }
 
+// `img` detected with an explanation into `why`: whether it gave the
+// landmark `t` alone, as detect() without one gives it.
+::testing::AssertionResult explainedAlone(const cv::Mat& img, const Truth& t, ld::Explanation& why) {
+  ld::Detector det;
+  const std::vector<ld::Landmark> alone = det.detect(img).landmarks;
+  const auto& d = det.detect(img, why);
+  if (auto found = onlyLandmark(d, t); !found) return found;
+  if (alone.size() != 1 || alone[0].corners != d.landmarks[0].corners)
+    return ::testing::AssertionFailure() << "not what detect() alone gives";
+  return ::testing::AssertionSuccess();
+}
+
 }  // namespace
 
 // A landmark found: the explanation counts its squares and refuses none of
@@ -1843,13 +1855,8 @@ TEST(Explain, FoundLandmarkIsCountedNotRefused) {
   const Placed p = place(1.0, 20, 35);
   drawSheet(img, kCam, p);
   const Truth t = truthOf(kCam, p);
-  ld::Detector det;
-  const std::vector<ld::Landmark> alone = det.detect(img).landmarks;
   ld::Explanation why;
-  const auto& d = det.detect(img, why);
-  ASSERT_TRUE(onlyLandmark(d, t));
-  ASSERT_EQ(alone.size(), 1u);
-  EXPECT_EQ(alone[0].corners, d.landmarks[0].corners);
+  ASSERT_TRUE(explainedAlone(img, t, why));
   EXPECT_GE(why.blue_regions, 3);
   EXPECT_GE(why.fips, 3);
   EXPECT_GE(why.aps, 1);
@@ -1980,13 +1987,8 @@ void expectRoundsAddUp(const ld::Explanation& e) {
 TEST(Explain, ListsTheLookThatFoundTheLandmark) {
   Truth t;
   const cv::Mat img = joinedToAnObject(t);
-  ld::Detector det;
-  const std::vector<ld::Landmark> alone = det.detect(img).landmarks;
   ld::Explanation why;
-  const auto& d = det.detect(img, why);
-  ASSERT_TRUE(onlyLandmark(d, t));
-  ASSERT_EQ(alone.size(), 1u);
-  EXPECT_EQ(alone[0].corners, d.landmarks[0].corners);
+  ASSERT_TRUE(explainedAlone(img, t, why));
   const std::string text = ld::describe(why, {});
   const auto* second = roundNamed(why, "second look");
   ASSERT_NE(second, nullptr) << text;
