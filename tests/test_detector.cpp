@@ -2134,6 +2134,31 @@ TEST(Explain, ListsAtMost48LooksAndCountsTheRest) {
       << text;
 }
 
+// The veil round (frames with a glare veil taken out) around a lone red
+// square says why it took no tint out: on a sheet clipped white, none
+// measured (the discs where the QR would lie hold no unclipped pixel); on
+// an even grey, none to take out (the tint is 0).
+TEST(Explain, VeilRoundSaysWhyItTookNoTintOut) {
+  for (const bool clipped : {true, false}) {
+    cv::Mat img(480, 640, CV_8UC3, clipped ? cv::Scalar(255, 255, 255) : cv::Scalar(180, 180, 180));
+    img(cv::Rect(300, 220, 10, 10)).setTo(cv::Scalar(40, 50, 200));
+    ld::Detector det;
+    det.setGlareCorrected(true);
+    ld::Explanation why;
+    EXPECT_TRUE(det.detect(img, why).landmarks.empty());
+    const std::string text = ld::describe(why, {});
+    expectRoundsAddUp(why);
+    const auto* veil = roundNamed(why, "veil round");
+    ASSERT_NE(veil, nullptr) << text;
+    EXPECT_EQ(veil->anchors, 1) << text;
+    EXPECT_EQ(veil->windows, 0) << text;
+    const char* reason = clipped ? "no tint measured (the QR's discs off the frame or clipped)"
+                                 : "no tint to take out (under kVeilMinTint)";
+    EXPECT_EQ(skipped(*veil, reason), 1) << text;
+    EXPECT_NE(text.find(std::string("1 not: ") + reason), std::string::npos) << text;
+  }
+}
+
 // Gray and empty images: nothing counted, nothing refused.
 TEST(Explain, ImagesWithoutColourExplainNothing) {
   ld::Detector det;
