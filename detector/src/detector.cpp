@@ -290,6 +290,30 @@ int checkIndex(const std::string& name) {
 
 namespace {
 
+// The rounds of looks after the first pass, as explanations name them: the
+// parameter that limits their windows (and the reason for the squares left
+// once it is spent), and what they look around.
+struct LookRound {
+  const char* name;
+  const char* limit;           // the parameter's name ...
+  int DetectorParams::*looks;  // ... and the parameter
+  const char* spent;
+  const char *one, *many, *which;
+};
+constexpr LookRound kLookRounds[] = {
+    {"second look", "second_looks", &DetectorParams::second_looks, "second_looks spent", "pair of squares",
+     "pairs of squares", " no landmark took"},
+    {"faint look", "faint_looks", &DetectorParams::faint_looks, "faint_looks spent", "red square", "red squares",
+     " no landmark took"},
+    {"steep round", "steep_looks", &DetectorParams::steep_looks, "steep_looks spent", "red square", "red squares",
+     " shaped as a steeply seen AP"},
+    {"steep round (around blue squares)", "steep_looks", &DetectorParams::steep_looks, "steep_looks spent",
+     "blue square", "blue squares", " shaped as a steeply seen FIP"},
+    {"veil round", "veil_looks", &DetectorParams::veil_looks, "veil_looks spent", "red square", "red squares",
+     " no landmark took"},
+};
+constexpr const LookRound& kSecondLookRound = kLookRounds[0];
+
 // The looks after the first pass, as describe() gives them.
 template <typename Pt>
 std::string describeLooks(const Explanation& e, const DetectorParams& p, const Pt& pt) {
@@ -298,17 +322,11 @@ std::string describeLooks(const Explanation& e, const DetectorParams& p, const P
   auto plural = [](int n, const char* one, const char* many) { return cv::format("%d %s", n, n == 1 ? one : many); };
   std::string s = "\nlooks after the first pass:";
   for (const auto& r : e.rounds) {
-    const bool second = r.round == "second look", blue = r.round == "steep round (around blue squares)";
-    const bool steep = r.round == "steep round";
-    const bool veil = r.round == "veil round";
-    const int limit = second ? p.second_looks : steep || blue ? p.steep_looks : veil ? p.veil_looks : p.faint_looks;
-    const char* limit_name = second ? "second_looks" : steep || blue ? "steep_looks" : veil ? "veil_looks" : "faint_looks";
-    s += "\n  " + r.round + cv::format(" (%s %d): ", limit_name, limit) +
-         plural(r.anchors, second ? "pair of squares" : blue ? "blue square" : "red square",
-                second ? "pairs of squares" : blue ? "blue squares" : "red squares") +
-         (second ? " no landmark took" : steep ? " shaped as a steeply seen AP" : blue ? " shaped as a steeply seen FIP"
-                                                                                       : " no landmark took") +
-         ", " + plural(r.windows, "window", "windows") + " looked at";
+    const LookRound* k = std::find_if(std::begin(kLookRounds), std::end(kLookRounds),
+                                      [&](const LookRound& q) { return r.round == q.name; });
+    if (k == std::end(kLookRounds)) continue;  // (not one of the detector's)
+    s += "\n  " + r.round + cv::format(" (%s %d): ", k->limit, p.*(k->looks)) + plural(r.anchors, k->one, k->many) +
+         k->which + ", " + plural(r.windows, "window", "windows") + " looked at";
     for (const auto& [why, n] : r.skipped) s += cv::format("; %d not: ", n) + why;
     for (const auto& l : e.looks) {
       if (l.round != r.round) continue;
@@ -612,9 +630,9 @@ struct Detector::Impl {
   cv::Point2f trace_around;
   // A new round in the trace (nullptr when not tracing), and a reason its
   // squares were not looked around, `n` more times.
-  Explanation::Round* traceRound(const char* name, size_t anchors_n) {
+  Explanation::Round* traceRound(const LookRound& round, size_t anchors_n) {
     if (!trace) return nullptr;
-    trace->rounds.push_back({name, static_cast<int>(anchors_n), 0, {}});
+    trace->rounds.push_back({round.name, static_cast<int>(anchors_n), 0, {}});
     return &trace->rounds.back();
   }
   // (a C string: nothing is made when not tracing)
@@ -1157,13 +1175,13 @@ void Detector::Impl::secondLook(const cv::Mat& img, const cv::Mat& filtered, int
   int64_t pixels_left = static_cast<int64_t>(img.total()) / 8;
   int looks = 0;
   looked.clear();
-  Explanation::Round* traced = traceRound("second look", pairs);
+  Explanation::Round* traced = traceRound(kSecondLookRound, pairs);
   traceSkip(traced, "beyond the first kMaxAnchors (256), the AP pairs and the smaller windows first",
             pairs - anchors.size());
   if (trace) trace_how = "raised by second_look_raise";
   for (const auto& a : anchors) {
     if (looks >= p.second_looks || pixels_left < 25 * 25) {  // 25 x 25: the smallest window
-      traceSkip(traced, looks >= p.second_looks ? "second_looks spent" : "pixel budget spent (an eighth of the frame)",
+      traceSkip(traced, looks >= p.second_looks ? kSecondLookRound.spent : "pixel budget spent (an eighth of the frame)",
                 static_cast<size_t>(anchors.data() + anchors.size() - &a));
       break;
     }
@@ -1303,7 +1321,7 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
   // (the steep round: at most kSteepMaxPixels) and as many pixels again for
   // measuring windows' white (a quarter of each window's pixels are sampled).
   // (kSteepFip: the steep round around blue squares, with a budget of its own)
-  enum class Round { kFaint, kSteep, kSteepFip, kVeil };
+  enum class Round { kFaint, kSteep, kSteepFip, kVeil };  // (kLookRounds' order, after the second look)
   const auto round = [&](const std::vector<Anchor>& from, int max_looks, Round kind) {
     const bool steep = kind == Round::kSteep || kind == Round::kSteepFip, veil = kind == Round::kVeil;
     const bool around_fip = kind == Round::kSteepFip;
@@ -1323,15 +1341,11 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
     int64_t samples_left = pixels_left;
     int looks = 0;
     looked.clear();
-    static constexpr const char* kRoundNames[] = {"faint look", "steep round", "steep round (around blue squares)",
-                                                  "veil round"};
-    static constexpr const char* kLimitNames[] = {"faint_looks spent", "steep_looks spent", "steep_looks spent",
-                                                  "veil_looks spent"};
-    Explanation::Round* traced =
-        from.empty() || max_looks <= 0 ? nullptr : traceRound(kRoundNames[static_cast<int>(kind)], from.size());
+    const LookRound& named = kLookRounds[1 + static_cast<int>(kind)];  // (in Round's order, after the second look)
+    Explanation::Round* traced = from.empty() || max_looks <= 0 ? nullptr : traceRound(named, from.size());
     for (const auto& a : from) {
       if (looks >= max_looks || pixels_left < 25 * 25) {
-        traceSkip(traced, looks >= max_looks ? kLimitNames[static_cast<int>(kind)] : "pixel budget spent",
+        traceSkip(traced, looks >= max_looks ? named.spent : "pixel budget spent",
                   static_cast<size_t>(from.data() + from.size() - &a));
         break;
       }
@@ -1663,18 +1677,10 @@ const cv::Mat* Detector::Impl::colourImage(const cv::Mat& input) {
 
 // The first pass again after run(), each stage counted, and the check that
 // refused each right-isosceles triangle of FIPs that is not part of a found
-// landmark (with the AP it was tried with: the nearest of its choices).
+// landmark (with the AP it was tried with: the nearest of its choices), into
+// `e` as detect() started it (empty but for the looks' trace).
 void Detector::Impl::explain(Explanation& e) {
   const auto t0 = std::chrono::steady_clock::now();
-  {
-    // (the looks' trace, from the run before, stays)
-    Explanation first;
-    first.rounds = std::move(e.rounds);
-    first.looks = std::move(e.looks);
-    first.looks_more = e.looks_more;
-    first.ms = e.ms;
-    e = std::move(first);
-  }
   if (const cv::Mat* img = last_img) {
     const DetectorParams& p = params;
     const cv::Mat* src = last_src;

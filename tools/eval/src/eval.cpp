@@ -137,9 +137,15 @@ struct Trial {
   int index;
 };
 
+// A number in a kept frame's name (+ 0.0: no "-0").
+std::string nameNumber(double v) { return cv::format("%g", v + 0.0); }
+
+// Which of ours a kept frame is from.
+const char* detectorName(const AdaptiveDetector& d) { return d.enabled() ? "adaptive" : "fixed"; }
+
 // The sweep point's light and blur in a kept frame's name.
 std::string lightTags(const SweepOptions& o) {
-  const auto g = [](double v) { return cv::format("%g", v + 0.0); };  // (+ 0.0: no "-0")
+  const auto& g = nameNumber;
   std::string tags;
   if (o.colour_temp_k > 0) tags += "_" + g(o.colour_temp_k) + "K";
   if (o.gain > 0) tags += "_gain" + g(o.gain);
@@ -185,7 +191,7 @@ void keepFrame(const SweepOptions& o, const std::string& name, const cv::Mat& bg
 void writeMiss(const SweepOptions& o, double distance_m, double yaw_point_deg, const Trial& trial, const char* who,
                const synth::SceneSpec& spec, const synth::Frame& frame, const std::string& payload = {},
                const std::optional<nlohmann::ordered_json>& read = std::nullopt) {
-  const auto g = [](double v) { return cv::format("%g", v + 0.0); };
+  const auto& g = nameNumber;
   std::string name = "side" + g(o.side_m * 100) + "_" + g(distance_m) + "m_yaw" + (yaw_point_deg >= 0 ? "+" : "") +
                      g(yaw_point_deg) + lightTags(o) +
                      cv::format("_seed%llu_trial%03d", static_cast<unsigned long long>(o.seed), trial.index);
@@ -312,14 +318,13 @@ std::vector<Point> measureOn(const SweepOptions& o, std::vector<AdaptiveDetector
           }
           p.wrong_payload += wrong;  // once per trial, whichever frame or the stack gave it
           if (!right && !o.misses_dir.empty())
-            writeMiss(o, distance_m, yaw_deg, {yaw, pitch, roll, k}, detectors[i].enabled() ? "adaptive" : "fixed",
-                      spec, frame, payload, r ? nlohmann::ordered_json(r->payload) : nlohmann::ordered_json(nullptr));
+            writeMiss(o, distance_m, yaw_deg, {yaw, pitch, roll, k}, detectorName(detectors[i]), spec, frame, payload,
+                      r ? nlohmann::ordered_json(r->payload) : nlohmann::ordered_json(nullptr));
         }
         break;
       }
       if (p.detected == detected_before && !o.misses_dir.empty())
-        writeMiss(o, distance_m, yaw_deg, {yaw, pitch, roll, k}, detectors[i].enabled() ? "adaptive" : "fixed", spec,
-                  frame);
+        writeMiss(o, distance_m, yaw_deg, {yaw, pitch, roll, k}, detectorName(detectors[i]), spec, frame);
     }
   }
   return points;
@@ -340,7 +345,7 @@ std::vector<double> falsePositivesOn(const SweepOptions& o, std::vector<Adaptive
       const Detection& det = detectFresh(detectors[i], frame.bgr);
       found[i] += static_cast<int>(det.landmarks.size());
       if (!det.landmarks.empty() && !o.misses_dir.empty())
-        writeFalseLandmarks(o, k, detectors[i].enabled() ? "adaptive" : "fixed", spec, frame, det.landmarks);
+        writeFalseLandmarks(o, k, detectorName(detectors[i]), spec, frame, det.landmarks);
     }
   }
   std::vector<double> rate(detectors.size(), 0.0);
