@@ -285,9 +285,11 @@ struct DetectorParams {
   /// no landmark took shaped as a steeply seen FIP (axes 1.6:1 or more,
   /// paper beside them 1.1 times their blue or brighter), for landmarks
   /// whose AP joined a red or brown background: only landmarks with a FIP
-  /// at the window's blue square are taken. In either round, a landmark a
-  /// window leaves out as not its square's gets its own square a window
-  /// later, even inside that one (two steep landmarks side by side).
+  /// at the window's blue square are taken. In either round, where a
+  /// window leaves out a landmark as not its square's and that landmark's
+  /// square is one the round has yet to look around, that square gets a
+  /// window of its own even inside the first (two steep landmarks side by
+  /// side), budgets allowing.
   int steep_looks = 16;
   /// The faint look's veil round: windows per frame (0: none), only in
   /// frames that had a strong glare veil subtracted (setGlareCorrected),
