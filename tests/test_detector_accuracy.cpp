@@ -628,7 +628,8 @@ SteepPair steepPair(std::mt19937_64& rng, int k) {
 // its own square's), and the neighbour's square, inside that window, then
 // gets a window of its own: of these 300 pairs both landmarks are found in
 // 257 frames; 252 when the neighbour's square was skipped as inside a
-// window looked at. At least 256.
+// window looked at. At least 255: room for two frames of drift from other
+// changes, none for losing the rule.
 TEST(DetectionRate, SteepNeighboursEachGetTheirOwnWindow) {
   ld::Detector det;
   std::mt19937_64 rng(9001);
@@ -644,7 +645,7 @@ TEST(DetectionRate, SteepNeighboursEachGetTheirOwnWindow) {
   }
   std::printf("steep neighbours, 15 cm at 2.5 m, yaw 60-70: both found in %d of %d frames, %d other landmarks\n",
               both, kPairs, others);
-  EXPECT_GE(both, 256);
+  EXPECT_GE(both, 255);
 }
 
 // Pair 89 of that sequence: a steep round's window finds a landmark that
