@@ -1417,11 +1417,13 @@ void Detector::Impl::faintLook(const cv::Mat& img, const cv::Mat& filtered, int 
             for (int n = 0; n < trace->looks[i].landmarks && k < all_candidates.size(); ++n, ++k)
               trace->looks[i].dropped += other(all_candidates[k]);
         }
-        for (size_t k = before; k < all_candidates.size(); ++k)
+        // (the others aside into left_out, the own kept in order: one pass)
+        size_t kept = before;
+        for (size_t k = before; k < all_candidates.size(); ++k) {
           if (other(all_candidates[k])) left_out.push_back(all_candidates[k]);
-        all_candidates.erase(std::remove_if(all_candidates.begin() + static_cast<std::ptrdiff_t>(before),
-                                            all_candidates.end(), other),
-                             all_candidates.end());
+          else all_candidates[kept++] = all_candidates[k];
+        }
+        all_candidates.erase(all_candidates.begin() + static_cast<std::ptrdiff_t>(kept), all_candidates.end());
       }
       if (traced) {
         if (tracedLooks() > looks_before) ++traced->windows;
