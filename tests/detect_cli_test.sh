@@ -118,6 +118,15 @@ set +e; "$BIN/ld-detect" "$T/keep/000000.png" -o "$T/keep/000000.png" >/dev/null
 set +e; "$BIN/ld-detect" "$T/keep" --draw "$T/keep" >/dev/null 2>"$T/err"; rc=$?; set -e
 [ $rc -eq 2 ] && grep -q "would write its overlay over the input $T/keep/000000.png" "$T/err" || fail "--draw = input folder: exit $rc, $(cat "$T/err")"
 [ "$(md5sum "$T/keep/"*.png)" = "$sum" ] || fail "the inputs changed"
+# nor one output the other: -o as an overlay's name (its JSON was written
+# over the overlay), or as the --draw folder itself (the folder was made,
+# then the file refused)
+set +e; "$BIN/ld-detect" "$T/keep" --draw "$T/ov2" -o "$T/ov2/000001.png" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -q "^ld-detect: -o $T/ov2/000001.png is the name of an overlay --draw writes ($T/ov2/000001.png): it would be written over" "$T/err" &&
+  [ ! -e "$T/ov2" ] || fail "-o = an overlay: exit $rc, $(cat "$T/err")"
+set +e; "$BIN/ld-detect" "$T/keep" --draw "$T/ov2" -o "$T/ov2" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -q "^ld-detect: -o $T/ov2 is the --draw folder: name a file" "$T/err" && [ ! -e "$T/ov2" ] ||
+  fail "-o = the --draw folder: exit $rc, $(cat "$T/err")"
 # --summary even when no image could be read, counted in the singular where one.
 echo "not an image" >"$T/bad.png"
 set +e; "$BIN/ld-detect" "$T/bad.png" --summary >/dev/null 2>"$T/err"; rc=$?; set -e
@@ -146,6 +155,10 @@ mkdir -p "$T/noimages"; touch "$T/noimages/notes.txt"
 set +e; "$BIN/ld-detect" "$T/noimages" >/dev/null 2>"$T/err"; rc=$?; set -e
 [ $rc -eq 2 ] && grep -q "^ld-detect: no image files in $T/noimages (folders are searched for .png" "$T/err" ||
   { echo "FAIL: a folder without images: $rc $(cat "$T/err")"; exit 1; }
+# ... even beside an image (it was passed over without a word), before anything is read
+set +e; "$BIN/ld-detect" "$T/s/000000.png" "$T/noimages" >"$T/out" 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && [ "$(grep -c "^ld-detect: no image files in $T/noimages (folders" "$T/err")" -eq 1 ] && [ ! -s "$T/out" ] ||
+  { echo "FAIL: a folder without images beside an image: $rc $(cat "$T/err")"; exit 1; }
 # -o naming the parameters or calibration it reads: refused, left as it was
 printf '%%YAML:1.0\n---\nsecond_looks: 1\n' >"$T/params.yaml"; cp "$T/params.yaml" "$T/params.keep"
 set +e; "$BIN/ld-detect" "$T/s/000000.png" --params "$T/params.yaml" -o "$T/../$(basename "$T")/params.yaml" >/dev/null 2>"$T/err"; rc=$?; set -e

@@ -44,8 +44,9 @@ bool isImageFile(const fs::path& p) {
   return false;
 }
 
-// Files as given; folders expanded to their image files in name order.
-std::vector<std::string> expandInputs(const std::vector<std::string>& inputs) {
+// Files as given; folders expanded to their image files in name order. The
+// folders that gave none (or could not be listed) go into `empty`.
+std::vector<std::string> expandInputs(const std::vector<std::string>& inputs, std::vector<std::string>& empty) {
   std::vector<std::string> files;
   for (const auto& in : inputs) {
     std::error_code ec;
@@ -55,6 +56,7 @@ std::vector<std::string> expandInputs(const std::vector<std::string>& inputs) {
         // (a link whose file is gone, or a loop of links, is listed too:
         // reading it says so; a pipe would block the run, and is said too)
         if (isImageFile(e.path()) && !e.is_directory(ec)) dir.push_back(e.path().string());
+      if (dir.empty()) empty.push_back(in);
       std::sort(dir.begin(), dir.end());
       files.insert(files.end(), dir.begin(), dir.end());
     } else {
@@ -95,10 +97,11 @@ int main(int argc, char** argv) {
     return ld::cli::usage(argv[0], std::string(draw_dir.empty() && app.count("--draw") ? "--draw" : "--output") +
                                        " needs a path, not \"\"");
   if (inputs.empty()) return ld::cli::usage(argv[0], "no input: give image files or folders");
-  const auto files = expandInputs(inputs);
-  if (files.empty()) {
+  std::vector<std::string> empty_folders;
+  const auto files = expandInputs(inputs, empty_folders);
+  if (files.empty() || !empty_folders.empty()) {  // (a folder without images, even beside others: named)
     std::string named, extensions;
-    for (const auto& in : inputs) named += (named.empty() ? "" : ", ") + in;
+    for (const auto& in : files.empty() ? inputs : empty_folders) named += (named.empty() ? "" : ", ") + in;
     for (const char* e : kImageExtensions) extensions += (extensions.empty() ? "" : ", ") + std::string(e);
     std::cerr << "ld-detect: no image files in " << named << " (folders are searched for " << extensions << ")\n";
     return 2;
@@ -145,6 +148,16 @@ int main(int argc, char** argv) {
       if (isInput(dst.string()))
         return ld::cli::usage(argv[0], "--draw " + draw_dir + " would write its overlay over the input " +
                                            dst.string() + ": draw into another folder");
+    // (nor one of its outputs the other: -o as an overlay's name, or as the
+    // --draw folder itself)
+    if (!out_file.empty() && !draw_dir.empty()) {
+      if (ld::sameFile(out_file, draw_dir))
+        return ld::cli::usage(argv[0], "-o " + out_file + " is the --draw folder: name a file");
+      for (const auto& dst : overlays)
+        if (ld::sameFile(out_file, dst.string()))
+          return ld::cli::usage(argv[0], "-o " + out_file + " is the name of an overlay --draw writes (" +
+                                             dst.string() + "): it would be written over");
+    }
   }
   if (!draw_dir.empty()) {  // created when missing, and written in, as ld-view's --out
     const std::string problem = ld::prepareOutputFolder(draw_dir);
