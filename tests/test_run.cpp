@@ -10,6 +10,7 @@
 
 #include <unistd.h>
 
+#include <lcm/lcm-cpp.hpp>
 #include "ld/bus_monitor.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/netns.hpp"
@@ -214,6 +215,48 @@ TEST(BusMonitor, PeeksUtimeAndSeqOfAnEncodedImage) {
   EXPECT_FALSE(ld::peekImageKey(buf.data(), buf.size() - 1, utime, seq));  // truncated
   buf[0] ^= 1;
   EXPECT_FALSE(ld::peekImageKey(buf.data(), buf.size(), utime, seq));  // another type
+}
+
+// Malformed messages on the landmark and code channels are counted as bad,
+// and the monitor goes on: lcm-gen's decoder threw std::length_error on a
+// string length of 0 (std::bad_alloc on a huge count), and ld-run, the
+// parent of every process, went down with it (a fresh-eyes review).
+TEST(BusMonitor, CountsMalformedListsAndCodesAsBadAndGoesOn) {
+  lcm::LCM lcm("memq://");
+  ASSERT_TRUE(lcm.good());
+  ld::BusMonitor m;
+  m.subscribe(lcm);
+  const auto bytes = [](const auto& msg) {
+    std::vector<uint8_t> b(static_cast<size_t>(msg.getEncodedSize()));
+    msg.encode(b.data(), 0, static_cast<int>(b.size()));
+    return b;
+  };
+  const auto put32 = [](std::vector<uint8_t>& b, size_t at, uint32_t v) {
+    for (int i = 0; i < 4; ++i) b.at(at + static_cast<size_t>(i)) = static_cast<uint8_t>(v >> (24 - 8 * i));
+  };
+  std::vector<uint8_t> bad_list = bytes(list(1000, 0, {trackedLandmark(7, true)}));
+  put32(bad_list, 8 + 8 + 8 + 4 + 4, 0);  // the backend string's length (hash, utime, seq, width, height)
+  ld::qr_code_list_t codes{};
+  ld::qr_code_t c{};
+  c.track_id = 7;
+  c.payload = "dock";
+  codes.codes = {c};
+  codes.ncodes = 1;
+  std::vector<uint8_t> bad_codes = bytes(codes);
+  put32(bad_codes, 8 + 8 + 8 + 4 + 8, 0);  // the payload's length (hash, utime, seq, ncodes, track_id)
+  std::vector<uint8_t> huge_codes = bytes(codes);
+  put32(huge_codes, 8 + 8 + 8, 0x7fffffff);  // ncodes
+  for (const char* channel : {"LANDMARKS", "LANDMARKS_TRACKED"})
+    lcm.publish(channel, bad_list.data(), static_cast<unsigned>(bad_list.size()));
+  lcm.publish("LANDMARK_CODES", bad_codes.data(), static_cast<unsigned>(bad_codes.size()));
+  lcm.publish("LANDMARK_CODES", huge_codes.data(), static_cast<unsigned>(huge_codes.size()));
+  const std::vector<uint8_t> good = bytes(list(1000, 0, {trackedLandmark(7, true)}));
+  lcm.publish("LANDMARKS_TRACKED", good.data(), static_cast<unsigned>(good.size()));
+  for (int i = 0; i < 5; ++i) ASSERT_NO_THROW(ASSERT_GE(lcm.handleTimeout(100), 1));
+  const auto s = m.summary();
+  EXPECT_EQ(s["frames"]["bad_messages"], 4);
+  EXPECT_EQ(s["frames"]["tracked"], 1);
+  EXPECT_EQ(m.trackedFrames(), 1);
 }
 
 TEST(BusMonitor, MatchesFramesByUtimeAndSeqAndSummarises) {

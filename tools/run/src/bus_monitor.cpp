@@ -10,6 +10,7 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include "ld/image_t.hpp"
+#include "ld/message_decode.hpp"
 
 namespace ld {
 namespace {
@@ -46,10 +47,12 @@ double rate(int64_t n, int64_t a_us, int64_t b_us) {
   return n > 1 && s > 0 ? (static_cast<double>(n) - 1) / s : 0;
 }
 
+// (through ld::decodeMessage: lcm-gen's decoders throw or allocate
+// gigabytes on a malformed count, and ld-run, its processes' parent, went
+// down with them)
 template <typename T>
 bool decodeWhole(T& msg, const lcm::ReceiveBuffer* rb) {
-  const int n = static_cast<int>(rb->data_size);
-  return msg.decode(rb->data, 0, n) == n;
+  return ld::decodeMessage(rb->data, rb->data_size, msg);
 }
 
 // The kernel's receive time when LCM has it, else now.
