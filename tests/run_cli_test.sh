@@ -126,6 +126,17 @@ timeout 30 "$BIN/ld-run" --netns --status-interval 0 --config "$T/badlive.json" 
 [ $rc -eq 2 ] || fail "live, a worker failing with exit 2: ld-run exit $rc: $(cat "$T/out")"
 grep -q "tracker failed (exit 2; its error is above); stopping" "$T/out" && grep -q "typo.yaml" "$T/out" ||
   fail "live worker failure: $(cat "$T/out")"
+# A worker that dies at once each time it starts (exit 1: restarted with
+# backoff) did none of the run's work: the run ends with status 1, naming
+# it, where it said "exit 0"; the wait for it to listen names it too.
+printf '{"detector": {"program": "/bin/false"}}\n' >"$T/deadworker.json"
+rc=0
+timeout 30 "$BIN/ld-run" --netns --status-interval 0 --config "$T/deadworker.json" --replay "$T/in.lcmlog" \
+  --exit-when-replay-done --wait-ready 1 >"$T/out" 2>&1 || rc=$?
+[ $rc -eq 1 ] || fail "a worker that never ran: ld-run exit $rc: $(cat "$T/out")"
+grep -q "^\[ld-run\] not every process listens after 1.00 s (detector (not running: exit 1)); starting" "$T/out" &&
+  grep -q "^\[ld-run\] detector was not running at the end: it was waiting to be started again (started [0-9]* times; its last end: exit 1)" "$T/out" ||
+  fail "a worker that never ran: $(cat "$T/out")"
 
 # ... and with -q, where its error line is not shown, it says so (and the
 # run does not wait out --wait-ready first)

@@ -497,8 +497,17 @@ int main(int argc, char** argv) {
       break;
     if (sup.failedProcess()) break;  // (said below: no use waiting for it)
     if (Clock::now() > ready_deadline) {
-      note("not every process listens after " + std::to_string(wait_ready_s).substr(0, 4) +
-           " s; starting the source anyway");
+      // (naming those that do not: the self test is the set's, so those
+      // without a socket on the port are named, or all when each has one)
+      std::string silent;
+      for (size_t i : early) {
+        const auto& p = sup.processes()[i];
+        if (p.pid <= 0 || !ld::hasUdpSocketOnPort(p.pid, port))
+          silent += (silent.empty() ? "" : ", ") + p.spec.name +
+                    (p.pid <= 0 ? " (not running" + (p.last_exit.empty() ? "" : ": " + p.last_exit) + ")" : "");
+      }
+      note("not every process listens after " + std::to_string(wait_ready_s).substr(0, 4) + " s (" +
+           (silent.empty() ? "LCM's self test not over" : silent) + "); starting the source anyway");
       break;
     }
   }
@@ -607,6 +616,16 @@ int main(int argc, char** argv) {
 
   // 5. Stop in order: source, workers, recorder.
   note(end_reason + "; stopping");
+  // A process that had died and waited to be started again was not running
+  // at the end: the run did not do its work (a replay's status was 0 with a
+  // detector that never ran).
+  for (const auto& p : sup.processes())
+    if (p.starts > 0 && p.pid <= 0 && !p.done && !p.failed) {
+      note(p.spec.name + " was not running at the end: it was waiting to be started again (started " +
+           std::to_string(p.starts) + " time" + (p.starts == 1 ? "" : "s") +
+           (p.last_exit.empty() ? "" : "; its last end: " + p.last_exit) + ")");
+      exit_code = std::max(exit_code, 1);
+    }
   // Whatever is still on the bus for the monitor.
   while (lcm.handleTimeout(0) > 0) {
   }
