@@ -25,6 +25,10 @@ refused "^ld-bench: cannot write $T: is a folder$" "$BIN/ld-bench" --markdown "$
 printf '%%YAML:1.0\n---\ncentre_iterations: 11\n' >"$T/bad.yaml"
 refused "^ld-bench: .*bad.yaml.*centre_iterations" "$BIN/ld-bench" --params "$T/bad.yaml"
 refused "^ld-bench: .*missing.yaml" "$BIN/ld-bench" --params "$T/missing.yaml"
+# the tables over the parameters it read (they replaced them, status 0)
+printf '%%YAML:1.0\n---\nsecond_looks: 1\n' >"$T/p.yaml"; cp "$T/p.yaml" "$T/p.keep"
+refused "^ld-bench: --markdown $T/p.yaml is the --params file: it would be written over" "$BIN/ld-bench" --params "$T/p.yaml" --markdown "$T/p.yaml"
+cmp -s "$T/p.yaml" "$T/p.keep" || fail "--markdown over --params: the parameters changed"
 refused "^ld-bench-tracker: --landmarks: must be in \[1, 1000\], not -5" "$BIN/ld-bench-tracker" --landmarks -5
 refused "^ld-bench-tracker: --landmarks: must be in \[1, 1000\], not 100000" "$BIN/ld-bench-tracker" --landmarks 100000
 refused "^ld-bench: --tracker-landmarks: must be in \[1, 1000\], not 100000" "$BIN/ld-bench" --tracker-landmarks 10,100000

@@ -102,6 +102,17 @@ for out in "--markdown $T/p.yaml" "--markdown $T/./p.yaml"; do
   [ $rc -eq 2 ] && grep -q "is the --params file: it would be written over" "$T/err" && cmp -s "$T/p.yaml" "$T/p.keep" ||
     fail "$out over --params: exit $rc, $(cat "$T/err")"
 done
+# ... nor one output over another (the table went over the plot, the list
+# of misses or lighting's glare plot, status 0)
+for out in "--markdown $T/same.png --png $T/same.png|--png $T/same.png is also --markdown" \
+           "--misses $T/mm --markdown $T/mm/misses.jsonl|--misses $T/mm/misses.jsonl is also --markdown"; do
+  set +e; "$BIN/ld-eval" yaw --trials 1 ${out%%|*} >/dev/null 2>"$T/err"; rc=$?; set -e
+  [ $rc -eq 2 ] && grep -qF -- "${out#*|}: one would be written over the other" "$T/err" && [ ! -e "$T/same.png" ] ||
+    fail "${out%%|*}: exit $rc, $(cat "$T/err")"
+done
+set +e; "$BIN/ld-eval" lighting --trials 1 --png "$T/l.png" --markdown "$T/l_glare.png" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -qF -- "--png $T/l_glare.png is also --markdown: one would be written over the other" "$T/err" ||
+  fail "lighting, --markdown over the glare plot: exit $rc, $(cat "$T/err")"
 # A side given twice is one series.
 "$BIN/ld-eval" distance --side 0.15 --side 0.15 --trials 1 --from 1 --to 1 >"$T/twice.md" 2>/dev/null || fail "distance, a side twice: exit $?"
 head -1 "$T/twice.md" | grep -q '^| distance (m) | 15 cm |$' || fail "distance, a side twice: $(head -1 "$T/twice.md")"
@@ -130,7 +141,8 @@ grep -q '^| 2000 K | [0-9.]* % | [0-9.]* % | - | - |$' "$T/light.md" && grep -q 
 [ "$(grep -c '^| [0-9]' "$T/glare.md")" -eq 2 ] && [ "$(grep -c '^| glare on the landmark |' "$T/glare.md")" -eq 1 ] &&
   [ "$(grep '^| [0-9]' "$T/glare.md" | cut -d' ' -f2 | tr '\n' ' ')" = "0.45 0.75 " ] ||
   fail "lighting --glare: $(cat "$T/glare.md")"
-for args in "--sweeps glow|--sweeps: glow not in {temperature,gain,glare}" "--glare 0.3,5|--glare: Value 5 not in range"; do
+for args in "--sweeps glow|--sweeps: glow not in {temperature,gain,glare}" "--glare 0.3,5|--glare: must be in [0, 3], not 5" \
+            "--glare nan|--glare: 'nan' is not a number"; do
   set +e; "$BIN/ld-eval" lighting ${args%%|*} >/dev/null 2>"$T/err"; rc=$?; set -e
   [ $rc -eq 2 ] && grep -qF -- "${args#*|}" "$T/err" || fail "lighting ${args%%|*}: exit $rc, $(cat "$T/err")"
 done

@@ -108,6 +108,13 @@ refused "--format mjpeg takes 33554432 pixels a frame at most, and the frames ar
 [ ! -e "$T/big" ] || fail "too big for mjpeg: $(ls "$T/big")"
 refused "--log $T/own/truth.jsonl is a file this run writes in --out $T/own" sequence --out "$T/own" --log "$T/own/truth.jsonl" -n 2
 refused "--log $T/own/000001.png is a file this run writes in --out $T/own" sequence --out "$T/own" --log "$T/own/000001.png" -n 2
+# ... and the calibration it reads in --out under a name it writes (the truth
+# or a frame replaced it)
+printf '%%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\ncamera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n  data: [600, 0, 319.5, 0, 600, 239.5, 0, 0, 1]\n' >"$T/cam.yaml"
+mkdir -p "$T/own3"; cp "$T/cam.yaml" "$T/own3/truth.jsonl"; cp "$T/cam.yaml" "$T/own3/000000.png"
+refused "--camera $T/own3/truth.jsonl is a file this run writes in --out $T/own3: it would be written over" scene --out "$T/own3" --camera "$T/own3/truth.jsonl"
+refused "--camera $T/own3/000000.png is a file this run writes in --out $T/own3: it would be written over" sequence --out "$T/own3" --camera "$T/own3/000000.png" -n 2
+cmp -s "$T/cam.yaml" "$T/own3/truth.jsonl" && cmp -s "$T/cam.yaml" "$T/own3/000000.png" || fail "--camera in --out: written over"
 # (a folder named with a trailing slash, not there yet, was not its own name)
 refused "--log $T/own2/truth.jsonl is a file this run writes in --out $T/own2/" sequence --out "$T/own2/" --log "$T/own2/truth.jsonl" -n 2
 # Landmarks that cannot be placed apart are refused, not drawn over each

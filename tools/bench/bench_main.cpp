@@ -120,6 +120,9 @@ int main(int argc, char** argv) {
     }
   }
   // Where the tables go, checked before the run (minutes) rather than after it.
+  if (const std::string clash = ld::outputsClash({{"--markdown", markdown}}, {{"--params", params_file}});
+      !clash.empty())
+    return ld::cli::usage(argv[0], clash);
   if (!markdown.empty()) {
     const std::string problem = ld::prepareOutputFile(markdown);
     if (!problem.empty()) {

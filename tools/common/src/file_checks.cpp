@@ -293,6 +293,20 @@ std::filesystem::path resolvedPath(const std::string& path) {
   return p;
 }
 
+std::string outputsClash(const std::vector<NamedFile>& outputs, const std::vector<NamedFile>& inputs) {
+  for (size_t i = 0; i < outputs.size(); ++i) {
+    const auto& [option, path] = outputs[i];
+    if (path.empty()) continue;
+    for (const auto& [in_option, in] : inputs)
+      if (!in.empty() && sameFile(path, in))
+        return option + " " + path + " is the " + in_option + " file: it would be written over";
+    for (size_t j = 0; j < i; ++j)
+      if (!outputs[j].second.empty() && sameFile(path, outputs[j].second))
+        return option + " " + path + " is also " + outputs[j].first + ": one would be written over the other";
+  }
+  return "";
+}
+
 bool sameFile(const std::string& a, const std::string& b) {
   namespace fs = std::filesystem;
   std::error_code ec;

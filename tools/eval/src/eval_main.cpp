@@ -1,5 +1,6 @@
 // ld-eval: detection and QR decode rates on ld-synth sweeps, as tables
 // (markdown) and plots (PNG). See README, "Evaluating".
+#include <filesystem>
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
@@ -339,7 +340,7 @@ int main(int argc, char** argv) {
                     "the glare sweep's strengths, comma-separated: the hot spot's peak in linear light, 1 = white "
                     "(default 0,0.3,0.6,0.9,1.2; measured in rising order, each once)")
       ->delimiter(',')
-      ->check(CLI::Range(0.0, 3.0));
+      ->check(ld::cli::Between(0.0, 3.0));
 
   Common mc;
   std::vector<double> m_sides{0.09, 0.15}, m_dists{1.5, 1.5};
@@ -379,14 +380,21 @@ int main(int argc, char** argv) {
           throw ld::cli::UsageError(std::string(opt) + " needs a path, not \"\"");
       if (!c->png.empty() && !ld::hasExtension(c->png, ".png"))
         throw ld::cli::UsageError("--png " + c->png + ": the plot is a PNG, its name must end in .png");
-      // (not over the calibration or the parameters the sweep reads)
-      for (const auto& [out_opt, out] : {std::pair<const char*, const std::string*>{"--markdown", &c->markdown},
-                                         {"--png", &c->png}})
-        for (const auto& [in_opt, in] : {std::pair<const char*, const std::string*>{"--camera", &c->camera_file},
-                                         {"--params", &c->params_file}})
-          if (!out->empty() && !in->empty() && ld::sameFile(*out, *in))
-            throw ld::cli::UsageError(std::string(out_opt) + " " + *out + " is the " + in_opt +
-                                      " file: it would be written over");
+      // (not over the calibration or the parameters the sweep reads, nor one
+      // output over another: lighting's plots are --png's name with each
+      // sweep's before .png, --misses' list is misses.jsonl in its folder)
+      std::vector<ld::NamedFile> outputs{{"--markdown", c->markdown}};
+      if (sub == light) {
+        for (const auto& sweep : l_sweeps)
+          if (!c->png.empty()) outputs.push_back({"--png", c->png.substr(0, c->png.size() - 4) + "_" + sweep + ".png"});
+      } else {
+        outputs.push_back({"--png", c->png});
+      }
+      if (!c->misses.empty()) outputs.push_back({"--misses", (std::filesystem::path(c->misses) / "misses.jsonl").string()});
+      if (const std::string clash =
+              ld::outputsClash(outputs, {{"--camera", c->camera_file}, {"--params", c->params_file}});
+          !clash.empty())
+        throw ld::cli::UsageError(clash);
       requireWritable(c->markdown, "--markdown");
       requireWritable(c->png, "--png");
       if (sub->count("--misses") && c->misses.empty()) throw ld::cli::UsageError("--misses needs a folder, not \"\"");

@@ -123,6 +123,19 @@ void noteLeftoverFrames(const std::string& dir, int count, const std::string& ex
               << ")\n";
 }
 
+// Whether `path` names a file a run writes in `out`: truth.jsonl, or one of
+// its `count` frames (NNNNNN`extension`; none when `extension` is "").
+bool writtenInOut(const std::string& path, const std::string& out, int count, const std::string& extension) {
+  if (path.empty() || out.empty()) return false;
+  const fs::path p = ld::resolvedPath(path);
+  if (p.parent_path() != ld::resolvedPath(out)) return false;
+  const std::string name = p.filename().string();
+  if (name == "truth.jsonl") return true;
+  return !extension.empty() && name.size() == 6 + extension.size() && name.substr(6) == extension &&
+         std::all_of(name.begin(), name.begin() + 6, [](char c) { return c >= '0' && c <= '9'; }) &&
+         std::stoi(name.substr(0, 6)) < count;
+}
+
 void makeFolder(const std::string& dir) {
   std::error_code ec;
   fs::create_directories(dir, ec);
@@ -223,6 +236,10 @@ void applyDegradation(const SceneArgs& a, SceneSpec& spec, Random& r) {
 
 int runScene(const SceneArgs& a) {
   const ld::CameraModel camera = makeCamera(a.camera, a.resolution);
+  // (read, then written over by the truth or a frame)
+  if (writtenInOut(a.camera, a.out, a.count, a.jpg ? ".jpg" : ".png"))
+    throw UsageError("--camera " + a.camera + " is a file this run writes in --out " + a.out +
+                     ": it would be written over");
   const Range size = parseRange("size", a.size), dist = parseRange("distance", a.distance),
               yaw = parseRange("yaw", a.yaw), pitch = parseRange("pitch", a.pitch),
               roll = parseRange("roll", a.roll), ny = parseRange("y", a.y);
@@ -452,15 +469,13 @@ int main(int argc, char** argv) {
     std::optional<ld::PendingFile> pending_log;
     // (nor over a file this run writes in --out: the frames and truth.jsonl
     // were written, then replaced by the log, status 0)
-    if (!qo.log_path.empty() && !qo.out_dir.empty()) {
-      const fs::path log = ld::resolvedPath(qo.log_path);
-      const std::string name = log.filename().string();
-      const bool frame = qo.write_png && name.size() == 10 && name.substr(6) == ".png" &&
-                         std::all_of(name.begin(), name.begin() + 6, [](char c) { return c >= '0' && c <= '9'; }) &&
-                         std::stoi(name.substr(0, 6)) < qo.frames;
-      if (log.parent_path() == ld::resolvedPath(qo.out_dir) && (name == "truth.jsonl" || frame))
-        throw UsageError("--log " + qo.log_path + " is a file this run writes in --out " + qo.out_dir);
-    }
+    const std::string frames_as = qo.write_png ? ".png" : "";
+    if (writtenInOut(qo.log_path, qo.out_dir, qo.frames, frames_as))
+      throw UsageError("--log " + qo.log_path + " is a file this run writes in --out " + qo.out_dir);
+    // (the calibration too: read, then written over)
+    if (writtenInOut(q_camera, qo.out_dir, qo.frames, frames_as))
+      throw UsageError("--camera " + q_camera + " is a file this run writes in --out " + qo.out_dir +
+                       ": it would be written over");
     if (!qo.log_path.empty()) {
       if (const std::string problem = ld::prepareLogOutputFile(qo.log_path); !problem.empty())
         throw std::runtime_error("--log " + qo.log_path + " " + problem);

@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -126,6 +128,16 @@ std::filesystem::path resolvedPath(const std::string& path);
 /// both exist, the same file (a hard link). For the tools' refusals of an
 /// output that is one of their inputs.
 bool sameFile(const std::string& a, const std::string& b);
+
+/// A file a program reads or writes, with the option that names it:
+/// {"--params", "my.yaml"}. An empty path is no file.
+using NamedFile = std::pair<std::string, std::string>;
+/// What is wrong when an output is one of the inputs or another output
+/// (sameFile), for a tool's one-line refusal before it writes anything:
+/// "--markdown my.yaml is the --params file: it would be written over",
+/// "--png a.png is also --markdown: one would be written over the other";
+/// "" when nothing is.
+std::string outputsClash(const std::vector<NamedFile>& outputs, const std::vector<NamedFile>& inputs);
 
 /// A file written under a temporary name beside its path and renamed to it
 /// by commit(): a run that fails half-way leaves what was at the path as it
