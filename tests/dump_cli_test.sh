@@ -122,6 +122,12 @@ grep -q '"channel":"LCM_SELF_TEST"' "$T/self.out" && ! grep -q '"channel":"IMAGE
 dump <(cat "$T/in.lcmlog")
 [ $rc -eq 2 ] && [ "$out" -eq 0 ] && [ "$err" = "ld-dump: cannot read log /dev/fd/63: it is not a file (a pipe, a device?): logs are read from files" ] ||
   fail "a pipe: exit $rc: $err"
+# ... and a named pipe no one writes into, before a log: said, the log after
+# it dumped (opening it waited for a writer for ever)
+mkfifo "$T/fifo.lcmlog"
+rc=0; timeout 20 "$BIN/ld-dump" "$T/fifo.lcmlog" "$T/in.lcmlog" >"$T/out" 2>"$T/err" || rc=$?
+[ $rc -eq 2 ] && [ "$(cat "$T/err")" = "ld-dump: cannot read log $T/fifo.lcmlog: it is not a file (a pipe, a device?): logs are read from files" ] &&
+  [ "$(wc -l <"$T/out")" -eq "$(timeout 20 "$BIN/ld-dump" "$T/in.lcmlog" | wc -l)" ] || fail "a named pipe: exit $rc: $(cat "$T/err")"
 rc=0; "$BIN/ld-view" --log <(cat "$T/in.lcmlog") --all --out "$T/v0" 2>"$T/err" || rc=$?
 [ $rc -eq 2 ] && [ ! -e "$T/v0" ] && grep -q "^ld-view: log /dev/fd/[0-9]* cannot be read: it is not a file (a pipe, a device?)" "$T/err" ||
   fail "ld-view, a pipe: exit $rc: $(cat "$T/err")"

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <iostream>
 #include <regex>
+#include <optional>
 #include <set>
 
 #include <CLI/CLI.hpp>
@@ -167,24 +168,26 @@ int main(int argc, char** argv) {
       continue;
     }
     if (start.start == ld::LcmLogStart::Empty) continue;  // a recorder that recorded nothing
-    ld::LcmLogReader log(path);
-    if (start.start == ld::LcmLogStart::Unreadable || !log.good()) {
+    // (said before the log is opened: opening a pipe waited for a writer for ever)
+    std::optional<ld::LcmLogReader> log;
+    if (start.start != ld::LcmLogStart::Unreadable) log.emplace(path);
+    if (!log || !log->good()) {
       std::cerr << "ld-dump: cannot read log " << path << ": "
                 << (start.error.empty() ? std::strerror(errno) : start.error) << "\n";
       status = 2;
       continue;
     }
-    while (log.next()) {
-      seen_channels.insert(log.channel);
-      if (!printer.wanted(log.channel)) continue;
+    while (log->next()) {
+      seen_channels.insert(log->channel);
+      if (!printer.wanted(log->channel)) continue;
       ++printed;
-      std::cout << toJson(log.channel, log.timestamp, log.data.data(), log.data.size())
+      std::cout << toJson(log->channel, log->timestamp, log->data.data(), log->data.size())
                        .dump(-1, ' ', false, nlohmann::ordered_json::error_handler_t::replace)
                 << "\n";
     }
-    if (!log.problem().empty()) {
+    if (!log->problem().empty()) {
       std::cout << std::flush;
-      std::cerr << "ld-dump: " << path << ": " << log.problem() << "\n";
+      std::cerr << "ld-dump: " << path << ": " << log->problem() << "\n";
       status = std::max(status, 1);
     }
   }
