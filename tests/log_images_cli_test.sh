@@ -65,7 +65,12 @@ grep -q "^ld-log-images: $T/wide/000002.pgm: cannot be logged as gray: a 40000x2
 [ "$("$BIN/ld-dump" "$T/wide.lcmlog" -c IMAGE | wc -l)" -eq 1 ] || fail "wide: the log does not hold 1 image"
 ! ls -a "$T" | grep -q partial || fail "a partial log left behind: $(ls -a "$T")"
 refused 2 "$T/g.lcmlog" "ld-log-images: --fps: must be in \[0.1, 1000\], not 0" "$T/f" --fps 0
-refused 2 "$T/h.lcmlog" "ld-log-images: --start-utime: must be >= 0, not -5" "$T/f" --start-utime -5
+refused 2 "$T/h.lcmlog" "ld-log-images: --start-utime: must be whole microseconds, 0 or more, not -5" "$T/f" --start-utime -5
+# beyond 2^62, or not whole: refused (99999999999999999999 was taken as now,
+# 9223372036854775807 overflowed into negative utimes)
+refused 2 "$T/h.lcmlog" "ld-log-images: --start-utime: must be at most 2^62 (4611686018427387904), not 99999999999999999999" "$T/f" --start-utime 99999999999999999999
+refused 2 "$T/h.lcmlog" "ld-log-images: --start-utime: must be at most 2^62 (4611686018427387904), not 9223372036854775807" "$T/f" --start-utime 9223372036854775807
+refused 2 "$T/h.lcmlog" "ld-log-images: --start-utime: must be whole microseconds, 0 or more, not 1e6" "$T/f" --start-utime 1e6
 # --start-utime 0 is 0 (it was taken as not given: now)
 "$BIN/ld-log-images" "$T/f/000001.png" "$T/zero.lcmlog" --start-utime 0 >/dev/null
 "$BIN/ld-dump" "$T/zero.lcmlog" -c IMAGE | grep -q '"utime":0,' || fail "--start-utime 0: $("$BIN/ld-dump" "$T/zero.lcmlog" -c IMAGE)"

@@ -97,7 +97,9 @@ refused "--frames: must be in \[1, 100000\], not 0" sequence --out "$T/x" --fram
 # a payload of a byte or more (scene took "" for room-101).
 refused "--seed: must be a whole number 0 or more, not -1" scene --out "$T/x" --seed -1
 refused "--seed: must be under 2^64, not 18446744073709551616" sequence --out "$T/x" --seed 18446744073709551616
-refused "--start-utime: must be >= 0, not -5" sequence --out "$T/x" --start-utime -5
+refused "--start-utime: must be whole microseconds, 0 or more, not -5" sequence --out "$T/x" --start-utime -5
+refused "--start-utime: must be at most 2^62 (4611686018427387904), not 9223372036854775807" sequence --out "$T/x" --start-utime 9223372036854775807
+refused "--start-utime: must be at most 2^62 (4611686018427387904), not 99999999999999999999" sequence --out "$T/x" --start-utime 99999999999999999999
 refused "--payload: an empty payload" scene --out "$T/x" -p ""
 refused "camera file $T/none.yml: cannot open: No such file or directory" scene --out "$T/x" --camera "$T/none.yml"
 # Refused before anything is written: a YUYV/UYVY log of odd width, and a

@@ -41,8 +41,9 @@ int main(int argc, char** argv) {
   app.add_option("output", output, "LCM log to write")->required();
   app.add_option("--fps", fps, "frame rate of the timestamps")->check(ld::cli::Between(0.1, 1000.0))
       ->capture_default_str();
-  auto* start_opt = app.add_option("--start-utime", start_utime, "utime of the first frame, microseconds since 1970 (default: now)")
-      ->check(ld::cli::NonNegative);
+  auto* start_opt = app.add_option("--start-utime", start_utime,
+                                   "utime of the first frame, whole microseconds since 1970, 0 to 2^62 (default: now)")
+      ->check(ld::cli::StartUtime);
   app.add_option("--format", format, "pixel format: gray, rgb, bgr, rgba, bgra, yuyv, uyvy, mjpeg")
       ->capture_default_str()->check(ld::cli::Parses("FORMAT", ld::pixelFormatFromName));
   app.add_option("--quality", quality, "JPEG quality for mjpeg")->check(ld::cli::Between(1, 100))

@@ -426,9 +426,9 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(ld::cli::Between(0.01, 2));
   sequence->add_option("--seed", qo.seed, "random seed (same seed, same bytes)")->capture_default_str()->check(ld::cli::Seed);
-  sequence->add_option("--start-utime", qo.start_utime, "utime of the first frame, microseconds (0 or more)")
+  sequence->add_option("--start-utime", qo.start_utime, "utime of the first frame, whole microseconds (0 to 2^62)")
       ->capture_default_str()
-      ->check(ld::cli::NonNegative);
+      ->check(ld::cli::StartUtime);
   sequence->add_option("--camera", q_camera, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration; default: 640x480, f = 600 px)");
   sequence->add_option("--resolution", q_resolution, "image size WxH");
   bool no_png = false;

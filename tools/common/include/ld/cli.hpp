@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <iostream>
 #include <optional>
@@ -164,6 +165,20 @@ inline const CLI::Validator Seed(
       return std::string();
     },
     "SEED", "SEED");
+
+/// A utime to start a log's frames at: whole microseconds from 0 to 2^62
+/// (about 146,000 years after 1970: room for any run's frames after it, so
+/// that no frame's utime overflows; 1e6 or 99999999999999999999 were taken
+/// as other numbers without a word).
+inline const CLI::Validator StartUtime(
+    [](std::string& text) -> std::string {
+      if (text.empty() || text.find_first_not_of("0123456789") != std::string::npos)
+        return "must be whole microseconds, 0 or more, not " + text;
+      if (text.size() > 19 || std::stoull(text) > (uint64_t{1} << 62))
+        return "must be at most 2^62 (4611686018427387904), not " + text;
+      return std::string();
+    },
+    "UTIME", "UTIME");
 
 /// A list option given a value twice ("--side 0.15 --side 0.15"): each value
 /// once, in the order first given (measured once, one row).
