@@ -15,6 +15,14 @@ echo "not an image" >"$T/f/000002.png"
 grep -q "wrote 2 frames to $T/a.lcmlog (mjpeg, 10 fps), 1 unreadable skipped" "$T/out" || fail "folder: $(cat "$T/out")"
 grep -q "000002.png: cannot read as an image, skipped" "$T/err" || fail "folder, skipped: $(cat "$T/err")"
 [ "$("$BIN/ld-dump" "$T/a.lcmlog" -c IMAGE | wc -l)" -eq 2 ] || fail "the log does not hold 2 images"
+# a link whose file is gone, a loop of links and a pipe with images' names:
+# each named and counted (they were passed over without a word)
+mkdir "$T/odd"; cp "$T/f/000000.png" "$T/odd/"; ln -s "$T/gone.png" "$T/odd/gone.png"
+ln -s "$T/odd/loop.png" "$T/odd/loop.png"; mkfifo "$T/odd/pipe.png"
+timeout 20 "$BIN/ld-log-images" "$T/odd" "$T/odd.lcmlog" >"$T/out" 2>"$T/err" || fail "odd entries: exit $?"
+grep -q "wrote 1 frame to $T/odd.lcmlog (mjpeg, 30 fps), 3 unreadable skipped" "$T/out" &&
+  grep -q "gone.png: no such file, skipped$" "$T/err" && grep -q "loop.png: is a loop of symbolic links, skipped$" "$T/err" &&
+  grep -q "pipe.png: is not a file (a pipe, a device?), skipped$" "$T/err" || fail "odd entries: $(cat "$T/out" "$T/err")"
 "$BIN/ld-log-images" "$T/f/000001.png" "$T/one.lcmlog" --format bgr >"$T/out"
 grep -q "wrote 1 frame to" "$T/out" || fail "one image: $(cat "$T/out")"
 # A video (MJPG .avi, written by ld-view from the first log): every frame.

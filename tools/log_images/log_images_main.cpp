@@ -63,7 +63,10 @@ int main(int argc, char** argv) {
   std::error_code ec;
   if (fs::is_directory(input, ec)) {
     for (const auto& e : fs::directory_iterator(input, ec))
-      if (isImageFile(e.path()) && e.is_regular_file(ec)) files.push_back(e.path().string());
+      // (a link whose file is gone, a loop of links or a pipe with an
+      // image's name is listed too, and reading it says so: they were
+      // passed over without a word)
+      if (isImageFile(e.path()) && !e.is_directory(ec)) files.push_back(e.path().string());
     std::sort(files.begin(), files.end());
     if (files.empty()) {
       std::cerr << "ld-log-images: no image files in " << input << "\n";
