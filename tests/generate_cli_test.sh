@@ -121,6 +121,14 @@ grep -qF $'>ab\xef\xbf\xbdcd (90 mm)</text>' "$T/u.svg" && grep -qF $'>ctl\xef\x
   fail "odd bytes in the labels: $(grep '<text' "$T/u.svg")"
 if LC_ALL=C grep -q $'[\x01\xff]' "$T/u.svg" "$T/out"; then fail "raw odd bytes written: $(cat "$T/out")"; fi
 
+# A file that cannot be written (a full disk) is said with why, status 2.
+for f in png svg; do
+  ln -s /dev/full "$T/full.$f"
+  set +e; "$BIN/ld-generate" -p x --$f "$T/full.$f" >/dev/null 2>"$T/err"; rc=$?; set -e
+  [ $rc -eq 2 ] && [ "$(cat "$T/err")" = "ld-generate: cannot write $T/full.$f: No space left on device" ] ||
+    fail "--$f on a full disk: exit $rc, $(cat "$T/err")"
+done
+
 # Page names: a folder with a dot in its name, an extension in capitals.
 mkdir -p "$T/out.d"
 "$BIN/ld-generate" --sheet --size 0.15 -p a -p b --svg "$T/out.d/sheet.SVG" >/dev/null

@@ -391,10 +391,8 @@ int main(int argc, char** argv) {
   md << "\n" << ld::trackerTable(tracker_counts, tracker_repeats, seed);
   std::cout << md.str();
   if (!markdown.empty()) {
-    std::ofstream f(markdown);
-    f << md.str();
-    if (!f) {
-      std::cerr << "ld-bench: cannot write " << markdown << "\n";
+    if (const std::string why = ld::writeWholeFile(markdown, md.str()); !why.empty()) {
+      std::cerr << "ld-bench: cannot write " << markdown << ": " << why << "\n";
       return 1;
     }
   }

@@ -22,12 +22,6 @@ constexpr double kMinModulePx = 3.0;
 // at 254 dpi or an A3 page at 1700.
 constexpr double kMaxPngSide = 20000;
 
-bool writeFile(const std::string& path, const std::string& bytes) {
-  std::ofstream f(path, std::ios::binary);
-  f << bytes;
-  return static_cast<bool>(f);
-}
-
 // Page k (from 1) of a sheet that takes several: "sheet.svg" -> "sheet-2.svg".
 std::string pagePath(const std::string& path, int k, int pages) {
   if (pages <= 1) return path;
@@ -133,8 +127,8 @@ int main(int argc, char** argv) {
         const std::string path = pagePath(svg, k, n);
         const std::string text = sheet ? ld::artwork::sheetSvg(on_page, side_mm, page, ecc)
                                        : ld::artwork::landmarkSvg(on_page.front(), side_mm, ecc);
-        if (!writeFile(path, text)) {
-          std::cerr << "ld-generate: cannot write " << path << "\n";
+        if (const std::string why = ld::writeWholeFile(path, text); !why.empty()) {
+          std::cerr << "ld-generate: cannot write " << path << ": " << why << "\n";
           return 2;
         }
         std::cout << "wrote " << path << (sheet ? " (" + std::to_string(on_page.size()) + (on_page.size() == 1 ? " landmark)" : " landmarks)") : "")
@@ -146,8 +140,8 @@ int main(int argc, char** argv) {
             sheet ? ld::artwork::sheetImage(on_page, side_mm, dpi, page, ecc)
                   : ld::artwork::renderLandmark(on_page.front(), ld::artwork::sidePixels(side_m, dpi), {}, ecc);
         const std::vector<uint8_t> bytes = ld::artwork::pngWithDpi(img, dpi);  // (the print size in the file)
-        if (!writeFile(path, std::string(bytes.begin(), bytes.end()))) {
-          std::cerr << "ld-generate: cannot write " << path << "\n";
+        if (const std::string why = ld::writeWholeFile(path, std::string(bytes.begin(), bytes.end())); !why.empty()) {
+          std::cerr << "ld-generate: cannot write " << path << ": " << why << "\n";
           return 2;
         }
         std::cout << "wrote " << path << " (" << img.cols << "x" << img.rows << " px at " << dpi << " dpi)\n";

@@ -293,6 +293,15 @@ std::filesystem::path resolvedPath(const std::string& path) {
   return p;
 }
 
+std::string writeWholeFile(const std::string& path, const std::string& bytes) {
+  errno = 0;
+  std::ofstream f(path, std::ios::binary);
+  if (f) f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  if (f.is_open()) f.close();  // (a full disk shows when the buffer goes out)
+  if (f) return "";
+  return errno ? std::strerror(errno) : "the write failed";
+}
+
 std::string outputsClash(const std::vector<NamedFile>& outputs, const std::vector<NamedFile>& inputs) {
   for (size_t i = 0; i < outputs.size(); ++i) {
     const auto& [option, path] = outputs[i];

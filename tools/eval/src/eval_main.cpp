@@ -232,10 +232,8 @@ void requireWritable(const std::string& path, const char* option) {
 void emit(const Common& c, const std::string& table) {
   std::cout << table << std::flush;
   if (!c.markdown.empty()) {
-    std::ofstream f(c.markdown);
-    f << table;
-    f.close();  // (a full disk shows when the buffer goes out)
-    if (!f) throw WriteError("cannot write " + c.markdown + ": " + std::strerror(errno));
+    if (const std::string why = ld::writeWholeFile(c.markdown, table); !why.empty())
+      throw WriteError("cannot write " + c.markdown + ": " + why);
   }
 }
 

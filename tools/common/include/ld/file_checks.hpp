@@ -129,6 +129,10 @@ std::filesystem::path resolvedPath(const std::string& path);
 /// output that is one of their inputs.
 bool sameFile(const std::string& a, const std::string& b);
 
+/// Writes `bytes` to `path` (made or emptied first) and closes it; "" when
+/// all of it was written, else why not ("No space left on device").
+std::string writeWholeFile(const std::string& path, const std::string& bytes);
+
 /// A file a program reads or writes, with the option that names it:
 /// {"--params", "my.yaml"}. An empty path is no file.
 using NamedFile = std::pair<std::string, std::string>;
