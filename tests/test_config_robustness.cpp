@@ -70,6 +70,11 @@ TEST(CameraFile, NonFiniteAndNonCameraMatricesAreRefused) {
   EXPECT_EQ(load("600., 0., 319.5, 0., 600., 239.5, 0., 0., 1."), "");
   EXPECT_NE(load("600., 0., .Inf, 0., 600., 239.5, 0., 0., 1.").find("not finite"), std::string::npos);
   EXPECT_NE(load("600., 0., 319.5, 0., 600., 239.5, 0., 1., 1.").find("of the form"), std::string::npos);
+  // a skew, which OpenCV's model (and so the pose) leaves out: refused; a
+  // trace of one, as a calibration's rounding leaves, is not
+  EXPECT_NE(load("600., 5000., 319.5, 0., 600., 239.5, 0., 0., 1.").find("camera_matrix has a skew of 5000 px"),
+            std::string::npos);
+  EXPECT_EQ(load("600., 1e-9, 319.5, 0., 600., 239.5, 0., 0., 1."), "");
   std::string huge = head;
   huge.replace(huge.find("cols: 3"), 7, "cols: 2147483647");
   try {
@@ -79,6 +84,28 @@ TEST(CameraFile, NonFiniteAndNonCameraMatricesAreRefused) {
     EXPECT_NE(std::string(e.what()).find("3x2147483647, more than 9 values"), std::string::npos)
         << e.what();
   }
+}
+
+// A matrix written as a list or a number is refused naming the key and
+// what a matrix is (OpenCV's reader said only "malformed (isMap())").
+TEST(CameraFile, AMatrixThatIsAListOrANumberIsNamed) {
+  const auto load = [](const std::string& text) {
+    try {
+      ld::CameraModel::load(writeTemp("flat.yml", "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n" + text));
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  const std::string matrix = "(rows, cols and data, as OpenCV's calibration writes it)";
+  EXPECT_NE(load("camera_matrix: [600, 0, 320, 0, 600, 240, 0, 0, 1]\n")
+                .find("camera_matrix is a list, not a matrix " + matrix),
+            std::string::npos);
+  EXPECT_NE(load("camera_matrix: 5\n").find("camera_matrix is a number, not a matrix"), std::string::npos);
+  EXPECT_NE(load("camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n"
+                 "   data: [600., 0., 319.5, 0., 600., 239.5, 0., 0., 1.]\ndistortion_coefficients: [0.1, 0, 0, 0]\n")
+                .find("distortion_coefficients is a list, not a matrix"),
+            std::string::npos);
 }
 
 // Values no camera has are refused by name, where they loaded before and

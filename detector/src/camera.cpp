@@ -22,7 +22,12 @@ namespace {
 cv::Mat readMatrix(const cv::FileNode& node, int max_elements, const std::string& path,
                    const char* name) {
   if (node.empty()) return {};
-  if (node.isMap()) {
+  // (a list or a number: OpenCV's reader said only "malformed (isMap())")
+  if (!node.isMap())
+    throw std::runtime_error("camera file " + path + ": " + name + " is " +
+                             (node.isSeq() ? "a list" : node.isString() ? "a text" : "a number") +
+                             ", not a matrix (rows, cols and data, as OpenCV's calibration writes it)");
+  {
     const cv::FileNode rows = node["rows"], cols = node["cols"];
     if (!rows.isInt() || !cols.isInt())
       throw std::runtime_error("camera file " + path + ": " + name + " has no integer rows and cols");
@@ -158,6 +163,14 @@ CameraModel CameraModel::load(const std::string& path) {
     // a camera matrix: [fx s cx; 0 fy cy; 0 0 1], its principal point in the image
     if (c.K(1, 0) != 0 || c.K(2, 0) != 0 || c.K(2, 1) != 0 || c.K(2, 2) != 1)
       throw std::runtime_error("camera file " + path + ": " + k_name + " is not of the form [fx s cx; 0 fy cy; 0 0 1]");
+    // (OpenCV's undistortion and solvePnP read fx, fy, cx and cy alone: a
+    // skew was taken and left out of every pose without a word)
+    if (std::abs(c.K(0, 1)) > 1e-3 * c.K(0, 0)) {
+      char text[200];
+      std::snprintf(text, sizeof text, "%s has a skew of %g px: OpenCV's camera model, which the pose uses, has "
+                    "none (its calibration writes 0)", k_name, c.K(0, 1));
+      throw std::runtime_error("camera file " + path + ": " + text);
+    }
     if (!(c.K(0, 2) >= -1 && c.K(0, 2) <= w) || !(c.K(1, 2) >= -1 && c.K(1, 2) <= h))
       throw std::runtime_error("camera file " + path + ": principal point (" +
                                std::to_string(c.K(0, 2)) + ", " + std::to_string(c.K(1, 2)) +
