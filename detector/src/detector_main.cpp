@@ -87,7 +87,7 @@ int main(int argc, char** argv) {
       return std::string(e.what());
     }
   });
-  lcm.subscribe(in_channel, &ld::LatestMessage<ld::image_t>::onMessage, &latest);
+  ld::takeEveryMessage(lcm.subscribe(in_channel, &ld::LatestMessage<ld::image_t>::onMessage, &latest));
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
 

@@ -82,6 +82,11 @@ bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const
   return true;
 }
 
+lcm::Subscription* takeEveryMessage(lcm::Subscription* subscription) {
+  if (subscription) subscription->setQueueCapacity(0);  // (0: no limit)
+  return subscription;
+}
+
 bool channelPatternTakes(const std::string& pattern, const std::string& channel) {
   if (pattern == channel) return true;
   // as LCM matches a subscription: GLib's (PCRE) expression of the whole name

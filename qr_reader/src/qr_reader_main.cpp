@@ -121,8 +121,8 @@ int main(int argc, char** argv) {
   ld::MessagePublisher publisher(lcm);
   if (const int status = ld::lcmOpenStatus(lcm, url, "ld-qr-reader")) return status;
   Inputs in;
-  lcm.subscribe(image_ch, &Inputs::onImage, &in);
-  lcm.subscribe(tracks_ch, &Inputs::onList, &in);
+  ld::takeEveryMessage(lcm.subscribe(image_ch, &Inputs::onImage, &in));
+  ld::takeEveryMessage(lcm.subscribe(tracks_ch, &Inputs::onList, &in));
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
 

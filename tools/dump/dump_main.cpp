@@ -147,7 +147,7 @@ int main(int argc, char** argv) {
     if (!ld::lcmUrlUsable(url, "ld-dump")) return 2;
     lcm::LCM lcm(url);
     if (const int status = ld::lcmOpenStatus(lcm, url, "ld-dump")) return status;
-    lcm.subscribe(".*", &Printer::onMessage, &printer);
+    ld::takeEveryMessage(lcm.subscribe(".*", &Printer::onMessage, &printer));
     std::signal(SIGINT, onSignal);
     std::signal(SIGTERM, onSignal);
     while (!g_stop && lcm.handleTimeout(200) >= 0) {

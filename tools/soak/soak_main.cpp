@@ -305,9 +305,9 @@ int main(int argc, char** argv) {
   lcm::LCM lcm(url);
   if (const int status = ld::lcmOpenStatus(lcm, url, "ld-soak")) return status;
   Outputs out;
-  lcm.subscribe("LANDMARKS", &Outputs::onLandmarks, &out);
-  lcm.subscribe("LANDMARKS_TRACKED", &Outputs::onTracked, &out);
-  lcm.subscribe("LANDMARK_CODES", &Outputs::onCodes, &out);
+  ld::takeEveryMessage(lcm.subscribe("LANDMARKS", &Outputs::onLandmarks, &out));
+  ld::takeEveryMessage(lcm.subscribe("LANDMARKS_TRACKED", &Outputs::onTracked, &out));
+  ld::takeEveryMessage(lcm.subscribe("LANDMARK_CODES", &Outputs::onCodes, &out));
   lcm.subscribe("LCM_SELF_TEST", &Outputs::onSelfTest, &out);
 
   std::vector<Child> set;

@@ -38,6 +38,7 @@ int lcmOpenFailureStatus(const std::string& url);
 
 namespace lcm {
 class LCM;
+class Subscription;
 }
 
 namespace ld {
@@ -78,6 +79,17 @@ class StillTimeWatch {
 /// LCM itself failed, which is reported in one line prefixed with `program`.
 constexpr int kMaxDrainMs = 50;
 bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const char* program);
+
+/// Lifts LCM's limit on the messages waiting for a subscription's handler
+/// (30 by default), and returns the subscription. LCM's receiving thread
+/// dropped what came beyond it without a word: after a stall (a process
+/// stopped, starved or slow for a second) it kept the oldest 30 and lost
+/// the newer ones, so a process took a stale frame for the newest and never
+/// counted those it lost. Without the limit, every message that reaches the
+/// process is handled (pumpLcm drains them) and counted: processed, or
+/// skipped for a newer one. What the kernel's receive buffer drops (a
+/// process stopped long enough to fill it) never reaches the process.
+lcm::Subscription* takeEveryMessage(lcm::Subscription* subscription);
 
 /// Whether a subscription to `pattern` (LCM reads it as a regular
 /// expression of the whole channel name) takes messages on `channel`: a

@@ -10,6 +10,7 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include "ld/image_t.hpp"
+#include "ld/lcm_url.hpp"
 #include "ld/message_decode.hpp"
 
 namespace ld {
@@ -117,10 +118,10 @@ Percentiles percentiles(std::vector<double> v) {
 BusMonitor::BusMonitor(BusChannels channels) : ch_(std::move(channels)) {}
 
 void BusMonitor::subscribe(lcm::LCM& lcm) {
-  lcm.subscribe(ch_.image, &BusMonitor::onImage, this);
-  lcm.subscribe(ch_.landmarks, &BusMonitor::onLandmarks, this);
-  lcm.subscribe(ch_.tracked, &BusMonitor::onTracked, this);
-  lcm.subscribe(ch_.codes, &BusMonitor::onCodes, this);
+  ld::takeEveryMessage(lcm.subscribe(ch_.image, &BusMonitor::onImage, this));
+  ld::takeEveryMessage(lcm.subscribe(ch_.landmarks, &BusMonitor::onLandmarks, this));
+  ld::takeEveryMessage(lcm.subscribe(ch_.tracked, &BusMonitor::onTracked, this));
+  ld::takeEveryMessage(lcm.subscribe(ch_.codes, &BusMonitor::onCodes, this));
   lcm.subscribe("LCM_SELF_TEST", &BusMonitor::onSelfTest, this);
 }
 
