@@ -9,31 +9,13 @@
 
 #include <lcm/lcm-cpp.hpp>
 
+#include "ld/image_convert.hpp"
 #include "ld/image_t.hpp"
 #include "ld/lcm_url.hpp"
 #include "ld/message_decode.hpp"
 
 namespace ld {
 namespace {
-
-// LCM's encoding is big-endian.
-bool readI32(const uint8_t* d, size_t size, size_t& off, int32_t& v) {
-  if (size < 4 || off > size - 4) return false;
-  uint32_t u = 0;
-  for (int i = 0; i < 4; ++i) u = (u << 8) | d[off + static_cast<size_t>(i)];
-  v = static_cast<int32_t>(u);
-  off += 4;
-  return true;
-}
-
-bool readI64(const uint8_t* d, size_t size, size_t& off, int64_t& v) {
-  if (size < 8 || off > size - 8) return false;
-  uint64_t u = 0;
-  for (int i = 0; i < 8; ++i) u = (u << 8) | d[off + static_cast<size_t>(i)];
-  v = static_cast<int64_t>(u);
-  off += 8;
-  return true;
-}
 
 double round3(double v) { return std::round(v * 1000.0) / 1000.0; }
 
@@ -65,38 +47,6 @@ int64_t receivedAt(const lcm::ReceiveBuffer* rb) {
 }
 
 }  // namespace
-
-bool peekImageKey(const uint8_t* d, size_t size, int64_t& utime, int64_t& seq) {
-  size_t off = 0;
-  int64_t hash = 0;
-  if (!readI64(d, size, off, hash) || hash != image_t::getHash()) return false;
-  if (!readI64(d, size, off, utime)) return false;
-  int32_t v = 0, data_size = 0;
-  for (int i = 0; i < 4; ++i)  // width, height, row_stride, pixelformat
-    if (!readI32(d, size, off, v)) return false;
-  if (!readI32(d, size, off, data_size) || data_size < 0 ||
-      static_cast<size_t>(data_size) > size - off)
-    return false;
-  off += static_cast<size_t>(data_size);
-  int32_t nmeta = 0;
-  if (!readI32(d, size, off, nmeta) || nmeta < 0) return false;
-  seq = -1;
-  for (int32_t m = 0; m < nmeta; ++m) {
-    int32_t klen = 0, n = 0;
-    if (!readI32(d, size, off, klen) || klen < 1 || static_cast<size_t>(klen) > size - off) return false;
-    const std::string key(reinterpret_cast<const char*>(d + off), static_cast<size_t>(klen - 1));
-    off += static_cast<size_t>(klen);
-    if (!readI32(d, size, off, n) || n < 0 || static_cast<size_t>(n) > size - off) return false;
-    if (key == "seq" && n > 0 && n < 20) {
-      const std::string text(reinterpret_cast<const char*>(d + off), static_cast<size_t>(n));
-      char* end = nullptr;
-      const long long s = std::strtoll(text.c_str(), &end, 10);
-      if (end && *end == 0) seq = s;
-    }
-    off += static_cast<size_t>(n);
-  }
-  return off == size;
-}
 
 Percentiles percentiles(std::vector<double> v) {
   Percentiles p;
@@ -132,14 +82,26 @@ void BusMonitor::count(ChannelCount& c, Micros rx_us) {
   ++c.window;
 }
 
+// An image the detector refuses (a size that does not match its format, an
+// unknown format, an odd YUYV width, JPEG headers that are no frame) is a
+// bad image, not an image never tracked: the same checks as the detector's
+// (ld::checkImage), on the pixels copied into a kept buffer. (A JPEG whose
+// data is damaged shows only when decoded, which the detector does alone.)
 void BusMonitor::onImage(const lcm::ReceiveBuffer* rb, const std::string&) {
-  int64_t utime = 0, seq = -1;
-  if (!peekImageKey(static_cast<const uint8_t*>(rb->data), rb->data_size, utime, seq)) {
+  bool good = decodeWhole(image_buf_, rb);
+  if (good) {
+    try {
+      checkImage(image_buf_);
+    } catch (const ImageFormatError&) {
+      good = false;
+    }
+  }
+  if (!good) {
     ++bad_;
     ++bad_images_;
     return;
   }
-  imageSeen(utime, seq, receivedAt(rb));
+  imageSeen(image_buf_.utime, imageSeq(image_buf_).value_or(-1), receivedAt(rb));
 }
 
 void BusMonitor::onSelfTest(const lcm::ReceiveBuffer* rb, const std::string&) {

@@ -29,6 +29,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "ld/image_t.hpp"
 #include "ld/landmark_list_t.hpp"
 #include "ld/qr_code_list_t.hpp"
 #include "ld/track_restarts.hpp"
@@ -46,11 +47,6 @@ struct BusChannels {
   std::string tracked = "LANDMARKS_TRACKED";
   std::string codes = "LANDMARK_CODES";
 };
-
-/// Reads utime and the "seq" metadata of an encoded ld.image_t without
-/// copying its pixels. seq is -1 when absent. False when the bytes are not a
-/// well-formed image_t.
-bool peekImageKey(const uint8_t* data, size_t size, int64_t& utime, int64_t& seq);
 
 /// Percentiles of a sample (nearest rank); all zero for an empty sample.
 struct Percentiles {
@@ -183,6 +179,7 @@ class BusMonitor {
   std::vector<std::pair<int64_t, int32_t>> ages_;
   std::map<int, int64_t> histogram_;
   std::vector<FrameRecord> frames_;
+  image_t image_buf_;  // (decoded and checked as the detector does, into kept buffers)
   landmark_list_t list_buf_;
   qr_code_list_t codes_buf_;
 };
