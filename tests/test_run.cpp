@@ -532,6 +532,31 @@ TEST(RunConfig, RejectsUnknownKeysAndBadValues) {
   }
   const auto cfg = ld::RunConfig::fromJson(nlohmann::json::parse(R"({"source": {"type": "replay"}})"));
   EXPECT_THROW(ld::buildProcessSpecs(cfg, "udpm://", ""), std::runtime_error);  // no log
+  // Channels the set would pass nothing on, without a word: a name LCM's
+  // subscriptions read as another (CAM(1) takes CAM1), one channel for two
+  // roles, patterns lcm-logger or lcm-logplayer cannot read (an empty
+  // recording, status 0).
+  const auto error = [](const char* text) {
+    try {
+      ld::RunConfig::fromJson(nlohmann::json::parse(text));
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_EQ(error(R"j({"channels": {"image": "CAM(1)"}})j"),
+            "channels.image: CAM(1) is read by LCM's subscriptions as a regular expression that does not take the "
+            "name itself: name it with letters, digits and _ - / . alone");
+  EXPECT_EQ(error(R"j({"channels": {"landmarks": "L", "codes": "L"}})j"),
+            "channels.codes: L is also channels.landmarks: each needs a channel of its own");
+  EXPECT_EQ(error(R"j({"channels": {"tracked": "LANDMARKS"}})j"),
+            "channels.tracked: LANDMARKS is also channels.landmarks: each needs a channel of its own");
+  EXPECT_EQ(error(R"j({"record": {"file": "r.lcmlog", "channels": "("}})j"),
+            "record.channels: ( is no regular expression lcm-logger can read (missing terminating ))");
+  EXPECT_EQ(error(R"j({"source": {"type": "replay", "log": "a.lcmlog", "channels": "IMAGE|["}})j"),
+            "source.channels: IMAGE|[ is no regular expression lcm-logplayer can read (missing terminating ] for "
+            "character class)");
+  EXPECT_EQ(error(R"j({"channels": {"image": "CAM/front.left-1"}, "record": {"file": "r.lcmlog", "channels": "LANDMARK.*"}})j"), "");
 }
 
 // --play-format and source.format take what ld-play's --format takes (keep,

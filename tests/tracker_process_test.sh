@@ -39,7 +39,9 @@ for args in "ld-tracker --max-lifetime 0|--max-lifetime: must be > 0, not 0" \
             "ld-tracker --in X --out X|--in X takes the tracker's own output X" \
             "ld-tracker --in LANDMARKS\w*|--in LANDMARKS\w* takes the tracker's own output" \
             "ld-detector --in .*|--in .* takes the detector's own output LANDMARKS" \
-            "ld-qr-reader --tracks LANDMARK.*|--tracks LANDMARK.* takes the reader's own output LANDMARK_CODES"; do
+            "ld-qr-reader --tracks LANDMARK.*|--tracks LANDMARK.* takes the reader's own output LANDMARK_CODES" \
+            "ld-tracker --in LANDMARKS[|--in LANDMARKS[: LCM reads a subscription's channel as a regular expression, and this is none (missing terminating ] for character class)" \
+            "ld-detector --in (|--in (: LCM reads a subscription's channel as a regular expression, and this is none (missing terminating ))"; do
   cmd=${args%%|*}; rc=0
   # (no glob: the patterns are passed as written)
   set -f; timeout 10 "$BIN/${cmd%% *}" ${cmd#* } >/dev/null 2>"$T/err" || rc=$?; set +f

@@ -98,11 +98,40 @@ bool channelPatternTakes(const std::string& pattern, const std::string& channel)
   return takes;
 }
 
+std::string channelPatternError(const std::string& pattern) {
+  GError* error = nullptr;
+  GRegex* re = g_regex_new(("^" + pattern + "$").c_str(), static_cast<GRegexCompileFlags>(0),
+                           static_cast<GRegexMatchFlags>(0), &error);
+  if (re) {
+    g_regex_unref(re);
+    return "";
+  }
+  std::string why = error && error->message ? error->message : "not a regular expression";
+  if (error) g_error_free(error);
+  // (GLib names the expression LCM made of it, "^X$", and an offset in it:
+  // its reason comes last)
+  if (const size_t at = why.rfind(": "); at != std::string::npos) why = why.substr(at + 2);
+  return why;
+}
+
+bool channelNameTakesItself(const std::string& name) {
+  GRegex* re = g_regex_new(("^" + name + "$").c_str(), static_cast<GRegexCompileFlags>(0),
+                           static_cast<GRegexMatchFlags>(0), nullptr);
+  if (!re) return false;
+  const bool takes = g_regex_match(re, name.c_str(), static_cast<GRegexMatchFlags>(0), nullptr);
+  g_regex_unref(re);
+  return takes;
+}
+
 std::string channelProblem(const std::vector<ChannelOption>& inputs, const ChannelOption& output,
                            const std::string& whose) {
   for (const auto& [option, name] : inputs)
     if (name.empty()) return option + " needs a channel name";
   if (output.second.empty()) return output.first + " needs a channel name";
+  for (const auto& [option, name] : inputs)
+    if (const std::string why = channelPatternError(name); !why.empty())
+      return option + " " + name + ": LCM reads a subscription's channel as a regular expression, and this is " +
+             "none (" + why + ")";
   for (const auto& [option, name] : inputs)
     if (channelPatternTakes(name, output.second))
       return option + " " + name + " takes " + whose + " own output " + output.second + ": it would feed itself";

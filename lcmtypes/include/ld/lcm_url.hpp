@@ -97,8 +97,20 @@ lcm::Subscription* takeEveryMessage(lcm::Subscription* subscription);
 /// pattern that is no valid expression is taken as a name.
 bool channelPatternTakes(const std::string& pattern, const std::string& channel);
 
+/// What is wrong with `pattern` as LCM reads a subscription's channel (GLib's
+/// regular expression of the whole name): "" when nothing, else GLib's words
+/// ("missing terminating ] for character class"). LCM said so on a line of
+/// its own and the process went on subscribed to nothing.
+std::string channelPatternError(const std::string& pattern);
+
+/// Whether `name`, published on, is taken by a subscription to the same
+/// text: false for a name LCM's regular expression reads as another
+/// ("CAM(1)" takes "CAM1", not itself), or that is no expression at all.
+bool channelNameTakesItself(const std::string& name);
+
 /// What is wrong with a process's channels, for its one-line refusal ("" when
-/// nothing): an empty name ("--in needs a channel name"), or an input that
+/// nothing): an empty name ("--in needs a channel name"), an input that is no
+/// regular expression LCM can read, or an input that
 /// takes the process's own output, which would feed it itself ("--in X takes
 /// the tracker's own output Y: ..."; `whose`: "the tracker's"). Channels are
 /// (option, name) pairs.

@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -14,6 +15,7 @@
 
 #include "ld/config_file.hpp"
 #include "ld/image_convert.hpp"
+#include "ld/lcm_url.hpp"
 
 namespace ld {
 namespace {
@@ -188,6 +190,27 @@ RunConfig RunConfig::fromTree(const Json& j, bool yaml) {
                                     {"codes", &c.channels.codes}})
       if (name->empty()) throw std::runtime_error(std::string("channels.") + key + ": a channel name, not \"\"");
   }
+  // Each channel is published on by one process and subscribed to by
+  // another, which LCM reads as a regular expression: a name that takes
+  // another ("CAM(1)" takes CAM1) fed the set nothing, without a word; and
+  // one channel for two roles mixed two types on it.
+  {
+    const std::pair<const char*, const std::string*> roles[] = {{"image", &c.channels.image},
+                                                                {"landmarks", &c.channels.landmarks},
+                                                                {"tracked", &c.channels.tracked},
+                                                                {"codes", &c.channels.codes}};
+    for (size_t i = 0; i < std::size(roles); ++i) {
+      const auto& [key, name] = roles[i];
+      if (!channelNameTakesItself(*name))
+        throw std::runtime_error(std::string("channels.") + key + ": " + *name +
+                                 " is read by LCM's subscriptions as a regular expression that does not take the "
+                                 "name itself: name it with letters, digits and _ - / . alone");
+      for (size_t k = 0; k < i; ++k)
+        if (*roles[k].second == *name)
+          throw std::runtime_error(std::string("channels.") + key + ": " + *name + " is also channels." +
+                                   roles[k].first + ": each needs a channel of its own");
+    }
+  }
   if (j.contains("source")) {
     const Json& s = j["source"];
     checkKeys(s, "source", {"type", "args", "log", "speed", "channels", "fps", "duration_s", "format"});
@@ -200,6 +223,9 @@ RunConfig RunConfig::fromTree(const Json& j, bool yaml) {
     get(s, "log", "source", c.log);
     get(s, "speed", "source", c.speed);
     get(s, "channels", "source", c.replay_channels);
+    if (const std::string why = channelPatternError(c.replay_channels); !c.replay_channels.empty() && !why.empty())
+      throw std::runtime_error("source.channels: " + c.replay_channels +
+                               " is no regular expression lcm-logplayer can read (" + why + ")");
     get(s, "fps", "source", c.play_fps);
     get(s, "duration_s", "source", c.play_duration_s);
     get(s, "format", "source", c.play_format);
@@ -212,6 +238,9 @@ RunConfig RunConfig::fromTree(const Json& j, bool yaml) {
     checkKeys(r, "record", {"file", "channels"});
     get(r, "file", "record", c.record);
     get(r, "channels", "record", c.record_channels);
+    if (const std::string why = channelPatternError(c.record_channels); !c.record_channels.empty() && !why.empty())
+      throw std::runtime_error("record.channels: " + c.record_channels +
+                               " is no regular expression lcm-logger can read (" + why + ")");
   }
   if (j.contains("restart")) {
     const Json& r = j["restart"];
