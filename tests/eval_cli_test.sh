@@ -113,6 +113,10 @@ done
 set +e; "$BIN/ld-eval" lighting --trials 1 --png "$T/l.png" --markdown "$T/l_glare.png" >/dev/null 2>"$T/err"; rc=$?; set -e
 [ $rc -eq 2 ] && grep -qF -- "--png $T/l_glare.png is also --markdown: one would be written over the other" "$T/err" ||
   fail "lighting, --markdown over the glare plot: exit $rc, $(cat "$T/err")"
+# A misspelt subcommand is named ("A subcommand is required").
+set +e; "$BIN/ld-eval" yaww --trials 1 >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -qF "ld-eval: 'yaww' is no subcommand (yaw, distance, qr, size, lighting, motion, pose)" "$T/err" ||
+  fail "yaww: exit $rc, $(cat "$T/err")"
 # A side given twice is one series.
 "$BIN/ld-eval" distance --side 0.15 --side 0.15 --trials 1 --from 1 --to 1 >"$T/twice.md" 2>/dev/null || fail "distance, a side twice: exit $?"
 head -1 "$T/twice.md" | grep -q '^| distance (m) | 15 cm |$' || fail "distance, a side twice: $(head -1 "$T/twice.md")"

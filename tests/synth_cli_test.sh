@@ -51,6 +51,8 @@ refused() {  # PATTERN ARGS...
   [ "$(wc -l <"$T/err")" -eq 1 ] && grep -q -- "$pat" "$T/err" || fail "ld-synth $*: $(cat "$T/err")"
 }
 refused "--ecc: QR error correction must be auto, L, M, Q or H, not 'X'" scene --out "$T/x" --ecc X
+# a misspelt subcommand is named ("A subcommand is required")
+refused "'scenes' is no subcommand (scene, sequence)" scenes --out "$T/x"
 refused "--ecc: QR error correction" sequence --out "$T/x" --ecc 7
 refused "--yaw must lie within -89.9:89.9 (--help lists the options)" scene --out "$T/x" --yaw 95
 refused "--quality: must be in \[1, 100\], not 500" sequence --out "$T/x" --quality 500

@@ -70,6 +70,15 @@ inline int parse(CLI::App& app, int argc, char** argv) {
         dynamic_cast<const CLI::ExcludesError*>(&e))
       if (const std::string unknown = detail::unknownOption(app); !unknown.empty())
         what = "The following argument was not expected: " + unknown;
+    // "A subcommand is required" for a misspelt one ("ld-eval yaww"): named,
+    // with those there are
+    // (the first word left over, options after it left over too)
+    if (dynamic_cast<const CLI::RequiredError*>(&e) && !app.get_subcommands({}).empty() &&
+        app.get_subcommands().empty() && !app.remaining(true).empty() && app.remaining(true)[0].rfind('-', 0) != 0) {
+      std::string known;
+      for (const CLI::App* sub : app.get_subcommands({})) known += (known.empty() ? "" : ", ") + sub->get_name();
+      what = "'" + app.remaining(true)[0] + "' is no subcommand (" + known + ")";
+    }
     for (char& c : what)
       if (c == '\n') c = ' ';
     std::cerr << programName(argc > 0 ? argv[0] : nullptr) << ": " << what << " (--help lists the options)\n";
