@@ -56,6 +56,13 @@ dump "$T/junk.lcmlog"
 [ $rc -eq 1 ] && [ "$out" -eq 3 ] || fail "junk: exit $rc, $out lines"
 [ "$err" = "ld-dump: $T/junk.lcmlog: unreadable data after 3 messages (at byte $size no LCM event starts)" ] ||
   fail "junk: $err"
+# an event header whose data length is over 2^31 (unsigned in the format):
+# said as it is written ("-16 bytes of data" before)
+{ cat "$T/in.lcmlog"; printf '\xed\xa1\xda\x01\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\x05\xff\xff\xff\xf0IMAGE'; } >"$T/huge.lcmlog"
+dump "$T/huge.lcmlog"
+[ $rc -eq 1 ] && [ "$out" -eq 3 ] &&
+  [ "$err" = "ld-dump: $T/huge.lcmlog: unreadable data after 3 messages (at byte $size an event header with a channel of 5 bytes and 4294967280 bytes of data)" ] ||
+  fail "a huge data length: exit $rc, $err"
 
 # A cut event with more appended after it (a recorder killed mid-write and
 # restarted with lcm-logger -a): the cut event is skipped, every whole one

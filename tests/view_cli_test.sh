@@ -26,6 +26,8 @@ refused() {
   echo "refused: $(cat "$T/err")"
 }
 
+# An empty channel name (it was taken, and "no images on  in the logs" said)
+refused "--image needs a channel name" "$BIN/ld-view" --image "" --all --log "$T/in.lcmlog" --out "$T/e"
 # A display with no server: a number with no X socket here, and in a private
 # network namespace (no abstract or TCP X socket reachable either).
 n=99

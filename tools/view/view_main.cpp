@@ -446,7 +446,7 @@ int main(int argc, char** argv) {
   app.add_option("--log", logs, "read these LCM logs instead of the bus (images, tracks and codes "
                                 "may be in different logs; repeatable)");
   app.add_option("--out", o.out_dir, "write annotated frames as DIR/SEQ.png");
-  app.add_option("--video", o.video, "write annotated frames to this video (MJPG, e.g. .avi)");
+  app.add_option("--video", o.video, "write annotated frames to this video (MJPG in AVI: its name ends in .avi)");
   app.add_flag("--window", force_window, "show a window (default when a display exists and no --out/--video)");
   app.add_option("--fps", o.fps, "frame rate of --video (0.1 to 1000)")->check(ld::cli::Between(0.1, 1000))->capture_default_str();
   app.add_option("--camera", camera_file, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration): draws pose axes");
@@ -467,6 +467,10 @@ int main(int argc, char** argv) {
   const char* x_display = envSet("DISPLAY");
   const char* wayland_display = envSet("WAYLAND_DISPLAY");
   const bool display = x_display || wayland_display;
+  for (const auto& [option, name] : {std::pair<const char*, const std::string*>{"--image", &image_ch},
+                                     {"--tracks", &tracked_ch},
+                                     {"--codes", &codes_ch}})
+    if (name->empty()) return ld::cli::usage(argv[0], std::string(option) + " needs a channel name");
   if (all_frames && logs.empty())
     return ld::cli::usage(argv[0], "--all is for --log (live, every frame with a tracked list is drawn)");
   if (!o.video.empty() && !ld::hasExtension(o.video, ".avi"))

@@ -35,8 +35,9 @@ bool LcmLogReader::next(bool read_data) {
       return fail("unreadable data", "at byte " + std::to_string(offset_) + " no LCM event starts");
     }
     if (got < sizeof h) return fail("the log ends mid-event", std::to_string(left) + " bytes of an event header");
-    const int32_t channel_len = static_cast<int32_t>(be(20, 4)), data_len = static_cast<int32_t>(be(24, 4));
-    if (channel_len <= 0 || channel_len > 1024 || data_len < 0) {
+    // (the header's lengths are unsigned: 0xFFFFFFF0 is 4294967280 bytes, not -16)
+    const int64_t channel_len = be(20, 4), data_len = be(24, 4);
+    if (channel_len <= 0 || channel_len > 1024 || data_len > INT32_MAX) {
       if (skipToNextEvent()) continue;
       return fail("unreadable data", "at byte " + std::to_string(offset_) + " an event header with a channel of " +
                                          std::to_string(channel_len) + " bytes and " + std::to_string(data_len) +
