@@ -9,6 +9,13 @@
 set -euo pipefail
 BIN=$1
 source "$(dirname "$0")/ld_run_lib.sh"
+# (the stall's frames wait in the kernel's receive buffer: the 8 MiB that
+# LCM asks for holds them all; a smaller limit drops some, counted nowhere)
+rmem=$("$(dirname "$0")/../scripts/netns-run.sh" cat /proc/sys/net/core/rmem_max)
+if [ "$rmem" -lt 8388608 ]; then
+  echo "net.core.rmem_max is $rmem in a namespace: raise it to 8388608 (scripts/host-setup.sh; README: LCM URL and large images)"
+  exit 77
+fi
 "$BIN/ld-synth" sequence --out "$T/seq" --frames 240 --fps 30 --landmarks 2 --seed 3 --size 0.3 \
   --format mjpeg --log "$T/in.lcmlog" --no-png >/dev/null
 
@@ -31,14 +38,14 @@ jq -c '.summary.frames, .summary.latency_ms' "$T/summary.json"
 read -r images tracked det_skipped trk_skipped < <(jq -r '.summary.frames | "\(.images) \(.tracked) \(.detector_skipped) \(.tracker_skipped)"' "$T/summary.json")
 echo "images $images = tracked $tracked + skipped by the detector $det_skipped + by the tracker $trk_skipped?"
 [ "$images" -eq 240 ]
-[ "$det_skipped" -ge 60 ]  # (the stall's 90 frames, less what the kernel's buffer did not hold)
+[ "$det_skipped" -ge 60 ]  # (the stall's 90 frames, less those processed around it)
 [ $(( tracked + det_skipped + trk_skipped )) -eq "$images" ]
 
-# The frames' latency (from capture to the tracked list): the first frame
-# handled after the stall may be one sent during it (LCM's receiving thread
-# is still reading the kernel's backlog then), the next is the newest: no
-# more than one list seconds old.
+# The frames' latency (from capture to the tracked list): the frame the
+# detector was on when stopped, and the first it handles after (LCM's
+# receiving thread may still be reading the kernel's backlog then), may be
+# seconds old; then it is on the newest: no more than two lists over 1 s.
 stale=$(jq '[.summary.per_frame[] | select(.latency_ms != null and .latency_ms > 1000)] | length' "$T/summary.json")
 echo "lists over 1 s old: $stale"
-[ "$stale" -le 1 ]
+[ "$stale" -le 2 ]
 echo "1 passed, 0 failed"

@@ -369,6 +369,32 @@ TEST(LatestMessage, NewestGoodMessageWaitsAndReplacedOnesAreSkipped) {
   EXPECT_EQ(latest.skipped(), 2);  // (taken before the next came: none skipped)
 }
 
+// A subscription's queue held to a byte budget (ld::QueueFit) rather than
+// LCM's 30 messages, beyond which LCM's receiving thread dropped the newer
+// ones without a word (Stack.StalledDetectorTakesTheNewestFrame is the
+// test over multicast: memq:// queues without that limit): the count is
+// 256 MiB over the largest message seen, 30 to 10000.
+TEST(QueueFit, HoldsASubscriptionsQueueToAByteBudget) {
+  lcm::LCM lcm("memq://");
+  ASSERT_TRUE(lcm.good());
+  ld::LatestMessage<ld::landmark_list_t> latest("ld-test", "LANDMARKS", "message");
+  ld::QueueFit none;  // (without a subscription: nothing to set)
+  none.fit(1000);
+  EXPECT_EQ(none.capacity(), 30);
+  ld::QueueFit sized(lcm.subscribe("LANDMARKS", &ld::LatestMessage<ld::landmark_list_t>::onMessage, &latest));
+  EXPECT_EQ(sized.capacity(), 30);  // (LCM's own, until a message is seen)
+  sized.fit(1000);                   // a landmark list
+  EXPECT_EQ(sized.capacity(), 10000);  // (the most)
+  sized.fit(640 * 480 * 2);           // a 640x480 YUYV frame
+  EXPECT_EQ(sized.capacity(), 436);
+  sized.fit(size_t{6} << 20);         // a raw 1080p BGR frame
+  EXPECT_EQ(sized.capacity(), 42);
+  sized.fit(1000);                    // (the largest seen holds)
+  EXPECT_EQ(sized.capacity(), 42);
+  sized.fit(size_t{64} << 20);
+  EXPECT_EQ(sized.capacity(), 30);  // (the least: LCM's own)
+}
+
 TEST(LatestMessage, BadMessagesAreSaidCountedAndLoseNothing) {
   ld::LatestMessage<ld::landmark_list_t> latest(
       "ld-test", "LANDMARKS", "message",

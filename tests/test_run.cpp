@@ -548,9 +548,11 @@ TEST(RunConfig, RejectsUnknownKeysAndBadValues) {
             "channels.image: CAM(1) is read by LCM's subscriptions as a regular expression that does not take the "
             "name itself: name it with letters, digits and _ - / . alone");
   EXPECT_EQ(error(R"j({"channels": {"landmarks": "L", "codes": "L"}})j"),
-            "channels.codes: L is also channels.landmarks: each needs a channel of its own");
-  EXPECT_EQ(error(R"j({"channels": {"tracked": "LANDMARKS"}})j"),
-            "channels.tracked: LANDMARKS is also channels.landmarks: each needs a channel of its own");
+            "channels.codes: L is also channels.landmarks: another type of message on one channel");
+  EXPECT_EQ(error(R"j({"channels": {"image": "LANDMARK_CODES"}})j"),
+            "channels.codes: LANDMARK_CODES is also channels.image: another type of message on one channel");
+  // (the detector's lists as the tracked ones, with the tracker left out: one type)
+  EXPECT_EQ(error(R"j({"tracker": {"enabled": false}, "channels": {"tracked": "LANDMARKS"}})j"), "");
   EXPECT_EQ(error(R"j({"record": {"file": "r.lcmlog", "channels": "("}})j"),
             "record.channels: ( is no regular expression lcm-logger can read (missing terminating ))");
   EXPECT_EQ(error(R"j({"source": {"type": "replay", "log": "a.lcmlog", "channels": "IMAGE|["}})j"),

@@ -87,7 +87,7 @@ int main(int argc, char** argv) {
       return std::string(e.what());
     }
   });
-  ld::takeEveryMessage(lcm.subscribe(in_channel, &ld::LatestMessage<ld::image_t>::onMessage, &latest));
+  latest.queueOn(lcm.subscribe(in_channel, &ld::LatestMessage<ld::image_t>::onMessage, &latest));
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
 

@@ -1,5 +1,6 @@
 #include "ld/lcm_url.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstdlib>
@@ -82,9 +83,13 @@ bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const
   return true;
 }
 
-lcm::Subscription* takeEveryMessage(lcm::Subscription* subscription) {
-  if (subscription) subscription->setQueueCapacity(0);  // (0: no limit)
-  return subscription;
+void QueueFit::fit(size_t message_bytes) {
+  if (!subscription_ || message_bytes <= largest_) return;
+  largest_ = message_bytes;
+  const int capacity = static_cast<int>(std::clamp<size_t>(kQueueBytes / largest_, 30, 10000));
+  if (capacity == capacity_) return;
+  subscription_->setQueueCapacity(capacity);
+  capacity_ = capacity;
 }
 
 bool channelPatternTakes(const std::string& pattern, const std::string& channel) {

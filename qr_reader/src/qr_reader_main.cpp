@@ -36,9 +36,11 @@ struct Inputs {
   ld::FrameMatcher matcher;
   ld::image_t header_probe;
   ld::landmark_list_t list_probe;
+  ld::QueueFit image_queue, list_queue;  // (their subscriptions' queues: ld::QueueFit)
   int64_t bad = 0;
 
   void onImage(const lcm::ReceiveBuffer* rb, const std::string& ch) {
+    image_queue.fit(rb->data_size);
     const auto* p = static_cast<const uint8_t*>(rb->data);
     if (!ld::decodeMessage(p, rb->data_size, header_probe, &why)) return reportBad(ch, why);
     try {
@@ -49,6 +51,7 @@ struct Inputs {
     matcher.addImage({header_probe.utime, ld::imageSeq(header_probe).value_or(-1)}, p, rb->data_size);
   }
   void onList(const lcm::ReceiveBuffer* rb, const std::string& ch) {
+    list_queue.fit(rb->data_size);
     const auto* p = static_cast<const uint8_t*>(rb->data);
     if (!ld::decodeMessage(p, rb->data_size, list_probe, &why)) return reportBad(ch, why);
     matcher.addList({list_probe.utime, list_probe.seq}, p, rb->data_size);
@@ -121,8 +124,8 @@ int main(int argc, char** argv) {
   ld::MessagePublisher publisher(lcm);
   if (const int status = ld::lcmOpenStatus(lcm, url, "ld-qr-reader")) return status;
   Inputs in;
-  ld::takeEveryMessage(lcm.subscribe(image_ch, &Inputs::onImage, &in));
-  ld::takeEveryMessage(lcm.subscribe(tracks_ch, &Inputs::onList, &in));
+  in.image_queue = ld::QueueFit(lcm.subscribe(image_ch, &Inputs::onImage, &in));
+  in.list_queue = ld::QueueFit(lcm.subscribe(tracks_ch, &Inputs::onList, &in));
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
 

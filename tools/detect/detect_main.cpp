@@ -45,14 +45,21 @@ bool isImageFile(const fs::path& p) {
 }
 
 // Files as given; folders expanded to their image files in name order. The
-// folders that gave none (or could not be listed) go into `empty`.
-std::vector<std::string> expandInputs(const std::vector<std::string>& inputs, std::vector<std::string>& empty) {
+// folders that gave none go into `empty`, those that could not be listed
+// into `unlisted` (with why).
+std::vector<std::string> expandInputs(const std::vector<std::string>& inputs, std::vector<std::string>& empty,
+                                      std::vector<std::string>& unlisted) {
   std::vector<std::string> files;
   for (const auto& in : inputs) {
     std::error_code ec;
     if (fs::is_directory(in, ec)) {
       std::vector<std::string> dir;
-      for (const auto& e : fs::directory_iterator(in, ec))
+      fs::directory_iterator it(in, ec);
+      if (ec) {
+        unlisted.push_back(in + ": " + ec.message());
+        continue;
+      }
+      for (const auto& e : it)
         // (a link whose file is gone, or a loop of links, is listed too:
         // reading it says so; a pipe would block the run, and is said too)
         if (isImageFile(e.path()) && !e.is_directory(ec)) dir.push_back(e.path().string());
@@ -97,8 +104,12 @@ int main(int argc, char** argv) {
     return ld::cli::usage(argv[0], std::string(draw_dir.empty() && app.count("--draw") ? "--draw" : "--output") +
                                        " needs a path, not \"\"");
   if (inputs.empty()) return ld::cli::usage(argv[0], "no input: give image files or folders");
-  std::vector<std::string> empty_folders;
-  const auto files = expandInputs(inputs, empty_folders);
+  std::vector<std::string> empty_folders, unlisted;
+  const auto files = expandInputs(inputs, empty_folders, unlisted);
+  if (!unlisted.empty()) {
+    std::cerr << "ld-detect: cannot list the folder " << unlisted.front() << "\n";
+    return 2;
+  }
   if (files.empty() || !empty_folders.empty()) {  // (a folder without images, even beside others: named)
     std::string named, extensions;
     for (const auto& in : files.empty() ? inputs : empty_folders) named += (named.empty() ? "" : ", ") + in;

@@ -112,7 +112,9 @@ struct Printer {
       if (std::regex_match(channel, f)) return true;
     return false;
   }
+  ld::QueueFit queue;  // (its subscription's: ld::QueueFit)
   void onMessage(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    queue.fit(rbuf->data_size);
     if (!wanted(channel)) return;
     std::cout << toJson(channel, -1, static_cast<const uint8_t*>(rbuf->data), rbuf->data_size)
                      .dump(-1, ' ', false, nlohmann::ordered_json::error_handler_t::replace)
@@ -147,7 +149,7 @@ int main(int argc, char** argv) {
     if (!ld::lcmUrlUsable(url, "ld-dump")) return 2;
     lcm::LCM lcm(url);
     if (const int status = ld::lcmOpenStatus(lcm, url, "ld-dump")) return status;
-    ld::takeEveryMessage(lcm.subscribe(".*", &Printer::onMessage, &printer));
+    printer.queue = ld::QueueFit(lcm.subscribe(".*", &Printer::onMessage, &printer));
     std::signal(SIGINT, onSignal);
     std::signal(SIGTERM, onSignal);
     while (!g_stop && lcm.handleTimeout(200) >= 0) {

@@ -126,17 +126,21 @@ struct Outputs {
   ld::landmark_list_t list;
   ld::qr_code_list_t code_list;
 
+  ld::QueueFit queues[3];  // landmarks, tracked, codes (ld::QueueFit)
   void onLandmarks(const lcm::ReceiveBuffer* rb, const std::string&) {
+    queues[0].fit(rb->data_size);
     if (!ld::decodeMessage(rb->data, rb->data_size, list)) return void(++bad);
     ++landmarks;
     detector_skipped = list.frames_skipped;
     if (!list.landmarks.empty()) ++landmarks_with_detections;
   }
   void onTracked(const lcm::ReceiveBuffer* rb, const std::string&) {
+    queues[1].fit(rb->data_size);
     if (!ld::decodeMessage(rb->data, rb->data_size, list)) return void(++bad);
     ++tracked;
   }
   void onCodes(const lcm::ReceiveBuffer* rb, const std::string&) {
+    queues[2].fit(rb->data_size);
     if (!ld::decodeMessage(rb->data, rb->data_size, code_list)) return void(++bad);
     ++codes;
     codes_entries += code_list.ncodes;
@@ -305,9 +309,9 @@ int main(int argc, char** argv) {
   lcm::LCM lcm(url);
   if (const int status = ld::lcmOpenStatus(lcm, url, "ld-soak")) return status;
   Outputs out;
-  ld::takeEveryMessage(lcm.subscribe("LANDMARKS", &Outputs::onLandmarks, &out));
-  ld::takeEveryMessage(lcm.subscribe("LANDMARKS_TRACKED", &Outputs::onTracked, &out));
-  ld::takeEveryMessage(lcm.subscribe("LANDMARK_CODES", &Outputs::onCodes, &out));
+  out.queues[0] = ld::QueueFit(lcm.subscribe("LANDMARKS", &Outputs::onLandmarks, &out));
+  out.queues[1] = ld::QueueFit(lcm.subscribe("LANDMARKS_TRACKED", &Outputs::onTracked, &out));
+  out.queues[2] = ld::QueueFit(lcm.subscribe("LANDMARK_CODES", &Outputs::onCodes, &out));
   lcm.subscribe("LCM_SELF_TEST", &Outputs::onSelfTest, &out);
 
   std::vector<Child> set;

@@ -97,7 +97,7 @@ int main(int argc, char** argv) {
                          " landmarks (frame " + std::to_string(m.seq) + "), more than the " +
                          std::to_string(kMaxLandmarks) + " the tracker takes";
       });
-  ld::takeEveryMessage(lcm.subscribe(in_channel, &ld::LatestMessage<ld::landmark_list_t>::onMessage, &latest));
+  latest.queueOn(lcm.subscribe(in_channel, &ld::LatestMessage<ld::landmark_list_t>::onMessage, &latest));
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
 

@@ -34,8 +34,9 @@ class LatestMessage {
       : program_(std::move(program)), channel_(std::move(channel)), what_(std::move(what)),
         check_(std::move(check)) {}
 
-  /// The LCM handler: lcm.subscribe(channel, &LatestMessage<Msg>::onMessage, &latest).
+  /// The LCM handler: latest.queueOn(lcm.subscribe(channel, &LatestMessage<Msg>::onMessage, &latest)).
   void onMessage(const lcm::ReceiveBuffer* rbuf, const std::string& = {}) {
+    queue_.fit(rbuf->data_size);
     std::string why;
     if (!decodeMessage(rbuf->data, rbuf->data_size, incoming_, &why))
       why = "message on " + channel_ + " is " + why;
@@ -62,12 +63,16 @@ class LatestMessage {
       std::cerr << program_ << ": dropped " << what_ << ": " << why << " " << badSoFar(bad_) << "\n";
   }
 
+  /// The subscription, for its queue's byte budget (ld::QueueFit).
+  void queueOn(lcm::Subscription* subscription) { queue_ = QueueFit(subscription); }
+
   int64_t skipped() const { return skipped_; }  ///< good messages that a newer one replaced
   int64_t bad() const { return bad_; }          ///< messages said bad
 
  private:
   std::string program_, channel_, what_;
   Check check_;
+  QueueFit queue_;
   Msg incoming_, newest_;
   bool pending_ = false;
   int64_t skipped_ = 0, bad_ = 0;

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <atomic>
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <utility>
@@ -80,16 +81,33 @@ class StillTimeWatch {
 constexpr int kMaxDrainMs = 50;
 bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const char* program);
 
-/// Lifts LCM's limit on the messages waiting for a subscription's handler
-/// (30 by default), and returns the subscription. LCM's receiving thread
-/// dropped what came beyond it without a word: after a stall (a process
-/// stopped, starved or slow for a second) it kept the oldest 30 and lost
-/// the newer ones, so a process took a stale frame for the newest and never
-/// counted those it lost. Without the limit, every message that reaches the
-/// process is handled (pumpLcm drains them) and counted: processed, or
-/// skipped for a newer one. What the kernel's receive buffer drops (a
-/// process stopped long enough to fill it) never reaches the process.
-lcm::Subscription* takeEveryMessage(lcm::Subscription* subscription);
+/// A subscription's queue, held to about kQueueBytes of messages rather than
+/// LCM's 30. LCM keeps at most that many messages waiting for a
+/// subscription's handler and its receiving thread drops what comes beyond
+/// them without a word: after a stall (a process stopped, starved or slow for
+/// a second) it kept the oldest 30 and lost the newer ones, so a process
+/// took a stale frame for the newest and never counted those it lost. Held
+/// to a byte budget instead (kQueueBytes over the largest message seen, 30
+/// to 10000 messages: a 640x480 YUYV frame about 440, an MJPEG one thousands,
+/// a raw 1080p one 43), every message that reaches the process in a stall
+/// of a few seconds is handled (pumpLcm drains them) and counted:
+/// processed, or skipped for a newer one. What the kernel's receive buffer
+/// drops (a process stopped long enough to fill it) never reaches it.
+/// `fit` goes in the handler, with each message's size.
+constexpr size_t kQueueBytes = size_t{256} << 20;
+class QueueFit {
+ public:
+  QueueFit() = default;
+  /// Starts at 30 (LCM's own) until the first message's size is known.
+  explicit QueueFit(lcm::Subscription* subscription) : subscription_(subscription) {}
+  void fit(size_t message_bytes);
+  int capacity() const { return capacity_; }
+
+ private:
+  lcm::Subscription* subscription_ = nullptr;
+  size_t largest_ = 0;
+  int capacity_ = 30;
+};
 
 /// Whether a subscription to `pattern` (LCM reads it as a regular
 /// expression of the whole channel name) takes messages on `channel`: a

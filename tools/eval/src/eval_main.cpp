@@ -229,6 +229,12 @@ void requireWritable(const std::string& path, const char* option) {
   if (!why.empty()) throw std::runtime_error(std::string(option) + " " + path + ": " + why);
 }
 
+// lighting's plot of one sweep: --png's name with the sweep's before .png
+// (the name's .png, any case, after it)
+std::string sweepPlotPath(const std::string& png, const std::string& sweep) {
+  return png.substr(0, png.size() - 4) + "_" + sweep + ".png";
+}
+
 void emit(const Common& c, const std::string& table) {
   std::cout << table << std::flush;
   if (!c.markdown.empty()) {
@@ -384,7 +390,7 @@ int main(int argc, char** argv) {
       std::vector<ld::NamedFile> outputs{{"--markdown", c->markdown}};
       if (sub == light) {
         for (const auto& sweep : l_sweeps)
-          if (!c->png.empty()) outputs.push_back({"--png", c->png.substr(0, c->png.size() - 4) + "_" + sweep + ".png"});
+          if (!c->png.empty()) outputs.push_back({"--png", sweepPlotPath(c->png, sweep)});
       } else {
         outputs.push_back({"--png", c->png});
       }
@@ -548,8 +554,7 @@ int main(int argc, char** argv) {
         }
         t << "\n";
         if (!lc.png.empty()) {
-          // (the name's .png, any case, after the sweep's suffix)
-          const std::string path = lc.png.substr(0, lc.png.size() - 4) + "_" + sw.png_suffix + ".png";
+          const std::string path = sweepPlotPath(lc.png, sw.png_suffix);
           plot(path, "Detection rate against " + sw.name, sw.name + (sw.unit.empty() ? "" : " (" + sw.unit + ")"), series);
         }
       }

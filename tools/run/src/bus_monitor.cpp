@@ -68,10 +68,10 @@ Percentiles percentiles(std::vector<double> v) {
 BusMonitor::BusMonitor(BusChannels channels) : ch_(std::move(channels)) {}
 
 void BusMonitor::subscribe(lcm::LCM& lcm) {
-  ld::takeEveryMessage(lcm.subscribe(ch_.image, &BusMonitor::onImage, this));
-  ld::takeEveryMessage(lcm.subscribe(ch_.landmarks, &BusMonitor::onLandmarks, this));
-  ld::takeEveryMessage(lcm.subscribe(ch_.tracked, &BusMonitor::onTracked, this));
-  ld::takeEveryMessage(lcm.subscribe(ch_.codes, &BusMonitor::onCodes, this));
+  queues_[0] = QueueFit(lcm.subscribe(ch_.image, &BusMonitor::onImage, this));
+  queues_[1] = QueueFit(lcm.subscribe(ch_.landmarks, &BusMonitor::onLandmarks, this));
+  queues_[2] = QueueFit(lcm.subscribe(ch_.tracked, &BusMonitor::onTracked, this));
+  queues_[3] = QueueFit(lcm.subscribe(ch_.codes, &BusMonitor::onCodes, this));
   lcm.subscribe("LCM_SELF_TEST", &BusMonitor::onSelfTest, this);
 }
 
@@ -88,6 +88,7 @@ void BusMonitor::count(ChannelCount& c, Micros rx_us) {
 // (ld::checkImage), on the pixels copied into a kept buffer. (A JPEG whose
 // data is damaged shows only when decoded, which the detector does alone.)
 void BusMonitor::onImage(const lcm::ReceiveBuffer* rb, const std::string&) {
+  queues_[0].fit(rb->data_size);
   bool good = decodeWhole(image_buf_, rb);
   if (good) {
     try {
@@ -110,16 +111,19 @@ void BusMonitor::onSelfTest(const lcm::ReceiveBuffer* rb, const std::string&) {
 }
 
 void BusMonitor::onLandmarks(const lcm::ReceiveBuffer* rb, const std::string&) {
+  queues_[1].fit(rb->data_size);
   if (decodeWhole(list_buf_, rb)) landmarksSeen(list_buf_, receivedAt(rb));
   else ++bad_;
 }
 
 void BusMonitor::onTracked(const lcm::ReceiveBuffer* rb, const std::string&) {
+  queues_[2].fit(rb->data_size);
   if (decodeWhole(list_buf_, rb)) trackedSeen(list_buf_, receivedAt(rb));
   else ++bad_;
 }
 
 void BusMonitor::onCodes(const lcm::ReceiveBuffer* rb, const std::string&) {
+  queues_[3].fit(rb->data_size);
   if (decodeWhole(codes_buf_, rb)) codesSeen(codes_buf_, receivedAt(rb));
   else ++bad_;
 }

@@ -193,22 +193,29 @@ RunConfig RunConfig::fromTree(const Json& j, bool yaml) {
   // Each channel is published on by one process and subscribed to by
   // another, which LCM reads as a regular expression: a name that takes
   // another ("CAM(1)" takes CAM1) fed the set nothing, without a word; and
-  // one channel for two roles mixed two types on it.
+  // one channel for two types of message (images, landmark lists, codes)
+  // made every message of one type a bad one of the other. (The detector's
+  // lists as the tracked ones, the tracker left out, are one type.)
   {
-    const std::pair<const char*, const std::string*> roles[] = {{"image", &c.channels.image},
-                                                                {"landmarks", &c.channels.landmarks},
-                                                                {"tracked", &c.channels.tracked},
-                                                                {"codes", &c.channels.codes}};
+    struct Role {
+      const char* key;
+      const std::string* name;
+      int type;
+    };
+    const Role roles[] = {{"image", &c.channels.image, 0},
+                          {"landmarks", &c.channels.landmarks, 1},
+                          {"tracked", &c.channels.tracked, 1},
+                          {"codes", &c.channels.codes, 2}};
     for (size_t i = 0; i < std::size(roles); ++i) {
-      const auto& [key, name] = roles[i];
-      if (!channelNameTakesItself(*name))
-        throw std::runtime_error(std::string("channels.") + key + ": " + *name +
+      const Role& r = roles[i];
+      if (!channelNameTakesItself(*r.name))
+        throw std::runtime_error(std::string("channels.") + r.key + ": " + *r.name +
                                  " is read by LCM's subscriptions as a regular expression that does not take the "
                                  "name itself: name it with letters, digits and _ - / . alone");
       for (size_t k = 0; k < i; ++k)
-        if (*roles[k].second == *name)
-          throw std::runtime_error(std::string("channels.") + key + ": " + *name + " is also channels." +
-                                   roles[k].first + ": each needs a channel of its own");
+        if (*roles[k].name == *r.name && roles[k].type != r.type)
+          throw std::runtime_error(std::string("channels.") + r.key + ": " + *r.name + " is also channels." +
+                                   roles[k].key + ": another type of message on one channel");
     }
   }
   if (j.contains("source")) {

@@ -546,7 +546,10 @@ int main(int argc, char** argv) {
       break;
     }
     if (r > 0 && (fds[0].revents & POLLIN)) {
-      while (lcm.handleTimeout(0) > 0) {
+      // (for kMaxDrainMs at most, as the processes drain theirs: under a
+      // flood the supervisor and the children's output are served too)
+      const auto until = Clock::now() + std::chrono::milliseconds(ld::kMaxDrainMs);
+      while (Clock::now() < until && lcm.handleTimeout(0) > 0) {
       }
     }
     const auto now = Clock::now();
@@ -617,10 +620,12 @@ int main(int argc, char** argv) {
   // 5. Stop in order: source, workers, recorder.
   note(end_reason + "; stopping");
   // A process that had died and waited to be started again was not running
-  // at the end: the run did not do its work (a replay's status was 0 with a
-  // detector that never ran).
+  // at the end of a run that ended by itself (a replay done, --duration):
+  // the run did not do its work (a replay's status was 0 with a detector
+  // that never ran). Not when stopped by a signal: a live set stopped while
+  // its camera waits to be plugged in again stopped as it should.
   for (const auto& p : sup.processes())
-    if (p.starts > 0 && p.pid <= 0 && !p.done && !p.failed) {
+    if (!g_signal && p.starts > 0 && p.pid <= 0 && !p.done && !p.failed) {
       note(p.spec.name + " was not running at the end: it was waiting to be started again (started " +
            std::to_string(p.starts) + " time" + (p.starts == 1 ? "" : "s") +
            (p.last_exit.empty() ? "" : "; its last end: " + p.last_exit) + ")");

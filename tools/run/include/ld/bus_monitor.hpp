@@ -30,6 +30,7 @@
 #include <nlohmann/json.hpp>
 
 #include "ld/image_t.hpp"
+#include "ld/lcm_url.hpp"
 #include "ld/landmark_list_t.hpp"
 #include "ld/qr_code_list_t.hpp"
 #include "ld/track_restarts.hpp"
@@ -179,6 +180,7 @@ class BusMonitor {
   std::vector<std::pair<int64_t, int32_t>> ages_;
   std::map<int, int64_t> histogram_;
   std::vector<FrameRecord> frames_;
+  QueueFit queues_[4];  // image, landmarks, tracked, codes (ld::QueueFit)
   image_t image_buf_;  // (decoded and checked as the detector does, into kept buffers)
   landmark_list_t list_buf_;
   qr_code_list_t codes_buf_;
