@@ -2,6 +2,9 @@
 // every pixel format and refuse inconsistent messages.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstring>
+
 #include <atomic>
 #include <chrono>
 #include <thread>
@@ -165,6 +168,15 @@ TEST(Messages, ImageRoundTripsWithMetadata) {
   EXPECT_EQ(out.data, in.data);
   ASSERT_TRUE(ld::imageSeq(out).has_value());
   EXPECT_EQ(*ld::imageSeq(out), 1234);
+  // a seq that is no frame number (negative, not a whole number): none
+  ld::image_t odd = in;
+  for (const char* text : {"-5", "12a", ""}) {
+    ld::setImageSeq(odd, 0);
+    auto& m = *std::find_if(odd.metadata.begin(), odd.metadata.end(), [](const auto& e) { return e.key == "seq"; });
+    m.value.assign(text, text + std::strlen(text));
+    m.n = static_cast<int32_t>(m.value.size());
+    EXPECT_FALSE(ld::imageSeq(odd).has_value()) << text;
+  }
 }
 
 TEST(Messages, TruncatedBufferIsRejectedByDecode) {

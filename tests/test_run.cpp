@@ -558,6 +558,9 @@ TEST(RunConfig, RejectsUnknownKeysAndBadValues) {
   EXPECT_EQ(error(R"j({"source": {"type": "replay", "log": "a.lcmlog", "channels": "IMAGE|["}})j"),
             "source.channels: IMAGE|[ is no regular expression lcm-logplayer can read (missing terminating ] for "
             "character class)");
+  // (a trailing backslash escaped the $ the check added: taken, then refused by lcm-logplayer)
+  EXPECT_EQ(error(R"j({"source": {"type": "replay", "log": "a.lcmlog", "channels": "IMAGE\\"}})j"),
+            "source.channels: IMAGE\\ is no regular expression lcm-logplayer can read (\\ at end of pattern)");
   EXPECT_EQ(error(R"j({"channels": {"image": "CAM/front.left-1"}, "record": {"file": "r.lcmlog", "channels": "LANDMARK.*"}})j"), "");
 }
 

@@ -79,14 +79,7 @@ int main(int argc, char** argv) {
   // Each frame is decoded and checked as it arrives (decoding copies it
   // once, as keeping its bytes did); the JPEG data of an MJPEG frame is
   // checked only by decoding it, later.
-  ld::LatestMessage<ld::image_t> latest("ld-detector", in_channel, "frame", [](const ld::image_t& m) {
-    try {
-      ld::checkImage(m);
-      return std::string();
-    } catch (const ld::ImageFormatError& e) {
-      return std::string(e.what());
-    }
-  });
+  ld::LatestMessage<ld::image_t> latest("ld-detector", in_channel, "frame", ld::imageProblem);
   latest.queueOn(lcm.subscribe(in_channel, &ld::LatestMessage<ld::image_t>::onMessage, &latest));
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);

@@ -365,6 +365,15 @@ void checkImage(const image_t& msg) {
   else (void)rawView(msg, *f);
 }
 
+std::string imageProblem(const image_t& msg) {
+  try {
+    checkImage(msg);
+  } catch (const ImageFormatError& e) {
+    return e.what();
+  }
+  return "";
+}
+
 void imageToBgr(const image_t& msg, cv::Mat& out) {
   const FormatInfo* f = findFormat(msg.pixelformat);
   if (!f) fail("unsupported pixel format " + pixelFormatName(msg.pixelformat));
@@ -475,7 +484,8 @@ std::optional<int64_t> imageSeq(const image_t& msg) {
     const char* b = reinterpret_cast<const char*>(m.value.data());
     int64_t v = 0;
     const auto r = std::from_chars(b, b + m.n, v);
-    if (r.ec != std::errc() || r.ptr != b + m.n) return std::nullopt;
+    // (a negative one is no frame number: ld-run's ranges read "frames -5-29")
+    if (r.ec != std::errc() || r.ptr != b + m.n || v < 0) return std::nullopt;
     return v;
   }
   return std::nullopt;

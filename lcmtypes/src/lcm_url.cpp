@@ -92,41 +92,52 @@ void QueueFit::fit(size_t message_bytes) {
   capacity_ = capacity;
 }
 
-bool channelPatternTakes(const std::string& pattern, const std::string& channel) {
-  if (pattern == channel) return true;
-  // as LCM matches a subscription: GLib's (PCRE) expression of the whole name
-  GRegex* re = g_regex_new(("^" + pattern + "$").c_str(), static_cast<GRegexCompileFlags>(0),
-                           static_cast<GRegexMatchFlags>(0), nullptr);
+namespace {
+
+// A subscription's channel as LCM reads it: GLib's (PCRE) expression of the
+// whole name, "^pattern$"; null, with GLib's reason in `why`, when it is
+// none, or when the pattern alone is none (a trailing backslash escapes the
+// $ LCM adds, and lcm-logger or lcm-logplayer, which take it as it is,
+// refuse it).
+GRegex* wholeName(const std::string& pattern, std::string* why = nullptr) {
+  GError* error = nullptr;
+  GRegex* alone = g_regex_new(pattern.c_str(), static_cast<GRegexCompileFlags>(0),
+                              static_cast<GRegexMatchFlags>(0), &error);
+  GRegex* re = alone ? g_regex_new(("^" + pattern + "$").c_str(), static_cast<GRegexCompileFlags>(0),
+                                   static_cast<GRegexMatchFlags>(0), &error)
+                     : nullptr;
+  if (alone) g_regex_unref(alone);
+  if (!re && why) {
+    *why = error && error->message ? error->message : "not a regular expression";
+    // (GLib names the expression and an offset in it: its reason comes last)
+    if (const size_t at = why->rfind(": "); at != std::string::npos) *why = why->substr(at + 2);
+  }
+  if (error) g_error_free(error);
+  return re;
+}
+
+bool matches(GRegex* re, const std::string& text) {
   if (!re) return false;
-  const bool takes = g_regex_match(re, channel.c_str(), static_cast<GRegexMatchFlags>(0), nullptr);
+  const bool takes = g_regex_match(re, text.c_str(), static_cast<GRegexMatchFlags>(0), nullptr);
   g_regex_unref(re);
   return takes;
+}
+
+}  // namespace
+
+bool channelPatternTakes(const std::string& pattern, const std::string& channel) {
+  return pattern == channel || matches(wholeName(pattern), channel);
 }
 
 std::string channelPatternError(const std::string& pattern) {
-  GError* error = nullptr;
-  GRegex* re = g_regex_new(("^" + pattern + "$").c_str(), static_cast<GRegexCompileFlags>(0),
-                           static_cast<GRegexMatchFlags>(0), &error);
-  if (re) {
-    g_regex_unref(re);
-    return "";
-  }
-  std::string why = error && error->message ? error->message : "not a regular expression";
-  if (error) g_error_free(error);
-  // (GLib names the expression LCM made of it, "^X$", and an offset in it:
-  // its reason comes last)
-  if (const size_t at = why.rfind(": "); at != std::string::npos) why = why.substr(at + 2);
-  return why;
+  std::string why;
+  GRegex* re = wholeName(pattern, &why);
+  if (!re) return why;
+  g_regex_unref(re);
+  return "";
 }
 
-bool channelNameTakesItself(const std::string& name) {
-  GRegex* re = g_regex_new(("^" + name + "$").c_str(), static_cast<GRegexCompileFlags>(0),
-                           static_cast<GRegexMatchFlags>(0), nullptr);
-  if (!re) return false;
-  const bool takes = g_regex_match(re, name.c_str(), static_cast<GRegexMatchFlags>(0), nullptr);
-  g_regex_unref(re);
-  return takes;
-}
+bool channelNameTakesItself(const std::string& name) { return matches(wholeName(name), name); }
 
 std::string channelProblem(const std::vector<ChannelOption>& inputs, const ChannelOption& output,
                            const std::string& whose) {

@@ -43,11 +43,8 @@ struct Inputs {
     image_queue.fit(rb->data_size);
     const auto* p = static_cast<const uint8_t*>(rb->data);
     if (!ld::decodeMessage(p, rb->data_size, header_probe, &why)) return reportBad(ch, why);
-    try {
-      ld::checkImage(header_probe);  // its pixels are decoded only if a track needs reading
-    } catch (const ld::ImageFormatError& e) {
-      return reportBad(ch, e.what());
-    }
+    // (its pixels are decoded only if a track needs reading)
+    if (const std::string problem = ld::imageProblem(header_probe); !problem.empty()) return reportBad(ch, problem);
     matcher.addImage({header_probe.utime, ld::imageSeq(header_probe).value_or(-1)}, p, rb->data_size);
   }
   void onList(const lcm::ReceiveBuffer* rb, const std::string& ch) {

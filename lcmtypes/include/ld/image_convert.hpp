@@ -58,6 +58,9 @@ constexpr int64_t kMaxMjpegPixels = int64_t{1} << 25;
 /// (the compressed data itself is only checked by decoding it). Throws
 /// ImageFormatError naming the problem.
 void checkImage(const image_t& msg);
+/// checkImage's reason as text, "" when the message is good: for a process's
+/// line on a frame it drops, and ld-run's count of them.
+std::string imageProblem(const image_t& msg);
 
 /// Decodes JPEG bytes with libjpeg into 8-bit BGR (or GRAY), `out` reused
 /// when it has the size already. Empty when the image was whole; otherwise
@@ -101,7 +104,8 @@ void imageToMat(const image_t& msg, cv::Mat& out);
 image_t matToImage(const cv::Mat& image, int32_t pixelformat, int64_t utime,
                    int64_t seq = -1, int jpeg_quality = 90);
 
-/// The frame's sequence number from the "seq" metadata, if present and valid.
+/// The frame's sequence number from the "seq" metadata, if present and a
+/// whole number 0 or more.
 std::optional<int64_t> imageSeq(const image_t& msg);
 
 /// Sets (or replaces) the "seq" metadata; an existing entry is rewritten in

@@ -89,15 +89,7 @@ void BusMonitor::count(ChannelCount& c, Micros rx_us) {
 // data is damaged shows only when decoded, which the detector does alone.)
 void BusMonitor::onImage(const lcm::ReceiveBuffer* rb, const std::string&) {
   queues_[0].fit(rb->data_size);
-  bool good = decodeWhole(image_buf_, rb);
-  if (good) {
-    try {
-      checkImage(image_buf_);
-    } catch (const ImageFormatError&) {
-      good = false;
-    }
-  }
-  if (!good) {
+  if (!decodeWhole(image_buf_, rb) || !imageProblem(image_buf_).empty()) {
     ++bad_;
     ++bad_images_;
     return;
