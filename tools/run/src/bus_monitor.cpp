@@ -30,14 +30,6 @@ double rate(int64_t n, int64_t a_us, int64_t b_us) {
   return n > 1 && s > 0 ? (static_cast<double>(n) - 1) / s : 0;
 }
 
-// (through ld::decodeMessage: lcm-gen's decoders throw or allocate
-// gigabytes on a malformed count, and ld-run, its processes' parent, went
-// down with them)
-template <typename T>
-bool decodeWhole(T& msg, const lcm::ReceiveBuffer* rb) {
-  return ld::decodeMessage(rb->data, rb->data_size, msg);
-}
-
 // The kernel's receive time when LCM has it, else now.
 int64_t receivedAt(const lcm::ReceiveBuffer* rb) {
   if (rb->recv_utime > 0) return rb->recv_utime;
@@ -89,7 +81,7 @@ void BusMonitor::count(ChannelCount& c, Micros rx_us) {
 // data is damaged shows only when decoded, which the detector does alone.)
 void BusMonitor::onImage(const lcm::ReceiveBuffer* rb, const std::string&) {
   queues_[0].fit(rb->data_size);
-  if (!decodeWhole(image_buf_, rb) || !imageProblem(image_buf_).empty()) {
+  if (!decodeMessage(rb->data, rb->data_size, image_buf_) || !imageProblem(image_buf_).empty()) {
     ++bad_;
     ++bad_images_;
     return;
@@ -104,19 +96,19 @@ void BusMonitor::onSelfTest(const lcm::ReceiveBuffer* rb, const std::string&) {
 
 void BusMonitor::onLandmarks(const lcm::ReceiveBuffer* rb, const std::string&) {
   queues_[1].fit(rb->data_size);
-  if (decodeWhole(list_buf_, rb)) landmarksSeen(list_buf_, receivedAt(rb));
+  if (decodeMessage(rb->data, rb->data_size, list_buf_)) landmarksSeen(list_buf_, receivedAt(rb));
   else ++bad_;
 }
 
 void BusMonitor::onTracked(const lcm::ReceiveBuffer* rb, const std::string&) {
   queues_[2].fit(rb->data_size);
-  if (decodeWhole(list_buf_, rb)) trackedSeen(list_buf_, receivedAt(rb));
+  if (decodeMessage(rb->data, rb->data_size, list_buf_)) trackedSeen(list_buf_, receivedAt(rb));
   else ++bad_;
 }
 
 void BusMonitor::onCodes(const lcm::ReceiveBuffer* rb, const std::string&) {
   queues_[3].fit(rb->data_size);
-  if (decodeWhole(codes_buf_, rb)) codesSeen(codes_buf_, receivedAt(rb));
+  if (decodeMessage(rb->data, rb->data_size, codes_buf_)) codesSeen(codes_buf_, receivedAt(rb));
   else ++bad_;
 }
 

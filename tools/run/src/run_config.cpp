@@ -173,6 +173,12 @@ RunConfig RunConfig::fromTree(const Json& j, bool yaml) {
   const auto worker = [&reader](const Json& tree, const std::string& where, WorkerConfig w) {
     return reader.worker(tree, where, w);
   };
+  // (a channel pattern lcm-logger or lcm-logplayer takes: an empty one is none given)
+  const auto requirePattern = [](const char* key, const std::string& pattern, const char* program) {
+    if (const std::string why = channelPatternError(pattern); !pattern.empty() && !why.empty())
+      throw std::runtime_error(std::string(key) + ": " + pattern + " is no regular expression " + program +
+                               " can read (" + why + ")");
+  };
   RunConfig c;
   checkKeys(j, "config", {"lcm_url", "channels", "source", "detector", "tracker", "qr_reader",
                           "record", "restart"});
@@ -230,9 +236,7 @@ RunConfig RunConfig::fromTree(const Json& j, bool yaml) {
     get(s, "log", "source", c.log);
     get(s, "speed", "source", c.speed);
     get(s, "channels", "source", c.replay_channels);
-    if (const std::string why = channelPatternError(c.replay_channels); !c.replay_channels.empty() && !why.empty())
-      throw std::runtime_error("source.channels: " + c.replay_channels +
-                               " is no regular expression lcm-logplayer can read (" + why + ")");
+    requirePattern("source.channels", c.replay_channels, "lcm-logplayer");
     get(s, "fps", "source", c.play_fps);
     get(s, "duration_s", "source", c.play_duration_s);
     get(s, "format", "source", c.play_format);
@@ -245,9 +249,7 @@ RunConfig RunConfig::fromTree(const Json& j, bool yaml) {
     checkKeys(r, "record", {"file", "channels"});
     get(r, "file", "record", c.record);
     get(r, "channels", "record", c.record_channels);
-    if (const std::string why = channelPatternError(c.record_channels); !c.record_channels.empty() && !why.empty())
-      throw std::runtime_error("record.channels: " + c.record_channels +
-                               " is no regular expression lcm-logger can read (" + why + ")");
+    requirePattern("record.channels", c.record_channels, "lcm-logger");
   }
   if (j.contains("restart")) {
     const Json& r = j["restart"];

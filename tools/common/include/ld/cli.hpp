@@ -74,11 +74,12 @@ inline int parse(CLI::App& app, int argc, char** argv) {
     // with those there are
     // (the first word left over, options after it left over too)
     if (dynamic_cast<const CLI::RequiredError*>(&e) && !app.get_subcommands({}).empty() &&
-        app.get_subcommands().empty() && !app.remaining(true).empty() && app.remaining(true)[0].rfind('-', 0) != 0) {
-      std::string known;
-      for (const CLI::App* sub : app.get_subcommands({})) known += (known.empty() ? "" : ", ") + sub->get_name();
-      what = "'" + app.remaining(true)[0] + "' is no subcommand (" + known + ")";
-    }
+        app.get_subcommands().empty())
+      if (const std::vector<std::string> left = app.remaining(true); !left.empty() && left[0].rfind('-', 0) != 0) {
+        std::string known;
+        for (const CLI::App* sub : app.get_subcommands({})) known += (known.empty() ? "" : ", ") + sub->get_name();
+        what = "'" + left[0] + "' is no subcommand (" + known + ")";
+      }
     for (char& c : what)
       if (c == '\n') c = ' ';
     std::cerr << programName(argc > 0 ? argv[0] : nullptr) << ": " << what << " (--help lists the options)\n";
