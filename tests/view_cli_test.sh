@@ -53,6 +53,11 @@ refused "--video $T/dir.avi: is a folder" env -u DISPLAY -u WAYLAND_DISPLAY "$BI
 refused "--video $T/v.mp4: the video is MJPG in AVI, its name must end in .avi" \
   env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --video "$T/v.mp4"
 refused "--all is for --log" env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --all --out "$T/live"
+# live: a channel that is no regular expression (LCM reads a subscription's channel as one) is
+# refused before anything is created (LCM printed its own line and ld-view waited on nothing)
+refused "--tracks TRACKS\\[: LCM reads a subscription's channel as a regular expression, and this is none" \
+  env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --tracks 'TRACKS[' --out "$T/pattern"
+[ ! -e "$T/pattern" ] || fail "a refused channel created --out's folder"
 # --window with --out and no display: the advice is to drop --window; an empty DISPLAY is none
 refused "cannot open a window: DISPLAY and WAYLAND_DISPLAY are unset (.*); drop --window$" \
   "$netns" env -u WAYLAND_DISPLAY DISPLAY= "$BIN/ld-view" --window --all --log "$T/in.lcmlog" --out "$T/w"

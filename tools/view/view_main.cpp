@@ -309,6 +309,7 @@ class Live {
  public:
   Live(const Options& o, std::string image_ch) : sink_(o), o_(o), image_ch_(std::move(image_ch)) {}
   void onImage(const lcm::ReceiveBuffer* rb, const std::string& channel) {
+    queues[0].fit(rb->data_size);
     // The last kRecentFrames frames; the one that drops out lends its
     // buffer to the next (no copy, no allocation once they are all there).
     if (!decoded(rb, spare_, channel)) return;
@@ -320,11 +321,13 @@ class Live {
     }
   }
   void onCodes(const lcm::ReceiveBuffer* rb, const std::string& channel) {
+    queues[2].fit(rb->data_size);
     ld::qr_code_list_t c;
     if (!decoded(rb, c, channel)) return;
     for (const auto& code : c.codes) payloads_[code.track_id] = code.payload;
   }
   void onTracked(const lcm::ReceiveBuffer* rb, const std::string& channel) {
+    queues[1].fit(rb->data_size);
     if (!decoded(rb, list_, channel)) return;
     for (auto it = recent_.rbegin(); it != recent_.rend(); ++it) {
       if (it->first != Key{list_.utime, list_.seq}) continue;
@@ -343,6 +346,10 @@ class Live {
   int64_t bad() const { return dropped_.count; }
   bool failed() const { return sink_.failed(); }
   bool finish() { return sink_.finish(); }
+  // Image, tracks and codes: while a frame is drawn and written, what comes
+  // waits in a queue held to a byte budget, not LCM's 30 messages, which
+  // dropped the newer ones without a word (ld::QueueFit).
+  ld::QueueFit queues[3];
 
  private:
   template <class T>
@@ -471,6 +478,10 @@ int main(int argc, char** argv) {
                                      {"--tracks", &tracked_ch},
                                      {"--codes", &codes_ch}})
     if (name->empty()) return ld::cli::usage(argv[0], std::string(option) + " needs a channel name");
+    else if (const std::string why = ld::channelPatternError(*name); logs.empty() && !why.empty())
+      return ld::cli::usage(argv[0], std::string(option) + " " + *name +
+                                         ": LCM reads a subscription's channel as a regular expression, and this is "
+                                         "none (" + why + ")");
   if (all_frames && logs.empty())
     return ld::cli::usage(argv[0], "--all is for --log (live, every frame with a tracked list is drawn)");
   if (!o.video.empty() && !ld::hasExtension(o.video, ".avi"))
@@ -530,9 +541,9 @@ int main(int argc, char** argv) {
   lcm::LCM lcm(url);
   if (const int status = ld::lcmOpenStatus(lcm, url, "ld-view")) return status;
   Live live(o, image_ch);
-  lcm.subscribe(image_ch, &Live::onImage, &live);
-  lcm.subscribe(tracked_ch, &Live::onTracked, &live);
-  lcm.subscribe(codes_ch, &Live::onCodes, &live);
+  live.queues[0] = ld::QueueFit(lcm.subscribe(image_ch, &Live::onImage, &live));
+  live.queues[1] = ld::QueueFit(lcm.subscribe(tracked_ch, &Live::onTracked, &live));
+  live.queues[2] = ld::QueueFit(lcm.subscribe(codes_ch, &Live::onCodes, &live));
   while (!g_stop)
     if (!ld::pumpLcm(lcm, 200, g_stop, "ld-view")) return 1;
   live.finish();
