@@ -236,6 +236,12 @@ set +e; "$BIN/ld-eval" yaw --side 0.15 --trials 1 --misses "$T/misses" >/dev/nul
   fail "yaw --misses again: exit $?"
 grep -q "detected 2/2" "$T/again.err" && [ -f "$T/misses/misses.jsonl" ] && [ ! -s "$T/misses/misses.jsonl" ] ||
   fail "yaw --misses again: $(cat "$T/again.err" "$T/misses/misses.jsonl")"
+# each sweep point's progress line names its series: qr sweeps two payload kinds one after the
+# other, and with --stack says what the frames read together (the lines looked the same)
+"$BIN/ld-eval" qr --trials 1 --from 0.4 --to 0.4 --stack 2 >/dev/null 2>"$T/qr.err" || fail "qr --stack: exit $?"
+grep -qE '^  8-23 bytes, 0\.40 m, yaw within \+-40: detected [01]/1, decoded [01], over 2 frames [01]$' "$T/qr.err" &&
+  grep -qE '^  99-100 bytes, 0\.40 m, yaw within \+-40: detected [01]/1, decoded [01], over 2 frames [01]$' "$T/qr.err" ||
+  fail "qr --stack progress: $(cat "$T/qr.err")"
 : >"$T/afile"
 set +e; "$BIN/ld-eval" yaw --trials 1 --misses "" >/dev/null 2>"$T/err"; rc=$?; set -e
 [ $rc -eq 2 ] && grep -qF -- "--misses needs a folder" "$T/err" || fail "yaw --misses \"\": exit $rc, $(cat "$T/err")"

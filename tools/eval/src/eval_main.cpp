@@ -243,17 +243,24 @@ void emit(const Common& c, const std::string& table) {
   }
 }
 
-// A sweep point's line on stderr as it ends: its yaw (or, for sweeps over
-// distance or blur, the range yaw is drawn within), and what was decoded
-// when the sweep reads QR codes.
-std::function<void(const ld::eval::Point&)> progress(double yaw_within, bool decode) {
-  return [yaw_within, decode](const ld::eval::Point& p) {
-    char blur[32] = "", yaw[32], decoded[32] = "";
+// A sweep point's line on stderr as it ends, named by its series (the
+// side, marker or payload kind: a table has several, swept one after the
+// other): its yaw (or, for sweeps over distance or blur, the range yaw is
+// drawn within), and what was decoded when the sweep reads QR codes (alone
+// and, with --stack, over the frames).
+std::function<void(const ld::eval::Point&)> progress(const std::string& series, double yaw_within, bool decode,
+                                                     int stack_frames = 0) {
+  return [series, yaw_within, decode, stack_frames](const ld::eval::Point& p) {
+    char blur[32] = "", yaw[32], decoded[64] = "";
     if (p.motion_px >= 0) std::snprintf(blur, sizeof blur, ", blur %g px", p.motion_px);
     if (yaw_within > 0) std::snprintf(yaw, sizeof yaw, "yaw within +-%g", yaw_within);
     else std::snprintf(yaw, sizeof yaw, "yaw %+.0f", p.yaw_deg);
-    if (decode) std::snprintf(decoded, sizeof decoded, ", decoded %d", p.decoded);
-    std::fprintf(stderr, "  %.2f m, %s%s: detected %d/%d%s\n", p.distance_m, yaw, blur, p.detected, p.trials, decoded);
+    if (decode && stack_frames > 0)
+      std::snprintf(decoded, sizeof decoded, ", decoded %d, over %d frames %d", p.decoded, stack_frames,
+                    p.decoded_stacked);
+    else if (decode) std::snprintf(decoded, sizeof decoded, ", decoded %d", p.decoded);
+    std::fprintf(stderr, "  %s, %.2f m, %s%s: detected %d/%d%s\n", series.c_str(), p.distance_m, yaw, blur,
+                 p.detected, p.trials, decoded);
   };
 }
 
@@ -449,13 +456,17 @@ int main(int argc, char** argv) {
           auto o = c.options();
           o.side_m = sw.sides[i];
           o.target = target;
-          all.push_back(by == By::kYaw      ? ld::eval::overYaw(o, (*sw.dists)[i], xs, progress(0, o.decode))
-                        : by == By::kMotion ? ld::eval::overMotion(o, (*sw.dists)[i], xs, m_yaw, progress(m_yaw, o.decode))
-                                            : ld::eval::overDistance(o, xs, d_yaw, progress(d_yaw, o.decode)));
           std::ostringstream name;
           name << cm(sw.sides[i]);
           if (sw.dists) name << " at " << (*sw.dists)[i] << " m";
           if (target != "landmark") name << " " << ld::markers::name(ld::markers::parse(target));
+          const std::string label =  // (the distance is on the line)
+              (target == "landmark" ? "landmark" : ld::markers::name(ld::markers::parse(target))) + " " +
+              cm(sw.sides[i]);
+          all.push_back(by == By::kYaw ? ld::eval::overYaw(o, (*sw.dists)[i], xs, progress(label, 0, o.decode))
+                        : by == By::kMotion
+                            ? ld::eval::overMotion(o, (*sw.dists)[i], xs, m_yaw, progress(label, m_yaw, o.decode))
+                            : ld::eval::overDistance(o, xs, d_yaw, progress(label, d_yaw, o.decode)));
           Series sr{name.str(), {}};
           for (const auto& p : all.back())
             sr.points.emplace_back(by == By::kYaw ? p.yaw_deg : by == By::kMotion ? p.motion_px : p.distance_m,
@@ -490,7 +501,7 @@ int main(int argc, char** argv) {
       for (const auto& k : kinds) {
         o.payload = [k](int i) { return ld::eval::payloadFor(5 * i + k.first + i % k.count); };
         o.misses_tag = k.first == 0 ? "short" : "long";
-        all.push_back(ld::eval::overDistance(o, ds, q_yaw, progress(q_yaw, o.decode)));
+        all.push_back(ld::eval::overDistance(o, ds, q_yaw, progress(k.name, q_yaw, o.decode, q_stack)));
         Series s{k.name, {}};
         for (const auto& p : all.back()) s.points.emplace_back(p.distance_m, p.decodeRate());
         series.push_back(s);
@@ -588,7 +599,7 @@ int main(int argc, char** argv) {
           rows.back().o.target = target;
         }
       std::vector<std::vector<ld::eval::Point>> all;
-      for (const Row& r : rows) all.push_back(ld::eval::overDistance(r.o, ds, p_yaw, progress(p_yaw, r.o.decode)));
+      for (const Row& r : rows) all.push_back(ld::eval::overDistance(r.o, ds, p_yaw, progress(r.name, p_yaw, r.o.decode)));
       const auto pair = [](const std::vector<double>& v, double scale, int digits) {
         if (v.empty()) return std::string("-");
         char b[64];
