@@ -307,6 +307,17 @@ TEST(ImageLimits, MatToImageMakesNothingItsReadersRefuse) {
     EXPECT_STREQ(e.what(), "matToImage: a 6000x6000 image is more than the 33554432 pixels an MJPEG image_t takes");
   }
   EXPECT_NO_THROW(ld::checkImage(ld::matToImage(big, ld::image_t::PIXEL_FORMAT_GRAY, 0, 0)));
+  // Raw: image_t's size is an int32. 32768x16385 RGBA is 2147614720 bytes;
+  // the message said a size of -2147352576. (The grey frame is never read:
+  // refused before any conversion, its pages are never touched.)
+  const cv::Mat huge(16385, 1 << 15, CV_8UC1);
+  try {
+    ld::matToImage(huge, ld::image_t::PIXEL_FORMAT_RGBA, 0, 0);
+    ADD_FAILURE() << "a 2 GiB RGBA image_t was made";
+  } catch (const ld::ImageFormatError& e) {
+    EXPECT_STREQ(e.what(), "matToImage: a 32768x16385 RGBA image is 2147614720 bytes, more than the 2147483647 an "
+                           "image_t holds");
+  }
 }
 
 TEST(ImageLimits, CheckImageRefusesWhatDecodingWouldWithoutDecoding) {

@@ -6,10 +6,13 @@
 #include <sstream>
 
 #include <opencv2/imgproc.hpp>
+#include <lcm/lcm-cpp.hpp>
 #include <qrencode.h>
 
 #include "ld/artwork.hpp"
 #include "ld/image_convert.hpp"
+#include "ld/message_decode.hpp"
+#include "ld/message_publisher.hpp"
 #include "ld/landmark_layout.hpp"
 #include "ld/qr_reader.hpp"
 #include "ld/qr_track_reader.hpp"
@@ -540,6 +543,38 @@ TEST(QrTrackReader, ReadTrackThatJumpsLosesItsPayload) {
   EXPECT_FALSE(codeOf(out, 2).has_value());
   EXPECT_EQ(out.ncodes, 0);
   EXPECT_NE(log.str().find("track 2 jumped"), std::string::npos) << log.str();
+}
+
+// A payload with a NUL byte (QR byte mode takes any bytes): LCM's encoder
+// ends a string at its NUL while the message's size counts every byte, so
+// the codes message encoded short and was never published, for any of its
+// tracks. The NUL is sent as U+FFFD; the reader itself keeps the bytes.
+TEST(QrTrackReader, PayloadWithANulByteIsPublished) {
+  const std::string payload("door\0" "214", 8);
+  const std::array<cv::Point2f, 4> at{{{170, 90}, {470, 90}, {470, 390}, {170, 390}}};
+  const Scene scene = warped(ld::artwork::renderLandmark(payload, 900), at);
+  ld::QrReader plain;
+  const auto read = plain.decode(scene.image, scene.corners);
+  ASSERT_TRUE(read.has_value());
+  ASSERT_EQ(read->payload, payload);
+  std::ostringstream log;
+  ld::QrTrackReader reader({}, log);
+  ld::qr_code_list_t out;
+  const ld::image_t image = ld::matToImage(scene.image, ld::image_t::PIXEL_FORMAT_BGR, 0);
+  reader.process(image, trackedList(1'000'000, 0, {tracked(3, 1, at)}), out);
+  ASSERT_EQ(codeOf(out, 3), std::optional<std::string>("door\xEF\xBF\xBD" "214"));
+  lcm::LCM lcm("memq://");
+  ASSERT_TRUE(lcm.good());
+  ld::MessagePublisher publisher(lcm);
+  EXPECT_EQ(publisher.publish("LANDMARK_CODES", out), 0);
+  std::vector<uint8_t> bytes(static_cast<size_t>(out.getEncodedSize()));
+  ASSERT_EQ(out.encode(bytes.data(), 0, static_cast<int>(bytes.size())), static_cast<int>(bytes.size()));
+  ld::qr_code_list_t back;
+  std::string why;
+  ASSERT_TRUE(ld::decodeMessage(bytes.data(), bytes.size(), back, &why)) << why;
+  ASSERT_EQ(back.ncodes, 1);
+  EXPECT_EQ(back.codes[0].payload, "door\xEF\xBF\xBD" "214");
+  EXPECT_EQ(ld::lcmString(std::string("\0\0", 2)), "\xEF\xBF\xBD\xEF\xBF\xBD");
 }
 
 // The image's pixels are needed only for a due track; when they cannot be

@@ -974,6 +974,21 @@ TEST(TrackerParams, ClearErrors) {
 // ---------------------------------------------------------------------------
 // LCM messages.
 
+// A payload with a NUL byte goes into the message as U+FFFD: LCM's encoder
+// ends a string at its NUL while the size counts every byte, and the list
+// encoded short was never published (QrTrackReader.PayloadWithANulByteIsPublished).
+TEST(TrackerMsg, PayloadWithANulByteIsCarried) {
+  ld::Landmark a = square(100, 100);
+  a.payload = std::string("ab\0cd", 5);
+  ld::landmark_list_t list{};
+  list.backend = "cpu";
+  list.landmarks = {ld::toMessage(a)};
+  list.nlandmarks = 1;
+  EXPECT_EQ(list.landmarks[0].payload, "ab\xEF\xBF\xBD" "cd");
+  std::vector<uint8_t> bytes(static_cast<size_t>(list.getEncodedSize()));
+  EXPECT_EQ(list.encode(bytes.data(), 0, static_cast<int>(bytes.size())), static_cast<int>(bytes.size()));
+}
+
 TEST(TrackerMsg, TrackedListKeepsTheFrameAndFillsTrackFields) {
   ld::landmark_list_t in{};
   in.utime = 123456789;

@@ -1,4 +1,5 @@
 #include "ld/landmark_msg.hpp"
+#include "ld/message_publisher.hpp"
 
 namespace ld {
 namespace {
@@ -21,7 +22,7 @@ landmark_t toMessage(const Landmark& lm) {
   for (size_t i = 0; i < 4; ++i) put(m.corners[i], lm.corners[i]);
   m.score = lm.score;
   m.has_payload = lm.payload.has_value();
-  m.payload = lm.payload.value_or("");
+  m.payload = ld::lcmString(lm.payload.value_or(""));  // (a NUL byte: U+FFFD)
   m.pose_valid = lm.pose.has_value();
   if (lm.pose) {
     for (int i = 0; i < 3; ++i) {

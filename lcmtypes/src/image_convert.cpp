@@ -5,6 +5,7 @@
 #include <charconv>
 #include <csetjmp>
 #include <cstdio>
+#include <limits>
 #include <vector>
 
 #include <opencv2/imgcodecs.hpp>
@@ -425,6 +426,12 @@ image_t matToImage(const cv::Mat& image, int32_t pixelformat, int64_t utime, int
     throw ImageFormatError("matToImage: a " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
                            " image is more than the " + std::to_string(kMaxMjpegPixels) +
                            " pixels an MJPEG image_t takes");
+  // (image_t's size is an int32: a raw image of more bytes has none)
+  if (const int64_t bytes = int64_t{image.cols} * image.rows * f->bytes_per_pixel;
+      bytes > std::numeric_limits<int32_t>::max())
+    throw ImageFormatError("matToImage: a " + std::to_string(image.cols) + "x" + std::to_string(image.rows) + " " +
+                           f->name + " image is " + std::to_string(bytes) + " bytes, more than the " +
+                           std::to_string(std::numeric_limits<int32_t>::max()) + " an image_t holds");
 
   cv::Mat bgr;
   if (image.channels() == 1) cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);

@@ -4,6 +4,7 @@
 #include <chrono>
 
 #include "ld/image_convert.hpp"
+#include "ld/message_publisher.hpp"
 
 namespace ld {
 
@@ -114,7 +115,7 @@ void QrTrackReader::process(const image_t& image, const landmark_list_t& list, q
     if (const auto* k = book_.payload(lm.track_id)) {
       qr_code_t c{};
       c.track_id = lm.track_id;
-      c.payload = k->payload;
+      c.payload = ld::lcmString(k->payload);  // (a NUL byte: U+FFFD)
       c.utime = k->utime;
       c.seq = k->seq;
       for (int i = 0; i < 4; ++i)

@@ -100,7 +100,8 @@ void imageToMat(const image_t& msg, cv::Mat& out);
 /// BGRA) into `pixelformat`. Compressed formats use `jpeg_quality`.
 /// Throws ImageFormatError when the conversion is not possible (YUYV/UYVY need an
 /// even width) or would give a message its readers refuse (a side over
-/// 32768 px; an MJPEG image over 2^25 pixels).
+/// 32768 px; an MJPEG image over 2^25 pixels) or none at all (a raw image
+/// of more than 2^31 - 1 bytes, which image_t's int32 size cannot say).
 image_t matToImage(const cv::Mat& image, int32_t pixelformat, int64_t utime,
                    int64_t seq = -1, int jpeg_quality = 90);
 

@@ -10,6 +10,16 @@
 
 namespace ld {
 
+/// `text` as an LCM string can carry it. LCM's encoders end a string at its
+/// first NUL byte while its size counts them all, so a message holding one
+/// encodes short and is never sent. Each NUL (a QR code's byte-mode payload
+/// may hold one) becomes U+FFFD, the replacement character.
+inline std::string lcmString(std::string text) {
+  for (size_t at = text.find('\0'); at != std::string::npos; at = text.find('\0', at + 3))
+    text.replace(at, 1, "\xEF\xBF\xBD");
+  return text;
+}
+
 /// Publishes messages on an LCM instance through one encoding buffer kept
 /// between calls. lcm::LCM::publish(channel, &msg) allocates a buffer of the
 /// encoded size for every message, a whole frame for an image; this buffer
