@@ -250,6 +250,33 @@ TEST(AdaptiveDetection, HoldsUnderWarmLight) {
   EXPECT_GT(adaptive_all, fixed_all);
 }
 
+// A BGRA frame is corrected as its BGR is: it went to the detector
+// uncorrected, and taught the adapter nothing (2 landmarks in BGR, 1 in BGRA).
+TEST(AdaptiveDetection, BgraFramesAreCorrectedAsBgr) {
+  ld::AdaptiveDetector as_bgr, as_bgra;
+  int found = 0;
+  for (int k = 0; k < 6; ++k) {
+    ld::synth::SceneSpec spec;
+    spec.seed = 40 + k;
+    spec.lighting.colour_temp_k = 2200;
+    spec.lighting.gain = 0.7;
+    spec.degradation.noise_sigma = 2;
+    spec.landmarks = {ld::synth::placeLandmark(spec.camera, 1.2, 20, 0, 10 * k, -0.3, 0),
+                      ld::synth::placeLandmark(spec.camera, 1.6, -10, 0, -15 * k, 0.3, 0.1, 0.15, "b", 1)};
+    const cv::Mat bgr = ld::synth::render(spec).bgr;
+    cv::Mat bgra;
+    cv::cvtColor(bgr, bgra, cv::COLOR_BGR2BGRA);
+    const auto a = as_bgr.detect(bgr).landmarks;
+    const auto b = as_bgra.detect(bgra).landmarks;
+    ASSERT_EQ(a.size(), b.size()) << "frame " << k;
+    found += static_cast<int>(a.size());
+    for (size_t i = 0; i < a.size(); ++i) EXPECT_EQ(a[i].corners, b[i].corners);
+    EXPECT_EQ(as_bgr.adapter().gains(), as_bgra.adapter().gains()) << "frame " << k;
+  }
+  EXPECT_GT(as_bgra.adapter().gains()[0], 1.2);  // (corrected: tungsten's weak blue raised)
+  EXPECT_GE(found, 9);
+}
+
 // Without the faint look the fixed defaults lose warm light altogether.
 TEST(AdaptiveDetection, FixedDefaultsWithoutTheFaintLookDropUnderTungsten) {
   auto o = lit(2700, -1, false);

@@ -1739,7 +1739,20 @@ TEST(Detector, GrayAndDegenerateImagesGiveNothing) {
   EXPECT_TRUE(det.detect(cv::Mat(2, 5, CV_8UC3, cv::Scalar(255, 0, 0))).landmarks.empty());
   EXPECT_TRUE(det.detect(cv::Mat(7, 3, CV_8UC3, cv::Scalar(255, 0, 0))).landmarks.empty());
   EXPECT_TRUE(det.detect(cv::Mat(480, 640, CV_8UC3, cv::Scalar(255, 0, 0))).landmarks.empty());
-  EXPECT_TRUE(det.detect(cv::Mat(480, 640, CV_32FC3, cv::Scalar(1, 0, 0))).landmarks.empty());
+  // Other types are the caller's mistake, said (a 16-bit PNG read with
+  // IMREAD_UNCHANGED found nothing, without a word).
+  for (int type : {CV_32FC3, CV_16UC3, CV_16UC1, CV_8UC2, CV_8SC3}) {
+    const cv::Mat odd(48, 64, type, cv::Scalar(1, 0, 0));
+    try {
+      det.detect(odd);
+      ADD_FAILURE() << "a " << cv::typeToString(type) << " image was taken";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_EQ(std::string(e.what()), "Detector::detect: a " + cv::typeToString(type) +
+                                           " image: it reads 8-bit BGR, BGRA or gray (CV_8UC3, CV_8UC4, CV_8UC1)");
+    }
+    ld::Explanation why;
+    EXPECT_THROW(det.detect(odd, why), std::invalid_argument);
+  }
   // A frame with a landmark, in gray: no colour, no landmark.
   cv::Mat img = background(kCam.size, 9);
   drawSheet(img, kCam, place(1.0, 0, 0));
@@ -2251,6 +2264,19 @@ TEST(Pose, CalibrationOfAnotherAspectRatioGivesNoPose) {
   EXPECT_NE(d.pose_error.find("1280x720"), std::string::npos) << d.pose_error;
   EXPECT_NE(d.pose_error.find("640x480"), std::string::npos) << d.pose_error;
   det.setCamera(ld::CameraModel::pinhole({1280, 960}, 1200), 0.15);
+  // What gives no pose at all is refused, said (an infinite side, or a
+  // focal length of 0 or NaN, gave landmarks no pose and no pose_error)
+  ld::Detector refusing;
+  for (double side : {0.0, -0.15, std::numeric_limits<double>::infinity(), std::numeric_limits<double>::quiet_NaN()})
+    EXPECT_THROW(refusing.setCamera(kCam, side), std::invalid_argument) << side;
+  ld::CameraModel flat = kCam;
+  flat.K(0, 0) = 0;
+  EXPECT_THROW(refusing.setCamera(flat, 0.15), std::invalid_argument);
+  flat.K(0, 0) = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(refusing.setCamera(flat, 0.15), std::invalid_argument);
+  for (double f : {-600.0, 0.0, std::numeric_limits<double>::quiet_NaN()})
+    EXPECT_THROW(ld::CameraModel::pinhole({640, 480}, f), std::invalid_argument) << f;
+  EXPECT_THROW(ld::CameraModel::pinhole({-640, 480}, 600), std::invalid_argument);
   const ld::Detection& d2 = det.detect(img);
   ASSERT_EQ(d2.landmarks.size(), 1u);
   EXPECT_TRUE(d2.landmarks[0].pose.has_value());

@@ -4,6 +4,9 @@
 // CPU when no EGL display can be made, and bad input.
 #include <gtest/gtest.h>
 
+#include <memory>
+#include <thread>
+
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -625,6 +628,34 @@ TEST(GlesInput, TwoDetectorsInTurn) {
   EXPECT_STREQ(b.backend(), "gles");
 }
 
+// A GLES Detector is used from one thread at a time, not always the same
+// one: made in a thread that has ended, then run in this one, then in
+// others in turn. Its EGL context stayed current in the thread of its last
+// frame, EGL refused it to the next ("cannot make the EGL context current"),
+// and the detector ran on the CPU from then on.
+TEST(GlesInput, HandedFromThreadToThread) {
+  std::unique_ptr<ld::Detector> d;
+  std::thread([&] {
+    ld::DetectorParams p;
+    p.backend = "gles";
+    d = std::make_unique<ld::Detector>(p);
+  }).join();
+  ASSERT_STREQ(d->backend(), "gles");
+  ld::Detector cpu;
+  const auto frames = scenes(4, 23);
+  const auto check = [&](size_t i, const std::string& where) {
+    const ld::Detection& g = d->detect(frames[i].bgr);
+    EXPECT_GT(g.stageMs("upload"), 0.0) << where;  // (the GPU's stage ran)
+    EXPECT_STREQ(d->backend(), "gles") << where;
+    expectSameLandmarks(cpu.detect(frames[i].bgr), g, 1e-4, where);
+  };
+  check(0, "this thread");
+  for (size_t i = 1; i < frames.size(); ++i) std::thread([&] { check(i, "thread " + std::to_string(i)); }).join();
+  check(0, "this thread again");
+  EXPECT_STREQ(d->backend(), "gles");
+  std::thread([&] { d.reset(); }).join();  // (and freed in yet another)
+}
+
 // Empty, tiny, gray, four-channel and 16-bit images, and frames changing size,
 // on both front ends: no crash, no landmarks where none can be.
 TEST(GlesInput, BadAndOddImages) {
@@ -637,7 +668,7 @@ TEST(GlesInput, BadAndOddImages) {
     EXPECT_TRUE(d.detect(cv::Mat(2, 2, CV_8UC3, cv::Scalar(255, 0, 0))).landmarks.empty());
     EXPECT_TRUE(d.detect(cv::Mat(3, 3, CV_8UC3, cv::Scalar(255, 0, 0))).landmarks.empty());
     EXPECT_TRUE(d.detect(cv::Mat(480, 640, CV_8UC1, cv::Scalar(128))).landmarks.empty());
-    EXPECT_TRUE(d.detect(cv::Mat(480, 640, CV_16UC3, cv::Scalar(0))).landmarks.empty());
+    EXPECT_THROW(d.detect(cv::Mat(480, 640, CV_16UC3, cv::Scalar(0))), std::invalid_argument);  // (said, not none)
     // a 15 cm landmark at 1 m, a little turned: both front ends find it
     const auto f = ld::synth::render(ld::synth::randomConditions(
         kCam, {ld::synth::placeLandmark(kCam, 1.0, 15, 5, 30, 0.1, -0.1, 0.15)}, 16));

@@ -463,6 +463,23 @@ TEST(QrReader, DegenerateInputDoesNotCrash) {
   EXPECT_FALSE(reader.decode(cv::Mat(), {{{0, 0}, {100, 0}, {100, 100}, {0, 100}}}).has_value());
   const cv::Mat gray(1, 1, CV_8UC1, cv::Scalar(0));
   EXPECT_FALSE(reader.decode(gray, {{{0, 0}, {100, 0}, {100, 100}, {0, 100}}}).has_value());
+  // An early return makes no view: lastView() is not the previous call's.
+  const cv::Mat sheet = ld::artwork::renderLandmark("view", 900);
+  const Scene sc = warped(sheet, {{{170, 90}, {470, 90}, {470, 390}, {170, 390}}});
+  ASSERT_TRUE(reader.decode(sc.image, sc.corners).has_value());
+  EXPECT_FALSE(reader.lastView().empty());
+  EXPECT_FALSE(reader.decode(img, {{{nan, 0}, {1, 0}, {1, 1}, {0, 1}}}).has_value());
+  EXPECT_TRUE(reader.lastView().empty());
+  // A 16-bit or float image is the caller's mistake, said (it read nothing).
+  for (int type : {CV_16UC1, CV_16UC3, CV_32FC3}) {
+    try {
+      reader.decode(cv::Mat(480, 640, type, cv::Scalar(0)), sc.corners);
+      ADD_FAILURE() << "a " << cv::typeToString(type) << " image was taken";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_EQ(std::string(e.what()), "QrReader::decode: a " + cv::typeToString(type) +
+                                           " image: it reads 8-bit BGR, BGRA or gray (CV_8UC3, CV_8UC4, CV_8UC1)");
+    }
+  }
 }
 
 // The modules the grid reader redraws ideal are those every code has, in

@@ -365,15 +365,25 @@ const cv::Mat& AdaptiveDetector::correct(const cv::Mat& bgr) {
   return corrected;
 }
 
-const Detection& AdaptiveDetector::detect(const cv::Mat& bgr) {
-  if (!enabled_) return detector_.detect(bgr);
+const cv::Mat& AdaptiveDetector::asBgr(const cv::Mat& image) {
+  // (the adapter reads BGR: a BGRA frame went to the detector uncorrected,
+  // and taught the adapter nothing)
+  if (image.type() != CV_8UC4) return image;
+  cv::cvtColor(image, bgr_, cv::COLOR_BGRA2BGR);
+  return bgr_;
+}
+
+const Detection& AdaptiveDetector::detect(const cv::Mat& image) {
+  if (!enabled_) return detector_.detect(image);
+  const cv::Mat& bgr = asBgr(image);
   const Detection& d = detector_.detect(correct(bgr));
   adapter_.observe(bgr, d);
   return d;
 }
 
-const Detection& AdaptiveDetector::detect(const cv::Mat& bgr, Explanation& why) {
-  if (!enabled_) return detector_.detect(bgr, why);
+const Detection& AdaptiveDetector::detect(const cv::Mat& image, Explanation& why) {
+  if (!enabled_) return detector_.detect(image, why);
+  const cv::Mat& bgr = asBgr(image);
   const Detection& d = detector_.detect(correct(bgr), why);
   adapter_.observe(bgr, d);
   return d;

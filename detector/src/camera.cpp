@@ -80,6 +80,11 @@ cv::FileNode firstOf(const cv::FileStorage& fs, std::initializer_list<const char
 CameraModel CameraModel::defaultVga() { return pinhole({640, 480}, 600.0); }
 
 CameraModel CameraModel::pinhole(cv::Size size, double focal_px) {
+  if (!(focal_px > 0) || !std::isfinite(focal_px))
+    throw std::invalid_argument("CameraModel::pinhole: the focal length must be a finite number of pixels > 0");
+  if (size.width < 0 || size.height < 0 || size.width > kMaxImageSide || size.height > kMaxImageSide)
+    throw std::invalid_argument("CameraModel::pinhole: the image size must be 0 to " + std::to_string(kMaxImageSide) +
+                                " px a side");
   CameraModel c;
   c.size = size;
   c.K = cv::Matx33d(focal_px, 0, (size.width - 1) / 2.0, 0, focal_px, (size.height - 1) / 2.0,

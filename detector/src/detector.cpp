@@ -738,6 +738,13 @@ struct Detector::Impl {
   // Stages 1-3 on `f`'s filters into `l` (fast front end) or `e` (paper);
   // the image the labels were taken on.
   const cv::Mat* filterOn(detail::Filters& f, const cv::Mat& img, cv::Mat& l, cv::Mat& e, StageTimer& timer) {
+    // Each frame leaves its thread free of the GPU's context, so that the
+    // next may run in another (a Detector is used from one thread at a
+    // time, not always the same one); 2-6 us a frame on Mesa.
+    struct Release {
+      detail::Filters& f;
+      ~Release() { f.releaseThread(); }
+    } release{f};
     const cv::Mat* filtered = &img;
     if (!paper) f.labelMap(img, filter_settings, l, filtered, timer);
     else f.edgeMap(img, filter_settings, e, timer);
@@ -1904,14 +1911,35 @@ Detector::Detector(Detector&&) noexcept = default;
 Detector& Detector::operator=(Detector&&) noexcept = default;
 
 void Detector::setCamera(const CameraModel& camera, double side_m) {
-  if (!(side_m > 0)) throw std::invalid_argument("Detector::setCamera: side_m must be > 0");
+  // (an infinite side, or a focal length of 0, NaN or below, gave landmarks
+  // no pose and no pose_error saying why)
+  if (!(side_m > 0) || !std::isfinite(side_m))
+    throw std::invalid_argument("Detector::setCamera: side_m must be a finite length > 0");
+  for (int i = 0; i < 9; ++i)
+    if (!std::isfinite(camera.K.val[i]))
+      throw std::invalid_argument("Detector::setCamera: the camera matrix has a value that is not finite");
+  if (!(camera.K(0, 0) > 0) || !(camera.K(1, 1) > 0))
+    throw std::invalid_argument("Detector::setCamera: the camera matrix's fx and fy must be > 0");
   impl_->camera = camera;
   impl_->scaled = camera;
   impl_->side_m = side_m;
   impl_->misfit_size = {};
 }
 
+namespace {
+// An image detect() cannot read is the caller's mistake, said, not a frame
+// without landmarks (a 16-bit PNG read with IMREAD_UNCHANGED found nothing).
+void checkImageType(const cv::Mat& image) {
+  if (image.empty() || (image.depth() == CV_8U && (image.channels() == 1 || image.channels() == 3 ||
+                                                    image.channels() == 4)))
+    return;
+  throw std::invalid_argument("Detector::detect: a " + cv::typeToString(image.type()) +
+                              " image: it reads 8-bit BGR, BGRA or gray (CV_8UC3, CV_8UC4, CV_8UC1)");
+}
+}  // namespace
+
 const Detection& Detector::detect(const cv::Mat& bgr) {
+  checkImageType(bgr);
   impl_->run(bgr);
   return impl_->det;
 }
@@ -1920,6 +1948,7 @@ const Detection& Detector::detect(const cv::Mat& bgr, Explanation& why) {
   // The detection, untraced (its times are its own); then again as a run
   // that records the looks (the same landmarks), its times put back to the
   // untraced run's; then the first pass explained.
+  checkImageType(bgr);
   impl_->run(bgr);
   const auto t0 = std::chrono::steady_clock::now();
   const std::vector<StageTime> stages = impl_->det.stages;

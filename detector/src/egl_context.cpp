@@ -247,6 +247,10 @@ EglContext::~EglContext() {
   eglDestroyContext(display_, context_);
 }
 
+void EglContext::release() {
+  if (eglGetCurrentContext() == context_) eglMakeCurrent(display_, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+}
+
 bool EglContext::makeCurrent() {
   if (eglGetCurrentContext() == context_) return true;
   return eglMakeCurrent(display_, surface_, surface_, context_) == EGL_TRUE;

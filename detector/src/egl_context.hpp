@@ -47,6 +47,9 @@ class EglContext {
 
   /// Makes the context current on the calling thread (cheap when it already is).
   bool makeCurrent();
+  /// Makes it current on no thread, when it is on the calling one (EGL
+  /// refuses to make a context current that another thread holds).
+  void release();
   const EglInfo& info() const { return info_; }
 
  private:

@@ -97,6 +97,11 @@ class Filters {
   /// end's filters on the first frames (the GLES paper front end's shader
   /// paths), so its times are not yet its settled ones.
   virtual bool settled(bool /*paper_front_end*/) const { return true; }
+
+  /// Leaves the calling thread free of the backend (the GLES backend's EGL
+  /// context is no longer current there), so that another thread may run
+  /// the next frame: EGL refuses a context current in another thread.
+  virtual void releaseThread() {}
 };
 
 /// The CPU backend (OpenCV and the vectorised pass of stages.cpp).

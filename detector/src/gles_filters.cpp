@@ -588,6 +588,8 @@ class GlesFilters final : public Filters {
     }
   }
 
+  void releaseThread() override { ctx_->release(); }
+
   ~GlesFilters() override {
     if (!ctx_->makeCurrent()) return;  // the context is gone: nothing to free
     for (auto& [key, prog] : programs_) glDeleteProgram(prog);
@@ -1100,6 +1102,7 @@ std::unique_ptr<Filters> makeGlesFilters(std::string& why, bool allow_compute, b
     auto f = std::make_unique<GlesFilters>(std::move(ctx), compute);
     if (!f->selfTest(why)) return nullptr;
     f->countFramesFromNow();  // (LD_GLES_FAIL_AT_FRAME counts the caller's frames, not the self test's)
+    f->releaseThread();       // (a detector made in one thread may run in another)
     return f;
   } catch (const std::exception& e) {
     why = e.what();

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <optional>
+#include <stdexcept>
 #include <utility>
 #include <vector>
 
@@ -116,6 +117,7 @@ struct QrReader::Impl {
   QrReaderParams params;
   zbar::ImageScanner scanner;
   cv::Mat gray, view, work, blurred, map, sampled, samples, sharpened, grid8, bits, clean;
+  bool view_made = false;  // this decode() made `view` (lastView: none otherwise)
   std::vector<int8_t> known, grid;  // the equaliser's modules: -1 unknown, 0 light, 1 dark
   std::vector<uint8_t> fitted;      // the pixel model's modules (1 dark)
   int fitted_n = 0;                 // ... of a code this many modules across (0: none fitted this decode)
@@ -549,7 +551,10 @@ QrReader::~QrReader() = default;
 QrReader::QrReader(QrReader&&) noexcept = default;
 QrReader& QrReader::operator=(QrReader&&) noexcept = default;
 
-const cv::Mat& QrReader::lastView() const { return impl_->view; }
+const cv::Mat& QrReader::lastView() const {
+  static const cv::Mat none;
+  return impl_->view_made ? impl_->view : none;
+}
 
 const std::vector<uint8_t>* QrReader::lastFittedModules(int& n) const {
   n = impl_->fitted_n;
@@ -567,6 +572,12 @@ std::optional<QrResult> QrReader::decode(const cv::Mat& image,
   Impl& m = *impl_;
   const QrReaderParams& p = m.params;
   m.fitted_n = 0;
+  m.view_made = false;
+  // (a 16-bit or float image read nothing, without a word)
+  if (!image.empty() && (image.depth() != CV_8U || (image.channels() != 1 && image.channels() != 3 &&
+                                                     image.channels() != 4)))
+    throw std::invalid_argument("QrReader::decode: a " + cv::typeToString(image.type()) +
+                                " image: it reads 8-bit BGR, BGRA or gray (CV_8UC3, CV_8UC4, CV_8UC1)");
   const auto readable = readableQrSide(image, corners);
   if (!readable) return std::nullopt;  // nothing to read
   const double qr_px = *readable;
@@ -577,6 +588,7 @@ std::optional<QrResult> QrReader::decode(const cv::Mat& image,
   const cv::Matx33d H = viewToImage(corners, side, p.margin_u);
   cv::warpPerspective(m.gray, m.view, H, {side, side}, cv::INTER_CUBIC | cv::WARP_INVERSE_MAP,
                       cv::BORDER_REPLICATE);
+  m.view_made = true;
 
   int attempt = 0;
   if (auto s = m.scan(m.view)) return QrResult{*s, attempt};

@@ -127,6 +127,8 @@ class LightingAdapter {
 /// A Detector with a LightingAdapter in front: detect() corrects the frame,
 /// detects, and feeds the confirmed landmarks back. With the adapter turned
 /// off (`--adaptive` not given), frames go to the detector as they are.
+/// It takes what Detector takes: BGR, BGRA (corrected as BGR) or gray (no
+/// landmarks).
 class AdaptiveDetector {
  public:
   explicit AdaptiveDetector(const DetectorParams& params = {}, const AdaptiveParams& adaptive = {});
@@ -143,6 +145,9 @@ class AdaptiveDetector {
   // The frame corrected, and the detector told whether the correction
   // stretched a veil away by wide_hue_min_stretch or more.
   const cv::Mat& correct(const cv::Mat& bgr);
+  // A BGRA frame as BGR (in bgr_, kept between frames); others as they are.
+  const cv::Mat& asBgr(const cv::Mat& image);
+  cv::Mat bgr_;
   Detector detector_;
   LightingAdapter adapter_;
   bool enabled_ = true;

@@ -63,7 +63,8 @@
 // integer arithmetic (OpenCV's fixed-point blur included): both backends
 // give the same label images, edge maps and landmarks. Each GPU stage ends
 // in glFinish, so stage times are the GPU's. A GLES Detector holds its own
-// EGL context; use it from one thread at a time.
+// EGL context; use it from one thread at a time (not always the same one:
+// each frame leaves the context current on no thread).
 //
 // A Detector keeps its buffers between frames: once warmed up, detect() does
 // not allocate for frames of the same size (pose, through cv::solvePnP, does).
@@ -498,8 +499,10 @@ class Detector {
   /// another aspect ratio get no pose, and Detection::pose_error says why.
   void setCamera(const CameraModel& camera, double side_m);
 
-  /// Detects landmarks in an 8-bit BGR (or gray: no landmarks) image. The
-  /// returned reference stays valid until the next call.
+  /// Detects landmarks in an 8-bit BGR or BGRA (or gray: no landmarks)
+  /// image; an empty one has none. Throws std::invalid_argument, naming the
+  /// type, for any other (16-bit, float, two channels). The returned
+  /// reference stays valid until the next call.
   const Detection& detect(const cv::Mat& bgr);
   /// detect(), then the first pass again, counted and with each refused
   /// group's check, into `why`, and the looks as a run of their own records

@@ -56,11 +56,15 @@ class QrReader {
   QrReader& operator=(QrReader&&) noexcept;
 
   /// Decodes the QR of the landmark whose pattern corners (TL, TR, BR, BL,
-  /// LANDMARK.md's `corners`) are given, in an 8-bit BGR or gray image.
-  /// nullopt when no variation decodes (too small, blurred, damaged, missing).
+  /// LANDMARK.md's `corners`) are given, in an 8-bit BGR, BGRA or gray
+  /// image. nullopt when no variation decodes (too small, blurred, damaged,
+  /// missing) or there is nothing to read (an empty image, corners not
+  /// finite). Throws std::invalid_argument, naming the type, for an image
+  /// of another type (16-bit, float).
   std::optional<QrResult> decode(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners);
 
-  /// The upright gray view of the last decode() call (for debugging, ld-view).
+  /// The upright gray view of the last decode() call (for debugging, ld-view);
+  /// empty when that call made none (nothing to read).
   const cv::Mat& lastView() const;
 
   /// The modules the pixel model (QrReaderParams::fit_pixels) fitted in the
