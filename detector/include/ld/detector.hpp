@@ -66,8 +66,12 @@
 // EGL context; use it from one thread at a time (not always the same one:
 // each frame leaves the context current on no thread).
 //
-// A Detector keeps its buffers between frames: once warmed up, detect() does
-// not allocate for frames of the same size (pose, through cv::solvePnP, does).
+// A Detector keeps its buffers between frames: once warmed up, detect() with
+// the default fast front end does not allocate for frames of the same size.
+// What does: the pose (cv::solvePnP) and the sheet alignment before it
+// (align_iterations), the paper front end (OpenCV's Canny and contours, a
+// few hundred small buffers a frame), and AdaptiveDetector's correction
+// (OpenCV's filter objects, about 50); README, "Allocation per frame".
 #pragma once
 
 #include <array>
