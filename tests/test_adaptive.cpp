@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
+#include <stdexcept>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -54,6 +56,28 @@ TEST(LightingAdapter, GainsAreBoundedAndBadFramesPassThrough) {
   const cv::Mat gray(10, 10, CV_8UC1, cv::Scalar(9));
   EXPECT_EQ(a.correct(gray).data, gray.data);
   EXPECT_TRUE(a.correct(cv::Mat()).empty());
+  // Parameters out of their range are refused, named (max_gain 0 made every
+  // frame black and found nothing, without a word)
+  const auto refused = [](void (*set)(ld::AdaptiveParams&), const std::string& says) {
+    ld::AdaptiveParams bad;
+    set(bad);
+    try {
+      ld::LightingAdapter refusing(bad);
+      ADD_FAILURE() << "taken: " << says;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_EQ(std::string(e.what()), "AdaptiveParams: " + says);
+    }
+  };
+  refused([](ld::AdaptiveParams& q) { q.max_gain = 0; }, "max_gain must be 1 to 64, not 0");
+  refused([](ld::AdaptiveParams& q) { q.target_white = 1000; }, "target_white must be 1 to 255, not 1000");
+  refused([](ld::AdaptiveParams& q) { q.glare_window = 0; }, "glare_window must be 1 to 4096, not 0");
+  refused([](ld::AdaptiveParams& q) { q.smoothing = std::nan(""); }, "smoothing must be 0.001 to 1, not nan");
+  EXPECT_THROW(ld::AdaptiveDetector({}, [] {
+                 ld::AdaptiveParams q;
+                 q.bright_fraction = 2;
+                 return q;
+               }()),
+               std::invalid_argument);
 }
 
 TEST(LightingAdapter, ConfirmedLandmarkSheetIsTheWhiteReference) {

@@ -2,6 +2,8 @@
 // with zbar; damaged, missing or degenerate input gives no payload.
 #include <gtest/gtest.h>
 
+#include <climits>
+#include <cmath>
 #include <cstdio>
 #include <sstream>
 
@@ -451,6 +453,30 @@ TEST(QrReader, DamagedOrMissingQrGivesNothing) {
   cv::rectangle(blank, cv::Rect(250, 250, 400, 400), cv::Scalar(255, 255, 255), cv::FILLED);
   sc = warped(blank, {{{170, 90}, {470, 90}, {470, 390}, {170, 390}}});
   EXPECT_FALSE(reader.decode(sc.image, sc.corners).has_value());
+}
+
+// Parameters out of their range are refused, named (min_side_px over
+// max_side_px broke std::clamp's precondition, INT_MAX sides asked for
+// exabytes, a NaN upsample was taken).
+TEST(QrReader, ParametersOutOfRangeAreRefused) {
+  const auto refused = [](void (*set)(ld::QrReaderParams&), const std::string& says) {
+    ld::QrReaderParams bad;
+    set(bad);
+    try {
+      ld::QrReader reader(bad);
+      ADD_FAILURE() << "taken: " << says;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_EQ(std::string(e.what()), "QrReaderParams: " + says);
+    }
+  };
+  refused([](ld::QrReaderParams& q) { q.min_side_px = 600; }, "max_side_px must be 600 to 4096, not 480");
+  refused([](ld::QrReaderParams& q) { q.min_side_px = q.max_side_px = INT_MAX; },
+          "min_side_px must be 16 to 4096, not 2147483647");
+  refused([](ld::QrReaderParams& q) { q.upsample = std::nan(""); }, "upsample must be 0.25 to 16, not nan");
+  refused([](ld::QrReaderParams& q) { q.margin_u = -0.1; }, "margin_u must be 0 to 1, not -0.1");
+  ld::QrReaderParams edge;
+  edge.min_side_px = edge.max_side_px = 480;
+  EXPECT_NO_THROW(ld::QrReader{edge});
 }
 
 TEST(QrReader, DegenerateInputDoesNotCrash) {

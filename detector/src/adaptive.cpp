@@ -3,6 +3,10 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
+#include <iomanip>
+#include <sstream>
+#include <stdexcept>
 #include <utility>
 
 #include <opencv2/imgproc.hpp>
@@ -42,10 +46,35 @@ cv::Vec3d relativeColour(const cv::Vec3d& c) {
 // The glare pass's statistics are per kGlareBlock x kGlareBlock pixels.
 constexpr int kGlareBlock = 8;
 
+// The parameters as their comments bound them; std::invalid_argument naming
+// the first that is not (max_gain 0 made every frame black, without a word).
+const AdaptiveParams& checked(const AdaptiveParams& p) {
+  const auto in = [](const char* name, double v, double lo, double hi) {
+    if (!(v >= lo && v <= hi)) {  // (NaN too)
+      std::ostringstream s;
+      s << std::setprecision(10) << "AdaptiveParams: " << name << " must be " << lo << " to " << hi << ", not " << v;
+      throw std::invalid_argument(s.str());
+    }
+  };
+  in("target_white", p.target_white, 1, 255);
+  in("max_gain", p.max_gain, 1, 64);
+  in("bright_fraction", p.bright_fraction, 1e-4, 1);
+  in("smoothing", p.smoothing, 1e-3, 1);
+  in("landmark_memory_frames", p.landmark_memory_frames, 0, 1 << 20);
+  in("deadband", p.deadband, 0, 10);
+  in("denoise_sigma", p.denoise_sigma, 0, 20);
+  in("denoise_above_gain", p.denoise_above_gain, 1, 1e9);
+  in("glare_min_lift", p.glare_min_lift, 0, 255);
+  in("glare_min_contrast", p.glare_min_contrast, 0, 255);
+  in("glare_window", p.glare_window, 1, 4096);
+  in("wide_hue_min_stretch", p.wide_hue_min_stretch, 1, std::numeric_limits<double>::infinity());
+  return p;
+}
+
 }  // namespace
 
 LightingAdapter::LightingAdapter(const AdaptiveParams& params)
-    : params_(params),
+    : params_(checked(params)),
       hist_(256),
       level_sums_(256),
       // the window in blocks (odd), and the reach of a veiled block's smoothing

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdint>
 #include <optional>
+#include <iomanip>
+#include <sstream>
 #include <stdexcept>
 #include <utility>
 #include <vector>
@@ -540,6 +542,19 @@ struct QrReader::Impl {
 };
 
 QrReader::QrReader(const QrReaderParams& params) : impl_(std::make_unique<Impl>()) {
+  // (min_side_px over max_side_px broke std::clamp's precondition; INT_MAX
+  // sides asked for exabytes; a NaN upsample was taken)
+  const auto in = [](const char* name, double v, double lo, double hi) {
+    if (!(v >= lo && v <= hi)) {
+      std::ostringstream s;
+      s << std::setprecision(10) << "QrReaderParams: " << name << " must be " << lo << " to " << hi << ", not " << v;
+      throw std::invalid_argument(s.str());
+    }
+  };
+  in("upsample", params.upsample, 0.25, 16);
+  in("min_side_px", params.min_side_px, 16, 4096);
+  in("max_side_px", params.max_side_px, params.min_side_px, 4096);
+  in("margin_u", params.margin_u, 0, 1);
   impl_->params = params;
   impl_->scanner.set_config(zbar::ZBAR_NONE, zbar::ZBAR_CFG_ENABLE, 0);
   impl_->scanner.set_config(zbar::ZBAR_QRCODE, zbar::ZBAR_CFG_ENABLE, 1);

@@ -69,6 +69,9 @@ struct AdaptiveParams {
 
 class LightingAdapter {
  public:
+  /// Throws std::invalid_argument naming a parameter out of its range
+  /// (target_white 1-255, max_gain 1-64, bright_fraction and smoothing up
+  /// to 1, glare_window 1-4096 px, ...; NaN nowhere).
   explicit LightingAdapter(const AdaptiveParams& params = {});
 
   /// The frame to detect on: `bgr` corrected for the current estimate (or
