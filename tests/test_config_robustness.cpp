@@ -161,6 +161,11 @@ TEST(CameraFile, ValuesNoCameraHasAreRefused) {
                 .find("line 1: the integer 4294967936 is out of range (-2147483648 to 2147483647)"),
             std::string::npos)
       << load(file("image_width: 4294967936\nimage_height: 480\n", 600, zero));
+  // a leading 0: OpenCV reads octal, so 0640 was 416 px
+  EXPECT_NE(load(file("image_width: 0640\nimage_height: 480\n", 600, zero))
+                .find("line 1: the integer 0640 has a leading 0, and OpenCV reads it as octal (416): write it without"),
+            std::string::npos)
+      << load(file("image_width: 0640\nimage_height: 480\n", 600, zero));
   // under keys it does not read, a long number is no matter (a camera's serial)
   EXPECT_EQ(load("camera_name: 4103284471\nserial: 12345678901 # lot\n" + file(vga.substr(14), 600, zero).substr(0) ), "")
       << load("camera_name: 4103284471\nserial: 12345678901 # lot\n" + file(vga.substr(14), 600, zero));

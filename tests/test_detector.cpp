@@ -2444,6 +2444,11 @@ TEST(Params, SaveLoadRoundTrip) {
   EXPECT_DOUBLE_EQ(q.color_ratio_a, p.color_ratio_a);
   EXPECT_DOUBLE_EQ(q.sheet_min_value, p.sheet_min_value);
   std::remove(path.c_str());
+  // true and false, as the tracker's file takes them (it was "must be 0 or 1")
+  std::ofstream(path) << "complete_missing: false\n";
+  const ld::DetectorParams b = ld::DetectorParams::load(path);
+  EXPECT_FALSE(b.complete_missing);
+  std::remove(path.c_str());
 }
 
 TEST(Params, PartialFileKeepsDefaults) {
@@ -2495,6 +2500,15 @@ TEST(Params, BadFilesGiveClearErrors) {
                 .find("line 4: the integer 4294967299 is out of range"),
             std::string::npos);
   EXPECT_NE(loadError("max_cycles: -99999999999\n").find("line 1: the integer -99999999999 is out of range"),
+            std::string::npos);
+  // a leading 0 is octal to OpenCV (value_min: 040 loaded as 32)
+  EXPECT_NE(loadError("value_min: 040\n").find("line 1: the integer 040 has a leading 0, and OpenCV reads it as octal (32)"),
+            std::string::npos)
+      << loadError("value_min: 040\n");
+  EXPECT_NE(loadError("value_min: 09\n").find("line 1: the integer 09 has a leading 0, and OpenCV reads no octal"),
+            std::string::npos);
+  // booleans as the tracker's file takes them, true and false, besides 1 and 0
+  EXPECT_NE(loadError("complete_missing: yes\n").find("'complete_missing' must be 0 or 1 (or false or true)"),
             std::string::npos);
   // bounds that keep a frame's time and memory bounded: no infinite number
   // (d_max .inf let the FIP graph take every pair), max_cycles up to 1e6

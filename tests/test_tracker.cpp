@@ -958,6 +958,7 @@ TEST(TrackerParams, ClearErrors) {
   expectLoadError("max_lifetime_s: [1\n", "cannot parse");
   expectLoadError("", "is empty");  // as the detector's parameters (a file cut short)
   expectLoadError(" \n\n", "is empty");
+  expectLoadError("min_hits: 010\n", "the integer 010 has a leading 0, and OpenCV reads it as octal (8)");  // (it loaded 8)
   EXPECT_EQ(ld::TrackerParams::load(writeTemp("braces.yaml", "{}\n")).max_distance, ld::TrackerParams{}.max_distance);
   try {
     ld::TrackerParams::load("/nonexistent/tracker.yaml");

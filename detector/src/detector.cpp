@@ -97,8 +97,13 @@ void readField(const std::string& path, const cv::FileNode& n, const char* key, 
   v = static_cast<int>(n);
 }
 void readField(const std::string& path, const cv::FileNode& n, const char* key, bool& v) {
+  // (true and false as well, as the tracker's file takes them)
+  if (n.isString() && (configString(n) == "true" || configString(n) == "false")) {
+    v = configString(n) == "true";
+    return;
+  }
   if (!n.isInt() || (static_cast<int>(n) != 0 && static_cast<int>(n) != 1))
-    badFile(path, std::string("key '") + key + "' must be 0 or 1");
+    badFile(path, std::string("key '") + key + "' must be 0 or 1 (or false or true)");
   v = static_cast<int>(n) != 0;
 }
 void readField(const std::string& path, const cv::FileNode& n, const char* key, double& v) {

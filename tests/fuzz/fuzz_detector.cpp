@@ -8,11 +8,14 @@
 // (little-endian, 0..640, or up to 5120 on a side and 16 Mpixel with bit 4). The rest, repeated, fills the
 // pixels row by row, so a seed holding a whole frame is that frame. Every
 // size from 0x0 up, any channel count: detect() must return (no landmarks
-// for what it cannot read), and whatever it reports must be finite.
+// for what it cannot read) or, for an image type it does not take (16-bit,
+// two channels), throw std::invalid_argument and only then; whatever it
+// reports must be finite.
 #include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
+#include <stdexcept>
 
 #include "ld/detector.hpp"
 
@@ -73,7 +76,16 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
 
   ld::Detector& detector = detectorFor(variant);
   detector.setGlareCorrected(glare_corrected);  // (per frame, as ld::AdaptiveDetector sets it)
-  const ld::Detection& det = detector.detect(image);
+  const bool readable = image.empty() || (depth == CV_8U && channels != 2);
+  const ld::Detection* found = nullptr;
+  try {
+    found = &detector.detect(image);
+  } catch (const std::invalid_argument&) {
+    if (readable) std::abort();
+    return 0;
+  }
+  if (!readable) std::abort();  // (taken without a word: it finds nothing)
+  const ld::Detection& det = *found;
   if (det.landmarks.size() > 10000) std::abort();
   for (const ld::Landmark& lm : det.landmarks) {
     if (!finite(lm.fip_tl) || !finite(lm.fip_tr) || !finite(lm.fip_bl) || !finite(lm.ap))

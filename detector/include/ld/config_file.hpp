@@ -92,7 +92,8 @@ inline std::optional<std::string> unsafeForOpenCv(const std::string& text) {
 /// `key:` line, or of an XML line's first tag, and of the lines after it
 /// until the next: a camera file's other keys, a camera's 10-digit serial
 /// say, are not read as numbers). As "line N: the integer X is out of
-/// range (...)", or nullopt.
+/// range (...)", or nullopt. An integer written with a leading 0 (040) is
+/// refused too: OpenCV reads it as octal (32), without a word.
 inline std::optional<std::string> integerOutOfRange(
     const std::string& text, const std::function<bool(const std::string&)>& checked = nullptr) {
   static const std::regex yaml_key(R"(^\s*(?:-\s+)?["']?([A-Za-z_][A-Za-z0-9_]*)["']?\s*:)");
@@ -135,6 +136,14 @@ inline std::optional<std::string> integerOutOfRange(
         const std::string limit = token[0] == '-' ? "2147483648" : "2147483647";
         const size_t lead = std::min(mag.find_first_not_of('0'), mag.size());
         const std::string m2 = mag.substr(lead);
+        if (mag.size() > 1 && mag[0] == '0') {
+          const bool octal = mag.find_first_of("89") == std::string::npos && mag.size() <= 11;
+          return "line " + std::to_string(line) + ": the integer " + token + " has a leading 0, and OpenCV reads " +
+                 (octal ? "it as octal (" + std::string(token[0] == '-' ? "-" : "") +
+                              std::to_string(std::stoll(mag, nullptr, 8)) + ")"
+                        : "no octal number in it") +
+                 ": write it without";
+        }
         if (m2.size() > limit.size() || (m2.size() == limit.size() && m2 > limit))
           return "line " + std::to_string(line) + ": the integer " + token +
                  " is out of range (-2147483648 to 2147483647)";
