@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdint>
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
@@ -45,6 +46,23 @@ std::string lcmUrlProblem(const std::string& url) {
       if (port.empty() || *stop != '\0' || p < 1 || p > 65535)
         return url + ": " + (port.empty() ? std::string("no port") : "port " + port + " is not one") +
                " (udpm://GROUP:PORT, e.g. " + kLcmUrlExample + ")";
+    }
+    // The options LCM reads a number from: one that is none it takes as 0
+    // with a line of its own ("Invalid value for ttl") and goes on.
+    for (size_t at = q; at != std::string::npos && at + 1 < url.size();) {
+      const size_t next = url.find('&', at + 1);
+      const std::string option = url.substr(at + 1, next == std::string::npos ? std::string::npos : next - at - 1);
+      at = next;
+      const size_t eq = option.find('=');
+      const std::string key = option.substr(0, eq), value = eq == std::string::npos ? "" : option.substr(eq + 1);
+      const long lo = key == "ttl" ? 0 : 1, hi = key == "ttl" ? 255 : INT32_MAX;
+      if (key != "ttl" && key != "recv_buf_size") continue;
+      char* stop = nullptr;
+      errno = 0;
+      const long v = std::strtol(value.c_str(), &stop, 0);  // (as LCM reads it)
+      if (value.empty() || *stop != '\0' || errno != 0 || v < lo || v > hi)
+        return url + ": " + key + " " + (value.empty() ? std::string("has no value") : value + " is not one") + " (" +
+               std::to_string(lo) + " to " + std::to_string(hi) + (key == "ttl" ? ": 0 keeps packets on this machine, 1 on its LAN" : " bytes") + ")";
     }
     return "";
   }
