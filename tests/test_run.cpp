@@ -338,6 +338,8 @@ TEST(BusMonitor, TrackWithTwoPayloadsListsBoth) {
   for (int i = 0; i < 10; ++i) m.trackedSeen(list(1000 + i, i, {trackedLandmark(2, true)}), 1000 + i);
   EXPECT_TRUE(m.summary()["frames"]["qr_reader_skipped"].is_null());
   EXPECT_NE(m.statusLine(1010).find("qr - |"), std::string::npos);  // (no QR reader heard yet)
+  // no image seen, so no frame timed: "-", not "p50 0.00 ms"
+  EXPECT_NE(m.statusLine(1020).find("| e2e - |"), std::string::npos) << m.statusLine(1030);
   ld::qr_code_list_t codes{};
   ld::qr_code_t c{};
   c.track_id = 2;
@@ -658,6 +660,19 @@ TEST(RunConfig, YamlErrorsNameTheKeyOrTheLine) {
   // parse error, past the reader (found by fuzz_run_config)
   const std::string overflow = loadError("big.json", "{\"source\": {\"speed\": 3e333}}");
   EXPECT_NE(overflow.find("big.json: not valid JSON"), std::string::npos) << overflow;
+  // an image or a log given by mistake: said, not a parse error ending in a raw byte
+  const std::string png = loadError("lm.json", std::string("\x89PNG\r\n\x1a\n\0\0\0\rIHDR", 16));
+  EXPECT_NE(png.find("lm.json contains a NUL byte at offset 8 (not a text file)"), std::string::npos) << png;
+  const std::string latin = loadError("l1.json", "{\"source\": \xe4}");
+  EXPECT_NE(latin.find("not valid JSON"), std::string::npos) << latin;
+  EXPECT_NE(latin.find("\\xE4"), std::string::npos) << latin;
+  EXPECT_EQ(latin.find('\xe4'), std::string::npos) << latin;
+  try {
+    ld::RunConfig::load("/nonexistent/robot.json");
+    ADD_FAILURE();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot read config /nonexistent/robot.json: No such file or directory"), std::string::npos) << e.what();
+  }
   // JSON stays strict: a number written as text is refused
   EXPECT_NE(loadError("str.json", "{\"source\": {\"speed\": \"2\"}}").find("source.speed: expected a number, got \"2\""),
             std::string::npos);

@@ -219,12 +219,16 @@ std::string BusMonitor::statusLine(Micros now_us) {
   last_status_us_ = now_us;
   int read = 0;
   for (const auto& [id, t] : tracks_) read += !t.payloads.empty();
+  // (no frame tracked in the window: nothing was timed, "-" as for a QR
+  // reader not heard, not 0.00 ms)
+  char e2e[64] = "e2e -";
+  if (p.count > 0) std::snprintf(e2e, sizeof e2e, "e2e p50 %.2f ms p99 %.2f ms", p.p50, p.p99);
   char buf[320];
   std::snprintf(buf, sizeof buf,
-                "%s %.1f/s  %s %.1f/s  %s %.1f/s  %s %.1f/s | e2e p50 %.2f ms p99 %.2f ms | "
+                "%s %.1f/s  %s %.1f/s  %s %.1f/s  %s %.1f/s | %s | "
                 "skipped det %lld trk %lld qr %s | tracks %zu, %d read",
                 ch_.image.c_str(), hi, ch_.landmarks.c_str(), hl, ch_.tracked.c_str(), ht,
-                ch_.codes.c_str(), hc, p.p50, p.p99, static_cast<long long>(det_skipped_.sum),
+                ch_.codes.c_str(), hc, e2e, static_cast<long long>(det_skipped_.sum),
                 static_cast<long long>(trk_skipped_.sum),
                 codes_.total > 0 ? std::to_string(qr_skipped_).c_str() : "-", tracks_.size(),
                 read);

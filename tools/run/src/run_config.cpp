@@ -1,8 +1,10 @@
 #include "ld/run_config.hpp"
 
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -302,9 +304,14 @@ RunConfig RunConfig::load(const std::string& given) {
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) throw std::runtime_error("config " + path + " is a folder");
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error("cannot read config " + path);
+  if (!in) throw std::runtime_error("cannot read config " + path + ": " + std::strerror(errno));
   const std::optional<std::string> text = readAtMost(in, kMaxConfigBytes);
   if (!text) throw std::runtime_error("config " + path + " is larger than 16 MiB: not a configuration file");
+  // (an image or a log given by mistake: the parser's words ended in the raw
+  // byte it stopped at)
+  if (const size_t nul = text->find('\0'); nul != std::string::npos)
+    throw std::runtime_error("config " + path + " contains a NUL byte at offset " + std::to_string(nul) +
+                             " (not a text file)");
   std::istringstream f(*text);
   Json j;
   const bool yaml = endsWith(path, ".yaml") || endsWith(path, ".yml");
@@ -337,7 +344,15 @@ RunConfig RunConfig::load(const std::string& given) {
       if (!twice.empty())
         throw std::runtime_error(path + ": key \"" + twice + "\" is given twice (only the last would count)");
     } catch (const Json::exception& e) {  // parse_error, and out_of_range for a number like 3e333
-      throw std::runtime_error(path + ": not valid JSON: " + e.what());
+      // (the parser quotes the bytes it stopped at: a byte that is no
+      // printable ASCII is written as \xNN, not put on the terminal)
+      std::string words;
+      for (const unsigned char c : std::string(e.what())) {
+        char hex[8];
+        std::snprintf(hex, sizeof hex, "\\x%02X", c);
+        words += c >= 0x20 && c < 0x7F ? std::string(1, static_cast<char>(c)) : std::string(hex);
+      }
+      throw std::runtime_error(path + ": not valid JSON: " + words);
     }
   }
   try {

@@ -165,10 +165,13 @@ void printReport(const Json& s) {
               lpf["max"].get<int>());
   for (const auto& [n, c] : lpf["histogram"].items()) std::printf(" %s:%lld", n.c_str(), c.get<long long>());
   std::printf("\n");
-  std::printf("end-to-end latency IMAGE -> LANDMARKS_TRACKED (%lld frames): p50 %.2f ms, p90 %.2f ms, "
-              "p99 %.2f ms, max %.2f ms\n",
-              lat["count"].get<long long>(), lat["p50"].get<double>(), lat["p90"].get<double>(),
-              lat["p99"].get<double>(), lat["max"].get<double>());
+  if (lat["count"].get<long long>() > 0)
+    std::printf("end-to-end latency IMAGE -> LANDMARKS_TRACKED (%lld frames): p50 %.2f ms, p90 %.2f ms, "
+                "p99 %.2f ms, max %.2f ms\n",
+                lat["count"].get<long long>(), lat["p50"].get<double>(), lat["p90"].get<double>(),
+                lat["p99"].get<double>(), lat["max"].get<double>());
+  else
+    std::printf("end-to-end latency IMAGE -> LANDMARKS_TRACKED: none measured (no frame was tracked)\n");
   std::printf("tracks (%zu, %d with a payload):\n", s["summary"]["tracks"].size(),
               s["summary"]["payloads_decoded"].get<int>());
   // (a tracker that restarted numbered its tracks from 1 again: each run's apart)
@@ -678,10 +681,12 @@ int main(int argc, char** argv) {
          std::to_string(log_images) + " images on " + cfg.channels.image +
          (log_damage.empty() ? " never came (lost on the bus: README, \"LCM URL and large images\")"
                              : " never came (lcm-logplayer stopped at the log's damage: --play reads past it)"));
+  char e2e[64] = "e2e -";  // (nothing tracked, nothing timed: not 0.00 ms)
+  if (lat["count"].get<long long>() > 0)
+    std::snprintf(e2e, sizeof e2e, "e2e p50 %.2f ms p99 %.2f ms", lat["p50"].get<double>(), lat["p99"].get<double>());
   char buf[256];
-  std::snprintf(buf, sizeof buf, "%lld images, %lld tracked, e2e p50 %.2f ms p99 %.2f ms, %d restarts; exit %d",
-                f["images"].get<long long>(), f["tracked"].get<long long>(), lat["p50"].get<double>(),
-                lat["p99"].get<double>(), sup.restarts(), exit_code);
+  std::snprintf(buf, sizeof buf, "%lld images, %lld tracked, %s, %d restarts; exit %d",
+                f["images"].get<long long>(), f["tracked"].get<long long>(), e2e, sup.restarts(), exit_code);
   note(buf);
   return exit_code;
 }
