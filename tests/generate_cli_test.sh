@@ -45,6 +45,9 @@ grep -q "does not fit on a 210x297 mm page (at most 190 mm with its label and 10
 [ -s "$T/deploy/landmarks-1.svg" ] && [ -s "$T/deploy/landmarks-2.svg" ] || fail "20 cm on A3: $(ls "$T/deploy")"
 if "$BIN/ld-generate" -p x -p y --svg "$T/x.svg" 2>"$T/err"; then fail "two payloads without --sheet accepted"; fi
 grep -q "several payloads need --sheet" "$T/err" || fail "no --sheet: $(cat "$T/err")"
+# a page's size without --sheet: said (a single landmark was written, the page dropped without a word)
+if "$BIN/ld-generate" -p a --page-width 297 --svg "$T/page.svg" 2>"$T/err"; then fail "--page-width without --sheet accepted"; fi
+grep -q -- "--page-width is for --sheet" "$T/err" && [ ! -e "$T/page.svg" ] || fail "--page-width alone: $(cat "$T/err")"
 if "$BIN/ld-generate" -p x 2>"$T/err"; then fail "no output accepted"; fi
 grep -q "give --png and/or --svg (--help lists the options)" "$T/err" || fail "no output: $(cat "$T/err")"
 if "$BIN/ld-generate" -p x --svg /proc/no/x.svg 2>"$T/err"; then fail "unwritable --svg accepted"; fi

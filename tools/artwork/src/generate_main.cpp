@@ -55,10 +55,10 @@ int main(int argc, char** argv) {
   app.add_flag("--sheet", sheet,
                "lay the landmarks out on pages with their payloads as labels (more than a page holds: "
                "FILE-1.svg, FILE-2.svg, ...)");
-  app.add_option("--page-width", page.page_w_mm, "page width in mm (sheet)")
+  auto* page_w = app.add_option("--page-width", page.page_w_mm, "page width in mm (sheet)")
       ->check(ld::cli::Between(10.0, 5000.0))
       ->capture_default_str();
-  app.add_option("--page-height", page.page_h_mm, "page height in mm (sheet)")
+  auto* page_h = app.add_option("--page-height", page.page_h_mm, "page height in mm (sheet)")
       ->check(ld::cli::Between(10.0, 5000.0))
       ->capture_default_str();
   LD_CLI_PARSE(app, argc, argv);
@@ -72,6 +72,11 @@ int main(int argc, char** argv) {
   if (!svg.empty() && !ld::hasExtension(svg, ".svg"))
     return ld::cli::usage(argv[0], "--svg " + svg + ": the file name must end in .svg");
   if (payloads.size() > 1 && !sheet) return ld::cli::usage(argv[0], "several payloads need --sheet");
+  // (a single landmark is its own page: the page's size was dropped without a word)
+  for (const auto* o : {page_w, page_h})
+    if (!sheet && o->count() > 0)
+      return ld::cli::usage(argv[0], o->get_name() + " is for --sheet (a landmark alone is a page of its own "
+                                                     "size, --size)");
   // (the PNG's size before anything is written: OpenCV cannot allocate a
   // 2 m sheet at 2400 dpi, 188976 px a side, and says so in its own words)
   if (!png.empty()) {
