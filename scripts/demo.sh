@@ -19,6 +19,10 @@ BIN=$(cd "$BUILD/bin" && pwd)
 # folder given by LD_DEMO_OUT only when it is the demo's own (it holds
 # .ld-demo) or empty, never a folder of anything else.
 OUT=${LD_DEMO_OUT:-$ROOT/out/demo}
+if [ -e "$OUT" ] && [ ! -d "$OUT" ]; then
+  echo "demo.sh: $OUT is a file, not a folder: give LD_DEMO_OUT an empty or new folder" >&2
+  exit 2
+fi
 if [ -n "${LD_DEMO_OUT:-}" ] && [ -e "$OUT" ] && [ ! -e "$OUT/.ld-demo" ] && [ -n "$(ls -A "$OUT" 2>/dev/null)" ]; then
   echo "demo.sh: $OUT holds files that are not the demo's: give LD_DEMO_OUT an empty or new folder" >&2
   exit 2
