@@ -58,6 +58,14 @@ refused "--all is for --log" env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --
 refused "--tracks TRACKS\\[: LCM reads a subscription's channel as a regular expression, and this is none" \
   env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --tracks 'TRACKS[' --out "$T/pattern"
 [ ! -e "$T/pattern" ] || fail "a refused channel created --out's folder"
+# --out over frames already there (ld-synth's frames are named as ld-view names its own, and were
+# written over without a word): refused, none touched
+mkdir "$T/orig"
+for f in 000002.png 000000.png 000001-2.png; do echo "original $f" >"$T/orig/$f"; done
+echo notes >"$T/orig/notes.png"   # (not a frame's name: no matter)
+refused "--out $T/orig holds 3 frames named as ld-view names its own (000000.png, ...): they would be written over" \
+  env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --out "$T/orig"
+[ "$(cat "$T/orig/000000.png")" = "original 000000.png" ] || fail "the frames already there were touched"
 # --window with --out and no display: the advice is to drop --window; an empty DISPLAY is none
 refused "cannot open a window: DISPLAY and WAYLAND_DISPLAY are unset (.*); drop --window$" \
   "$netns" env -u WAYLAND_DISPLAY DISPLAY= "$BIN/ld-view" --window --all --log "$T/in.lcmlog" --out "$T/w"

@@ -13,6 +13,7 @@
 #include <iostream>
 #include <map>
 #include <optional>
+#include <regex>
 
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
@@ -520,6 +521,24 @@ int main(int argc, char** argv) {
     }
   }
   if (!o.out_dir.empty()) {  // created when missing, and written in
+    // Not over frames already there: ld-synth's (its frames are named as
+    // ld-view names its own, SEQ.png), or an earlier run's, were written
+    // over without a word.
+    std::error_code ec;
+    int64_t frames = 0;
+    std::string first;
+    static const std::regex frame_name(R"(\d+(-\d+)?\.png)");
+    for (std::filesystem::directory_iterator it(o.out_dir, ec), end; !ec && it != end; it.increment(ec)) {
+      const std::string name = it->path().filename().string();
+      if (!std::regex_match(name, frame_name)) continue;
+      if (frames++ == 0 || name < first) first = name;
+    }
+    if (frames > 0) {
+      std::cerr << "ld-view: --out " << o.out_dir << " holds " << frames << " frame" << (frames == 1 ? "" : "s")
+                << " named as ld-view names its own (" << first << (frames > 1 ? ", ..." : "")
+                << "): they would be written over; give an empty or new folder\n";
+      return 2;
+    }
     const std::string problem = ld::prepareOutputFolder(o.out_dir);
     if (!problem.empty()) {
       std::cerr << "ld-view: --out " << o.out_dir << ": " << problem << "\n";
