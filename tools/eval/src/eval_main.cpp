@@ -93,23 +93,43 @@ void plot(const std::string& path, const std::string& title, const std::string& 
       if (k > 0) cv::line(img, px(pts[k - 1].x, pts[k - 1].y), px(pts[k].x, pts[k].y), c, 2, cv::LINE_AA);
     }
   }
-  // the legend on a white box with a thin frame, over the lines it would hide
+  // the legend on a white box with a thin frame, in the corner (or the
+  // middle of the top or bottom) of the plot where it hides the fewest of
+  // the lines' points (it sat bottom left, over
+  // the low rates of small landmarks in the size plot)
   int legend_w = 0;
   for (const auto& sr : series) {
     int baseline = 0;
     legend_w = std::max(legend_w, cv::getTextSize(sr.name, cv::FONT_HERSHEY_SIMPLEX, 0.5, 1, &baseline).width);
   }
   if (!series.empty()) {
-    const cv::Rect box(L + 8, H - B - 20 - 22 * static_cast<int>(series.size() - 1) - 12, legend_w + 32 + 22,
-                       22 * static_cast<int>(series.size()) + 6);
+    const cv::Size box_size(legend_w + 32 + 22, 22 * static_cast<int>(series.size()) + 6);
+    const int left = L + 8, right = W - R - 8 - box_size.width, bottom = H - B - 8 - box_size.height, top = T + 8;
+    cv::Rect box;
+    size_t hidden_least = SIZE_MAX;
+    const int middle = (left + right) / 2;
+    for (const cv::Point corner : {cv::Point(left, bottom), cv::Point(right, bottom), cv::Point(middle, bottom),
+                                   cv::Point(right, top), cv::Point(left, top), cv::Point(middle, top)}) {
+      const cv::Rect at(corner, box_size);
+      size_t hidden = 0;  // the points, and four between each two, under it
+      for (const auto& sr : series)
+        for (size_t k = 0; k < sr.points.size(); ++k)
+          for (int f = 0; f < (k > 0 ? 5 : 1); ++f) {
+            const double t = f / 5.0;
+            const auto& a = sr.points[k];
+            const auto& b = k > 0 ? sr.points[k - 1] : a;
+            hidden += at.contains(px(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t));
+          }
+      if (hidden < hidden_least) hidden_least = hidden, box = at;
+    }
     cv::rectangle(img, box, cv::Scalar(255, 255, 255), cv::FILLED);
     cv::rectangle(img, box, cv::Scalar(200, 200, 200), 1);
-  }
-  for (size_t i = 0; i < series.size(); ++i) {
-    const cv::Scalar c = colours[i % 6];
-    const cv::Point at(L + 15, H - B - 20 - 22 * static_cast<int>(series.size() - 1 - i));
-    cv::line(img, at, at + cv::Point(25, 0), c, 2, cv::LINE_AA);
-    text(series[i].name, at + cv::Point(32, 5));
+    for (size_t i = 0; i < series.size(); ++i) {
+      const cv::Scalar c = colours[i % 6];
+      const cv::Point at(box.x + 7, box.y + 17 + 22 * static_cast<int>(i));
+      cv::line(img, at, at + cv::Point(25, 0), c, 2, cv::LINE_AA);
+      text(series[i].name, at + cv::Point(32, 5));
+    }
   }
   if (!cv::imwrite(path, img)) throw WriteError("cannot write plot " + path);
 }
