@@ -24,12 +24,20 @@ printf '{"detector": {"args": ["--camera", "%s", "--size", "0.3"]}}\n' "$T/cam64
   BIN=$1; T=$2; ROOT=$3
   "$BIN/ld-view" --out "$T/live" 2> "$T/live.err" &
   view=$!
+  # a viewer that falls behind (stopped for 1.5 s: 15 frames at 10 fps): it
+  # drops the oldest lists beyond 8, counted, rather than falling behind for good
+  "$BIN/ld-view" --out "$T/slow" 2> "$T/slow.err" &
+  slow=$!
   source "$ROOT/tests/lcm_sockets.sh"
-  lcm_sockets 1   # subscribed (0.4-2.6 s after its start), and the LCM self test over, before frames come
+  lcm_sockets 2   # subscribed (0.4-2.6 s after its start), and the LCM self test over, before frames come
+  (for _ in $(seq 300); do [ "$(ls "$T/slow" 2>/dev/null | wc -l)" -lt 3 ] || break; sleep 0.02; done
+   kill -STOP $slow; sleep 1.5; kill -CONT $slow) &
+  stopper=$!
   "$BIN/ld-run" --config "$T/run.json" --replay "$T/in.lcmlog" --exit-when-replay-done --record "$T/run.lcmlog" \
     --status-interval 0 -q
+  wait $stopper
   sleep 0.5
-  kill -INT $view; wait $view
+  kill -INT $view $slow; wait $view; wait $slow
 ' view "$BIN" "$T" "$ROOT"
 cat "$T/live.err"
 live=$(ls "$T/live" | wc -l)
@@ -38,6 +46,11 @@ logs=$(ls "$T/logs" | wc -l)
 echo "live: $live frames, logs: $logs frames, video: $(stat -c %s "$T/view.avi") bytes"
 [ "$logs" -eq $FRAMES ]
 [ "$live" -eq $FRAMES ]
+cat "$T/slow.err"
+slow=$(ls "$T/slow" | wc -l)
+skipped=$(sed -n 's/.* frames drawn, \([0-9]*\) skipped (drawing was slower than the camera).*/\1/p' "$T/slow.err")
+[ -n "$skipped" ] && [ "$skipped" -ge 3 ] && [ $((slow + skipped)) -eq $FRAMES ] ||
+  { echo "a viewer stopped for 1.5 s: $slow drawn, '$skipped' skipped of $FRAMES"; exit 1; }
 [ "$(ls "$T/logs")" = "$(ls "$T/live")" ]   # the same frames, named by seq
 [ "$(ls "$T/logs" | head -1)" = 000000.png ]
 [ "$(stat -c %s "$T/view.avi")" -gt 10000 ]

@@ -305,7 +305,10 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
   return sink.count() > 0 && video_whole ? 0 : 1;
 }
 
-// --- live bus: recent images kept, each drawn when its tracked list comes ---
+// --- live bus: recent images kept; after each drain of the bus, the tracked
+// lists that came drawn in turn on their images, at most kMaxBehind of them
+// (a viewer slower than the camera drops the oldest, counting them, rather
+// than falling ever further behind) ---
 class Live {
  public:
   Live(const Options& o, std::string image_ch) : sink_(o), o_(o), image_ch_(std::move(image_ch)) {}
@@ -330,6 +333,24 @@ class Live {
   void onTracked(const lcm::ReceiveBuffer* rb, const std::string& channel) {
     queues[1].fit(rb->data_size);
     if (!decoded(rb, list_, channel)) return;
+    pending_.push_back(std::move(list_));
+    if (pending_.size() > kMaxBehind) {
+      pending_.pop_front();
+      ++skipped_;
+    }
+  }
+  /// The tracked lists not drawn yet, each on its image (when it is among
+  /// the recent ones), oldest first.
+  void drawPending() {
+    while (!pending_.empty() && !g_stop) {
+      list_ = std::move(pending_.front());
+      pending_.pop_front();
+      drawList();
+    }
+  }
+
+ private:
+  void drawList() {
     for (auto it = recent_.rbegin(); it != recent_.rend(); ++it) {
       if (it->first != Key{list_.utime, list_.seq}) continue;
       try {
@@ -343,13 +364,16 @@ class Live {
       return;
     }
   }
+ public:
   int64_t frames() const { return sink_.count(); }
+  int64_t skipped() const { return skipped_; }
   int64_t bad() const { return dropped_.count; }
   bool failed() const { return sink_.failed(); }
   bool finish() { return sink_.finish(); }
   // Image, tracks and codes: while a frame is drawn and written, what comes
   // waits in a queue held to a byte budget, not LCM's 30 messages, which
-  // dropped the newer ones without a word (ld::QueueFit).
+  // dropped the newer ones without a word (ld::QueueFit); the next drain
+  // takes it all, and only the newest list is drawn.
   ld::QueueFit queues[3];
 
  private:
@@ -367,6 +391,11 @@ class Live {
   static constexpr size_t kRecentFrames = 60;
   ld::image_t spare_;
   ld::landmark_list_t list_;
+  // Tracked lists not drawn yet; beyond kMaxBehind (a quarter of a second at
+  // 30 fps) the oldest is dropped, counted in skipped_.
+  static constexpr size_t kMaxBehind = 8;
+  std::deque<ld::landmark_list_t> pending_;
+  int64_t skipped_ = 0;
   cv::Mat bgr_;
   std::deque<std::pair<Key, ld::image_t>> recent_;
   std::map<int64_t, std::string> payloads_;
@@ -563,10 +592,14 @@ int main(int argc, char** argv) {
   live.queues[0] = ld::QueueFit(lcm.subscribe(image_ch, &Live::onImage, &live));
   live.queues[1] = ld::QueueFit(lcm.subscribe(tracked_ch, &Live::onTracked, &live));
   live.queues[2] = ld::QueueFit(lcm.subscribe(codes_ch, &Live::onCodes, &live));
-  while (!g_stop)
+  while (!g_stop) {
     if (!ld::pumpLcm(lcm, 200, g_stop, "ld-view")) return 1;
+    live.drawPending();
+  }
   live.finish();
-  std::fprintf(stderr, "ld-view: %lld frames drawn%s\n", static_cast<long long>(live.frames()),
-               live.bad() ? (", " + std::to_string(live.bad()) + " bad").c_str() : "");
+  std::string more;
+  if (live.skipped() > 0) more += ", " + std::to_string(live.skipped()) + " skipped (drawing was slower than the camera)";
+  if (live.bad() > 0) more += ", " + std::to_string(live.bad()) + " bad";
+  std::fprintf(stderr, "ld-view: %lld frames drawn%s\n", static_cast<long long>(live.frames()), more.c_str());
   return live.failed() ? 1 : 0;
 }
