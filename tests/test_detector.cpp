@@ -2507,6 +2507,15 @@ TEST(Params, BadFilesGiveClearErrors) {
       << loadError("value_min: 040\n");
   EXPECT_NE(loadError("value_min: 09\n").find("line 1: the integer 09 has a leading 0, and OpenCV reads no octal"),
             std::string::npos);
+  EXPECT_NE(loadError("max_cycles: 037777777777\n")
+                .find("the integer 037777777777 has a leading 0, and OpenCV reads it as octal, out of range"),
+            std::string::npos)
+      << loadError("max_cycles: 037777777777\n");
+  // not in quoted text, a time's minutes, nor 00 (0 either way): the key's own check says what is wrong
+  EXPECT_NE(loadError("front_end: \"fast 01\"\n").find("front_end must be"), std::string::npos)
+      << loadError("front_end: \"fast 01\"\n");
+  EXPECT_EQ(loadError("front_end: 10:05\n").find("leading 0"), std::string::npos) << loadError("front_end: 10:05\n");
+  EXPECT_EQ(loadError("value_min: 00\n"), "");
   // booleans as the tracker's file takes them, true and false, besides 1 and 0
   EXPECT_NE(loadError("complete_missing: yes\n").find("'complete_missing' must be 0 or 1 (or false or true)"),
             std::string::npos);

@@ -505,7 +505,13 @@ TEST(QrReader, DegenerateInputDoesNotCrash) {
       EXPECT_EQ(std::string(e.what()), "QrReader::decode: a " + cv::typeToString(type) +
                                            " image: it reads 8-bit BGR, BGRA or gray (CV_8UC3, CV_8UC4, CV_8UC1)");
     }
+    // and a stack's frames (a 16-bit one was left out without a word; a
+    // two-channel one was stacked, and its decode threw later)
+    ld::QrStack stack;
+    EXPECT_THROW(stack.add(cv::Mat(480, 640, type, cv::Scalar(0)), sc.corners), std::invalid_argument);
   }
+  ld::QrStack stack;
+  EXPECT_THROW(stack.add(cv::Mat(480, 640, CV_8UC2, cv::Scalar(0)), sc.corners), std::invalid_argument);
 }
 
 // The modules the grid reader redraws ideal are those every code has, in

@@ -663,6 +663,8 @@ TEST(RunConfig, YamlErrorsNameTheKeyOrTheLine) {
   // an image or a log given by mistake: said, not a parse error ending in a raw byte
   const std::string png = loadError("lm.json", std::string("\x89PNG\r\n\x1a\n\0\0\0\rIHDR", 16));
   EXPECT_NE(png.find("lm.json contains a NUL byte at offset 8 (not a text file)"), std::string::npos) << png;
+  EXPECT_NE(loadError("w.json", std::string("\xFF\xFE{\0}\0", 6)).find("w.json is UTF-16 text: save it as UTF-8"),
+            std::string::npos);
   const std::string latin = loadError("l1.json", "{\"source\": \xe4}");
   EXPECT_NE(latin.find("not valid JSON"), std::string::npos) << latin;
   EXPECT_NE(latin.find("\\xE4"), std::string::npos) << latin;

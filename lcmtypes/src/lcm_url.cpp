@@ -55,14 +55,14 @@ std::string lcmUrlProblem(const std::string& url) {
       at = next;
       const size_t eq = option.find('=');
       const std::string key = option.substr(0, eq), value = eq == std::string::npos ? "" : option.substr(eq + 1);
-      const long lo = key == "ttl" ? 0 : 1, hi = key == "ttl" ? 255 : INT32_MAX;
+      const long lo = 0, hi = key == "ttl" ? 255 : INT32_MAX;  // (recv_buf_size 0: LCM's default)
       if (key != "ttl" && key != "recv_buf_size") continue;
       char* stop = nullptr;
       errno = 0;
       const long v = std::strtol(value.c_str(), &stop, 0);  // (as LCM reads it)
       if (value.empty() || *stop != '\0' || errno != 0 || v < lo || v > hi)
         return url + ": " + key + " " + (value.empty() ? std::string("has no value") : value + " is not one") + " (" +
-               std::to_string(lo) + " to " + std::to_string(hi) + (key == "ttl" ? ": 0 keeps packets on this machine, 1 on its LAN" : " bytes") + ")";
+               std::to_string(lo) + " to " + std::to_string(hi) + (key == "ttl" ? ": 0 keeps packets on this machine, 1 on its LAN" : " bytes, 0 LCM's default") + ")";
     }
     return "";
   }

@@ -104,6 +104,16 @@ std::optional<double> readableQrSide(const cv::Mat& image, const std::array<cv::
   return qr_px;
 }
 
+// An image of a type the reader cannot read (16-bit, float, two channels):
+// the caller's mistake, said (it read nothing, without a word).
+void checkImageType(const cv::Mat& image, const char* who) {
+  if (image.empty() || (image.depth() == CV_8U && (image.channels() == 1 || image.channels() == 3 ||
+                                                    image.channels() == 4)))
+    return;
+  throw std::invalid_argument(std::string(who) + ": a " + cv::typeToString(image.type()) +
+                              " image: it reads 8-bit BGR, BGRA or gray (CV_8UC3, CV_8UC4, CV_8UC1)");
+}
+
 // `image` (gray, BGR or BGRA) as gray in `gray`, always `gray`'s own buffer
 // (a gray image is copied, not shared, so a later colour frame is never
 // converted into the caller's image).
@@ -588,11 +598,7 @@ std::optional<QrResult> QrReader::decode(const cv::Mat& image,
   const QrReaderParams& p = m.params;
   m.fitted_n = 0;
   m.view_made = false;
-  // (a 16-bit or float image read nothing, without a word)
-  if (!image.empty() && (image.depth() != CV_8U || (image.channels() != 1 && image.channels() != 3 &&
-                                                     image.channels() != 4)))
-    throw std::invalid_argument("QrReader::decode: a " + cv::typeToString(image.type()) +
-                                " image: it reads 8-bit BGR, BGRA or gray (CV_8UC3, CV_8UC4, CV_8UC1)");
+  checkImageType(image, "QrReader::decode");
   const auto readable = readableQrSide(image, corners);
   if (!readable) return std::nullopt;  // nothing to read
   const double qr_px = *readable;
@@ -654,6 +660,7 @@ int stackSide(double qr_px) {
 }  // namespace
 
 bool QrStack::add(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners) {
+  checkImageType(image, "QrStack::add");
   const auto qr_px = readableQrSide(image, corners);
   if (!qr_px) return false;
   // Another landmark (a tracker's ids swapped between two), not this one

@@ -123,9 +123,15 @@ inline std::optional<std::string> integerOutOfRange(
     std::smatch m;
     if (std::regex_search(s, m, yaml_key) || std::regex_search(s, m, xml_tag)) key = m[1].str();
     const bool look = !checked || checked(key);
+    char quote = 0;  // (a quoted string's text is no number: "v 01 x")
     for (size_t i = 0; look && i < s.size();) {
       // a whole token of digits (an optional sign first), between separators
       const bool boundary = i == 0 || kBefore.find(s[i - 1]) != std::string_view::npos;
+      if (quote || ((s[i] == '"' || s[i] == '\'') && boundary)) {
+        quote = !quote ? s[i] : s[i] == quote ? 0 : quote;
+        ++i;
+        continue;
+      }
       size_t j = i + (s[i] == '-' || s[i] == '+');
       const size_t digits = j;
       while (j < s.size() && s[j] >= '0' && s[j] <= '9') ++j;
@@ -136,13 +142,18 @@ inline std::optional<std::string> integerOutOfRange(
         const std::string limit = token[0] == '-' ? "2147483648" : "2147483647";
         const size_t lead = std::min(mag.find_first_not_of('0'), mag.size());
         const std::string m2 = mag.substr(lead);
-        if (mag.size() > 1 && mag[0] == '0') {
-          const bool octal = mag.find_first_of("89") == std::string::npos && mag.size() <= 11;
+        // (not 00, which is 0 either way, nor the minutes of a time, 10:05)
+        const bool time = i >= 2 && s[i - 1] == ':' && s[i - 2] >= '0' && s[i - 2] <= '9';
+        if (mag.size() > 1 && mag[0] == '0' && !m2.empty() && !time) {
+          std::string read = "no octal number in it";
+          if (m2.find_first_of("89") == std::string::npos) {
+            const unsigned long long v = m2.size() <= 11 ? std::stoull(m2, nullptr, 8) : ~0ull;
+            read = v <= (token[0] == '-' ? 2147483648ull : 2147483647ull)
+                       ? "it as octal (" + std::string(token[0] == '-' ? "-" : "") + std::to_string(v) + ")"
+                       : "it as octal, out of range (-2147483648 to 2147483647)";
+          }
           return "line " + std::to_string(line) + ": the integer " + token + " has a leading 0, and OpenCV reads " +
-                 (octal ? "it as octal (" + std::string(token[0] == '-' ? "-" : "") +
-                              std::to_string(std::stoll(mag, nullptr, 8)) + ")"
-                        : "no octal number in it") +
-                 ": write it without";
+                 read + ": write it without";
         }
         if (m2.size() > limit.size() || (m2.size() == limit.size() && m2 > limit))
           return "line " + std::to_string(line) + ": the integer " + token +

@@ -98,9 +98,10 @@ class QrStack {
   /// 1 / max_frames (an exponential mean: older frames fade out).
   explicit QrStack(int max_frames = 8) : max_frames_(max_frames) {}
 
-  /// Adds one frame (8-bit BGR or gray) with the landmark's pattern corners
-  /// (TL, TR, BR, BL). False, and nothing added, when the QR is too small to
-  /// read or a corner is not finite. A QR whose projected size differs from
+  /// Adds one frame (8-bit BGR, BGRA or gray; another type throws
+  /// std::invalid_argument, as QrReader::decode) with the landmark's pattern
+  /// corners (TL, TR, BR, BL). False, and nothing added, when the QR is too
+  /// small to read or a corner is not finite. A QR whose projected size differs from
   /// the stack's by more than a quarter (the robot came closer), or whose
   /// pattern jumped by more than its side since the last frame seen (another
   /// landmark: a tracker that swapped two tracks' ids), restarts it.

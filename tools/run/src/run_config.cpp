@@ -309,6 +309,8 @@ RunConfig RunConfig::load(const std::string& given) {
   if (!text) throw std::runtime_error("config " + path + " is larger than 16 MiB: not a configuration file");
   // (an image or a log given by mistake: the parser's words ended in the raw
   // byte it stopped at)
+  if (text->compare(0, 2, "\xFF\xFE") == 0 || text->compare(0, 2, "\xFE\xFF") == 0)
+    throw std::runtime_error("config " + path + " is UTF-16 text: save it as UTF-8");
   if (const size_t nul = text->find('\0'); nul != std::string::npos)
     throw std::runtime_error("config " + path + " contains a NUL byte at offset " + std::to_string(nul) +
                              " (not a text file)");
