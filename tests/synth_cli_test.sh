@@ -127,6 +127,17 @@ refused "--log $T/own2/truth.jsonl is a file this run writes in --out $T/own2/" 
 # placed before it starts the frame over: one seed in 15 was refused).
 refused "frame 0: landmark 2 of 2 overlapped another in each of 200 poses drawn, 20 times over: ask for fewer landmarks, or give them room" scene --out "$T/ov" -k 2 --x 0 --y 0
 refused "landmark [0-9]* of 6 overlapped another" scene --out "$T/ov6" -k 6 --distance 0.4
+# A refused run leaves an earlier run's frames and truth as they were (it emptied truth.jsonl):
+# landmarks with no room, a payload no QR code holds (scene and sequence)
+"$BIN/ld-synth" scene --out "$T/kept" -n 2 >/dev/null
+"$BIN/ld-synth" sequence --out "$T/kept2" -n 2 --no-png >/dev/null
+cp "$T/kept/truth.jsonl" "$T/kept.truth"; cp "$T/kept2/truth.jsonl" "$T/kept2.truth"
+long=$(head -c 3000 /dev/zero | tr '\0' a)
+refused "frame 0: landmark 2 of 2 overlapped another" scene --out "$T/kept" -n 2 -k 2 --x 0 --y 0
+refused "QR payload of 3000 bytes cannot be encoded" scene --out "$T/kept" -n 1 -p "$long"
+refused "QR payload of 3000 bytes cannot be encoded" sequence --out "$T/kept2" -n 1 -k 1 -p "$long"
+cmp -s "$T/kept/truth.jsonl" "$T/kept.truth" && cmp -s "$T/kept2/truth.jsonl" "$T/kept2.truth" ||
+  fail "a refused run changed an earlier run's truth.jsonl"
 "$BIN/ld-synth" scene --out "$T/k20" -n 110 -k 20 --seed 5 --degrade none >/dev/null || fail "-k 20, seed 5: exit $?"
 # The whole range of --landmarks (91 to 100 failed in OpenCV's remap: the wall's texture was too wide).
 "$BIN/ld-synth" sequence --out "$T/k100" -n 1 -k 100 --no-png >/dev/null || fail "-k 100: exit $?"

@@ -20,6 +20,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "ld/artwork.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/landmark_layout.hpp"
 #include "ld/synth.hpp"
@@ -83,6 +84,9 @@ Sequence::Sequence(const SequenceOptions& options) : options_(options) {
     lm.payload = o.payloads.empty() ? "room-" + std::to_string(101 + k) : o.payloads[static_cast<size_t>(k)];
     lm.side_m = o.side_m;
     lm.ecc = o.ecc;
+    // (a payload no QR code holds: refused here, before anything is written;
+    // it failed at the first frame, the truth file emptied)
+    ld::artwork::encodeQr(lm.payload, lm.ecc);
     lm.rvec = detail::toRvec(detail::rotZ(r.uni(-4, 4)));  // hung by hand
     lm.tvec = {x, y, wall_z_};
     world_landmarks_.push_back(lm);

@@ -271,14 +271,18 @@ int runScene(const SceneArgs& a) {
     applyDegradation(a, s, probe);
   }
 
-  makeFolder(a.out);
-  const std::string truth_path = (fs::path(a.out) / "truth.jsonl").string();
-  std::ofstream truth(truth_path);
-  if (!truth) throw std::runtime_error("cannot write " + truth_path);
-
-  Random r(a.seed);
   const int K = a.no_landmark ? 0 : a.landmarks;
-  int in_view = 0, total = 0;
+  // Every frame's scene, before anything is written: a run refused (a
+  // payload no QR code holds, landmarks with no room) leaves an earlier
+  // run's frames and truth.jsonl as they were (it emptied the truth).
+  // Placing costs little beside rendering; the same draws, so the same frames.
+  const auto payloadOf = [&](int k) {
+    return a.payload.empty() ? "room-" + std::to_string(101 + k) : K == 1 ? a.payload : a.payload + "-" + std::to_string(k);
+  };
+  for (int k = 0; k < K; ++k) ld::artwork::encodeQr(payloadOf(k), a.ecc);  // (throws, naming why)
+  std::vector<SceneSpec> specs;
+  specs.reserve(static_cast<size_t>(a.count));
+  Random r(a.seed);
   for (int i = 0; i < a.count; ++i) {
     // Poses: each landmark's retried until it is in view and overlaps none
     // placed before it (one still out of view after 200 tries is kept, as
@@ -295,9 +299,7 @@ int runScene(const SceneArgs& a) {
       boxes.clear();
       crowded = -1;
       for (int k = 0; k < K && crowded < 0; ++k) {
-        const std::string payload = a.payload.empty() ? "room-" + std::to_string(101 + k)
-                                    : K == 1            ? a.payload
-                                                        : a.payload + "-" + std::to_string(k);
+        const std::string payload = payloadOf(k);
         LandmarkPlacement best;
         cv::Rect box;  // (best's)
         bool overlap = false;  // (the last try's)
@@ -336,7 +338,16 @@ int runScene(const SceneArgs& a) {
     spec.printed_ink = !a.nominal;
     applyDegradation(a, spec, r);
     applyLighting(a.lighting, spec, r);
-    const Frame frame = render(spec);
+    specs.push_back(std::move(spec));
+  }
+
+  makeFolder(a.out);
+  const std::string truth_path = (fs::path(a.out) / "truth.jsonl").string();
+  std::ofstream truth(truth_path);
+  if (!truth) throw std::runtime_error("cannot write " + truth_path);
+  int in_view = 0, total = 0;
+  for (int i = 0; i < a.count; ++i) {
+    const Frame frame = render(specs[static_cast<size_t>(i)]);
 
     char name[32];
     std::snprintf(name, sizeof name, a.jpg ? "%06d.jpg" : "%06d.png", i);
