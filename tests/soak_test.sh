@@ -14,7 +14,8 @@ for args in "--fps 1e-9|--fps: must be in [0.1, 1000], not 1e-9" \
             "--loop-frames 100000|--loop-frames: must be in [1, 300]" \
             "--format bogus|--format: unknown pixel format 'bogus'" \
             "--bin $T/none|no ld-detector to run in $T/none (--bin)" \
-            "--csv $T/none/x.csv|cannot write $T/none/x.csv (--csv)"; do
+            "--csv $T/none/x.csv|cannot write $T/none/x.csv (--csv)" \
+            "--format yuyv --width 33 --height 32|--format yuyv needs an even width, not 33"; do
   rc=0
   timeout 20 "$NS" "$BIN/ld-soak" ${args%%|*} >/dev/null 2>"$T/err" || rc=$?
   [ $rc -eq 2 ] && [ "$(wc -l <"$T/err")" -eq 1 ] && grep -qF -- "${args#*|}" "$T/err" ||
@@ -36,4 +37,14 @@ for label in "tracks read" skipped unmatched bad; do
 done
 a=$(grep -o "after [0-9]* frames" <<<"$own"); b=$(grep -o "[0-9]* frames joined" <<<"$printed")
 [ "${a//[^0-9]/}" = "${b//[^0-9]/}" ] || { echo "FAIL: frames: '$own' / '$printed'"; exit 1; }
+# Stopped by a signal: the figures up to the stop, not of processes that had
+# ended (RSS 0, fds 0), no "could not keep 30 fps", the frame in flight not
+# called lost
+rc=0
+timeout -s INT 9 "$NS" "$BIN/ld-soak" --duration 60 --width 320 --height 240 --warmup 1 --sample-interval 1 \
+  --loop-frames 4 --log-dir "$T/logs2" >"$T/out2" 2>&1 || rc=$?
+cat "$T/out2"
+[ $rc -ne 0 ] && grep -q "^verdict: FAIL (stopped by a signal; up to then memory flat, fds flat; [0-9]* messages\? in flight at the stop)$" "$T/out2" ||
+  { echo "FAIL: stopped run: exit $rc"; exit 1; }
+! grep -q -e "could not keep" -e "-> 0.0 MB" -e "fds [0-9]* -> 0$" "$T/out2" || { echo "FAIL: stopped run's figures"; exit 1; }
 echo "PASS"

@@ -88,6 +88,9 @@ Child spawn(const std::string& bin_dir, const std::string& name, const std::stri
       dup2(fd, 2);
       close(fd);
     }
+    // (none of ld-soak's own files: --csv's was counted in each process's fds)
+    for (int other = 3, last = static_cast<int>(sysconf(_SC_OPEN_MAX)); other < std::min(last, 4096); ++other)
+      close(other);
     execl(exe.c_str(), name.c_str(), "--lcm-url", url.c_str(), static_cast<char*>(nullptr));
     std::perror(exe.c_str());
     _exit(127);
@@ -258,6 +261,11 @@ int main(int argc, char** argv) {
                  "to the last\n";
     return 2;
   }
+  // (what the frames' conversion would refuse after rendering them all)
+  if ((o.format == "yuyv" || o.format == "uyvy" || o.format == "YUYV" || o.format == "UYVY") && o.width % 2 != 0) {
+    std::cerr << "ld-soak: --format " << o.format << " needs an even width, not " << o.width << "\n";
+    return 2;
+  }
   if (o.bin_dir.empty()) o.bin_dir = ld::selfDirectory();
   if (o.log_dir.empty()) {
     std::string tmpl = (fs::temp_directory_path() / "ld-soak-XXXXXX").string();
@@ -410,7 +418,10 @@ int main(int argc, char** argv) {
   // let the set finish the last frames
   const auto drain_until = Clock::now() + std::chrono::seconds(2);
   while (Clock::now() < drain_until) lcm.handleTimeout(100);
-  sample(secondsSince(t0), total);
+  // (stopped by a signal, a Ctrl-C reached the set too: a sample now would
+  // be of processes that have ended, RSS 0; the figures are those up to
+  // the stop)
+  if (!g_stop) sample(secondsSince(t0), total);
 
   for (auto& c : set)
     if (!c.reaped) kill(c.pid, SIGINT);
@@ -444,7 +455,7 @@ int main(int argc, char** argv) {
   std::printf("\nframes published: %lld in %.1f s (%.1f fps; %lld published late), %dx%d %s, %d landmarks\n",
               static_cast<long long>(total), publish_s, total / publish_s, static_cast<long long>(late),
               o.width, o.height, o.format.c_str(), o.landmarks);
-  if (total < planned)
+  if (total < planned && !g_stop)
     std::printf("ld-soak could not keep %g fps: %lld of %lld frames went out in the %g s\n", o.fps,
                 static_cast<long long>(total), static_cast<long long>(planned), o.duration_s);
   std::printf("IMAGE -> ld-detector:       %lld received = %lld processed + %lld skipped (deliberate) + "
@@ -490,7 +501,18 @@ int main(int argc, char** argv) {
   }
   const bool none_lost = lost_image == 0 && lost_landmarks == 0 && lost_to_soak == 0 && out.bad == 0;
   const bool pass = mem_flat && fds_flat && none_lost && clean_exit && !g_stop;
-  if (g_stop) std::printf("stopped by a signal after %.1f s of %g\n", publish_s, o.duration_s);
+  if (g_stop) {
+    // A stop is no verdict on the set: what held up to it, the messages in
+    // flight at the stop (the set stopped with ld-soak) not counted as lost.
+    std::printf("stopped by a signal after %.1f s of %g\n", publish_s, o.duration_s);
+    std::printf("verdict: FAIL (stopped by a signal; up to then memory %s, fds %s; %lld message%s in flight at "
+                "the stop)\n",
+                mem_flat ? "flat" : "GROWS", fds_flat ? "flat" : "CHANGE",
+                static_cast<long long>(lost_image + lost_landmarks + lost_to_soak),
+                lost_image + lost_landmarks + lost_to_soak == 1 ? "" : "s");
+    std::printf("process logs: %s\n", o.log_dir.c_str());
+    return 1;
+  }
   std::printf("verdict: %s (memory %s, fds %s, %s, %s)\n", pass ? "PASS" : "FAIL",
               mem_flat ? "flat" : "GROWS", fds_flat ? "flat" : "CHANGE",
               none_lost ? "no message lost" : "MESSAGES LOST",
