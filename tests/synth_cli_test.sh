@@ -94,6 +94,10 @@ grep -q "^ld-synth: note: 3 frames of an earlier run are left in $T/seq (truth.j
 "$BIN/ld-synth" scene --out "$T/seq" --count 4 --jpg >/dev/null 2>"$T/err"
 grep -q "note: 4 frames of an earlier run are left in $T/seq (truth.jsonl lists this run's 4)" "$T/err" ||
   fail "leftover PNGs beside JPEGs: $(cat "$T/err")"
+# --no-png: the truth names frames this run did not write; those there are an earlier run's
+"$BIN/ld-synth" sequence --out "$T/seq" -n 2 --no-png >/dev/null 2>"$T/err"
+grep -q "note: 4 frames of an earlier run are left in $T/seq: truth.jsonl names frames that this run did not write (--no-png)" "$T/err" ||
+  fail "--no-png beside frames: $(cat "$T/err")"
 refused "--frames: must be in \[1, 100000\], not 0" sequence --out "$T/x" --frames 0
 # Seeds as written (-1 and 2^64 were taken as 2^64-1), times of 0 or more,
 # a payload of a byte or more (scene took "" for room-101).

@@ -107,7 +107,10 @@ ld::CameraModel makeCamera(const std::string& file, const std::string& resolutio
 // Frames of an earlier run left in `dir` (NNNNNN.png or .jpg that this run,
 // `count` frames as `extension`, did not write): said in a note, as
 // ld-generate says of earlier pages; truth.jsonl lists this run's alone.
-void noteLeftoverFrames(const std::string& dir, int count, const std::string& extension) {
+// With `written` false (sequence --no-png) every frame there is an earlier
+// run's, and the truth names frames of those names that this run did not
+// write: said so (the truth paired with them without a word).
+void noteLeftoverFrames(const std::string& dir, int count, const std::string& extension, bool written = true) {
   static const std::regex frame_name("([0-9]{6})\\.(png|jpg)");
   int left = 0;
   std::error_code ec;
@@ -115,9 +118,13 @@ void noteLeftoverFrames(const std::string& dir, int count, const std::string& ex
     std::smatch m;
     const std::string name = e.path().filename().string();
     if (!std::regex_match(name, m, frame_name)) continue;
-    if ("." + m[2].str() != extension || std::stoi(m[1].str()) >= count) ++left;
+    if (!written || "." + m[2].str() != extension || std::stoi(m[1].str()) >= count) ++left;
   }
-  if (left)
+  if (left && !written)
+    std::cerr << "ld-synth: note: " << left << " frame" << (left == 1 ? "" : "s") << " of an earlier run "
+              << (left == 1 ? "is" : "are") << " left in " << dir << ": truth.jsonl names frames that this run "
+              << "did not write (--no-png), and they are not its frames\n";
+  else if (left)
     std::cerr << "ld-synth: note: " << left << " frame" << (left == 1 ? "" : "s") << " of an earlier run "
               << (left == 1 ? "is" : "are") << " left in " << dir << " (truth.jsonl lists this run's " << count
               << ")\n";
@@ -507,7 +514,7 @@ int main(int argc, char** argv) {
     if (!qo.log_path.empty())
       std::cout << (qo.out_dir.empty() ? " to " : " and ") << qo.log_path << " (" << qo.pixel_format << ")";
     std::cout << "; a landmark fully in view in " << st.frames_with_landmark_in_view << " of them\n";
-    if (!qo.out_dir.empty() && qo.write_png) noteLeftoverFrames(qo.out_dir, st.frames, ".png");
+    if (!qo.out_dir.empty()) noteLeftoverFrames(qo.out_dir, st.frames, ".png", qo.write_png);
     return 0;
   } catch (const UsageError& e) {
     return ld::cli::usage(argv[0], e.what());
