@@ -118,7 +118,8 @@ void noteLeftoverFrames(const std::string& dir, int count, const std::string& ex
     std::smatch m;
     const std::string name = e.path().filename().string();
     if (!std::regex_match(name, m, frame_name)) continue;
-    if (!written || "." + m[2].str() != extension || std::stoi(m[1].str()) >= count) ++left;
+    const bool named_so = "." + m[2].str() == extension;  // (as the truth names its frames)
+    if (written ? !named_so || std::stoi(m[1].str()) >= count : named_so) ++left;
   }
   if (left && !written)
     std::cerr << "ld-synth: note: " << left << " frame" << (left == 1 ? "" : "s") << " of an earlier run "
