@@ -41,6 +41,10 @@ refused "^ld-bench: --tracker-landmarks: must be in \[1, 1000\], not 100000" "$B
 timeout 60 "$BIN/ld-bench-tracker" --landmarks 5,7 --repeats 1 >"$T/out" || fail "ld-bench-tracker 5,7"
 [ "$(grep -c '^| [57] |' "$T/out")" -eq 2 ] || fail "ld-bench-tracker 5,7: $(cat "$T/out")"
 grep -q '^| landmarks | assignment | update |$' "$T/out" || fail "ld-bench-tracker's table is not ld-bench's: $(cat "$T/out")"
+# output that cannot be written (a full disk): said, status 1 (it was 0, without a word)
+rc=0; timeout 60 "$BIN/ld-bench-tracker" --landmarks 5 --repeats 1 >/dev/full 2>"$T/err" || rc=$?
+[ $rc -eq 1 ] && grep -qx "ld-bench-tracker: cannot write its output: No space left on device" "$T/err" ||
+  fail "ld-bench-tracker to a full disk: $rc $(cat "$T/err")"
 refused "^ld-bench-e2e: unknown option --bogus (--help lists the options)$" "$BIN/ld-bench-e2e" --bogus
 refused "^ld-bench-e2e: --seconds must be a number of seconds, not x" "$BIN/ld-bench-e2e" --seconds x
 refused "^ld-bench-e2e: --seconds must be above 0" "$BIN/ld-bench-e2e" --seconds 0.0
@@ -48,6 +52,10 @@ refused "^ld-bench-e2e: --format must be keep, bgr, rgb, gray, yuyv, uyvy or mjp
 "$BIN/ld-bench-e2e" --help >"$T/help"
 head -1 "$T/help" | grep -q "^ld-bench-e2e: end-to-end latency" || fail "e2e help: $(head -2 "$T/help")"
 ! grep -q "set -euo" "$T/help" || fail "e2e help shows the script: $(cat "$T/help")"
+# nothing tracked (the detector alone), nothing timed: "-", not 0 ms
+timeout 120 "$BIN/ld-bench-e2e" --processes detector --seconds 1 --hd-seconds 0 >"$T/e2e" 2>"$T/err" ||
+  fail "e2e, detector alone: $(cat "$T/err")"
+grep -q "^| 640x480 yuyv | [0-9]* | [0-9]* | 0 | [0-9]* / 0 | - | - | - | - |$" "$T/e2e" || fail "e2e untimed: $(cat "$T/e2e")"
 
 # A tiny run: every table, and the same tables in --markdown (a new folder).
 timeout 120 "$BIN/ld-bench" --frames 1 --repeats 1 --resolutions 320x240 --backend cpu --no-paper \

@@ -396,5 +396,5 @@ int main(int argc, char** argv) {
       return 1;
     }
   }
-  return 0;
+  return ld::cli::outputStatus(argv[0]);
 }

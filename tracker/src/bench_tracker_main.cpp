@@ -20,5 +20,5 @@ int main(int argc, char** argv) {
   LD_CLI_PARSE(app, argc, argv);
 
   std::printf("%s", ld::trackerTable(counts, repeats).c_str());
-  return 0;
+  return ld::cli::outputStatus(argv[0]);
 }

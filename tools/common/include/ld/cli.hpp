@@ -10,9 +10,11 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <iostream>
 #include <optional>
 #include <sstream>
@@ -102,6 +104,20 @@ inline std::optional<std::pair<long, long>> parseSize(const std::string& text) {
 struct UsageError : std::invalid_argument {
   using std::invalid_argument::invalid_argument;
 };
+
+/// The status a program whose output is its standard output ends with: 0
+/// when all of it was written, else 1, said in one line ("cannot write its
+/// output: No space left on device"). A table printed to a full disk or a
+/// closed pipe ended with status 0, without a word.
+inline int outputStatus(const char* argv0) {
+  errno = 0;
+  const bool cpp = static_cast<bool>(std::cout.flush());
+  const bool c = std::fflush(stdout) == 0 && !std::ferror(stdout);
+  if (cpp && c) return 0;
+  std::cerr << programName(argv0) << ": cannot write its output" << (errno ? std::string(": ") + std::strerror(errno) : "")
+            << "\n";
+  return 1;
+}
 
 /// Reports a bad command line as parse() does: one line, "<program>: <what>
 /// (--help lists the options)"; returns 2, the status to exit with.
