@@ -399,8 +399,10 @@ int main(int argc, char** argv) {
   scene->add_option("--yaw", sa.yaw, "degrees about the sheet's vertical axis; + turns its right edge towards the camera")->capture_default_str();
   scene->add_option("--pitch", sa.pitch, "degrees about its horizontal axis; + turns its top edge towards the camera")->capture_default_str();
   scene->add_option("--roll", sa.roll, "degrees in its plane, + is clockwise in the image")->capture_default_str();
-  scene->add_option("--x", sa.x, "normalised image x of the centre, -1..1 (default: spread over the width)");
-  scene->add_option("--y", sa.y, "normalised image y of the centre, -1..1")->capture_default_str();
+  scene->add_option("--x", sa.x, "normalised image x of the centre, -1.5..1.5: -1 and 1 are the image's edges, "
+                                  "beyond them partly out of view (default: spread over the width)");
+  scene->add_option("--y", sa.y, "normalised image y of the centre, -1.5..1.5 (-1 and 1: the edges)")
+      ->capture_default_str();
   scene->add_option("--landmarks,-k", sa.landmarks, "landmarks per frame")->capture_default_str();
   scene->add_option("--payload,-p", sa.payload, "QR text (with several landmarks: TEXT-0, TEXT-1, ...; default room-101, ...)");
   std::string ecc_text = "auto", q_ecc_text = "auto";
