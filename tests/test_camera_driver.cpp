@@ -1271,8 +1271,10 @@ TEST(Process, ErrorsAndExitCodes) {
   ProcessRun r = runCamera("--device /dev/video-none-here", dir);
   EXPECT_EQ(r.status, 1);
   EXPECT_EQ(r.err, "ld-camera: /dev/video-none-here: no such device\n");
+  // a format or size the device does not offer: status 2, an argument a
+  // restart will not mend (it was 1, and ld-run restarted it for ever)
   r = runCamera("--fake --format mjpeg --size 1920x1080", dir);
-  EXPECT_EQ(r.status, 1);
+  EXPECT_EQ(r.status, 2);
   EXPECT_EQ(r.err.rfind("ld-camera: /dev/video0 does not offer MJPEG 1920x1080; it offers: YUYV", 0),
             0u) << r.err;
   // an LCM URL that cannot be: said before the camera is opened (the

@@ -174,7 +174,12 @@ int main(int argc, char** argv) {
           " fps: the device may lower its rate");
   } catch (const ld::CaptureError& e) {
     say(e.what());
-    return 1;
+    // A format, size or control the device does not offer, or a node that is
+    // no capture device: the arguments', which a restart will not mend
+    // (status 2: ld-run and systemd do not restart it; ld-run restarted it
+    // for ever). A missing, busy or failing device may come back: 1.
+    using K = ld::CaptureError::Kind;
+    return e.kind() == K::FormatRefused || e.kind() == K::ControlRefused || e.kind() == K::NotCapture ? 2 : 1;
   }
   lcm::LCM lcm(url);
   if (const int status = ld::lcmOpenStatus(lcm, url, "ld-camera")) return status;
