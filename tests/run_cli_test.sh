@@ -45,6 +45,11 @@ refused "state file /proc/x/st.json: cannot create folder /proc/x" --replay "$T/
 refused "--log-dir /proc/x: cannot create folder /proc/x" --replay "$T/in.lcmlog" --log-dir /proc/x
 refused "--replay and --play name two sources; give one" --replay "$T/in.lcmlog" --play "$T/in.lcmlog"
 refused "--source camera and --replay name two sources; give one" --replay "$T/in.lcmlog" --source camera
+# another source's options: refused, not dropped without a word
+refused "--fps is for --play (ld-play's source), and this run's source is replay" --replay "$T/in.lcmlog" --fps 10
+refused "--speed is for --replay (lcm-logplayer's source; --play takes --fps), and this run's source is play" --play "$T/in.lcmlog" --speed 2
+refused "--camera-arg is for the camera source, and this run's source is play" --play "$T/in.lcmlog" --camera-arg=--fake
+refused "--duration is for --play (ld-play's source), and this run's source is camera" --duration 5
 refused "--speed: must be in \[0.01, 1000\], not -1" --replay "$T/in.lcmlog" --speed -1
 refused "--speed: must be in \[0.01, 1000\], not 0" --replay "$T/in.lcmlog" --speed 0
 refused "--speed: must be in \[0.01, 1000\], not 1e300" --replay "$T/in.lcmlog" --speed 1e300

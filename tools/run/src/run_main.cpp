@@ -308,6 +308,22 @@ int main(int argc, char** argv) {
       }
     }
   }
+  // Options of another source than the run's: refused, not dropped without
+  // a word (--fps with --replay: lcm-logplayer keeps the log's timing).
+  {
+    std::string stray;
+    if (cfg.source != "play")
+      for (const char* o : {"--fps", "--duration", "--play-format"})
+        if (stray.empty() && app.count(o)) stray = std::string(o) + " is for --play (ld-play's source)";
+    if (stray.empty() && cfg.source != "replay" && app.count("--speed"))
+      stray = "--speed is for --replay (lcm-logplayer's source; --play takes --fps)";
+    if (stray.empty() && cfg.source != "camera" && !camera_args.empty())
+      stray = "--camera-arg is for the camera source";
+    if (!stray.empty()) {
+      std::cerr << "ld-run: " << stray << ", and this run's source is " << cfg.source << "\n";
+      return 2;
+    }
+  }
   if (exit_when_done && cfg.source != "replay" && cfg.source != "play") {
     std::cerr << "ld-run: --exit-when-replay-done needs a replay or play source\n";
     return 2;
