@@ -63,7 +63,12 @@ int main(int argc, char** argv) {
   app.add_option("--format", format, "keep, or convert to bgr, rgb, rgba, bgra, gray, yuyv, uyvy, mjpeg")
       ->capture_default_str()
       ->check(ld::cli::Parses("FORMAT", [](const std::string& f) {
-        if (f != "keep") (void)ld::pixelFormatFromName(f);
+        try {
+          if (f != "keep") (void)ld::pixelFormatFromName(f);
+        } catch (const std::exception&) {  // (keep too, which the format's own list leaves out)
+          throw std::invalid_argument("must be keep, or a pixel format to convert to (bgr, rgb, rgba, bgra, gray, "
+                                      "yuyv, uyvy, mjpeg), not '" + f + "'");
+        }
       }));
   app.add_option("--quality", quality, "JPEG quality for mjpeg")->capture_default_str()->check(ld::cli::Between(1, 100));
   app.add_option("--first-seq", first_seq, "sequence number of the first frame (0 or more)")
@@ -200,10 +205,13 @@ int main(int argc, char** argv) {
       kind = "sizes or formats vary; the first " + kind;
       break;
     }
+  // (a rate needs two frames: one alone has none, said "-", not 0.00)
+  char rate_text[32] = "-";
+  if (sent > 1 && span > 0) std::snprintf(rate_text, sizeof rate_text, "%.2f", rate);
   std::fprintf(stderr,
-               "ld-play: published %lld frames (%s) in %.2f s, %.2f frames/s; %lld late, %lld "
+               "ld-play: published %lld frame%s (%s) in %.2f s, %s frames/s; %lld late, %lld "
                "failed\n",
-               static_cast<long long>(sent), kind.c_str(), s, rate, static_cast<long long>(late),
-               static_cast<long long>(failed));
+               static_cast<long long>(sent), sent == 1 ? "" : "s", kind.c_str(), s, rate_text,
+               static_cast<long long>(late), static_cast<long long>(failed));
   return g_stop || failed == 0 ? 0 : 1;
 }

@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <iomanip>
 #include <iostream>
 #include <optional>
 #include <sstream>
@@ -161,10 +162,11 @@ inline const CLI::Validator NonNegative =
     detail::numberCheck("NONNEGATIVE", [](double v) { return v >= 0; }, "must be >= 0");
 /// A number in [lo, hi] ("must be in [0.01, 2], not 5"; "'abc' is not a number").
 inline CLI::Validator Between(double lo, double hi) {
+  // (15 digits: a bound of 1e12 reads 1000000000000, as a whole number is written)
   std::ostringstream rule;
-  rule << "must be in [" << lo << ", " << hi << "]";
+  rule << std::setprecision(15) << "must be in [" << lo << ", " << hi << "]";
   std::ostringstream name;
-  name << "[" << lo << " - " << hi << "]";
+  name << std::setprecision(15) << "[" << lo << " - " << hi << "]";
   return detail::numberCheck(name.str(), [lo, hi](double v) { return v >= lo && v <= hi; }, rule.str());
 }
 
