@@ -1,12 +1,10 @@
 #include "ld/adaptive.hpp"
+#include "ld/input_checks.hpp"
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
-#include <iomanip>
-#include <sstream>
-#include <stdexcept>
 #include <utility>
 
 #include <opencv2/imgproc.hpp>
@@ -49,13 +47,7 @@ constexpr int kGlareBlock = 8;
 // The parameters as their comments bound them; std::invalid_argument naming
 // the first that is not (max_gain 0 made every frame black, without a word).
 const AdaptiveParams& checked(const AdaptiveParams& p) {
-  const auto in = [](const char* name, double v, double lo, double hi) {
-    if (!(v >= lo && v <= hi)) {  // (NaN too)
-      std::ostringstream s;
-      s << std::setprecision(10) << "AdaptiveParams: " << name << " must be " << lo << " to " << hi << ", not " << v;
-      throw std::invalid_argument(s.str());
-    }
-  };
+  const auto in = [](const char* name, double v, double lo, double hi) { requireWithin("AdaptiveParams", name, v, lo, hi); };
   in("target_white", p.target_white, 1, 255);
   in("max_gain", p.max_gain, 1, 64);
   in("bright_fraction", p.bright_fraction, 1e-4, 1);

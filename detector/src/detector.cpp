@@ -23,6 +23,7 @@
 
 #include "filters.hpp"
 #include "ld/config_file.hpp"
+#include "ld/input_checks.hpp"
 #include "stages.hpp"
 
 namespace ld {
@@ -1931,20 +1932,8 @@ void Detector::setCamera(const CameraModel& camera, double side_m) {
   impl_->misfit_size = {};
 }
 
-namespace {
-// An image detect() cannot read is the caller's mistake, said, not a frame
-// without landmarks (a 16-bit PNG read with IMREAD_UNCHANGED found nothing).
-void checkImageType(const cv::Mat& image) {
-  if (image.empty() || (image.depth() == CV_8U && (image.channels() == 1 || image.channels() == 3 ||
-                                                    image.channels() == 4)))
-    return;
-  throw std::invalid_argument("Detector::detect: a " + cv::typeToString(image.type()) +
-                              " image: it reads 8-bit BGR, BGRA or gray (CV_8UC3, CV_8UC4, CV_8UC1)");
-}
-}  // namespace
-
 const Detection& Detector::detect(const cv::Mat& bgr) {
-  checkImageType(bgr);
+  requireReadableImage(bgr, "Detector::detect");
   impl_->run(bgr);
   return impl_->det;
 }
@@ -1953,7 +1942,7 @@ const Detection& Detector::detect(const cv::Mat& bgr, Explanation& why) {
   // The detection, untraced (its times are its own); then again as a run
   // that records the looks (the same landmarks), its times put back to the
   // untraced run's; then the first pass explained.
-  checkImageType(bgr);
+  requireReadableImage(bgr, "Detector::detect");
   impl_->run(bgr);
   const auto t0 = std::chrono::steady_clock::now();
   const std::vector<StageTime> stages = impl_->det.stages;

@@ -157,15 +157,22 @@ std::string channelPatternError(const std::string& pattern) {
 
 bool channelNameTakesItself(const std::string& name) { return matches(wholeName(name), name); }
 
+std::string inputChannelProblem(const ChannelOption& input) {
+  const auto& [option, name] = input;
+  if (name.empty()) return option + " needs a channel name";
+  if (const std::string why = channelPatternError(name); !why.empty())
+    return option + " " + name + ": LCM reads a subscription's channel as a regular expression, and this is none (" +
+           why + ")";
+  return "";
+}
+
 std::string channelProblem(const std::vector<ChannelOption>& inputs, const ChannelOption& output,
                            const std::string& whose) {
   for (const auto& [option, name] : inputs)
     if (name.empty()) return option + " needs a channel name";
   if (output.second.empty()) return output.first + " needs a channel name";
-  for (const auto& [option, name] : inputs)
-    if (const std::string why = channelPatternError(name); !why.empty())
-      return option + " " + name + ": LCM reads a subscription's channel as a regular expression, and this is " +
-             "none (" + why + ")";
+  for (const auto& input : inputs)
+    if (const std::string problem = inputChannelProblem(input); !problem.empty()) return problem;
   for (const auto& [option, name] : inputs)
     if (channelPatternTakes(name, output.second))
       return option + " " + name + " takes " + whose + " own output " + output.second + ": it would feed itself";

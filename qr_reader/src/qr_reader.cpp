@@ -4,15 +4,13 @@
 #include <cmath>
 #include <cstdint>
 #include <optional>
-#include <iomanip>
-#include <sstream>
-#include <stdexcept>
 #include <utility>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
 #include <zbar.h>
 
+#include "ld/input_checks.hpp"
 #include "ld/landmark_layout.hpp"
 #include "qr_function_patterns.hpp"
 #include "qr_pixel_model.hpp"
@@ -102,16 +100,6 @@ std::optional<double> readableQrSide(const cv::Mat& image, const std::array<cv::
   const double qr_px = projectedQrSide(corners);
   if (!(qr_px >= 8.0)) return std::nullopt;
   return qr_px;
-}
-
-// An image of a type the reader cannot read (16-bit, float, two channels):
-// the caller's mistake, said (it read nothing, without a word).
-void checkImageType(const cv::Mat& image, const char* who) {
-  if (image.empty() || (image.depth() == CV_8U && (image.channels() == 1 || image.channels() == 3 ||
-                                                    image.channels() == 4)))
-    return;
-  throw std::invalid_argument(std::string(who) + ": a " + cv::typeToString(image.type()) +
-                              " image: it reads 8-bit BGR, BGRA or gray (CV_8UC3, CV_8UC4, CV_8UC1)");
 }
 
 // `image` (gray, BGR or BGRA) as gray in `gray`, always `gray`'s own buffer
@@ -554,17 +542,10 @@ struct QrReader::Impl {
 QrReader::QrReader(const QrReaderParams& params) : impl_(std::make_unique<Impl>()) {
   // (min_side_px over max_side_px broke std::clamp's precondition; INT_MAX
   // sides asked for exabytes; a NaN upsample was taken)
-  const auto in = [](const char* name, double v, double lo, double hi) {
-    if (!(v >= lo && v <= hi)) {
-      std::ostringstream s;
-      s << std::setprecision(10) << "QrReaderParams: " << name << " must be " << lo << " to " << hi << ", not " << v;
-      throw std::invalid_argument(s.str());
-    }
-  };
-  in("upsample", params.upsample, 0.25, 16);
-  in("min_side_px", params.min_side_px, 16, 4096);
-  in("max_side_px", params.max_side_px, params.min_side_px, 4096);
-  in("margin_u", params.margin_u, 0, 1);
+  requireWithin("QrReaderParams", "upsample", params.upsample, 0.25, 16);
+  requireWithin("QrReaderParams", "min_side_px", params.min_side_px, 16, 4096);
+  requireWithin("QrReaderParams", "max_side_px", params.max_side_px, params.min_side_px, 4096);
+  requireWithin("QrReaderParams", "margin_u", params.margin_u, 0, 1);
   impl_->params = params;
   impl_->scanner.set_config(zbar::ZBAR_NONE, zbar::ZBAR_CFG_ENABLE, 0);
   impl_->scanner.set_config(zbar::ZBAR_QRCODE, zbar::ZBAR_CFG_ENABLE, 1);
@@ -598,7 +579,7 @@ std::optional<QrResult> QrReader::decode(const cv::Mat& image,
   const QrReaderParams& p = m.params;
   m.fitted_n = 0;
   m.view_made = false;
-  checkImageType(image, "QrReader::decode");
+  requireReadableImage(image, "QrReader::decode");
   const auto readable = readableQrSide(image, corners);
   if (!readable) return std::nullopt;  // nothing to read
   const double qr_px = *readable;
@@ -660,7 +641,7 @@ int stackSide(double qr_px) {
 }  // namespace
 
 bool QrStack::add(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners) {
-  checkImageType(image, "QrStack::add");
+  requireReadableImage(image, "QrStack::add");
   const auto qr_px = readableQrSide(image, corners);
   if (!qr_px) return false;
   // Another landmark (a tracker's ids swapped between two), not this one

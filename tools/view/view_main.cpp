@@ -506,12 +506,13 @@ int main(int argc, char** argv) {
   const bool display = x_display || wayland_display;
   for (const auto& [option, name] : {std::pair<const char*, const std::string*>{"--image", &image_ch},
                                      {"--tracks", &tracked_ch},
-                                     {"--codes", &codes_ch}})
-    if (name->empty()) return ld::cli::usage(argv[0], std::string(option) + " needs a channel name");
-    else if (const std::string why = ld::channelPatternError(*name); logs.empty() && !why.empty())
-      return ld::cli::usage(argv[0], std::string(option) + " " + *name +
-                                         ": LCM reads a subscription's channel as a regular expression, and this is "
-                                         "none (" + why + ")");
+                                     {"--codes", &codes_ch}}) {
+    // (live, they are LCM subscriptions; in logs, names matched as they are)
+    const std::string problem = logs.empty()    ? ld::inputChannelProblem({option, *name})
+                                : name->empty() ? std::string(option) + " needs a channel name"
+                                                : "";
+    if (!problem.empty()) return ld::cli::usage(argv[0], problem);
+  }
   if (all_frames && logs.empty())
     return ld::cli::usage(argv[0], "--all is for --log (live, every frame with a tracked list is drawn)");
   if (!o.video.empty() && !ld::hasExtension(o.video, ".avi"))

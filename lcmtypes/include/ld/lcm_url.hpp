@@ -133,6 +133,9 @@ bool channelNameTakesItself(const std::string& name);
 /// the tracker's own output Y: ..."; `whose`: "the tracker's"). Channels are
 /// (option, name) pairs.
 using ChannelOption = std::pair<std::string, std::string>;
+/// What is wrong with one input channel alone ("" when nothing): empty, or
+/// no regular expression LCM can read (for a reader with no output: ld-view).
+std::string inputChannelProblem(const ChannelOption& input);
 std::string channelProblem(const std::vector<ChannelOption>& inputs, const ChannelOption& output,
                            const std::string& whose);
 
