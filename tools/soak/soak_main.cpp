@@ -262,7 +262,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   // (what the frames' conversion would refuse after rendering them all)
-  if ((o.format == "yuyv" || o.format == "uyvy" || o.format == "YUYV" || o.format == "UYVY") && o.width % 2 != 0) {
+  if (const int32_t f = ld::pixelFormatFromName(o.format);  // (checked by the option)
+      (f == ld::image_t::PIXEL_FORMAT_YUYV || f == ld::image_t::PIXEL_FORMAT_UYVY) && o.width % 2 != 0) {
     std::cerr << "ld-soak: --format " << o.format << " needs an even width, not " << o.width << "\n";
     return 2;
   }
