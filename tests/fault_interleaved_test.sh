@@ -43,7 +43,7 @@ echo "$FRAMES frames: $(wc -l < "$T/lm.utimes") lists from the detector, $(wc -l
 diff "$T/in.utimes" "$T/lm.utimes"   # every good frame detected
 diff "$T/in.utimes" "$T/tr.utimes"   # every good list tracked
 # every malformed message said (10 lines, then every 100th) and counted
-grep -q "stopped after $FRAMES frames (0 skipped, $FRAMES bad)" "$T/detector.err"
+grep -q "stopped after $FRAMES frames (0 skipped, $FRAMES bad, 0 missing)" "$T/detector.err"
 grep -q "stopped after $FRAMES frames (0 skipped, $FRAMES bad," "$T/tracker.err"
 [ "$(grep -c "ld-detector: dropped frame: " "$T/detector.err")" = 10 ]
 [ "$(grep -c "ld-tracker: dropped message: " "$T/tracker.err")" = 10 ]

@@ -40,6 +40,10 @@ echo "images $images = tracked $tracked + skipped by the detector $det_skipped +
 [ "$images" -eq 240 ]
 [ "$det_skipped" -ge 60 ]  # (the stall's 90 frames, less those processed around it)
 [ $(( tracked + det_skipped + trk_skipped )) -eq "$images" ]
+# every frame reached the detector (the stall's frames waited in the
+# kernel's buffer): skipped to stay current, none missing by their seqs
+grep "ld-detector: stopped after" "$T/detector.log"
+grep -q "ld-detector: stopped after .* skipped, 0 bad, 0 missing)" "$T/detector.log"
 
 # The frames' latency (from capture to the tracked list): the frame the
 # detector was on when stopped, and the first it handles after (LCM's

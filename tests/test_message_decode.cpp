@@ -380,6 +380,43 @@ TEST(LatestMessage, NewestGoodMessageWaitsAndReplacedOnesAreSkipped) {
   EXPECT_EQ(latest.skipped(), 2);  // (taken before the next came: none skipped)
 }
 
+// Frames that never reached the process (the kernel's receive buffer full,
+// a lossy network, a camera that dropped them) are counted by the gaps in
+// their seqs, apart from those skipped to stay current and the bad ones; a
+// seq that goes back (a log replayed again) starts anew.
+TEST(LatestMessage, CountsTheSeqsThatNeverCame) {
+  const auto seqOf = [](const ld::landmark_list_t& m) { return std::optional<int64_t>(m.seq); };
+  ld::LatestMessage<ld::landmark_list_t> latest(
+      "ld-test", "LANDMARKS", "message",
+      [](const ld::landmark_list_t& m) { return m.nlandmarks > 2 ? std::string("too many") : std::string(); }, seqOf);
+  listOf(5, 1).to(latest);  // (the first: nothing before it is missing)
+  listOf(6, 1).to(latest);
+  listOf(9, 1).to(latest);  // 7 and 8 lost
+  EXPECT_EQ(latest.missing(), 2);
+  EXPECT_EQ(latest.skipped(), 2);  // (5 and 6, replaced before taken: skipped, not missing)
+  testing::internal::CaptureStderr();
+  listOf(10, 5).to(latest);  // refused: its seq is not trusted
+  Delivered cut = listOf(11, 1);
+  cut.bytes.resize(cut.bytes.size() - 5);
+  cut.to(latest);  // not decoded
+  listOf(7, 9).to(latest);  // refused: a bad message's seq moves nothing
+  (void)testing::internal::GetCapturedStderr();
+  listOf(12, 1).to(latest);
+  EXPECT_EQ(latest.bad(), 3);
+  EXPECT_EQ(latest.missing(), 4);  // 7, 8 and the two bad ones
+  listOf(0, 1).to(latest);  // replayed from the start: no gap, none missing
+  listOf(1, 1).to(latest);
+  listOf(-1, 1).to(latest);  // (no seq: passed over)
+  listOf(3, 1).to(latest);
+  EXPECT_EQ(latest.missing(), 5);
+  listOf(INT64_MAX, 1).to(latest);  // (a huge jump does not overflow)
+  EXPECT_EQ(latest.missing(), INT64_MAX);
+  ld::LatestMessage<ld::landmark_list_t> without("ld-test", "LANDMARKS", "message");
+  listOf(1, 1).to(without);
+  listOf(9, 1).to(without);
+  EXPECT_EQ(without.missing(), 0);  // (no seqs given: none counted)
+}
+
 // A subscription's queue held to a byte budget (ld::QueueFit) rather than
 // LCM's 30 messages, beyond which LCM's receiving thread dropped the newer
 // ones without a word (Stack.StalledDetectorTakesTheNewestFrame is the

@@ -79,7 +79,7 @@ int main(int argc, char** argv) {
   // Each frame is decoded and checked as it arrives (decoding copies it
   // once, as keeping its bytes did); the JPEG data of an MJPEG frame is
   // checked only by decoding it, later.
-  ld::LatestMessage<ld::image_t> latest("ld-detector", in_channel, "frame", ld::imageProblem);
+  ld::LatestMessage<ld::image_t> latest("ld-detector", in_channel, "frame", ld::imageProblem, ld::imageSeq);
   latest.queueOn(lcm.subscribe(in_channel, &ld::LatestMessage<ld::image_t>::onMessage, &latest));
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
@@ -139,15 +139,17 @@ int main(int argc, char** argv) {
     const auto now = std::chrono::steady_clock::now();
     if (verbose && now - last_status > std::chrono::seconds(5)) {
       const double s = std::chrono::duration<double>(now - last_status).count();
-      std::fprintf(stderr, "ld-detector: %.1f frames/s, %lld processed, %lld skipped, %lld bad\n",
+      std::fprintf(stderr, "ld-detector: %.1f frames/s, %lld processed, %lld skipped, %lld bad, %lld missing\n",
                    (processed - last_processed) / s, static_cast<long long>(processed),
-                   static_cast<long long>(latest.skipped()), static_cast<long long>(latest.bad()));
+                   static_cast<long long>(latest.skipped()), static_cast<long long>(latest.bad()),
+                   static_cast<long long>(latest.missing()));
       last_processed = processed;
       last_status = now;
     }
   }
-  std::fprintf(stderr, "ld-detector: stopped after %lld frames (%lld skipped, %lld bad)\n",
+  // (missing: frames whose seq never came, lost before this process)
+  std::fprintf(stderr, "ld-detector: stopped after %lld frames (%lld skipped, %lld bad, %lld missing)\n",
                static_cast<long long>(processed), static_cast<long long>(latest.skipped()),
-               static_cast<long long>(latest.bad()));
+               static_cast<long long>(latest.bad()), static_cast<long long>(latest.missing()));
   return 0;
 }

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <functional>
 #include <iostream>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -20,19 +21,27 @@ namespace ld {
 /// (ld::decodeMessage) and checked as it arrives, so a bad one is said at
 /// once, in one line on stderr ("PROGRAM: dropped WHAT: WHY (N bad so far)",
 /// thinned out as printBadLine says), and never takes the place of a good
-/// one waiting to be processed; a good one that does counts as skipped. The
-/// two messages it holds keep their buffers: nothing is allocated once warm.
+/// one waiting to be processed; a good one that does counts as skipped.
+/// Given the messages' sequence numbers, it also counts those that never
+/// came: the gaps between one good message's seq and the next (lost before
+/// the process, in the kernel's receive buffer, on the network or at the
+/// source; a bad message's seq is not trusted, so a bad frame in the run
+/// counts as bad and as missing). A seq that goes back (a source
+/// restarted, a log replayed again) starts anew. The two
+/// messages it holds keep their buffers: nothing is allocated once warm.
 template <class Msg>
 class LatestMessage {
  public:
   /// Why a decoded message is no good all the same, as said after
   /// "dropped WHAT: "; "" when it is good.
   using Check = std::function<std::string(const Msg&)>;
+  /// A message's sequence number, if it has one.
+  using SeqOf = std::function<std::optional<int64_t>(const Msg&)>;
 
   /// `program` and `what` ("frame", "message") name the dropped line.
-  LatestMessage(std::string program, std::string channel, std::string what, Check check = {})
+  LatestMessage(std::string program, std::string channel, std::string what, Check check = {}, SeqOf seq_of = {})
       : program_(std::move(program)), channel_(std::move(channel)), what_(std::move(what)),
-        check_(std::move(check)) {}
+        check_(std::move(check)), seq_of_(std::move(seq_of)) {}
 
   /// The LCM handler: latest.queueOn(lcm.subscribe(channel, &LatestMessage<Msg>::onMessage, &latest)).
   void onMessage(const lcm::ReceiveBuffer* rbuf, const std::string& = {}) {
@@ -43,6 +52,7 @@ class LatestMessage {
     else if (check_)
       why = check_(incoming_);
     if (!why.empty()) return reportBad(why);
+    countGap();
     if (pending_) ++skipped_;
     std::swap(incoming_, newest_);
     pending_ = true;
@@ -68,14 +78,29 @@ class LatestMessage {
 
   int64_t skipped() const { return skipped_; }  ///< good messages that a newer one replaced
   int64_t bad() const { return bad_; }          ///< messages said bad
+  /// Messages that never came, by the gaps in their seqs (0 without SeqOf).
+  int64_t missing() const { return missing_; }
 
  private:
+  void countGap() {
+    if (!seq_of_) return;
+    const std::optional<int64_t> seq = seq_of_(incoming_);
+    if (!seq || *seq < 0) return;  // (a negative seq is none)
+    if (last_seq_ && *seq > *last_seq_) {
+      const int64_t gap = *seq - 1 - *last_seq_;  // (both 0 or more: no overflow)
+      missing_ = gap > INT64_MAX - missing_ ? INT64_MAX : missing_ + gap;
+    }
+    last_seq_ = seq;
+  }
+
   std::string program_, channel_, what_;
   Check check_;
+  SeqOf seq_of_;
+  std::optional<int64_t> last_seq_;
   QueueFit queue_;
   Msg incoming_, newest_;
   bool pending_ = false;
-  int64_t skipped_ = 0, bad_ = 0;
+  int64_t skipped_ = 0, bad_ = 0, missing_ = 0;
 };
 
 }  // namespace ld
