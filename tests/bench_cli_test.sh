@@ -16,8 +16,8 @@ refused() {  # PATTERN COMMAND...: exit 2 within 20 s, one line on stderr matchi
   [ $rc -eq 2 ] || fail "$*: exit $rc, not 2: $(cat "$T/err")"
   [ "$(wc -l <"$T/err")" -eq 1 ] && grep -q -- "$pat" "$T/err" || fail "$*: $(cat "$T/err")"
 }
-refused "^ld-bench: --frames: must be > 0, not 0 (--help lists the options)$" "$BIN/ld-bench" --frames 0
-refused "^ld-bench: --repeats: must be > 0, not 0" "$BIN/ld-bench" --repeats 0
+refused "^ld-bench: --frames: must be in \[1, 1000\], not 0 (--help lists the options)$" "$BIN/ld-bench" --frames 0
+refused "^ld-bench: --repeats: must be in \[1, 10000\], not 0" "$BIN/ld-bench" --repeats 0
 refused "^ld-bench: --size: must be in \[0.01, 2\], not -1" "$BIN/ld-bench" --size -1
 refused "^ld-bench: --resolutions: '640' is not WIDTHxHEIGHT" "$BIN/ld-bench" --resolutions 640
 refused "^ld-bench: --resolutions: '32x32' is out of 64x48 .. 8192x8192" "$BIN/ld-bench" --resolutions 640x480,32x32
@@ -45,6 +45,21 @@ grep -q '^| landmarks | assignment | update |$' "$T/out" || fail "ld-bench-track
 rc=0; timeout 60 "$BIN/ld-bench-tracker" --landmarks 5 --repeats 1 >/dev/full 2>"$T/err" || rc=$?
 [ $rc -eq 1 ] && grep -qx "ld-bench-tracker: cannot write its output: No space left on device" "$T/err" ||
   fail "ld-bench-tracker to a full disk: $rc $(cat "$T/err")"
+# a closed pipe (its reader gone): said, status 1, as a full disk is (it
+# died of SIGPIPE without a word)
+python3 - "$BIN/ld-bench-tracker" --landmarks 5 --repeats 1 >"$T/rc" 2>"$T/err" <<'PY'
+import os, subprocess, sys
+r, w = os.pipe()
+os.close(r)  # (no reader: the write fails; the child gets SIGPIPE's default back)
+p = subprocess.run(sys.argv[1:], stdout=w, stderr=subprocess.PIPE)
+print(p.returncode)
+sys.stderr.write(p.stderr.decode())
+PY
+[ "$(cat "$T/rc")" = 1 ] && grep -qx "ld-bench-tracker: cannot write its output: Broken pipe" "$T/err" ||
+  fail "ld-bench-tracker to a closed pipe: $(cat "$T/rc") $(cat "$T/err")"
+# (bounded: every timing is held; 2e9 repeats overflowed an int and asked for 16 GB)
+refused "^ld-bench-tracker: --repeats: must be in \[1, 1000000\], not 2000000000" "$BIN/ld-bench-tracker" --repeats 2000000000
+refused "^ld-bench: --frames: must be in \[1, 1000\], not 5000" "$BIN/ld-bench" --frames 5000
 refused "^ld-bench-e2e: unknown option --bogus (--help lists the options)$" "$BIN/ld-bench-e2e" --bogus
 refused "^ld-bench-e2e: --seconds must be a number of seconds, not x" "$BIN/ld-bench-e2e" --seconds x
 refused "^ld-bench-e2e: --seconds must be above 0" "$BIN/ld-bench-e2e" --seconds 0.0

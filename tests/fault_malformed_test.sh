@@ -57,7 +57,9 @@ bad() { sed -n "s/.*stopped after .* \([0-9][0-9]*\) bad.*/\1/p" "$1"; }
 [ "$(grep -c "ld-detector: dropped frame: .*(.* bad so far)" "$T/detector.err")" = "$N" ]
 [ "$(grep -c "ld-tracker: dropped message: message on LANDMARKS is " "$T/tracker.err")" = "$N" ]
 [ "$(grep -c "ld-qr-reader: dropped message on IMAGE: " "$T/qr.err")" = "$N" ]
-[ "$(grep -c "ld-qr-reader: dropped message on LANDMARKS_TRACKED: " "$T/qr.err")" = $((10 - N)) ]  # 10 lines, then every 100th
+# (each channel's lines thinned out on their own: a flood of bad images
+# left room for just one bad list's line)
+[ "$(grep -c "ld-qr-reader: dropped message on LANDMARKS_TRACKED: .*(.* bad on LANDMARKS_TRACKED so far" "$T/qr.err")" = "$N" ]
 grep -q "nstages 2147483647 does not fit" "$T/tracker.err"
 grep -q "string backend has length 0" "$T/tracker.err"
 grep -q "MJPEG frame 30000x30000 is larger than" "$T/detector.err"

@@ -553,7 +553,7 @@ TEST(LcmUrl, OpenFailureStatusTellsAWrongUrl) {
   EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://239.255.76.67:0x1df3"), 1);  // (LCM reads the port as C does)
   EXPECT_EQ(ld::lcmOpenFailureStatus("mpudpm://239.255.76.67:7667?ttl=0"), 1);
   EXPECT_EQ(ld::lcmOpenFailureStatus("tcpq://localhost:7700"), 1);
-  EXPECT_EQ(ld::lcmOpenFailureStatus(""), 1);  // (LCM's default)
+  EXPECT_EQ(ld::lcmOpenFailureStatus(""), 2);  // (empty: LCM took its own default, without the receive buffer)
   EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://239.255.76.67"), 2);  // no port: LCM took 0 and never received
   EXPECT_EQ(ld::lcmOpenFailureStatus("udpm://:7667"), 2);
   EXPECT_EQ(ld::lcmOpenFailureStatus("file:///tmp/x.lcmlog?mode=r"), 1);

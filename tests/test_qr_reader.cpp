@@ -469,7 +469,8 @@ TEST(QrReader, ParametersOutOfRangeAreRefused) {
       EXPECT_EQ(std::string(e.what()), "QrReaderParams: " + says);
     }
   };
-  refused([](ld::QrReaderParams& q) { q.min_side_px = 600; }, "max_side_px must be 600 to 4096, not 480");
+  refused([](ld::QrReaderParams& q) { q.min_side_px = 600; }, "min_side_px 600 is over max_side_px 480");
+  refused([](ld::QrReaderParams& q) { q.max_side_px = 8; }, "max_side_px must be 16 to 4096, not 8");
   refused([](ld::QrReaderParams& q) { q.min_side_px = q.max_side_px = INT_MAX; },
           "min_side_px must be 16 to 4096, not 2147483647");
   refused([](ld::QrReaderParams& q) { q.upsample = std::nan(""); }, "upsample must be 0.25 to 16, not nan");
@@ -624,6 +625,31 @@ TEST(QrTrackReader, PayloadWithANulByteIsPublished) {
   ASSERT_EQ(back.ncodes, 1);
   EXPECT_EQ(back.codes[0].payload, "door\xEF\xBF\xBD" "214");
   EXPECT_EQ(ld::lcmString(std::string("\0\0", 2)), "\xEF\xBF\xBD\xEF\xBF\xBD");
+}
+
+// Tracks whose corners can be no landmark (NaN, collapsed to a point, out
+// at 1e30: a publisher other than the tracker) are never due: the three of
+// them took the frame's three decodes, every retry interval, and the
+// readable track waited. An id listed twice is due once.
+TEST(QrTrackReader, UnreadableCornersTakeNoDecode) {
+  const TwoTracks scene;
+  const ld::image_t image = ld::matToImage(scene.image, ld::image_t::PIXEL_FORMAT_BGR, 0);
+  const float nan = std::nanf("");
+  ld::QrTrackReaderParams params;
+  params.stack_frames = 0;
+  std::ostringstream log;
+  ld::QrTrackReader reader(params, log);
+  ld::qr_code_list_t out;
+  const std::array<cv::Point2f, 4> point{{{50, 50}, {50, 50}, {50, 50}, {50, 50}}};
+  const std::array<cv::Point2f, 4> huge{{{-1e30f, -1e30f}, {1e30f, -1e30f}, {1e30f, 1e30f}, {-1e30f, 1e30f}}};
+  const std::array<cv::Point2f, 4> nans{{{nan, 0}, {100, 0}, {100, 100}, {0, 100}}};
+  reader.process(image,
+                 trackedList(1'000'000, 0,
+                             {tracked(1, 1, nans), tracked(2, 1, point), tracked(3, 1, huge), tracked(3, 1, huge),
+                              tracked(4, 1, scene.readable)}),
+                 out);
+  EXPECT_EQ(codeOf(out, 4), std::optional<std::string>("room-214/door"));
+  EXPECT_EQ(reader.book().size(), 1u);  // (the others never scheduled)
 }
 
 // The image's pixels are needed only for a due track; when they cannot be

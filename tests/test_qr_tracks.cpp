@@ -68,6 +68,67 @@ TEST(FrameMatcher, SeqDisambiguatesEqualUtimes) {
   EXPECT_EQ(p.image, bytes(1));
 }
 
+// A pair of a frame older than the last one taken (a list reordered on the
+// way, by up to FrameMatcher::kLateUs), or of that frame again, is dropped
+// and counted as late: ld-qr-reader read it, took the tracks' ages for a
+// tracker restart and forgot every payload (a helper held frame 5's list
+// back until after frame 10). Older by more is time starting again.
+TEST(FrameMatcher, LateOrRepeatedFrameIsDroppedNotRead) {
+  ld::FrameMatcher m;
+  ld::FrameMatcher::Pair p;
+  const int64_t frame = 33'333;
+  for (int i = 0; i <= 10; ++i) addImage(m, frame * i, i);
+  for (int i : {4, 6, 7, 8, 9, 10}) {
+    addList(m, frame * i, i);
+    ASSERT_TRUE(m.takeNewest(p));
+    EXPECT_EQ(p.key.seq, i);
+  }
+  addList(m, frame * 5, 5);  // 5 frames (167 ms) late: more than kLateUs, time starting again
+  ASSERT_TRUE(m.takeNewest(p));
+  EXPECT_EQ(p.key.seq, 5);
+  addList(m, frame * 6, 6);
+  ASSERT_TRUE(m.takeNewest(p));
+  addList(m, frame * 9, 9);
+  ASSERT_TRUE(m.takeNewest(p));
+  addList(m, frame * 8, 8);  // a frame late
+  EXPECT_FALSE(m.takeNewest(p));
+  addList(m, frame * 9, 9);  // the same frame again
+  EXPECT_FALSE(m.takeNewest(p));
+  EXPECT_EQ(m.late(), 2);
+  EXPECT_EQ(p.key.seq, 9);  // (what was taken stays)
+  addList(m, frame * 8, 8);
+  addList(m, frame * 10, 10);  // late and new together: the new one taken, the late not skipped
+  ASSERT_TRUE(m.takeNewest(p));
+  EXPECT_EQ(p.key.seq, 10);
+  EXPECT_EQ(m.late(), 3);
+  EXPECT_EQ(m.skipped(), 0);
+  EXPECT_EQ(m.matched(), 13);
+}
+
+// A publisher whose utime stands still: frames with seqs are told apart by
+// them (a later seq is taken, an earlier one is late); without seqs each is
+// taken, as before.
+TEST(FrameMatcher, StillUtimeIsOrderedBySeq) {
+  ld::FrameMatcher m;
+  ld::FrameMatcher::Pair p;
+  for (int i = 1; i <= 3; ++i) addImage(m, 500, i);
+  addList(m, 500, 2);
+  ASSERT_TRUE(m.takeNewest(p));
+  addList(m, 500, 3);
+  ASSERT_TRUE(m.takeNewest(p));
+  EXPECT_EQ(p.key.seq, 3);
+  addList(m, 500, 1);
+  EXPECT_FALSE(m.takeNewest(p));
+  EXPECT_EQ(m.late(), 1);
+  ld::FrameMatcher none;
+  for (int i = 0; i < 3; ++i) {
+    addImage(none, 500, -1);
+    addList(none, 500, -1);
+    EXPECT_TRUE(none.takeNewest(p));
+  }
+  EXPECT_EQ(none.late(), 0);
+}
+
 TEST(QrTrackBook, DecodesOnceThenRechecksRarely) {
   ld::QrScheduleParams params;
   params.retry_interval_s = 0.1;
@@ -87,6 +148,23 @@ TEST(QrTrackBook, DecodesOnceThenRechecksRarely) {
   EXPECT_EQ(book.schedule({7}, 6 * s), std::vector<int64_t>{7});
   book.record(7, 6 * s, 9, std::nullopt);  // a failed re-check keeps the payload
   EXPECT_EQ(book.payload(7)->payload, "dock");
+}
+
+// Intervals too long to count in microseconds are never, not (as the cast
+// overflowed) every frame: `--recheck-interval 1e300` re-read a track on
+// each.
+TEST(QrTrackBook, HugeIntervalsAreNever) {
+  ld::QrScheduleParams params;
+  params.retry_interval_s = 1e300;
+  params.recheck_interval_s = 1e300;
+  params.forget_after_s = 1e300;
+  ld::QrTrackBook book(params);
+  const int64_t s = 1000000;
+  EXPECT_EQ(book.schedule({1, 2}, 0), (std::vector<int64_t>{1, 2}));  // (the first try of each)
+  book.record(1, 0, 0, std::string("dock"));
+  book.record(2, 0, 0, std::nullopt);
+  for (int64_t t : {s, 3600 * s, int64_t{1} << 61}) EXPECT_TRUE(book.schedule({1, 2}, t).empty()) << t;
+  EXPECT_NE(book.payload(1), nullptr);
 }
 
 // A read track whose landmark jumps (by more than its size per tracker frame)

@@ -679,6 +679,17 @@ TEST(TrackerParams, GateBeyondAThousandSizesIsRefused) {
   EXPECT_THROW(p.validate(), std::invalid_argument);
 }
 
+// A lifetime is counted in whole microseconds: one under half of one
+// rounded to 0, and every track expired, renumbered, each frame.
+TEST(TrackerParams, LifetimeUnderAMicrosecondIsRefused) {
+  ld::TrackerParams p;
+  p.max_lifetime_s = 1e-9;
+  EXPECT_THROW(p.validate(), std::invalid_argument);
+  EXPECT_THROW(ld::Tracker{p}, std::invalid_argument);
+  p.max_lifetime_s = 1e-6;
+  EXPECT_NO_THROW(p.validate());
+}
+
 TEST(Tracker, TracksCarryCornersPoseAndPayload) {
   ld::Tracker tr;
   ld::Landmark a = square(200, 200);

@@ -31,6 +31,7 @@ PY
 # its own output (LCM reads --in as a pattern) or are empty.
 for args in "ld-tracker --max-lifetime 0|--max-lifetime: must be > 0, not 0" \
             "ld-tracker --max-distance 0|--max-distance: must be in (0, 1000], not 0" \
+            "ld-tracker --max-lifetime 1e-9|ld-tracker: max_lifetime_s must be a number of seconds, at least 1e-6" \
             "ld-tracker --max-distance 1001|--max-distance: must be in (0, 1000], not 1001" \
             "ld-tracker --min-hits 2147483648|--min-hits: must be in [1, 1000], not 2147483648" \
             "ld-tracker --max-size-ratio 0.5|--max-size-ratio: must be in [1, 1000], not 0.5" \
@@ -40,6 +41,8 @@ for args in "ld-tracker --max-lifetime 0|--max-lifetime: must be > 0, not 0" \
             "ld-tracker --in LANDMARKS\w*|--in LANDMARKS\w* takes the tracker's own output" \
             "ld-detector --in .*|--in .* takes the detector's own output LANDMARKS" \
             "ld-qr-reader --tracks LANDMARK.*|--tracks LANDMARK.* takes the reader's own output LANDMARK_CODES" \
+            "ld-qr-reader --image X --tracks X|--image X and --tracks X take the same channel: each needs its own" \
+            "ld-qr-reader --image LANDMARKS_TRACKED|--image LANDMARKS_TRACKED and --tracks LANDMARKS_TRACKED take the same channel" \
             "ld-tracker --in LANDMARKS[|--in LANDMARKS[: LCM reads a subscription's channel as a regular expression, and this is none (missing terminating ] for character class)" \
             "ld-detector --in (|--in (: LCM reads a subscription's channel as a regular expression, and this is none (missing terminating ))"; do
   cmd=${args%%|*}; rc=0
@@ -54,6 +57,10 @@ done
 flags=-n; [ "$(id -u)" -eq 0 ] || flags=-rn
 rc=0; timeout 10 unshare $flags "$BIN/ld-tracker" >/dev/null 2>"$T/err" || rc=$?
 [ $rc -eq 1 ] && grep -q "^ld-tracker: cannot open LCM at udpm://" "$T/err" || { echo "FAIL: no route: $rc $(cat "$T/err")"; exit 1; }
+# an empty URL (an unset variable): LCM took it for its own default, without
+# the receive buffer large images need
+rc=0; timeout 10 "$BIN/ld-tracker" --lcm-url "" >/dev/null 2>"$T/err" || rc=$?
+[ $rc -eq 2 ] && grep -q "^ld-tracker: LCM URL is empty (leave the option out for udpm://" "$T/err" || { echo "FAIL: empty URL: $rc $(cat "$T/err")"; exit 1; }
 rc=0; timeout 10 "$BIN/ld-tracker" --lcm-url bogus://x >/dev/null 2>"$T/err" || rc=$?
 [ $rc -eq 2 ] && grep -q "^ld-tracker: LCM URL bogus://x: LCM has no provider bogus" "$T/err" || { echo "FAIL: bogus URL: $rc $(cat "$T/err")"; exit 1; }
 # a udpm URL without a port (LCM took it as port 0: it never received, and

@@ -22,7 +22,11 @@ std::string defaultLcmUrl() {
 }
 
 std::string lcmUrlProblem(const std::string& url) {
-  if (url.empty()) return "";  // (LCM's own default)
+  // (LCM takes "" for its own default, without the receive buffer large
+  // images need: an unset variable in `--lcm-url "$URL"` brought image loss
+  // back without a word)
+  if (url.empty())
+    return "is empty (leave the option out for " + defaultLcmUrl() + ", or give one, e.g. " + kLcmUrlExample + ")";
   const size_t end = url.find("://");
   if (end == std::string::npos) return url + " is not an LCM URL (PROVIDER://..., e.g. " + kLcmUrlExample + ")";
   const std::string provider = url.substr(0, end);
@@ -176,6 +180,14 @@ std::string channelProblem(const std::vector<ChannelOption>& inputs, const Chann
   for (const auto& [option, name] : inputs)
     if (channelPatternTakes(name, output.second))
       return option + " " + name + " takes " + whose + " own output " + output.second + ": it would feed itself";
+  // (two inputs of different types on one channel: every message of one is
+  // dropped as no message of the other's type, without end)
+  for (size_t i = 0; i < inputs.size(); ++i)
+    for (size_t j = i + 1; j < inputs.size(); ++j)
+      if (channelPatternTakes(inputs[i].second, inputs[j].second) ||
+          channelPatternTakes(inputs[j].second, inputs[i].second))
+        return inputs[i].first + " " + inputs[i].second + " and " + inputs[j].first + " " + inputs[j].second +
+               " take the same channel: each needs its own";
   return "";
 }
 

@@ -544,7 +544,10 @@ QrReader::QrReader(const QrReaderParams& params) : impl_(std::make_unique<Impl>(
   // sides asked for exabytes; a NaN upsample was taken)
   requireWithin("QrReaderParams", "upsample", params.upsample, 0.25, 16);
   requireWithin("QrReaderParams", "min_side_px", params.min_side_px, 16, 4096);
-  requireWithin("QrReaderParams", "max_side_px", params.max_side_px, params.min_side_px, 4096);
+  requireWithin("QrReaderParams", "max_side_px", params.max_side_px, 16, 4096);
+  if (params.min_side_px > params.max_side_px)  // (named as both: either may be the one set wrong)
+    throw std::invalid_argument("QrReaderParams: min_side_px " + std::to_string(params.min_side_px) +
+                                " is over max_side_px " + std::to_string(params.max_side_px));
   requireWithin("QrReaderParams", "margin_u", params.margin_u, 0, 1);
   impl_->params = params;
   impl_->scanner.set_config(zbar::ZBAR_NONE, zbar::ZBAR_CFG_ENABLE, 0);

@@ -37,27 +37,35 @@ struct Inputs {
   ld::image_t header_probe;
   ld::landmark_list_t list_probe;
   ld::QueueFit image_queue, list_queue;  // (their subscriptions' queues: ld::QueueFit)
-  int64_t bad = 0;
+  int64_t images = 0, lists = 0;         // good ones come
+  int64_t bad_images = 0, bad_lists = 0;  // (each channel's lines thinned out on their own)
 
   void onImage(const lcm::ReceiveBuffer* rb, const std::string& ch) {
     image_queue.fit(rb->data_size);
     const auto* p = static_cast<const uint8_t*>(rb->data);
-    if (!ld::decodeMessage(p, rb->data_size, header_probe, &why)) return reportBad(ch, why);
+    if (!ld::decodeMessage(p, rb->data_size, header_probe, &why)) return reportBad(ch, why, bad_images);
     // (its pixels are decoded only if a track needs reading)
-    if (const std::string problem = ld::imageProblem(header_probe); !problem.empty()) return reportBad(ch, problem);
+    if (const std::string problem = ld::imageProblem(header_probe); !problem.empty())
+      return reportBad(ch, problem, bad_images);
+    ++images;
     matcher.addImage({header_probe.utime, ld::imageSeq(header_probe).value_or(-1)}, p, rb->data_size);
   }
   void onList(const lcm::ReceiveBuffer* rb, const std::string& ch) {
     list_queue.fit(rb->data_size);
     const auto* p = static_cast<const uint8_t*>(rb->data);
-    if (!ld::decodeMessage(p, rb->data_size, list_probe, &why)) return reportBad(ch, why);
+    if (!ld::decodeMessage(p, rb->data_size, list_probe, &why)) return reportBad(ch, why, bad_lists);
+    ++lists;
     matcher.addList({list_probe.utime, list_probe.seq}, p, rb->data_size);
   }
-  void reportBad(const std::string& ch, const std::string& what) {
+  /// Says a bad message of one channel, `bad` being that channel's count: a
+  /// flood on one does not thin out the other's lines.
+  void reportBad(const std::string& ch, const std::string& what, int64_t& bad) {
     ++bad;
     if (ld::printBadLine(bad))
-      std::cerr << "ld-qr-reader: dropped message on " << ch << ": " << what << " " << ld::badSoFar(bad) << "\n";
+      std::cerr << "ld-qr-reader: dropped message on " << ch << ": " << what << " "
+                << ld::badSoFar(bad, ("bad on " + ch).c_str()) << "\n";
   }
+  int64_t bad() const { return bad_images + bad_lists; }
   std::string why;
 };
 
@@ -137,16 +145,16 @@ int main(int argc, char** argv) {
   ld::qr_code_list_t out;
   bool untracked_said = false;                     // said that the lists carry no track ids
   bool unjoined_said = false;                      // said that no image and list ever joined
-  constexpr int64_t kUnjoinedNote = 60;            // messages dropped unjoined before that is said
+  constexpr int64_t kUnjoinedNote = 60;            // images, and lists, come unjoined before that is said
   int64_t frames = 0;
   while (!g_stop) {
     // waits, then drains the queue: only the newest message is processed
     if (!ld::pumpLcm(lcm, 200, g_stop, "ld-qr-reader")) return 1;
     if (g_stop) break;
     // (nothing ever joined: the images and the lists are of different frames)
-    if (frames == 0 && !unjoined_said && in.matcher.unmatchedDropped() >= kUnjoinedNote) {
-      std::cerr << "ld-qr-reader: note: " << in.matcher.unmatchedDropped() << " images and lists on " << image_ch
-                << " and " << tracks_ch << " and none of the same frame (utime and seq) yet: --image must be "
+    if (!unjoined_said && in.matcher.matched() == 0 && in.images >= kUnjoinedNote && in.lists >= kUnjoinedNote) {
+      std::cerr << "ld-qr-reader: note: " << in.images << " images on " << image_ch << " and " << in.lists
+                << " lists on " << tracks_ch << " and none of the same frame (utime and seq) yet: --image must be "
                 << "the images the tracked landmarks were found in\n";
       unjoined_said = true;
     }
@@ -166,17 +174,17 @@ int main(int argc, char** argv) {
     try {
       tracks.process(image, list, out);
     } catch (const ld::ImageFormatError& e) {
-      in.reportBad(image_ch, e.what());
+      in.reportBad(image_ch, e.what(), in.bad_images);
       continue;
     }
     publisher.publish(out_ch, out);
   }
   std::fprintf(stderr,
                "ld-qr-reader: stopped after %lld frames, %lld tracks read (%lld from stacked frames), "
-               "%lld skipped, %lld unmatched, %lld bad\n",
+               "%lld skipped, %lld late, %lld unmatched, %lld bad\n",
                static_cast<long long>(frames), static_cast<long long>(tracks.tracksRead()),
                static_cast<long long>(tracks.tracksReadStacked()),
-               static_cast<long long>(in.matcher.skipped()),
-               static_cast<long long>(in.matcher.unmatchedDropped()), static_cast<long long>(in.bad));
+               static_cast<long long>(in.matcher.skipped()), static_cast<long long>(in.matcher.late()),
+               static_cast<long long>(in.matcher.unmatchedDropped()), static_cast<long long>(in.bad()));
   return 0;
 }

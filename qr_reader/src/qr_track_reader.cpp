@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 
 #include "ld/image_convert.hpp"
 #include "ld/message_publisher.hpp"
@@ -17,6 +18,23 @@ std::array<cv::Point2f, 4> cornersOf(const landmark_t& lm) {
   return corners;
 }
 
+// Whether a track's corners can be a landmark in a w x h image (0: size not
+// known): finite, enclosing at least 4x4 px, none further out than the
+// image's own size beyond its sides. Others (a foreign publisher's NaNs, a
+// pattern collapsed to a point, corners at 1e30) are never due: each took a
+// decode of the frame's few, before a readable track's turn.
+bool readableCorners(const landmark_t& lm, int w, int h) {
+  double area2 = 0;
+  for (int i = 0; i < 4; ++i) {
+    const float x = lm.corners[i][0], y = lm.corners[i][1];
+    if (!std::isfinite(x) || !std::isfinite(y)) return false;
+    if (w > 0 && h > 0 && (x < -w || x > 2.0 * w || y < -h || y > 2.0 * h)) return false;
+    const int j = (i + 1) % 4;
+    area2 += double{x} * lm.corners[j][1] - double{lm.corners[j][0]} * y;
+  }
+  return std::abs(area2) / 2 >= 16;
+}
+
 }  // namespace
 
 QrTrackReader::QrTrackReader(const QrTrackReaderParams& params, std::ostream& log, bool verbose)
@@ -27,7 +45,10 @@ void QrTrackReader::process(const image_t& image, const landmark_list_t& list, q
   ids_.clear();
   ages_.clear();
   for (const auto& lm : list.landmarks) {
-    if (lm.visible && lm.track_id >= 0) ids_.push_back(lm.track_id);
+    // (an id listed twice, by a publisher other than the tracker: due once)
+    if (lm.visible && lm.track_id >= 0 && readableCorners(lm, image.width, image.height) &&
+        std::find(ids_.begin(), ids_.end(), lm.track_id) == ids_.end())
+      ids_.push_back(lm.track_id);
     if (lm.track_id >= 0) ages_.emplace_back(lm.track_id, lm.age);
   }
   // (a tracker that restarted numbers its tracks from 1 again: what was

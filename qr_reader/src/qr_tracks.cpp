@@ -53,6 +53,7 @@ void FrameMatcher::match() {
     }
     p.image.assign(im->bytes.begin(), im->bytes.end());  // the image may serve another list
     ready_.push_back(std::move(p));
+    ++matched_;
     l = lists_.erase(l);
   }
   // Lists much older than the oldest image held can never be matched.
@@ -69,20 +70,41 @@ void FrameMatcher::match() {
 
 bool FrameMatcher::takeNewest(Pair& out) {
   if (ready_.empty()) return false;
-  auto newest = std::max_element(ready_.begin(), ready_.end(), [](const Pair& a, const Pair& b) {
-    return a.key.utime < b.key.utime;
-  });
-  if (!out.image.empty()) spare_.push_back(std::move(out.image));
-  if (!out.list.empty()) spare_.push_back(std::move(out.list));
-  out = std::move(*newest);
-  skipped_ += static_cast<int64_t>(ready_.size()) - 1;
+  // Late: older than the last frame taken by up to kLateUs, or that frame
+  // again (the same utime, and a seq not past its seq). Frames whose utime
+  // stands still are told apart by their seqs; without seqs they are taken.
+  const auto late = [&](const Key& k) {
+    if (!taken_any_) return false;
+    if (k.utime == last_taken_.utime) return k.seq >= 0 && last_taken_.seq >= 0 && k.seq <= last_taken_.seq;
+    return k.utime < last_taken_.utime && last_taken_.utime - k.utime <= kLateUs;
+  };
+  auto newest = ready_.end();
+  int64_t late_now = 0;
+  for (auto p = ready_.begin(); p != ready_.end(); ++p) {
+    if (late(p->key)) {
+      ++late_now;
+    } else if (newest == ready_.end() || newest->key.utime < p->key.utime ||
+               (newest->key.utime == p->key.utime && newest->key.seq < p->key.seq)) {
+      newest = p;
+    }
+  }
+  late_ += late_now;
+  const bool found = newest != ready_.end();
+  if (found) {
+    if (!out.image.empty()) spare_.push_back(std::move(out.image));
+    if (!out.list.empty()) spare_.push_back(std::move(out.list));
+    out = std::move(*newest);
+    skipped_ += static_cast<int64_t>(ready_.size()) - 1 - late_now;
+    taken_any_ = true;
+    last_taken_ = out.key;
+  }
   for (auto& p : ready_) {
     if (!p.image.empty()) spare_.push_back(std::move(p.image));
     if (!p.list.empty()) spare_.push_back(std::move(p.list));
   }
   ready_.clear();
   if (spare_.size() > max_images_ + max_lists_) spare_.resize(max_images_ + max_lists_);
-  return true;
+  return found;
 }
 
 bool QrTrackBook::noteAges(const std::vector<std::pair<int64_t, int32_t>>& ages) {
@@ -92,7 +114,9 @@ bool QrTrackBook::noteAges(const std::vector<std::pair<int64_t, int32_t>>& ages)
 }
 
 std::vector<int64_t> QrTrackBook::schedule(const std::vector<int64_t>& track_ids, int64_t utime) {
-  const auto us = [](double s) { return static_cast<int64_t>(s * 1e6); };
+  // (saturating: an interval of 1e300 s is never, where the cast's
+  // overflow made it every frame)
+  const auto us = [](double s) { return s * 1e6 >= 9e18 ? INT64_MAX : static_cast<int64_t>(s * 1e6); };
   std::vector<std::pair<int64_t, int64_t>> due;  // (priority, id): lower first
   for (int64_t id : track_ids) {
     Track& t = tracks_[id];

@@ -8,6 +8,7 @@
 // the same scenes. Prints Markdown tables.
 #include <algorithm>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -71,9 +72,12 @@ int main(int argc, char** argv) {
   std::vector<std::string> resolutions{"640x480", "1280x720", "1920x1080"};
   bool with_paper = true;
   std::vector<std::string> backends{"cpu", "gles"};
-  app.add_option("--frames", frames, "scenes per resolution")->check(ld::cli::Positive)->capture_default_str();
-  app.add_option("--repeats", repeats, "timed runs per scene (the median is kept)")
-      ->check(ld::cli::Positive)
+  // (bounded: the scenes are held rendered, and every timing)
+  app.add_option("--frames", frames, "scenes per resolution, 1 to 1000")
+      ->check(ld::cli::Between(1, 1000))
+      ->capture_default_str();
+  app.add_option("--repeats", repeats, "timed runs per scene, 1 to 10000 (the median is kept)")
+      ->check(ld::cli::Between(1, 10000))
       ->capture_default_str();
   app.add_option("--seed", seed, "scene seed")->capture_default_str()->check(ld::cli::Seed);
   app.add_option("--size", side_m, "printed side S of landmarks and markers, metres")
@@ -103,13 +107,16 @@ int main(int argc, char** argv) {
       ->delimiter(',')
       ->check(ld::cli::Between(1, 1000))
       ->capture_default_str();
-  app.add_option("--tracker-repeats", tracker_repeats, "timed runs per tracker row")
-      ->check(ld::cli::Positive)
+  app.add_option("--tracker-repeats", tracker_repeats, "timed runs per tracker row, 1 to 1000000")
+      ->check(ld::cli::Between(1, 1000000))
       ->capture_default_str();
   std::string params_file;
   app.add_option("--params", params_file,
                  "detector parameters (YAML) every row starts from (each row sets its own front_end and backend)");
   LD_CLI_PARSE(app, argc, argv);
+  // (a closed pipe is said, status 1, as a full disk is: not a silent
+  // death by SIGPIPE after minutes of measuring)
+  std::signal(SIGPIPE, SIG_IGN);
   ld::DetectorParams base;
   if (!params_file.empty()) {
     try {

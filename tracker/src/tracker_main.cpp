@@ -142,7 +142,7 @@ int main(int argc, char** argv) {
           std::cerr << "ld-tracker: " << n << (n == 1 ? " landmark" : " landmarks") << " of the list on "
                     << in_channel << " for frame " << in.seq << " (utime " << in.utime
                     << ") not tracked: corners not finite or under a pixel apart "
-                    << ld::badSoFar(rejected_lists) << "\n";
+                    << ld::badSoFar(rejected_lists, "lists with such landmarks") << "\n";
       }
       if (tracker.stats().late_frames > late) {  // (a message that came late: nothing to publish)
         late = tracker.stats().late_frames;

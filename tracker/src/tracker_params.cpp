@@ -116,8 +116,10 @@ std::string TrackerParams::toYaml() const {
 
 void TrackerParams::validate() const {
   auto bad = [](const std::string& what) { throw std::invalid_argument(what); };
-  if (!(max_lifetime_s > 0) || !std::isfinite(max_lifetime_s))
-    bad("max_lifetime_s must be a positive number of seconds");
+  // (counted in whole microseconds: under half of one it rounded to 0, and
+  // every track expired, renumbered, each frame)
+  if (!(max_lifetime_s >= 1e-6) || !std::isfinite(max_lifetime_s))
+    bad("max_lifetime_s must be a number of seconds, at least 1e-6 (a microsecond)");
   // (bounded: a gate of 1e307 sizes overflowed the assignment's gains)
   if (!(max_distance > 0 && max_distance <= 1000)) bad("max_distance must be in (0, 1000] (landmark sizes)");
   if (!(coast_distance_growth >= 0 && coast_distance_growth <= 1000))

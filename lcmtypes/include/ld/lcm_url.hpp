@@ -22,7 +22,8 @@ constexpr const char* kLcmUrlExample = "udpm://239.255.76.67:7667?ttl=0";
 /// Why `url` cannot be an LCM URL, or "": a provider LCM does not have, a
 /// udpm group that is not a multicast address, a udpm URL without a port or
 /// with one that is not (LCM takes a missing port as 0: it never receives,
-/// and its wait aborts the process after a while). The processes check it
+/// and its wait aborts the process after a while), an empty one (LCM's own
+/// default, without the receive buffer large images need). The processes check it
 /// before they open LCM and refuse such a URL with status 2.
 std::string lcmUrlProblem(const std::string& url);
 /// In a process's main, before it opens LCM: false, with the one line
@@ -128,10 +129,10 @@ bool channelNameTakesItself(const std::string& name);
 
 /// What is wrong with a process's channels, for its one-line refusal ("" when
 /// nothing): an empty name ("--in needs a channel name"), an input that is no
-/// regular expression LCM can read, or an input that
+/// regular expression LCM can read, an input that
 /// takes the process's own output, which would feed it itself ("--in X takes
-/// the tracker's own output Y: ..."; `whose`: "the tracker's"). Channels are
-/// (option, name) pairs.
+/// the tracker's own output Y: ..."; `whose`: "the tracker's"), or two
+/// inputs that take the same channel. Channels are (option, name) pairs.
 using ChannelOption = std::pair<std::string, std::string>;
 /// What is wrong with one input channel alone ("" when nothing): empty, or
 /// no regular expression LCM can read (for a reader with no output: ld-view).

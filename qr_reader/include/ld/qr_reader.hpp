@@ -51,7 +51,8 @@ struct QrResult {
 class QrReader {
  public:
   /// Throws std::invalid_argument naming a parameter out of its range
-  /// (upsample 0.25-16, min_side_px 16-4096, max_side_px min_side_px-4096,
+  /// (upsample 0.25-16, min_side_px and max_side_px 16-4096, min_side_px not
+  /// over max_side_px,
   /// margin_u 0-1).
   explicit QrReader(const QrReaderParams& params = {});
   ~QrReader();

@@ -42,11 +42,20 @@ class FrameMatcher {
   void addList(const Key& key, const uint8_t* data, size_t size);
 
   /// The newest matched pair not yet taken, dropping older matched pairs
-  /// (counted in skipped()). False when nothing is matched.
+  /// (counted in skipped()). False when nothing is matched. A pair of a
+  /// frame older than the last one taken, by up to kLateUs (a message
+  /// reordered on the way, as Tracker::update takes it), or of the same
+  /// frame again, is dropped and counted in late(): read, it took the
+  /// tracks' ages for a restart and forgot every payload. Older by more, it
+  /// is time starting again (a log replayed from its start) and taken.
   bool takeNewest(Pair& out);
+  static constexpr int64_t kLateUs = 100'000;
 
   int64_t skipped() const { return skipped_; }
+  int64_t late() const { return late_; }
   int64_t unmatchedDropped() const { return unmatched_dropped_; }
+  /// Pairs made so far (taken, skipped or late).
+  int64_t matched() const { return matched_; }
 
  private:
   struct Entry {
@@ -58,7 +67,9 @@ class FrameMatcher {
   std::deque<Entry> images_, lists_;
   std::deque<Pair> ready_;
   std::vector<std::vector<uint8_t>> spare_;  // recycled buffers
-  int64_t skipped_ = 0, unmatched_dropped_ = 0;
+  bool taken_any_ = false;
+  Key last_taken_;
+  int64_t skipped_ = 0, late_ = 0, unmatched_dropped_ = 0, matched_ = 0;
 };
 
 /// The decoding time a frame may take: the first decode always runs, a later
