@@ -15,6 +15,7 @@
 #include <opencv2/imgproc.hpp>
 #include <unistd.h>
 
+#include "../detector/src/filters.hpp"
 #include "../detector/src/stages.hpp"
 #include "ld/adaptive.hpp"
 #include "ld/artwork.hpp"
@@ -2684,6 +2685,16 @@ TEST(Params, ValidateNamesTheField) {
   EXPECT_NE(err([](auto& p) { p.qr_washed_dip = -1; }).find("qr_washed_dip"), std::string::npos);
   EXPECT_NE(err([](auto& p) { p.align_iterations = 101; }).find("align_iterations"), std::string::npos);
   EXPECT_NE(err([](auto& p) { p.align_iterations = -2; }).find("align_iterations"), std::string::npos);
+  // a sigma where the fast front end has no blur (it was taken, and nothing blurred)
+  EXPECT_NE(err([](auto& p) { p.blur_sigma = 20; }).find("blur_sigma is for a blur, and the fast front end has none"),
+            std::string::npos);
+  EXPECT_EQ(err([](auto& p) { p.blur_sigma = 2; p.blur_kernel = 5; }), "");
+  ld::DetectorParams paper;
+  paper.front_end = "paper";
+  EXPECT_EQ(ld::detail::FilterSettings::from(paper).blur_sigma, 3.0);  // (the paper's own)
+  paper.blur_sigma = 1.5;  // its own kernel takes a sigma given (it was dropped for 3)
+  EXPECT_EQ(ld::detail::FilterSettings::from(paper).blur_kernel, 9);
+  EXPECT_EQ(ld::detail::FilterSettings::from(paper).blur_sigma, 1.5);
   ld::DetectorParams bad;
   bad.front_end = "x";
   EXPECT_THROW(ld::Detector{bad}, std::invalid_argument);

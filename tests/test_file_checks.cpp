@@ -186,6 +186,35 @@ std::vector<uint8_t> list(const char* type, const std::vector<uint8_t>& chunks) 
 // ld-view reads its video back with it: OpenCV's own reader counted the
 // frames of a video's first GiB alone (FFmpeg's writer goes on in 'AVIX'
 // sections), so a whole 2 GB video was said to be cut short.
+// A floating-point image read black (OpenCV turned its 0-1 values into 8
+// bits without scaling) and found nothing, without a word: it is refused,
+// named. A 16-bit one reads as OpenCV reads it, scaled to 8 bits.
+TEST(ReadImageFile, FloatingPointImagesAreRefusedNamed) {
+  cv::Mat bgr(48, 64, CV_8UC3, cv::Scalar(40, 160, 250)), f;
+  bgr.convertTo(f, CV_32FC3, 1 / 255.0);
+  for (const auto& [ext, says] : std::vector<std::pair<std::string, std::string>>{
+           {".pfm", "a PFM image"}, {".hdr", "a Radiance HDR image"}, {".tiff", "a TIFF of floating-point samples"}}) {
+    SCOPED_TRACE(ext);
+    std::vector<uint8_t> bytes;
+    ASSERT_TRUE(cv::imencode(ext, f, bytes));
+    cv::Mat read;
+    EXPECT_EQ(ld::readImageFile(writeFile("float" + ext, bytes), read),
+              "cannot read as an image: it is " + says +
+                  " (floating-point values, which would read as black): convert it to an 8- or 16-bit image first");
+    EXPECT_TRUE(read.empty());
+  }
+  cv::Mat wide;
+  bgr.convertTo(wide, CV_16UC3, 257);
+  for (const std::string ext : {".png", ".tiff"}) {
+    std::vector<uint8_t> bytes;
+    ASSERT_TRUE(cv::imencode(ext, wide, bytes));
+    cv::Mat read;
+    ASSERT_EQ(ld::readImageFile(writeFile("wide" + ext, bytes), read), "") << ext;
+    ASSERT_EQ(read.type(), CV_8UC3) << ext;
+    EXPECT_EQ(cv::norm(read, bgr, cv::NORM_INF), 0) << ext;
+  }
+}
+
 TEST(AviVideoFrames, CountsEverySectionAndStopsAtACut) {
   const std::string path = testing::TempDir() + "/file_checks_5.avi";
   {

@@ -967,6 +967,10 @@ TEST(TrackerParams, ClearErrors) {
   expectLoadError("max_size_ratio: 0.5\n", "max_size_ratio");
   expectLoadError("min_hits: 5000\n", "min_hits must be in [1, 1000]");  // as --min-hits
   expectLoadError("max_lifetime_s: [1\n", "cannot parse");
+  // the file's own line (OpenCV counted the two it is given in front of a
+  // plain one, and its message named no line)
+  expectLoadError("max_lifetime_s: 1\n  min_hits: 2\n", "cannot parse as YAML, XML or JSON (OpenCV: line 2: ");
+  expectLoadError("%YAML:1.0\n---\nmax_lifetime_s: 1\n  min_hits: 2\n", "(OpenCV: line 4: ");
   expectLoadError("", "is empty");  // as the detector's parameters (a file cut short)
   expectLoadError(" \n\n", "is empty");
   expectLoadError("min_hits: 010\n", "the integer 010 has a leading 0, and OpenCV reads it as octal (8)");  // (it loaded 8)

@@ -40,6 +40,7 @@ for args in "ld-tracker --max-lifetime 0|--max-lifetime: must be > 0, not 0" \
             "ld-tracker --in X --out X|--in X takes the tracker's own output X" \
             "ld-tracker --in LANDMARKS\w*|--in LANDMARKS\w* takes the tracker's own output" \
             "ld-detector --in .*|--in .* takes the detector's own output LANDMARKS" \
+            "ld-detector --explain 1e10|--explain: must be in [0, 86400], not 1e10" \
             "ld-qr-reader --tracks LANDMARK.*|--tracks LANDMARK.* takes the reader's own output LANDMARK_CODES" \
             "ld-qr-reader --image X --tracks X|--image X and --tracks X take the same channel: each needs its own" \
             "ld-qr-reader --image LANDMARKS_TRACKED|--image LANDMARKS_TRACKED and --tracks LANDMARKS_TRACKED take the same channel" \

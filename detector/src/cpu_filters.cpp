@@ -13,7 +13,9 @@ FilterSettings FilterSettings::from(const DetectorParams& p) {
   FilterSettings s;
   const bool paper = p.front_end == "paper";
   s.blur_kernel = p.blur_kernel >= 0 ? p.blur_kernel : (paper ? 9 : 0);
-  s.blur_sigma = p.blur_kernel >= 0 ? p.blur_sigma : (paper ? 3.0 : 0.0);
+  // (the paper front end's own kernel takes a sigma given: it was dropped
+  // for the paper's 3 without a word)
+  s.blur_sigma = p.blur_kernel >= 0 || p.blur_sigma > 0 ? p.blur_sigma : (paper ? 3.0 : 0.0);
   s.mask = {p.saturation_threshold_blue, p.saturation_threshold, p.value_min};
   s.saturation_threshold = p.saturation_threshold;
   s.canny_low = p.canny_low;

@@ -142,6 +142,10 @@ void checkValues(const DetectorParams& p, const std::string& prefix) {
   if (p.blur_kernel != -1 && p.blur_kernel != 0 && (p.blur_kernel < 1 || p.blur_kernel % 2 == 0 || p.blur_kernel > 31))
     bad("blur_kernel", "must be -1, 0 or an odd number from 1 to 31");
   if (!(p.blur_sigma >= 0 && p.blur_sigma <= 20)) bad("blur_sigma", "must be in [0, 20]");
+  // (a sigma for a blur that is not there: taken, and nothing blurred)
+  if (p.blur_sigma > 0 && p.blur_kernel == -1 && p.front_end == "fast")
+    bad("blur_sigma", "is for a blur, and the fast front end has none unless blur_kernel is set (an odd number "
+                      "from 3 to 31)");
   if (!(p.saturation_threshold > 0 && p.saturation_threshold < 1)) bad("saturation_threshold", "must be in (0, 1)");
   if (!(p.saturation_threshold_blue > 0 && p.saturation_threshold_blue < 1))
     bad("saturation_threshold_blue", "must be in (0, 1)");
@@ -718,8 +722,17 @@ struct Detector::Impl {
       return v[v.size() / 2];
     };
     const double gpu = median(gpu_ms), cpu = median(cpu_ms);
-    const char* force = std::getenv("LD_GLES_AUTO_FORCE");  // (tests: both outcomes on any machine)
-    const bool keep_cpu = force && *force ? std::strcmp(force, "cpu") == 0 : cpu <= gpu;
+    const char* env = std::getenv("LD_GLES_AUTO_FORCE");  // (tests: both outcomes on any machine)
+    const bool forced = env && (std::strcmp(env, "cpu") == 0 || std::strcmp(env, "gles") == 0);
+    if (env && *env && !forced) {  // (any other value kept the GPU without a word)
+      static bool said = false;  // (once a process)
+      if (!said)
+        std::cerr << program_invocation_short_name << ": warning: LD_GLES_AUTO_FORCE=" << env
+                  << " is neither gles nor cpu: ignored (the medians choose)\n";
+      said = true;
+    }
+    const char* force = forced ? env : nullptr;
+    const bool keep_cpu = force ? std::strcmp(force, "cpu") == 0 : cpu <= gpu;
     char buf[256];
     std::snprintf(buf, sizeof buf,
                   "the filters took %.3f ms on the GPU, transfers included, against %.3f ms on the CPU "

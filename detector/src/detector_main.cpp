@@ -40,8 +40,9 @@ int main(int argc, char** argv) {
   double explain_s = 0;
   app.add_option("--explain", explain_s,
                  "every this many seconds, explain one frame on stderr as ld-detect --explain does (what each "
-                 "stage kept, why groups of squares were refused, what each later look found); 0: never")
-      ->check(ld::cli::NonNegative);
+                 "stage kept, why groups of squares were refused, what each later look found); 0: never, "
+                 "at most 86400 (a day)")
+      ->check(ld::cli::Between(0, 86400));  // (1e10 s overflowed the clock: every frame explained)
   LD_CLI_PARSE(app, argc, argv);
   if (const std::string p = ld::channelProblem({{"--in", in_channel}}, {"--out", out_channel}, "the detector's");
       !p.empty())

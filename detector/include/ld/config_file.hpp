@@ -309,8 +309,10 @@ inline cv::FileStorage openConfigFile(const std::string& path, const std::string
   if (const auto why = integerOutOfRange(text, int_keys)) fail(*why);
   const size_t first = text.find_first_not_of(" \t\r\n");
   if (first == std::string::npos) fail("is empty");
+  int added_lines = 0;  // (before the file's own: its line numbers are said as the file has them)
   if (text[first] != '<' && text[first] != '{' && text.compare(first, 5, "%YAML") != 0) {
     text = "%YAML:1.0\n---\n" + text;
+    added_lines = 2;
   }
   // OpenCV's YAML parser fails on a tab anywhere ("skipSpaces"), where YAML
   // allows one between a value and its comment: spaces do as well.
@@ -323,6 +325,19 @@ inline cv::FileStorage openConfigFile(const std::string& path, const std::string
     opened = fs.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);
   } catch (const cv::Exception& e) {
     error = e.err;
+    // (OpenCV 4.6's parsers put the line and the reason where the function's
+    // name goes, "(3): Incorrect indentation", and the function's name
+    // where the reason goes)
+    for (const std::string& where : {e.func, e.msg}) {
+      const size_t open = where.find('('), close = where.find("): ");
+      if (open == std::string::npos || close == std::string::npos || close <= open + 1) continue;
+      const std::string digits = where.substr(open + 1, close - open - 1);
+      if (digits.find_first_not_of("0123456789") != std::string::npos || digits.size() > 9) continue;
+      std::string reason = where.substr(close + 3);
+      while (!reason.empty() && (reason.back() == '\'' || reason.back() == '\n')) reason.pop_back();
+      error = "line " + std::to_string(std::max(1, std::stoi(digits) - added_lines)) + ": " + reason;
+      break;
+    }
   } catch (const std::exception& e) {
     error = e.what();
   }

@@ -123,7 +123,9 @@ struct DetectorParams {
   /// none for "fast", the paper's 9 for "paper"). Blur costs time and erases
   /// small squares.
   int blur_kernel = -1;
-  double blur_sigma = 0.0;    ///< Gaussian sigma (0: from the kernel; the paper's 3 with -1)
+  /// Gaussian sigma (0: from the kernel, or the paper's 3 with -1 under the
+  /// paper front end). With -1 under "fast" (no blur) a sigma is refused.
+  double blur_sigma = 0.0;
 
   // 2. saturation
   /// HSV saturation (0..1) the AP's (red) pixels exceed, and every pixel in
