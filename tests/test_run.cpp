@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <lcm/lcm-cpp.hpp>
@@ -181,6 +182,32 @@ TEST(Netns, LcmUdpPort) {
   EXPECT_EQ(ld::lcmUdpPort("udpm://239.255.76.67:7700"), 7700);
   EXPECT_EQ(ld::lcmUdpPort("udpm://239.255.76.67"), 7667);
   EXPECT_EQ(ld::lcmUdpPort("memq://"), -1);
+}
+
+// A namespace made by hand as DESIGN.md says (`unshare -n`, then lo up) is
+// a private one: ld-soak refused it, looking only for LD_IN_NETNS=1. One
+// with another interface up is not.
+TEST(Netns, OnlyLoopbackUpIsPrivate) {
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {  // (one thread here: unshare takes it)
+    int code = 0;
+    try {
+      ld::enterPrivateNetns();
+      if (!ld::onlyLoopbackUp()) code = 1;
+      // (a dummy interface up beside lo, where the kernel has the module)
+      else if (std::system("ip link add ld-test0 type dummy 2>/dev/null && ip link set ld-test0 up") == 0 &&
+               ld::onlyLoopbackUp())
+        code = 2;
+    } catch (const std::exception&) {
+      code = 3;
+    }
+    ::_exit(code);
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0) << "1: lo alone up, not private; 2: a dummy up too, private; 3: no namespace";
 }
 
 ld::landmark_t trackedLandmark(int64_t id, bool visible, const std::string& payload = "", int32_t age = 0) {

@@ -12,6 +12,7 @@
 #include <arpa/inet.h>
 #include <dirent.h>
 #include <fcntl.h>
+#include <ifaddrs.h>
 #include <net/if.h>
 #include <net/route.h>
 #include <netinet/in.h>
@@ -46,9 +47,22 @@ sockaddr_in ipv4(const char* text) {
 
 }  // namespace
 
+bool onlyLoopbackUp() {
+  ifaddrs* list = nullptr;
+  if (::getifaddrs(&list) != 0) return false;
+  bool loopback_only = true, any = false;
+  for (const ifaddrs* a = list; a; a = a->ifa_next) {
+    if (!(a->ifa_flags & IFF_UP)) continue;
+    any = true;
+    if (!(a->ifa_flags & IFF_LOOPBACK)) loopback_only = false;
+  }
+  ::freeifaddrs(list);
+  return any && loopback_only;
+}
+
 bool inPrivateNetns() {
   const char* v = std::getenv("LD_IN_NETNS");
-  return v && std::string(v) == "1";
+  return (v && std::string(v) == "1") || onlyLoopbackUp();
 }
 
 void enterPrivateNetns() {

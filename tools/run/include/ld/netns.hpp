@@ -15,8 +15,13 @@ namespace ld {
 /// Throws std::runtime_error naming the step that failed.
 void enterPrivateNetns();
 
-/// True when LD_IN_NETNS=1 (already inside such a namespace).
+/// True when no network interface but loopback is up (a namespace made as
+/// DESIGN.md says, `unshare -n` then `ip link set lo up`: nothing sent can
+/// leave the machine), or when LD_IN_NETNS=1 says the caller made one (a
+/// namespace joined to another by a veth pair, as the two-host test's).
 bool inPrivateNetns();
+/// True when some interface is up and every one up is loopback.
+bool onlyLoopbackUp();
 
 /// net.core.rmem_max of the current network namespace (bytes), -1 if unreadable.
 int64_t rmemMax();
