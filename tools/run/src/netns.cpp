@@ -60,10 +60,12 @@ bool onlyLoopbackUp() {
   return any && loopback_only;
 }
 
-bool inPrivateNetns() {
+bool netnsVouchedFor() {
   const char* v = std::getenv("LD_IN_NETNS");
-  return (v && std::string(v) == "1") || onlyLoopbackUp();
+  return v && std::string(v) == "1";
 }
+
+bool inPrivateNetns() { return netnsVouchedFor() || onlyLoopbackUp(); }
 
 void enterPrivateNetns() {
   const uid_t uid = ::getuid();

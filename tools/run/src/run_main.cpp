@@ -330,7 +330,7 @@ int main(int argc, char** argv) {
   }
 
   // 1. The network namespace, before any thread exists.
-  if (netns && !ld::inPrivateNetns()) {
+  if (netns && !ld::netnsVouchedFor()) {
     try {
       ld::enterPrivateNetns();
     } catch (const std::exception& e) {

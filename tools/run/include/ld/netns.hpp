@@ -22,6 +22,11 @@ void enterPrivateNetns();
 bool inPrivateNetns();
 /// True when some interface is up and every one up is loopback.
 bool onlyLoopbackUp();
+/// True when LD_IN_NETNS=1: a namespace enterPrivateNetns or
+/// scripts/netns-run.sh made, or one a caller vouches for. (`ld-run --netns`
+/// makes its own unless so: a machine with loopback alone up may lack the
+/// multicast route that enterPrivateNetns adds.)
+bool netnsVouchedFor();
 
 /// net.core.rmem_max of the current network namespace (bytes), -1 if unreadable.
 int64_t rmemMax();
