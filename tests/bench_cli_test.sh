@@ -92,4 +92,12 @@ timeout 120 "$BIN/ld-bench" --frames 1 --repeats 1 --resolutions 640x480,640x480
   fail "--params run: $(cat "$T/err")"
 grep -q -- "--params $T/align.yaml" "$T/out" || fail "--params not in the header: $(head -2 "$T/out")"
 [ "$(grep -c "^| 640x480 | cpu | fast | " "$T/out")" -eq 1 ] || fail "not one detector row with --params: $(cat "$T/out")"
+# a paper file's sigma for its own kernel: the fast rows leave it (they
+# refused it, and ld-bench aborted after rendering, status 134)
+printf '%%YAML:1.0\n---\nfront_end: paper\nblur_sigma: 2\n' >"$T/paper.yaml"
+timeout 120 "$BIN/ld-bench" --frames 1 --repeats 1 --resolutions 320x240 --backend cpu \
+  --tracker-landmarks 10 --tracker-repeats 1 --params "$T/paper.yaml" >"$T/out" 2>"$T/err" ||
+  fail "--params paper with blur_sigma: $(cat "$T/err")"
+grep -q "^| 320x240 | cpu | fast | " "$T/out" && grep -q "^| 320x240 | cpu | paper | " "$T/out" ||
+  fail "--params paper: rows $(cat "$T/out")"
 echo "bench command lines: ok"

@@ -193,16 +193,23 @@ TEST(ReadImageFile, FloatingPointImagesAreRefusedNamed) {
   cv::Mat bgr(48, 64, CV_8UC3, cv::Scalar(40, 160, 250)), f;
   bgr.convertTo(f, CV_32FC3, 1 / 255.0);
   for (const auto& [ext, says] : std::vector<std::pair<std::string, std::string>>{
-           {".pfm", "a PFM image"}, {".hdr", "a Radiance HDR image"}, {".tiff", "a TIFF of floating-point samples"}}) {
+           {".pfm", "a PFM image"}, {".tiff", "a TIFF of floating-point samples"}}) {
     SCOPED_TRACE(ext);
     std::vector<uint8_t> bytes;
     ASSERT_TRUE(cv::imencode(ext, f, bytes));
     cv::Mat read;
     EXPECT_EQ(ld::readImageFile(writeFile("float" + ext, bytes), read),
               "cannot read as an image: it is " + says +
-                  " (floating-point values, which would read as black): convert it to an 8- or 16-bit image first");
+                  " (OpenCV would read its values into 8 bits without scaling, black or wrong): convert it to an 8- "
+                  "or 16-bit image first");
     EXPECT_TRUE(read.empty());
   }
+  // (Radiance HDR: OpenCV scales it to 8 bits itself, and it reads)
+  std::vector<uint8_t> hdr;
+  ASSERT_TRUE(cv::imencode(".hdr", f, hdr));
+  cv::Mat from_hdr;
+  ASSERT_EQ(ld::readImageFile(writeFile("float.hdr", hdr), from_hdr), "");
+  EXPECT_LE(cv::norm(from_hdr, bgr, cv::NORM_INF), 2);
   cv::Mat wide;
   bgr.convertTo(wide, CV_16UC3, 257);
   for (const std::string ext : {".png", ".tiff"}) {

@@ -369,6 +369,8 @@ TEST(GlesAuto, TimesBothThenKeepsTheFasterWithTheSameLandmarks) {
     EXPECT_TRUE(a.choosingBackend()) << name;
     EXPECT_NE(a.backendInfo().find("timing it against the CPU"), std::string::npos) << a.backendInfo();
     std::map<std::string, int> ran_during, ran_after;
+    const bool unknown_force = *k.force && !forced;
+    if (unknown_force) testing::internal::CaptureStderr();
     const int n = 50;  // the paper front end: 10 frames for its shader path, then 24 for the choice
     for (int i = 0; i < n; ++i) {
       const auto& f = frames[static_cast<size_t>(i) % frames.size()];
@@ -380,6 +382,12 @@ TEST(GlesAuto, TimesBothThenKeepsTheFasterWithTheSameLandmarks) {
       const std::string b = a.backend();
       EXPECT_EQ(d.stageMs("upload") > 0, b == "gles") << what << ": " << b;
       (choosing ? ran_during : ran_after)[b]++;
+    }
+    if (unknown_force) {  // (said once a process: this is the suite's one such case)
+      const std::string said = testing::internal::GetCapturedStderr();
+      EXPECT_NE(said.find("warning: LD_GLES_AUTO_FORCE=" + std::string(k.force) + " is neither gles nor cpu: ignored"),
+                std::string::npos)
+          << name << ": " << said;
     }
     EXPECT_FALSE(a.choosingBackend()) << name;
     EXPECT_GT(ran_during["cpu"], 0) << name;

@@ -404,6 +404,12 @@ TEST(LatestMessage, CountsTheSeqsThatNeverCame) {
   listOf(12, 1).to(latest);
   EXPECT_EQ(latest.bad(), 3);
   EXPECT_EQ(latest.missing(), 4);  // 7, 8 and the two bad ones
+  listOf(14, 1).to(latest);  // (13 missing)
+  EXPECT_EQ(latest.missing(), 5);
+  listOf(13, 1).to(latest);  // reordered on the way: not missing after all
+  EXPECT_EQ(latest.missing(), 4);
+  listOf(15, 1).to(latest);  // (the run goes on from 14)
+  EXPECT_EQ(latest.missing(), 4);
   listOf(0, 1).to(latest);  // replayed from the start: no gap, none missing
   listOf(1, 1).to(latest);
   listOf(-1, 1).to(latest);  // (no seq: passed over)

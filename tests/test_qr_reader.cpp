@@ -630,7 +630,8 @@ TEST(QrTrackReader, PayloadWithANulByteIsPublished) {
 // Tracks whose corners can be no landmark (NaN, collapsed to a point, out
 // at 1e30: a publisher other than the tracker) are never due: the three of
 // them took the frame's three decodes, every retry interval, and the
-// readable track waited. An id listed twice is due once.
+// readable track waited. An id listed twice is due once, and read where
+// its corners can be read.
 TEST(QrTrackReader, UnreadableCornersTakeNoDecode) {
   const TwoTracks scene;
   const ld::image_t image = ld::matToImage(scene.image, ld::image_t::PIXEL_FORMAT_BGR, 0);
@@ -646,7 +647,7 @@ TEST(QrTrackReader, UnreadableCornersTakeNoDecode) {
   reader.process(image,
                  trackedList(1'000'000, 0,
                              {tracked(1, 1, nans), tracked(2, 1, point), tracked(3, 1, huge), tracked(3, 1, huge),
-                              tracked(4, 1, scene.readable)}),
+                              tracked(4, 1, point), tracked(4, 1, scene.readable)}),
                  out);
   EXPECT_EQ(codeOf(out, 4), std::optional<std::string>("room-214/door"));
   EXPECT_EQ(reader.book().size(), 1u);  // (the others never scheduled)

@@ -106,7 +106,8 @@ TEST(FrameMatcher, LateOrRepeatedFrameIsDroppedNotRead) {
 }
 
 // A publisher whose utime stands still: frames with seqs are told apart by
-// them (a later seq is taken, an earlier one is late); without seqs each is
+// them (a later seq is taken, one up to kLateSeqs earlier is late, one
+// further back is the publisher starting again); without seqs each is
 // taken, as before.
 TEST(FrameMatcher, StillUtimeIsOrderedBySeq) {
   ld::FrameMatcher m;
@@ -120,6 +121,20 @@ TEST(FrameMatcher, StillUtimeIsOrderedBySeq) {
   addList(m, 500, 1);
   EXPECT_FALSE(m.takeNewest(p));
   EXPECT_EQ(m.late(), 1);
+  addList(m, 500, 3);  // (the same frame again)
+  EXPECT_FALSE(m.takeNewest(p));
+  EXPECT_EQ(m.late(), 2);
+  // the publisher started again (a replay: seqs from 0 once more, the utime
+  // still standing): taken, not dropped until the seqs pass the last one
+  for (int i = 10; i <= 12; ++i) addImage(m, 500, i);
+  addList(m, 500, 12);
+  ASSERT_TRUE(m.takeNewest(p));
+  for (int i = 0; i <= 2; ++i) addImage(m, 500, i);
+  for (int i = 0; i <= 2; ++i) {
+    addList(m, 500, i);
+    ASSERT_TRUE(m.takeNewest(p)) << i;
+    EXPECT_EQ(p.key.seq, i);
+  }
   ld::FrameMatcher none;
   for (int i = 0; i < 3; ++i) {
     addImage(none, 500, -1);

@@ -152,10 +152,16 @@ int main(int argc, char** argv) {
     if (!ld::pumpLcm(lcm, 200, g_stop, "ld-qr-reader")) return 1;
     if (g_stop) break;
     // (nothing ever joined: the images and the lists are of different frames)
-    if (!unjoined_said && in.matcher.matched() == 0 && in.images >= kUnjoinedNote && in.lists >= kUnjoinedNote) {
-      std::cerr << "ld-qr-reader: note: " << in.images << " images on " << image_ch << " and " << in.lists
-                << " lists on " << tracks_ch << " and none of the same frame (utime and seq) yet: --image must be "
-                << "the images the tracked landmarks were found in\n";
+    // (or no image at all, the likelier mistake: --image names no channel in use)
+    if (!unjoined_said && in.matcher.matched() == 0 && in.lists >= kUnjoinedNote &&
+        (in.images >= kUnjoinedNote || in.images == 0)) {
+      if (in.images == 0)
+        std::cerr << "ld-qr-reader: note: " << in.lists << " lists on " << tracks_ch << " and no image on " << image_ch
+                  << " yet: --image must be the channel of the images the tracked landmarks were found in\n";
+      else
+        std::cerr << "ld-qr-reader: note: " << in.images << " images on " << image_ch << " and " << in.lists
+                  << " lists on " << tracks_ch << " and none of the same frame (utime and seq) yet: --image must be "
+                  << "the images the tracked landmarks were found in\n";
       unjoined_said = true;
     }
     if (!in.matcher.takeNewest(pair)) continue;

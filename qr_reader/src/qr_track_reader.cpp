@@ -103,8 +103,9 @@ void QrTrackReader::process(const image_t& image, const landmark_list_t& list, q
   tried_ms_.clear();
   const int stack_frames = params_.stack_frames;
   for (const int64_t id : todo) {
-    const auto lm = std::find_if(list.landmarks.begin(), list.landmarks.end(),
-                                 [&](const landmark_t& l) { return l.track_id == id && l.visible; });
+    const auto lm = std::find_if(list.landmarks.begin(), list.landmarks.end(), [&](const landmark_t& l) {
+      return l.track_id == id && l.visible && readableCorners(l, image.width, image.height);
+    });
     if (lm == list.landmarks.end() || !budget.allows(std::chrono::steady_clock::now())) continue;
     const std::array<cv::Point2f, 4> corners = cornersOf(*lm);
     const auto t0 = std::chrono::steady_clock::now();

@@ -71,11 +71,14 @@ void FrameMatcher::match() {
 bool FrameMatcher::takeNewest(Pair& out) {
   if (ready_.empty()) return false;
   // Late: older than the last frame taken by up to kLateUs, or that frame
-  // again (the same utime, and a seq not past its seq). Frames whose utime
-  // stands still are told apart by their seqs; without seqs they are taken.
+  // again. Frames whose utime stands still are told apart by their seqs: up
+  // to kLateSeqs back is late, further back is the publisher starting again
+  // (without that, a replay's seqs from 0 were all dropped until they passed
+  // the last one); without seqs they are taken.
   const auto late = [&](const Key& k) {
     if (!taken_any_) return false;
-    if (k.utime == last_taken_.utime) return k.seq >= 0 && last_taken_.seq >= 0 && k.seq <= last_taken_.seq;
+    if (k.utime == last_taken_.utime)
+      return k.seq >= 0 && last_taken_.seq >= 0 && k.seq <= last_taken_.seq && last_taken_.seq - k.seq <= kLateSeqs;
     return k.utime < last_taken_.utime && last_taken_.utime - k.utime <= kLateUs;
   };
   auto newest = ready_.end();

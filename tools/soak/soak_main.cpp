@@ -440,7 +440,7 @@ int main(int argc, char** argv) {
   // The processes' own counts, from their exit lines.
   auto det = exitCounts(set[0].err_path, "ld-detector", {"skipped", "bad"});
   auto trk = exitCounts(set[1].err_path, "ld-tracker", {"skipped", "bad"});
-  auto qr = exitCounts(set[2].err_path, "ld-qr-reader", {"tracks read", "skipped", "unmatched", "bad"});
+  auto qr = exitCounts(set[2].err_path, "ld-qr-reader", {"tracks read", "skipped", "late", "unmatched", "bad"});
   if (det.empty() || trk.empty() || qr.empty()) {
     std::cerr << "ld-soak: missing exit lines in " << o.log_dir << "\n";
     std::printf("verdict: FAIL (a process did not finish its run: see %s)\n", o.log_dir.c_str());
@@ -471,10 +471,10 @@ int main(int argc, char** argv) {
               static_cast<long long>(trk["bad"]),
               static_cast<long long>(lost_landmarks));
   std::printf("ld-qr-reader:               %lld frames joined, %lld tracks read, %lld skipped (deliberate), "
-              "%lld unmatched, %lld bad\n",
+              "%lld late, %lld unmatched, %lld bad\n",
               static_cast<long long>(qr["frames"]), static_cast<long long>(qr["tracks read"]),
-              static_cast<long long>(qr["skipped"]), static_cast<long long>(qr["unmatched"]),
-              static_cast<long long>(qr["bad"]));
+              static_cast<long long>(qr["skipped"]), static_cast<long long>(qr["late"]),
+              static_cast<long long>(qr["unmatched"]), static_cast<long long>(qr["bad"]));
   std::printf("outputs -> ld-soak:         LANDMARKS %lld of %lld (%lld with landmarks), LANDMARKS_TRACKED "
               "%lld of %lld, LANDMARK_CODES %lld of %lld (%lld codes); lost %lld\n",
               static_cast<long long>(out.landmarks), static_cast<long long>(det["frames"]),

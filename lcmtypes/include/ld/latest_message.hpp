@@ -26,8 +26,10 @@ namespace ld {
 /// came: the gaps between one good message's seq and the next (lost before
 /// the process, in the kernel's receive buffer, on the network or at the
 /// source; a bad message's seq is not trusted, so a bad frame in the run
-/// counts as bad and as missing). A seq that goes back (a source
-/// restarted, a log replayed again) starts anew. The two
+/// counts as bad and as missing). A seq up to kReorderedSeqs back is a
+/// frame reordered on the way, no longer missing; one further back (a
+/// source restarted, a log replayed again) starts anew. One publisher a
+/// channel: two interleaved would read as gaps. The two
 /// messages it holds keep their buffers: nothing is allocated once warm.
 template <class Msg>
 class LatestMessage {
@@ -80,6 +82,8 @@ class LatestMessage {
   int64_t bad() const { return bad_; }          ///< messages said bad
   /// Messages that never came, by the gaps in their seqs (0 without SeqOf).
   int64_t missing() const { return missing_; }
+  /// How far back a seq may be and be a reordered frame, not a new run.
+  static constexpr int64_t kReorderedSeqs = 3;
 
  private:
   void countGap() {
@@ -89,6 +93,11 @@ class LatestMessage {
     if (last_seq_ && *seq > *last_seq_) {
       const int64_t gap = *seq - 1 - *last_seq_;  // (both 0 or more: no overflow)
       missing_ = gap > INT64_MAX - missing_ ? INT64_MAX : missing_ + gap;
+    } else if (last_seq_ && *seq < *last_seq_ && *last_seq_ - *seq <= kReorderedSeqs) {
+      // (a frame that came after its successor: counted missing when the
+      // successor came, it is here after all; the run goes on from there)
+      if (missing_ > 0) --missing_;
+      return;
     }
     last_seq_ = seq;
   }

@@ -47,9 +47,10 @@ class FrameMatcher {
   /// reordered on the way, as Tracker::update takes it), or of the same
   /// frame again, is dropped and counted in late(): read, it took the
   /// tracks' ages for a restart and forgot every payload. Older by more, it
-  /// is time starting again (a log replayed from its start) and taken.
+  /// is time starting again (a log replayed from its start) and taken. Where
+  /// the utime stands still, the seq says it: up to kLateSeqs back is late.
   bool takeNewest(Pair& out);
-  static constexpr int64_t kLateUs = 100'000;
+  static constexpr int64_t kLateUs = 100'000, kLateSeqs = 3;
 
   int64_t skipped() const { return skipped_; }
   int64_t late() const { return late_; }

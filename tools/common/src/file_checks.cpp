@@ -244,19 +244,18 @@ std::string readImageFile(const std::string& path, cv::Mat& out) {
     if (jpegReadsAsDecoded(bytes.data(), bytes.size())) return "";
     out.release();
   }
-  // A floating-point image (PFM, Radiance HDR, OpenEXR; a TIFF of floats)
-  // came out black: OpenCV turns its values, 0 to 1, into 8 bits without
-  // scaling. What a float means (linear light, its range) is the file's
-  // maker's to say: refused, named.
+  // A floating-point image (PFM, OpenEXR; a TIFF of floats) came out black
+  // or wrong: OpenCV turns its values, 0 to 1, into 8 bits without scaling.
+  // What a float means (linear light, its range) is the file's maker's to
+  // say: refused, named. (Radiance HDR OpenCV scales itself: it reads.)
   const auto starts = [&](const char* magic, size_t n) {
     return bytes.size() >= n && std::memcmp(bytes.data(), magic, n) == 0;
   };
   std::string floating;
-  if (starts("PF\n", 3) || starts("Pf\n", 3) || starts("PF\r", 3) || starts("Pf\r", 3)) floating = "a PFM image";
-  else if (starts("#?RADIANCE", 10) || starts("#?RGBE", 6)) floating = "a Radiance HDR image";
+  if ((starts("PF", 2) || starts("Pf", 2)) && bytes.size() > 2 && std::isspace(bytes[2])) floating = "a PFM image";
   else if (starts("\x76\x2f\x31\x01", 4)) floating = "an OpenEXR image";
-  else if (starts("II*\0", 4) || starts("MM\0*", 4)) {
-    cv::Mat probe;
+  else if (starts("II*\0", 4) || starts("MM\0*", 4) || starts("II+\0", 4) || starts("MM\0+", 4)) {
+    cv::Mat probe;  // (a TIFF says its sample format deep in its tags: OpenCV reads them)
     CaughtStderr tiff_said;  // (libtiff prints its warnings itself)
     try {
       probe = cv::imdecode(bytes, cv::IMREAD_UNCHANGED);
@@ -268,7 +267,8 @@ std::string readImageFile(const std::string& path, cv::Mat& out) {
   }
   if (!floating.empty())
     return "cannot read as an image: it is " + floating +
-           " (floating-point values, which would read as black): convert it to an 8- or 16-bit image first";
+           " (OpenCV would read its values into 8 bits without scaling, black or wrong): convert it to an 8- "
+           "or 16-bit image first";
   CaughtStderr decoder_said;  // (libpng prints its errors itself)
   try {
     out = cv::imdecode(bytes, cv::IMREAD_COLOR);

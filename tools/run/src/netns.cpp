@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -13,6 +14,7 @@
 #include <dirent.h>
 #include <fcntl.h>
 #include <ifaddrs.h>
+#include <sys/stat.h>
 #include <net/if.h>
 #include <net/route.h>
 #include <netinet/in.h>
@@ -65,7 +67,18 @@ bool netnsVouchedFor() {
   return v && std::string(v) == "1";
 }
 
-bool inPrivateNetns() { return netnsVouchedFor() || onlyLoopbackUp(); }
+// Whether this process's network namespace is another than pid 1's; null
+// when that cannot be told (pid 1's is hidden from a process in a user
+// namespace of its own, as `unshare -rn` makes).
+std::optional<bool> otherThanInitsNetns() {
+  struct stat self {}, init {};
+  if (::stat("/proc/self/ns/net", &self) != 0 || ::stat("/proc/1/ns/net", &init) != 0) return std::nullopt;
+  return self.st_ino != init.st_ino || self.st_dev != init.st_dev;
+}
+
+// (loopback alone up in pid 1's own namespace is a host offline, whose live
+// stack on lo a soak would feed: not private)
+bool inPrivateNetns() { return netnsVouchedFor() || (otherThanInitsNetns().value_or(true) && onlyLoopbackUp()); }
 
 void enterPrivateNetns() {
   const uid_t uid = ::getuid();

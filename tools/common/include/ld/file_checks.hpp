@@ -103,7 +103,9 @@ int64_t aviVideoFrames(const std::string& path);
 /// an image (libpng error: PNG input buffer is incomplete)" (what the image
 /// library printed on stderr itself during the decode, caught: standard
 /// error goes elsewhere meanwhile, so call it from one thread), "cannot
-/// read as an image".
+/// read as an image: it is a PFM image (...)" (floating-point images: PFM,
+/// OpenEXR, a TIFF of floats, which OpenCV reads into 8 bits unscaled),
+/// "cannot read as an image".
 std::string readImageFile(const std::string& path, cv::Mat& out);
 
 /// prepareOutputFile for an LCM log about to be written: besides, a file

@@ -15,10 +15,12 @@ namespace ld {
 /// Throws std::runtime_error naming the step that failed.
 void enterPrivateNetns();
 
-/// True when no network interface but loopback is up (a namespace made as
-/// DESIGN.md says, `unshare -n` then `ip link set lo up`: nothing sent can
-/// leave the machine), or when LD_IN_NETNS=1 says the caller made one (a
-/// namespace joined to another by a veth pair, as the two-host test's).
+/// True when the process is in a network namespace other than pid 1's (or
+/// one that cannot be told from it, inside a user namespace) where no
+/// interface but loopback is up (made as DESIGN.md says, `unshare -n` then
+/// `ip link set lo up`: nothing sent can leave the machine), or when
+/// LD_IN_NETNS=1 says the caller made one (a namespace joined to another by
+/// a veth pair, as the two-host test's).
 bool inPrivateNetns();
 /// True when some interface is up and every one up is loopback.
 bool onlyLoopbackUp();
