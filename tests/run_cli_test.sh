@@ -110,6 +110,23 @@ timeout 30 "$BIN/ld-run" --netns --status-interval 0 --replay "$T/noimg.lcmlog" 
 [ $rc -eq 1 ] || fail "a replay without images: ld-run exit $rc: $(cat "$T/out")"
 grep -q "replay done, but no image came on IMAGE (are the log's images on another channel?" "$T/out" ||
   fail "a replay without images: $(cat "$T/out")"
+# A log whose messages on IMAGE are another project's type: said so, not
+# taken for images on another channel (a helper's foreign log).
+python3 - "$T/foreign.lcmlog" <<'PY'
+import struct, sys, time
+out = b''
+t = int(time.time() * 1e6)
+for n in range(5):
+    data = bytes(range(8)) + b'not an image_t at all' * 3
+    out += struct.pack('>IqqII', 0xEDA1DA01, n, t + n * 100000, 5, len(data)) + b'IMAGE' + data
+open(sys.argv[1], 'wb').write(out)
+PY
+rc=0
+timeout 30 "$BIN/ld-run" --netns --status-interval 0 --replay "$T/foreign.lcmlog" --exit-when-replay-done \
+  >"$T/out" 2>&1 || rc=$?
+[ $rc -eq 1 ] || fail "a replay of another type on IMAGE: ld-run exit $rc: $(cat "$T/out")"
+grep -q "replay done, but none of the 5 messages on IMAGE is an image (another project's type" "$T/out" ||
+  fail "a replay of another type on IMAGE: $(cat "$T/out")"
 # ... and so does a worker that refuses its options (exit 2): status 2, not
 # a run that restarts it again and again and ends with status 0.
 printf '{"detector": {"args": ["--bogus-detector-opt"]}}\n' >"$T/badworker.json"

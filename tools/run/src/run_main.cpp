@@ -624,7 +624,13 @@ int main(int argc, char** argv) {
         end_reason = "replay done";
         // (a log whose images are on another channel replays "fine" and
         // feeds the set nothing)
-        if (monitor.imageFrames() == 0) {
+        // (or came as no image at all: another project's type on the channel)
+        if (monitor.imageFrames() == 0 && monitor.badImages() > 0) {
+          end_reason += ", but none of the " + std::to_string(monitor.badImages()) + " messages on " +
+                        cfg.channels.image + " is an image (another project's type, or malformed: the detector's "
+                        "lines say why)";
+          exit_code = 1;
+        } else if (monitor.imageFrames() == 0) {
           end_reason += ", but no image came on " + cfg.channels.image +
                         " (are the log's images on another channel? the config's channels.image names it)";
           exit_code = 1;

@@ -100,6 +100,8 @@ class BusMonitor {
 
   int64_t trackedFrames() const { return tracked_frames_; }
   int64_t imageFrames() const { return images_.total; }
+  /// Messages on the image channel that are no image (not counted as images).
+  int64_t badImages() const { return bad_images_; }
   /// LCM_SELF_TEST messages seen (each process sends one, repeated every
   /// 100 ms until its own copy comes back) and when the last came.
   int64_t selfTests() const { return self_tests_; }
