@@ -358,6 +358,33 @@ TEST(BusMonitor, MatchesFramesByUtimeAndSeqAndSummarises) {
   EXPECT_EQ(s["payloads_decoded"], 1);
 }
 
+// A recording holding the set's outputs played onto the running set: every
+// list and codes message of a frame comes twice. Each frame is counted once
+// (the report said 80 tracked of 40 images, and skips from the two
+// publishers' counters mixed), and the repeats are counted apart.
+TEST(BusMonitor, RepeatedFramesAreCountedOnce) {
+  ld::BusMonitor m;
+  for (int64_t k = 0; k < 3; ++k) m.imageSeen(1000 * (k + 1), k, 9'000'000 + 33'000 * k);
+  for (int copy = 0; copy < 2; ++copy)
+    for (int64_t k = 0; k < 3; ++k) {
+      m.landmarksSeen(list(1000 * (k + 1), k, {}, copy == 0 ? 0 : 5), 9'100'000);
+      m.trackedSeen(list(1000 * (k + 1), k, {trackedLandmark(7, true)}, copy == 0 ? 0 : 4), 9'100'000);
+      ld::qr_code_list_t codes{};
+      codes.utime = 1000 * (k + 1);
+      codes.seq = k;
+      m.codesSeen(codes, 9'100'000);
+    }
+  m.trackedSeen(list(0, -1, {}), 9'200'000);  // (unstamped: never a repeat)
+  m.trackedSeen(list(0, -1, {}), 9'200'000);
+  const auto s = m.summary();
+  EXPECT_EQ(s["frames"]["tracked"], 5);
+  EXPECT_EQ(s["frames"]["repeated_messages"], 9);
+  EXPECT_EQ(s["frames"]["detector_skipped"], 0);
+  EXPECT_EQ(s["frames"]["tracker_skipped"], 0);
+  EXPECT_EQ(s["tracks"][0]["frames_visible"], 3);
+  EXPECT_EQ(m.repeatedMessages(), 9);
+}
+
 // One id that carried two landmarks' payloads (the tracker gave it to
 // another landmark, whose code was read too) lists both, each from the
 // frame it came from; the summary showed the last over the whole track (an
@@ -404,6 +431,8 @@ TEST(BusMonitor, TrackWithTwoPayloadsListsBoth) {
   c.track_id = 9;
   c.seq = 13;
   c.utime = 1013;
+  codes.utime = 1013;  // (a codes message answers one frame once: a repeat is left out)
+  codes.seq = 13;
   codes.codes = {c};
   m.codesSeen(codes, 1014);
   EXPECT_EQ(m.summary()["tracks"][1]["first_seq"], 13);
@@ -415,9 +444,9 @@ TEST(BusMonitor, TrackWithTwoPayloadsListsBoth) {
   m.trackedSeen(list(1012, 12, {trackedLandmark(9, true, "")}), 1015);
   EXPECT_EQ(m.summary()["tracks"][1]["first_seq"], 12);
   EXPECT_EQ(m.summary()["tracks"][1]["last_seq"], 13);
-  m.trackedSeen(list(1011, 11, {trackedLandmark(9, true, "")}), 1016);
-  m.trackedSeen(list(1012, 12, {trackedLandmark(9, true, "")}), 1017);
-  EXPECT_EQ(m.summary()["tracks"][1]["first_seq"], 11);
+  m.trackedSeen(list(1010, 10, {trackedLandmark(9, true, "")}), 1016);
+  m.trackedSeen(list(1012, 12, {trackedLandmark(9, true, "")}), 1017);  // (a repeat: left out)
+  EXPECT_EQ(m.summary()["tracks"][1]["first_seq"], 10);
   EXPECT_EQ(m.summary()["tracks"][1]["last_seq"], 13);
 }
 

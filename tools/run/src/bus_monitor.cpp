@@ -128,11 +128,19 @@ void BusMonitor::imageSeen(int64_t utime, int64_t seq, Micros rx_us) {
 }
 
 void BusMonitor::landmarksSeen(const landmark_list_t& list, Micros rx_us) {
+  if (recent_landmarks_.seenBefore(list.utime, list.seq)) {
+    ++repeated_;
+    return;
+  }
   count(landmarks_, rx_us);
   det_skipped_.update(list.frames_skipped);
 }
 
 void BusMonitor::trackedSeen(const landmark_list_t& list, Micros rx_us) {
+  if (recent_tracked_.seenBefore(list.utime, list.seq)) {
+    ++repeated_;
+    return;
+  }
   count(tracked_, rx_us);
   ++tracked_frames_;
   trk_skipped_.update(list.frames_skipped);
@@ -186,6 +194,10 @@ void BusMonitor::setPayload(int run, int64_t id, const std::string& payload, int
 }
 
 void BusMonitor::codesSeen(const qr_code_list_t& codes, Micros rx_us) {
+  if (recent_codes_.seenBefore(codes.utime, codes.seq)) {
+    ++repeated_;
+    return;
+  }
   count(codes_, rx_us);
   // The frame's list, among the last few. The reader answers lists in
   // order, so the lists before it that it did not answer it skipped: they
@@ -254,7 +266,8 @@ nlohmann::ordered_json BusMonitor::summary() const {
                  {"qr_reader_skipped",
                   codes_.total > 0 ? J(qrSkippedAll()) : J(nullptr)},
                  {"bad_messages", bad_},
-                 {"bad_images", bad_images_}};
+                 {"bad_images", bad_images_},
+                 {"repeated_messages", repeated_}};
   double sum = 0;
   int maxn = 0;
   J hist = J::object();

@@ -549,7 +549,7 @@ int main(int argc, char** argv) {
   auto next_status = Clock::now() + std::chrono::milliseconds(static_cast<int64_t>(status_interval * 1000));
   auto next_rss = Clock::now();
   Clock::time_point done_at{};
-  int64_t tracked_at_done = -1;
+  int64_t tracked_at_done = -1, codes_at_done = -1;
   Clock::time_point last_tracked_change{};
   std::vector<std::pair<pid_t, int>> last_pids;
   int exit_code = 0;
@@ -610,13 +610,17 @@ int main(int argc, char** argv) {
       break;
     }
     if (exit_when_done && sup.sourcesDone()) {
-      // Drain: wait until no tracked frame came for 0.5 s (or --drain passed).
+      // Drain: wait until no tracked frame and no codes came for 0.5 s (or
+      // --drain passed). (The tracked lists alone: the QR reader, behind
+      // on 1080p frames, was stopped with frames it neither read nor counted.)
       if (done_at == Clock::time_point{}) {
         done_at = last_tracked_change = now;
         tracked_at_done = monitor.trackedFrames();
+        codes_at_done = monitor.codesMessages();
       }
-      if (monitor.trackedFrames() != tracked_at_done) {
+      if (monitor.trackedFrames() != tracked_at_done || monitor.codesMessages() != codes_at_done) {
         tracked_at_done = monitor.trackedFrames();
+        codes_at_done = monitor.codesMessages();
         last_tracked_change = now;
       }
       if (now - last_tracked_change > std::chrono::milliseconds(500) ||
@@ -694,6 +698,11 @@ int main(int argc, char** argv) {
   // images are with a small receive buffer)
   // (messages that came and are no image_t are not lost: the processes said
   // what was wrong with each)
+  // (the set's outputs twice: a recording holding them played onto the set)
+  if (const int64_t repeated = f["repeated_messages"].get<int64_t>(); repeated > 0)
+    note("warning: " + std::to_string(repeated) + " landmark list" + (repeated == 1 ? "" : "s") +
+         " and codes messages came again for frames already seen (a recording holding the set's outputs "
+         "played onto it, or a second tracker?): each frame is counted once");
   const int64_t bad_images = f["bad_images"].get<int64_t>();
   if (log_images > 0 && end_reason == "replay done" && bad_images > 0)
     note("warning: " + std::to_string(bad_images) + " of the log's " + std::to_string(log_images) +

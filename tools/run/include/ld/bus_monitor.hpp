@@ -23,7 +23,9 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <deque>
 #include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -82,7 +84,7 @@ class BusMonitor {
   /// {"channels": {name: {"messages", "rate_hz"}},
   ///  "frames": {"images", "tracked", "matched", "unmatched_images", "detector_skipped",
   ///             "tracker_skipped", "qr_reader_skipped" (tracked frames no codes message
-  ///             came for; null when none came at all), "bad_messages", "bad_images"},
+  ///             came for; null when none came at all), "bad_messages", "bad_images", "repeated_messages"},
   ///  "landmarks_per_frame": {"mean", "max", "histogram": {"n": frames}},
   ///  "latency_ms": {"count", "p50", "p90", "p99", "max", "mean", "from"}, from: "capture"
   ///               (every frame timed from its utime), "arrival", "capture and arrival", or
@@ -99,6 +101,11 @@ class BusMonitor {
   nlohmann::ordered_json summary() const;
 
   int64_t trackedFrames() const { return tracked_frames_; }
+  /// Lists and codes messages of a frame their channel had already carried
+  /// (counted once, the repeats left out of every figure).
+  int64_t repeatedMessages() const { return repeated_; }
+  /// Messages on the codes channel.
+  int64_t codesMessages() const { return codes_.total; }
   int64_t imageFrames() const { return images_.total; }
   /// Messages on the image channel that are no image (not counted as images).
   int64_t badImages() const { return bad_images_; }
@@ -137,6 +144,27 @@ class BusMonitor {
     int landmarks = 0;       // visible
     std::vector<int64_t> ids;
   };
+  // The frames (utime, seq) of a channel's last 600 messages: one seen again
+  // is a repeat (a recording holding the set's outputs played onto it, two
+  // trackers). Unstamped ones (utime 0 or no seq) are never repeats.
+  class RecentFrames {
+   public:
+    bool seenBefore(int64_t utime, int64_t seq) {
+      if (utime == 0 || seq < 0) return false;
+      const std::pair<int64_t, int64_t> k{utime, seq};
+      if (!set_.insert(k).second) return true;
+      order_.push_back(k);
+      if (order_.size() > 600) {
+        set_.erase(order_.front());
+        order_.pop_front();
+      }
+      return false;
+    }
+
+   private:
+    std::set<std::pair<int64_t, int64_t>> set_;
+    std::deque<std::pair<int64_t, int64_t>> order_;
+  };
   // Cumulative skip counters of a publisher that may restart (counter drops).
   struct SkipCounter {
     int64_t last = 0, sum = 0;
@@ -173,6 +201,8 @@ class BusMonitor {
   int64_t qr_skipped_ = 0;
   int64_t tracked_frames_ = 0, matched_ = 0, unmatched_images_ = 0, bad_ = 0;
   int64_t bad_images_ = 0;  // of bad_: on the image channel (not counted as images)
+  RecentFrames recent_landmarks_, recent_tracked_, recent_codes_;
+  int64_t repeated_ = 0;  // messages of a frame already seen on their channel (not counted)
   SkipCounter det_skipped_, trk_skipped_;
   std::vector<double> latencies_ms_;
   size_t window_start_ = 0;  // first latency of the current status window
