@@ -423,6 +423,26 @@ TEST(LatestMessage, CountsTheSeqsThatNeverCame) {
   EXPECT_EQ(without.missing(), 0);  // (no seqs given: none counted)
 }
 
+// The frame waiting, come again (a recording with the set's outputs played
+// onto the running tracker): a repeat, not a newer list that skipped it (2
+// of 40 such were counted skipped, and the count went into every list).
+TEST(LatestMessage, RepeatOfTheWaitingFrameIsNotASkip) {
+  ld::LatestMessage<ld::landmark_list_t> latest(
+      "ld-test", "LANDMARKS", "message", {}, {},
+      [](const ld::landmark_list_t& a, const ld::landmark_list_t& b) { return a.seq == b.seq && a.utime == b.utime; });
+  listOf(1, 1).to(latest);
+  listOf(1, 2).to(latest);  // the same frame again
+  EXPECT_EQ(latest.skipped(), 0);
+  EXPECT_EQ(latest.repeated(), 1);
+  const ld::landmark_list_t* got = latest.take();
+  ASSERT_NE(got, nullptr);
+  EXPECT_EQ(got->nlandmarks, 1);  // (the first kept)
+  listOf(2, 1).to(latest);
+  listOf(3, 1).to(latest);  // a newer one: the waiting one skipped
+  EXPECT_EQ(latest.skipped(), 1);
+  EXPECT_EQ(latest.repeated(), 1);
+}
+
 // A subscription's queue held to a byte budget (ld::QueueFit) rather than
 // LCM's 30 messages, beyond which LCM's receiving thread dropped the newer
 // ones without a word (Stack.StalledDetectorTakesTheNewestFrame is the

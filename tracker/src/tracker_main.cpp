@@ -96,6 +96,12 @@ int main(int argc, char** argv) {
                    : "message on " + in_channel + " is a list of " + std::to_string(m.nlandmarks) +
                          " landmarks (frame " + std::to_string(m.seq) + "), more than the " +
                          std::to_string(kMaxLandmarks) + " the tracker takes";
+      },
+      {},
+      // (the list waiting, again: tracked once, counted as repeated, not as
+      // a newer list that skipped it; unstamped lists are left to StillTimeWatch)
+      [](const ld::landmark_list_t& a, const ld::landmark_list_t& b) {
+        return a.utime != 0 && a.seq >= 0 && a.utime == b.utime && a.seq == b.seq;
       });
   latest.queueOn(lcm.subscribe(in_channel, &ld::LatestMessage<ld::landmark_list_t>::onMessage, &latest));
   std::signal(SIGINT, onSignal);
@@ -184,7 +190,7 @@ int main(int argc, char** argv) {
                static_cast<long long>(processed), static_cast<long long>(latest.skipped()),
                static_cast<long long>(latest.bad()), static_cast<long long>(rejected),
                rejected == 1 ? "landmark" : "landmarks", static_cast<long long>(late),
-               static_cast<long long>(repeated),
+               static_cast<long long>(repeated + latest.repeated()),
                static_cast<long long>(tracker.stats().tracks_created));
   return 0;
 }

@@ -39,11 +39,15 @@ class LatestMessage {
   using Check = std::function<std::string(const Msg&)>;
   /// A message's sequence number, if it has one.
   using SeqOf = std::function<std::optional<int64_t>(const Msg&)>;
+  /// Whether two messages are of the same frame: one that comes while the
+  /// other waits is a repeat (repeated()), not a newer one replacing it.
+  using SameFrame = std::function<bool(const Msg&, const Msg&)>;
 
   /// `program` and `what` ("frame", "message") name the dropped line.
-  LatestMessage(std::string program, std::string channel, std::string what, Check check = {}, SeqOf seq_of = {})
+  LatestMessage(std::string program, std::string channel, std::string what, Check check = {}, SeqOf seq_of = {},
+                SameFrame same_frame = {})
       : program_(std::move(program)), channel_(std::move(channel)), what_(std::move(what)),
-        check_(std::move(check)), seq_of_(std::move(seq_of)) {}
+        check_(std::move(check)), seq_of_(std::move(seq_of)), same_frame_(std::move(same_frame)) {}
 
   /// The LCM handler: latest.queueOn(lcm.subscribe(channel, &LatestMessage<Msg>::onMessage, &latest)).
   void onMessage(const lcm::ReceiveBuffer* rbuf, const std::string& = {}) {
@@ -54,6 +58,10 @@ class LatestMessage {
     else if (check_)
       why = check_(incoming_);
     if (!why.empty()) return reportBad(why);
+    if (pending_ && same_frame_ && same_frame_(incoming_, newest_)) {
+      ++repeated_;  // (the frame waiting, again: it was counted skipped)
+      return;
+    }
     countGap();
     if (pending_) ++skipped_;
     std::swap(incoming_, newest_);
@@ -82,6 +90,8 @@ class LatestMessage {
   int64_t bad() const { return bad_; }          ///< messages said bad
   /// Messages that never came, by the gaps in their seqs (0 without SeqOf).
   int64_t missing() const { return missing_; }
+  /// Messages of the frame waiting, come again (with SameFrame).
+  int64_t repeated() const { return repeated_; }
   /// How far back a seq may be and be a reordered frame, not a new run.
   static constexpr int64_t kReorderedSeqs = 3;
 
@@ -105,11 +115,12 @@ class LatestMessage {
   std::string program_, channel_, what_;
   Check check_;
   SeqOf seq_of_;
+  SameFrame same_frame_;
   std::optional<int64_t> last_seq_;
   QueueFit queue_;
   Msg incoming_, newest_;
   bool pending_ = false;
-  int64_t skipped_ = 0, bad_ = 0, missing_ = 0;
+  int64_t skipped_ = 0, bad_ = 0, missing_ = 0, repeated_ = 0;
 };
 
 }  // namespace ld
