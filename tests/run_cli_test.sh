@@ -237,6 +237,19 @@ grep -q "^ld-play: warning: $T/cut.lcmlog: the log ends mid-event after 2 messag
 # ... and reads only the frames it plays: with --frames 1 it never gets to the cut.
 "$BIN/ld-play" "$T/cut.lcmlog" --lcm-url memq:// --fps 100 --frames 1 >"$T/out" 2>"$T/err" || fail "ld-play --frames 1: $(cat "$T/err")"
 ! grep -q "warning" "$T/err" && grep -q "^ld-play: published 1 frame (.*) in .* s, - frames/s;" "$T/err" || fail "ld-play --frames 1 read on: $(cat "$T/err")"
+# ld-play plays a log back and forth: a loop from its last frame to its
+# first was a cut the tracker could not see (it gave the last frame's ids,
+# and their payloads, to the first frame's landmarks). The frames told
+# apart by their JPEG sizes.
+"$BIN/ld-synth" sequence --out "$T/bf" --frames 4 --fps 10 --landmarks 1 --seed 2 --format mjpeg \
+  --log "$T/bf.lcmlog" --no-png >/dev/null
+"$BIN/ld-play" "$T/bf.lcmlog" --lcm-url "file://$T/bf-out.lcmlog?mode=w" --fps 100 --frames 9 2>/dev/null ||
+  fail "ld-play to a file"
+mapfile -t sizes < <("$BIN/ld-dump" "$T/bf.lcmlog" | jq -r .size)
+want="${sizes[0]} ${sizes[1]} ${sizes[2]} ${sizes[3]} ${sizes[2]} ${sizes[1]} ${sizes[0]} ${sizes[1]} ${sizes[2]}"
+got=$("$BIN/ld-dump" "$T/bf-out.lcmlog" | jq -r .size | tr '\n' ' ' | sed 's/ $//')
+[ "$got" = "$want" ] || fail "ld-play back and forth: $got, not $want"
+[ "$("$BIN/ld-dump" "$T/bf-out.lcmlog" | jq -r .seq | tr '\n' ' ')" = "0 1 2 3 4 5 6 7 8 " ] || fail "ld-play seqs"
 # ld-play takes --frames or --duration, not both.
 rc=0; "$BIN/ld-play" "$T/in.lcmlog" --frames 3 --duration 2 2>"$T/err" || rc=$?
 [ $rc -eq 2 ] && grep -q "^ld-play: --frames excludes --duration" "$T/err" || fail "ld-play --frames --duration: $rc $(cat "$T/err")"

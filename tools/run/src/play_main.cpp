@@ -1,6 +1,8 @@
 // ld-play: publishes the images of an LCM log at a fixed rate, as a camera
 // would: each frame gets the current time as utime and a fresh sequence
-// number, and the log is looped for as long as asked. Optionally converts
+// number, and the log is played back and forth for as long as asked (to
+// its end, back to its start, and on: a jump back to the first frame was a
+// cut no tracker can see). Optionally converts
 // the frames first (say MJPEG in the log, raw BGR on the bus), so that a
 // small log drives a long benchmark or a bandwidth test.
 #include <algorithm>
@@ -55,9 +57,9 @@ int main(int argc, char** argv) {
       ->check(ld::cli::Between(0.001, 1000))
       ->capture_default_str();
   // (neither given: the log once)
-  auto* frames_opt = app.add_option("--frames", frames, "frames to publish, looping the log (default: the log once)")
+  auto* frames_opt = app.add_option("--frames", frames, "frames to publish, playing the log back and forth (default: the log once)")
                          ->check(ld::cli::Between(1, 1e12));
-  app.add_option("--duration", duration, "seconds to publish, looping the log (default: the log once)")
+  app.add_option("--duration", duration, "seconds to publish, playing the log back and forth (default: the log once)")
       ->check(ld::cli::Positive)
       ->excludes(frames_opt);
   app.add_option("--format", format, "keep, or convert to bgr, rgb, rgba, bgra, gray, yuyv, uyvy, mjpeg")
@@ -153,7 +155,7 @@ int main(int argc, char** argv) {
     if (cut)
       std::cerr << "ld-play: note: the log's first " << images.size() << " images (" << (preloaded_bytes >> 20)
                 << " MiB" << (pixelformat != -1 ? " converted" : "")
-                << (frames > 0 ? ") are played, looped" : ") are played, and the rest of the log is not")
+                << (frames > 0 ? ") are played, back and forth" : ") are played, and the rest of the log is not")
                 << ": more would not fit in memory (" << (kMaxPreloadBytes >> 20) << " MiB)\n";
     if (!log.problem().empty())  // a cut log: what it holds is played
       std::cerr << "ld-play: warning: " << log_path << ": " << log.problem() << "\n";
@@ -186,7 +188,12 @@ int main(int argc, char** argv) {
     } else if (now - due > period) {
       ++late;
     }
-    ld::image_t& img = images[static_cast<size_t>(k) % images.size()];
+    // (back and forth: 0 1 2 3 2 1 0 1 ... A loop from the last frame to the
+    // first was a scene cut the tracker could not see: it gave the last
+    // frame's ids, and the payloads read under them, to the first frame's
+    // landmarks, and a track kept another landmark's payload for seconds)
+    const size_t n = images.size(), turn = n > 1 ? 2 * n - 2 : 1, p = static_cast<size_t>(k) % turn;
+    ld::image_t& img = images[p < n ? p : turn - p];
     img.utime = wallMicros();
     ld::setImageSeq(img, first_seq + k);
     if (publisher.publish(out_channel, img) == 0) ++sent;
