@@ -266,19 +266,51 @@ TEST(Artwork, SheetHoldsEveryLandmarkAndDecodes) {
 }
 
 // A label is cut to its landmark's width (about 1.8 mm a character of 3 mm
-// text, wide scripts twice that), so neighbours' labels do not overlap; the
-// side stays, and what is not text shows as U+FFFD.
+// text, wide scripts twice that), so neighbours' labels do not overlap: a
+// payload too long loses its middle (ids differ at their ends), and the side
+// stays where the payload keeps 6 characters beside it (at 20 mm every label
+// read "... (20 mm)"); a label that may still be wider than its landmark is
+// squeezed to its width; what is not text shows as U+FFFD.
 TEST(Artwork, SheetLabelsFitTheirLandmark) {
   const std::string long_ascii(100, 'a'), long_cjk = "\xe6\x97\xa5\xe6\x9c\xac\xe8\xaa\x9e";  // 3 wide characters
-  const std::string svg = ld::artwork::sheetSvg({long_ascii, long_cjk + long_cjk + long_cjk + long_cjk + long_cjk +
-                                                     long_cjk + long_cjk + long_cjk, "room-101", "a\x01\xff"},
-                                                90.0);
-  EXPECT_NE(svg.find(">" + std::string(39, 'a') + "... (90 mm)<"), std::string::npos) << svg;  // 50 wide, 8 for the size, 3 dots
-  EXPECT_NE(svg.find(">" + long_cjk + long_cjk + long_cjk + long_cjk + long_cjk + long_cjk +
-                     "\xe6\x97\xa5... (90 mm)<"),
+  std::string cjk24;
+  for (int i = 0; i < 8; ++i) cjk24 += long_cjk;
+  const std::string svg = ld::artwork::sheetSvg({long_ascii, cjk24, "room-101", "a\x01\xff"}, 90.0);
+  // 50 wide, 8 for the size, 3 dots: 20 from the start, 19 from the end
+  EXPECT_NE(svg.find(" textLength=\"90\" lengthAdjust=\"spacingAndGlyphs\">" + std::string(20, 'a') + "..." +
+                     std::string(19, 'a') + " (90 mm)<"),
+            std::string::npos)
+      << svg;
+  EXPECT_NE(svg.find(">" + long_cjk + long_cjk + long_cjk + "\xe6\x97\xa5..." + long_cjk + long_cjk + long_cjk +
+                     " (90 mm)<"),
             std::string::npos);
-  EXPECT_NE(svg.find(">room-101 (90 mm)<"), std::string::npos);
+  EXPECT_NE(svg.find("fill=\"#404040\">room-101 (90 mm)<"), std::string::npos);  // (short: not squeezed)
   EXPECT_NE(svg.find(">a\xef\xbf\xbd\xef\xbf\xbd (90 mm)<"), std::string::npos);
+  // small landmarks: the payload, not the side; a long one keeps both ends
+  const std::string small = ld::artwork::sheetSvg({"room-101", "room-101-east-wing"}, 20.0);
+  EXPECT_NE(small.find(">room-101<"), std::string::npos) << small;
+  EXPECT_NE(small.find(">room...wing<"), std::string::npos) << small;
+}
+
+// The cutting outline is drawn just outside each sheet, where the sheet
+// does not cover it (the PNG's was drawn under the landmark, and none of it
+// showed; the SVG's lay half under the sheet's white).
+TEST(Artwork, SheetCuttingOutlineShows) {
+  const double dpi = 300, px_mm = dpi / 25.4;
+  const cv::Mat page = ld::artwork::sheetImage({"room-101"}, 60.0, dpi);
+  const int x0 = static_cast<int>(std::lround(10 * px_mm)), side = static_cast<int>(std::lround(60 * px_mm));
+  cv::Mat gray;
+  cv::cvtColor(page, gray, cv::COLOR_BGR2GRAY);
+  for (const cv::Rect edge : {cv::Rect(x0, x0 - 3, side, 3), cv::Rect(x0 - 3, x0, 3, side),
+                              cv::Rect(x0, x0 + side, side, 3), cv::Rect(x0 + side, x0, 3, side)}) {
+    cv::Mat grey_line = (gray(edge) > 100) & (gray(edge) < 200);
+    EXPECT_GT(cv::countNonZero(grey_line), side) << edge;
+  }
+  const std::string svg = ld::artwork::sheetSvg({"room-101"}, 60.0);
+  EXPECT_NE(svg.find("<rect x=\"9.9\" y=\"9.9\" width=\"60.2\" height=\"60.2\" fill=\"none\" stroke=\"#a0a0a0\" "
+                     "stroke-width=\"0.2\"/>"),
+            std::string::npos)
+      << svg.substr(0, 600);
 }
 
 // The PNG's labels are the SVG's: the payload in UTF-8, drawn (DejaVu Sans),

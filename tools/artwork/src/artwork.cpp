@@ -124,27 +124,41 @@ namespace {
 // The label under a landmark of a sheet: its payload and its side, in 3 mm
 // text, cut to the landmark's width (about 1.8 mm a character, twice that
 // for the wide scripts) so that neighbours' labels do not run into each
-// other; the side is always there, it tells the prints apart.
+// other. The payload comes first: the side (which tells prints of other
+// sizes apart) only where the payload keeps 6 characters beside it, and a
+// payload too long loses its middle, not its end ("room-...-101": at 20 mm
+// every label read "... (20 mm)"). The SVG and the PNG squeeze what is
+// still wider than the landmark (wide letters: W, M) to its width.
 std::string sheetLabel(const std::string& payload, double side_mm) {
   const std::string size = " (" + fmt(side_mm) + " mm)";
   const auto width = [](char32_t cp) { return cp >= 0x1100 ? 2 : 1; };
-  const int room = static_cast<int>(side_mm / 1.8) - static_cast<int>(size.size());
+  const int room = std::max(4, static_cast<int>(side_mm / 1.8));
   const std::vector<char32_t> cps = printable(payload);
   int total = 0;
   for (const char32_t cp : cps) total += width(cp);
+  const bool with_size = room - static_cast<int>(size.size()) >= std::min(total, 6);
+  const int payload_room = with_size ? room - static_cast<int>(size.size()) : room;
   std::string out;
-  if (total <= room) {
+  if (total <= payload_room) {
     for (const char32_t cp : cps) appendUtf8(out, cp);
   } else {
-    int used = 3;  // "..."
-    for (const char32_t cp : cps) {
-      if (used + width(cp) > room) break;
-      used += width(cp);
-      appendUtf8(out, cp);
-    }
+    // its start and its end, "..." between (ids differ at their ends)
+    const int keep = payload_room - 3, head_room = (keep + 1) / 2, tail_room = keep - head_room;
+    size_t head = 0, tail = cps.size();
+    for (int used = 0; head < cps.size() && used + width(cps[head]) <= head_room; ++head) used += width(cps[head]);
+    for (int used = 0; tail > head && used + width(cps[tail - 1]) <= tail_room; --tail) used += width(cps[tail - 1]);
+    for (size_t i = 0; i < head; ++i) appendUtf8(out, cps[i]);
     out += "...";
+    for (size_t i = tail; i < cps.size(); ++i) appendUtf8(out, cps[i]);
   }
-  return out + size;
+  return with_size ? out + size : out;
+}
+
+// The label's width in 3 mm text as sheetLabel reckons it (mm).
+double labelWidthMm(const std::string& label) {
+  double w = 0;
+  for (const char32_t cp : printable(label)) w += cp >= 0x1100 ? 3.6 : 1.8;
+  return w;
 }
 
 // SVG elements of one landmark of side `side` (user units) at (x0, y0).
@@ -352,14 +366,20 @@ std::string sheetSvg(const std::vector<std::string>& payloads, double side_mm,
   for (size_t i = 0; i < payloads.size(); ++i) {
     const double x0 = page.margin_mm + static_cast<double>(i % g.cols) * g.cell_w;
     const double y0 = page.margin_mm + static_cast<double>(i / g.cols) * g.cell_h;
-    // A thin grey cutting outline just outside the sheet.
-    os << "<rect x=\"" << fmt(x0) << "\" y=\"" << fmt(y0) << "\" width=\"" << fmt(side_mm)
-       << "\" height=\"" << fmt(side_mm)
-       << "\" fill=\"none\" stroke=\"#c0c0c0\" stroke-width=\"0.1\"/>\n";
+    // A thin grey cutting outline just outside the sheet, 0.2 mm wide, its
+    // inner edge on the sheet's (drawn on the sheet's edge, the sheet's white
+    // covered half of it: 0.05 mm, which no printer prints).
+    os << "<rect x=\"" << fmt(x0 - 0.1) << "\" y=\"" << fmt(y0 - 0.1) << "\" width=\"" << fmt(side_mm + 0.2)
+       << "\" height=\"" << fmt(side_mm + 0.2)
+       << "\" fill=\"none\" stroke=\"#a0a0a0\" stroke-width=\"0.2\"/>\n";
     appendLandmark(os, encodeQr(payloads[i], ecc), x0, y0, side_mm);
+    const std::string label = sheetLabel(payloads[i], side_mm);
     os << "<text x=\"" << fmt(x0) << "\" y=\"" << fmt(y0 + side_mm + 3.5)
-       << "\" font-family=\"sans-serif\" font-size=\"3\" fill=\"#404040\">"
-       << xmlEscape(sheetLabel(payloads[i], side_mm)) << "</text>\n";
+       << "\" font-family=\"sans-serif\" font-size=\"3\" fill=\"#404040\"";
+    // (squeezed to the landmark's width where it may be wider: wide letters)
+    if (labelWidthMm(label) > 0.8 * side_mm)
+      os << " textLength=\"" << fmt(side_mm) << "\" lengthAdjust=\"spacingAndGlyphs\"";
+    os << ">" << xmlEscape(label) << "</text>\n";
   }
   os << "</svg>\n";
   return os.str();
@@ -388,13 +408,22 @@ cv::Mat sheetImage(const std::vector<std::string>& payloads, double side_mm, dou
     const int y0 = static_cast<int>(
         std::lround((page.margin_mm + static_cast<double>(i / g.cols) * g.cell_h) * px_per_mm));
     const cv::Rect roi(x0, y0, side_px, side_px);
-    cv::rectangle(img, roi, cv::Scalar(192, 192, 192), 1);
     renderLandmark(payloads[i], side_px, {}, ecc).copyTo(img(roi));
+    // the cutting outline, just outside the sheet (drawn under it before:
+    // the landmark covered it whole), 0.2 mm and at least a pixel wide
+    const int line = std::max(1, static_cast<int>(std::lround(0.2 * px_per_mm)));
+    cv::rectangle(img, cv::Rect(x0 - line, y0 - line, side_px + 2 * line, side_px + 2 * line),
+                  cv::Scalar(160, 160, 160), line);
     // the SVG's label: 3 mm text, its baseline 3.5 mm under the sheet
     const std::string label = sheetLabel(payloads[i], side_mm);
     const cv::Point baseline(x0, y0 + side_px + static_cast<int>(3.5 * px_per_mm));
-    const int height = std::max(4, static_cast<int>(std::lround(3.0 * px_per_mm)));
+    int height = std::max(4, static_cast<int>(std::lround(3.0 * px_per_mm)));
     if (font) {
+      // (a label wider than the landmark, as measured, drawn smaller to fit,
+      // down to half its height: it ran into its neighbour's)
+      int baseline_px = 0;
+      const int w = font->getTextSize(label, height, -1, &baseline_px).width;
+      if (w > side_px) height = std::max(std::max(4, height / 2), height * side_px / w);
       // (bottomLeftOrigin true: the point is the text's baseline, as the SVG's y)
       font->putText(img, label, baseline, height, cv::Scalar(64, 64, 64), -1, cv::LINE_AA, true);
     } else {
@@ -404,8 +433,12 @@ cv::Mat sheetImage(const std::vector<std::string>& payloads, double side_mm, dou
         if (c < 0x80) ascii += label[k];
         else if ((c & 0xC0) != 0x80) ascii += '?';
       }
-      cv::putText(img, ascii, baseline, cv::FONT_HERSHEY_SIMPLEX, 0.1 * px_per_mm, cv::Scalar(64, 64, 64),
-                  std::max(1, static_cast<int>(0.1 * px_per_mm)), cv::LINE_AA);
+      double scale = 0.1 * px_per_mm;
+      int baseline_px = 0;
+      const int w = cv::getTextSize(ascii, cv::FONT_HERSHEY_SIMPLEX, scale, 1, &baseline_px).width;
+      if (w > side_px) scale = std::max(scale / 2, scale * side_px / w);
+      cv::putText(img, ascii, baseline, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(64, 64, 64),
+                  std::max(1, static_cast<int>(scale)), cv::LINE_AA);
     }
   }
   return img;
