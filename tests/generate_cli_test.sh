@@ -39,6 +39,10 @@ grep -q "p.svg, .*p-3.svg from an earlier run" "$T/err" || fail "stale unnumbere
 if "$BIN/ld-generate" --sheet --size 0.5 -p x --svg "$T/x.svg" 2>"$T/err"; then fail "50 cm on A4 accepted"; fi
 grep -q "does not fit on a 210x297 mm page (at most 190 mm with its label and 10 mm margins: --size 0.19; --page-width" "$T/err" ||
   fail "50 cm: $(cat "$T/err")"
+# (a page with room for no landmark ld-generate makes, 10 mm or more: no
+# size suggested; it said --size 0.001, which it refuses)
+if "$BIN/ld-generate" --sheet --size 0.01 -p a --page-width 25 --page-height 25 --svg "$T/x.svg" 2>"$T/err"; then fail "25 mm page accepted"; fi
+grep -q "does not fit on a 25x25 mm page (room for none of 10 mm or more within its margins;" "$T/err" || fail "25 mm page: $(cat "$T/err")"
 # README's deployment example: 20 cm needs A3 pages.
 "$BIN/ld-generate" --sheet --size 0.20 --page-width 297 --page-height 420 -p room-214/door -p room-215/door \
   --svg "$T/deploy/landmarks.svg" >/dev/null
@@ -76,11 +80,17 @@ if "$BIN/ld-generate" -p "" --svg "$T/e.svg" >"$T/out" 2>"$T/err"; then fail "em
 [ ! -s "$T/out" ] && [ "$(wc -l <"$T/err")" -eq 1 ] || fail "empty payload: '$(cat "$T/out")' $(cat "$T/err")"
 big=$(head -c 3000 /dev/zero | tr '\0' a)
 if "$BIN/ld-generate" -p "$big" --svg "$T/e.svg" >"$T/out" 2>"$T/err"; then fail "3000 bytes accepted"; fi
-[ ! -s "$T/out" ] && grep -q "payload of 3000 bytes cannot be encoded" "$T/err" || fail "3000 bytes: $(cat "$T/err")"
+[ ! -s "$T/out" ] && grep -q "payload of 3000 bytes cannot be encoded: a QR code holds at most 2953 bytes at level L" "$T/err" || fail "3000 bytes: $(cat "$T/err")"
 # Beyond version 5 (100 bytes): written, with a note; a long payload shown shortened.
 "$BIN/ld-generate" -p "$(head -c 500 /dev/zero | tr '\0' b)" --svg "$T/v.svg" >"$T/out" 2>"$T/err"
 grep -q '^QR "b\{32\}... (500 bytes)": version 15' "$T/out" || fail "500 bytes: $(cat "$T/out")"
-grep -q "needs QR version 15 (77 modules, more than the 37 of version 5" "$T/err" || fail "500 bytes, note: $(cat "$T/err")"
+grep -q "needs QR version 15 (77 modules, more than the 37 of version 5.*(ld-eval size --payload-bytes 500 says how close)" "$T/err" || fail "500 bytes, note: $(cat "$T/err")"
+# (the command that measures that code: its level too; none past ld-eval's 1000 bytes)
+"$BIN/ld-generate" -p "$(head -c 98 /dev/zero | tr '\0' b)" --ecc H --svg "$T/v.svg" >"$T/out" 2>"$T/err"
+grep -q "(ld-eval size --payload-bytes 98 --ecc H says how close)" "$T/err" || fail "98 bytes at H, note: $(cat "$T/err")"
+"$BIN/ld-generate" -p "$(head -c 1500 /dev/zero | tr '\0' b)" --svg "$T/v.svg" >"$T/out" 2>"$T/err"
+grep -q "(ld-eval size measures ASCII payloads of up to 1000 bytes, so none of its figures is this code's)" "$T/err" ||
+  fail "1500 bytes, note: $(cat "$T/err")"
 
 # A PNG whose QR modules are under 3 px (too few for a reader): written, with
 # a warning saying which --dpi would do; none at the default 300 dpi.

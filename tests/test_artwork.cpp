@@ -147,7 +147,8 @@ TEST(Artwork, Utf8PayloadsReadAsTextByAnyReader) {
     ADD_FAILURE() << "2953 bytes of UTF-8 encoded";
   } catch (const std::invalid_argument& e) {
     EXPECT_EQ(std::string(e.what()),
-              "QR payload of 2953 bytes cannot be encoded (UTF-8 text, with its ECI mark: 12 bits more)");
+              "QR payload of 2953 bytes cannot be encoded (UTF-8 text, with its ECI mark: 12 bits more): a QR code "
+              "holds at most 2953 bytes at level L");
   }
   EXPECT_NO_THROW(ld::artwork::encodeQr(std::string(2953, 'x')));
   full += std::string(1000, 'x');  // (too long either way: nothing said of the mark)
@@ -155,7 +156,7 @@ TEST(Artwork, Utf8PayloadsReadAsTextByAnyReader) {
     ld::artwork::encodeQr(full);
     ADD_FAILURE() << "3953 bytes encoded";
   } catch (const std::invalid_argument& e) {
-    EXPECT_EQ(std::string(e.what()), "QR payload of 3953 bytes cannot be encoded");
+    EXPECT_EQ(std::string(e.what()), "QR payload of 3953 bytes cannot be encoded: a QR code holds at most 2953 bytes at level L");
   }
   const std::string bytes = "\xff\xfe\x80 raw";
   const auto found = zbarDecode(ld::artwork::renderLandmark(bytes, 540));

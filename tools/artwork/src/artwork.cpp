@@ -1,5 +1,6 @@
 #include "ld/artwork.hpp"
 
+#include <array>
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -241,9 +242,10 @@ Grid sheetGrid(size_t count, double side_mm, const SheetLayout& page) {
     const double largest = std::min(across, down / 1.06 >= 4 / 0.06 ? down / 1.06 : down - 4);  // label: max(4, 0.06 side)
     throw std::invalid_argument("a " + fmt(side_mm) + " mm landmark does not fit on a " + fmt(page.page_w_mm) +
                                 "x" + fmt(page.page_h_mm) + " mm page (" +
-                                (largest > 0 ? "at most " + fmt(std::floor(largest)) + " mm with its label and " + fmt(page.margin_mm) +
+                                // (a size under ld-generate's least, 10 mm, is none to suggest)
+                                (largest >= 10 ? "at most " + fmt(std::floor(largest)) + " mm with its label and " + fmt(page.margin_mm) +
                                                    " mm margins: --size " + fmt(std::floor(largest) / 1000)
-                                             : "no room within its margins") +
+                                             : "room for none of 10 mm or more within its margins") +
                                 "; --page-width and --page-height for larger paper, A3 is 297 x 420)");
   }
   if (count > static_cast<size_t>(cols * rows))
@@ -292,7 +294,11 @@ QrCode encodeQr(const std::string& payload, QrEcc ecc) {
                                 (ecc == QrEcc::Auto ? "" : std::string(" at error correction ") + kName[chosen]) +
                                 (isUtf8BeyondAscii(payload) && encodeAt(payload, kLevel[chosen], false)
                                      ? " (UTF-8 text, with its ECI mark: 12 bits more)"
-                                     : ""));
+                                     : "") +
+                                // (version 40's bytes at each level)
+                                ": a QR code holds at most " +
+                                std::to_string(std::array<int, 5>{2953, 2953, 2331, 1663, 1273}[chosen]) +
+                                " bytes at level " + kName[chosen]);
   QrCode qr;
   qr.size = code->width;
   qr.version = code->version;

@@ -114,11 +114,21 @@ int main(int argc, char** argv) {
       module_u.push_back(ld::artwork::qrPlacement(qr).module_u);
       const std::string shown = ld::artwork::shownPayload(p);
       std::cout << "QR \"" << shown << "\": " << ld::artwork::describeQr(qr, side_mm) << "\n";
-      if (qr.size > 37)
+      if (qr.size > 37) {
+        // (the command that measures this very code: ld-eval size renders
+        // ASCII payloads of up to 1000 bytes at the level asked; UTF-8 ones
+        // carry a marker that can take them a version higher)
+        const bool ascii = std::all_of(p.begin(), p.end(), [](char c) { return static_cast<unsigned char>(c) < 0x80; });
+        const std::string how_close =
+            ascii && p.size() <= 1000
+                ? "ld-eval size --payload-bytes " + std::to_string(p.size()) +
+                      (ecc_text == "auto" ? std::string() : " --ecc " + ecc_text) + " says how close"
+                : "ld-eval size measures ASCII payloads of up to 1000 bytes, so none of its figures is this "
+                  "code's";
         std::cerr << "ld-generate: note: \"" << shown << "\" needs QR version " << qr.version << " ("
                   << qr.size << " modules, more than the 37 of version 5, which holds 100 bytes at level L): "
-                  << "its modules are small and read only from close by (ld-eval size --payload-bytes " << p.size()
-                  << " says how close)\n";
+                  << "its modules are small and read only from close by (" << how_close << ")\n";
+      }
     }
     // The pages: one payload alone, or as many per page as fit.
     std::vector<std::vector<std::string>> pages;
