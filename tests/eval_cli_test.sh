@@ -247,4 +247,13 @@ set +e; "$BIN/ld-eval" yaw --trials 1 --misses "" >/dev/null 2>"$T/err"; rc=$?; 
 [ $rc -eq 2 ] && grep -qF -- "--misses needs a folder" "$T/err" || fail "yaw --misses \"\": exit $rc, $(cat "$T/err")"
 set +e; "$BIN/ld-eval" yaw --trials 1 --misses "$T/afile" >/dev/null 2>"$T/err"; rc=$?; set -e
 [ $rc -eq 2 ] && grep -qF -- "not a folder that can be made" "$T/err" || fail "yaw --misses FILE: exit $rc, $(cat "$T/err")"
+# The glare sweep's strengths without the glare sweep (dropped without a word)
+set +e; "$BIN/ld-eval" lighting --sweeps temperature --glare 0.75 >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -q "^ld-eval: --glare gives the glare sweep's strengths, and --sweeps leaves that sweep out" "$T/err" ||
+  fail "lighting --glare without its sweep: exit $rc, $(cat "$T/err")"
+# A landmark larger than the view: said under the table (a silent 0 %, as
+# the size table already said).
+timeout 60 "$BIN/ld-eval" yaw --side 2 --distance 1 --trials 1 --step 80 >"$T/big" 2>/dev/null || fail "yaw, 2 m side: exit $?"
+grep -q "^at 1 m the view is 0.80 m high: a 200 cm landmark (with its white margin) hardly fits in it" "$T/big" ||
+  fail "yaw, 2 m side: $(cat "$T/big")"
 echo ok

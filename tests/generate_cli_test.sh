@@ -127,6 +127,11 @@ fi
 [ ! -e "$T/s.svg" ] && grep -q "a 10 mm landmark at --dpi 10 is 4 px a side, under the 9 px of its layout: --dpi 23 or more" "$T/err" ||
   fail "10 mm at 10 dpi: $(cat "$T/err")"
 
+# --dpi without a PNG (it was dropped without a word; the SVG has no pixels)
+if "$BIN/ld-generate" -p x --dpi 300 --svg "$T/d.svg" >"$T/out" 2>"$T/err"; then fail "--dpi with --svg alone accepted"; fi
+[ ! -e "$T/d.svg" ] && grep -q "^ld-generate: --dpi is the PNG's resolution, and no --png is written" "$T/err" ||
+  fail "--dpi with --svg alone: $(cat "$T/err")"
+
 # Payloads that are not UTF-8 text, or hold control characters: the QR keeps
 # their bytes; the SVG (XML), the labels and the terminal show U+FFFD.
 "$BIN/ld-generate" --sheet -s 0.09 -p $'ab\xffcd' -p $'ctl\x01x' --svg "$T/u.svg" >"$T/out" 2>"$T/err" || fail "odd bytes: $(cat "$T/err")"

@@ -43,7 +43,7 @@ int main(int argc, char** argv) {
   app.add_option("-p,--payload", payloads, "QR text; repeat with --sheet for several")->required();
   app.add_option("-s,--size", side_m, "printed sheet side S in metres")->check(ld::cli::Between(0.01, 2.0))
       ->capture_default_str();
-  app.add_option("--dpi", dpi, "resolution of the PNG")->check(ld::cli::Between(10.0, 2400.0))
+  auto* dpi_opt = app.add_option("--dpi", dpi, "resolution of the PNG")->check(ld::cli::Between(10.0, 2400.0))
       ->capture_default_str();
   app.add_option("--png", png, "write a PNG here");
   app.add_option("--svg", svg, "write an SVG here (vector, exact physical size)");
@@ -72,6 +72,9 @@ int main(int argc, char** argv) {
   if (!svg.empty() && !ld::hasExtension(svg, ".svg"))
     return ld::cli::usage(argv[0], "--svg " + svg + ": the file name must end in .svg");
   if (payloads.size() > 1 && !sheet) return ld::cli::usage(argv[0], "several payloads need --sheet");
+  // (the SVG has no pixels: the resolution was dropped without a word)
+  if (dpi_opt->count() > 0 && png.empty())
+    return ld::cli::usage(argv[0], "--dpi is the PNG's resolution, and no --png is written (the SVG is exact at any size)");
   // (a single landmark is its own page: the page's size was dropped without a word)
   for (const auto* o : {page_w, page_h})
     if (!sheet && o->count() > 0)

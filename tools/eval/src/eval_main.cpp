@@ -367,7 +367,7 @@ int main(int argc, char** argv) {
       ->delimiter(',')
       ->check(CLI::IsMember({"temperature", "gain", "glare"}));
   std::vector<double> l_glare{0.0, 0.3, 0.6, 0.9, 1.2};
-  light->add_option("--glare", l_glare,
+  auto* l_glare_opt = light->add_option("--glare", l_glare,
                     "the glare sweep's strengths, comma-separated: the hot spot's peak in linear light, 1 = white "
                     "(default 0,0.3,0.6,0.9,1.2; measured in rising order, each once)")
       ->delimiter(',')
@@ -401,6 +401,10 @@ int main(int argc, char** argv) {
 
   LD_CLI_PARSE(app, argc, argv);
   try {
+    // (the glare sweep's strengths without the glare sweep were dropped without a word)
+    if (light->parsed() && l_glare_opt->count() > 0 &&
+        std::find(l_sweeps.begin(), l_sweeps.end(), "glare") == l_sweeps.end())
+      throw ld::cli::UsageError("--glare gives the glare sweep's strengths, and --sweeps leaves that sweep out");
     // Where the results go, checked before the sweep (minutes) rather than after it.
     for (const auto& [c, sub] : std::vector<std::pair<const Common*, CLI::App*>>{
              {&yc, yaw}, {&dc, dist}, {&qc, qr}, {&sc, size}, {&lc, light}, {&mc, motion}, {&pc, pose}}) {
@@ -503,6 +507,26 @@ int main(int argc, char** argv) {
         t << "| " << xs[k] << " |";
         for (const auto& pts : all) t << " " << pct(pts[k].detected, pts[k].trials) << " % |";
         t << "\n";
+      }
+      // (a landmark larger than the view gave a silent 0 %, as the size
+      // table already says: its rates there measure no detector)
+      const auto view_h = [&](double d) { return d * c.options().camera.size.height / c.options().camera.K(1, 1); };
+      for (size_t i = 0; i < sw.sides.size(); ++i) {
+        const double side = sw.sides[i];
+        if (sw.dists) {
+          const double d = (*sw.dists)[i];
+          if (side * 1.2 > view_h(d))
+            t << "\nat " << d << " m the view is " << cv::format("%.2f", view_h(d)) << " m high: a " << cm(side)
+              << " landmark (with its white margin) hardly fits in it, and its rates measure no detector\n";
+        } else {
+          double closest_cut = -1;
+          for (const double d : xs)
+            if (side * 1.2 > view_h(d)) closest_cut = std::max(closest_cut, d);
+          if (closest_cut > 0)
+            t << "\nup to " << closest_cut << " m a " << cm(side) << " landmark (with its white margin) hardly fits "
+              << "in the view (" << cv::format("%.2f", view_h(closest_cut)) << " m high at " << closest_cut
+              << " m): its rates there measure no detector\n";
+        }
       }
       emit(c, t.str());
       if (!c.png.empty()) plot(c.png, sw.title, sw.axis, series);
