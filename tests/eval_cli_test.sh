@@ -247,10 +247,18 @@ set +e; "$BIN/ld-eval" yaw --trials 1 --misses "" >/dev/null 2>"$T/err"; rc=$?; 
 [ $rc -eq 2 ] && grep -qF -- "--misses needs a folder" "$T/err" || fail "yaw --misses \"\": exit $rc, $(cat "$T/err")"
 set +e; "$BIN/ld-eval" yaw --trials 1 --misses "$T/afile" >/dev/null 2>"$T/err"; rc=$?; set -e
 [ $rc -eq 2 ] && grep -qF -- "not a folder that can be made" "$T/err" || fail "yaw --misses FILE: exit $rc, $(cat "$T/err")"
+# --stack 1 is a single frame (its columns repeated the single-frame ones)
+set +e; "$BIN/ld-eval" qr --stack 1 >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -q "^ld-eval: --stack: 1 frame is what the single-frame figures count: 0 (none), or 2 to 64" "$T/err" ||
+  fail "qr --stack 1: exit $rc, $(cat "$T/err")"
 # The glare sweep's strengths without the glare sweep (dropped without a word)
 set +e; "$BIN/ld-eval" lighting --sweeps temperature --glare 0.75 >/dev/null 2>"$T/err"; rc=$?; set -e
 [ $rc -eq 2 ] && grep -q "^ld-eval: --glare gives the glare sweep's strengths, and --sweeps leaves that sweep out" "$T/err" ||
   fail "lighting --glare without its sweep: exit $rc, $(cat "$T/err")"
+# A step that does not divide the range: its end is swept too (yaw --step
+# 100 swept -80 and 20, never +80)
+timeout 60 "$BIN/ld-eval" yaw --side 0.15 --distance 1 --trials 1 --step 100 >"$T/steps" 2>/dev/null || fail "yaw --step 100: exit $?"
+[ "$(grep -o '^| -\?[0-9]* |' "$T/steps" | tr -d '| ' | tr '\n' ' ')" = "-80 20 80 " ] || fail "yaw --step 100: $(cat "$T/steps")"
 # A landmark larger than the view: said under the table (a silent 0 %, as
 # the size table already said).
 timeout 60 "$BIN/ld-eval" yaw --side 2 --distance 1 --trials 1 --step 80 >"$T/big" 2>/dev/null || fail "yaw, 2 m side: exit $?"

@@ -142,7 +142,8 @@ std::vector<double> sortedUnique(std::vector<double> v) {
   return v;
 }
 
-// The sweep's points, from `from` to `to` by `step`; at most kMaxPoints
+// The sweep's points, from `from` to `to` by `step`, and `to` where the
+// step does not reach it; at most kMaxPoints
 // (a step of 1e-9 would ask for billions: a usage error naming the count).
 constexpr double kMaxPoints = 1000;
 std::vector<double> range(double from, double to, double step) {
@@ -160,6 +161,9 @@ std::vector<double> range(double from, double to, double step) {
     if (x > to + 1e-9) break;
     v.push_back(std::round(x * 1e6) / 1e6);
   }
+  // (the end too, where the step does not reach it: `yaw --step 100` swept
+  // -80 and 20, never +80; `--to 6 --step 1.5` stopped at 5)
+  if (to - v.back() > 1e-6 * std::max(1.0, std::abs(to))) v.push_back(std::round(to * 1e6) / 1e6);
   return v;
 }
 
@@ -214,7 +218,16 @@ void addCommon(CLI::App* app, Common& c, bool png = true) {
 
 // The QR sweeps' --stack: frames read as ld-qr-reader reads a track (0-64, as its --stack-frames).
 void addStack(CLI::App* app, int& frames, const std::string& what) {
-  app->add_option("--stack", frames, what)->capture_default_str()->check(ld::cli::Between(0, 64));
+  app->add_option("--stack", frames, what)
+      ->capture_default_str()
+      ->check(ld::cli::Between(0, 64))
+      // (one frame is a single frame: its columns repeated the single-frame ones)
+      ->check(CLI::Validator(
+          [](const std::string& v) {
+            return v == "1" ? std::string("1 frame is what the single-frame figures count: 0 (none), or 2 to 64")
+                            : std::string();
+          },
+          "", "not 1"));
 }
 
 // The QR sweeps' --ecc: the error correction of the printed codes, as ld-generate's.
