@@ -721,7 +721,7 @@ int main(int argc, char** argv) {
       if (answer > 0 && answer == s_sides.front())
         verdict += " or less (the smallest candidate; --side tries others)";
       t << "\n" << verdict << " (detected at " << s_detect << " m and read at " << s_read << " m" << read_how
-        << " in 95 % of frames, yaw within +-" << s_yaw << " deg)\n";
+        << " in 95 % of frames, " << sc.trials << " a side, yaw within +-" << s_yaw << " deg)\n";
       if (answer < 0 && s_sides.front() * 1.2 > view_h)
         t << "at " << std::min(s_detect, s_read) << " m the view is " << cv::format("%.2f", view_h)
           << " m high: even a " << cm(s_sides.front()) << " landmark (with its white margin) hardly fits in it\n";
