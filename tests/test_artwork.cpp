@@ -291,6 +291,9 @@ TEST(Artwork, SheetLabelsFitTheirLandmark) {
   const std::string small = ld::artwork::sheetSvg({"room-101", "room-101-east-wing"}, 20.0);
   EXPECT_NE(small.find(">room-101<"), std::string::npos) << small;
   EXPECT_NE(small.find(">room...wing<"), std::string::npos) << small;
+  // (a wide script at the least size keeps a character: it read "...")
+  const std::string tiny = ld::artwork::sheetSvg({cjk24}, 10.0);
+  EXPECT_NE(tiny.find(">\xe6\x97\xa5...<"), std::string::npos) << tiny;
 }
 
 // The cutting outline is drawn just outside each sheet, where the sheet

@@ -383,6 +383,14 @@ TEST(BusMonitor, RepeatedFramesAreCountedOnce) {
   EXPECT_EQ(s["frames"]["tracker_skipped"], 0);
   EXPECT_EQ(s["tracks"][0]["frames_visible"], 3);
   EXPECT_EQ(m.repeatedMessages(), 9);
+  // The log replayed again (its images come again too): a pass of its own,
+  // whose lists are counted (they were all dropped as repeats)
+  for (int64_t k = 0; k < 3; ++k) {
+    m.imageSeen(1000 * (k + 1), k, 10'000'000 + 33'000 * k);
+    m.trackedSeen(list(1000 * (k + 1), k, {trackedLandmark(7, true)}), 10'010'000 + 33'000 * k);
+  }
+  EXPECT_EQ(m.summary()["frames"]["tracked"], 8);
+  EXPECT_EQ(m.repeatedMessages(), 9);
 }
 
 // One id that carried two landmarks' payloads (the tracker gave it to

@@ -59,7 +59,7 @@ class LatestMessage {
       why = check_(incoming_);
     if (!why.empty()) return reportBad(why);
     if (pending_ && same_frame_ && same_frame_(incoming_, newest_)) {
-      ++repeated_;  // (the frame waiting, again: it was counted skipped)
+      ++repeated_;  // (the frame waiting, again: not a newer frame that skipped it)
       return;
     }
     countGap();

@@ -144,9 +144,12 @@ std::string sheetLabel(const std::string& payload, double side_mm) {
     for (const char32_t cp : cps) appendUtf8(out, cp);
   } else {
     // its start and its end, "..." between (ids differ at their ends)
-    const int keep = payload_room - 3, head_room = (keep + 1) / 2, tail_room = keep - head_room;
+    const int keep = payload_room - 3;
+    int head_room = (keep + 1) / 2, head_used = 0;
     size_t head = 0, tail = cps.size();
-    for (int used = 0; head < cps.size() && used + width(cps[head]) <= head_room; ++head) used += width(cps[head]);
+    for (; head < cps.size() && head_used + width(cps[head]) <= head_room; ++head) head_used += width(cps[head]);
+    if (head == 0) head_used = width(cps[head++]);  // (one character at least: a wide one at 10 mm left "...")
+    const int tail_room = keep - head_used;
     for (int used = 0; tail > head && used + width(cps[tail - 1]) <= tail_room; --tail) used += width(cps[tail - 1]);
     for (size_t i = 0; i < head; ++i) appendUtf8(out, cps[i]);
     out += "...";

@@ -148,7 +148,8 @@ std::vector<double> sortedUnique(std::vector<double> v) {
 constexpr double kMaxPoints = 1000;
 std::vector<double> range(double from, double to, double step) {
   if (!(step > 0) || !(to >= from)) throw std::invalid_argument("bad range: need from <= to and step > 0");
-  const double n = std::floor((to - from) / step + 1e-9) + 1;
+  double n = std::floor((to - from) / step + 1e-9) + 1;
+  if (to - (from + (n - 1) * step) > step / 100) n += 1;  // (the end, below)
   if (!(n <= kMaxPoints)) {
     std::ostringstream m;
     m << "--step " << step << " from " << from << " to " << to << " makes " << n << " sweep points (at most "
@@ -162,8 +163,11 @@ std::vector<double> range(double from, double to, double step) {
     v.push_back(std::round(x * 1e6) / 1e6);
   }
   // (the end too, where the step does not reach it: `yaw --step 100` swept
-  // -80 and 20, never +80; `--to 6 --step 1.5` stopped at 5)
-  if (to - v.back() > 1e-6 * std::max(1.0, std::abs(to))) v.push_back(std::round(to * 1e6) / 1e6);
+  // -80 and 20, never +80; `--to 6 --step 1.5` stopped at 5; a last point
+  // within a hundredth of a step of it is moved onto it instead)
+  const double end = std::round(to * 1e6) / 1e6;
+  if (end - v.back() > step / 100) v.push_back(end);
+  else v.back() = end;
   return v;
 }
 
@@ -221,11 +225,14 @@ void addStack(CLI::App* app, int& frames, const std::string& what) {
   app->add_option("--stack", frames, what)
       ->capture_default_str()
       ->check(ld::cli::Between(0, 64))
-      // (one frame is a single frame: its columns repeated the single-frame ones)
+      // (one frame is a single frame: its columns repeated the single-frame ones;
+      // read as a number, as the option reads it: 01 and +1 too)
       ->check(CLI::Validator(
           [](const std::string& v) {
-            return v == "1" ? std::string("1 frame is what the single-frame figures count: 0 (none), or 2 to 64")
-                            : std::string();
+            int n = -1;
+            return CLI::detail::lexical_cast(v, n) && n == 1
+                       ? std::string("1 frame is what the single-frame figures count: 0 (none), or 2 to 64")
+                       : std::string();
           },
           "", "not 1"));
 }

@@ -114,6 +114,16 @@ void BusMonitor::onCodes(const lcm::ReceiveBuffer* rb, const std::string&) {
 
 void BusMonitor::imageSeen(int64_t utime, int64_t seq, Micros rx_us) {
   count(images_, rx_us);
+  // (an image of a frame seen before: the log replayed again, ld-run
+  // restarting its replay source from the start; the lists of this pass
+  // are no repeats of the last pass's)
+  if (recent_images_.seenBefore(utime, seq)) {
+    recent_images_.clear();
+    recent_images_.seenBefore(utime, seq);
+    recent_landmarks_.clear();
+    recent_tracked_.clear();
+    recent_codes_.clear();
+  }
   const bool live = !utimes_logged_ && utime <= rx_us && rx_us - utime <= kLiveUtimeUs;
   pending_[{utime, seq}] = PendingImage{rx_us, live ? utime : rx_us};
   // Frames never tracked (skipped by the detector) are forgotten after 5 s.

@@ -226,7 +226,7 @@ int main(int argc, char** argv) {
   app.add_option("--speed", speed, "replay speed factor (lcm-logplayer -s; 0.01 to 1000)")
       ->check(ld::cli::Between(0.01, 1000));
   app.add_option("--play", play,
-                 "loop this log's images with ld-play, fresh utime and seq (implies --source play)");
+                 "play this log's images back and forth with ld-play, fresh utime and seq (implies --source play)");
   app.add_option("--fps", play_fps, "--play: frames per second (0.001 to 1000)")->check(ld::cli::Between(0.001, 1000));
   app.add_option("--duration", play_duration, "--play: seconds to publish (default: the log once)")
       ->check(ld::cli::NonNegative);

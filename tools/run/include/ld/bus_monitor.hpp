@@ -146,9 +146,15 @@ class BusMonitor {
   };
   // The frames (utime, seq) of a channel's last 600 messages: one seen again
   // is a repeat (a recording holding the set's outputs played onto it, two
-  // trackers). Unstamped ones (utime 0 or no seq) are never repeats.
+  // trackers), unless its image came again too (imageSeen: a log replayed
+  // again, whose second pass is frames of their own). Unstamped ones (utime
+  // 0 or no seq) are never repeats.
   class RecentFrames {
    public:
+    void clear() {
+      set_.clear();
+      order_.clear();
+    }
     bool seenBefore(int64_t utime, int64_t seq) {
       if (utime == 0 || seq < 0) return false;
       const std::pair<int64_t, int64_t> k{utime, seq};
@@ -201,7 +207,7 @@ class BusMonitor {
   int64_t qr_skipped_ = 0;
   int64_t tracked_frames_ = 0, matched_ = 0, unmatched_images_ = 0, bad_ = 0;
   int64_t bad_images_ = 0;  // of bad_: on the image channel (not counted as images)
-  RecentFrames recent_landmarks_, recent_tracked_, recent_codes_;
+  RecentFrames recent_images_, recent_landmarks_, recent_tracked_, recent_codes_;
   int64_t repeated_ = 0;  // messages of a frame already seen on their channel (not counted)
   SkipCounter det_skipped_, trk_skipped_;
   std::vector<double> latencies_ms_;
