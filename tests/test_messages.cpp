@@ -290,6 +290,34 @@ TEST(Pump, DrainIsBoundedUnderAFlood) {
   EXPECT_GT(f.handled, before);
 }
 
+// After a stall the rest of the backlog is read before the newest is taken
+// (a stalled detector worked on frames from the middle of it): messages
+// that keep coming are handled; without a stall, nothing is waited for.
+namespace {
+struct Backlog {
+  int handled = 0;
+  void on(const lcm::ReceiveBuffer*, const std::string&, const ld::landmark_list_t*) { ++handled; }
+};
+}  // namespace
+
+TEST(Pump, CatchUpAfterAStallReadsTheBacklog) {
+  lcm::LCM lcm("memq://");
+  ASSERT_TRUE(lcm.good());
+  Backlog b;
+  lcm.subscribe("BACKLOG", &Backlog::on, &b);
+  const auto msg = sampleList();
+  std::atomic<bool> stop{false};
+  for (int i = 0; i < 40; ++i) ASSERT_EQ(lcm.publish("BACKLOG", &msg), 0);
+  // no stall (the last pump a moment ago): returns at once, handles nothing
+  auto t0 = std::chrono::steady_clock::now();
+  (void)ld::catchUpAfterStall(lcm, t0, stop);
+  EXPECT_EQ(b.handled, 0);
+  // a stall of 2 s: the whole backlog, then one gap of kCatchUpGapMs
+  const auto returned = ld::catchUpAfterStall(lcm, t0 - std::chrono::seconds(2), stop);
+  EXPECT_EQ(b.handled, 40);
+  EXPECT_LT(returned - t0, std::chrono::milliseconds(ld::kMaxCatchUpMs));
+}
+
 struct FormatCase {
   int32_t format;
   double max_err;   // largest allowed per-channel difference

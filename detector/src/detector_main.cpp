@@ -93,9 +93,13 @@ int main(int argc, char** argv) {
   ld::Explanation why_frame;
   std::string pose_error;  // the last frame's Detection::pose_error
   int64_t pose_errors = 0;  // times it changed to a new one
+  auto last_pump = std::chrono::steady_clock::now();
   while (!g_stop) {
     // waits, then drains the queue: only the newest message is processed
     if (!ld::pumpLcm(lcm, 200, g_stop, "ld-detector")) return 1;
+    // (after a stall, the rest of the kernel's backlog too: the newest frame
+    // is then the camera's latest, not one from the middle of it)
+    last_pump = ld::catchUpAfterStall(lcm, last_pump, g_stop);
     if (g_stop) break;
     if (const ld::image_t* newest = latest.take()) {
       const ld::image_t& image = *newest;  // (handlers run in pumpLcm alone: it stays while processed)

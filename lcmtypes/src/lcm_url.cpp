@@ -105,6 +105,16 @@ bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const
   return true;
 }
 
+std::chrono::steady_clock::time_point catchUpAfterStall(lcm::LCM& lcm, std::chrono::steady_clock::time_point last_pump,
+                                                        const std::atomic<bool>& stop) {
+  const auto now = std::chrono::steady_clock::now();
+  if (now - last_pump < std::chrono::milliseconds(kStallMs)) return now;
+  const auto until = now + std::chrono::milliseconds(kMaxCatchUpMs);
+  while (!stop && std::chrono::steady_clock::now() < until && lcm.handleTimeout(kCatchUpGapMs) > 0) {
+  }
+  return std::chrono::steady_clock::now();
+}
+
 void QueueFit::fit(size_t message_bytes) {
   if (!subscription_ || message_bytes <= largest_) return;
   largest_ = message_bytes;

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -81,6 +82,18 @@ class StillTimeWatch {
 /// LCM itself failed, which is reported in one line prefixed with `program`.
 constexpr int kMaxDrainMs = 50;
 bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const char* program);
+
+/// After a stall (the process stopped or starved for kStallMs or more between
+/// two pumps), LCM's receiving thread is still reading the kernel's backlog
+/// when pumpLcm returns, and the newest message then is one from the middle
+/// of it: handles messages for as long as they keep coming (kCatchUpGapMs
+/// apart at most), for up to kMaxCatchUpMs, so that the newest is the
+/// source's latest. (A detector stopped for 3 s worked on a third frame of
+/// the stall's backlog now and then.) Call it after pumpLcm with the time
+/// the previous pumpLcm returned; it returns the time to pass next.
+constexpr int kStallMs = 1000, kCatchUpGapMs = 20, kMaxCatchUpMs = 500;
+std::chrono::steady_clock::time_point catchUpAfterStall(lcm::LCM& lcm, std::chrono::steady_clock::time_point last_pump,
+                                                        const std::atomic<bool>& stop);
 
 /// A subscription's queue, held to about kQueueBytes of messages rather than
 /// LCM's 30. LCM keeps at most that many messages waiting for a
