@@ -301,6 +301,31 @@ TEST(AdaptiveDetection, BgraFramesAreCorrectedAsBgr) {
   EXPECT_GE(found, 9);
 }
 
+// The correction's time is the detection's first stage, "adapt" (the stage
+// timings of LANDMARKS said nothing of it), and in its total; without the
+// adapter there is no such stage.
+TEST(AdaptiveDetection, CorrectionIsTheFirstStage) {
+  ld::synth::SceneSpec spec;
+  spec.seed = 41;
+  spec.lighting.colour_temp_k = 2200;
+  spec.landmarks = {ld::synth::placeLandmark(spec.camera, 1.2, 20, 0, 10, -0.3, 0)};
+  const cv::Mat bgr = ld::synth::render(spec).bgr;
+  ld::AdaptiveDetector on;
+  for (int k = 0; k < 3; ++k) {
+    const ld::Detection& d = on.detect(bgr);
+    ASSERT_FALSE(d.stages.empty());
+    EXPECT_STREQ(d.stages.front().name, "adapt");
+    EXPECT_GT(d.stageMs("adapt"), 0);
+    double sum = 0;
+    for (const auto& st : d.stages) sum += st.ms;
+    EXPECT_GE(d.total_ms, sum - 1e-9);  // (the total holds every stage, the correction too, and the timer's own time)
+    ld::Explanation why;
+    EXPECT_STREQ(on.detect(bgr, why).stages.front().name, "adapt");
+  }
+  ld::AdaptiveDetector off(ld::Detector{}, false);
+  EXPECT_EQ(off.detect(bgr).stageMs("adapt"), 0);
+}
+
 // Without the faint look the fixed defaults lose warm light altogether.
 TEST(AdaptiveDetection, FixedDefaultsWithoutTheFaintLookDropUnderTungsten) {
   auto o = lit(2700, -1, false);

@@ -378,6 +378,13 @@ void FakeV4l2Device::pump(Node& node) {
     node.stats.dropped += behind;
   }
   while (node.present && node.streaming && nextDueUs(node) <= now) {
+    // (unplugged when the frame after the last asked for is due: the last
+    // one is delivered; unplugged as it was captured, it was lost with its
+    // buffer, and `--fake-unplug-after N` published N - 1 frames)
+    if (node.unplug_after_frames >= 0 && node.stats.frames >= node.unplug_after_frames) {
+      unplug(node.spec.path);
+      break;
+    }
     const int64_t t = nextDueUs(node);
     ++node.frames_due;
     if (node.queued.empty()) {
@@ -388,8 +395,6 @@ void FakeV4l2Device::pump(Node& node) {
     const uint32_t index = node.queued.front();
     node.queued.pop_front();
     capture(node, index, t);
-    if (node.unplug_after_frames >= 0 && node.stats.frames >= node.unplug_after_frames)
-      unplug(node.spec.path);
   }
 }
 

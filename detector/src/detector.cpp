@@ -1951,6 +1951,11 @@ const Detection& Detector::detect(const cv::Mat& bgr) {
   return impl_->det;
 }
 
+void Detector::addStageBefore(const char* name, double ms) {
+  impl_->det.stages.insert(impl_->det.stages.begin(), StageTime{name, ms});  // (its capacity kept: no allocation once warm)
+  impl_->det.total_ms += ms;
+}
+
 const Detection& Detector::detect(const cv::Mat& bgr, Explanation& why) {
   // The detection, untraced (its times are its own); then again as a run
   // that records the looks (the same landmarks), its times put back to the

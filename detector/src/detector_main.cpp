@@ -75,6 +75,9 @@ int main(int argc, char** argv) {
     (void)detector.detector().detect(noise);
   }
   if (verbose) std::fprintf(stderr, "ld-detector: backend %s\n", detector.detector().backendInfo().c_str());
+  // (said once, -v or not: nothing in its log told whether --adaptive, say
+  // from a unit's LD_DETECTOR_ARGS, was taken)
+  if (detector.enabled()) std::fprintf(stderr, "ld-detector: adaptive lighting on (the frames' colours corrected before detection)\n");
   // backend "auto" on a GPU: -v says its choice too, once made
   bool choosing = verbose && detector.detector().choosingBackend();
   // Each frame is decoded and checked as it arrives (decoding copies it
@@ -124,9 +127,15 @@ int main(int argc, char** argv) {
         if (explain) {
           next_explain = std::chrono::steady_clock::now() +
                          std::chrono::microseconds(static_cast<int64_t>(explain_s * 1e6));
-          std::fprintf(stderr, "ld-detector: frame %lld (utime %lld): %zu landmark%s\n%s\n",  // (one block per frame)
+          // (with --adaptive, the adapter's gains and veil, as ld-detect --explain gives them)
+          const std::string adapted =
+              detector.enabled() ? cv::format("; adaptive gains B %.2f G %.2f R %.2f%s", detector.adapter().gains()[0],
+                                              detector.adapter().gains()[1], detector.adapter().gains()[2],
+                                              detector.adapter().glareCorrected() ? ", glare veil subtracted" : "")
+                                 : std::string();
+          std::fprintf(stderr, "ld-detector: frame %lld (utime %lld): %zu landmark%s%s\n%s\n",  // (one block per frame)
                        static_cast<long long>(ld::imageSeq(image).value_or(-1)), static_cast<long long>(image.utime),
-                       det.landmarks.size(), det.landmarks.size() == 1 ? "" : "s",
+                       det.landmarks.size(), det.landmarks.size() == 1 ? "" : "s", adapted.c_str(),
                        ld::describe(why_frame, detector.detector().params(), "  ").c_str());
         }
         ld::toListMessage(det, image.utime, ld::imageSeq(image).value_or(-1), bgr.cols, bgr.rows,

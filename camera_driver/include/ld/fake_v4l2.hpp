@@ -137,8 +137,9 @@ class FakeV4l2Device final : public V4l2Io {
   void unplug(const std::string& path = "/dev/video0");
   /// The node is back, in its power-on state; old descriptors stay dead.
   void replug(const std::string& path = "/dev/video0");
-  /// Unplugs the node right after its `after_frames`-th captured frame (from
-  /// now), and plugs it back `replug_after_us` later (never when negative).
+  /// Unplugs the node when the frame after its `after_frames`-th captured
+  /// one (from now) is due, so that those `after_frames` are delivered, and
+  /// plugs it back `replug_after_us` later (never when negative).
   void scheduleUnplug(const std::string& path, int64_t after_frames, int64_t replug_after_us);
   /// The node stops delivering frames while it stays streaming (a UVC
   /// camera's firmware or USB stalls), until its next STREAMON, or for good

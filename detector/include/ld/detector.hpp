@@ -517,6 +517,10 @@ class Detector {
   /// missed, not for the hot path. The detection's times are the untraced
   /// run's.
   const Detection& detect(const cv::Mat& bgr, Explanation& why);
+  /// Adds a stage that ran before detect() on the same frame (the adaptive
+  /// lighting's correction) to the last detection's times, first in their
+  /// order and in total_ms.
+  void addStageBefore(const char* name, double ms);
 
   const DetectorParams& params() const;
 
