@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -145,6 +146,33 @@ TEST(Supervisor, MissingProgramIsReportedAndRetried) {
   pollUntil(sup, [] { return false; }, 300ms);
   EXPECT_GE(sup.processes()[i].starts, 2);
   EXPECT_TRUE(sup.stopAll(0.5));
+}
+
+// A start whose pipe cannot be made (out of descriptors) is retried with
+// the backoff, as a missing program is; it was said once and never
+// retried, and ld-run waited for that process for ever. runs counts the
+// starts that ran.
+TEST(Supervisor, StartOutOfDescriptorsIsRetried) {
+  Lines lines;
+  ld::Supervisor sup({0.05, 0.1, 10}, lines.sink());
+  const size_t i = sup.add({"starved", {"sh", "-c", "sleep 5"}, ld::ProcessRole::Worker});
+  rlimit old{};
+  ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &old), 0);
+  // (the lowest free descriptor, then no room for a pipe beyond it)
+  const int probe = ::dup(0);
+  ASSERT_GE(probe, 0);
+  ::close(probe);
+  rlimit low = old;
+  low.rlim_cur = static_cast<rlim_t>(probe);
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &low), 0);
+  const bool started = sup.start(i);
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &old), 0);
+  EXPECT_FALSE(started);
+  EXPECT_TRUE(lines.has("starved", "cannot start sh: pipe: Too many open files; retrying in")) << lines.all.size();
+  EXPECT_EQ(sup.processes()[i].runs, 0);
+  ASSERT_TRUE(pollUntil(sup, [&] { return sup.processes()[i].runs == 1; }, 2000ms));  // (retried, and it runs)
+  EXPECT_GE(sup.processes()[i].starts, 2);
+  sup.stopAll(0.5);
 }
 
 TEST(Supervisor, StopsAProcessIgnoringSigtermWithSigkill) {

@@ -654,7 +654,23 @@ int main(int argc, char** argv) {
   // that never ran). Not when stopped by a signal: a live set stopped while
   // its camera waits to be plugged in again stopped as it should.
   for (const auto& p : sup.processes())
-    if (!g_signal && p.starts > 0 && p.pid <= 0 && !p.done && !p.failed) {
+    if (p.spec.role == ld::ProcessRole::Recorder && p.runs > 1) {
+      // (a recorder that died lost what came while it was down, though its
+      // restarts append to the log: a full disk killed it again and again,
+      // and the run ended with 0)
+      note("warning: the recording " + cfg.record + " is incomplete: its recorder died and was restarted " +
+           std::to_string(p.runs - 1) + " time" + (p.runs == 2 ? "" : "s") +
+           (p.last_exit.empty() ? "" : " (its last end: " + p.last_exit + ")") + "; what came meanwhile is not in it");
+      exit_code = std::max(exit_code, 1);
+    }
+  for (const auto& p : sup.processes())
+    if (p.runs == 0 && p.starts > 0) {
+      // (one that never ran at all, signal or not: out of descriptors, say;
+      // the run waited for it and ended with 0 when stopped)
+      note(p.spec.name + " never ran: its " + std::to_string(p.starts) + " start" + (p.starts == 1 ? "" : "s") +
+           " failed (the last: " + p.last_exit + ")");
+      exit_code = std::max(exit_code, 1);
+    } else if (!g_signal && p.starts > 0 && p.pid <= 0 && !p.done && !p.failed) {
       note(p.spec.name + " was not running at the end: it was waiting to be started again (started " +
            std::to_string(p.starts) + " time" + (p.starts == 1 ? "" : "s") +
            (p.last_exit.empty() ? "" : "; its last end: " + p.last_exit) + ")");

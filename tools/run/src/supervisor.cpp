@@ -103,16 +103,30 @@ size_t Supervisor::add(ProcessSpec spec) {
 bool Supervisor::start(size_t i) {
   ProcessState& p = procs_.at(i);
   const auto now = SteadyClock::now();
-  int out[2], err[2];
-  if (::pipe2(out, O_CLOEXEC) != 0) {
-    sink_(p.spec.name, std::string("cannot start: pipe: ") + std::strerror(errno));
+  // A start that failed: retried with the backoff of a process that died at
+  // once, as an exec that fails is. (A pipe or fork that failed, out of
+  // descriptors or processes, was said once and never retried: the run
+  // waited for that process for ever, and ended with 0 when stopped.)
+  const auto failed = [&](const std::string& why) {
+    ++p.starts;
+    p.started = now;
+    p.pid = -1;
+    p.failed_to_start = true;
+    ++p.consecutive_failures;
+    const double d = restartDelay(policy_, p.consecutive_failures);
+    p.restart_at = now + std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(d));
+    p.last_exit = why;
+    sink_(p.spec.name, "cannot start " + p.spec.argv.at(0) + ": " + why + "; retrying in " +
+                           std::to_string(d).substr(0, 4) + " s");
     return false;
-  }
+  };
+  int out[2], err[2];
+  if (::pipe2(out, O_CLOEXEC) != 0) return failed(std::string("pipe: ") + std::strerror(errno));
   if (::pipe2(err, O_CLOEXEC) != 0) {  // exec errno travels here; closed by a successful exec
+    const int e = errno;
     ::close(out[0]);
     ::close(out[1]);
-    sink_(p.spec.name, std::string("cannot start: pipe: ") + std::strerror(errno));
-    return false;
+    return failed(std::string("pipe: ") + std::strerror(e));
   }
   std::vector<char*> argv;
   for (auto& a : p.spec.argv) argv.push_back(const_cast<char*>(a.c_str()));
@@ -120,9 +134,9 @@ bool Supervisor::start(size_t i) {
   const pid_t parent = ::getpid();
   const pid_t pid = ::fork();
   if (pid < 0) {
+    const int e = errno;
     for (int fd : {out[0], out[1], err[0], err[1]}) ::close(fd);
-    sink_(p.spec.name, std::string("cannot start: fork: ") + std::strerror(errno));
-    return false;
+    return failed(std::string("fork: ") + std::strerror(e));
   }
   if (pid == 0) {
     // Child: own process group (a terminal's Ctrl-C reaches only ld-run, which
@@ -153,21 +167,14 @@ bool Supervisor::start(size_t i) {
     n = ::read(err[0], &child_errno, sizeof child_errno);
   } while (n < 0 && errno == EINTR);
   ::close(err[0]);
-  ++p.starts;
-  p.started = now;
   if (n == static_cast<ssize_t>(sizeof child_errno)) {
     ::waitpid(pid, nullptr, 0);
     ::close(out[0]);
-    p.pid = -1;
-    p.failed_to_start = true;
-    ++p.consecutive_failures;
-    const double d = restartDelay(policy_, p.consecutive_failures);
-    p.restart_at = now + std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(d));
-    p.last_exit = std::string("exec failed: ") + std::strerror(child_errno);
-    sink_(p.spec.name, "cannot start " + p.spec.argv.at(0) + ": " + std::strerror(child_errno) +
-                           "; retrying in " + std::to_string(d).substr(0, 4) + " s");
-    return false;
+    return failed(std::string("exec failed: ") + std::strerror(child_errno));
   }
+  ++p.starts;
+  ++p.runs;
+  p.started = now;
   ::fcntl(out[0], F_SETFL, ::fcntl(out[0], F_GETFL) | O_NONBLOCK);
   if (p.out_fd >= 0) ::close(p.out_fd);
   p.out_fd = out[0];

@@ -60,9 +60,10 @@ struct ProcessState {
   ProcessSpec spec;
   pid_t pid = -1;                   ///< -1 when not running
   int starts = 0;                   ///< times started (restarts = starts - 1)
+  int runs = 0;                     ///< of them, the starts that ran (not failed to start)
   int consecutive_failures = 0;
   bool done = false;                ///< a Source that finished (exit 0)
-  bool failed_to_start = false;     ///< the last exec failed
+  bool failed_to_start = false;     ///< the last start failed (exec, pipe, fork)
   std::string last_exit;            ///< describeWaitStatus of the last end, "" if none
   bool failed = false;              ///< a Source that ended with a usage error (RestartPolicy)
   SteadyClock::time_point started{};
