@@ -610,6 +610,16 @@ TEST(RunConfig, ReadsJsonAndBuildsTheProcessTable) {
   EXPECT_EQ(specs[3].role, ld::ProcessRole::Source);
   EXPECT_EQ(specs[3].argv.back(), "x.lcmlog");
   EXPECT_NE(std::find(specs[3].argv.begin(), specs[3].argv.end(), "--regexp=^IMAGE$"), specs[3].argv.end());
+  // a log whose name starts with '-' goes as ./-...: lcm-logplayer took it
+  // for its options, and the replay was restarted for ever
+  for (const char* type : {"replay", "play"}) {
+    auto dashed = ld::RunConfig::fromJson(nlohmann::json::parse(std::string(R"({"source": {"type": ")") + type +
+                                                                 R"(", "log": "-r.lcmlog"}})"));
+    const auto d = ld::buildProcessSpecs(dashed, "udpm://239.255.76.67:7667?ttl=0", "");
+    const auto& argv = d.back().argv;
+    EXPECT_NE(std::find(argv.begin(), argv.end(), "./-r.lcmlog"), argv.end()) << type;
+    EXPECT_EQ(std::find(argv.begin(), argv.end(), "-r.lcmlog"), argv.end()) << type;
+  }
 }
 
 TEST(RunConfig, RejectsUnknownKeysAndBadValues) {

@@ -85,8 +85,13 @@ int lcmOpenFailureStatus(const std::string& url) { return lcmUrlProblem(url).emp
 
 int lcmOpenStatus(lcm::LCM& lcm, const std::string& url, const std::string& program) {
   if (lcm.good() && lcm.getFileno() >= 0) return 0;
+  // (the tcpq hint only for tcpq: out of descriptors or memory, a udpm URL
+  // got it too; LCM says its own reason on the line above)
   std::cerr << program << ": cannot open LCM at " << url
-            << (lcm.good() ? " (no connection: is its tcpq server running?)" : "") << "\n";
+            << (lcm.good() ? url.rfind("tcpq://", 0) == 0 ? " (no connection: is its tcpq server running?)"
+                                                          : " (LCM's own line above says why)"
+                           : "")
+            << "\n";
   return lcmOpenFailureStatus(url);
 }
 

@@ -22,6 +22,11 @@
 namespace ld {
 namespace {
 
+// A file path as a program's argument: one that starts with '-' as "./-..."
+// (lcm-logplayer took "-r.lcmlog" for its options, refused them, and the
+// replay was restarted for ever).
+std::string asArgument(const std::string& path) { return path.rfind('-', 0) == 0 ? "./" + path : path; }
+
 using Json = nlohmann::json;
 
 void checkKeys(const Json& j, const std::string& where, const std::set<std::string>& allowed) {
@@ -432,11 +437,11 @@ std::vector<ProcessSpec> buildProcessSpecs(const RunConfig& cfg, const std::stri
                                                      : cfg.replay_channels)};
     checkArgs("replay", argv, cfg.source_args);
     argv.insert(argv.end(), cfg.source_args.begin(), cfg.source_args.end());
-    argv.push_back(cfg.log);
+    argv.push_back(asArgument(cfg.log));
     add("replay", ProcessRole::Source, argv, {});
   } else if (cfg.source == "play") {
     if (cfg.log.empty()) throw std::runtime_error("play: no log file given");
-    std::vector<std::string> argv{prog("ld-play"), cfg.log, "--lcm-url", url, "--channel", ch.image,
+    std::vector<std::string> argv{prog("ld-play"), asArgument(cfg.log), "--lcm-url", url, "--channel", ch.image,
                                   "--fps", number(cfg.play_fps), "--format", cfg.play_format};
     if (cfg.play_duration_s > 0) {
       argv.push_back("--duration");
