@@ -197,17 +197,43 @@ int main(int argc, char** argv) {
   int failed = 0, with_landmarks = 0, total_landmarks = 0, draw_failed = 0;
   std::vector<double> times;
   std::string pose_error;       // the last frame's Detection::pose_error
+  // (one line for a file that failed, and the run goes on)
+  const auto fileFailed = [&](const std::string& path, const std::string& why) {
+    std::cerr << "ld-detect: " << path << ": " << why << "\n";
+    out << nlohmann::ordered_json{{"image", path}, {"error", why}}.dump(-1, ' ', false, kReplace) << "\n";
+    ++failed;
+  };
   for (const auto& path : files) {
     cv::Mat img;
-    if (const std::string why = ld::readImageFile(path, img); !why.empty()) {
-      std::cerr << "ld-detect: " << path << ": " << why << "\n";
-      out << nlohmann::ordered_json{{"image", path}, {"error", why}}.dump(-1, ' ', false, kReplace) << "\n";
-      ++failed;
+    // (memory that runs out on a large image is that image's failure: the
+    // run aborted, and the files after it were never read)
+    const auto outOfMemory = [](const std::string& doing, const char* what) {
+      return "out of memory " + doing + " (" + what + ")";
+    };
+    std::string read_why;
+    try {
+      read_why = ld::readImageFile(path, img);
+    } catch (const std::bad_alloc& e) {
+      read_why = outOfMemory("reading it", e.what());
+    }
+    if (!read_why.empty()) {
+      fileFailed(path, read_why);
       continue;
     }
     ld::Explanation why;
     const auto t0 = std::chrono::steady_clock::now();
-    const ld::Detection& det = explain ? detector.detect(img, why) : detector.detect(img);
+    const ld::Detection* detected = nullptr;
+    try {
+      detected = &(explain ? detector.detect(img, why) : detector.detect(img));
+    } catch (const std::bad_alloc& e) {
+      fileFailed(path, outOfMemory("detecting in it", e.what()));
+      continue;
+    } catch (const cv::Exception& e) {
+      fileFailed(path, e.code == cv::Error::StsNoMem ? outOfMemory("detecting in it", e.err.c_str())
+                                                     : "cannot detect in it (OpenCV: " + e.err + ")");
+      continue;
+    }
+    const ld::Detection& det = *detected;
     // (what explaining took is not detection time)
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() - why.ms;
@@ -217,9 +243,19 @@ int main(int argc, char** argv) {
       if (!pose_error.empty()) std::cerr << "ld-detect: " << path << ": " << pose_error << "\n";
     }
     found.assign(det.landmarks.begin(), det.landmarks.end());
-    if (decode)
-      for (auto& lm : found)
-        if (const auto r = qr.decode(img, lm.corners)) lm.payload = r->payload;
+    if (decode) {
+      try {
+        for (auto& lm : found)
+          if (const auto r = qr.decode(img, lm.corners)) lm.payload = r->payload;
+      } catch (const std::bad_alloc& e) {
+        fileFailed(path, outOfMemory("reading its codes", e.what()));
+        continue;
+      } catch (const cv::Exception& e) {
+        fileFailed(path, e.code == cv::Error::StsNoMem ? outOfMemory("reading its codes", e.err.c_str())
+                                                       : "cannot read its codes (OpenCV: " + e.err + ")");
+        continue;
+      }
+    }
     nlohmann::ordered_json j{{"image", path}, {"width", img.cols}, {"height", img.rows},
                      {"detect_ms", std::round(ms * 1000.0) / 1000.0}};
     j["landmarks"] = nlohmann::ordered_json::array();
