@@ -114,12 +114,19 @@ dump "$T/in.lcmlog" -c IMAGE
   all=$!
   "$BIN/ld-dump" --live -c "LCM_.*" >"$T/self.out" 2>"$T/self.err" &
   self=$!
+  "$BIN/ld-dump" --live >/dev/full 2>"$T/full.err" &
+  full=$!
   source "$3/lcm_sockets.sh"
-  lcm_sockets 2
+  lcm_sockets 3
   "$BIN/ld-play" "$T/in.lcmlog" --fps 30 2>/dev/null
   sleep 0.5
   kill -INT $all $self; wait $all; wait $self
+  # (output that cannot be written ends it, said, status 1: it ran on, silent)
+  kill -INT $full 2>/dev/null || true
+  rc=0; wait $full || rc=$?; echo $rc >"$T/full.rc"
 ' _ "$BIN" "$T" "$(dirname "$0")" || fail "--live: $(cat "$T/live.err" "$T/self.err" 2>/dev/null)"
+[ "$(cat "$T/full.rc")" = 1 ] && grep -q "^ld-dump: write to stdout failed: No space left on device" "$T/full.err" ||
+  fail "--live to a full disk: $(cat "$T/full.rc") $(cat "$T/full.err")"
 [ "$(grep -c '"channel":"IMAGE"' "$T/live.out")" -eq 3 ] && ! grep -q LCM_SELF_TEST "$T/live.out" ||
   fail "--live: $(cat "$T/live.out" "$T/live.err")"
 grep -q '"channel":"LCM_SELF_TEST"' "$T/self.out" && ! grep -q '"channel":"IMAGE"' "$T/self.out" ||

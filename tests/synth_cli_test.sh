@@ -145,4 +145,10 @@ cmp -s "$T/kept/truth.jsonl" "$T/kept.truth" && cmp -s "$T/kept2/truth.jsonl" "$
 "$BIN/ld-synth" scene --out "$T/k20" -n 110 -k 20 --seed 5 --degrade none >/dev/null || fail "-k 20, seed 5: exit $?"
 # The whole range of --landmarks (91 to 100 failed in OpenCV's remap: the wall's texture was too wide).
 "$BIN/ld-synth" sequence --out "$T/k100" -n 1 -k 100 --no-png >/dev/null || fail "-k 100: exit $?"
+# A truth that cannot be written all (a full disk): said with why, status 2
+# (scene said "wrote 2 frames" over an empty truth.jsonl, status 0)
+mkdir -p "$T/full" && ln -s /dev/full "$T/full/truth.jsonl"
+rc=0; "$BIN/ld-synth" scene --out "$T/full" -n 2 >"$T/out" 2>"$T/err" || rc=$?
+[ $rc -eq 2 ] && grep -q "^ld-synth: write to $T/full/truth.jsonl failed: No space left on device" "$T/err" ||
+  fail "scene, truth on a full disk: exit $rc, $(cat "$T/err") $(cat "$T/out")"
 echo "ld-synth command line: ok"

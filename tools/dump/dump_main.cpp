@@ -152,7 +152,13 @@ int main(int argc, char** argv) {
     printer.queue = ld::QueueFit(lcm.subscribe(".*", &Printer::onMessage, &printer));
     std::signal(SIGINT, onSignal);
     std::signal(SIGTERM, onSignal);
-    while (!g_stop && lcm.handleTimeout(200) >= 0) {
+    // (output that cannot be written, a full disk, ends the dump, said:
+    // it ran on and said nothing)
+    while (!g_stop && lcm.handleTimeout(200) >= 0 && std::cout) {
+    }
+    if (!std::cout || !std::cout.flush()) {
+      std::cerr << "ld-dump: write to stdout failed: " << std::strerror(errno ? errno : EIO) << "\n";
+      return 1;
     }
     return 0;
   }

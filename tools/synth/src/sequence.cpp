@@ -279,7 +279,8 @@ SequenceStats writeSequence(const SequenceOptions& options) {
     stats.frames_with_landmark_in_view += any;
     if (truth.is_open()) {
       truth << truthJsonLine(name, frame.bgr.size(), frame.truth, i, utime) << "\n";
-      if (!truth) throw std::runtime_error("write to " + options.out_dir + "/truth.jsonl failed");
+      if (!truth)
+        throw std::runtime_error("write to " + options.out_dir + "/truth.jsonl failed: " + std::strerror(errno ? errno : EIO));
       if (options.write_png) {
         const std::string path = (fs::path(options.out_dir) / name).string();
         bool ok = false;
@@ -313,7 +314,8 @@ SequenceStats writeSequence(const SequenceOptions& options) {
   }
   if (truth.is_open()) {
     truth.close();
-    if (!truth) throw std::runtime_error("write to " + options.out_dir + "/truth.jsonl failed");
+    if (!truth)
+      throw std::runtime_error("write to " + options.out_dir + "/truth.jsonl failed: " + std::strerror(errno ? errno : EIO));
   }
   // (the log's last bytes go out here: a full disk shows now, not unseen when it closes)
   if (log && (std::fflush(log->getFilePtr()) != 0 || std::ferror(log->getFilePtr())))

@@ -6,6 +6,8 @@
 //
 // Every value option of `scene` takes a number (fixed) or a range "a:b"
 // (drawn uniformly per frame). Errors: one line on stderr, exit code 2.
+#include <cerrno>
+#include <cstring>
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -368,12 +370,17 @@ int runScene(const SceneArgs& a) {
     }
     if (!ok) throw std::runtime_error("cannot write " + path);
     truth << truthJsonLine(name, frame.bgr.size(), frame.truth) << "\n";
-    if (!truth) throw std::runtime_error("write to " + truth_path + " failed");
+    if (!truth) throw std::runtime_error("write to " + truth_path + " failed: " + std::strerror(errno ? errno : EIO));
     for (const auto& t : frame.truth) {
       ++total;
       in_view += t.in_view;
     }
   }
+  // (what the stream held back goes out at its close: a full disk showed
+  // there alone, and the run said "wrote 2 frames" over an empty truth)
+  errno = 0;
+  truth.close();
+  if (truth.fail()) throw std::runtime_error("write to " + truth_path + " failed: " + std::strerror(errno ? errno : EIO));
   std::cout << "wrote " << a.count << (a.count == 1 ? " frame" : " frames") << " to " << a.out << " ("
             << in_view << " of " << total << " landmarks fully in view)\n";
   noteLeftoverFrames(a.out, a.count, a.jpg ? ".jpg" : ".png");
