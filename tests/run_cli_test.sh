@@ -127,6 +127,18 @@ timeout 30 "$BIN/ld-run" --netns --status-interval 0 --replay "$T/foreign.lcmlog
 [ $rc -eq 1 ] || fail "a replay of another type on IMAGE: ld-run exit $rc: $(cat "$T/out")"
 grep -q "replay done, but none of the 5 messages on IMAGE is an image (another project's type" "$T/out" ||
   fail "a replay of another type on IMAGE: $(cat "$T/out")"
+# A full disk under the state file, the log folder and the summary: each
+# said with why, the files as they were, status 1 (a state file and logs
+# of 0 bytes, without a word, and status 0; a summary cut short)
+rc=0
+timeout 60 unshare -rm bash -c '
+  mkdir -p "$1/tiny" && mount -t tmpfs -o size=4k none "$1/tiny" && head -c 4096 /dev/zero >"$1/tiny/fill" 2>/dev/null
+  "$2/ld-run" --netns --processes none --play "$1/in.lcmlog" --fps 60 --exit-when-replay-done --status-interval 0 \
+    --state-file "$1/tiny/st.json" --log-dir "$1/tiny/logs" --summary "$1/tiny/s.json"' _ "$T" "$BIN" >"$T/out" 2>&1 || rc=$?
+[ $rc -eq 1 ] && grep -q "cannot write the state file $T/tiny/st.json: No space left on device" "$T/out" &&
+  grep -q "cannot write $T/tiny/logs/play.log: No space left on device" "$T/out" &&
+  grep -q "^ld-run: cannot write $T/tiny/s.json: No space left on device" "$T/out" ||
+  fail "a full disk under ld-run's files: exit $rc, $(cat "$T/out")"
 # ... and so does a worker that refuses its options (exit 2): status 2, not
 # a run that restarts it again and again and ends with status 0.
 printf '{"detector": {"args": ["--bogus-detector-opt"]}}\n' >"$T/badworker.json"

@@ -8,6 +8,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstring>
+#include <set>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -74,11 +75,19 @@ class Console {
   Console(bool tty, bool quiet, std::string log_dir)
       : tty_(tty), quiet_(quiet), log_dir_(std::move(log_dir)) {}
   void line(const std::string& name, const std::string& text) {
-    if (!log_dir_.empty() && name != "ld-run") {
+    if (!log_dir_.empty() && name != "ld-run" && !unwritable_.count(name)) {
       auto& f = files_[name];
-      if (!f.is_open()) f.open(log_dir_ + "/" + name + ".log", std::ios::app);
+      const std::string path = log_dir_ + "/" + name + ".log";
+      errno = 0;
+      if (!f.is_open()) f.open(path, std::ios::app);
       f << text << std::endl;
-      return;
+      if (f) return;
+      // (a full disk: the line, and those after it, on stderr, said once;
+      // they were lost without a word)
+      clearStatus();
+      std::fprintf(stderr, "[ld-run] cannot write %s: %s; %s's lines from here go where they would without --log-dir\n",
+                   path.c_str(), std::strerror(errno ? errno : EIO), name.c_str());
+      unwritable_.insert(name);
     }
     if (quiet_ && name != "ld-run") return;
     clearStatus();
@@ -95,7 +104,7 @@ class Console {
   }
   /// Where a process's own lines went, for a message that points to them.
   std::string whereLinesOf(const std::string& name) const {
-    if (!log_dir_.empty()) return "its error is in " + log_dir_ + "/" + name + ".log";
+    if (!log_dir_.empty() && !unwritable_.count(name)) return "its error is in " + log_dir_ + "/" + name + ".log";
     if (quiet_) return "-q kept its error out: run without it";
     return "its error is above";
   }
@@ -109,6 +118,11 @@ class Console {
   bool status_shown_ = false;
   std::string log_dir_;
   std::map<std::string, std::ofstream> files_;
+  std::set<std::string> unwritable_;  // processes whose log file could not be written
+
+ public:
+  /// Whether some process's log file could not be written.
+  bool logsFailed() const { return !unwritable_.empty(); }
 };
 
 struct RssSeries {
@@ -116,13 +130,26 @@ struct RssSeries {
   std::vector<std::pair<double, int64_t>> samples;  // (seconds since start, kB)
 };
 
-void writeFileAtomically(const std::string& path, const std::string& text) {
+// Writes `text` to `path` through a temporary file renamed when whole: ""
+// when it did, else why (a full disk left a state or summary file empty or
+// cut, without a word). The file as it was stays then.
+std::string writeFileAtomically(const std::string& path, const std::string& text) {
   const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp);
-    f << text;
+  errno = 0;
+  std::ofstream f(tmp);
+  f << text;
+  f.close();
+  if (!f) {
+    const std::string why = std::strerror(errno ? errno : EIO);
+    std::remove(tmp.c_str());
+    return why;
   }
-  std::rename(tmp.c_str(), path.c_str());
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    const std::string why = std::strerror(errno);
+    std::remove(tmp.c_str());
+    return why;
+  }
+  return "";
 }
 
 Json processesJson(const ld::Supervisor& sup, const std::map<std::string, RssSeries>* rss) {
@@ -487,11 +514,16 @@ int main(int argc, char** argv) {
   int64_t self_rss_max_kb = 0;  // ld-run's own (it receives every image too)
   bool ready = false;
   std::string end_reason = "stopped by signal";
+  bool state_failed = false;  // (said once)
   const auto writeState = [&]() {
     if (state_file.empty()) return;
     Json j{{"pid", ::getpid()}, {"ready", ready}, {"restarts", sup.restarts()},
            {"processes", processesJson(sup, nullptr)}};
-    writeFileAtomically(state_file, j.dump(2, ' ', false, Json::error_handler_t::replace) + "\n");
+    if (const std::string why = writeFileAtomically(state_file, j.dump(2, ' ', false, Json::error_handler_t::replace) + "\n");
+        !why.empty() && !state_failed) {
+      note("cannot write the state file " + state_file + ": " + why + " (it stays as it was)");
+      state_failed = true;
+    }
   };
 
   // 3. Start the recorder and the workers and wait until each listens: its
@@ -699,11 +731,11 @@ int main(int argc, char** argv) {
   if (!summary_file.empty()) {
     // (payloads are what the codes held: bytes that are not UTF-8, as
     // printed, are written as U+FFFD, as ld-detect writes them)
-    std::ofstream f(summary_file);
-    f << s.dump(2, ' ', false, Json::error_handler_t::replace) << "\n";
-    f.close();
-    if (!f) {
-      std::cerr << "ld-run: cannot write " << summary_file << "\n";
+    // (through a temporary file: a full disk left a cut summary, and said no why)
+    if (const std::string why =
+            writeFileAtomically(summary_file, s.dump(2, ' ', false, Json::error_handler_t::replace) + "\n");
+        !why.empty()) {
+      std::cerr << "ld-run: cannot write " << summary_file << ": " << why << "\n";
       exit_code = std::max(exit_code, 1);
     }
   }
@@ -728,6 +760,9 @@ int main(int argc, char** argv) {
          std::to_string(log_images) + " images on " + cfg.channels.image +
          (log_damage.empty() ? " never came (lost on the bus: README, \"LCM URL and large images\")"
                              : " never came (lcm-logplayer stopped at the log's damage: --play reads past it)"));
+  // (a state file or a process's log that could not be written: said when
+  // it happened, and the run's status says it too)
+  if (state_failed || console.logsFailed()) exit_code = std::max(exit_code, 1);
   char e2e[64] = "e2e -";  // (nothing tracked, nothing timed: not 0.00 ms)
   if (lat["count"].get<long long>() > 0)
     std::snprintf(e2e, sizeof e2e, "e2e p50 %.2f ms p99 %.2f ms", lat["p50"].get<double>(), lat["p99"].get<double>());
