@@ -189,6 +189,15 @@ std::vector<uint8_t> list(const char* type, const std::vector<uint8_t>& chunks) 
 // A floating-point image read black (OpenCV turned its 0-1 values into 8
 // bits without scaling) and found nothing, without a word: it is refused,
 // named. A 16-bit one reads as OpenCV reads it, scaled to 8 bits.
+// An output named longer than a file name may be is refused before a run
+// (ld-run ran the whole set, then could not write its summary).
+TEST(PrepareOutputFile, NameTooLongIsRefused) {
+  const std::string dir = testing::TempDir();
+  EXPECT_EQ(ld::prepareOutputFile(dir + "/" + std::string(255, 'b')), "");
+  EXPECT_EQ(ld::prepareOutputFile(dir + "/" + std::string(256, 'b')),
+            "has a name of 256 bytes, more than the 255 a file name may have here");
+}
+
 TEST(ReadImageFile, FloatingPointImagesAreRefusedNamed) {
   cv::Mat bgr(48, 64, CV_8UC3, cv::Scalar(40, 160, 250)), f;
   bgr.convertTo(f, CV_32FC3, 1 / 255.0);

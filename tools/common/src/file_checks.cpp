@@ -90,7 +90,14 @@ std::string prepareOutputFile(const std::string& path) {
   if (path.empty()) return "is an empty path";
   if (fs::is_directory(path, ec)) return "is a folder";
   if (path.back() == '/') return "names a folder (it ends in /), not a file";
+  // (a name the file system cannot hold: the run went on, and failed to
+  // write at its end; the folder's own limit, 255 bytes on most)
+  const std::string name = fs::path(path).filename().string();
   const fs::path folder = fs::path(path).parent_path();
+  const long name_max = ::pathconf(folder.empty() ? "." : folder.c_str(), _PC_NAME_MAX);
+  if (static_cast<long>(name.size()) > (name_max > 0 ? name_max : 255))
+    return "has a name of " + std::to_string(name.size()) + " bytes, more than the " +
+           std::to_string(name_max > 0 ? name_max : 255) + " a file name may have here";
   if (std::string problem = prepareOutputFolder(folder.empty() ? "." : folder.string()); !problem.empty())
     return problem;
   if (fs::exists(path, ec) && ::access(path.c_str(), W_OK) != 0)
