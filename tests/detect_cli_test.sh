@@ -169,6 +169,15 @@ for out in "-o /dev/full" ""; do
   [ $rc -eq 1 ] && grep -q "^ld-detect: write to .* failed: No space left on device" "$T/err" ||
     fail "full disk ($out): exit $rc, $(cat "$T/err")"
 done
+# --draw on a full disk: said once, no cut or empty overlay left, the rest
+# not drawn but counted, status 1 (a line for every frame, each leaving an
+# empty or cut PNG)
+rc=0
+timeout 60 unshare -rm bash -c 'mkdir -p "$1/tiny" && mount -t tmpfs -o size=64k none "$1/tiny" &&
+  "$2/ld-detect" "$1/s" --draw "$1/tiny/draw" >/dev/null 2>"$1/err"' _ "$T" "$BIN" || rc=$?
+[ $rc -eq 1 ] && [ "$(grep -c "cannot write .*: No space left on device; the overlays after it are not drawn" "$T/err")" -eq 1 ] &&
+  [ "$(grep -c "cannot write" "$T/err")" -eq 1 ] ||
+  fail "--draw on a full disk: exit $rc, $(cat "$T/err")"
 # Files that are no images in a folder: a loop of links (ld-detect aborted
 # on it) and a pipe (it blocked the run for ever), each said in one line,
 # the folder's image still read; a pipe named alone likewise.

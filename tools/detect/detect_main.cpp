@@ -195,6 +195,7 @@ int main(int argc, char** argv) {
   ld::QrReader qr;
   std::vector<ld::Landmark> found;
   int failed = 0, with_landmarks = 0, total_landmarks = 0, draw_failed = 0;
+  bool draw_full = false;  // (an overlay met a full disk)
   std::vector<double> times;
   std::string pose_error;       // the last frame's Detection::pose_error
   // (one line for a file that failed, and the run goes on)
@@ -274,7 +275,9 @@ int main(int argc, char** argv) {
     times.push_back(ms);
     with_landmarks += !found.empty();
     total_landmarks += static_cast<int>(found.size());
-    if (!draw_dir.empty()) {
+    if (!draw_dir.empty() && draw_full) {
+      ++draw_failed;  // (the disk is full: not drawn, counted)
+    } else if (!draw_dir.empty()) {
       ld::drawLandmarks(img, found);
       const fs::path& dst = overlays[static_cast<size_t>(&path - files.data())];
       bool written = false;
@@ -291,8 +294,15 @@ int main(int argc, char** argv) {
       } catch (const cv::Exception&) {
       }
       if (!written) {  // (a full disk: the overlays are not all there; status 1 at the end)
-        std::cerr << "ld-detect: cannot write " << dst.string() << ": " << std::strerror(errno ? errno : EIO) << "\n";
+        const int e = errno ? errno : EIO;
+        std::error_code ec;
+        fs::remove(dst, ec);  // (no cut PNG left behind as if whole)
+        // (once the disk is full, the overlays after it are not tried: a
+        // line for each frame said the same thing, and left empty files)
+        std::cerr << "ld-detect: cannot write " << dst.string() << ": " << std::strerror(e)
+                  << (e == ENOSPC ? "; the overlays after it are not drawn" : "") << "\n";
         ++draw_failed;
+        draw_full = e == ENOSPC;
       }
     }
   }
