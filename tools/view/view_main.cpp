@@ -290,8 +290,11 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
     }
   }
   const bool video_whole = sink.finish();
-  std::fprintf(stderr, "ld-view: %lld images, %zu tracked lists, %lld frames written%s\n",
+  // (drawn, not written, where the video holds fewer: the line said "60
+  // frames written" under the one that said it held 6)
+  std::fprintf(stderr, "ld-view: %lld images, %zu tracked lists, %lld frames %s%s\n",
                static_cast<long long>(images), lists.size(), static_cast<long long>(sink.count()),
+               video_whole ? "written" : "drawn (the video holds fewer: above)",
                dropped.count ? (", " + std::to_string(dropped.count) + " bad").c_str() : "");
   if (events == 0) std::fprintf(stderr, "ld-view: the logs hold no message: nothing to draw\n");
   else if (images == 0 && !g_stop)
