@@ -6,10 +6,14 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
+#include <csignal>
 #include <fstream>
 #include <iterator>
 #include <string>
 #include <vector>
+
+#include <sys/resource.h>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -196,6 +200,24 @@ TEST(PrepareOutputFile, NameTooLongIsRefused) {
   EXPECT_EQ(ld::prepareOutputFile(dir + "/" + std::string(255, 'b')), "");
   EXPECT_EQ(ld::prepareOutputFile(dir + "/" + std::string(256, 'b')),
             "has a name of 256 bytes, more than the 255 a file name may have here");
+}
+
+// A file that could not be written whole is not left cut, as if whole (ld-eval
+// left a table of 0 bytes on a full disk): here the file size limit cuts it.
+TEST(WriteWholeFile, CutFileIsRemoved) {
+  const std::string path = testing::TempDir() + "/cut_table.md";
+  ASSERT_EQ(ld::writeWholeFile(path, "| a | b |\n"), "");
+  auto* const old_handler = std::signal(SIGXFSZ, SIG_IGN);  // (the write fails instead of killing the test)
+  rlimit old{};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &old), 0);
+  rlimit small = old;
+  small.rlim_cur = 100;
+  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &small), 0);
+  const std::string why = ld::writeWholeFile(path, std::string(100000, 'x'));
+  ::setrlimit(RLIMIT_FSIZE, &old);
+  std::signal(SIGXFSZ, old_handler);
+  EXPECT_EQ(why, "File too large");
+  EXPECT_FALSE(std::filesystem::exists(path));
 }
 
 TEST(ReadImageFile, FloatingPointImagesAreRefusedNamed) {

@@ -331,7 +331,12 @@ std::string writeWholeFile(const std::string& path, const std::string& bytes) {
   if (f) f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   if (f.is_open()) f.close();  // (a full disk shows when the buffer goes out)
   if (f) return "";
-  return errno ? std::strerror(errno) : "the write failed";
+  const std::string why = errno ? std::strerror(errno) : "the write failed";
+  // (a file it emptied or cut is not left as if it were whole: ld-eval's
+  // table of 0 bytes; a device, /dev/full, is no file to remove)
+  std::error_code ec;
+  if (std::filesystem::is_regular_file(path, ec)) std::filesystem::remove(path, ec);
+  return why;
 }
 
 std::string outputsClash(const std::vector<NamedFile>& outputs, const std::vector<NamedFile>& inputs) {

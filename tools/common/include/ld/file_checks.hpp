@@ -132,7 +132,8 @@ std::filesystem::path resolvedPath(const std::string& path);
 bool sameFile(const std::string& a, const std::string& b);
 
 /// Writes `bytes` to `path` (made or emptied first) and closes it; "" when
-/// all of it was written, else why not ("No space left on device").
+/// all of it was written, else why not ("No space left on device"), the
+/// file it emptied or cut removed (a device it writes to is left).
 std::string writeWholeFile(const std::string& path, const std::string& bytes);
 
 /// A file a program reads or writes, with the option that names it:
