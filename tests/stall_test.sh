@@ -48,10 +48,12 @@ grep -q "ld-detector: stopped after .* skipped, 0 bad, 0 missing)" "$T/detector.
 # The frames' latency (from capture to the tracked list): the frame the
 # detector was on when stopped may be seconds old; then it is on the newest,
 # having read the rest of the kernel's backlog (ld::catchUpAfterStall): no
-# more than one list over 1 s. (Without the catch-up, LCM's receiving thread
-# was still reading the backlog when the detector took its newest, and it
-# worked on one or two frames from the middle of it: 3 lists now and then.)
+# more than two lists over 1 s (the frame in progress, and one more should
+# the backlog outrun the catch-up on a busy machine). Without the catch-up,
+# LCM's receiving thread was still reading the backlog when the detector
+# took its newest, and it worked on frames from the middle of it: 3 lists
+# now and then, in CI too; with it, 0 in every run seen.
 stale=$(jq '[.summary.per_frame[] | select(.latency_ms != null and .latency_ms > 1000)] | length' "$T/summary.json")
 echo "lists over 1 s old: $stale"
-[ "$stale" -le 1 ]
+[ "$stale" -le 2 ]
 echo "1 passed, 0 failed"

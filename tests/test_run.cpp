@@ -620,6 +620,12 @@ TEST(RunConfig, ReadsJsonAndBuildsTheProcessTable) {
     EXPECT_NE(std::find(argv.begin(), argv.end(), "./-r.lcmlog"), argv.end()) << type;
     EXPECT_EQ(std::find(argv.begin(), argv.end(), "-r.lcmlog"), argv.end()) << type;
   }
+  // (the recording too: lcm-logger took -o.lcmlog for its options)
+  auto recorded = ld::RunConfig::fromJson(nlohmann::json::parse(
+      R"({"source": {"type": "play", "log": "x.lcmlog"}, "record": {"file": "-o.lcmlog"}})"));
+  const auto r = ld::buildProcessSpecs(recorded, "udpm://239.255.76.67:7667?ttl=0", "");
+  EXPECT_EQ(r.front().name, "recorder");
+  EXPECT_EQ(r.front().argv.back(), "./-o.lcmlog");
 }
 
 TEST(RunConfig, RejectsUnknownKeysAndBadValues) {

@@ -3,6 +3,7 @@
 #include <atomic>
 #include <chrono>
 #include <csignal>
+#include <ctime>
 #include <cstdio>
 #include <iostream>
 
@@ -97,12 +98,23 @@ int main(int argc, char** argv) {
   std::string pose_error;  // the last frame's Detection::pose_error
   int64_t pose_errors = 0;  // times it changed to a new one
   auto last_pump = std::chrono::steady_clock::now();
+  // (the processor time the last frame took: a detector slow on its own,
+  // not stopped or starved, is no stall)
+  const auto threadCpu = [] {
+    timespec t{};
+    ::clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return std::chrono::seconds(t.tv_sec) + std::chrono::nanoseconds(t.tv_nsec);
+  };
+  std::chrono::nanoseconds busy{0};
   while (!g_stop) {
     // waits, then drains the queue: only the newest message is processed
     if (!ld::pumpLcm(lcm, 200, g_stop, "ld-detector")) return 1;
     // (after a stall, the rest of the kernel's backlog too: the newest frame
     // is then the camera's latest, not one from the middle of it)
-    last_pump = ld::catchUpAfterStall(lcm, last_pump, g_stop);
+    last_pump = ld::catchUpAfterStall(
+        lcm, last_pump + std::chrono::duration_cast<std::chrono::steady_clock::duration>(busy), g_stop);
+    busy = std::chrono::nanoseconds(0);
+    const auto cpu0 = threadCpu();
     if (g_stop) break;
     if (const ld::image_t* newest = latest.take()) {
       const ld::image_t& image = *newest;  // (handlers run in pumpLcm alone: it stays while processed)
@@ -150,6 +162,7 @@ int main(int argc, char** argv) {
         latest.reportBad(e.what());
       }
     }
+    busy = threadCpu() - cpu0;
     const auto now = std::chrono::steady_clock::now();
     if (verbose && now - last_status > std::chrono::seconds(5)) {
       const double s = std::chrono::duration<double>(now - last_status).count();

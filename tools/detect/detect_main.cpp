@@ -280,29 +280,35 @@ int main(int argc, char** argv) {
     } else if (!draw_dir.empty()) {
       ld::drawLandmarks(img, found);
       const fs::path& dst = overlays[static_cast<size_t>(&path - files.data())];
-      bool written = false;
+      bool written = false, opened = false;
+      int e = 0;
       try {
         std::vector<uint8_t> png;
         errno = 0;
         std::ofstream o;
         if (cv::imencode(".png", img, png)) {
           o.open(dst, std::ios::binary);
+          opened = o.is_open();
           o.write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
           o.close();
           written = static_cast<bool>(o);
         }
+        e = errno;
       } catch (const cv::Exception&) {
+      } catch (const std::bad_alloc&) {  // (a huge image's PNG: that overlay alone)
+        e = ENOMEM;
       }
       if (!written) {  // (a full disk: the overlays are not all there; status 1 at the end)
-        const int e = errno ? errno : EIO;
+        if (e == 0) e = EIO;
         std::error_code ec;
-        fs::remove(dst, ec);  // (no cut PNG left behind as if whole)
-        // (once the disk is full, the overlays after it are not tried: a
-        // line for each frame said the same thing, and left empty files)
+        if (opened) fs::remove(dst, ec);  // (no cut PNG left behind as if whole; not an earlier run's)
+        // (once the disk or the quota is full, the overlays after it are not
+        // tried: a line for each frame said the same thing, and left empty files)
+        const bool full = e == ENOSPC || e == EDQUOT;
         std::cerr << "ld-detect: cannot write " << dst.string() << ": " << std::strerror(e)
-                  << (e == ENOSPC ? "; the overlays after it are not drawn" : "") << "\n";
+                  << (full ? "; the overlays after it are not drawn" : "") << "\n";
         ++draw_failed;
-        draw_full = e == ENOSPC;
+        draw_full = full;
       }
     }
   }

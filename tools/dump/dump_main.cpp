@@ -113,12 +113,15 @@ struct Printer {
     return false;
   }
   ld::QueueFit queue;  // (its subscription's: ld::QueueFit)
+  int write_errno = 0;  // why the first write that failed did (LCM's calls after it set errno again)
   void onMessage(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
     queue.fit(rbuf->data_size);
-    if (!wanted(channel)) return;
+    if (!wanted(channel) || !std::cout) return;
+    errno = 0;
     std::cout << toJson(channel, -1, static_cast<const uint8_t*>(rbuf->data), rbuf->data_size)
                      .dump(-1, ' ', false, nlohmann::ordered_json::error_handler_t::replace)
               << std::endl;
+    if (!std::cout && write_errno == 0) write_errno = errno ? errno : EIO;
   }
 };
 
@@ -157,7 +160,8 @@ int main(int argc, char** argv) {
     while (!g_stop && lcm.handleTimeout(200) >= 0 && std::cout) {
     }
     if (!std::cout || !std::cout.flush()) {
-      std::cerr << "ld-dump: write to stdout failed: " << std::strerror(errno ? errno : EIO) << "\n";
+      std::cerr << "ld-dump: write to stdout failed: "
+                << std::strerror(printer.write_errno ? printer.write_errno : errno ? errno : EIO) << "\n";
       return 1;
     }
     return 0;

@@ -90,7 +90,10 @@ bool pumpLcm(lcm::LCM& lcm, int timeout_ms, const std::atomic<bool>& stop, const
 /// apart at most), for up to kMaxCatchUpMs, so that the newest is the
 /// source's latest. (A detector stopped for 3 s worked on a third frame of
 /// the stall's backlog now and then.) Call it after pumpLcm with the time
-/// the previous pumpLcm returned; it returns the time to pass next.
+/// the previous pumpLcm returned, plus the processor time the caller spent
+/// on its frame since (a caller slow on its own is not stalled: the time it
+/// was stopped or starved counts, its own work does not); it returns the
+/// time to pass next.
 constexpr int kStallMs = 1000, kCatchUpGapMs = 20, kMaxCatchUpMs = 500;
 std::chrono::steady_clock::time_point catchUpAfterStall(lcm::LCM& lcm, std::chrono::steady_clock::time_point last_pump,
                                                         const std::atomic<bool>& stop);

@@ -328,14 +328,17 @@ std::filesystem::path resolvedPath(const std::string& path) {
 std::string writeWholeFile(const std::string& path, const std::string& bytes) {
   errno = 0;
   std::ofstream f(path, std::ios::binary);
+  const bool opened = f.is_open();
   if (f) f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   if (f.is_open()) f.close();  // (a full disk shows when the buffer goes out)
   if (f) return "";
   const std::string why = errno ? std::strerror(errno) : "the write failed";
   // (a file it emptied or cut is not left as if it were whole: ld-eval's
-  // table of 0 bytes; a device, /dev/full, is no file to remove)
+  // table of 0 bytes; not one it never opened, a device such as /dev/full,
+  // or a link, whose target it would not remove)
   std::error_code ec;
-  if (std::filesystem::is_regular_file(path, ec)) std::filesystem::remove(path, ec);
+  if (opened && !std::filesystem::is_symlink(path, ec) && std::filesystem::is_regular_file(path, ec))
+    std::filesystem::remove(path, ec);
   return why;
 }
 

@@ -410,7 +410,7 @@ std::vector<ProcessSpec> buildProcessSpecs(const RunConfig& cfg, const std::stri
             : cfg.record_channels;
     // -a: a restarted recorder appends to what it wrote before (ld-run removes the old file first)
     add("recorder", ProcessRole::Recorder,
-        {prog("lcm-logger"), "--lcm-url=" + url, "--channel=" + chans, "-a", "-q", cfg.record}, {});
+        {prog("lcm-logger"), "--lcm-url=" + url, "--channel=" + chans, "-a", "-q", asArgument(cfg.record)}, {});
   }
   if (cfg.detector.enabled)
     add("detector", ProcessRole::Worker,

@@ -18,6 +18,7 @@
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
 #include <poll.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "ld/cli.hpp"
@@ -134,9 +135,16 @@ struct RssSeries {
 // when it did, else why (a full disk left a state or summary file empty or
 // cut, without a word). The file as it was stays then.
 std::string writeFileAtomically(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
+  // (a short name of its own in the same folder: PATH.tmp was 4 bytes
+  // longer than a name the length check had let through, and wrote over
+  // a user's file of that name)
+  const std::filesystem::path folder = std::filesystem::path(path).parent_path();
+  std::string tmp = (folder.empty() ? std::string(".") : folder.string()) + "/.ld-run-XXXXXX";
+  const int fd = ::mkstemp(tmp.data());
+  if (fd < 0) return std::strerror(errno);
+  ::close(fd);
   errno = 0;
-  std::ofstream f(tmp);
+  std::ofstream f(tmp, std::ios::trunc);
   f << text;
   f.close();
   if (!f) {
@@ -144,6 +152,7 @@ std::string writeFileAtomically(const std::string& path, const std::string& text
     std::remove(tmp.c_str());
     return why;
   }
+  ::chmod(tmp.c_str(), 0644);  // (mkstemp makes it 0600: a summary others read)
   if (std::rename(tmp.c_str(), path.c_str()) != 0) {
     const std::string why = std::strerror(errno);
     std::remove(tmp.c_str());

@@ -369,6 +369,7 @@ int runScene(const SceneArgs& a) {
       ok = false;
     }
     if (!ok) throw std::runtime_error("cannot write " + path);
+    errno = 0;
     truth << truthJsonLine(name, frame.bgr.size(), frame.truth) << "\n";
     if (!truth) throw std::runtime_error("write to " + truth_path + " failed: " + std::strerror(errno ? errno : EIO));
     for (const auto& t : frame.truth) {
