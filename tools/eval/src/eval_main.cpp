@@ -452,6 +452,9 @@ int main(int argc, char** argv) {
         throw ld::cli::UsageError(clash);
       requireWritable(c->markdown, "--markdown");
       requireWritable(c->png, "--png");
+      if (sub == light)  // (the plots it writes, whose names are longer than --png's)
+        for (const auto& sweep : l_sweeps)
+          if (!c->png.empty()) requireWritable(sweepPlotPath(c->png, sweep), "--png");
       if (sub->count("--misses") && c->misses.empty()) throw ld::cli::UsageError("--misses needs a folder, not \"\"");
       if (!c->misses.empty())  // (its list emptied by options())
         if (const std::string why = ld::prepareOutputFolder(c->misses); !why.empty())
