@@ -49,7 +49,9 @@ echo "live: $live frames, logs: $logs frames, video: $(stat -c %s "$T/view.avi")
 cat "$T/slow.err"
 slow=$(ls "$T/slow" | wc -l)
 skipped=$(sed -n 's/.* frames drawn, \([0-9]*\) skipped (drawing was slower than the camera).*/\1/p' "$T/slow.err")
-[ -n "$skipped" ] && [ "$skipped" -ge 3 ] && [ $((slow + skipped)) -eq $FRAMES ] ||
+# (at least one: how many came during the stop depends on when the stopper
+# saw its third frame, late on a loaded machine; 7 when early, 2 seen in CI)
+[ -n "$skipped" ] && [ "$skipped" -ge 1 ] && [ $((slow + skipped)) -eq $FRAMES ] ||
   { echo "a viewer stopped for 1.5 s: $slow drawn, '$skipped' skipped of $FRAMES"; exit 1; }
 [ "$(ls "$T/logs")" = "$(ls "$T/live")" ]   # the same frames, named by seq
 [ "$(ls "$T/logs" | head -1)" = 000000.png ]
