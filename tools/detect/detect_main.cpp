@@ -223,17 +223,24 @@ int main(int argc, char** argv) {
     }
     ld::Explanation why;
     const auto t0 = std::chrono::steady_clock::now();
+    // A step on the image: false, its failure said, when memory ran out
+    // (`doing`) or OpenCV refused (`refused`).
+    const auto step = [&](const char* doing, const char* refused, const auto& run) {
+      try {
+        run();
+        return true;
+      } catch (const std::bad_alloc& e) {
+        fileFailed(path, outOfMemory(doing, e.what()));
+      } catch (const cv::Exception& e) {
+        fileFailed(path, e.code == cv::Error::StsNoMem ? outOfMemory(doing, e.err.c_str())
+                                                       : std::string(refused) + " (OpenCV: " + e.err + ")");
+      }
+      return false;
+    };
     const ld::Detection* detected = nullptr;
-    try {
-      detected = &(explain ? detector.detect(img, why) : detector.detect(img));
-    } catch (const std::bad_alloc& e) {
-      fileFailed(path, outOfMemory("detecting in it", e.what()));
+    if (!step("detecting in it", "cannot detect in it",
+              [&] { detected = &(explain ? detector.detect(img, why) : detector.detect(img)); }))
       continue;
-    } catch (const cv::Exception& e) {
-      fileFailed(path, e.code == cv::Error::StsNoMem ? outOfMemory("detecting in it", e.err.c_str())
-                                                     : "cannot detect in it (OpenCV: " + e.err + ")");
-      continue;
-    }
     const ld::Detection& det = *detected;
     // (what explaining took is not detection time)
     const double ms =
@@ -244,19 +251,11 @@ int main(int argc, char** argv) {
       if (!pose_error.empty()) std::cerr << "ld-detect: " << path << ": " << pose_error << "\n";
     }
     found.assign(det.landmarks.begin(), det.landmarks.end());
-    if (decode) {
-      try {
-        for (auto& lm : found)
-          if (const auto r = qr.decode(img, lm.corners)) lm.payload = r->payload;
-      } catch (const std::bad_alloc& e) {
-        fileFailed(path, outOfMemory("reading its codes", e.what()));
-        continue;
-      } catch (const cv::Exception& e) {
-        fileFailed(path, e.code == cv::Error::StsNoMem ? outOfMemory("reading its codes", e.err.c_str())
-                                                       : "cannot read its codes (OpenCV: " + e.err + ")");
-        continue;
-      }
-    }
+    if (decode && !step("reading its codes", "cannot read its codes", [&] {
+          for (auto& lm : found)
+            if (const auto r = qr.decode(img, lm.corners)) lm.payload = r->payload;
+        }))
+      continue;
     nlohmann::ordered_json j{{"image", path}, {"width", img.cols}, {"height", img.rows},
                      {"detect_ms", std::round(ms * 1000.0) / 1000.0}};
     j["landmarks"] = nlohmann::ordered_json::array();
