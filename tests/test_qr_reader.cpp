@@ -595,6 +595,96 @@ TEST(QrTrackReader, ReadTrackThatJumpsLosesItsPayload) {
   EXPECT_NE(log.str().find("track 2 jumped"), std::string::npos) << log.str();
 }
 
+// A code's look (QrLook): the same code in another view is the same, a code
+// one character apart at the same place is another, a view too blurred or
+// too small says nothing, and input that is no view gives nothing and no crash.
+TEST(QrLook, TellsTheSameCodeFromAnotherOneCharacterApart) {
+  const std::array<cv::Point2f, 4> front{{{170, 90}, {470, 90}, {470, 390}, {170, 390}}};
+  const std::array<cv::Point2f, 4> oblique{{{200, 120}, {400, 80}, {410, 420}, {190, 360}}};
+  for (const std::string& p : {std::string("room-101"), longPayload(1)}) {
+    const std::string q = p.substr(0, p.size() - 1) + (p.back() == '2' ? '3' : '2');
+    const Scene a = warped(ld::artwork::renderLandmark(p, 900), front);
+    ld::QrLook look;
+    EXPECT_TRUE(look.empty());
+    EXPECT_EQ(look.compare(a.image, a.corners), ld::QrLook::Verdict::Unsure);  // (no look yet)
+    ASSERT_TRUE(look.capture(a.image, a.corners)) << p;
+    EXPECT_EQ(look.modules(), p.size() > 50 ? 37 : 21) << p;
+    const Scene same = warped(ld::artwork::renderLandmark(p, 900), oblique);
+    EXPECT_EQ(look.compare(same.image, same.corners), ld::QrLook::Verdict::Same) << p;
+    const Scene other = warped(ld::artwork::renderLandmark(q, 900), oblique);
+    EXPECT_EQ(look.compare(other.image, other.corners), ld::QrLook::Verdict::Other) << q;
+    cv::Mat gray;
+    cv::cvtColor(other.image, gray, cv::COLOR_BGR2GRAY);  // (any 8-bit image)
+    EXPECT_EQ(look.compare(gray, other.corners), ld::QrLook::Verdict::Other) << q;
+    cv::Mat blurred;
+    cv::GaussianBlur(other.image, blurred, {0, 0}, 4);
+    EXPECT_EQ(look.compare(blurred, other.corners), ld::QrLook::Verdict::Unsure) << q;
+    // a third of the size: under 1.5 px a module for 37 modules, 2.3 for 21
+    std::array<cv::Point2f, 4> small;
+    for (size_t i = 0; i < 4; ++i) small[i] = front[i] * (1.0f / 3);
+    const Scene far = warped(ld::artwork::renderLandmark(p, 900), small);
+    ld::QrLook small_look;
+    EXPECT_EQ(small_look.capture(far.image, far.corners), p.size() < 50) << p;
+    EXPECT_EQ(look.compare(far.image, far.corners),
+              p.size() < 50 ? ld::QrLook::Verdict::Same : ld::QrLook::Verdict::Unsure) << p;
+  }
+  const Scene a = warped(ld::artwork::renderLandmark("room-101", 900), front);
+  ld::QrLook look;
+  ASSERT_TRUE(look.capture(a.image, a.corners));
+  const float nan = std::nanf("");
+  for (const auto& c : {std::array<cv::Point2f, 4>{{{nan, 0}, {100, 0}, {100, 100}, {0, 100}}},
+                        std::array<cv::Point2f, 4>{{{50, 50}, {50, 50}, {50, 50}, {50, 50}}},
+                        std::array<cv::Point2f, 4>{{{-1e30f, -1e30f}, {1e30f, -1e30f}, {1e30f, 1e30f}, {-1e30f, 1e30f}}}}) {
+    ld::QrLook l;
+    EXPECT_FALSE(l.capture(a.image, c));
+    EXPECT_TRUE(l.empty());
+    EXPECT_NE(look.compare(a.image, c), ld::QrLook::Verdict::Other);
+  }
+  EXPECT_EQ(look.compare(cv::Mat(), a.corners), ld::QrLook::Verdict::Unsure);
+  EXPECT_THROW(look.compare(cv::Mat(480, 640, CV_16UC1, cv::Scalar(0)), a.corners), std::invalid_argument);
+  EXPECT_THROW(look.capture(cv::Mat(480, 640, CV_32FC3, cv::Scalar(0)), a.corners), std::invalid_argument);
+  EXPECT_FALSE(look.capture(cv::Mat(), a.corners));
+}
+
+// The tracker kept a read track's id on another landmark at the same place
+// (a scene cut; a landmark half the image wide leaving as its neighbour came
+// in): the payload read under the id went with it until the next re-read,
+// five seconds on. The look at its modules sees another code: the payload is
+// forgotten and the track read again in the same frame. The looks come at
+// their interval; 0 turns them off.
+TEST(QrTrackReader, ReadTrackShowingAnotherCodeIsReadAgain) {
+  const std::array<cv::Point2f, 4> sheet{{{170, 90}, {470, 90}, {470, 390}, {170, 390}}};
+  const Scene one = warped(ld::artwork::renderLandmark("room-214/door", 900), sheet);
+  const Scene two = warped(ld::artwork::renderLandmark("room-215/door", 900), sheet);
+  const ld::image_t before = ld::matToImage(one.image, ld::image_t::PIXEL_FORMAT_BGR, 0);
+  const ld::image_t after = ld::matToImage(two.image, ld::image_t::PIXEL_FORMAT_BGR, 0);
+  const auto& at = one.corners;  // (the pattern's, as the detector gives them)
+  for (const double interval : {0.2, 1.0, 0.0}) {
+    ld::QrTrackReaderParams params;
+    params.look_interval_s = interval;
+    std::ostringstream log;
+    ld::QrTrackReader reader(params, log, true);
+    ld::qr_code_list_t out;
+    reader.process(before, trackedList(1'000'000, 0, {tracked(2, 1, at)}), out);
+    ASSERT_EQ(codeOf(out, 2), std::optional<std::string>("room-214/door"));
+    // the cut, 0.3 s on, and 1.1 s on
+    reader.process(after, trackedList(1'300'000, 9, {tracked(2, 10, at)}), out);
+    EXPECT_EQ(codeOf(out, 2), std::optional<std::string>(interval == 0.2 ? "room-215/door" : "room-214/door"))
+        << interval;
+    reader.process(after, trackedList(2'100'000, 33, {tracked(2, 34, at)}), out);
+    EXPECT_EQ(codeOf(out, 2), std::optional<std::string>(interval > 0 ? "room-215/door" : "room-214/door"))
+        << interval;
+    if (interval > 0) {
+      EXPECT_EQ(out.codes[0].seq, interval == 0.2 ? 9 : 33);  // read from the frame of the look
+      EXPECT_EQ(reader.tracksChanged(), 1);
+      EXPECT_EQ(reader.tracksRead(), 2);
+      EXPECT_NE(log.str().find("track 2 shows another code than \"room-214/door\""), std::string::npos) << log.str();
+    } else {
+      EXPECT_EQ(reader.tracksChanged(), 0);
+    }
+  }
+}
+
 // A payload with a NUL byte (QR byte mode takes any bytes): LCM's encoder
 // ends a string at its NUL while the message's size counts every byte, so
 // the codes message encoded short and was never published, for any of its

@@ -83,13 +83,6 @@ constexpr double kPixelModelMaxSide = 72.0;
 // The grid as the corners put it: not moved (readBent moves it).
 const cv::Matx23d kFlatGrid(1, 0, 0, 0, 1, 0);
 
-double projectedQrSide(const std::array<cv::Point2f, 4>& c) {
-  double pattern = 0;
-  for (size_t i = 0; i < 4; ++i) pattern += cv::norm(c[i] - c[(i + 1) % 4]);
-  pattern /= 4;
-  return pattern * (layout::kQrMax - layout::kQrMin) / (layout::kPatternMax - layout::kPatternMin);
-}
-
 // The projected side of the QR square, in pixels, when `image` is an 8-bit
 // image and the corners are finite and give it at least 8 px: nothing to
 // read otherwise.
@@ -97,7 +90,7 @@ std::optional<double> readableQrSide(const cv::Mat& image, const std::array<cv::
   if (image.empty() || image.depth() != CV_8U) return std::nullopt;
   for (const auto& c : corners)
     if (!std::isfinite(c.x) || !std::isfinite(c.y)) return std::nullopt;
-  const double qr_px = projectedQrSide(corners);
+  const double qr_px = layout::projectedQrSide(corners);
   if (!(qr_px >= 8.0)) return std::nullopt;
   return qr_px;
 }
@@ -671,7 +664,7 @@ bool QrStack::add(const cv::Mat& image, const std::array<cv::Point2f, 4>& corner
 bool QrStack::follow(const std::array<cv::Point2f, 4>& corners) {
   for (const auto& c : corners)
     if (!std::isfinite(c.x) || !std::isfinite(c.y)) return false;
-  return checkJump(corners, projectedQrSide(corners));
+  return checkJump(corners, layout::projectedQrSide(corners));
 }
 
 bool QrStack::checkJump(const std::array<cv::Point2f, 4>& corners, double qr_px) {

@@ -102,6 +102,12 @@ int main(int argc, char** argv) {
                  "frames fail (0: off)")
       ->capture_default_str()
       ->check(ld::cli::Between(0, 64));
+  double look_interval_s = 0.2;
+  app.add_option("--look-interval", look_interval_s,
+                 "seconds between looks at a read track's modules against those it was read from: a landmark "
+                 "showing another code is read again at once (0: off)")
+      ->capture_default_str()
+      ->check(ld::cli::Between(0, 1e6));
   int nice_steps = 10;
   app.add_option("--nice", nice_steps,
                  "run this many steps of nice below the priority it was started with, so that the detector "
@@ -138,6 +144,7 @@ int main(int argc, char** argv) {
   params.schedule = sched;
   params.decode_budget_ms = budget_ms;
   params.stack_frames = stack_frames;
+  params.look_interval_s = look_interval_s;
   ld::QrTrackReader tracks(params, std::cerr, verbose);
   ld::FrameMatcher::Pair pair;
   ld::image_t image;
@@ -187,9 +194,9 @@ int main(int argc, char** argv) {
   }
   std::fprintf(stderr,
                "ld-qr-reader: stopped after %lld frames, %lld tracks read (%lld from stacked frames), "
-               "%lld skipped, %lld late, %lld unmatched, %lld bad\n",
+               "%lld forgotten (their landmark showed another code), %lld skipped, %lld late, %lld unmatched, %lld bad\n",
                static_cast<long long>(frames), static_cast<long long>(tracks.tracksRead()),
-               static_cast<long long>(tracks.tracksReadStacked()),
+               static_cast<long long>(tracks.tracksReadStacked()), static_cast<long long>(tracks.tracksChanged()),
                static_cast<long long>(in.matcher.skipped()), static_cast<long long>(in.matcher.late()),
                static_cast<long long>(in.matcher.unmatchedDropped()), static_cast<long long>(in.bad()));
   return 0;

@@ -37,6 +37,35 @@ bool readableCorners(const landmark_t& lm, int w, int h) {
 
 }  // namespace
 
+bool QrTrackReader::lookAtReadTracks(const image_t& image, const landmark_list_t& list) {
+  const double every_us = params_.look_interval_s * 1e6;
+  bool converted = false;
+  for (const auto& lm : list.landmarks) {
+    if (!lm.visible || lm.track_id < 0) continue;
+    const auto it = looks_.find(lm.track_id);
+    if (it == looks_.end() || it->second.look.empty()) continue;
+    Look& look = it->second;
+    // (an older frame, matched late, is looked at too: what it shows is as good)
+    if (look.checked != INT64_MIN && list.utime >= look.checked &&
+        static_cast<double>(list.utime) - static_cast<double>(look.checked) < every_us)
+      continue;
+    if (!readableCorners(lm, image.width, image.height)) continue;
+    look.checked = list.utime;
+    if (!converted) {
+      imageToBgr(image, bgr_);  // (throws before anything is forgotten)
+      converted = true;
+    }
+    if (look.look.compare(bgr_, cornersOf(lm)) != QrLook::Verdict::Other) continue;
+    look.look.clear();
+    const auto forgotten = book_.forget(lm.track_id);
+    ++changed_;
+    if (forgotten && verbose_)
+      log_ << "ld-qr-reader: track " << lm.track_id << " shows another code than \"" << *forgotten
+           << "\": it is forgotten and the track read again (ids moved?)\n";
+  }
+  return converted;
+}
+
 QrTrackReader::QrTrackReader(const QrTrackReaderParams& params, std::ostream& log, bool verbose)
     : params_(params), log_(log), verbose_(verbose), book_(params.schedule) {}
 
@@ -71,6 +100,10 @@ void QrTrackReader::process(const image_t& image, const landmark_list_t& list, q
       log_ << "ld-qr-reader: track " << lm.track_id << " jumped by more than its landmark's size: \"" << *forgotten
            << "\" is forgotten and the track read again (ids moved?)\n";
   }
+  // (a read track whose landmark shows another code is another landmark
+  // within the tracker's gate: forgotten and read again, as a jump)
+  for (auto it = looks_.begin(); it != looks_.end();) it = book_.payload(it->first) ? std::next(it) : looks_.erase(it);
+  bool converted = params_.look_interval_s > 0 && lookAtReadTracks(image, list);
   if (still_.note(list.utime))
     log_ << "ld-qr-reader: 10 frames in a row with utime " << list.utime
          << ": retries and re-reads count time from it, so a track not read at once is not tried again "
@@ -92,7 +125,7 @@ void QrTrackReader::process(const image_t& image, const landmark_list_t& list, q
            << " jumped by more than its landmark's side: its stacked frames start again (ids swapped?)\n";
     ++it;
   }
-  if (!todo.empty()) imageToBgr(image, bgr_);  // (throws before out is touched)
+  if (!todo.empty() && !converted) imageToBgr(image, bgr_);  // (throws before out is touched)
 
   // 3. DECODE the due tracks in the schedule's order (undecoded first, least
   // recently tried first), while the frame's budget lasts: the ones left
@@ -120,8 +153,18 @@ void QrTrackReader::process(const image_t& image, const landmark_list_t& list, q
       }
     }
     tried_ms_.emplace_back(id, std::chrono::duration<float, std::milli>(std::chrono::steady_clock::now() - t0).count());
-    const bool is_new = r && !book_.payload(id);
+    const auto* known = book_.payload(id);
+    const bool is_new = r && !known;
     decoded_stacked_ += is_new && from_stack;
+    if (r && params_.look_interval_s > 0) {
+      // the look of the code just read: this frame's, where it shows the
+      // modules sharply; else the last one's, where it read the same
+      Look& look = looks_[id];
+      if (known && known->payload != r->payload) look.look.clear();
+      QrLook fresh;
+      if (fresh.capture(bgr_, corners)) look.look = std::move(fresh);
+      look.checked = list.utime;
+    }
     book_.record(id, list.utime, list.seq, r ? std::optional<std::string>(r->payload) : std::nullopt);
     if (is_new) {
       ++decoded_;  // (its stack goes with the next frame's pruning)

@@ -193,9 +193,15 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
   t.size = size;
   t.age = age;
   if (!jumped) return std::nullopt;
-  std::optional<std::string> forgotten = std::move(t.known->payload);
-  t.known.reset();
-  t.last_try = INT64_MIN;  // (first in the next schedule)
+  return forget(track_id);
+}
+
+std::optional<std::string> QrTrackBook::forget(int64_t track_id) {
+  const auto it = tracks_.find(track_id);
+  if (it == tracks_.end() || !it->second.known) return std::nullopt;
+  std::optional<std::string> forgotten = std::move(it->second.known->payload);
+  it->second.known.reset();
+  it->second.last_try = INT64_MIN;  // (first in the next schedule)
   return forgotten;
 }
 

@@ -41,6 +41,14 @@ inline cv::Matx33d sheetToImage(const std::array<cv::Point2f, 4>& corners) {
   return cv::Matx33d(cv::getPerspectiveTransform(sheet, img));
 }
 
+/// The side of the QR square in the image, in pixels, from the pattern
+/// square's corners (TL, TR, BR, BL): their mean side, scaled.
+inline double projectedQrSide(const std::array<cv::Point2f, 4>& corners) {
+  double pattern = 0;
+  for (size_t i = 0; i < 4; ++i) pattern += cv::norm(corners[i] - corners[(i + 1) % 4]);
+  return pattern / 4 * (kQrMax - kQrMin) / (kPatternMax - kPatternMin);
+}
+
 /// A point given in units u, in the sheet frame scaled to a sheet of `side`
 /// (any length unit, or pixels).
 inline cv::Point2d sheetPoint(const std::array<double, 2>& u, double side) {

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
@@ -84,6 +85,49 @@ class QrReader {
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
+};
+
+/// A read code as one sharp frame showed it, module by module: whether the
+/// landmark under a track still shows that code in a later frame, for the
+/// cost of sampling its modules (tens of microseconds), not a decode. The
+/// tracker can give a read track's id to another landmark within its gate
+/// (a scene cut, a landmark half the image wide leaving as its neighbour
+/// comes in), and the payload read under the id went with it until the next
+/// re-read. Codes of payloads that differ in one character still differ in
+/// 8-19 % of their modules (the error correction's codewords and the mask
+/// change), so sharp frames tell them apart; a blurred or washed-out frame
+/// says nothing.
+class QrLook {
+ public:
+  enum class Verdict {
+    Unsure,  ///< no look, or the frame does not show the modules sharply
+    Same,    ///< the modules it shows are the look's
+    Other,   ///< another code: many modules the other way, dark to light and light to dark alike
+  };
+  /// From a frame whose code was just read at `corners` (TL, TR, BR, BL of
+  /// the pattern square) in an 8-bit gray, BGR or BGRA image: the code's
+  /// size (the one of 21, 25, ... modules whose function patterns the frame
+  /// shows best) and each other module's shade. False, and the look left
+  /// empty, where the frame does not show them sharply: under
+  /// kMinPxPerModule pixels a module, function patterns or timing rows not
+  /// clear, or corners not finite.
+  bool capture(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners);
+  /// The landmark at `corners` in another frame, against the look.
+  Verdict compare(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners);
+  bool empty() const { return n_ == 0; }
+  int modules() const { return n_; }  ///< across; 0 when empty
+  void clear() { n_ = 0; }
+
+  static constexpr double kMinPxPerModule = 1.5;
+  /// Other takes at least this many modules, and this share of those both
+  /// frames show clearly, turned each way (noise and blur turn few, and
+  /// mostly isolated modules one way; a hand or a hot spot turns them one way).
+  static constexpr int kMinTurned = 6;
+  static constexpr double kMinTurnedShare = 0.02;
+
+ private:
+  int n_ = 0;
+  std::vector<int8_t> ref_;  // n x n: 1 dark, 0 light, -1 unclear or a function module
 };
 
 /// Several frames of one landmark's QR averaged in the sheet's frame, for

@@ -1,6 +1,7 @@
 #pragma once
 // What ld-qr-reader does with each frame whose image and tracked landmarks
-// joined: follows the read tracks (a jump is another landmark), schedules
+// joined: follows the read tracks (a jump, or another code in a look at
+// their modules, is another landmark), schedules
 // the due tracks, decodes them within the frame's time budget, averages an
 // undecoded track's frames when single frames fail, and lists the payloads
 // known for the frame's tracks. The process only wires LCM to it.
@@ -29,6 +30,11 @@ struct QrTrackReaderParams {
   /// Frames of an undecoded track averaged in the sheet's frame and read
   /// when single frames fail (QrStack); 0: off.
   int stack_frames = 8;
+  /// Seconds between looks at a read track: its modules in the frame
+  /// against those of the frame it was read from (QrLook). A landmark that
+  /// shows another code is another landmark under the id: its payload is
+  /// forgotten and it is read again at once. 0 (or less): off.
+  double look_interval_s = 0.2;
 };
 
 class QrTrackReader {
@@ -40,11 +46,14 @@ class QrTrackReader {
   /// One joined frame: `image` and the tracked landmarks found in it. Fills
   /// `out` (utime and seq of the frame, one code per track of the list whose
   /// payload is known). The image's pixels are converted only when a track
-  /// is due; throws ImageFormatError (out untouched) when they cannot be.
+  /// is due or a look (QrTrackReaderParams::look_interval_s); throws
+  /// ImageFormatError (out untouched) when they cannot be.
   void process(const image_t& image, const landmark_list_t& list, qr_code_list_t& out);
 
   int64_t tracksRead() const { return decoded_; }        ///< payloads newly read
   int64_t tracksReadStacked() const { return decoded_stacked_; }  ///< ... of which from stacked frames
+  /// Read tracks whose landmark showed another code (QrLook), so were read again.
+  int64_t tracksChanged() const { return changed_; }
   const QrTrackBook& book() const { return book_; }
 
  private:
@@ -60,11 +69,19 @@ class QrTrackReader {
   QrTrackBook book_;
   StillTimeWatch still_;
   std::unordered_map<int64_t, QrStack> stacks_;
+  struct Look {
+    QrLook look;  // of the frame of the last read that showed the modules sharply
+    int64_t checked = INT64_MIN;  // utime of the last look at it
+  };
+  std::unordered_map<int64_t, Look> looks_;  // read tracks only
+  // Looks at the read tracks due for one: true when the image's pixels were
+  // converted (into bgr_) for it.
+  bool lookAtReadTracks(const image_t& image, const landmark_list_t& list);
   cv::Mat bgr_;
   std::vector<int64_t> ids_;
   std::vector<std::pair<int64_t, int32_t>> ages_;  // (track id, age) of every track of the frame
   std::vector<std::pair<int64_t, float>> tried_ms_;  // this frame's decodes: (track id, ms)
-  int64_t decoded_ = 0, decoded_stacked_ = 0;
+  int64_t decoded_ = 0, decoded_stacked_ = 0, changed_ = 0;
 };
 
 }  // namespace ld

@@ -142,6 +142,10 @@ class QrTrackBook {
   std::optional<std::string> follow(int64_t track_id, int32_t age, bool visible, double cx, double cy,
                                     double size);
 
+  /// Forgets the payload known for a track (its landmark shows another code
+  /// now) and makes it due at once; the payload forgotten, if any.
+  std::optional<std::string> forget(int64_t track_id);
+
   /// Records the outcome of a decode attempt of `track_id` on the frame
   /// (utime, seq).
   void record(int64_t track_id, int64_t utime, int64_t seq, const std::optional<std::string>& payload);
