@@ -5,6 +5,7 @@
 #include <climits>
 #include <cmath>
 #include <cstdio>
+#include <random>
 #include <sstream>
 
 #include <opencv2/imgproc.hpp>
@@ -683,6 +684,62 @@ TEST(QrTrackReader, ReadTrackShowingAnotherCodeIsReadAgain) {
       EXPECT_EQ(reader.tracksChanged(), 0);
     }
   }
+}
+
+// A track read from a far frame (1.3 px a module) has no look; once a frame
+// shows its modules sharply (the robot came closer), it is read again at
+// once and the read takes the look, which then sees a cut at the next look.
+// At most kLookReads such re-reads where they fail.
+TEST(QrTrackReader, TrackReadFarIsReadAgainNearForItsLook) {
+  const std::string p = "salle-107 \xc3\xa9t\xc3\xa9 caf\xc3\xa9", q = "salle-108 \xc3\xa9t\xc3\xa9 caf\xc3\xa9";
+  Scene far = warped(ld::artwork::renderLandmark(p, 900), {{{300, 200}, {380, 204}, {378, 282}, {298, 280}}});
+  cv::GaussianBlur(far.image, far.image, {0, 0}, 0.4);
+  ld::QrLook none;
+  ASSERT_FALSE(none.capture(far.image, far.corners));
+  const std::array<cv::Point2f, 4> sheet{{{170, 90}, {470, 90}, {470, 390}, {170, 390}}};
+  const Scene near = warped(ld::artwork::renderLandmark(p, 900), sheet);
+  const Scene other = warped(ld::artwork::renderLandmark(q, 900), sheet);
+  std::ostringstream log;
+  ld::QrTrackReader reader({}, log, true);
+  ld::qr_code_list_t out;
+  int64_t t = 1'000'000, seq = 0;
+  auto frame = [&](const Scene& sc, int64_t step_us) {
+    t += step_us;
+    reader.process(ld::matToImage(sc.image, ld::image_t::PIXEL_FORMAT_BGR, 0),
+                   trackedList(t, seq, {tracked(5, static_cast<int32_t>(seq + 1), sc.corners)}), out);
+    ++seq;
+    return codeOf(out, 5);
+  };
+  ASSERT_EQ(frame(far, 0), std::optional<std::string>(p));
+  EXPECT_EQ(frame(near, 300'000), std::optional<std::string>(p));  // (a look due: read again, same payload)
+  EXPECT_EQ(out.codes[0].seq, 1);  // read again from this frame
+  EXPECT_EQ(frame(other, 300'000), std::optional<std::string>(q));  // the look sees the cut
+  EXPECT_EQ(reader.tracksChanged(), 1);
+  EXPECT_EQ(reader.tracksRead(), 2);
+  EXPECT_NE(log.str().find("track 5 shows another code than"), std::string::npos) << log.str();
+
+  // Sharp frames whose code does not read (its data modules scrambled, its
+  // function patterns whole): three re-reads for a look, then only the
+  // regular re-reads (every 5 s), the payload kept.
+  ld::QrTrackReader again({}, log);
+  ld::artwork::QrCode code = ld::artwork::encodeQr(p);
+  std::vector<uint8_t> function(code.modules.size(), 0);
+  ld::detail::forEachFunctionModule(code.size, [&](int r, int c, bool) { function[static_cast<size_t>(r * code.size + c)] = 1; });
+  std::mt19937 rng(3);
+  for (size_t i = 0; i < code.modules.size(); ++i)
+    if (!function[i] && i / code.size != 8 && i % code.size != 8) code.modules[i] = rng() & 1;
+  const Scene scrambled = warped(ld::artwork::renderLandmark(code, 900), sheet);
+  ASSERT_FALSE(ld::QrReader().decode(scrambled.image, scrambled.corners).has_value());
+  ASSERT_TRUE(ld::QrLook().capture(scrambled.image, scrambled.corners));
+  t = 1'000'000;
+  int tried = 0;
+  for (int f = 0; f < 8; ++f, t += 300'000) {
+    again.process(ld::matToImage((f == 0 ? far : scrambled).image, ld::image_t::PIXEL_FORMAT_BGR, 0),
+                  trackedList(t, f, {tracked(6, f + 1, (f == 0 ? far : scrambled).corners)}), out);
+    ASSERT_EQ(codeOf(out, 6), std::optional<std::string>(p)) << f;
+    tried += f > 0 && out.codes[0].decode_ms > 0;
+  }
+  EXPECT_EQ(tried, 3);
 }
 
 // A payload with a NUL byte (QR byte mode takes any bytes): LCM's encoder

@@ -43,6 +43,8 @@ struct Levels {
 // One thread's sampling buffers (a look keeps only its modules' shades).
 struct Samples {
   cv::Mat map, sampled, gray, values;
+  std::vector<cv::Point> at;  // sampleFunction's modules (x = column, y = row)
+  std::vector<int8_t> now;    // compare's shades of the frame's modules
 };
 thread_local Samples t_samples;
 
@@ -61,7 +63,7 @@ bool sample(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners, int
       const double x = c / sub + 0.5 + (c % sub - sub / 2) * 0.25;
       const cv::Vec3d p = sheet_to_image * cv::Vec3d(layout::kQrMin + module * (1 + x),
                                                      layout::kQrMin + module * (1 + y), 1.0);
-      if (!(std::abs(p[2]) > 1e-12)) return false;  // (behind the camera: no view)
+      if (!(p[2] > 1e-12)) return false;  // (beyond the horizon: corners of no view)
       row[c] = {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
     }
   }
@@ -71,6 +73,33 @@ bool sample(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners, int
   else b.gray = b.sampled;
   b.gray.convertTo(b.gray, CV_32F);
   cv::resize(b.gray, b.values, {n, n}, 0, 0, cv::INTER_AREA);
+  return true;
+}
+
+// Only the function modules' shades (centre samples), into the n x n
+// t_samples.values (the others left as they were): all levels() reads, for
+// the size search, which tries up to 40 sizes on a near code.
+bool sampleFunction(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners, int n) {
+  Samples& b = t_samples;
+  const cv::Matx33d sheet_to_image = layout::sheetToImage(corners);
+  const double module = (layout::kQrMax - layout::kQrMin) / (n + 2);
+  b.at.clear();
+  detail::forEachFunctionModule(n, [&](int r, int c, bool) { b.at.emplace_back(c, r); });
+  b.map.create(1, static_cast<int>(b.at.size()), CV_32FC2);
+  auto* row = b.map.ptr<cv::Vec2f>(0);
+  for (size_t i = 0; i < b.at.size(); ++i) {
+    const cv::Vec3d p = sheet_to_image * cv::Vec3d(layout::kQrMin + module * (1.5 + b.at[i].x),
+                                                   layout::kQrMin + module * (1.5 + b.at[i].y), 1.0);
+    if (!(p[2] > 1e-12)) return false;
+    row[i] = {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
+  }
+  cv::remap(image, b.sampled, b.map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  if (b.sampled.channels() == 3) cv::cvtColor(b.sampled, b.gray, cv::COLOR_BGR2GRAY);
+  else if (b.sampled.channels() == 4) cv::cvtColor(b.sampled, b.gray, cv::COLOR_BGRA2GRAY);
+  else b.gray = b.sampled;
+  b.values.create(n, n, CV_32F);
+  const uint8_t* g = b.gray.ptr<uint8_t>(0);
+  for (size_t i = 0; i < b.at.size(); ++i) b.values.at<float>(b.at[i].y, b.at[i].x) = g[i];
   return true;
 }
 
@@ -114,9 +143,9 @@ bool QrLook::capture(const cv::Mat& image, const std::array<cv::Point2f, 4>& cor
   // The code's size: the one whose function patterns the frame shows best.
   int best_n = 0;
   double best = -1;
-  // (from the modules' centres alone: a code of 300 px has 33 sizes to try)
+  // (from the function modules' centres alone: a code of 300 px has 40 sizes to try)
   for (int n = 21; n <= 177 && qr_px / (n + 2) >= kMinPxPerModule; n += 4) {
-    if (!sample(image, corners, n, 1)) return false;
+    if (!sampleFunction(image, corners, n)) return false;
     const Levels l = levels(t_samples.values, n);
     if (l.light - l.dark >= kMinContrast && l.clear + l.timing_clear > best) {
       best = l.clear + l.timing_clear;
@@ -143,18 +172,48 @@ QrLook::Verdict QrLook::compare(const cv::Mat& image, const std::array<cv::Point
   const cv::Mat& values = t_samples.values;
   const Levels l = levels(values, n_);
   if (!l.sharp()) return Verdict::Unsure;
+  std::vector<int8_t>& now = t_samples.now;
+  now.resize(static_cast<size_t>(n_) * n_);
+  for (int r = 0; r < n_; ++r)
+    for (int c = 0; c < n_; ++c) now[static_cast<size_t>(r * n_ + c)] = l.shade(values.at<float>(r, c));
+  // A module turned counts where the frame shows a code around it: at least
+  // kMinAround of its 8 neighbours clearly of the other shade. Under a
+  // finger, a pen or its shadow the modules turn together, all dark on the
+  // shaded side and all light on the lit one (a shaded finger over a corner
+  // of the code turned enough both ways: a review); another code's modules
+  // lie among others of either shade.
+  auto amid = [&](int r, int c, int8_t shade) {
+    int other = 0;
+    for (int dr = -1; dr <= 1; ++dr)
+      for (int dc = -1; dc <= 1; ++dc) {
+        const int rr = r + dr, cc = c + dc;
+        if ((dr || dc) && rr >= 0 && cc >= 0 && rr < n_ && cc < n_)
+          other += now[static_cast<size_t>(rr * n_ + cc)] == 1 - shade;
+      }
+    return other >= kMinAround;
+  };
   int both = 0, to_light = 0, to_dark = 0;
+  double sr = 0, sc = 0, srr = 0, scc = 0, src = 0;  // where the turned modules lie
   for (int r = 0; r < n_; ++r)
     for (int c = 0; c < n_; ++c) {
-      const int8_t was = ref_[static_cast<size_t>(r * n_ + c)];
-      if (was < 0) continue;
-      const int8_t now = l.shade(values.at<float>(r, c));
-      if (now < 0) continue;
+      const int8_t was = ref_[static_cast<size_t>(r * n_ + c)], is = now[static_cast<size_t>(r * n_ + c)];
+      if (was < 0 || is < 0) continue;
       ++both;
-      if (now != was) ++(was ? to_light : to_dark);
+      if (is == was || !amid(r, c, is)) continue;
+      ++(was ? to_light : to_dark);
+      sr += r, sc += c, srr += r * r, scc += c * c, src += r * c;
     }
   const double least = std::max<double>(kMinTurned, kMinTurnedShare * both);
-  if (to_light >= least && to_dark >= least) return Verdict::Other;
+  if (to_light >= least && to_dark >= least) {
+    // Another code's turned modules are strewn over the code; a pen's, or a
+    // thin shadow's, lie along a line (the spread across its narrow way,
+    // the smaller axis of their scatter, is under a module or two).
+    const double k = to_light + to_dark, vr = srr / k - (sr / k) * (sr / k), vc = scc / k - (sc / k) * (sc / k),
+                 cov = src / k - (sr / k) * (sc / k);
+    const double narrow = (vr + vc) / 2 - std::sqrt((vr - vc) * (vr - vc) / 4 + cov * cov);
+    if (narrow >= kMinSpread * kMinSpread) return Verdict::Other;
+    return Verdict::Unsure;
+  }
   return to_light + to_dark < least ? Verdict::Same : Verdict::Unsure;
 }
 

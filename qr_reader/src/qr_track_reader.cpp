@@ -42,18 +42,29 @@ bool QrTrackReader::lookAtReadTracks(const image_t& image, const landmark_list_t
   bool converted = false;
   for (const auto& lm : list.landmarks) {
     if (!lm.visible || lm.track_id < 0) continue;
-    const auto it = looks_.find(lm.track_id);
-    if (it == looks_.end() || it->second.look.empty()) continue;
+    const auto it = looks_.find(lm.track_id);  // (read tracks have one, empty or not)
+    if (it == looks_.end()) continue;
     Look& look = it->second;
+    if (look.look.empty() && look.reads >= kLookReads) continue;
     // (an older frame, matched late, is looked at too: what it shows is as good)
     if (look.checked != INT64_MIN && list.utime >= look.checked &&
         static_cast<double>(list.utime) - static_cast<double>(look.checked) < every_us)
       continue;
     if (!readableCorners(lm, image.width, image.height)) continue;
-    look.checked = list.utime;
     if (!converted) {
       imageToBgr(image, bgr_);  // (throws before anything is forgotten)
       converted = true;
+    }
+    look.checked = list.utime;
+    if (look.look.empty()) {
+      // Read from a frame that did not show its modules sharply (far,
+      // blurred): where this one does, it is read again now, and the read
+      // takes the look (a look taken without a read could be another code's).
+      if (spare_look_.capture(bgr_, cornersOf(lm))) {
+        book_.readAgain(lm.track_id);
+        ++look.reads;
+      }
+      continue;
     }
     if (look.look.compare(bgr_, cornersOf(lm)) != QrLook::Verdict::Other) continue;
     look.look.clear();
@@ -160,9 +171,8 @@ void QrTrackReader::process(const image_t& image, const landmark_list_t& list, q
       // the look of the code just read: this frame's, where it shows the
       // modules sharply; else the last one's, where it read the same
       Look& look = looks_[id];
-      if (known && known->payload != r->payload) look.look.clear();
-      QrLook fresh;
-      if (fresh.capture(bgr_, corners)) look.look = std::move(fresh);
+      if (known && known->payload != r->payload) look = Look{};
+      if (spare_look_.capture(bgr_, corners)) std::swap(look.look, spare_look_);
       look.checked = list.utime;
     }
     book_.record(id, list.utime, list.seq, r ? std::optional<std::string>(r->payload) : std::nullopt);

@@ -196,6 +196,11 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
   return forget(track_id);
 }
 
+void QrTrackBook::readAgain(int64_t track_id) {
+  const auto it = tracks_.find(track_id);
+  if (it != tracks_.end()) it->second.last_try = INT64_MIN;
+}
+
 std::optional<std::string> QrTrackBook::forget(int64_t track_id) {
   const auto it = tracks_.find(track_id);
   if (it == tracks_.end() || !it->second.known) return std::nullopt;

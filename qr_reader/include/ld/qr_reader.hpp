@@ -121,9 +121,15 @@ class QrLook {
   static constexpr double kMinPxPerModule = 1.5;
   /// Other takes at least this many modules, and this share of those both
   /// frames show clearly, turned each way (noise and blur turn few, and
-  /// mostly isolated modules one way; a hand or a hot spot turns them one way).
+  /// mostly isolated modules one way; a hot spot turns them one way), each
+  /// among at least kMinAround neighbours of the other shade in the frame
+  /// (under a finger or its shadow the modules turn together)...
   static constexpr int kMinTurned = 6;
   static constexpr double kMinTurnedShare = 0.02;
+  static constexpr int kMinAround = 2;
+  /// ... and strewn: their scatter at least this many modules (standard
+  /// deviation) across its narrower axis, where a pen's lie along a line.
+  static constexpr double kMinSpread = 2.0;
 
  private:
   int n_ = 0;

@@ -72,8 +72,13 @@ class QrTrackReader {
   struct Look {
     QrLook look;  // of the frame of the last read that showed the modules sharply
     int64_t checked = INT64_MIN;  // utime of the last look at it
+    int reads = 0;  // re-reads asked for to take a look (none yet)
   };
   std::unordered_map<int64_t, Look> looks_;  // read tracks only
+  // Re-reads a read track without a look gets when a frame shows its
+  // modules sharply (their reads failed: regular re-reads from then on).
+  static constexpr int kLookReads = 3;
+  QrLook spare_look_;  // (whether a frame shows a track's modules sharply)
   // Looks at the read tracks due for one: true when the image's pixels were
   // converted (into bgr_) for it.
   bool lookAtReadTracks(const image_t& image, const landmark_list_t& list);

@@ -142,6 +142,9 @@ class QrTrackBook {
   std::optional<std::string> follow(int64_t track_id, int32_t age, bool visible, double cx, double cy,
                                     double size);
 
+  /// Makes a read track due for a re-read at once (its payload kept).
+  void readAgain(int64_t track_id);
+
   /// Forgets the payload known for a track (its landmark shows another code
   /// now) and makes it due at once; the payload forgotten, if any.
   std::optional<std::string> forget(int64_t track_id);
