@@ -94,7 +94,7 @@ class QrReader {
 /// (a scene cut, a landmark half the image wide leaving as its neighbour
 /// comes in), and the payload read under the id went with it until the next
 /// re-read. Codes of payloads that differ in one character still differ in
-/// 8-19 % of their modules (the error correction's codewords and the mask
+/// 8-29 % of their modules (the error correction's codewords and the mask
 /// change), so sharp frames tell them apart; a blurred or washed-out frame
 /// says nothing.
 class QrLook {
