@@ -38,7 +38,7 @@ from=$(jq -r '.[0].payloads[1].from_seq' "$T/tracks0.2")
 [ "$(jq -r '.[0].payloads | map(.payload) | join(" ")' "$T/tracks0.2")" = "room-101 room-102" ] &&
   [ "$from" -ge 10 ] && [ "$from" -le 13 ] || { echo "FAIL: the cut was not read again soon"; exit 1; }
 grep -q "ld-qr-reader: track [0-9]* shows another code than \"room-101\"" "$T/log0.2/qr-reader.log" &&
-  grep -q "1 forgotten (their landmark showed another code)" "$T/log0.2/qr-reader.log" ||
+  grep -q "1 changed (their landmark showed another code)" "$T/log0.2/qr-reader.log" ||
   { echo "FAIL: no word of the look: $(cat "$T/log0.2/qr-reader.log")"; exit 1; }
 [ "$(jq -r '.[0].payloads | map(.payload) | join(" ")' "$T/tracks0")" = "room-101" ] ||
   { echo "FAIL: without the look the payload changed: the test tests nothing"; exit 1; }

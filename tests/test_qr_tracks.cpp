@@ -165,6 +165,28 @@ TEST(QrTrackBook, DecodesOnceThenRechecksRarely) {
   EXPECT_EQ(book.payload(7)->payload, "dock");
 }
 
+// A read track made due at once (readAgain: its look saw another code) is
+// re-read before the 5 s, its payload kept, but after every undecoded track
+// (its priority once came out below theirs and took the frame's decode).
+TEST(QrTrackBook, ReadAgainComesAfterTheUndecodedTracks) {
+  ld::QrScheduleParams params;
+  params.max_decodes_per_frame = 1;
+  ld::QrTrackBook book(params);
+  const int64_t s = 1000000;
+  EXPECT_EQ(book.schedule({7, 8}, 10 * s), std::vector<int64_t>{7});
+  book.record(7, 10 * s, 0, std::string("dock"));
+  EXPECT_EQ(book.schedule({7, 8}, 10 * s + 1), std::vector<int64_t>{8});
+  book.record(8, 10 * s + 1, 1, std::nullopt);
+  book.readAgain(7);
+  book.readAgain(99);  // (unknown: nothing)
+  EXPECT_EQ(book.size(), 2u);
+  EXPECT_EQ(book.payload(7)->payload, "dock");
+  // 8 due again (0.1 s on) comes first; 7 once 8 is not due
+  EXPECT_EQ(book.schedule({7, 8}, 10 * s + s / 5), std::vector<int64_t>{8});
+  book.record(8, 10 * s + s / 5, 2, std::nullopt);
+  EXPECT_EQ(book.schedule({7, 8}, 10 * s + s / 5 + 1), std::vector<int64_t>{7});
+}
+
 // Intervals too long to count in microseconds are never, not (as the cast
 // overflowed) every frame: `--recheck-interval 1e300` re-read a track on
 // each.

@@ -194,7 +194,7 @@ int main(int argc, char** argv) {
   }
   std::fprintf(stderr,
                "ld-qr-reader: stopped after %lld frames, %lld tracks read (%lld from stacked frames), "
-               "%lld forgotten (their landmark showed another code), %lld skipped, %lld late, %lld unmatched, %lld bad\n",
+               "%lld changed (their landmark showed another code), %lld skipped, %lld late, %lld unmatched, %lld bad\n",
                static_cast<long long>(frames), static_cast<long long>(tracks.tracksRead()),
                static_cast<long long>(tracks.tracksReadStacked()), static_cast<long long>(tracks.tracksChanged()),
                static_cast<long long>(in.matcher.skipped()), static_cast<long long>(in.matcher.late()),

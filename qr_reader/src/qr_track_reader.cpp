@@ -46,13 +46,16 @@ bool QrTrackReader::lookAtReadTracks(const image_t& image, const landmark_list_t
     if (it == looks_.end()) continue;
     Look& look = it->second;
     if (look.look.empty() && look.reads >= kLookReads) continue;
-    // (an older frame, matched late, is looked at too: what it shows is as good)
+    // (an older frame, matched late, is looked at too: what it shows is as
+    // good; a track without a look is looked at every kLookLessEvery
+    // intervals: one read only far may never show its modules sharply)
+    const double wait_us = look.look.empty() ? kLookLessEvery * every_us : every_us;
     if (look.checked != INT64_MIN && list.utime >= look.checked &&
-        static_cast<double>(list.utime) - static_cast<double>(look.checked) < every_us)
+        static_cast<double>(list.utime) - static_cast<double>(look.checked) < wait_us)
       continue;
     if (!readableCorners(lm, image.width, image.height)) continue;
     if (!converted) {
-      imageToBgr(image, bgr_);  // (throws before anything is forgotten)
+      imageToBgr(image, bgr_);  // (throws before anything changes)
       converted = true;
     }
     look.checked = list.utime;
@@ -60,19 +63,29 @@ bool QrTrackReader::lookAtReadTracks(const image_t& image, const landmark_list_t
       // Read from a frame that did not show its modules sharply (far,
       // blurred): where this one does, it is read again now, and the read
       // takes the look (a look taken without a read could be another code's).
-      if (spare_look_.capture(bgr_, cornersOf(lm))) {
-        book_.readAgain(lm.track_id);
-        ++look.reads;
-      }
+      if (spare_look_.capture(bgr_, cornersOf(lm))) book_.readAgain(lm.track_id);
       continue;
     }
-    if (look.look.compare(bgr_, cornersOf(lm)) != QrLook::Verdict::Other) continue;
-    look.look.clear();
+    if (look.look.compare(bgr_, cornersOf(lm)) != QrLook::Verdict::Other) {
+      look.others = 0;
+      continue;
+    }
+    // Another code: the payload is withheld (step 4) and the track read
+    // again now. A read of another payload replaces it (step 3); a read of
+    // the same one, or a later look that sees its code, says something over
+    // the code fooled the look (a striped sleeve, a barcode sticker: a
+    // review); no read for kOtherLooks looks in a row, and the payload
+    // cannot be vouched for: it is forgotten until the code reads again.
+    if (++look.others < kOtherLooks) {
+      book_.readAgain(lm.track_id);
+      continue;
+    }
+    look = Look{};
     const auto forgotten = book_.forget(lm.track_id);
     ++changed_;
     if (forgotten && verbose_)
-      log_ << "ld-qr-reader: track " << lm.track_id << " shows another code than \"" << *forgotten
-           << "\": it is forgotten and the track read again (ids moved?)\n";
+      log_ << "ld-qr-reader: track " << lm.track_id << " shows another code than \"" << *forgotten << "\" in "
+           << kOtherLooks << " looks in a row and does not read: it is forgotten until it reads (ids moved?)\n";
   }
   return converted;
 }
@@ -165,28 +178,49 @@ void QrTrackReader::process(const image_t& image, const landmark_list_t& list, q
     }
     tried_ms_.emplace_back(id, std::chrono::duration<float, std::milli>(std::chrono::steady_clock::now() - t0).count());
     const auto* known = book_.payload(id);
-    const bool is_new = r && !known;
+    const bool is_new = r && (!known || known->payload != r->payload);
+    bool said = false;  // (the change said already)
     decoded_stacked_ += is_new && from_stack;
     if (r && params_.look_interval_s > 0) {
       // the look of the code just read: this frame's, where it shows the
       // modules sharply; else the last one's, where it read the same
       Look& look = looks_[id];
-      if (known && known->payload != r->payload) look = Look{};
-      if (spare_look_.capture(bgr_, corners)) std::swap(look.look, spare_look_);
+      if (known && known->payload != r->payload) {
+        if (look.others > 0) {  // (read again for a look that saw another code)
+          ++changed_;
+          said = verbose_;
+          if (verbose_)
+            log_ << "ld-qr-reader: track " << id << " shows another code than \"" << known->payload << "\": it reads \""
+                 << r->payload << "\" now (ids moved?)\n";
+        }
+        look = Look{};
+      }
+      look.others = 0;
+      // (a look kept: a frame with something over the code may read, and
+      // its look would be the cover's)
+      if (look.look.empty()) {
+        if (spare_look_.capture(bgr_, corners)) std::swap(look.look, spare_look_);
+        else if (known) ++look.reads;  // (a re-read for a look that took none)
+      }
       look.checked = list.utime;
+    } else if (known && params_.look_interval_s > 0) {
+      const auto it = looks_.find(id);
+      if (it != looks_.end() && it->second.look.empty()) ++it->second.reads;
     }
     book_.record(id, list.utime, list.seq, r ? std::optional<std::string>(r->payload) : std::nullopt);
     if (is_new) {
       ++decoded_;  // (its stack goes with the next frame's pruning)
-      if (verbose_)
+      if (verbose_ && !said)
         log_ << "ld-qr-reader: track " << id << " reads \"" << r->payload << "\""
              << (from_stack ? " (from its stacked frames)" : "") << "\n";
     }
   }
 
-  // 4. THE PAYLOADS KNOWN for the frame's tracks
+  // 4. THE PAYLOADS KNOWN for the frame's tracks (but those whose last look
+  // saw another code, not read since: withheld until a look sees theirs)
   for (const auto& lm : list.landmarks) {
     if (lm.track_id < 0) continue;
+    if (const auto l = looks_.find(lm.track_id); l != looks_.end() && l->second.others > 0) continue;
     if (const auto* k = book_.payload(lm.track_id)) {
       qr_code_t c{};
       c.track_id = lm.track_id;

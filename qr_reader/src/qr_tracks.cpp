@@ -128,8 +128,9 @@ std::vector<int64_t> QrTrackBook::schedule(const std::vector<int64_t>& track_ids
     if (!t.known) {
       if (since >= us(params_.retry_interval_s)) due.emplace_back(t.last_try, id);
     } else if (since >= us(params_.recheck_interval_s)) {
-      // Re-checks come after every undecoded track.
-      due.emplace_back(INT64_MAX / 2 + std::min<int64_t>(t.last_try / 2, INT64_MAX / 4), id);
+      // Re-checks come after every undecoded track (one asked for now,
+      // readAgain, first among them).
+      due.emplace_back(INT64_MAX / 2 + std::clamp<int64_t>(t.last_try / 2, 0, INT64_MAX / 4), id);
     }
   }
   std::stable_sort(due.begin(), due.end(),

@@ -195,7 +195,7 @@ std::vector<ld::image_t> renderLoop(const Options& o) {
 // lines gain counts over time; their order is no contract):
 //   ld-detector: stopped after P frames (S skipped, B bad, M missing)
 //   ld-tracker: stopped after P frames (S skipped, B bad, N landmarks not tracked, L late, R repeated), T tracks
-//   ld-qr-reader: stopped after P frames, R tracks read (K from stacked frames), F forgotten (...), S skipped, L late, U unmatched, B bad
+//   ld-qr-reader: stopped after P frames, R tracks read (K from stacked frames), C changed (...), S skipped, L late, U unmatched, B bad
 // Empty when the line, or one of `labels`, is missing.
 std::map<std::string, int64_t> exitCounts(const std::string& err_path, const std::string& program,
                                           const std::vector<std::string>& labels) {

@@ -32,8 +32,10 @@ struct QrTrackReaderParams {
   int stack_frames = 8;
   /// Seconds between looks at a read track: its modules in the frame
   /// against those of the frame it was read from (QrLook). A landmark that
-  /// shows another code is another landmark under the id: its payload is
-  /// forgotten and it is read again at once. 0 (or less): off.
+  /// shows another code is read again at once, its payload withheld from
+  /// the codes until a look sees its code again: another payload read
+  /// replaces it; none read in kOtherLooks looks in a row, it is forgotten
+  /// until it reads. 0 (or less): off.
   double look_interval_s = 0.2;
 };
 
@@ -50,9 +52,10 @@ class QrTrackReader {
   /// ImageFormatError (out untouched) when they cannot be.
   void process(const image_t& image, const landmark_list_t& list, qr_code_list_t& out);
 
-  int64_t tracksRead() const { return decoded_; }        ///< payloads newly read
+  int64_t tracksRead() const { return decoded_; }        ///< payloads newly read (another than known too)
   int64_t tracksReadStacked() const { return decoded_stacked_; }  ///< ... of which from stacked frames
-  /// Read tracks whose landmark showed another code (QrLook), so were read again.
+  /// Read tracks whose landmark showed another code (QrLook): read again as
+  /// another payload, or forgotten when they did not read.
   int64_t tracksChanged() const { return changed_; }
   const QrTrackBook& book() const { return book_; }
 
@@ -72,12 +75,15 @@ class QrTrackReader {
   struct Look {
     QrLook look;  // of the frame of the last read that showed the modules sharply
     int64_t checked = INT64_MIN;  // utime of the last look at it
-    int reads = 0;  // re-reads asked for to take a look (none yet)
+    int reads = 0;   // re-reads that took no look (none yet)
+    int others = 0;  // looks in a row that saw another code, with no read since
   };
   std::unordered_map<int64_t, Look> looks_;  // read tracks only
   // Re-reads a read track without a look gets when a frame shows its
   // modules sharply (their reads failed: regular re-reads from then on).
   static constexpr int kLookReads = 3;
+  static constexpr int kLookLessEvery = 5;  // (look intervals between tries for a look)
+  static constexpr int kOtherLooks = 5;  // looks in a row seeing another code, unread, forget it
   QrLook spare_look_;  // (whether a frame shows a track's modules sharply)
   // Looks at the read tracks due for one: true when the image's pixels were
   // converted (into bgr_) for it.
