@@ -47,7 +47,7 @@ class QrTrackReader {
 
   /// One joined frame: `image` and the tracked landmarks found in it. Fills
   /// `out` (utime and seq of the frame, one code per track of the list whose
-  /// payload is known). The image's pixels are converted only when a track
+  /// payload is known and not withheld: QrTrackReaderParams::look_interval_s). The image's pixels are converted only when a track
   /// is due or a look (QrTrackReaderParams::look_interval_s); throws
   /// ImageFormatError (out untouched) when they cannot be.
   void process(const image_t& image, const landmark_list_t& list, qr_code_list_t& out);
