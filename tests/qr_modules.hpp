@@ -1,12 +1,17 @@
 // The QR tests' count of a module estimate against the printed code: the
 // data modules (all but the function patterns, which the reader redraws
-// ideal) it gets wrong. Tests include it by its path.
+// ideal) it gets wrong; and covers painted over a landmark's code. Tests
+// include it by its path.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
+#include <opencv2/core.hpp>
+
 #include "ld/artwork.hpp"
+#include "ld/landmark_layout.hpp"
 #include "../qr_reader/src/qr_function_patterns.hpp"
 
 namespace ld::test {
@@ -16,6 +21,21 @@ inline std::vector<uint8_t> functionModules(int n) {
   std::vector<uint8_t> function(static_cast<size_t>(n) * n, 0);
   ld::detail::forEachFunctionModule(n, [&](int r, int c, bool) { function[static_cast<size_t>(r) * n + c] = 1; });
   return function;
+}
+
+// Paints each pixel of `image` (8-bit BGR) that lies in the sheet's [x0,
+// x1] x [y0, y1] (units u) of the landmark at `corners` the colour
+// `colour(u, v)` gives: a cover over part of its code.
+template <typename Colour>
+void paintOnSheet(cv::Mat& image, const std::array<cv::Point2f, 4>& corners, double x0, double x1, double y0,
+                  double y1, Colour&& colour) {
+  const cv::Matx33d to_sheet = ld::layout::sheetToImage(corners).inv();
+  for (int y = 0; y < image.rows; ++y)
+    for (int x = 0; x < image.cols; ++x) {
+      const cv::Vec3d p = to_sheet * cv::Vec3d(x, y, 1.0);
+      const double u = p[0] / p[2], v = p[1] / p[2];
+      if (u >= x0 && u <= x1 && v >= y0 && v <= y1) image.at<cv::Vec3b>(y, x) = colour(u, v);
+    }
 }
 
 struct DataModulesWrong {

@@ -273,16 +273,11 @@ TEST(QrPixelModel, EachStageGetsFewerModulesWrongOnSynthFrames) {
 // pen with its lit and its shadowed side.
 void shadedBar(cv::Mat& image, const std::array<cv::Point2f, 4>& corners, double x0, double x1, double y0, double y1,
                double lo, double hi) {
-  const cv::Matx33d to_sheet = ld::layout::sheetToImage(corners).inv();
-  for (int y = 0; y < image.rows; ++y)
-    for (int x = 0; x < image.cols; ++x) {
-      const cv::Vec3d p = to_sheet * cv::Vec3d(x, y, 1.0);
-      const double u = p[0] / p[2], v = p[1] / p[2];
-      if (u < x0 || u > x1 || v < y0 || v > y1) continue;
-      const double g = lo + (hi - lo) * (u - x0) / (x1 - x0);
-      image.at<cv::Vec3b>(y, x) = {cv::saturate_cast<uint8_t>(0.85 * g), cv::saturate_cast<uint8_t>(0.95 * g),
-                                   cv::saturate_cast<uint8_t>(g)};
-    }
+  ld::test::paintOnSheet(image, corners, x0, x1, y0, y1, [&](double u, double) {
+    const double g = lo + (hi - lo) * (u - x0) / (x1 - x0);
+    return cv::Vec3b(cv::saturate_cast<uint8_t>(0.85 * g), cv::saturate_cast<uint8_t>(0.95 * g),
+                     cv::saturate_cast<uint8_t>(g));
+  });
 }
 
 // QrLook on the sweep's conditions (0.3 to 1 m, yaw within +-40 degrees,

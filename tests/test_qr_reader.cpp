@@ -724,8 +724,7 @@ TEST(QrTrackReader, TrackReadFarIsReadAgainNearForItsLook) {
   // regular re-reads (every 5 s), the payload kept.
   ld::QrTrackReader again({}, log);
   ld::artwork::QrCode code = ld::artwork::encodeQr(p);
-  std::vector<uint8_t> function(code.modules.size(), 0);
-  ld::detail::forEachFunctionModule(code.size, [&](int r, int c, bool) { function[static_cast<size_t>(r * code.size + c)] = 1; });
+  const std::vector<uint8_t> function = ld::test::functionModules(code.size);
   std::mt19937 rng(3);
   for (size_t i = 0; i < code.modules.size(); ++i)
     if (!function[i] && i / code.size != 8 && i % code.size != 8) code.modules[i] = rng() & 1;
@@ -759,14 +758,9 @@ TEST(QrTrackReader, StripesOverTheCodeWithholdItsPayloadAndForgetItAfterFiveLook
   const Scene clean = warped(ld::artwork::renderLandmark(p, 900), sheet);
   Scene covered = clean;
   covered.image = clean.image.clone();
-  const cv::Matx33d to_sheet = ld::layout::sheetToImage(clean.corners).inv();
-  for (int y = 0; y < covered.image.rows; ++y)
-    for (int x = 0; x < covered.image.cols; ++x) {
-      const cv::Vec3d q = to_sheet * cv::Vec3d(x, y, 1.0);
-      const double u = q[0] / q[2], v = q[1] / q[2];
-      if (u >= 4.5 && u <= 6.5 && v >= 4.5 && v <= 6.5)
-        covered.image.at<cv::Vec3b>(y, x) = std::fmod(u, 0.3) < 0.15 ? cv::Vec3b(40, 40, 40) : cv::Vec3b(220, 220, 220);
-    }
+  ld::test::paintOnSheet(covered.image, clean.corners, 4.5, 6.5, 4.5, 6.5, [](double u, double) {
+    return std::fmod(u, 0.3) < 0.15 ? cv::Vec3b(40, 40, 40) : cv::Vec3b(220, 220, 220);
+  });
   ld::QrLook look;
   ASSERT_TRUE(look.capture(clean.image, clean.corners));
   ASSERT_EQ(look.compare(covered.image, covered.corners), ld::QrLook::Verdict::Other);

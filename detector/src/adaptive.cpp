@@ -395,27 +395,22 @@ const cv::Mat& AdaptiveDetector::asBgr(const cv::Mat& image) {
   return bgr_;
 }
 
+const Detection& AdaptiveDetector::detect(const cv::Mat& image) { return detectWith(image, nullptr); }
+
+const Detection& AdaptiveDetector::detect(const cv::Mat& image, Explanation& why) { return detectWith(image, &why); }
+
 // (the correction's time is the detection's first stage, "adapt": the
 // stage timings of LANDMARKS and the bench said nothing of it)
-const Detection& AdaptiveDetector::detect(const cv::Mat& image) {
-  if (!enabled_) return detector_.detect(image);
+const Detection& AdaptiveDetector::detectWith(const cv::Mat& image, Explanation* why) {
+  const auto run = [&](const cv::Mat& frame) -> const Detection& {
+    return why ? detector_.detect(frame, *why) : detector_.detect(frame);
+  };
+  if (!enabled_) return run(image);
   const auto t0 = std::chrono::steady_clock::now();
   const cv::Mat& bgr = asBgr(image);
   const cv::Mat& corrected = correct(bgr);
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  const Detection& d = detector_.detect(corrected);
-  detector_.addStageBefore("adapt", ms);
-  adapter_.observe(bgr, d);
-  return d;
-}
-
-const Detection& AdaptiveDetector::detect(const cv::Mat& image, Explanation& why) {
-  if (!enabled_) return detector_.detect(image, why);
-  const auto t0 = std::chrono::steady_clock::now();
-  const cv::Mat& bgr = asBgr(image);
-  const cv::Mat& corrected = correct(bgr);
-  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  const Detection& d = detector_.detect(corrected, why);
+  const Detection& d = run(corrected);
   detector_.addStageBefore("adapt", ms);
   adapter_.observe(bgr, d);
   return d;

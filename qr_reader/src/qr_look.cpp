@@ -2,6 +2,7 @@
 // with later frames of the same track (qr_reader.hpp).
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include <opencv2/imgproc.hpp>
 
@@ -9,6 +10,7 @@
 #include "ld/landmark_layout.hpp"
 #include "ld/qr_reader.hpp"
 #include "qr_function_patterns.hpp"
+#include "qr_sampling.hpp"
 
 namespace ld {
 
@@ -20,12 +22,6 @@ constexpr double kDarkBelow = 0.35, kLightAbove = 0.65;  // of the way from dark
 // rows' alternate modules (the finest detail of any code: blur greys them
 // first, and then isolated data modules read the other way).
 constexpr double kMinClear = 0.95, kMinTimingClear = 0.9;
-
-bool finite(const std::array<cv::Point2f, 4>& corners) {
-  for (const auto& c : corners)
-    if (!std::isfinite(c.x) || !std::isfinite(c.y)) return false;
-  return true;
-}
 
 bool isTiming(int n, int r, int c) { return (r == 6 && c >= 8 && c < n - 8) || (c == 6 && r >= 8 && r < n - 8); }
 
@@ -48,59 +44,59 @@ struct Samples {
 };
 thread_local Samples t_samples;
 
-// The n x n modules' shades (gray; sub x sub samples a quarter module apart
-// averaged, sub odd) in t_samples.values; false where the homography puts
-// them behind the camera.
-bool sample(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners, int n, int sub = 3) {
+// The homography from the sheet to the image, where the QR square lies in
+// front of the camera as the corners put it (w above 0 at its corners, and
+// so all over it: w is linear on the sheet); none for corners not finite or
+// of no view.
+std::optional<cv::Matx33d> qrSquareToImage(const std::array<cv::Point2f, 4>& corners) {
+  if (!detail::finiteCorners(corners)) return std::nullopt;
+  const cv::Matx33d h = layout::sheetToImage(corners);
+  for (const double x : {layout::kQrMin, layout::kQrMax})
+    for (const double y : {layout::kQrMin, layout::kQrMax})
+      if (!(h(2, 0) * x + h(2, 1) * y + h(2, 2) > 1e-12)) return std::nullopt;
+  return h;
+}
+
+// The image at t_samples.map's points, as gray (8-bit), in t_samples.gray.
+void remapGray(const cv::Mat& image) {
   Samples& b = t_samples;
-  const cv::Matx33d sheet_to_image = layout::sheetToImage(corners);
+  cv::remap(image, b.sampled, b.map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  detail::toGray(b.sampled, b.gray);
+}
+
+// The n x n modules' shades (gray; sub x sub samples a quarter module apart
+// averaged, sub odd) in t_samples.values.
+void sample(const cv::Mat& image, const cv::Matx33d& sheet_to_image, int n, int sub = 3) {
+  Samples& b = t_samples;
   const double module = (layout::kQrMax - layout::kQrMin) / (n + 2);  // (one module of quiet zone)
   b.map.create(n * sub, n * sub, CV_32FC2);
   for (int r = 0; r < n * sub; ++r) {
     auto* row = b.map.ptr<cv::Vec2f>(r);
     const double y = r / sub + 0.5 + (r % sub - sub / 2) * 0.25;
-    for (int c = 0; c < n * sub; ++c) {
-      const double x = c / sub + 0.5 + (c % sub - sub / 2) * 0.25;
-      const cv::Vec3d p = sheet_to_image * cv::Vec3d(layout::kQrMin + module * (1 + x),
-                                                     layout::kQrMin + module * (1 + y), 1.0);
-      if (!(p[2] > 1e-12)) return false;  // (beyond the horizon: corners of no view)
-      row[c] = {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
-    }
+    for (int c = 0; c < n * sub; ++c)
+      row[c] = detail::moduleToImage(sheet_to_image, module, c / sub + 0.5 + (c % sub - sub / 2) * 0.25, y);
   }
-  cv::remap(image, b.sampled, b.map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-  if (b.sampled.channels() == 3) cv::cvtColor(b.sampled, b.gray, cv::COLOR_BGR2GRAY);
-  else if (b.sampled.channels() == 4) cv::cvtColor(b.sampled, b.gray, cv::COLOR_BGRA2GRAY);
-  else b.gray = b.sampled;
+  remapGray(image);
   b.gray.convertTo(b.gray, CV_32F);
   cv::resize(b.gray, b.values, {n, n}, 0, 0, cv::INTER_AREA);
-  return true;
 }
 
 // Only the function modules' shades (centre samples), into the n x n
 // t_samples.values (the others left as they were): all levels() reads, for
 // the size search, which tries up to 40 sizes on a near code.
-bool sampleFunction(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners, int n) {
+void sampleFunction(const cv::Mat& image, const cv::Matx33d& sheet_to_image, int n) {
   Samples& b = t_samples;
-  const cv::Matx33d sheet_to_image = layout::sheetToImage(corners);
   const double module = (layout::kQrMax - layout::kQrMin) / (n + 2);
   b.at.clear();
   detail::forEachFunctionModule(n, [&](int r, int c, bool) { b.at.emplace_back(c, r); });
   b.map.create(1, static_cast<int>(b.at.size()), CV_32FC2);
   auto* row = b.map.ptr<cv::Vec2f>(0);
-  for (size_t i = 0; i < b.at.size(); ++i) {
-    const cv::Vec3d p = sheet_to_image * cv::Vec3d(layout::kQrMin + module * (1.5 + b.at[i].x),
-                                                   layout::kQrMin + module * (1.5 + b.at[i].y), 1.0);
-    if (!(p[2] > 1e-12)) return false;
-    row[i] = {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
-  }
-  cv::remap(image, b.sampled, b.map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-  if (b.sampled.channels() == 3) cv::cvtColor(b.sampled, b.gray, cv::COLOR_BGR2GRAY);
-  else if (b.sampled.channels() == 4) cv::cvtColor(b.sampled, b.gray, cv::COLOR_BGRA2GRAY);
-  else b.gray = b.sampled;
+  for (size_t i = 0; i < b.at.size(); ++i)
+    row[i] = detail::moduleToImage(sheet_to_image, module, b.at[i].x + 0.5, b.at[i].y + 0.5);
+  remapGray(image);
   b.values.create(n, n, CV_32F);
   const uint8_t* g = b.gray.ptr<uint8_t>(0);
   for (size_t i = 0; i < b.at.size(); ++i) b.values.at<float>(b.at[i].y, b.at[i].x) = g[i];
-  return true;
 }
 
 Levels levels(const cv::Mat& values, int n) {
@@ -133,32 +129,38 @@ Levels levels(const cv::Mat& values, int n) {
   return l;
 }
 
+// Each of the n x n modules of t_samples.values: 1 dark, 0 light, -1 between.
+void shades(const Levels& l, int n, std::vector<int8_t>& out) {
+  out.resize(static_cast<size_t>(n) * n);
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < n; ++c) out[static_cast<size_t>(r * n + c)] = l.shade(t_samples.values.at<float>(r, c));
+}
+
 }  // namespace
 
 bool QrLook::capture(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners) {
   n_ = 0;
   requireReadableImage(image, "QrLook::capture");
-  if (image.empty() || !finite(corners)) return false;
+  const auto h = image.empty() ? std::nullopt : qrSquareToImage(corners);
+  if (!h) return false;
   const double qr_px = layout::projectedQrSide(corners);
   // The code's size: the one whose function patterns the frame shows best.
   int best_n = 0;
   double best = -1;
   // (from the function modules' centres alone: a code of 300 px has 40 sizes to try)
   for (int n = 21; n <= 177 && qr_px / (n + 2) >= kMinPxPerModule; n += 4) {
-    if (!sampleFunction(image, corners, n)) return false;
+    sampleFunction(image, *h, n);
     const Levels l = levels(t_samples.values, n);
     if (l.light - l.dark >= kMinContrast && l.clear + l.timing_clear > best) {
       best = l.clear + l.timing_clear;
       best_n = n;
     }
   }
-  if (best_n == 0 || !sample(image, corners, best_n)) return false;
-  const cv::Mat& values = t_samples.values;
-  const Levels l = levels(values, best_n);
+  if (best_n == 0) return false;
+  sample(image, *h, best_n);
+  const Levels l = levels(t_samples.values, best_n);
   if (!l.sharp()) return false;
-  ref_.resize(static_cast<size_t>(best_n) * best_n);
-  for (int r = 0; r < best_n; ++r)
-    for (int c = 0; c < best_n; ++c) ref_[static_cast<size_t>(r * best_n + c)] = l.shade(values.at<float>(r, c));
+  shades(l, best_n, ref_);
   detail::forEachFunctionModule(best_n, [&](int r, int c, bool) { ref_[static_cast<size_t>(r * best_n + c)] = -1; });
   n_ = best_n;
   return true;
@@ -166,16 +168,15 @@ bool QrLook::capture(const cv::Mat& image, const std::array<cv::Point2f, 4>& cor
 
 QrLook::Verdict QrLook::compare(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners) {
   requireReadableImage(image, "QrLook::compare");
-  if (n_ == 0 || image.empty() || !finite(corners) || layout::projectedQrSide(corners) / (n_ + 2) < kMinPxPerModule)
+  if (n_ == 0 || image.empty() || layout::projectedQrSide(corners) / (n_ + 2) < kMinPxPerModule)
     return Verdict::Unsure;
-  if (!sample(image, corners, n_)) return Verdict::Unsure;
-  const cv::Mat& values = t_samples.values;
-  const Levels l = levels(values, n_);
+  const auto h = qrSquareToImage(corners);
+  if (!h) return Verdict::Unsure;
+  sample(image, *h, n_);
+  const Levels l = levels(t_samples.values, n_);
   if (!l.sharp()) return Verdict::Unsure;
   std::vector<int8_t>& now = t_samples.now;
-  now.resize(static_cast<size_t>(n_) * n_);
-  for (int r = 0; r < n_; ++r)
-    for (int c = 0; c < n_; ++c) now[static_cast<size_t>(r * n_ + c)] = l.shade(values.at<float>(r, c));
+  shades(l, n_, now);
   // A module turned counts where the frame shows a code around it: at least
   // kMinAround of its 8 neighbours clearly of the other shade. Under a
   // finger, a pen or its shadow the modules turn together, all dark on the

@@ -14,9 +14,13 @@
 #include "ld/landmark_layout.hpp"
 #include "qr_function_patterns.hpp"
 #include "qr_pixel_model.hpp"
+#include "qr_sampling.hpp"
 
 namespace ld {
 namespace {
+
+using detail::moduleToImage;
+using detail::toGray;
 
 // How like a finder pattern (correlation of its 7 x 7 modules with the
 // ideal) each of the three must look for the bent-sheet path to read a grid.
@@ -61,15 +65,6 @@ double finderScore(const cv::Mat& samples, int n) {
   return corr.value();
 }
 
-// A point of an n-module symbol, in modules from its edge (`module`: a
-// module's side in sheet units; the QR square holds the symbol and one
-// module of quiet zone), in the image.
-cv::Vec2f moduleToImage(const cv::Matx33d& sheet_to_image, double module, double x, double y) {
-  const cv::Vec3d p =
-      sheet_to_image * cv::Vec3d(layout::kQrMin + module * (1 + x), layout::kQrMin + module * (1 + y), 1.0);
-  return {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
-}
-
 // The pixel model (qr_pixel_model.hpp) is tried for codes whose modules are
 // under this many pixels: its cost grows with the pixels, and where a module
 // has two or more the equaliser reads all a model would.
@@ -87,21 +82,10 @@ const cv::Matx23d kFlatGrid(1, 0, 0, 0, 1, 0);
 // image and the corners are finite and give it at least 8 px: nothing to
 // read otherwise.
 std::optional<double> readableQrSide(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners) {
-  if (image.empty() || image.depth() != CV_8U) return std::nullopt;
-  for (const auto& c : corners)
-    if (!std::isfinite(c.x) || !std::isfinite(c.y)) return std::nullopt;
+  if (image.empty() || image.depth() != CV_8U || !detail::finiteCorners(corners)) return std::nullopt;
   const double qr_px = layout::projectedQrSide(corners);
   if (!(qr_px >= 8.0)) return std::nullopt;
   return qr_px;
-}
-
-// `image` (gray, BGR or BGRA) as gray in `gray`, always `gray`'s own buffer
-// (a gray image is copied, not shared, so a later colour frame is never
-// converted into the caller's image).
-void toGray(const cv::Mat& image, cv::Mat& gray) {
-  if (image.channels() == 3) cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
-  else if (image.channels() == 4) cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY);
-  else image.copyTo(gray);
 }
 
 }  // namespace
@@ -662,8 +646,7 @@ bool QrStack::add(const cv::Mat& image, const std::array<cv::Point2f, 4>& corner
 }
 
 bool QrStack::follow(const std::array<cv::Point2f, 4>& corners) {
-  for (const auto& c : corners)
-    if (!std::isfinite(c.x) || !std::isfinite(c.y)) return false;
+  if (!detail::finiteCorners(corners)) return false;
   return checkJump(corners, layout::projectedQrSide(corners));
 }
 

@@ -75,7 +75,8 @@ int main(int argc, char** argv) {
   CLI::App app{"ld-qr-reader: IMAGE + LANDMARKS_TRACKED in, LANDMARK_CODES out (see README)."};
   std::string url = ld::defaultLcmUrl(), image_ch = "IMAGE", tracks_ch = "LANDMARKS_TRACKED",
               out_ch = "LANDMARK_CODES";
-  ld::QrScheduleParams sched;
+  ld::QrTrackReaderParams params;
+  ld::QrScheduleParams& sched = params.schedule;
   bool verbose = false;
   app.add_option("--lcm-url", url, "LCM URL")->capture_default_str();
   app.add_option("--image", image_ch, "image channel")->capture_default_str();
@@ -90,20 +91,17 @@ int main(int argc, char** argv) {
   app.add_option("--max-decodes", sched.max_decodes_per_frame, "decode attempts per frame")
       ->capture_default_str()
       ->check(ld::cli::Between(1, 100));
-  double budget_ms = 30;
-  app.add_option("--decode-budget-ms", budget_ms,
+  app.add_option("--decode-budget-ms", params.decode_budget_ms,
                  "milliseconds of decoding per frame: once spent, the frame's other due tracks wait for the next "
                  "(the first decode always runs)")
       ->capture_default_str()
       ->check(ld::cli::Between(1, 10000));
-  int stack_frames = 8;
-  app.add_option("--stack-frames", stack_frames,
+  app.add_option("--stack-frames", params.stack_frames,
                  "frames of an undecoded track averaged in the sheet's frame and read when single "
                  "frames fail (0: off)")
       ->capture_default_str()
       ->check(ld::cli::Between(0, 64));
-  double look_interval_s = 0.2;
-  app.add_option("--look-interval", look_interval_s,
+  app.add_option("--look-interval", params.look_interval_s,
                  "seconds between looks at a read track's modules against those it was read from: a landmark "
                  "showing another code is read again at once (0: off)")
       ->capture_default_str()
@@ -140,11 +138,6 @@ int main(int argc, char** argv) {
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
 
-  ld::QrTrackReaderParams params;
-  params.schedule = sched;
-  params.decode_budget_ms = budget_ms;
-  params.stack_frames = stack_frames;
-  params.look_interval_s = look_interval_s;
   ld::QrTrackReader tracks(params, std::cerr, verbose);
   ld::FrameMatcher::Pair pair;
   ld::image_t image;

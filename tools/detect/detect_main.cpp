@@ -279,28 +279,17 @@ int main(int argc, char** argv) {
     } else if (!draw_dir.empty()) {
       ld::drawLandmarks(img, found);
       const fs::path& dst = overlays[static_cast<size_t>(&path - files.data())];
-      bool written = false, opened = false;
-      int e = 0;
+      int e = 0;  // (written whole, or no cut PNG left behind as if whole: writeWholeFile)
       try {
         std::vector<uint8_t> png;
-        errno = 0;
-        std::ofstream o;
-        if (cv::imencode(".png", img, png)) {
-          o.open(dst, std::ios::binary);
-          opened = o.is_open();
-          o.write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
-          o.close();
-          written = static_cast<bool>(o);
-        }
-        e = errno;
+        if (cv::imencode(".png", img, png)) ld::writeWholeFile(dst.string(), std::string(png.begin(), png.end()), &e);
+        else e = EIO;
       } catch (const cv::Exception&) {
+        e = EIO;
       } catch (const std::bad_alloc&) {  // (a huge image's PNG: that overlay alone)
         e = ENOMEM;
       }
-      if (!written) {  // (a full disk: the overlays are not all there; status 1 at the end)
-        if (e == 0) e = EIO;
-        std::error_code ec;
-        if (opened) fs::remove(dst, ec);  // (no cut PNG left behind as if whole; not an earlier run's)
+      if (e != 0) {  // (a full disk: the overlays are not all there; status 1 at the end)
         // (once the disk or the quota is full, the overlays after it are not
         // tried: a line for each frame said the same thing, and left empty files)
         const bool full = e == ENOSPC || e == EDQUOT;

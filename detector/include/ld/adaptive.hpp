@@ -150,6 +150,8 @@ class AdaptiveDetector {
   const cv::Mat& correct(const cv::Mat& bgr);
   // A BGRA frame as BGR (in bgr_, kept between frames); others as they are.
   const cv::Mat& asBgr(const cv::Mat& image);
+  // detect(), with the explanation where `why` is given.
+  const Detection& detectWith(const cv::Mat& image, Explanation* why);
   cv::Mat bgr_;
   Detector detector_;
   LightingAdapter adapter_;

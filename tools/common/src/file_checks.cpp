@@ -325,13 +325,15 @@ std::filesystem::path resolvedPath(const std::string& path) {
   return p;
 }
 
-std::string writeWholeFile(const std::string& path, const std::string& bytes) {
+std::string writeWholeFile(const std::string& path, const std::string& bytes, int* error) {
+  if (error) *error = 0;
   errno = 0;
   std::ofstream f(path, std::ios::binary);
   const bool opened = f.is_open();
   if (f) f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   if (f.is_open()) f.close();  // (a full disk shows when the buffer goes out)
   if (f) return "";
+  if (error) *error = errno ? errno : EIO;
   const std::string why = errno ? std::strerror(errno) : "the write failed";
   // (a file it emptied or cut is not left as if it were whole: ld-eval's
   // table of 0 bytes; not one it never opened, a device such as /dev/full,

@@ -142,6 +142,9 @@ std::vector<double> sortedUnique(std::vector<double> v) {
   return v;
 }
 
+// The height the camera's view spans at `d` metres, in metres.
+double viewHeightM(const ld::CameraModel& camera, double d) { return d * camera.size.height / camera.K(1, 1); }
+
 // The sweep's points, from `from` to `to` by `step`, and `to` where the
 // step does not reach it; at most kMaxPoints
 // (a step of 1e-9 would ask for billions: a usage error naming the count).
@@ -533,7 +536,7 @@ int main(int argc, char** argv) {
       }
       // (a landmark larger than the view gave a silent 0 %, as the size
       // table already says: its rates there measure no detector)
-      const auto view_h = [&](double d) { return d * c.options().camera.size.height / c.options().camera.K(1, 1); };
+      const auto view_h = [&](double d) { return viewHeightM(c.options().camera, d); };
       for (size_t i = 0; i < sw.sides.size(); ++i) {
         const double side = sw.sides[i];
         if (sw.dists) {
@@ -726,7 +729,7 @@ int main(int argc, char** argv) {
       }
       // (the smallest candidate: a smaller landmark may do too; none: the
       // candidates may not even fit in the view that close)
-      const double view_h = std::min(s_detect, s_read) * o.camera.size.height / o.camera.K(1, 1);
+      const double view_h = viewHeightM(o.camera, std::min(s_detect, s_read));
       std::string verdict = answer > 0 ? "smallest landmark: " + cm(answer) : "no candidate side reaches 95 %";
       if (answer > 0 && answer == s_sides.front())
         verdict += " or less (the smallest candidate; --side tries others)";

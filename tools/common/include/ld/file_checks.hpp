@@ -133,8 +133,10 @@ bool sameFile(const std::string& a, const std::string& b);
 
 /// Writes `bytes` to `path` (made or emptied first) and closes it; "" when
 /// all of it was written, else why not ("No space left on device"), the
-/// file it emptied or cut removed (a device it writes to is left).
-std::string writeWholeFile(const std::string& path, const std::string& bytes);
+/// file it emptied or cut removed (a device it writes to is left). `error`,
+/// where given, gets the errno of a failure (EIO where none was set), 0
+/// otherwise.
+std::string writeWholeFile(const std::string& path, const std::string& bytes, int* error = nullptr);
 
 /// A file a program reads or writes, with the option that names it:
 /// {"--params", "my.yaml"}. An empty path is no file.
