@@ -289,10 +289,11 @@ void shadedBar(cv::Mat& image, const std::array<cv::Point2f, 4>& corners, double
 // ones light: a review's finger was taken for another code), covers part of
 // the code in the later frames, in another third a hot spot washes it out:
 // those are not another code. (Measured over
-// these 300 poses: 163 looks taken of 280 codes read, never Other for the
+// these 300 poses: 167 looks taken of 280 codes read, never Other for the
 // same landmark, never Same for another code; where nothing covers the
-// code, Same 42 and Other 43 of 56. Over 1500 poses of these conditions
-// without cover: 778 looks, Same 582, Other 588, never wrong.)
+// code, Same 42 and Other 43 of 55. Over 1500 poses of these conditions
+// without cover: 778 looks, Same 582, Other 588, never wrong, before the
+// modules were levelled locally.)
 TEST(QrLook, TellsAnotherCodeFromTheSameOnSynthFrames) {
   const ld::CameraModel cam = ld::CameraModel::defaultVga();
   ld::Detector detector;
@@ -365,4 +366,72 @@ TEST(QrLook, TellsAnotherCodeFromTheSameOnSynthFrames) {
   EXPECT_GE(looks, read / 3);
   EXPECT_GE(plain_same, plain[0] * 6 / 10);
   EXPECT_GE(plain_other, plain[1] * 6 / 10);
+}
+
+// QrLook under a hot spot of glare (ld-synth's glare, peak 0.5 to 1 of white,
+// over or beside the code, its radius 8-20 % of the image width): where the
+// spot lifts part of the code towards white, one dark and one light level
+// for the whole code class that part all light, and hardly a look was taken
+// before the modules were levelled locally (3 of 91 codes read). Corners as the
+// truth's, 0.3 px off at most (a detector's); the later frame is the same
+// landmark or the code one character apart, 4 degrees further round, under
+// the same spot. (Measured over these 120 poses: 92 read, 43 looks taken;
+// the same landmark Same 34, Unsure 9, another code Other
+// 33, Unsure 10; never wrong.)
+TEST(QrLook, TakesLooksUnderAHotSpot) {
+  const ld::CameraModel cam = ld::CameraModel::defaultVga();
+  ld::QrReader reader;
+  std::mt19937_64 rng(7);
+  std::mt19937_64 jitter(8);  // (the corners' error: the poses do not depend on what was read)
+  std::uniform_real_distribution<double> U(-1, 1), P(0, 1);
+  int read = 0, looks = 0, verdicts[2][3] = {};  // [same landmark, another code][Unsure, Same, Other]
+  for (int i = 0; i < 120; ++i) {
+    const std::string a = ld::eval::payloadFor(i);
+    std::string b = a;
+    b.back() = b.back() == 'x' ? 'y' : static_cast<unsigned char>(b.back()) < 0x80 ? 'x' : b.back();
+    if (b == a) b = ld::eval::payloadFor(i + 5);
+    const double distance = 0.3 + 0.1 * (i % 8), yaw = 40 * U(rng), roll = 180 * U(rng);
+    const double nx = 0.3 * U(rng), ny = 0.3 * U(rng);
+    ld::synth::Lighting glare;
+    glare.glare = 0.5 + 0.5 * P(rng);
+    glare.glare_radius = 0.08 + 0.12 * P(rng);
+    glare.glare_centre = {0.5 + 0.5 * nx + 0.08 * U(rng), 0.5 + 0.5 * ny + 0.08 * U(rng)};
+    auto frame = [&](const std::string& payload, double dyaw, uint64_t seed) {
+      auto spec = ld::synth::randomConditions(
+          cam, {ld::synth::placeLandmark(cam, distance, yaw + dyaw, 0, roll, nx, ny, 0.15, payload)}, seed);
+      spec.lighting.glare = glare.glare;
+      spec.lighting.glare_radius = glare.glare_radius;
+      spec.lighting.glare_centre = glare.glare_centre;
+      return ld::synth::render(spec);
+    };
+    auto corners = [&](const ld::synth::Frame& f) {
+      std::array<cv::Point2f, 4> c;
+      for (int k = 0; k < 4; ++k)
+        c[k] = cv::Point2f(static_cast<float>(f.truth[0].corners[k].x + 0.3 * U(jitter)),
+                           static_cast<float>(f.truth[0].corners[k].y + 0.3 * U(jitter)));
+      return c;
+    };
+    const auto f1 = frame(a, 0, 1000 + i);
+    const auto c1 = corners(f1);
+    const auto r = reader.decode(f1.bgr, c1);
+    if (!r || r->payload != a) continue;
+    ++read;
+    ld::QrLook look;
+    if (!look.capture(f1.bgr, c1)) continue;
+    ++looks;
+    for (int k = 0; k < 2; ++k) {
+      const auto f2 = frame(k == 0 ? a : b, 4, 2000 + i);
+      const auto v = look.compare(f2.bgr, corners(f2));
+      ++verdicts[k][static_cast<int>(v)];
+      EXPECT_NE(v, k == 0 ? ld::QrLook::Verdict::Other : ld::QrLook::Verdict::Same)
+          << "pose " << i << ", " << distance << " m, glare " << glare.glare << ": " << (k == 0 ? a : b);
+    }
+  }
+  std::printf("under a hot spot: %d read, %d looks taken; the same landmark: %d same, %d unsure, %d other; another "
+              "code: %d other, %d unsure, %d same\n",
+              read, looks, verdicts[0][1], verdicts[0][0], verdicts[0][2], verdicts[1][2], verdicts[1][0],
+              verdicts[1][1]);
+  EXPECT_GE(looks, read / 3);
+  EXPECT_GE(verdicts[0][1], looks * 6 / 10);
+  EXPECT_GE(verdicts[1][2], looks * 6 / 10);
 }

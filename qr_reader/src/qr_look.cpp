@@ -38,7 +38,7 @@ struct Levels {
 
 // One thread's sampling buffers (a look keeps only its modules' shades).
 struct Samples {
-  cv::Mat map, sampled, gray, values;
+  cv::Mat map, sampled, gray, values, lo, hi;
   std::vector<cv::Point> at;  // sampleFunction's modules (x = column, y = row)
   std::vector<int8_t> now;    // compare's shades of the frame's modules
 };
@@ -129,6 +129,29 @@ Levels levels(const cv::Mat& values, int n) {
   return l;
 }
 
+// t_samples.values levelled module by module: each module's shade as the
+// way from the darkest to the lightest module around it (within
+// kAround modules each way, smoothed), on 0-255. A hot spot or a shadow over
+// part of the code lifts or lowers both shades there together; the code's
+// own modules still lie on both sides of any few modules. Where the modules
+// around differ by less than kMinContrast (a clipped hot spot), the shade is
+// left half-way: unclear.
+constexpr int kAround = 2;
+void levelLocally() {
+  Samples& b = t_samples;
+  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, {2 * kAround + 1, 2 * kAround + 1});
+  cv::erode(b.values, b.lo, kernel, {-1, -1}, 1, cv::BORDER_REPLICATE);
+  cv::dilate(b.values, b.hi, kernel, {-1, -1}, 1, cv::BORDER_REPLICATE);
+  cv::blur(b.lo, b.lo, {2 * kAround + 1, 2 * kAround + 1}, {-1, -1}, cv::BORDER_REPLICATE);
+  cv::blur(b.hi, b.hi, {2 * kAround + 1, 2 * kAround + 1}, {-1, -1}, cv::BORDER_REPLICATE);
+  for (int r = 0; r < b.values.rows; ++r) {
+    float* v = b.values.ptr<float>(r);
+    const float *lo = b.lo.ptr<float>(r), *hi = b.hi.ptr<float>(r);
+    for (int c = 0; c < b.values.cols; ++c)
+      v[c] = hi[c] - lo[c] < kMinContrast ? 127.5f : std::clamp(255.f * (v[c] - lo[c]) / (hi[c] - lo[c]), 0.f, 255.f);
+  }
+}
+
 // Each of the n x n modules of t_samples.values: 1 dark, 0 light, -1 between.
 void shades(const Levels& l, int n, std::vector<int8_t>& out) {
   out.resize(static_cast<size_t>(n) * n);
@@ -158,6 +181,7 @@ bool QrLook::capture(const cv::Mat& image, const std::array<cv::Point2f, 4>& cor
   }
   if (best_n == 0) return false;
   sample(image, *h, best_n);
+  levelLocally();
   const Levels l = levels(t_samples.values, best_n);
   if (!l.sharp()) return false;
   shades(l, best_n, ref_);
@@ -173,6 +197,7 @@ QrLook::Verdict QrLook::compare(const cv::Mat& image, const std::array<cv::Point
   const auto h = qrSquareToImage(corners);
   if (!h) return Verdict::Unsure;
   sample(image, *h, n_);
+  levelLocally();
   const Levels l = levels(t_samples.values, n_);
   if (!l.sharp()) return Verdict::Unsure;
   std::vector<int8_t>& now = t_samples.now;

@@ -96,7 +96,9 @@ class QrReader {
 /// re-read. Codes of payloads that differ in one character still differ in
 /// 8-29 % of their modules (the error correction's codewords and the mask
 /// change), so sharp frames tell them apart; a blurred or washed-out frame
-/// says nothing.
+/// says nothing. Each module's shade is taken against the darkest and the
+/// lightest modules within two of it, so a hot spot or a shadow over part of
+/// the code neither turns its modules nor stops a look.
 class QrLook {
  public:
   enum class Verdict {
