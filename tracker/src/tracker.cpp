@@ -296,8 +296,11 @@ std::pair<double, double> Tracker::gateMargins(const cv::Point2d& centre, double
                                                double max_dist) const {
   const double s1 = det_size_[j];
   if (!(std::max(size, s1) <= params_.max_size_ratio * std::min(size, s1))) return {-1, -1};
-  const double half = 0.5 * (size + s1), d = dist(centre, det_centre_[j]);  // (one distance for both gates)
-  return {max_dist * half - d, params_.max_distance * half - d};
+  // (in landmark sizes, as the gates: a pixel of a large landmark's margin
+  // is worth no more than one of a small one's, or a large stale landmark
+  // took the detection of a smaller one predicted exactly)
+  const double half = 0.5 * (size + s1), d = dist(centre, det_centre_[j]) / half;
+  return {max_dist - d, params_.max_distance - d};
 }
 
 void Tracker::updateMatched(PoolEntry& e, const Landmark& det, int d, int64_t utime) {

@@ -50,7 +50,7 @@ class FrameMatcher {
   /// is time starting again (a log replayed from its start) and taken. Where
   /// the utime stands still, the seq says it: up to kLateSeqs back is late.
   bool takeNewest(Pair& out);
-  static constexpr int64_t kLateUs = 100'000, kLateSeqs = 3;
+  static constexpr int64_t kLateUs = 1'000'000, kLateSeqs = 3;  // (kLateUs: Tracker::kLateFrameUs)
 
   int64_t skipped() const { return skipped_; }
   int64_t late() const { return late_; }

@@ -15,7 +15,7 @@
 //                 on the distance between the predicted pool landmark and the
 //                 new one: pairs beyond the maximum distance or the size ratio
 //                 are never made; a pair within gains its margin (the gate's
-//                 radius less the distance) and the assignment of the largest
+//                 radius less the distance, in landmark sizes) and the assignment of the largest
 //                 total gain wins, so two poor pairs never displace a good one
 //                 and a landmark that leaves as another comes leaves its id
 //                 behind; a detection two pool landmarks could both be goes to
@@ -151,8 +151,12 @@ class Tracker {
   const std::vector<Track>& update(const std::vector<Landmark>& detections, int64_t utime,
                                    cv::Size image = {});
   /// How much older than the previous frame a frame may be and still be a
-  /// late message rather than time starting again (three frames at 30/s).
-  static constexpr int64_t kLateFrameUs = 100'000;
+  /// late message rather than time starting again: a second, the default
+  /// lifetime (a message held up 4 frames on a busy network cleared the
+  /// pool when this was 0.1 s, and the tracks rebuilt from that old frame
+  /// moved every id along a row of landmarks panning past). A log replayed
+  /// again goes back by its length.
+  static constexpr int64_t kLateFrameUs = 1'000'000;
 
   /// The tracks reported by the last update().
   const std::vector<Track>& tracks() const { return out_; }
