@@ -15,6 +15,18 @@ namespace {
 // pool landmark has been unseen.
 constexpr double kStaleWeight = 1.0;
 
+// A landmark followed with its own motion predicts itself well: a detection
+// further from its prediction than kSurpriseMin sizes, kSurpriseOwn times
+// its detections' usual distance from their predictions and kSurpriseFrame
+// times the farthest of the frame's other landmarks followed without a gap
+// is another landmark (a landmark missed for one frame gave its id to a
+// newcomer 1.5-1.8 sizes away: a review). A jolt of the robot moves every
+// landmark together (the frame's others allow it); a lone landmark that
+// jumps more than kSurpriseMin gets a new id.
+constexpr double kSurpriseMin = 1.0, kSurpriseOwn = 4.0, kSurpriseFrame = 2.0;
+// Weight of a frame in the running mean of a track's distance from its prediction.
+constexpr double kMissDistanceWeight = 0.3;
+
 // Microseconds from `then` to `now` (now >= then: update() restarts when time
 // goes back), saturated: any two utimes may arrive, and their difference can
 // exceed int64_t (found by tests/fuzz/fuzz_messages).
@@ -177,6 +189,7 @@ const std::vector<Track>& Tracker::update(const std::vector<Landmark>& detection
       if (e.restart_motion) {
         e.velocity = common;
         e.size_rate = 0;
+        e.miss_distance = 1.0;
         e.motion = has_common ? Motion::Borrowed : Motion::None;
       } else if (e.motion == Motion::None && has_common) {  // still without its own
         e.velocity = common;
@@ -220,6 +233,7 @@ void Tracker::assign(int64_t utime, cv::Size image) {
   // moved every id one landmark over along a row of landmarks when one left
   // the image as another came in: one pair more, each a poor one.)
   gain_.assign(n_pool * n_det, 0.0);
+  off_.assign(n_pool * n_det, 0.0);
   double max_gain = 0;
   for (size_t i = 0; i < n_pool; ++i) {
     const PoolEntry& e = pool_[i];
@@ -248,15 +262,20 @@ void Tracker::assign(int64_t utime, cv::Size image) {
       // (a pair in the gate but beyond the plain one still gains a little: it is allowed)
       const double g = (std::max(plain, 0.0) + 1e-3) / (1.0 + kStaleWeight * unseen_s);
       gain_[i * n_det + j] = g;
+      off_[i * n_det + j] = params_.max_distance - plain;
       max_gain = std::max(max_gain, g);
     }
   }
   if (max_gain <= 0) return;  // no pair inside its gate
   // Largest gain = least cost max_gain - gain over a full rectangular
-  // assignment; its pairs without gain are no match.
+  // assignment; its pairs without gain are no match. Solved again without
+  // the pairs refuseSurprises() refuses, if any.
   cost_.resize(n_pool * n_det);
-  for (size_t k = 0; k < cost_.size(); ++k) cost_[k] = max_gain - gain_[k];
-  hungarian_.solve(cost_.data(), static_cast<int>(n_pool), static_cast<int>(n_det), row_to_col_);
+  for (int pass = 0; pass < 2; ++pass) {
+    for (size_t k = 0; k < cost_.size(); ++k) cost_[k] = max_gain - gain_[k];
+    hungarian_.solve(cost_.data(), static_cast<int>(n_pool), static_cast<int>(n_det), row_to_col_);
+    if (pass == 1 || !refuseSurprises(utime)) break;
+  }
   for (size_t i = 0; i < n_pool; ++i) {
     const int j = row_to_col_[i];
     if (j < 0 || !(gain_[i * n_det + static_cast<size_t>(j)] > 0)) continue;
@@ -264,6 +283,45 @@ void Tracker::assign(int64_t utime, cv::Size image) {
     det_matched_[static_cast<size_t>(j)] = 1;
     ++stats_.matches;
   }
+}
+
+bool Tracker::refuseSurprises(int64_t utime) {
+  const size_t n_det = det_index_.size();
+  auto matchOf = [&](size_t i) {
+    const int j = row_to_col_[i];
+    return j >= 0 && gain_[i * n_det + static_cast<size_t>(j)] > 0 ? j : -1;
+  };
+  // The two farthest of the landmarks followed without a gap (so that each
+  // has the farthest of the others).
+  double far1 = 0, far2 = 0;
+  for (size_t i = 0; i < pool_.size(); ++i) {
+    const int j = matchOf(i);
+    if (j < 0 || pool_[i].frames_since_seen > 0 || pool_[i].motion != Motion::Measured) continue;
+    const double off = off_[i * n_det + static_cast<size_t>(j)];
+    if (off > far1) {
+      far2 = far1;
+      far1 = off;
+    } else {
+      far2 = std::max(far2, off);
+    }
+  }
+  bool refused = false;
+  for (size_t i = 0; i < pool_.size(); ++i) {
+    const PoolEntry& e = pool_[i];
+    const int j = matchOf(i);
+    // (only a landmark detected in the frame before, as often as before:
+    // the prediction of one unseen for longer is less sure)
+    if (j < 0 || e.motion != Motion::Measured || e.frames_since_seen > 0 ||
+        2 * elapsedUs(utime, e.last_seen_utime) > 3 * e.seen_gap_us)
+      continue;
+    const size_t k = i * n_det + static_cast<size_t>(j);
+    const double others = off_[k] >= far1 ? far2 : far1;
+    if (off_[k] > std::max({kSurpriseMin, kSurpriseOwn * e.miss_distance, kSurpriseFrame * others})) {
+      gain_[k] = 0;
+      refused = true;
+    }
+  }
+  return refused;
 }
 
 Tracker::Sides Tracker::sidesLeftBy(const PoolEntry& e, cv::Size image) const {
@@ -312,6 +370,8 @@ void Tracker::updateMatched(PoolEntry& e, const Landmark& det, int d, int64_t ut
     // has ended (the robot stopped or turned back).
     e.restart_motion = true;
   } else if (dt > 0) {
+    if (e.frames_since_seen == 0 && e.motion == Motion::Measured)
+      e.miss_distance += kMissDistanceWeight * (dist(e.pred_centre, centre) / (0.5 * (e.pred_size + size)) - e.miss_distance);
     const cv::Point2d v = (centre - e.centre) / dt;
     const double sr = (size - e.size) / dt;
     const double a = e.motion == Motion::Measured ? params_.velocity_smoothing : 1.0;
@@ -333,6 +393,7 @@ void Tracker::updateMatched(PoolEntry& e, const Landmark& det, int d, int64_t ut
   }
   e.centre = centre;
   e.size = size;
+  e.seen_gap_us = elapsedUs(utime, e.last_seen_utime);
   e.last_seen_utime = utime;
   e.frames_since_seen = 0;
   ++e.hits;

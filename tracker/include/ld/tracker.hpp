@@ -20,7 +20,8 @@
 //                 and a landmark that leaves as another comes leaves its id
 //                 behind; a detection two pool landmarks could both be goes to
 //                 the one seen more recently (the margin is divided by 1 + the
-//                 seconds unseen)
+//                 seconds unseen); a pair far off a well-predicted landmark's
+//                 prediction, where the frame's others are not, is refused
 //   4. update     matched tracks take the detection (corners, pose; the track's
 //                 payload is kept when the detection has none) and refresh
 //                 their velocity; unmatched tracks coast; unmatched detections
@@ -59,7 +60,10 @@ struct TrackerParams {
   /// Larger tolerates faster unpredicted motion; smaller separates close
   /// landmarks. Two landmarks' centres are at least about 1.1 sizes apart.
   /// A landmark seen once (no velocity yet) that missed frames may be twice
-  /// as far.
+  /// as far. A landmark detected in the frame before, whose motion is
+  /// measured, may be no further than a size from its prediction, unless its
+  /// detections or the frame's other landmarks have been further from theirs
+  /// (README, "The tracker").
   double max_distance = 2.0;
   /// Extra distance allowed per second a landmark has been unseen (landmark
   /// sizes per second): the prediction of a coasting landmark gets less
@@ -187,6 +191,11 @@ class Tracker {
     cv::Point2d pred_centre;         // at the current frame's utime
     double pred_size = 0;
     int detection = -1;              // matched detection this frame
+    // How far its detections have been from where its motion put them
+    // (landmark sizes, a running mean over frames followed without a gap,
+    // its motion measured): 1, unknown, until then.
+    double miss_distance = 1.0;
+    int64_t seen_gap_us = 0;         // between its last two detections
   };
 
   void predict(int64_t utime);
@@ -201,8 +210,12 @@ class Tracker {
     bool towards(const cv::Point2d& p, cv::Size image) const;
   };
   Sides sidesLeftBy(const PoolEntry& e, cv::Size image) const;
+  // A matched pair whose detection is much further from the landmark's
+  // prediction than its detections have been, and than the frame's other
+  // landmarks are from theirs, is no pair (refused: true).
+  bool refuseSurprises(int64_t utime);
   // How far inside its gate valid detection j is from a pool landmark at
-  // (centre, size), in pixels: the gate's radius (max_dist sizes, the pair's
+  // (centre, size), in landmark sizes: the gate's radius (max_dist sizes, the pair's
   // mean size) less their distance, and the same inside the plain gate
   // (max_distance sizes); negative outside them, -1 for both when the pair
   // fails the size ratio.
@@ -223,7 +236,7 @@ class Tracker {
   std::vector<int> det_index_;      // valid detections' indices into the input
   std::vector<char> det_matched_;
   std::vector<double> common_vx_, common_vy_;
-  std::vector<double> gain_, cost_;
+  std::vector<double> gain_, cost_, off_;  // off_: each pair's distance from the prediction, sizes
   std::vector<int> row_to_col_;
   Hungarian hungarian_;
 };
