@@ -668,6 +668,38 @@ TEST(Tracker, LandmarkThatLeftTheImageGivesItsIdToNoNewcomer) {
   EXPECT_EQ(idOf(tr.update({square(420, 240, 60)}, frameTime(30), {640, 480}), 0), a);
 }
 
+// A row near the top of the image tilted out through the top and back as
+// the robot rocks, while it pans on: each landmark comes back with its id,
+// looked for where it left the side moved along it as its motion went (a
+// review: looked for where it left, the pan meanwhile, 0.8 sizes, put each
+// nearer its left neighbour's place, and the ids came back one landmark over).
+TEST(Tracker, RowRockedOutThroughTheTopComesBackWithItsIds) {
+  for (const auto& [pan, side] : {std::pair{3.0, 40.0}, {3.0, 80.0}, {10.0, 40.0}}) {
+    ld::Tracker tr;
+    std::map<int, int64_t> id_of;  // landmark -> id
+    std::map<int64_t, int> landmark_of;
+    for (int k = 0; k < 90; ++k) {
+      const double dy = 40 * std::sin(2 * M_PI * k / 30);
+      std::vector<ld::Landmark> dets;
+      std::vector<int> which;
+      for (int i = 0; i < 7; ++i) {
+        const double x = i < 6 ? 60 + i * 1.6 * side - pan * k : 300, size = i < 6 ? side : 0.8 * side;
+        const double y = i < 6 ? side / 2 + 5 + dy + (i % 2) * 0.3 * side : 400;
+        if (x - size / 2 < 0 || x + size / 2 > 639 || y - size / 2 < 0) continue;
+        dets.push_back(square(x, y, size));
+        which.push_back(i);
+      }
+      const auto& out = tr.update(dets, frameTime(k), {640, 480});
+      for (size_t d = 0; d < dets.size(); ++d) {
+        const int64_t id = idOf(out, static_cast<int>(d));
+        EXPECT_EQ(id_of.emplace(which[d], id).first->second, id)
+            << pan << " px a frame, " << side << " px: landmark " << which[d] << ", frame " << k;
+        EXPECT_EQ(landmark_of.emplace(id, which[d]).first->second, which[d]);
+      }
+    }
+  }
+}
+
 // What a review of rules tried with the side rule above lost (each kept by
 // the tracker before and after): one of two landmarks 1.2 sizes apart
 // hidden while the robot stops, found again where it stopped, short of

@@ -248,13 +248,24 @@ void Tracker::assign(int64_t utime, cv::Size image) {
     // stopped or turned back (a landmark that left the image comes back
     // where it left).
     const bool two_places = e.frames_since_seen > 0 && e.pred_centre != e.centre;
-    // Predicted past a side of the image, it comes back through that side.
+    // Predicted past a side of the image, it comes back through that side,
+    // where it left it or moved along it as its motion went (a row tilted out
+    // through the top as the robot rocked, while it panned on: a review
+    // found the ids one landmark over when the row came back).
     const Sides gone = sidesLeftBy(e, image);
+    const bool across = gone.top || gone.bottom, along = gone.left || gone.right;
+    const bool third_place = two_places && across != along;
+    const cv::Point2d moved_along = across ? cv::Point2d(e.pred_centre.x, e.centre.y) : cv::Point2d(e.centre.x, e.pred_centre.y);
     for (size_t j = 0; j < n_det; ++j) {
       if (gone.any() && !gone.towards(det_centre_[j], image)) continue;
       auto [margin, plain] = gateMargins(e.pred_centre, e.pred_size, j, max_dist);
       if (two_places) {
         const auto [there, there_plain] = gateMargins(e.centre, e.size, j, max_dist);
+        margin = std::max(margin, there);
+        plain = std::max(plain, there_plain);
+      }
+      if (third_place) {
+        const auto [there, there_plain] = gateMargins(moved_along, e.size, j, max_dist);
         margin = std::max(margin, there);
         plain = std::max(plain, there_plain);
       }

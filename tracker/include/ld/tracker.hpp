@@ -9,7 +9,8 @@
 //                 where it was last seen (the robot stopped or turned back:
 //                 a landmark that left the image comes back where it left);
 //                 one predicted past a side of the image it was last seen
-//                 near comes back through that side (given the image size)
+//                 near comes back through that side (given the image size),
+//                 also where it left moved along that side as its motion went
 //   3. assign     the paper's three cases: empty pool (all new), no detections
 //                 (all age), both non-empty: optimal assignment (Hungarian)
 //                 on the distance between the predicted pool landmark and the
