@@ -67,10 +67,12 @@ rc=0; timeout 10 "$BIN/ld-tracker" --lcm-url bogus://x >/dev/null 2>"$T/err" || 
 # a udpm URL without a port (LCM took it as port 0: it never received, and
 # its wait aborted the process after a while), or with a group that is not
 # multicast: refused at once
-# a ttl or recv_buf_size that is no number (LCM took it as 0, said so on a line of its own, and ran on)
+# a ttl or recv_buf_size that is no number (LCM took it as 0, said so on a line of its own, and ran on),
+# or an option udpm does not have (a misspelt ttl: LCM said so on a line of its own and ran on)
 for url in "udpm://239.255.76.67|no port" "udpm://999.1.1.1:7667|999.1.1.1 is not a multicast group" \
   "udpm://239.255.76.67:7667?ttl=abc|ttl abc is not one (0 to 255: 0 keeps packets on this machine, 1 on its LAN)" \
-  "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=-1|recv_buf_size -1 is not one (0 to 2147483647 bytes, 0 LCM's default)"; do
+  "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=-1|recv_buf_size -1 is not one (0 to 2147483647 bytes, 0 LCM's default)" \
+  "udpm://239.255.76.67:7667?tll=1|udpm has no option tll (ttl, recv_buf_size; e.g. "; do
   rc=0; timeout 10 "$BIN/ld-tracker" --lcm-url "${url%%|*}" >/dev/null 2>"$T/err" || rc=$?
   [ $rc -eq 2 ] && grep -q "^ld-tracker: LCM URL ${url%%|*}: ${url#*|}" "$T/err" || { echo "FAIL: ${url%%|*}: $rc $(cat "$T/err")"; exit 1; }
 done

@@ -60,6 +60,10 @@ std::string lcmUrlProblem(const std::string& url) {
       const size_t eq = option.find('=');
       const std::string key = option.substr(0, eq), value = eq == std::string::npos ? "" : option.substr(eq + 1);
       const long lo = 0, hi = key == "ttl" ? 255 : INT32_MAX;  // (recv_buf_size 0: LCM's default)
+      // (LCM says "unknown provider argument" on a line of its own and runs
+      // on: a misspelt ttl=1 kept a robot's traffic on one machine unnoticed)
+      if (provider == "udpm" && !key.empty() && key != "ttl" && key != "recv_buf_size" && key != "transmit_only")
+        return url + ": udpm has no option " + key + " (ttl, recv_buf_size; e.g. " + kLcmUrlExample + ")";
       if (key != "ttl" && key != "recv_buf_size") continue;
       char* stop = nullptr;
       errno = 0;
