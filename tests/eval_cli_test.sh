@@ -11,9 +11,13 @@ T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
 fail() { echo "FAIL: $*" >&2; exit 1; }
 
 # A 30 cm landmark is detected at 1 m and its short payload read at 0.5 m.
-"$BIN/ld-eval" size --detect-at 1 --read-at 0.5 --side 0.3 --trials 8 >"$T/size.md" 2>/dev/null \
+"$BIN/ld-eval" size --detect-at 1 --read-at 0.5 --side 0.3 --trials 8 >"$T/size.md" 2>"$T/size.err" \
   || fail "size: exit $?"
 grep -q "^smallest landmark: 30 cm" "$T/size.md" || fail "size: $(cat "$T/size.md")"
+# ... with a line on stderr as each point ends, as every subcommand (a user audit: size printed none)
+grep -q "^  landmark 30 cm detected, 1.00 m, yaw within +-30: detected [0-9]*/8$" "$T/size.err" &&
+  grep -q "^  landmark 30 cm read, 0.50 m, yaw within +-30: detected [0-9]*/8, decoded [0-9]*$" "$T/size.err" ||
+  fail "size, progress: $(cat "$T/size.err")"
 # ... and says what code it measured: 20 bytes, version 2 at Q, 4.94 mm modules on 30 cm
 grep -q "^its QR: 20 bytes, version 2 (25 modules), error correction Q, modules of 4.94 mm on a 30 cm landmark" \
   "$T/size.md" || fail "size, the code: $(cat "$T/size.md")"

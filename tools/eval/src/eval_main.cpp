@@ -709,6 +709,7 @@ int main(int argc, char** argv) {
         o.decode = false;
         o.misses_tag = "detect";
         const auto det = ld::eval::measure(o, s_detect, 0, s_yaw);
+        progress("landmark " + cm(side) + " detected", s_yaw, false)(det);
         o.decode = true;
         o.misses_tag = "read";
         o.payload = [s_payload](int i) {
@@ -718,6 +719,7 @@ int main(int argc, char** argv) {
         };
         o.stack_frames = s_stack;
         const auto rd = ld::eval::measure(o, s_read, 0, s_yaw);
+        progress("landmark " + cm(side) + " read", s_yaw, true, s_stack)(rd);
         o.stack_frames = 0;
         const int read = s_stack > 0 ? rd.decoded_stacked : rd.decoded;
         t << "| " << cm(side) << " | " << pct(det.detected, det.trials) << " % | "
