@@ -78,6 +78,8 @@ grep -q -- "--ecc: .*not 'Z'" "$T/err" || fail "--ecc Z: $(cat "$T/err")"
 # A payload that cannot be encoded: refused with one line, nothing half-written on stdout.
 if "$BIN/ld-generate" -p "" --svg "$T/e.svg" >"$T/out" 2>"$T/err"; then fail "empty payload accepted"; fi
 [ ! -s "$T/out" ] && [ "$(wc -l <"$T/err")" -eq 1 ] || fail "empty payload: '$(cat "$T/out")' $(cat "$T/err")"
+# (it said a code holds at most 2953 bytes: a user audit)
+grep -q "QR payload is empty: a code holds at least one byte" "$T/err" || fail "empty payload: $(cat "$T/err")"
 big=$(head -c 3000 /dev/zero | tr '\0' a)
 if "$BIN/ld-generate" -p "$big" --svg "$T/e.svg" >"$T/out" 2>"$T/err"; then fail "3000 bytes accepted"; fi
 [ ! -s "$T/out" ] && grep -q "payload of 3000 bytes cannot be encoded: a QR code holds at most 2953 bytes at level L" "$T/err" || fail "3000 bytes: $(cat "$T/err")"

@@ -49,7 +49,9 @@ refused "--source camera and --replay name two sources; give one" --replay "$T/i
 refused "--fps is for --play (ld-play's source), and this run's source is replay" --replay "$T/in.lcmlog" --fps 10
 refused "--speed is for --replay (lcm-logplayer's source; --play takes --fps), and this run's source is play" --play "$T/in.lcmlog" --speed 2
 refused "--camera-arg is for the camera source, and this run's source is play" --play "$T/in.lcmlog" --camera-arg=--fake
-refused "--duration is for --play (ld-play's source), and this run's source is camera" --duration 5
+refused "--duration is for --play (ld-play's source), and this run's source is camera (--help lists the options)" --duration 5
+refused "--processes: unknown process \"bogus\" (detector, tracker, qr-reader or none) (--help lists the options)" \
+  --replay "$T/in.lcmlog" --processes bogus
 refused "--speed: must be in \[0.01, 1000\], not -1" --replay "$T/in.lcmlog" --speed -1
 refused "--speed: must be in \[0.01, 1000\], not 0" --replay "$T/in.lcmlog" --speed 0
 refused "--speed: must be in \[0.01, 1000\], not 1e300" --replay "$T/in.lcmlog" --speed 1e300

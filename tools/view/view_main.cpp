@@ -518,12 +518,13 @@ int main(int argc, char** argv) {
   }
   if (all_frames && logs.empty())
     return ld::cli::usage(argv[0], "--all is for --log (live, every frame with a tracked list is drawn)");
+  if (!logs.empty() && app.count("--lcm-url"))
+    return ld::cli::usage(argv[0], "--lcm-url is for live viewing (--log reads its files)");
   if (!o.video.empty() && !ld::hasExtension(o.video, ".avi"))
     return ld::cli::usage(argv[0], "--video " + o.video + ": the video is MJPG in AVI, its name must end in .avi");
   o.window = force_window || (display && o.out_dir.empty() && o.video.empty());
   if (!o.window && o.out_dir.empty() && o.video.empty()) {
-    std::cerr << "ld-view: no display: give --out DIR or --video FILE\n";
-    return 2;
+    return ld::cli::usage(argv[0], "no display: give --out DIR or --video FILE");
   }
   if (o.window) {
     const std::string why = probeWindow();

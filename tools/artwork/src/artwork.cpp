@@ -277,6 +277,8 @@ QrEcc parseQrEcc(const std::string& text) {
 }
 
 QrCode encodeQr(const std::string& payload, QrEcc ecc) {
+  // (qrencode refuses no data, and the message said the payload was too long)
+  if (payload.empty()) throw std::invalid_argument("QR payload is empty: a code holds at least one byte");
   static constexpr QRecLevel kLevel[] = {QR_ECLEVEL_L, QR_ECLEVEL_L, QR_ECLEVEL_M, QR_ECLEVEL_Q, QR_ECLEVEL_H};
   static constexpr char kName[] = {'L', 'L', 'M', 'Q', 'H'};
   int chosen = static_cast<int>(ecc);

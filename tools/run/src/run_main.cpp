@@ -197,10 +197,14 @@ void printReport(const Json& s) {
   if (!f["qr_reader_skipped"].is_null())
     std::printf(", %lld by the QR reader", f["qr_reader_skipped"].get<long long>());
   std::printf(")\n");
-  std::printf("landmarks per frame: mean %.2f, max %d; frames by count:", lpf["mean"].get<double>(),
-              lpf["max"].get<int>());
-  for (const auto& [n, c] : lpf["histogram"].items()) std::printf(" %s:%lld", n.c_str(), c.get<long long>());
-  std::printf("\n");
+  if (lpf["histogram"].empty()) {  // (no tracked frame: a histogram of nothing read "frames by count:" and no more)
+    std::printf("landmarks per frame: none (no frame was tracked)\n");
+  } else {
+    std::printf("landmarks per frame: mean %.2f, max %d; frames by count:", lpf["mean"].get<double>(),
+                lpf["max"].get<int>());
+    for (const auto& [n, c] : lpf["histogram"].items()) std::printf(" %s:%lld", n.c_str(), c.get<long long>());
+    std::printf("\n");
+  }
   if (lat["count"].get<long long>() > 0)
     std::printf("end-to-end latency IMAGE -> LANDMARKS_TRACKED (%lld frames): p50 %.2f ms, p90 %.2f ms, "
                 "p99 %.2f ms, max %.2f ms\n",
@@ -266,7 +270,7 @@ int main(int argc, char** argv) {
   app.add_option("--fps", play_fps, "--play: frames per second (0.001 to 1000)")->check(ld::cli::Between(0.001, 1000));
   app.add_option("--duration", play_duration, "--play: seconds to publish (default: the log once)")
       ->check(ld::cli::NonNegative);
-  app.add_option("--play-format", play_format, "--play: keep, bgr, rgb, gray, yuyv, uyvy or mjpeg")
+  app.add_option("--play-format", play_format, "--play: keep, bgr, rgb, rgba, bgra, gray, yuyv, uyvy or mjpeg")
       ->check(ld::cli::Parses("FORMAT", ld::checkPlayFormat));
   app.add_option("--camera-arg", camera_args, "an argument for ld-camera (repeatable)")
       ->allow_extra_args(false);
@@ -339,8 +343,8 @@ int main(int argc, char** argv) {
       else if (p == "tracker") cfg.tracker.enabled = true;
       else if (p == "qr-reader" || p == "qr_reader") cfg.qr_reader.enabled = true;
       else if (p != "none" && !p.empty()) {
-        std::cerr << "ld-run: --processes: unknown process \"" << p << "\"\n";
-        return 2;
+        return ld::cli::usage(argv[0], "--processes: unknown process \"" + p +
+                                           "\" (detector, tracker, qr-reader or none)");
       }
     }
   }
@@ -355,15 +359,10 @@ int main(int argc, char** argv) {
       stray = "--speed is for --replay (lcm-logplayer's source; --play takes --fps)";
     if (stray.empty() && cfg.source != "camera" && !camera_args.empty())
       stray = "--camera-arg is for the camera source";
-    if (!stray.empty()) {
-      std::cerr << "ld-run: " << stray << ", and this run's source is " << cfg.source << "\n";
-      return 2;
-    }
+    if (!stray.empty()) return ld::cli::usage(argv[0], stray + ", and this run's source is " + cfg.source);
   }
-  if (exit_when_done && cfg.source != "replay" && cfg.source != "play") {
-    std::cerr << "ld-run: --exit-when-replay-done needs a replay or play source\n";
-    return 2;
-  }
+  if (exit_when_done && cfg.source != "replay" && cfg.source != "play")
+    return ld::cli::usage(argv[0], "--exit-when-replay-done needs a replay or play source");
 
   // 1. The network namespace, before any thread exists.
   if (netns && !ld::netnsVouchedFor()) {
