@@ -66,10 +66,24 @@ TEST(DecodeMessage, WellFormedMessagesDecodeAsLcmDoes) {
   codes.codes.resize(1);
   codes.codes[0].payload = "x";
   codes.ncodes = 1;
+  codes.withheld_track_ids = {4, 9};
+  codes.nwithheld = 2;
   ld::qr_code_list_t codes_out;
   const Bytes bq = lcmEncode(codes);
   ASSERT_TRUE(ld::decodeMessage(bq.data(), bq.size(), codes_out, &why)) << why;
   EXPECT_EQ(lcmEncode(codes_out), bq);
+  EXPECT_EQ(codes_out.withheld_track_ids, (std::vector<int64_t>{4, 9}));
+  // none withheld in the next message: none kept from the last
+  codes.withheld_track_ids.clear();
+  codes.nwithheld = 0;
+  const Bytes none = lcmEncode(codes);
+  ASSERT_TRUE(ld::decodeMessage(none.data(), none.size(), codes_out, &why)) << why;
+  EXPECT_TRUE(codes_out.withheld_track_ids.empty());
+  // a count of withheld ids the message has no bytes for
+  Bytes cut = bq;
+  cut.resize(cut.size() - 8);
+  EXPECT_FALSE(ld::decodeMessage(cut.data(), cut.size(), codes_out, &why));
+  EXPECT_NE(why.find("nwithheld 2 does not fit"), std::string::npos) << why;
 }
 
 // A message reused across decodes (the processes' hot path) holds what the

@@ -153,8 +153,11 @@ TEST(Messages, QrCodeListRoundTrips) {
   c.decode_ms = 1.5f;
   in.codes = {c, c};
   in.ncodes = 2;
+  in.withheld_track_ids = {3};
+  in.nwithheld = 1;
   const auto out = roundTrip(in);
   ASSERT_EQ(out.ncodes, 2);
+  EXPECT_EQ(out.withheld_track_ids, std::vector<int64_t>{3});
   EXPECT_EQ(out.codes[1].payload, c.payload);
   EXPECT_EQ(out.codes[1].track_id, 7);
   EXPECT_EQ(out.codes[1].corners[3][1], 3.0f);

@@ -778,6 +778,10 @@ TEST(QrTrackReader, StripesOverTheCodeWithholdItsPayloadAndForgetItAfterFiveLook
     const bool published = f == 0 || f == 5 || f == 11;
     EXPECT_EQ(codeOf(out, 7), published ? std::optional<std::string>(p) : std::nullopt) << f;
     EXPECT_EQ(reader.book().payload(7) != nullptr, f < 10 || f == 11) << f;  // (withheld, not forgotten)
+    // the message says which are withheld (a payload known, not published)
+    const bool withheld = !published && f < 10;
+    EXPECT_EQ(out.withheld_track_ids, withheld ? std::vector<int64_t>{7} : std::vector<int64_t>{}) << f;
+    EXPECT_EQ(out.nwithheld, withheld ? 1 : 0) << f;
   }
   EXPECT_EQ(reader.tracksChanged(), 1);
   EXPECT_EQ(reader.tracksRead(), 2);  // (read again at frame 11)

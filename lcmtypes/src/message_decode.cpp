@@ -143,6 +143,8 @@ void walkQrCodeList(Walker& w) {
     w.string("payload");
     w.skip(8 + 8 + 8 * 4 + 4, "code fields");  // utime, seq, corners, decode_ms
   }
+  const int32_t nwithheld = w.count("nwithheld", 8);
+  w.skip(static_cast<size_t>(nwithheld) * 8, "withheld_track_ids");
 }
 
 template <class T, class Walk>
@@ -183,7 +185,9 @@ bool decodeMessage(const void* data, size_t size, landmark_list_t& out, std::str
 }
 
 bool decodeMessage(const void* data, size_t size, qr_code_list_t& out, std::string* error) {
-  return decodeChecked(data, size, out, error, "ld.qr_code_list_t", walkQrCodeList);
+  if (!decodeChecked(data, size, out, error, "ld.qr_code_list_t", walkQrCodeList)) return false;
+  if (out.nwithheld == 0) out.withheld_track_ids.clear();
+  return true;
 }
 
 }  // namespace ld

@@ -156,6 +156,7 @@ void QrTrackReader::process(const image_t& image, const landmark_list_t& list, q
   // stay due and lead the next frame's schedule. (In the list's order, the
   // first unreadable track took the budget every frame.)
   out.codes.clear();
+  out.withheld_track_ids.clear();
   DecodeBudget budget(params_.decode_budget_ms);
   tried_ms_.clear();
   const int stack_frames = params_.stack_frames;
@@ -217,11 +218,15 @@ void QrTrackReader::process(const image_t& image, const landmark_list_t& list, q
   }
 
   // 4. THE PAYLOADS KNOWN for the frame's tracks (but those whose last look
-  // saw another code, not read since: withheld until a look sees theirs)
+  // saw another code, not read since: withheld until a look sees theirs,
+  // and listed as withheld)
   for (const auto& lm : list.landmarks) {
     if (lm.track_id < 0) continue;
-    if (const auto l = looks_.find(lm.track_id); l != looks_.end() && l->second.others > 0) continue;
     if (const auto* k = book_.payload(lm.track_id)) {
+      if (const auto l = looks_.find(lm.track_id); l != looks_.end() && l->second.others > 0) {
+        out.withheld_track_ids.push_back(lm.track_id);
+        continue;
+      }
       qr_code_t c{};
       c.track_id = lm.track_id;
       c.payload = ld::lcmString(k->payload);  // (a NUL byte: U+FFFD)
@@ -237,6 +242,7 @@ void QrTrackReader::process(const image_t& image, const landmark_list_t& list, q
   out.utime = list.utime;
   out.seq = list.seq;
   out.ncodes = static_cast<int32_t>(out.codes.size());
+  out.nwithheld = static_cast<int32_t>(out.withheld_track_ids.size());
 }
 
 }  // namespace ld

@@ -125,6 +125,8 @@ int main(int argc, char** argv) {
     codes.codes.push_back(c);
   }
   codes.ncodes = 2;
+  codes.withheld_track_ids = {5};
+  codes.nwithheld = 1;
   write(root / "fuzz_messages", "qr_code_list_t", lcmEncode(codes, 2));
 
   // fuzz_detector: header + pixels; a frame with a landmark in 3, 1 and 4 channels
