@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <stdexcept>
 
 namespace ld {
@@ -15,15 +16,21 @@ namespace {
 // pool landmark has been unseen.
 constexpr double kStaleWeight = 1.0;
 
-// A landmark followed with its own motion predicts itself well: a detection
-// further from its prediction than kSurpriseMin sizes, kSurpriseOwn times
-// its detections' usual distance from their predictions and kSurpriseFrame
-// times the farthest of the frame's other landmarks followed without a gap
-// is another landmark (a landmark missed for one frame gave its id to a
-// newcomer 1.5-1.8 sizes away: a review). A jolt of the robot moves every
-// landmark together (the frame's others allow it); a lone landmark that
-// jumps more than kSurpriseMin gets a new id.
+// A landmark followed with its own motion predicts itself well, and the
+// frame's other landmarks say how far the robot's motion changed: a
+// detection shifted from its prediction unlike the others' (the median of
+// their shifts) by more than kSurpriseMin sizes, kSurpriseOwn times its
+// detections' usual distance from their predictions and kSurpriseFrame
+// times the farthest of the others from that median, is another landmark (a
+// landmark missed for one frame gave its id to a newcomer 1.5-1.8 sizes
+// away: a review). A jolt or a turn of the robot shifts every landmark
+// alike, in pixels, near or far; a lone landmark is not judged (nothing to
+// tell a jolt from another landmark: a second review, where a small one
+// lost its id at every jolt or start of a turn).
 constexpr double kSurpriseMin = 1.0, kSurpriseOwn = 4.0, kSurpriseFrame = 2.0;
+// A frame is calm where the others' shifts from their predictions, and their
+// scatter, are within this many sizes of the landmark judged.
+constexpr double kCalm = 0.5;
 // Weight of a frame in the running mean of a track's distance from its prediction.
 constexpr double kMissDistanceWeight = 0.3;
 
@@ -233,7 +240,6 @@ void Tracker::assign(int64_t utime, cv::Size image) {
   // moved every id one landmark over along a row of landmarks when one left
   // the image as another came in: one pair more, each a poor one.)
   gain_.assign(n_pool * n_det, 0.0);
-  off_.assign(n_pool * n_det, 0.0);
   double max_gain = 0;
   for (size_t i = 0; i < n_pool; ++i) {
     const PoolEntry& e = pool_[i];
@@ -254,7 +260,15 @@ void Tracker::assign(int64_t utime, cv::Size image) {
     // found the ids one landmark over when the row came back).
     const Sides gone = sidesLeftBy(e, image);
     const bool across = gone.top || gone.bottom, along = gone.left || gone.right;
-    const bool third_place = two_places && across != along;
+    // (only one last seen at that side, within a size of it: a landmark
+    // jolted for a frame in the middle of the image, predicted past a side
+    // by the jolt's speed, took a detection there from its own new track)
+    double to_side = -std::numeric_limits<double>::infinity();  // (a corner past it: positive)
+    if (across != along)
+      for (const cv::Point2f& c : e.lm.corners)
+        to_side = std::max(to_side, gone.top ? -c.y : gone.bottom ? c.y - (image.height - 1.0)
+                                   : gone.left ? -c.x : c.x - (image.width - 1.0));
+    const bool third_place = two_places && across != along && to_side > -e.size;
     const cv::Point2d moved_along = across ? cv::Point2d(e.pred_centre.x, e.centre.y) : cv::Point2d(e.centre.x, e.pred_centre.y);
     for (size_t j = 0; j < n_det; ++j) {
       if (gone.any() && !gone.towards(det_centre_[j], image)) continue;
@@ -273,7 +287,6 @@ void Tracker::assign(int64_t utime, cv::Size image) {
       // (a pair in the gate but beyond the plain one still gains a little: it is allowed)
       const double g = (std::max(plain, 0.0) + 1e-3) / (1.0 + kStaleWeight * unseen_s);
       gain_[i * n_det + j] = g;
-      off_[i * n_det + j] = params_.max_distance - plain;
       max_gain = std::max(max_gain, g);
     }
   }
@@ -298,37 +311,51 @@ void Tracker::assign(int64_t utime, cv::Size image) {
 
 bool Tracker::refuseSurprises(int64_t utime) {
   const size_t n_det = det_index_.size();
-  auto matchOf = [&](size_t i) {
-    const int j = row_to_col_[i];
-    return j >= 0 && gain_[i * n_det + static_cast<size_t>(j)] > 0 ? j : -1;
-  };
-  // The two farthest of the landmarks followed without a gap (so that each
-  // has the farthest of the others).
-  double far1 = 0, far2 = 0;
-  for (size_t i = 0; i < pool_.size(); ++i) {
-    const int j = matchOf(i);
-    if (j < 0 || pool_[i].frames_since_seen > 0 || pool_[i].motion != Motion::Measured) continue;
-    const double off = off_[i * n_det + static_cast<size_t>(j)];
-    if (off > far1) {
-      far2 = far1;
-      far1 = off;
-    } else {
-      far2 = std::max(far2, off);
-    }
-  }
-  bool refused = false;
+  // The pairs judged: a landmark detected in the frame before, as often as
+  // before, with its own motion (the prediction of one unseen for longer is
+  // less sure), and where its detection is from its prediction (pixels).
+  judged_.clear();
+  shift_.clear();
   for (size_t i = 0; i < pool_.size(); ++i) {
     const PoolEntry& e = pool_[i];
-    const int j = matchOf(i);
-    // (only a landmark detected in the frame before, as often as before:
-    // the prediction of one unseen for longer is less sure)
-    if (j < 0 || e.motion != Motion::Measured || e.frames_since_seen > 0 ||
-        2 * elapsedUs(utime, e.last_seen_utime) > 3 * e.seen_gap_us)
+    const int j = row_to_col_[i];
+    if (j < 0 || !(gain_[i * n_det + static_cast<size_t>(j)] > 0) || e.motion != Motion::Measured ||
+        e.frames_since_seen > 0 || 2 * elapsedUs(utime, e.last_seen_utime) > 3 * e.seen_gap_us)
       continue;
-    const size_t k = i * n_det + static_cast<size_t>(j);
-    const double others = off_[k] >= far1 ? far2 : far1;
-    if (off_[k] > std::max({kSurpriseMin, kSurpriseOwn * e.miss_distance, kSurpriseFrame * others})) {
-      gain_[k] = 0;
+    judged_.push_back(i);
+    shift_.push_back(det_centre_[static_cast<size_t>(j)] - e.pred_centre);
+  }
+  // A lone landmark: nothing to tell a jolt of the robot from another landmark.
+  if (judged_.size() < 2) return false;
+  bool refused = false;
+  for (size_t a = 0; a < judged_.size(); ++a) {
+    // The others' shift from their predictions (the median, each way): a
+    // jolt or a turn of the robot shifts every landmark alike.
+    others_x_.clear();
+    others_y_.clear();
+    for (size_t b = 0; b < judged_.size(); ++b)
+      if (b != a) {
+        others_x_.push_back(shift_[b].x);
+        others_y_.push_back(shift_[b].y);
+      }
+    const auto mid = static_cast<long>(others_x_.size() / 2);
+    std::nth_element(others_x_.begin(), others_x_.begin() + mid, others_x_.end());
+    std::nth_element(others_y_.begin(), others_y_.begin() + mid, others_y_.end());
+    const cv::Point2d common(others_x_[static_cast<size_t>(mid)], others_y_[static_cast<size_t>(mid)]);
+    double spread = 0;  // how far the others are from that shift themselves
+    for (size_t b = 0; b < judged_.size(); ++b)
+      if (b != a) spread = std::max(spread, dist(shift_[b], common));
+    const size_t i = judged_[a];
+    const PoolEntry& e = pool_[i];
+    const int j = row_to_col_[i];
+    const double half = 0.5 * (e.pred_size + det_size_[static_cast<size_t>(j)]);
+    // Only in a frame the others say is calm (their predictions held): in a
+    // jolt or the start of a turn, a wrong pair may be the others' and the
+    // right one the odd one out (a row of equal landmarks jumping 2 sizes).
+    if (dist(common, cv::Point2d(0, 0)) > kCalm * half || spread > kCalm * half) continue;
+    if (dist(shift_[a], common) > std::max({kSurpriseMin * half, kSurpriseOwn * e.miss_distance * half,
+                                            kSurpriseFrame * spread})) {
+      gain_[i * n_det + static_cast<size_t>(j)] = 0;
       refused = true;
     }
   }

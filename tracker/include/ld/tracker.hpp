@@ -21,8 +21,9 @@
 //                 and a landmark that leaves as another comes leaves its id
 //                 behind; a detection two pool landmarks could both be goes to
 //                 the one seen more recently (the margin is divided by 1 + the
-//                 seconds unseen); a pair far off a well-predicted landmark's
-//                 prediction, where the frame's others are not, is refused
+//                 seconds unseen); in a frame whose other landmarks are where
+//                 their predictions put them, a pair far off a well-predicted
+//                 landmark's prediction is refused
 //   4. update     matched tracks take the detection (corners, pose; the track's
 //                 payload is kept when the detection has none) and refresh
 //                 their velocity; unmatched tracks coast; unmatched detections
@@ -62,9 +63,9 @@ struct TrackerParams {
   /// landmarks. Two landmarks' centres are at least about 1.1 sizes apart.
   /// A landmark seen once (no velocity yet) that missed frames may be twice
   /// as far. A landmark detected in the frame before, whose motion is
-  /// measured, may be no further than a size from its prediction, unless its
-  /// detections or the frame's other landmarks have been further from theirs
-  /// (README, "The tracker").
+  /// measured, in a frame whose other landmarks are where their predictions
+  /// put them, may be no further than a size from its prediction, unless its
+  /// detections have been further from theirs (README, "The tracker").
   double max_distance = 2.0;
   /// Extra distance allowed per second a landmark has been unseen (landmark
   /// sizes per second): the prediction of a coasting landmark gets less
@@ -237,7 +238,10 @@ class Tracker {
   std::vector<int> det_index_;      // valid detections' indices into the input
   std::vector<char> det_matched_;
   std::vector<double> common_vx_, common_vy_;
-  std::vector<double> gain_, cost_, off_;  // off_: each pair's distance from the prediction, sizes
+  std::vector<double> gain_, cost_;
+  std::vector<size_t> judged_;          // refuseSurprises: the pool entries judged,
+  std::vector<cv::Point2d> shift_;      //   their detections' shift from their predictions,
+  std::vector<double> others_x_, others_y_;  // the others' shifts, each way
   std::vector<int> row_to_col_;
   Hungarian hungarian_;
 };
