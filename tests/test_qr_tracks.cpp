@@ -106,6 +106,29 @@ TEST(FrameMatcher, LateOrRepeatedFrameIsDroppedNotRead) {
   EXPECT_EQ(m.matched(), 12);
 }
 
+// Lists that keep coming from behind, each newer than the one before, are
+// time stepped back (the tracker restarted after a clock was set back): the
+// third is taken (a review: half a second of lists was dropped).
+TEST(FrameMatcher, TimeSteppedBackIsTakenAtTheThirdFrame) {
+  ld::FrameMatcher m;
+  ld::FrameMatcher::Pair p;
+  const int64_t frame = 33'333;
+  for (int i : {20, 21, 22}) addImage(m, frame * i, i);
+  for (int i : {5, 6, 7}) addImage(m, frame * i, i);  // (0.5 s back)
+  for (int i : {20, 21, 22}) {
+    addList(m, frame * i, i);
+    ASSERT_TRUE(m.takeNewest(p));
+  }
+  addList(m, frame * 5, 5);
+  EXPECT_FALSE(m.takeNewest(p));
+  addList(m, frame * 6, 6);
+  EXPECT_FALSE(m.takeNewest(p));
+  addList(m, frame * 7, 7);
+  ASSERT_TRUE(m.takeNewest(p));
+  EXPECT_EQ(p.key.seq, 7);
+  EXPECT_EQ(m.late(), 2);
+}
+
 // A publisher whose utime stands still: frames with seqs are told apart by
 // them (a later seq is taken, one up to kLateSeqs earlier is late, one
 // further back is the publisher starting again); without seqs each is

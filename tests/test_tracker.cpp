@@ -905,6 +905,29 @@ TEST(Tracker, LateFrameIsSkippedNotARestart) {
   EXPECT_EQ(tr.stats().late_frames, 3);
 }
 
+// Frames that keep coming from behind, each newer than the one before, are
+// time stepped back (a clock set back half a second), not messages held up:
+// the third of them clears the pool and is tracked (a review: the tracker
+// published nothing for half a second, and the ids were new anyway). Two
+// messages held up together are still late.
+TEST(Tracker, TimeSteppedBackIsARestartAtTheThirdFrame) {
+  ld::Tracker tr;
+  for (int k = 0; k < 40; ++k) tr.update({square(200, 200)}, frameTime(k));
+  EXPECT_TRUE(tr.update({square(200, 200)}, frameTime(30)).empty());  // two held up
+  EXPECT_TRUE(tr.update({square(200, 200)}, frameTime(31)).empty());
+  EXPECT_EQ(tr.update({square(200, 200)}, frameTime(40)).size(), 1u);
+  EXPECT_EQ(tr.stats().resets, 0);
+  for (int k = 41; k < 45; ++k) tr.update({square(200, 200)}, frameTime(k));
+  const int64_t back = frameTime(45) - 500'000;  // the clock set back 0.5 s
+  EXPECT_TRUE(tr.update({square(200, 200)}, back).empty());
+  EXPECT_TRUE(tr.update({square(200, 200)}, back + kFrameUs).empty());
+  const auto& out = tr.update({square(200, 200)}, back + 2 * kFrameUs);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].age, 0);
+  EXPECT_EQ(tr.stats().resets, 1);
+  EXPECT_EQ(tr.stats().late_frames, 4);
+}
+
 TEST(Tracker, DegenerateDetectionsAreIgnored) {
   ld::Tracker tr;
   ld::Landmark nan_lm = square(100, 100);

@@ -81,15 +81,29 @@ bool FrameMatcher::takeNewest(Pair& out) {
       return k.seq >= 0 && last_taken_.seq >= 0 && k.seq <= last_taken_.seq && last_taken_.seq - k.seq <= kLateSeqs;
     return k.utime < last_taken_.utime && last_taken_.utime - k.utime <= kLateUs;
   };
-  auto newest = ready_.end();
+  auto newest = ready_.end(), newest_late = ready_.end();
   int64_t late_now = 0;
   for (auto p = ready_.begin(); p != ready_.end(); ++p) {
     if (late(p->key)) {
       ++late_now;
+      if (newest_late == ready_.end() || newest_late->key.utime < p->key.utime) newest_late = p;
     } else if (newest == ready_.end() || newest->key.utime < p->key.utime ||
                (newest->key.utime == p->key.utime && newest->key.seq < p->key.seq)) {
       newest = p;
     }
+  }
+  // Late frames in a row, each newer than the ones before: time stepped back
+  // (as Tracker::update takes it), the kStepBackFrames-th taken.
+  if (newest == ready_.end() && newest_late != ready_.end() && newest_late->key.utime < last_taken_.utime) {
+    behind_ = behind_ > 0 && newest_late->key.utime > behind_utime_ ? behind_ + late_now : late_now;
+    behind_utime_ = newest_late->key.utime;
+    if (behind_ >= kStepBackFrames) {
+      newest = newest_late;
+      --late_now;
+      behind_ = 0;
+    }
+  } else if (newest != ready_.end()) {
+    behind_ = 0;
   }
   late_ += late_now;
   const bool found = newest != ready_.end();

@@ -91,7 +91,11 @@ void Tracker::reset() {
 const std::vector<Track>& Tracker::update(const std::vector<Landmark>& detections, int64_t utime,
                                           cv::Size image) {
   if (has_time_ && utime < last_utime_) {
-    if (elapsedUs(last_utime_, utime) <= kLateFrameUs) {
+    // (frames from behind in a row, each newer than the one before, are time
+    // stepped back, not messages held up: taken from the kStepBackFrames-th)
+    behind_ = behind_ > 0 && utime > behind_utime_ ? behind_ + 1 : 1;
+    behind_utime_ = utime;
+    if (elapsedUs(last_utime_, utime) <= kLateFrameUs && behind_ < kStepBackFrames) {
       ++stats_.late_frames;
       out_.clear();
       return out_;
@@ -99,6 +103,7 @@ const std::vector<Track>& Tracker::update(const std::vector<Landmark>& detection
     reset();
     ++stats_.resets;
   }
+  behind_ = 0;
   has_time_ = true;
   last_utime_ = utime;
   ++stats_.frames;

@@ -51,6 +51,9 @@ class FrameMatcher {
   /// the utime stands still, the seq says it: up to kLateSeqs back is late.
   bool takeNewest(Pair& out);
   static constexpr int64_t kLateUs = 1'000'000, kLateSeqs = 3;  // (kLateUs: Tracker::kLateFrameUs)
+  /// Late pairs in a row from behind, each newer than the ones before: time
+  /// stepped back (Tracker::kStepBackFrames), the last of them taken.
+  static constexpr int kStepBackFrames = 3;
 
   int64_t skipped() const { return skipped_; }
   int64_t late() const { return late_; }
@@ -70,6 +73,8 @@ class FrameMatcher {
   std::vector<std::vector<uint8_t>> spare_;  // recycled buffers
   bool taken_any_ = false;
   Key last_taken_;
+  int behind_ = 0;  // late pairs in a row from behind, each newer than the ones before
+  int64_t behind_utime_ = 0;
   int64_t skipped_ = 0, late_ = 0, unmatched_dropped_ = 0, matched_ = 0;
 };
 

@@ -163,6 +163,11 @@ class Tracker {
   /// moved every id along a row of landmarks panning past). A log replayed
   /// again goes back by its length.
   static constexpr int64_t kLateFrameUs = 1'000'000;
+  /// A run of this many frames from behind, each newer than the one before,
+  /// is time stepped back (a clock set back, a short log replayed again),
+  /// not messages held up: the pool is cleared at the last of them, which is
+  /// tracked (a clock set back 0.5 s gave half a second of nothing).
+  static constexpr int kStepBackFrames = 3;
 
   /// The tracks reported by the last update().
   const std::vector<Track>& tracks() const { return out_; }
@@ -230,6 +235,8 @@ class Tracker {
   int64_t next_id_ = 1;
   bool has_time_ = false;
   int64_t last_utime_ = 0;
+  int behind_ = 0;             // frames from behind in a row, each newer than the one before
+  int64_t behind_utime_ = 0;   // the last of them
   std::vector<PoolEntry> pool_;
   std::vector<Track> out_;
   // per-frame scratch, kept between frames
