@@ -86,6 +86,21 @@ TEST(DecodeMessage, WellFormedMessagesDecodeAsLcmDoes) {
   EXPECT_NE(why.find("nwithheld 2 does not fit"), std::string::npos) << why;
 }
 
+// Payloads kept by track id between codes messages (ld-view's labels): a
+// withheld track's is dropped, where ld-view drew the old payload on.
+TEST(DecodeMessage, TakeCodesDropsWithheldPayloads) {
+  std::map<int64_t, std::string> payloads{{3, "room-101"}, {4, "dock"}};
+  ld::qr_code_list_t codes{};
+  codes.codes.resize(1);
+  codes.codes[0].track_id = 5;
+  codes.codes[0].payload = "room-102";
+  codes.ncodes = 1;
+  codes.withheld_track_ids = {3};
+  codes.nwithheld = 1;
+  ld::takeCodes(codes, payloads);
+  EXPECT_EQ(payloads, (std::map<int64_t, std::string>{{4, "dock"}, {5, "room-102"}}));
+}
+
 // A message reused across decodes (the processes' hot path) holds what the
 // last one said: an empty image's data and a list without stages' times
 // are empty, not the previous message's (lcm-gen's decoder leaves an array

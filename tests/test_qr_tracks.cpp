@@ -106,9 +106,9 @@ TEST(FrameMatcher, LateOrRepeatedFrameIsDroppedNotRead) {
   EXPECT_EQ(m.matched(), 12);
 }
 
-// Lists that keep coming from behind, each newer than the one before, are
-// time stepped back (the tracker restarted after a clock was set back): the
-// third is taken (a review: half a second of lists was dropped).
+// Lists (or images) that keep coming from behind, each newer than the one
+// before, are time stepped back (the tracker restarted after a clock was set
+// back): the third is taken (a review: half a second of lists was dropped).
 TEST(FrameMatcher, TimeSteppedBackIsTakenAtTheThirdFrame) {
   ld::FrameMatcher m;
   ld::FrameMatcher::Pair p;
@@ -127,6 +127,20 @@ TEST(FrameMatcher, TimeSteppedBackIsTakenAtTheThirdFrame) {
   ASSERT_TRUE(m.takeNewest(p));
   EXPECT_EQ(p.key.seq, 7);
   EXPECT_EQ(m.late(), 2);
+  // As the set runs: ld-tracker publishes no list for the first two frames
+  // from behind, so the images count them (the lists alone dropped two more
+  // of the tracker's: a review).
+  ld::FrameMatcher set;
+  for (int i : {20, 21, 22}) {
+    addImage(set, frame * i, i);
+    addList(set, frame * i, i);
+    ASSERT_TRUE(set.takeNewest(p));
+  }
+  for (int i : {5, 6, 7}) addImage(set, frame * i, i);
+  addList(set, frame * 7, 7);
+  ASSERT_TRUE(set.takeNewest(p));
+  EXPECT_EQ(p.key.seq, 7);
+  EXPECT_EQ(set.late(), 0);
 }
 
 // A publisher whose utime stands still: frames with seqs are told apart by

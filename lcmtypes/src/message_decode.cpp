@@ -184,6 +184,11 @@ bool decodeMessage(const void* data, size_t size, landmark_list_t& out, std::str
   return true;
 }
 
+void takeCodes(const qr_code_list_t& codes, std::map<int64_t, std::string>& payloads) {
+  for (const auto& c : codes.codes) payloads[c.track_id] = c.payload;
+  for (const int64_t id : codes.withheld_track_ids) payloads.erase(id);
+}
+
 bool decodeMessage(const void* data, size_t size, qr_code_list_t& out, std::string* error) {
   if (!decodeChecked(data, size, out, error, "ld.qr_code_list_t", walkQrCodeList)) return false;
   if (out.nwithheld == 0) out.withheld_track_ids.clear();

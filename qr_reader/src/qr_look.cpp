@@ -139,7 +139,7 @@ Levels levels(const cv::Mat& values, int n) {
 constexpr int kAround = 2;
 void levelLocally() {
   Samples& b = t_samples;
-  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, {2 * kAround + 1, 2 * kAround + 1});
+  static const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, {2 * kAround + 1, 2 * kAround + 1});
   cv::erode(b.values, b.lo, kernel, {-1, -1}, 1, cv::BORDER_REPLICATE);
   cv::dilate(b.values, b.hi, kernel, {-1, -1}, 1, cv::BORDER_REPLICATE);
   cv::blur(b.lo, b.lo, {2 * kAround + 1, 2 * kAround + 1}, {-1, -1}, cv::BORDER_REPLICATE);

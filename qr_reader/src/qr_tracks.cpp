@@ -6,6 +6,16 @@
 namespace ld {
 
 void FrameMatcher::addImage(const Key& key, const uint8_t* data, size_t size) {
+  // Images from behind the last frame taken, each newer than the one before:
+  // the camera's clock stepped back. ld-tracker publishes no list for the
+  // first kStepBackFrames - 1 of them, so the lists alone would count the
+  // run again from its first list.
+  if (taken_any_ && key.utime < last_taken_.utime) {
+    images_behind_ = images_behind_ > 0 && key.utime > images_behind_utime_ ? images_behind_ + 1 : 1;
+    images_behind_utime_ = key.utime;
+  } else if (taken_any_ && key.utime > last_taken_.utime) {
+    images_behind_ = 0;
+  }
   Entry e{key, {}};
   if (!spare_.empty()) {
     e.bytes = std::move(spare_.back());
@@ -79,7 +89,9 @@ bool FrameMatcher::takeNewest(Pair& out) {
     if (!taken_any_) return false;
     if (k.utime == last_taken_.utime)
       return k.seq >= 0 && last_taken_.seq >= 0 && k.seq <= last_taken_.seq && last_taken_.seq - k.seq <= kLateSeqs;
-    return k.utime < last_taken_.utime && last_taken_.utime - k.utime <= kLateUs;
+    // (the difference as unsigned: any two utimes may come, as in Tracker::update)
+    return k.utime < last_taken_.utime &&
+           static_cast<uint64_t>(last_taken_.utime) - static_cast<uint64_t>(k.utime) <= static_cast<uint64_t>(kLateUs);
   };
   auto newest = ready_.end(), newest_late = ready_.end();
   int64_t late_now = 0;
@@ -97,7 +109,7 @@ bool FrameMatcher::takeNewest(Pair& out) {
   if (newest == ready_.end() && newest_late != ready_.end() && newest_late->key.utime < last_taken_.utime) {
     behind_ = behind_ > 0 && newest_late->key.utime > behind_utime_ ? behind_ + late_now : late_now;
     behind_utime_ = newest_late->key.utime;
-    if (behind_ >= kStepBackFrames) {
+    if (behind_ >= kStepBackFrames || images_behind_ >= kStepBackFrames) {
       newest = newest_late;
       --late_now;
       behind_ = 0;

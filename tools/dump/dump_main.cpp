@@ -95,7 +95,7 @@ nlohmann::ordered_json toJson(const std::string& channel, int64_t log_utime, con
     for (const auto& c : codes.codes)
       j["codes"].push_back({{"track_id", c.track_id}, {"payload", c.payload}, {"utime", c.utime},
                             {"seq", c.seq}, {"decode_ms", c.decode_ms}});
-    j["withheld"] = codes.withheld_track_ids;
+    j["withheld_track_ids"] = codes.withheld_track_ids;
   } else {
     j["error"] = why.empty() ? "not a project message (" + std::to_string(size) + " bytes)" : why;
   }

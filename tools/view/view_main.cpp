@@ -276,8 +276,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
       if (l == lists.end() && !all_frames) continue;
       matched += l != lists.end();
       const auto c = codes.find(key);
-      if (c != codes.end())
-        for (const auto& code : c->second.codes) payloads[code.track_id] = code.payload;
+      if (c != codes.end()) ld::takeCodes(c->second, payloads);
       try {
         ld::imageToBgr(img, bgr);
       } catch (const std::exception& e) {
@@ -331,7 +330,7 @@ class Live {
     queues[2].fit(rb->data_size);
     ld::qr_code_list_t c;
     if (!decoded(rb, c, channel)) return;
-    for (const auto& code : c.codes) payloads_[code.track_id] = code.payload;
+    ld::takeCodes(c, payloads_);
   }
   void onTracked(const lcm::ReceiveBuffer* rb, const std::string& channel) {
     queues[1].fit(rb->data_size);

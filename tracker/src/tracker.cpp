@@ -325,7 +325,8 @@ bool Tracker::refuseSurprises(int64_t utime) {
     const PoolEntry& e = pool_[i];
     const int j = row_to_col_[i];
     if (j < 0 || !(gain_[i * n_det + static_cast<size_t>(j)] > 0) || e.motion != Motion::Measured ||
-        e.frames_since_seen > 0 || 2 * elapsedUs(utime, e.last_seen_utime) > 3 * e.seen_gap_us)
+        e.frames_since_seen > 0 ||
+        static_cast<double>(elapsedUs(utime, e.last_seen_utime)) > 1.5 * static_cast<double>(e.seen_gap_us))
       continue;
     judged_.push_back(i);
     shift_.push_back(det_centre_[static_cast<size_t>(j)] - e.pred_centre);

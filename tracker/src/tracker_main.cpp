@@ -160,8 +160,8 @@ int main(int argc, char** argv) {
       if (tracker.stats().resets > resets) {
         resets = tracker.stats().resets;
         std::cerr << "ld-tracker: utime " << in.utime
-                  << " is older than the previous frame's by more than 0.1 s (a log replayed again, or the "
-                     "clock stepped back): tracks restarted\n";
+                  << " is older than the previous frame's by more than 1 s, or the third frame in a row from "
+                     "behind (a log replayed again, or the clock stepped back): tracks restarted\n";
       }
       last_utime = in.utime;  // (tracked: not late)
       last_seq = in.seq;

@@ -10,6 +10,8 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
+#include <map>
 #include <string>
 
 #include "ld/image_t.hpp"
@@ -26,5 +28,10 @@ bool decodeMessage(const void* data, size_t size, landmark_list_t& out,
                    std::string* error = nullptr);
 bool decodeMessage(const void* data, size_t size, qr_code_list_t& out,
                    std::string* error = nullptr);
+
+/// A codes message taken into payloads known by track id, as a consumer
+/// that keeps them between messages does (ld-view): each code's payload
+/// set, each withheld track's dropped (its landmark showed another code).
+void takeCodes(const qr_code_list_t& codes, std::map<int64_t, std::string>& payloads);
 
 }  // namespace ld

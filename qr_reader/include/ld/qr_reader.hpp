@@ -97,8 +97,9 @@ class QrReader {
 /// 8-29 % of their modules (the error correction's codewords and the mask
 /// change), so sharp frames tell them apart; a blurred or washed-out frame
 /// says nothing. Each module's shade is taken against the darkest and the
-/// lightest modules within two of it, so a hot spot or a shadow over part of
-/// the code neither turns its modules nor stops a look.
+/// lightest modules within two of it (smoothed over two more), so a hot spot
+/// or a shadow over part of the code turns few of its modules, and stops a
+/// look only where it clips the code to white.
 class QrLook {
  public:
   enum class Verdict {

@@ -51,8 +51,8 @@ class FrameMatcher {
   /// the utime stands still, the seq says it: up to kLateSeqs back is late.
   bool takeNewest(Pair& out);
   static constexpr int64_t kLateUs = 1'000'000, kLateSeqs = 3;  // (kLateUs: Tracker::kLateFrameUs)
-  /// Late pairs in a row from behind, each newer than the ones before: time
-  /// stepped back (Tracker::kStepBackFrames), the last of them taken.
+  /// Late pairs (or images) in a row from behind, each newer than the ones
+  /// before: time stepped back (Tracker::kStepBackFrames), the last taken.
   static constexpr int kStepBackFrames = 3;
 
   int64_t skipped() const { return skipped_; }
@@ -75,6 +75,8 @@ class FrameMatcher {
   Key last_taken_;
   int behind_ = 0;  // late pairs in a row from behind, each newer than the ones before
   int64_t behind_utime_ = 0;
+  int images_behind_ = 0;  // the same, of the images
+  int64_t images_behind_utime_ = 0;
   int64_t skipped_ = 0, late_ = 0, unmatched_dropped_ = 0, matched_ = 0;
 };
 

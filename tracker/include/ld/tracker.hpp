@@ -10,7 +10,8 @@
 //                 a landmark that left the image comes back where it left);
 //                 one predicted past a side of the image it was last seen
 //                 near comes back through that side (given the image size),
-//                 also where it left moved along that side as its motion went
+//                 also, last seen within a size of that side, where it left
+//                 moved along that side as its motion went
 //   3. assign     the paper's three cases: empty pool (all new), no detections
 //                 (all age), both non-empty: optimal assignment (Hungarian)
 //                 on the distance between the predicted pool landmark and the
@@ -144,7 +145,8 @@ class Tracker {
   /// it is not tracked, the pool is left as it was, and the result is empty
   /// (stats().late_frames counts it; ld-tracker publishes nothing for it). A
   /// frame older by more (a log replayed from its start, a clock stepped
-  /// back) clears the pool first, ids still never reused. Detections with
+  /// back), or the kStepBackFrames-th frame in a row from behind, each newer
+  /// than the one before, clears the pool first, ids still never reused. Detections with
   /// non-finite coordinates or a size under one pixel are ignored. The
   /// returned reference stays valid until the next call.
   ///
