@@ -1280,6 +1280,10 @@ TEST(Process, ErrorsAndExitCodes) {
   EXPECT_EQ(r.status, 2);
   EXPECT_EQ(r.err.rfind("ld-camera: /dev/video0 does not offer MJPEG 1920x1080; it offers: YUYV", 0),
             0u) << r.err;
+  // (--frame-size is --size: the other programs' --size is the landmark's side)
+  r = runCamera("--fake --format mjpeg --frame-size 1920x1080", dir);
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.err.rfind("ld-camera: /dev/video0 does not offer MJPEG 1920x1080", 0), 0u) << r.err;
   // an LCM URL that cannot be: said before the camera is opened (the
   // device's error came first, and the URL's only once it was mended), and a
   // camera that fails leaves no log behind a file:// URL

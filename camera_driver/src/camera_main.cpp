@@ -69,7 +69,9 @@ int main(int argc, char** argv) {
   app.add_option("--format", format, "capture format: yuyv, mjpeg or grey")
       ->check(CLI::IsMember({"yuyv", "mjpeg", "mjpg", "grey", "gray"}, CLI::ignore_case))
       ->capture_default_str();
-  app.add_option("--size", size, "frame size, WIDTHxHEIGHT")
+  // (--frame-size too: the other programs' --size is the landmark's side,
+  // and a robot.json gives both: a user audit)
+  app.add_option("--size,--frame-size", size, "frame size, WIDTHxHEIGHT")
       ->check(CLI::Validator(
           [](std::string& s) {
             uint32_t w, h;
