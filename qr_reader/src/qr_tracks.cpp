@@ -10,12 +10,8 @@ void FrameMatcher::addImage(const Key& key, const uint8_t* data, size_t size) {
   // the camera's clock stepped back. ld-tracker publishes no list for the
   // first kStepBackFrames - 1 of them, so the lists alone would count the
   // run again from its first list.
-  if (taken_any_ && key.utime < last_taken_.utime) {
-    images_behind_ = images_behind_ > 0 && key.utime > images_behind_utime_ ? images_behind_ + 1 : 1;
-    images_behind_utime_ = key.utime;
-  } else if (taken_any_ && key.utime > last_taken_.utime) {
-    images_behind_ = 0;
-  }
+  if (taken_any_ && key.utime < last_taken_.utime) images_behind_.note(key.utime, 1);
+  else if (taken_any_ && key.utime > last_taken_.utime) images_behind_.frames = 0;
   Entry e{key, {}};
   if (!spare_.empty()) {
     e.bytes = std::move(spare_.back());
@@ -107,15 +103,14 @@ bool FrameMatcher::takeNewest(Pair& out) {
   // Late frames in a row, each newer than the ones before: time stepped back
   // (as Tracker::update takes it), the kStepBackFrames-th taken.
   if (newest == ready_.end() && newest_late != ready_.end() && newest_late->key.utime < last_taken_.utime) {
-    behind_ = behind_ > 0 && newest_late->key.utime > behind_utime_ ? behind_ + late_now : late_now;
-    behind_utime_ = newest_late->key.utime;
-    if (behind_ >= kStepBackFrames || images_behind_ >= kStepBackFrames) {
+    pairs_behind_.note(newest_late->key.utime, static_cast<int>(late_now));
+    if (pairs_behind_.frames >= kStepBackFrames || images_behind_.frames >= kStepBackFrames) {
       newest = newest_late;
       --late_now;
-      behind_ = 0;
+      pairs_behind_.frames = 0;
     }
   } else if (newest != ready_.end()) {
-    behind_ = 0;
+    pairs_behind_.frames = 0;
   }
   late_ += late_now;
   const bool found = newest != ready_.end();

@@ -73,10 +73,17 @@ class FrameMatcher {
   std::vector<std::vector<uint8_t>> spare_;  // recycled buffers
   bool taken_any_ = false;
   Key last_taken_;
-  int behind_ = 0;  // late pairs in a row from behind, each newer than the ones before
-  int64_t behind_utime_ = 0;
-  int images_behind_ = 0;  // the same, of the images
-  int64_t images_behind_utime_ = 0;
+  // Frames in a row from behind the last one taken, each newer than the ones
+  // before (count, of the lists' pairs or of the images), and the last's utime.
+  struct BehindRun {
+    int frames = 0;
+    int64_t last = 0;
+    void note(int64_t utime, int count) {
+      frames = frames > 0 && utime > last ? frames + count : count;
+      last = utime;
+    }
+  };
+  BehindRun pairs_behind_, images_behind_;
   int64_t skipped_ = 0, late_ = 0, unmatched_dropped_ = 0, matched_ = 0;
 };
 
