@@ -108,6 +108,21 @@ set +e; "$BIN/ld-detect" --size 0.15 --camra "$T/cam.yaml" "$T/s/000000.png" >/d
 [ $rc -eq 2 ] && grep -qF "The following argument was not expected: --camra" "$T/err" || fail "--camra: exit $rc, $(cat "$T/err")"
 set +e; "$BIN/ld-detect" --draw "" "$T/s/000000.png" >/dev/null 2>"$T/err"; rc=$?; set -e
 [ $rc -eq 2 ] && [ "$(cat "$T/err")" = 'ld-detect: --draw needs a path, not "" (--help lists the options)' ] || fail "--draw '': exit $rc, $(cat "$T/err")"
+# an option left without its value does not take the next option as it:
+# `--draw --decode` wrote overlays into a folder named "--decode"
+(cd "$T" && set +e && "$BIN/ld-detect" --draw --decode s/000000.png >/dev/null 2>"$T/err"; echo $? >"$T/rc")
+[ "$(cat "$T/rc")" -eq 2 ] && [ "$(cat "$T/err")" = 'ld-detect: --draw needs a value, and the word after it is the option --decode (to give --draw that word, write --draw=--decode) (--help lists the options)' ] ||
+  fail "--draw --decode: exit $(cat "$T/rc"), $(cat "$T/err")"
+[ ! -e "$T/--decode" ] || fail "--draw --decode made a folder named --decode"
+set +e; "$BIN/ld-detect" -o --summary "$T/s/000000.png" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -qF -- "-o needs a value, and the word after it is the option --summary (to give -o that word, write --output=--summary)" "$T/err" ||
+  fail "-o --summary: exit $rc, $(cat "$T/err")"
+# ... nor one whose CLI11 error would hide it ("--size: '--camera' is not a number")
+set +e; "$BIN/ld-detect" --size --camera "$T/cam.yaml" "$T/s/000000.png" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -qF -- "--size needs a value, and the word after it is the option --camera" "$T/err" ||
+  fail "--size --camera: exit $rc, $(cat "$T/err")"
+# a negative number is a value, not an option
+"$BIN/ld-synth" scene --out "$T/neg" --count 1 --seed 3 --x -0.05:-0.01 >/dev/null || fail "--x -0.05:-0.01 refused"
 # What it writes is never what it reads: -o naming an input, --draw into an
 # input's folder (an overlay would take an input's name) are refused, the
 # inputs untouched.

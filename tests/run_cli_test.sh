@@ -49,6 +49,9 @@ refused "--source camera and --replay name two sources; give one" --replay "$T/i
 refused "--fps is for --play (ld-play's source), and this run's source is replay" --replay "$T/in.lcmlog" --fps 10
 refused "--speed is for --replay (lcm-logplayer's source; --play takes --fps), and this run's source is play" --play "$T/in.lcmlog" --speed 2
 refused "--camera-arg is for the camera source, and this run's source is play" --play "$T/in.lcmlog" --camera-arg=--fake
+# an argument for the camera that is also one of ld-run's options is given with '='
+refused "--camera-arg needs a value, and the word after it is the option --fps (to give --camera-arg that word, write --camera-arg=--fps=20)" \
+  --camera-arg --fps=20
 refused "--duration is for --play (ld-play's source), and this run's source is camera (--help lists the options)" --duration 5
 refused "--processes: unknown process \"bogus\" (detector, tracker, qr-reader or none) (--help lists the options)" \
   --replay "$T/in.lcmlog" --processes bogus

@@ -54,6 +54,9 @@ refused "--ecc: QR error correction must be auto, L, M, Q or H, not 'X'" scene -
 # a misspelt subcommand is named ("A subcommand is required")
 refused "'scenes' is no subcommand (scene, sequence)" scenes --out "$T/x"
 refused "--ecc: QR error correction" sequence --out "$T/x" --ecc 7
+# an option's value is not the next option, in a subcommand too
+refused "--seed needs a value, and the word after it is the option --out (to give --seed that word, write --seed=--out)" \
+  sequence --seed --out "$T/x"
 refused "--yaw must lie within -89.9:89.9 (--help lists the options)" scene --out "$T/x" --yaw 95
 refused "--quality: must be in \[1, 100\], not 500" sequence --out "$T/x" --quality 500
 refused "--count must be at least 1" scene --out "$T/x" --count 0

@@ -36,25 +36,85 @@ inline std::string programName(const char* argv0) {
 }
 
 namespace detail {
+/// True for a word of the command line that is an option's name or starts
+/// with one ("--out", "-o", "--out=x"), not a negative number ("-0.5").
+inline bool looksLikeOption(const std::string& word) {
+  return word.size() >= 2 && word[0] == '-' && !std::isdigit(static_cast<unsigned char>(word[1])) && word[1] != '.';
+}
+
 /// The first word of the command line that CLI11 matched to no option nor
 /// took as a value, when it looks like an option ("" when none).
 inline std::string unknownOption(const CLI::App& app) {
   for (const std::string& word : app.remaining(true))
-    if (word.size() >= 2 && word[0] == '-' && !std::isdigit(static_cast<unsigned char>(word[1])) && word[1] != '.')
-      return word.substr(0, word.find('='));
+    if (looksLikeOption(word)) return word.substr(0, word.find('='));
+  return "";
+}
+
+/// The option of `app`, or of an app above it (whose options a subcommand
+/// also takes), named `name` ("--out", "-o"); null when none.
+inline const CLI::Option* findOption(const CLI::App* app, const std::string& name) {
+  for (; app; app = app->get_parent())
+    if (const CLI::Option* opt = app->get_option_no_throw(name)) return opt;
+  return nullptr;
+}
+
+/// "" or what went wrong when an option that needs a value was followed by
+/// another of the program's options, which CLI11 then took as its value:
+/// `ld-detect --draw --decode frames/` wrote its overlays into a folder named
+/// "--decode" and decoded nothing. Written with '=' ("--camera-arg=--fps=20")
+/// such a value is meant, and taken.
+inline std::string optionTakenAsValue(const CLI::App& app, int argc, char** argv) {
+  const CLI::App* at = &app;  // the subcommand the words are in
+  for (int i = 1; i < argc; ++i) {
+    const std::string word = argv[i] ? argv[i] : "";
+    if (word == "--") break;
+    bool entered = false;
+    for (const CLI::App* sub : at->get_subcommands())
+      if (sub->check_name(word)) {
+        at = sub;
+        entered = true;
+        break;
+      }
+    if (entered || !looksLikeOption(word) || word.find('=') != std::string::npos) continue;
+    const CLI::Option* opt = findOption(at, word);
+    if (!opt || opt->get_items_expected_min() < 1 || i + 1 >= argc) continue;
+    const std::string next = argv[i + 1] ? argv[i + 1] : "";
+    if (looksLikeOption(next) && findOption(at, next.substr(0, next.find('=')))) {
+      // (CLI11 takes "--long=value"; a short option's value joined with '='
+      // would keep the '=')
+      const std::string joined = word[1] == '-' || opt->get_lnames().empty() ? word : "--" + opt->get_lnames()[0];
+      return word + " needs a value, and the word after it is the option " + next.substr(0, next.find('=')) +
+             " (to give " + word + " that word, write " + joined + "=" + next + ")";
+    }
+    ++i;  // the value, whatever it is
+  }
   return "";
 }
 }  // namespace detail
+
+/// Reports a bad command line as parse() does: one line, "<program>: <what>
+/// (--help lists the options)"; returns 2, the status to exit with.
+inline int usage(const char* argv0, const std::string& what) {
+  std::cerr << programName(argv0) << ": " << what << " (--help lists the options)\n";
+  return 2;
+}
 
 /// Parses; -1 when the program goes on, else the status to exit with (0
 /// after --help, 2 after a bad command line, reported on one line).
 inline int parse(CLI::App& app, int argc, char** argv) {
   try {
     app.parse(argc, argv);
+    if (const std::string taken = detail::optionTakenAsValue(app, argc, argv); !taken.empty())
+      return usage(argc > 0 ? argv[0] : nullptr, taken);
     return -1;
   } catch (const CLI::Success& e) {  // --help, --help-all, --version
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
+    // an option that took the next option as its value is what went wrong,
+    // whatever CLI11 found wrong after it ("--seed --out x": "--out" is not
+    // a number; "--read-at --stack 8": the required --read-at is missing)
+    if (const std::string taken = detail::optionTakenAsValue(app, argc, argv); !taken.empty())
+      return usage(argc > 0 ? argv[0] : nullptr, taken);
     std::string what = e.what();
     // CLI11's "Could not convert: --seed = abc" (a value its type cannot
     // hold: not a number, a fraction for a count, beyond the type's range)
@@ -118,13 +178,6 @@ inline int outputStatus(const char* argv0) {
   std::cerr << programName(argv0) << ": cannot write its output" << (errno ? std::string(": ") + std::strerror(errno) : "")
             << "\n";
   return 1;
-}
-
-/// Reports a bad command line as parse() does: one line, "<program>: <what>
-/// (--help lists the options)"; returns 2, the status to exit with.
-inline int usage(const char* argv0, const std::string& what) {
-  std::cerr << programName(argv0) << ": " << what << " (--help lists the options)\n";
-  return 2;
 }
 
 /// `text` as a finite number, all of it ("2", "0.5", "1e3"), or nothing.
