@@ -21,9 +21,11 @@ grep -q "^  landmark 30 cm detected, 1.00 m, yaw within +-30: detected [0-9]*/8$
 # ... and says what code it measured: 20 bytes, version 2 at Q, 4.94 mm modules on 30 cm
 grep -q "^its QR: 20 bytes, version 2 (25 modules), error correction Q, modules of 4.94 mm on a 30 cm landmark" \
   "$T/size.md" || fail "size, the code: $(cat "$T/size.md")"
-# No 5 cm landmark reads 100 bytes at 3 m: exit 3, and it says so.
+# No 5 cm landmark reads 100 bytes at 3 m: exit 3, and it says so. (Given
+# by the names the other programs use: --size for --side, ld-qr-reader's
+# --stack-frames for --stack.)
 set +e
-"$BIN/ld-eval" size --detect-at 3 --read-at 3 --side 0.05 --payload-bytes 100 --trials 4 --stack 2 \
+"$BIN/ld-eval" size --detect-at 3 --read-at 3 --size 0.05 --payload-bytes 100 --trials 4 --stack-frames 2 \
   >"$T/none.md" 2>/dev/null
 rc=$?
 set -e

@@ -75,6 +75,13 @@ refused "--resolution: 640x480 is another aspect ratio" sequence --out "$T/x" --
   fail "the same aspect ratio, scaled, was refused"
 size=$(od -An -tx1 -j16 -N8 "$T/half/000000.png" | tr -d ' \n')  # the PNG's width and height
 [ "$size" = 0000028000000168 ] || fail "scaled frame: not 640x360 ($size)"
+# the names other programs use: --frame-size (ld-camera's) for --resolution,
+# --frames / --count for either subcommand's number of frames
+"$BIN/ld-synth" scene --out "$T/alias" --frame-size 320x240 --frames 2 >/dev/null || fail "scene --frame-size --frames refused"
+[ "$(ls "$T/alias"/*.png | wc -l)" -eq 2 ] || fail "scene --frames 2: $(ls "$T/alias")"
+[ "$(od -An -tx1 -j16 -N8 "$T/alias/000000.png" | tr -d ' \n')" = 00000140000000f0 ] || fail "--frame-size 320x240: not so"
+"$BIN/ld-synth" sequence --out "$T/aliasq" --frame-size 320x240 --count 2 >/dev/null || fail "sequence --count refused"
+[ "$(ls "$T/aliasq"/*.png | wc -l)" -eq 2 ] || fail "sequence --count 2: $(ls "$T/aliasq")"
 refused "--fps: must be in \[0.1, 1000\], not 0 (--help lists the options)" sequence --out "$T/x" --fps 0
 refused "--size: must be in \[0.01, 2\], not 0" sequence --out "$T/x" --size 0
 refused "--channel: an empty channel name" sequence --log "$T/x.lcmlog" --channel ""

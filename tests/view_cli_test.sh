@@ -53,6 +53,7 @@ refused "--video $T/dir.avi: is a folder" env -u DISPLAY -u WAYLAND_DISPLAY "$BI
 refused "--video $T/v.mp4: the video is MJPG in AVI, its name must end in .avi" \
   env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --video "$T/v.mp4"
 refused "--all is for --log" env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --all --out "$T/live"
+refused "--all is for --log" env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --all -o "$T/live"  # (-o as ld-synth's)
 # an LCM URL with logs: refused, as ld-dump does (it was dropped without a word: a user audit)
 refused "--lcm-url is for live viewing (--log reads its files) (--help lists the options)" \
   env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --lcm-url "udpm://239.255.76.67:7667?ttl=0" --out "$T/lu"

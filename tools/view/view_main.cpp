@@ -484,7 +484,7 @@ int main(int argc, char** argv) {
   Options o;
   app.add_option("--log", logs, "read these LCM logs instead of the bus (images, tracks and codes "
                                 "may be in different logs; repeatable)");
-  app.add_option("--out", o.out_dir, "write annotated frames as DIR/SEQ.png");
+  app.add_option("--out,-o", o.out_dir, "write annotated frames as DIR/SEQ.png");
   app.add_option("--video", o.video, "write annotated frames to this video (MJPG in AVI: its name ends in .avi)");
   app.add_flag("--window", force_window, "show a window (default when a display exists and no --out/--video)");
   app.add_option("--fps", o.fps, "frame rate of --video (0.1 to 1000)")->check(ld::cli::Between(0.1, 1000))->capture_default_str();

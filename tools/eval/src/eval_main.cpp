@@ -225,7 +225,7 @@ void addCommon(CLI::App* app, Common& c, bool png = true) {
 
 // The QR sweeps' --stack: frames read as ld-qr-reader reads a track (0-64, as its --stack-frames).
 void addStack(CLI::App* app, int& frames, const std::string& what) {
-  app->add_option("--stack", frames, what)
+  app->add_option("--stack,--stack-frames", frames, what)
       ->capture_default_str()
       ->check(ld::cli::Between(0, 64))
       // (one frame is a single frame: its columns repeated the single-frame ones;
@@ -258,7 +258,7 @@ const CLI::Validator kYaw = ld::cli::Between(0, 89);
 
 // One side swept over distance (qr, pose): --side, --from, --to, --step, --max-yaw.
 void addDistanceSweep(CLI::App* app, double& side, double& from, double& to, double& step, double& max_yaw) {
-  app->add_option("--side", side, "printed side S, metres")->capture_default_str()->check(kPrintableSide);
+  app->add_option("--side,--size", side, "printed side S, metres")->capture_default_str()->check(kPrintableSide);
   app->add_option("--from", from, "first distance, metres")->capture_default_str()->check(ld::cli::Positive);
   app->add_option("--to", to, "last distance, metres")->capture_default_str()->check(ld::cli::Positive);
   app->add_option("--step", step, "metres between sweep points")->capture_default_str()->check(ld::cli::Positive);
@@ -319,7 +319,7 @@ int main(int argc, char** argv) {
   auto* yaw = app.add_subcommand("yaw", "detection rate against horizontal viewing angle (paper, Fig. 8)");
   addCommon(yaw, yc);
   addCompare(yaw, yc);
-  yaw->add_option("--side", y_sides, "printed sides S, metres (one per series; default 0.09 0.15)")->check(kPrintableSide);
+  yaw->add_option("--side,--size", y_sides, "printed sides S, metres (one per series; default 0.09 0.15)")->check(kPrintableSide);
   yaw->add_option("--distance", y_dists, "distance per side, metres (default 1.5 2.5)")->check(ld::cli::Positive);
   yaw->add_option("--max-yaw", y_max, "sweep from -this to +this, degrees")->capture_default_str()->check(kYaw);
   yaw->add_option("--step", y_step, "degrees between sweep points")->capture_default_str()->check(ld::cli::Positive);
@@ -330,7 +330,7 @@ int main(int argc, char** argv) {
   auto* dist = app.add_subcommand("distance", "detection rate against distance for several sizes");
   addCommon(dist, dc);
   addCompare(dist, dc);
-  dist->add_option("--side", d_sides, "printed sides S, metres (default 0.09 0.15)")->check(kPrintableSide);
+  dist->add_option("--side,--size", d_sides, "printed sides S, metres (default 0.09 0.15)")->check(kPrintableSide);
   dist->add_option("--from", d_from, "first distance, metres")->capture_default_str()->check(ld::cli::Positive);
   dist->add_option("--to", d_to, "last distance, metres")->capture_default_str()->check(ld::cli::Positive);
   dist->add_option("--step", d_step, "metres between sweep points")->capture_default_str()->check(ld::cli::Positive);
@@ -364,7 +364,7 @@ int main(int argc, char** argv) {
   size->add_option("--payload-bytes", s_payload, "payload length to read")
       ->capture_default_str()
       ->check(ld::cli::Between(1, 1000));
-  size->add_option("--side", s_sides, "candidate sides, metres (default 5 to 40 cm)")->check(kPrintableSide);
+  size->add_option("--side,--size", s_sides, "candidate sides, metres (default 5 to 40 cm)")->check(kPrintableSide);
   int s_stack = 0;
   addStack(size, s_stack,
            "count a QR read when read over this many frames, as ld-qr-reader reads a track (a moving camera); "
@@ -377,7 +377,7 @@ int main(int argc, char** argv) {
   int l_fp_frames = 100;
   auto* light = app.add_subcommand("lighting", "fixed defaults against adaptive lighting: colour temperature, level, glare");
   addCommon(light, lc);
-  light->add_option("--side", l_side, "printed side S, metres")->capture_default_str()->check(kPrintableSide);
+  light->add_option("--side,--size", l_side, "printed side S, metres")->capture_default_str()->check(kPrintableSide);
   light->add_option("--distance", l_dist, "metres")->capture_default_str()->check(ld::cli::Positive);
   light->add_option("--max-yaw", l_yaw, "yaw drawn within +-this, degrees")->capture_default_str()->check(kYaw);
   light->add_option("--fp-frames", l_fp_frames, "distractor frames per condition for false positives")
@@ -402,7 +402,7 @@ int main(int argc, char** argv) {
   auto* motion = app.add_subcommand("motion", "detection rate against motion blur (a robot turning or driving)");
   addCommon(motion, mc);
   addCompare(motion, mc);
-  motion->add_option("--side", m_sides, "printed sides S, metres (one per series; default 0.09 0.15)")
+  motion->add_option("--side,--size", m_sides, "printed sides S, metres (one per series; default 0.09 0.15)")
       ->check(kPrintableSide);
   motion->add_option("--distance", m_dists, "distance per side, metres (default 1.5 1.5)")->check(ld::cli::Positive);
   motion->add_option("--to", m_to, "longest blur, pixels (from 0)")->capture_default_str()->check(ld::cli::Positive);

@@ -398,10 +398,10 @@ int main(int argc, char** argv) {
   SceneArgs sa;
   auto* scene = app.add_subcommand("scene", "still frames with landmarks at chosen poses: DIR/000000.png ..., DIR/truth.jsonl");
   scene->add_option("--out,-o", sa.out, "output folder")->required();
-  scene->add_option("--count,-n", sa.count, "number of frames")->capture_default_str();
+  scene->add_option("--count,--frames,-n", sa.count, "number of frames")->capture_default_str();
   scene->add_option("--seed", sa.seed, "random seed (same seed, same bytes)")->capture_default_str()->check(ld::cli::Seed);
   scene->add_option("--camera", sa.camera, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration; default: 640x480, f = 600 px)");
-  scene->add_option("--resolution", sa.resolution, "image size WxH (scales the camera; f = 600 px per 640 without --camera)");
+  scene->add_option("--resolution,--frame-size", sa.resolution, "image size WxH (scales the camera; f = 600 px per 640 without --camera)");
   scene->add_option("--size", sa.size, "landmark side S in metres, or a range a:b")->capture_default_str();
   scene->add_option("--distance", sa.distance, "distance to the sheet's centre, metres")->capture_default_str();
   scene->add_option("--yaw", sa.yaw, "degrees about the sheet's vertical axis; + turns its right edge towards the camera")->capture_default_str();
@@ -434,7 +434,7 @@ int main(int argc, char** argv) {
   std::string q_camera, q_resolution;
   auto* sequence = app.add_subcommand("sequence", "a camera driving past a wall with landmarks: frames, truth.jsonl, LCM log");
   sequence->add_option("--out,-o", qo.out_dir, "output folder for frames and truth.jsonl");
-  sequence->add_option("--frames,-n", qo.frames, "number of frames")
+  sequence->add_option("--frames,--count,-n", qo.frames, "number of frames")
       ->capture_default_str()
       ->check(ld::cli::Between(1, 100000));
   sequence->add_option("--fps", qo.fps, "frame rate of the timestamps (0.1 to 1000)")->capture_default_str()->check(ld::cli::Between(0.1, 1000));
@@ -459,7 +459,7 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(ld::cli::StartUtime);
   sequence->add_option("--camera", q_camera, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration; default: 640x480, f = 600 px)");
-  sequence->add_option("--resolution", q_resolution, "image size WxH");
+  sequence->add_option("--resolution,--frame-size", q_resolution, "image size WxH");
   bool no_png = false;
   sequence->add_flag("--no-png", no_png, "no PNG frames (truth.jsonl and the log only)");
 
