@@ -165,4 +165,15 @@ PY
 "$BIN/ld-dump" "$T/short.lcmlog" >"$T/out" 2>"$T/err" || true
 grep -q '"error":"not a valid ld.image_t (50 bytes): image size [0-9]* does not fit in the 14 bytes left at byte 36"' "$T/out" ||
   fail "a damaged image_t: $(cat "$T/out")"
+# LANDMARK_CODES of an older build (ld.qr_code_list_t before
+# withheld_track_ids): said as an earlier version, not as another program's
+python3 - "$T/old.lcmlog" <<'PY'
+import struct, sys
+data = bytes.fromhex('553eb387ecca27c4') + struct.pack('>qqi', 1000, 7, 0)
+ch = b'LANDMARK_CODES'
+open(sys.argv[1], 'wb').write(struct.pack('>IqqII', 0xEDA1DA01, 0, 1000, len(ch), len(data)) + ch + data)
+PY
+dump "$T/old.lcmlog"
+[ $rc -eq 0 ] && grep -qF '"error":"an ld.qr_code_list_t before withheld_track_ids (2026-12-07), an earlier version no longer decoded (28 bytes; a recording by an older build?)"' "$T/out" ||
+  fail "an earlier version's message: exit $rc, $(cat "$T/out")"
 echo "ld-dump on files: ok"

@@ -209,6 +209,32 @@ TEST(DecodeMessage, TruncatedTrailingAndForeignMessagesAreRefused) {
   EXPECT_NE(why.find("fingerprint is not ld.image_t's"), std::string::npos) << why;
 }
 
+// LANDMARK_CODES recorded before withheld_track_ids: its fingerprint (the one
+// lcm-gen gave qr_code_list_t.lcm as it was) is said to be the earlier
+// version's, by the decoder (ld-view, the processes) and on its own (ld-dump).
+TEST(DecodeMessage, EarlierVersionOfATypeIsNamed) {
+  // utime, seq, ncodes 0: the whole of an empty codes message of then
+  Bytes old = {0x55, 0x3e, 0xb3, 0x87, 0xec, 0xca, 0x27, 0xc4};
+  old.resize(8 + 8 + 8 + 4, 0);
+  ld::qr_code_list_t codes;
+  std::string why;
+  EXPECT_FALSE(ld::decodeMessage(old.data(), old.size(), codes, &why));
+  EXPECT_EQ(why,
+            "not a valid ld.qr_code_list_t (28 bytes): fingerprint is not ld.qr_code_list_t's but that of ld.qr_code_list_t before withheld_track_ids "
+            "(2026-12-07), an earlier version no longer decoded (a recording by an older build?)");
+  EXPECT_EQ(ld::earlierTypeVersion(old.data(), old.size()), "ld.qr_code_list_t before withheld_track_ids (2026-12-07)");
+  // today's message, another type's, and too few bytes: no earlier version
+  ld::qr_code_list_t now{};  // (lcm-gen's members start uninitialised)
+  const Bytes current = lcmEncode(now);
+  EXPECT_EQ(ld::earlierTypeVersion(current.data(), current.size()), "");
+  const Bytes list = lcmEncode(sampleList());
+  EXPECT_EQ(ld::earlierTypeVersion(list.data(), list.size()), "");
+  EXPECT_EQ(ld::earlierTypeVersion(old.data(), 7), "");
+  ld::image_t img;  // (on another type's channel: not that type's, and which it is)
+  EXPECT_FALSE(ld::decodeMessage(old.data(), old.size(), img, &why));
+  EXPECT_NE(why.find("fingerprint is not ld.image_t's but that of ld.qr_code_list_t before"), std::string::npos) << why;
+}
+
 }  // namespace
 
 namespace {

@@ -7,6 +7,22 @@
 namespace ld {
 namespace {
 
+// The fingerprints of the types' earlier versions (lcm-gen's getHash() of
+// the .lcm files as they were), with what changed since.
+struct EarlierVersion {
+  uint64_t hash;
+  const char* what;
+};
+constexpr EarlierVersion kEarlierVersions[] = {
+    {0x553eb387ecca27c4ULL, "ld.qr_code_list_t before withheld_track_ids (2026-12-07)"},
+};
+
+std::string earlierVersionOf(int64_t hash) {
+  for (const EarlierVersion& v : kEarlierVersions)
+    if (static_cast<int64_t>(v.hash) == hash) return v.what;
+  return "";
+}
+
 // Walks an LCM encoding (big-endian, counts as int32, strings as an int32
 // length that includes the terminating zero) and records the first problem.
 class Walker {
@@ -71,7 +87,11 @@ class Walker {
   }
   void hash(int64_t expected, const char* type) {
     const int64_t h = i64("fingerprint");
-    if (ok() && h != expected) fail(std::string("fingerprint is not ") + type + "'s");
+    if (!ok() || h == expected) return;
+    const std::string earlier = earlierVersionOf(h);
+    if (earlier.empty()) return fail(std::string("fingerprint is not ") + type + "'s");
+    error_ = std::string("fingerprint is not ") + type + "'s but that of " + earlier +
+             ", an earlier version no longer decoded (a recording by an older build?)";
   }
   void end() {
     if (ok() && pos_ != n_) fail(std::to_string(n_ - pos_) + " bytes after the message");
@@ -182,6 +202,14 @@ bool decodeMessage(const void* data, size_t size, landmark_list_t& out, std::str
   if (!decodeChecked(data, size, out, error, "ld.landmark_list_t", walkLandmarkList)) return false;
   if (out.nstages == 0) out.stage_ms.clear();
   return true;
+}
+
+std::string earlierTypeVersion(const void* data, size_t size) {
+  if (size < 8) return "";
+  const auto* p = static_cast<const uint8_t*>(data);
+  uint64_t h = 0;
+  for (int i = 0; i < 8; ++i) h = (h << 8) | p[i];
+  return earlierVersionOf(static_cast<int64_t>(h));
 }
 
 void takeCodes(const qr_code_list_t& codes, std::map<int64_t, std::string>& payloads) {

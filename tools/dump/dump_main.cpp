@@ -97,7 +97,13 @@ nlohmann::ordered_json toJson(const std::string& channel, int64_t log_utime, con
                             {"seq", c.seq}, {"decode_ms", c.decode_ms}});
     j["withheld_track_ids"] = codes.withheld_track_ids;
   } else {
-    j["error"] = why.empty() ? "not a project message (" + std::to_string(size) + " bytes)" : why;
+    // (a fingerprint of an earlier version of a type: a recording by an
+    // older build, said as such, not as another program's message)
+    const std::string earlier = ld::earlierTypeVersion(data, size);
+    j["error"] = !why.empty()      ? why
+                 : earlier.empty() ? "not a project message (" + std::to_string(size) + " bytes)"
+                                   : "an " + earlier + ", an earlier version no longer decoded (" +
+                                         std::to_string(size) + " bytes; a recording by an older build?)";
   }
   return j;
 }

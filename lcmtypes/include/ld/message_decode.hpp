@@ -29,6 +29,12 @@ bool decodeMessage(const void* data, size_t size, landmark_list_t& out,
 bool decodeMessage(const void* data, size_t size, qr_code_list_t& out,
                    std::string* error = nullptr);
 
+/// When the bytes start with the fingerprint of an earlier version of one of
+/// the project's types, which no build since decodes, that version in words
+/// ("ld.qr_code_list_t before withheld_track_ids"); else "". A recording
+/// made by an older build is said as such, not as a foreign message.
+std::string earlierTypeVersion(const void* data, size_t size);
+
 /// A codes message taken into payloads known by track id, as a consumer
 /// that keeps them between messages does (ld-view): each code's payload
 /// set, each withheld track's dropped (its landmark showed another code).
