@@ -803,6 +803,8 @@ TEST(RunConfig, ArgsThatRepeatLdRunsOwnOptionsAreRefused) {
            {R"({"tracker": {"args": ["--lcm-url=udpm://239.255.76.67:7667"]}})",
             "tracker's args give --lcm-url, which ld-run passes itself from the config's lcm_url (or --lcm-url)"},
            {R"({"qr_reader": {"args": ["-v", "--tracks", "T"]}})", "qr-reader's args give --tracks"},
+           {R"({"qr_reader": {"args": ["--codes=C"]}})",  // (its other name, as ld-view's)
+            "qr-reader's args give --codes (its --out), which ld-run passes itself from the config's channels"},
            {R"({"source": {"type": "replay", "log": "a.lcmlog", "args": ["--speed=3"]}})",
             "replay's args give --speed, which ld-run passes itself from the config's source's speed"},
            {R"({"source": {"type": "replay", "log": "a.lcmlog", "args": ["--lcm-url=udpm://239.255.76.67:7000"]}})",

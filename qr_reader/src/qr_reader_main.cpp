@@ -81,7 +81,7 @@ int main(int argc, char** argv) {
   app.add_option("--lcm-url", url, "LCM URL")->capture_default_str();
   app.add_option("--image", image_ch, "image channel")->capture_default_str();
   app.add_option("--tracks", tracks_ch, "tracked landmarks channel")->capture_default_str();
-  app.add_option("--out", out_ch, "codes channel")->capture_default_str();
+  app.add_option("--out,--codes", out_ch, "codes channel (--codes: ld-view's name for it)")->capture_default_str();
   app.add_option("--retry-interval", sched.retry_interval_s, "seconds between tries of an undecoded track")
       ->capture_default_str()
       ->check(ld::cli::Positive);

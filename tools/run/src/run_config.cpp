@@ -379,10 +379,15 @@ std::vector<ProcessSpec> buildProcessSpecs(const RunConfig& cfg, const std::stri
   // An option ld-run passes itself, given again in the config's args: the
   // program refused it twice ("--in: At Most 1 required but received 2"),
   // which the user never typed twice, or (lcm-logplayer) took the last, and
-  // replayed onto another bus. Options are compared by name ("--x=1" is --x).
+  // replayed onto another bus. Options are compared by name ("--x=1" is --x),
+  // a program's other name for one of them as that one (ld-qr-reader's
+  // --codes is its --out).
   const auto checkArgs = [](const std::string& name, const std::vector<std::string>& argv,
                             const std::vector<std::string>& extra) {
-    const auto optionName = [](const std::string& a) { return a.substr(0, a.find('=')); };
+    const auto optionName = [&name](const std::string& a) {
+      const std::string option = a.substr(0, a.find('='));
+      return name == "qr-reader" && option == "--codes" ? std::string("--out") : option;
+    };
     for (const std::string& a : extra)
       for (size_t k = 1; k < argv.size(); ++k) {
         const std::string own = optionName(argv[k]);
@@ -393,8 +398,9 @@ std::vector<ProcessSpec> buildProcessSpecs(const RunConfig& cfg, const std::stri
                                  : own == "--fps" || own == "--format" || own == "--duration"
                                      ? "source (fps, format, duration_s)"
                                      : "channels";
-        throw std::runtime_error(name + "'s args give " + own + ", which ld-run passes itself from the config's " +
-                                 from + ": set it there");
+        const std::string given = a.substr(0, a.find('='));
+        throw std::runtime_error(name + "'s args give " + given + (given == own ? "" : " (its " + own + ")") +
+                                 ", which ld-run passes itself from the config's " + from + ": set it there");
       }
   };
   const auto add = [&](const std::string& name, ProcessRole role, std::vector<std::string> argv,
