@@ -37,6 +37,13 @@ grep -q "read at 3 m over 2 frames" "$T/none.md" || fail "size --stack: the tabl
 "$BIN/ld-eval" qr --trials 3 --from 0.3 --to 0.4 >"$T/qr.md" 2>/dev/null
 [ "$(grep -c '^| 0\.[34] ' "$T/qr.md")" -eq 2 ] || fail "qr: $(cat "$T/qr.md")"
 [ "$(head -1 "$T/qr.md" | tr -cd '|' | wc -c)" -eq 6 ] || fail "qr header: $(head -1 "$T/qr.md")"
+# ... and under it what was measured and which codes were printed (--ecc
+# changed the table without a word in it)
+grep -q "^15 cm landmarks, yaw within +-40 deg, 3 frames a point for each payload length, seed 1; the largest code of each: 8-23 bytes: version 2 (25 modules), error correction M, modules of 2.47 mm; 99-100 bytes: version 5 (37 modules), error correction L, modules of 1.71 mm$" \
+  "$T/qr.md" || fail "qr, what was measured: $(tail -1 "$T/qr.md")"
+"$BIN/ld-eval" qr --trials 1 --from 0.3 --to 0.3 --ecc H >"$T/qrh.md" 2>/dev/null
+grep -q "8-23 bytes: version [34] ([0-9]* modules), error correction H, .*; 99-100 bytes: version 10 (57 modules), error correction H, modules of 1.13 mm$" \
+  "$T/qrh.md" || fail "qr --ecc H: $(tail -1 "$T/qrh.md")"
 "$BIN/ld-eval" qr --trials 3 --from 0.3 --to 0.4 --stack 2 --png "$T/qr.png" >"$T/qrs.md" 2>/dev/null
 [ "$(head -1 "$T/qrs.md" | tr -cd '|' | wc -c)" -eq 8 ] || fail "qr --stack header: $(head -1 "$T/qrs.md")"
 grep -q "over 2 frames, 99-100 bytes" "$T/qrs.md" || fail "qr --stack: $(head -1 "$T/qrs.md")"

@@ -597,6 +597,21 @@ int main(int argc, char** argv) {
           t << pct(a.decoded_stacked, a.trials) << " % | " << pct(b.decoded_stacked, b.trials) << " % | ";
         t << a.wrong_payload + b.wrong_payload << " |\n";
       }
+      // What was measured, and what was printed: the codes' module size
+      // decides the distance they read from (--ecc changed the table
+      // without a word in it).
+      t << "\n" << cm(q_side) << " landmarks, yaw within +-" << q_yaw << " deg, " << qc.trials
+        << " frames a point for each payload length, seed " << qc.seed << "; the largest code of each:";
+      for (size_t k = 0; k < kinds.size(); ++k) {
+        ld::artwork::QrCode largest;
+        for (int i = 0; i < std::max(qc.trials, kinds[k].count); ++i) {
+          const ld::artwork::QrCode qr =
+              ld::artwork::encodeQr(ld::eval::payloadFor(5 * i + kinds[k].first + i % kinds[k].count), o.ecc);
+          if (qr.version > largest.version) largest = qr;
+        }
+        t << (k ? ";" : "") << " " << kinds[k].name << ": " << ld::artwork::describeQr(largest, q_side * 1000);
+      }
+      t << "\n";
       emit(qc, t.str());
       if (!qc.png.empty()) plot(qc.png, "QR decode rate against distance (" + cm(q_side) + ")", "distance (m)", series);
     } else if (light->parsed()) {
