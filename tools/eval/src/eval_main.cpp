@@ -84,13 +84,17 @@ void plot(const std::string& path, const std::string& title, const std::string& 
   text(xlabel, {W / 2 - 60, H - 15});
   text("%", {15, T + (H - T - B) / 2});
   const cv::Scalar colours[] = {{200, 80, 0}, {0, 0, 220}, {0, 150, 0}, {150, 0, 150}, {0, 140, 220}, {80, 80, 80}};
-  // (the first series, ours, drawn last: on top where others have the same rates)
+  // (the first series, ours, drawn last: on top where others have the same
+  // rates; each series beneath it drawn wider, so that one with the same
+  // rates shows on both sides of the line over it, where it was hidden: the
+  // QR plot's short payloads over 2 frames under those of single frames)
+  const auto width = [](size_t j) { return 2 + 2 * static_cast<int>(std::min<size_t>(j, 4)); };
   for (size_t j = series.size(); j-- > 0;) {
     const cv::Scalar c = colours[j % 6];
     const auto& pts = series[j].points;
     for (size_t k = 0; k < pts.size(); ++k) {
-      cv::circle(img, px(pts[k].x, pts[k].y), 3, c, cv::FILLED, cv::LINE_AA);
-      if (k > 0) cv::line(img, px(pts[k - 1].x, pts[k - 1].y), px(pts[k].x, pts[k].y), c, 2, cv::LINE_AA);
+      cv::circle(img, px(pts[k].x, pts[k].y), width(j) / 2 + 2, c, cv::FILLED, cv::LINE_AA);
+      if (k > 0) cv::line(img, px(pts[k - 1].x, pts[k - 1].y), px(pts[k].x, pts[k].y), c, width(j), cv::LINE_AA);
     }
   }
   // the legend on a white box with a thin frame, in the corner (or the
@@ -127,7 +131,7 @@ void plot(const std::string& path, const std::string& title, const std::string& 
     for (size_t i = 0; i < series.size(); ++i) {
       const cv::Scalar c = colours[i % 6];
       const cv::Point at(box.x + 7, box.y + 17 + 22 * static_cast<int>(i));
-      cv::line(img, at, at + cv::Point(25, 0), c, 2, cv::LINE_AA);
+      cv::line(img, at, at + cv::Point(25, 0), c, width(i), cv::LINE_AA);
       text(series[i].name, at + cv::Point(32, 5));
     }
   }
