@@ -87,9 +87,15 @@ TEST(DecodeMessage, WellFormedMessagesDecodeAsLcmDoes) {
 }
 
 // Payloads kept by track id between codes messages (ld-view's labels): a
-// withheld track's is dropped, where ld-view drew the old payload on.
+// withheld track's is dropped, where ld-view drew the old payload on, and so
+// is one the message leaves out (forgotten, or its track dropped: an
+// integrator's audit found them kept for ever).
 TEST(DecodeMessage, TakeCodesDropsWithheldPayloads) {
   std::map<int64_t, std::string> payloads{{3, "room-101"}, {4, "dock"}};
+  ld::qr_code_list_t empty{};
+  ld::takeCodes(empty, payloads);
+  EXPECT_TRUE(payloads.empty());
+  payloads = {{3, "room-101"}, {4, "dock"}};
   ld::qr_code_list_t codes{};
   codes.codes.resize(1);
   codes.codes[0].track_id = 5;
@@ -97,8 +103,19 @@ TEST(DecodeMessage, TakeCodesDropsWithheldPayloads) {
   codes.ncodes = 1;
   codes.withheld_track_ids = {3};
   codes.nwithheld = 1;
+  codes.codes.resize(2);
+  codes.codes[1].track_id = 4;
+  codes.codes[1].payload = "dock";
+  codes.ncodes = 2;
   ld::takeCodes(codes, payloads);
   EXPECT_EQ(payloads, (std::map<int64_t, std::string>{{4, "dock"}, {5, "room-102"}}));
+  // the next message without track 4 (its payload forgotten at a jump)
+  codes.codes.resize(1);
+  codes.ncodes = 1;
+  codes.withheld_track_ids.clear();
+  codes.nwithheld = 0;
+  ld::takeCodes(codes, payloads);
+  EXPECT_EQ(payloads, (std::map<int64_t, std::string>{{5, "room-102"}}));
 }
 
 // A message reused across decodes (the processes' hot path) holds what the

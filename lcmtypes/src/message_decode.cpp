@@ -213,8 +213,11 @@ std::string earlierTypeVersion(const void* data, size_t size) {
 }
 
 void takeCodes(const qr_code_list_t& codes, std::map<int64_t, std::string>& payloads) {
+  // (each message is the whole of what is known for its frame's tracks: a
+  // payload it leaves out is forgotten, withheld, or of a track dropped;
+  // merged into the last, they stayed for ever)
+  payloads.clear();
   for (const auto& c : codes.codes) payloads[c.track_id] = c.payload;
-  for (const int64_t id : codes.withheld_track_ids) payloads.erase(id);
 }
 
 bool decodeMessage(const void* data, size_t size, qr_code_list_t& out, std::string* error) {

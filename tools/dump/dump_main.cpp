@@ -140,7 +140,8 @@ int main(int argc, char** argv) {
   std::string url = ld::defaultLcmUrl();
   bool live = false;
   app.add_option("logs", logs, "LCM log files (lcm-logger)");
-  app.add_option("-c,--channel", channels, "only channels matching this regex (repeatable)");
+  // (one pattern a -c: a list took the log files after it as patterns)
+  app.add_option("-c,--channel", channels, "only channels matching this regex (repeatable)")->allow_extra_args(false);
   app.add_flag("--live", live, "read the live bus instead of files (Ctrl-C to stop)");
   app.add_option("--lcm-url", url, "LCM URL for --live")->capture_default_str();
   LD_CLI_PARSE(app, argc, argv);

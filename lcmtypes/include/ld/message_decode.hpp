@@ -35,9 +35,12 @@ bool decodeMessage(const void* data, size_t size, qr_code_list_t& out,
 /// made by an older build is said as such, not as a foreign message.
 std::string earlierTypeVersion(const void* data, size_t size);
 
-/// A codes message taken into payloads known by track id, as a consumer
-/// that keeps them between messages does (ld-view): each code's payload
-/// set, each withheld track's dropped (its landmark showed another code).
+/// A codes message taken as the payloads known by track id, as a consumer
+/// that keeps them between messages does (ld-view). Each message lists every
+/// payload known for the tracks of its frame, so `payloads` becomes exactly
+/// its codes: a payload it leaves out is gone (withheld: its landmark showed
+/// another code; forgotten at a jump or a tracker restart; its track
+/// dropped), where merging kept it.
 void takeCodes(const qr_code_list_t& codes, std::map<int64_t, std::string>& payloads);
 
 }  // namespace ld

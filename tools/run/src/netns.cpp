@@ -80,17 +80,10 @@ std::optional<bool> otherThanInitsNetns() {
 // stack on lo a soak would feed: not private)
 bool inPrivateNetns() { return netnsVouchedFor() || (otherThanInitsNetns().value_or(true) && onlyLoopbackUp()); }
 
-void enterPrivateNetns() {
-  const uid_t uid = ::getuid();
-  const gid_t gid = ::getgid();
-  if (uid == 0) {
-    if (::unshare(CLONE_NEWNET) != 0) fail("unshare(CLONE_NEWNET)");
-  } else {
-    if (::unshare(CLONE_NEWUSER | CLONE_NEWNET) != 0) fail("unshare(CLONE_NEWUSER | CLONE_NEWNET)");
-    writeFile("/proc/self/setgroups", "deny");
-    writeFile("/proc/self/uid_map", "0 " + std::to_string(uid) + " 1");
-    writeFile("/proc/self/gid_map", "0 " + std::to_string(gid) + " 1");
-  }
+namespace {
+// `ip link set lo up; ip route add 224.0.0.0/4 dev lo` in the namespace the
+// process is in (a route there already is fine).
+void routeMulticastToLo() {
   const int s = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
   if (s < 0) fail("socket");
   ifreq ifr{};
@@ -116,7 +109,33 @@ void enterPrivateNetns() {
     fail("cannot route 224.0.0.0/4 to lo");
   }
   ::close(s);
+}
+}  // namespace
+
+void enterPrivateNetns() {
+  const uid_t uid = ::getuid();
+  const gid_t gid = ::getgid();
+  if (uid == 0) {
+    if (::unshare(CLONE_NEWNET) != 0) fail("unshare(CLONE_NEWNET)");
+  } else {
+    if (::unshare(CLONE_NEWUSER | CLONE_NEWNET) != 0) fail("unshare(CLONE_NEWUSER | CLONE_NEWNET)");
+    writeFile("/proc/self/setgroups", "deny");
+    writeFile("/proc/self/uid_map", "0 " + std::to_string(uid) + " 1");
+    writeFile("/proc/self/gid_map", "0 " + std::to_string(gid) + " 1");
+  }
+  routeMulticastToLo();
   ::setenv("LD_IN_NETNS", "1", 1);
+}
+
+bool useThisPrivateNetns() {
+  if (!inPrivateNetns()) return false;
+  try {
+    routeMulticastToLo();
+  } catch (const std::exception&) {
+    return false;  // (no right to route here: a namespace of its own then)
+  }
+  ::setenv("LD_IN_NETNS", "1", 1);
+  return true;
 }
 
 int64_t rmemMax() {

@@ -364,8 +364,9 @@ int main(int argc, char** argv) {
   if (exit_when_done && cfg.source != "replay" && cfg.source != "play")
     return ld::cli::usage(argv[0], "--exit-when-replay-done needs a replay or play source");
 
-  // 1. The network namespace, before any thread exists.
-  if (netns && !ld::netnsVouchedFor()) {
+  // 1. The network namespace, before any thread exists: the caller's own
+  // where it made one, else one of ld-run's.
+  if (netns && !ld::netnsVouchedFor() && !ld::useThisPrivateNetns()) {
     try {
       ld::enterPrivateNetns();
     } catch (const std::exception& e) {

@@ -15,6 +15,14 @@ namespace ld {
 /// Throws std::runtime_error naming the step that failed.
 void enterPrivateNetns();
 
+/// True when the process is already in a private network namespace
+/// (inPrivateNetns: one its caller made, loopback alone up) and could route
+/// 224.0.0.0/4 to `lo` there: `ld-run --netns` then runs the set in it, so
+/// that the caller's own programs in that namespace hear the bus (a second
+/// namespace of ld-run's own hid the set from them). Sets LD_IN_NETNS=1 for
+/// the children then. False, and nothing changed, otherwise.
+bool useThisPrivateNetns();
+
 /// True when the process is in a network namespace other than pid 1's (or
 /// one that cannot be told from it, inside a user namespace) where no
 /// interface but loopback is up (made as DESIGN.md says, `unshare -n` then
@@ -25,9 +33,7 @@ bool inPrivateNetns();
 /// True when some interface is up and every one up is loopback.
 bool onlyLoopbackUp();
 /// True when LD_IN_NETNS=1: a namespace enterPrivateNetns or
-/// scripts/netns-run.sh made, or one a caller vouches for. (`ld-run --netns`
-/// makes its own unless so: a machine with loopback alone up may lack the
-/// multicast route that enterPrivateNetns adds.)
+/// scripts/netns-run.sh made, or one a caller vouches for.
 bool netnsVouchedFor();
 
 /// net.core.rmem_max of the current network namespace (bytes), -1 if unreadable.
