@@ -13,7 +13,7 @@ source "$(dirname "$0")/ld_run_lib.sh"
   --format mjpeg --log "$T/in.lcmlog" --no-png >/dev/null
 
 "$BIN/ld-run" --netns --play "$T/in.lcmlog" --fps 15 --duration 120 --state-file "$T/state.json" \
-  --summary "$T/summary.json" --log-dir "$T" --status-interval 0 -q &
+  --summary "$T/summary.json" --log-dir "$T" --status-interval 0 -q 2>"$T/console" &
 RUN=$!
 
 wait_ready "$T/state.json"
@@ -61,4 +61,12 @@ echo "images: $images, tracked: $(jq .summary.frames.tracked "$T/summary.json"),
 # ld-play's images are timed from their publication (utime), never below 0
 [ "$(jq -r .summary.latency_ms.from "$T/summary.json")" = capture ]
 [ "$(jq '[.summary.per_frame[] | select(.latency_ms != null and .latency_ms <= 0)] | length' "$T/summary.json")" -eq 0 ]
+# which process died and was restarted is said on the console, though the
+# processes' lines go to --log-dir (there alone, the console said nothing)
+for victim in detector tracker qr-reader; do
+  grep -q "^\[$victim\] died (signal 9 (Killed)); restarting in " "$T/console" &&
+    grep -q "^\[$victim\] restarted, pid " "$T/console" &&
+    grep -q "^\[ld-run\] died (signal 9 (Killed)); restarting in " "$T/$victim.log" ||
+    { echo "the console or $victim.log does not say $victim died: $(cat "$T/console")"; exit 1; }
+done
 echo "1 passed, 0 failed"

@@ -76,21 +76,17 @@ class Console {
   Console(bool tty, bool quiet, std::string log_dir)
       : tty_(tty), quiet_(quiet), log_dir_(std::move(log_dir)) {}
   void line(const std::string& name, const std::string& text) {
-    if (!log_dir_.empty() && name != "ld-run" && !unwritable_.count(name)) {
-      auto& f = files_[name];
-      const std::string path = log_dir_ + "/" + name + ".log";
-      errno = 0;
-      if (!f.is_open()) f.open(path, std::ios::app);
-      f << text << std::endl;
-      if (f) return;
-      // (a full disk: the line, and those after it, on stderr, said once;
-      // they were lost without a word)
-      clearStatus();
-      std::fprintf(stderr, "[ld-run] cannot write %s: %s; %s's lines from here go where they would without --log-dir\n",
-                   path.c_str(), std::strerror(errno ? errno : EIO), name.c_str());
-      unwritable_.insert(name);
-    }
+    if (name != "ld-run" && toFile(name, text)) return;
     if (quiet_ && name != "ld-run") return;
+    clearStatus();
+    std::fprintf(stderr, "[%s] %s\n", name.c_str(), text.c_str());
+  }
+  /// ld-run's own note about a process (started, died, restarting,
+  /// stopped): on stderr always, and in the process's file too with
+  /// --log-dir (it went to the file alone: the console never said which
+  /// process died, an operator's audit).
+  void event(const std::string& name, const std::string& text) {
+    toFile(name, "[ld-run] " + text);
     clearStatus();
     std::fprintf(stderr, "[%s] %s\n", name.c_str(), text.c_str());
   }
@@ -112,6 +108,26 @@ class Console {
   void clearStatus() {
     if (status_shown_) std::fprintf(stderr, "\r\033[K");
     status_shown_ = false;
+  }
+
+ private:
+  /// With --log-dir, the line into the process's file; false when not
+  /// written there (no --log-dir, or the file cannot be written: a full
+  /// disk, said once, and the lines from then on go where they would
+  /// without --log-dir; they were lost without a word).
+  bool toFile(const std::string& name, const std::string& text) {
+    if (log_dir_.empty() || unwritable_.count(name)) return false;
+    auto& f = files_[name];
+    const std::string path = log_dir_ + "/" + name + ".log";
+    errno = 0;
+    if (!f.is_open()) f.open(path, std::ios::app);
+    f << text << std::endl;
+    if (f) return true;
+    clearStatus();
+    std::fprintf(stderr, "[ld-run] cannot write %s: %s; %s's lines from here go where they would without --log-dir\n",
+                 path.c_str(), std::strerror(errno ? errno : EIO), name.c_str());
+    unwritable_.insert(name);
+    return false;
   }
 
  private:
@@ -511,7 +527,9 @@ int main(int argc, char** argv) {
   std::signal(SIGPIPE, SIG_IGN);
 
   cfg.restart.usage_error_is_final = true;  // (as the systemd units' RestartPreventExitStatus=2)
-  ld::Supervisor sup(cfg.restart, [&](const std::string& n, const std::string& l) { console.line(n, l); });
+  ld::Supervisor sup(
+      cfg.restart, [&](const std::string& n, const std::string& l) { console.line(n, l); },
+      [&](const std::string& n, const std::string& l) { console.event(n, l); });
   std::vector<size_t> early, late;  // late: the image source, started once the rest listens
   for (auto& s : specs) {
     const bool is_source = s.role == ld::ProcessRole::Source || s.name == "camera";

@@ -80,8 +80,8 @@ std::string selfDirectory() {
   return slash == std::string::npos ? "" : path.substr(0, slash);
 }
 
-Supervisor::Supervisor(RestartPolicy policy, LineSink sink)
-    : policy_(policy), sink_(std::move(sink)) {}
+Supervisor::Supervisor(RestartPolicy policy, LineSink sink, LineSink events)
+    : policy_(policy), sink_(std::move(sink)), events_(std::move(events)) {}
 
 Supervisor::~Supervisor() {
   for (auto& p : procs_) {
@@ -116,7 +116,7 @@ bool Supervisor::start(size_t i) {
     const double d = restartDelay(policy_, p.consecutive_failures);
     p.restart_at = now + std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(d));
     p.last_exit = why;
-    sink_(p.spec.name, "cannot start " + p.spec.argv.at(0) + ": " + why + "; retrying in " +
+    event(p, "cannot start " + p.spec.argv.at(0) + ": " + why + "; retrying in " +
                            std::to_string(d).substr(0, 4) + " s");
     return false;
   };
@@ -183,7 +183,7 @@ bool Supervisor::start(size_t i) {
   p.failed_to_start = false;
   p.done = false;
   p.failed = false;
-  sink_(p.spec.name, (p.starts > 1 ? "restarted, pid " : "started, pid ") + std::to_string(pid));
+  event(p, (p.starts > 1 ? "restarted, pid " : "started, pid ") + std::to_string(pid));
   return true;
 }
 
@@ -225,12 +225,12 @@ void Supervisor::onExit(ProcessState& p, int status, SteadyClock::time_point now
   if (stopping_) return;
   if (p.spec.role == ProcessRole::Source && WIFEXITED(status) && WEXITSTATUS(status) == 0) {
     p.done = true;
-    sink_(p.spec.name, "finished (exit 0)");
+    event(p, "finished (exit 0)");
     return;
   }
   if (WIFEXITED(status) && WEXITSTATUS(status) == 2 && policy_.usage_error_is_final) {
     p.failed = true;
-    sink_(p.spec.name, "failed (exit 2); not restarted");
+    event(p, "failed (exit 2); not restarted");
     return;
   }
   const double ran = std::chrono::duration<double>(now - p.started).count();
@@ -239,7 +239,7 @@ void Supervisor::onExit(ProcessState& p, int status, SteadyClock::time_point now
   p.restart_at = now + std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(d));
   char buf[96];
   std::snprintf(buf, sizeof buf, "; restarting in %.2f s", d);
-  sink_(p.spec.name, "died (" + p.last_exit + ")" + buf);
+  event(p, "died (" + p.last_exit + ")" + buf);
 }
 
 void Supervisor::poll(SteadyClock::time_point now) {
@@ -280,7 +280,7 @@ bool Supervisor::stopGroup(ProcessRole role, double grace_s) {
                         (WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM);
         if (!ok) clean = false;
         onExit(p, status, SteadyClock::now());
-        sink_(p.spec.name, "stopped (" + p.last_exit + ")");
+        event(p, "stopped (" + p.last_exit + ")");
       } else {
         drainOutput(p, false);
         any = true;
@@ -294,7 +294,7 @@ bool Supervisor::stopGroup(ProcessRole role, double grace_s) {
         int status = 0;
         ::waitpid(p.pid, &status, 0);
         onExit(p, status, SteadyClock::now());
-        sink_(p.spec.name, "killed: did not stop within the grace period");
+        event(p, "killed: did not stop within the grace period");
         clean = false;
       }
       break;

@@ -78,7 +78,10 @@ class Supervisor {
   /// supervisor's own notes about it (start, exit, restart).
   using LineSink = std::function<void(const std::string& name, const std::string& line)>;
 
-  Supervisor(RestartPolicy policy, LineSink sink);
+  /// `events`, when given, receives the supervisor's own notes instead of
+  /// `sink` (ld-run shows them on its console even where the children's
+  /// lines go to files: which process died was said only in its file).
+  Supervisor(RestartPolicy policy, LineSink sink, LineSink events = nullptr);
   ~Supervisor();  ///< kills (SIGKILL) whatever still runs
   Supervisor(const Supervisor&) = delete;
   Supervisor& operator=(const Supervisor&) = delete;
@@ -114,8 +117,10 @@ class Supervisor {
   void drainOutput(ProcessState& p, bool eof);
   bool stopGroup(ProcessRole role, double grace_s);
 
+  void event(const ProcessState& p, const std::string& line) { (events_ ? events_ : sink_)(p.spec.name, line); }
+
   RestartPolicy policy_;
-  LineSink sink_;
+  LineSink sink_, events_;
   std::vector<ProcessState> procs_;
   bool stopping_ = false;
 };
