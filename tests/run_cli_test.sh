@@ -192,6 +192,13 @@ timeout 30 "$BIN/ld-run" --netns --status-interval 0 -q --config "$T/badworker.j
 timeout 60 "$BIN/ld-run" --netns --replay "$T/latin.lcmlog" --exit-when-replay-done --summary "$T/latin.json" \
   --report -q --status-interval 0 >"$T/out" 2>&1 || fail "a payload that is not UTF-8: $(tail -3 "$T/out")"
 jq -e '[.summary.tracks[].payload] | index("caf\ufffd")' "$T/latin.json" >/dev/null || fail "latin payload: $(cat "$T/latin.json")"
+grep -q "^frames: 20 images, 20 tracked (skipped: 0 by the detector, 0 by the tracker, 0 by the QR reader)$" "$T/out" ||
+  fail "report, every frame tracked: $(grep '^frames' "$T/out")"
+# the images no tracked list came for are said in the report (here: no tracker)
+timeout 60 "$BIN/ld-run" --netns --replay "$T/latin.lcmlog" --exit-when-replay-done --processes detector \
+  --report -q --status-interval 0 >"$T/out" 2>&1 || true
+grep -q "^frames: 20 images, 0 tracked (skipped: 0 by the detector, 0 by the tracker); 20 more never tracked (no tracked list came for them: a process stopped, restarting or left out, or lost on the bus)$" "$T/out" ||
+  fail "report, no tracker: $(cat "$T/out")"
 [ "$(jq .log_images "$T/latin.json")" -eq 20 ] || fail "log_images: $(jq .log_images "$T/latin.json")"
 # A replay log damaged in the middle: lcm-logplayer stops there; ld-run says so.
 { head -c 5000000 "$T/latin.lcmlog"; head -c 3000 /dev/zero; tail -c +5000001 "$T/latin.lcmlog"; } >"$T/damaged.lcmlog"
