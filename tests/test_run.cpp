@@ -573,6 +573,51 @@ TEST(BusMonitor, KeepsTheTracksOfATrackerRunApartFromTheNext) {
   EXPECT_EQ(s["per_frame"][20]["tracker_run"], 2);
 }
 
+// A log replayed again after the tracker restarted: the second pass's frames
+// have the first pass's times, and a code read in the second pass is of the
+// run that tracked it (run 2), not of the run whose frames had that time
+// first (it made two tracks that never were, and the real one unread).
+TEST(BusMonitor, CodeOfAReplayedFrameGoesToTheRunThatTrackedIt) {
+  ld::BusMonitor m;
+  for (int i = 0; i < 10; ++i) {  // the first pass, tracker run 1
+    m.imageSeen(1000 + i, i, 5000 + i);
+    m.trackedSeen(list(1000 + i, i, {trackedLandmark(1, true, "", i)}), 5000 + i);
+  }
+  for (int i = 0; i < 5; ++i) {  // the tracker restarts: run 2
+    m.imageSeen(1010 + i, 10 + i, 5010 + i);
+    m.trackedSeen(list(1010 + i, 10 + i, {trackedLandmark(1, true, "", i)}), 5010 + i);
+  }
+  // the log is replayed again from its start; run 2 goes on (ids 3 and on)
+  for (int i = 0; i < 5; ++i) {
+    m.imageSeen(1000 + i, i, 6000 + i);
+    m.trackedSeen(list(1000 + i, i, {trackedLandmark(3, true, "", i)}), 6000 + i);
+  }
+  ld::qr_code_list_t codes{};
+  ld::qr_code_t read{};
+  read.track_id = 3;
+  read.payload = "room-101";
+  read.utime = 1002;  // the second pass's frame 2
+  read.seq = 2;
+  codes.codes = {read};
+  codes.ncodes = 1;
+  codes.utime = 1004;
+  codes.seq = 4;
+  m.codesSeen(codes, 6010);
+  const auto s = m.summary();
+  EXPECT_EQ(s["tracker_restarts"], 1);
+  ASSERT_EQ(s["tracks"].size(), 3u) << s["tracks"].dump();  // 1/1, 1/2, 3/2
+  for (const auto& t : s["tracks"]) {
+    if (t["id"] == 3) {
+      EXPECT_EQ(t["tracker_run"], 2);
+      EXPECT_EQ(t["payload"], "room-101");
+      EXPECT_EQ(t["frames_visible"], 5);
+    } else {
+      EXPECT_EQ(t["id"], 1);
+      EXPECT_TRUE(t["payload"].is_null()) << t.dump();
+    }
+  }
+}
+
 TEST(BusMonitor, SkipCountersSurviveAPublisherRestart) {
   ld::BusMonitor m;
   m.landmarksSeen(list(1, 1, {}, 5), 1);

@@ -220,10 +220,19 @@ void BusMonitor::codesSeen(const qr_code_list_t& codes, Micros rx_us) {
       break;
     }
   // a code names the frame it was read from: its track is of the tracker's
-  // run that frame belongs to (codes read before a restart come after it)
+  // run that frame belongs to (codes read before a restart come after it).
+  // The newest tracked frame of that utime and seq says which: a log
+  // replayed again repeats its frames' times, and by the time alone a code
+  // of the second pass went to the run that tracked the first (an
+  // operator's audit: two tracks that never were, the real one unread).
+  // A frame no longer among them: the run whose start came before its time.
   for (const auto& c : codes.codes) {
-    const auto runs_begun = std::upper_bound(run_starts_.begin(), run_starts_.end(), c.utime) - run_starts_.begin();
-    setPayload(std::max(1, static_cast<int>(runs_begun)), c.track_id, c.payload, c.seq);
+    int run = 0;
+    for (size_t k = frames_.size(), n = 0; k-- > 0 && n < 600 && run == 0; ++n)
+      if (frames_[k].utime == c.utime && frames_[k].seq == c.seq) run = frames_[k].run;
+    if (run == 0)
+      run = static_cast<int>(std::upper_bound(run_starts_.begin(), run_starts_.end(), c.utime) - run_starts_.begin());
+    setPayload(std::max(1, run), c.track_id, c.payload, c.seq);
   }
 }
 
