@@ -3,7 +3,8 @@
 # looped log (ld-play, 15 frames/s). Each of ld-detector, ld-tracker and
 # ld-qr-reader in turn is killed with SIGKILL: it must be running again (a
 # new pid, the same program) within 2 s while the other processes keep their
-# pids, and frames must be tracked again afterwards. SIGTERM to ld-run then
+# pids, and frames must be tracked again afterwards. Then the tracker is
+# stopped (SIGSTOP): found hung, said, killed and restarted. SIGTERM to ld-run then
 # stops every process, and ld-run exits 0; its summary keeps the restarted
 # tracker's tracks apart from the first run's.
 set -euo pipefail
@@ -12,7 +13,8 @@ source "$(dirname "$0")/ld_run_lib.sh"
 "$BIN/ld-synth" sequence --out "$T/seq" --frames 30 --fps 15 --landmarks 2 --seed 3 --size 0.3 \
   --format mjpeg --log "$T/in.lcmlog" --no-png >/dev/null
 
-"$BIN/ld-run" --netns --play "$T/in.lcmlog" --fps 15 --duration 120 --state-file "$T/state.json" \
+printf '{"restart": {"hang_s": 2}}\n' >"$T/hang.json"
+"$BIN/ld-run" --netns --config "$T/hang.json" --play "$T/in.lcmlog" --fps 15 --duration 120 --state-file "$T/state.json" \
   --summary "$T/summary.json" --log-dir "$T" --status-interval 0 -q 2>"$T/console" &
 RUN=$!
 
@@ -36,6 +38,23 @@ for victim in detector tracker qr-reader; do
   sleep 1.5  # the restarted process works again before the next kill
 done
 
+# A hung process (SIGSTOP: it runs no more, and does not die) is found by
+# its silence while its input comes, said, killed and restarted (hang_s 2
+# here; it was never noticed, the state file saying it ran)
+old=$(pid_of tracker)
+kill -STOP "$old"
+t0=$(now_ms)
+while [ $(( $(now_ms) - t0 )) -lt 10000 ]; do
+  new=$(pid_of tracker)
+  [ "$new" -gt 0 ] 2>/dev/null && [ "$new" != "$old" ] && break
+  sleep 0.1
+done
+echo "tracker: pid $old stopped, back as pid $new after $(( $(now_ms) - t0 )) ms"
+[ "$new" -gt 0 ] && [ "$new" != "$old" ]
+grep -q "^\[tracker\] published nothing on LANDMARKS_TRACKED for 2\.[0-9] s while its input came ([0-9]* on LANDMARKS); it is T (stopped): hung, killed to be restarted$" "$T/console" ||
+  { echo "the hang is not said: $(cat "$T/console")"; exit 1; }
+sleep 1.5
+
 pids=$(jq -r '.processes[] | .pid' "$T/state.json")
 stop_run
 echo "ld-run exit status after SIGTERM: $rc"
@@ -44,13 +63,15 @@ for p in $pids; do
   if kill -0 "$p" 2>/dev/null; then echo "pid $p still running"; exit 1; fi   # every process gone
 done
 [ "$(jq -r .end "$T/summary.json")" = "stopped by SIGTERM" ]
-[ "$(jq '[.processes[] | select(.name == "detector" or .name == "tracker" or .name == "qr-reader") | .restarts] | add' "$T/summary.json")" -eq 3 ]
+[ "$(jq '[.processes[] | select(.name == "detector" or .name == "tracker" or .name == "qr-reader") | .restarts] | add' "$T/summary.json")" -eq 4 ]
+[ "$(jq '[.processes[] | select(.name == "tracker") | .hangs] | add' "$T/summary.json")" -eq 1 ]
+[ "$(jq '[.processes[] | .hangs] | add' "$T/summary.json")" -eq 1 ]
 [ "$(jq '[.processes[] | select(.name == "play") | .restarts] | add' "$T/summary.json")" -eq 0 ]
 # the restarted tracker numbered its tracks from 1 again: the summary tells
-# its tracks from the first run's (one restart, seen from the tracks' ages)
+# its tracks from the first run's (two restarts: killed, then hung; seen from the tracks' ages)
 echo "tracker restarts seen on the bus: $(jq .summary.tracker_restarts "$T/summary.json")," \
   "tracks: $(jq -c '[.summary.tracks[] | "\(.id)/\(.tracker_run)"]' "$T/summary.json")"
-[ "$(jq .summary.tracker_restarts "$T/summary.json")" -eq 1 ]
+[ "$(jq .summary.tracker_restarts "$T/summary.json")" -eq 2 ]
 [ "$(jq '[.summary.tracks[] | select(.tracker_run == 2)] | length' "$T/summary.json")" -ge 1 ]
 [ "$(jq '[.summary.tracks[] | [.id, .tracker_run]] | length == (unique | length)' "$T/summary.json")" = true ]
 # frames kept flowing through the restarts: the last tracked frame is recent

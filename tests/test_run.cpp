@@ -14,6 +14,7 @@
 
 #include <lcm/lcm-cpp.hpp>
 #include "ld/bus_monitor.hpp"
+#include "ld/hang_watch.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/netns.hpp"
 #include "ld/run_config.hpp"
@@ -681,6 +682,10 @@ TEST(RunConfig, RejectsUnknownKeysAndBadValues) {
                std::runtime_error);
   EXPECT_THROW(ld::RunConfig::fromJson(nlohmann::json::parse(R"({"restart": {"initial_s": 0}})")),
                std::runtime_error);
+  EXPECT_THROW(ld::RunConfig::fromJson(nlohmann::json::parse(R"({"restart": {"hang_s": 0.5}})")),
+               std::runtime_error);
+  EXPECT_EQ(ld::RunConfig::fromJson(nlohmann::json::parse(R"({"restart": {"hang_s": 0}})")).restart.hang_s, 0);
+  EXPECT_EQ(ld::RunConfig::fromJson(nlohmann::json::parse("{}")).restart.hang_s, 10);
   try {
     ld::RunConfig::fromJson(nlohmann::json::parse(R"({"channels": {"image": ""}})"));
     ADD_FAILURE() << "an empty channel name: no error";
@@ -905,3 +910,86 @@ TEST(RunConfig, PathWithoutExtensionFindsTheFile) {
 }
 
 }  // namespace
+
+namespace {
+
+// A bus of named channels whose counts a test moves by hand.
+struct FakeBus {
+  std::map<std::string, ld::HangWatch::Heard> channels;
+  std::map<std::string, int> starts;
+  void publish(const std::string& ch, int64_t now_us) {
+    ++channels[ch].messages;
+    channels[ch].last_us = now_us;
+  }
+  std::vector<ld::HangWatch::Event> check(ld::HangWatch& w, int64_t now_us) {
+    return w.check(
+        now_us, [&](const std::string& ch) { return channels[ch]; },
+        [&](const std::string& n) { return starts.count(n) ? starts[n] : -1; });
+  }
+};
+
+}  // namespace
+
+// A worker that publishes nothing for hang_s while each of its inputs keeps
+// coming is hung (said once, its state's end said once too); one whose
+// inputs stopped is not, nor is one that runs no more or was restarted.
+TEST(HangWatch, SaysAWorkerSilentWhileItsInputsComeOnce) {
+  ld::HangWatch w(2.0);
+  w.add("detector", {"IMAGE"}, "LANDMARKS");
+  w.add("qr-reader", {"IMAGE", "LANDMARKS_TRACKED"}, "LANDMARK_CODES");
+  FakeBus bus;
+  bus.starts = {{"detector", 1}, {"qr-reader", 1}};
+  int64_t t = 1'000'000'000;
+  std::vector<std::string> said;
+  const auto step = [&](bool detector_works, bool tracker_works, int frames, bool qr_works = true) {
+    for (int i = 0; i < frames; ++i, t += 100'000) {  // 10 frames a second
+      bus.publish("IMAGE", t);
+      if (detector_works) bus.publish("LANDMARKS", t);
+      if (tracker_works) bus.publish("LANDMARKS_TRACKED", t);
+      if (qr_works) bus.publish("LANDMARK_CODES", t);
+      for (const auto& e : bus.check(w, t)) said.push_back(e.name + (e.hung ? " hung: " : " again: ") + e.text);
+    }
+  };
+  step(true, true, 30);
+  EXPECT_TRUE(said.empty());
+  step(false, true, 19);  // 1.9 s without LANDMARKS: not yet
+  EXPECT_TRUE(said.empty());
+  step(false, true, 30);  // ... 2 s: once, however long it lasts
+  ASSERT_EQ(said.size(), 1u);
+  EXPECT_EQ(said[0].substr(0, said[0].find(" for ")), "detector hung: published nothing on LANDMARKS");
+  EXPECT_NE(said[0].find("while its input came (2"), std::string::npos) << said[0];
+  step(true, true, 1);
+  ASSERT_EQ(said.size(), 2u);
+  EXPECT_EQ(said[1].substr(0, said[1].find(", after")), "detector again: publishes on LANDMARKS again");
+  // its input stopped (no image): silence is no hang
+  said.clear();
+  for (int i = 0; i < 50; ++i, t += 100'000)
+    for (const auto& e : bus.check(w, t)) said.push_back(e.name);
+  EXPECT_TRUE(said.empty());
+  // silent, but restarted (and not running for a while): begins again
+  step(false, true, 15);
+  bus.starts["detector"] = -1;
+  step(false, true, 10);
+  bus.starts["detector"] = 2;
+  step(false, true, 15);
+  EXPECT_TRUE(said.empty());
+  step(false, true, 10);
+  ASSERT_EQ(said.size(), 1u);
+  // the QR reader needs both its inputs: with the tracker silent (no lists
+  // to answer) its silence is no hang; with lists coming, it is
+  said.clear();
+  bus.starts["detector"] = 3;
+  step(true, false, 50, false);
+  EXPECT_TRUE(said.empty());
+  step(true, true, 25, false);
+  ASSERT_EQ(said.size(), 1u);
+  EXPECT_EQ(said[0].substr(0, said[0].find(" for ")), "qr-reader hung: published nothing on LANDMARK_CODES");
+  EXPECT_NE(said[0].find(" on IMAGE, 2"), std::string::npos) << said[0];
+  // 0: never
+  ld::HangWatch never(0);
+  never.add("detector", {"IMAGE"}, "LANDMARKS");
+  for (int i = 0; i < 100; ++i, t += 100'000) {
+    bus.publish("IMAGE", t);
+    EXPECT_TRUE(bus.check(never, t).empty());
+  }
+}

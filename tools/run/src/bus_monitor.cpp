@@ -67,6 +67,15 @@ void BusMonitor::subscribe(lcm::LCM& lcm) {
   lcm.subscribe("LCM_SELF_TEST", &BusMonitor::onSelfTest, this);
 }
 
+HangWatch::Heard BusMonitor::heard(const std::string& channel) const {
+  for (const auto& [name, c] : {std::pair<const std::string&, const ChannelCount&>{ch_.image, images_},
+                                {ch_.landmarks, landmarks_},
+                                {ch_.tracked, tracked_},
+                                {ch_.codes, codes_}})
+    if (name == channel) return {c.total, c.last};
+  return {};
+}
+
 void BusMonitor::count(ChannelCount& c, Micros rx_us) {
   if (c.total == 0) c.first = rx_us;
   c.last = rx_us;

@@ -260,12 +260,15 @@ RunConfig RunConfig::fromTree(const Json& j, bool yaml) {
   }
   if (j.contains("restart")) {
     const Json& r = j["restart"];
-    checkKeys(r, "restart", {"initial_s", "max_s", "stable_after_s"});
+    checkKeys(r, "restart", {"initial_s", "max_s", "stable_after_s", "hang_s"});
     get(r, "initial_s", "restart", c.restart.initial_s);
     get(r, "max_s", "restart", c.restart.max_s);
     get(r, "stable_after_s", "restart", c.restart.stable_after_s);
+    get(r, "hang_s", "restart", c.restart.hang_s);
     if (!(c.restart.initial_s > 0) || c.restart.max_s < c.restart.initial_s)
       throw std::runtime_error("restart: need 0 < initial_s <= max_s");
+    if (!(c.restart.hang_s == 0 || (c.restart.hang_s >= 1 && c.restart.hang_s <= 86400)))
+      throw std::runtime_error("restart: hang_s must be 0 (never) or 1 to 86400 seconds");
   }
   if (!(c.speed >= 0.01 && c.speed <= 1000))
     throw std::runtime_error("source.speed: must be in [0.01, 1000] (lcm-logplayer's speed factor)");

@@ -23,6 +23,7 @@
 
 #include "ld/cli.hpp"
 #include "ld/bus_monitor.hpp"
+#include "ld/hang_watch.hpp"
 #include "ld/file_checks.hpp"
 #include "ld/lcm_log_reader.hpp"
 #include "ld/lcm_url.hpp"
@@ -177,6 +178,20 @@ std::string writeFileAtomically(const std::string& path, const std::string& text
   return "";
 }
 
+// A process's state as /proc says it ("T (stopped)", "R (running)", ...);
+// "" when it cannot be read.
+std::string procState(pid_t pid) {
+  std::ifstream f("/proc/" + std::to_string(pid) + "/stat");
+  std::string stat;
+  std::getline(f, stat);
+  const size_t paren = stat.rfind(')');
+  if (paren == std::string::npos || paren + 2 >= stat.size()) return "";
+  const char c = stat[paren + 2];
+  const char* what = c == 'R' ? "running" : c == 'S' ? "sleeping" : c == 'D' ? "in uninterruptible wait"
+                   : c == 'T' ? "stopped" : c == 't' ? "stopped by a debugger" : c == 'Z' ? "a zombie" : "?";
+  return std::string(1, c) + " (" + what + ")";
+}
+
 Json processesJson(const ld::Supervisor& sup, const std::map<std::string, RssSeries>* rss) {
   Json arr = Json::array();
   for (const auto& p : sup.processes()) {
@@ -186,6 +201,7 @@ Json processesJson(const ld::Supervisor& sup, const std::map<std::string, RssSer
            {"running", p.pid > 0},
            {"starts", p.starts},
            {"restarts", std::max(0, p.starts - 1)},
+           {"hangs", p.hangs},
            {"done", p.done},
            {"last_exit", p.last_exit}};
     if (rss) {
@@ -539,6 +555,16 @@ int main(int argc, char** argv) {
   ld::Supervisor sup(
       cfg.restart, [&](const std::string& n, const std::string& l) { console.line(n, l); },
       [&](const std::string& n, const std::string& l) { console.event(n, l); });
+  // a worker that publishes nothing while its inputs come is hung: killed,
+  // to be restarted (one that was never watched stayed so for ever)
+  ld::HangWatch hangs(cfg.restart.hang_s);
+  const ld::BusChannels& bch = cfg.channels;
+  for (const auto& s : specs) {
+    if (s.name == "detector") hangs.add(s.name, {bch.image}, bch.landmarks);
+    if (s.name == "tracker") hangs.add(s.name, {bch.landmarks}, bch.tracked);
+    if (s.name == "qr-reader") hangs.add(s.name, {bch.image, bch.tracked}, bch.codes);
+  }
+  auto next_hang_check = Clock::now();
   std::vector<size_t> early, late;  // late: the image source, started once the rest listens
   for (auto& s : specs) {
     const bool is_source = s.role == ld::ProcessRole::Source || s.name == "camera";
@@ -641,6 +667,28 @@ int main(int argc, char** argv) {
     }
     const auto now = Clock::now();
     sup.poll(now);
+    if (now >= next_hang_check) {
+      const auto events = hangs.check(
+          wallMicros(), [&](const std::string& ch) { return monitor.heard(ch); },
+          [&](const std::string& name) {
+            for (const auto& p : sup.processes())
+              if (p.spec.name == name) return p.pid > 0 ? p.starts : -1;
+            return -1;
+          });
+      for (const auto& e : events) {
+        if (!e.hung) {
+          console.event(e.name, e.text);
+          continue;
+        }
+        pid_t pid = -1;
+        for (const auto& p : sup.processes())
+          if (p.spec.name == e.name) pid = p.pid;
+        const std::string state = pid > 0 ? procState(pid) : "";
+        console.event(e.name, e.text + (state.empty() ? "" : "; it is " + state) + ": hung, killed to be restarted");
+        sup.killHung(e.name);
+      }
+      next_hang_check = now + std::chrono::milliseconds(250);
+    }
 
     std::vector<std::pair<pid_t, int>> pids;
     for (const auto& p : sup.processes()) pids.emplace_back(p.pid, p.starts);

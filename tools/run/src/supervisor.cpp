@@ -313,6 +313,16 @@ bool Supervisor::stopAll(double grace_s) {
   return clean;
 }
 
+bool Supervisor::killHung(const std::string& name) {
+  for (auto& p : procs_)
+    if (p.spec.name == name && p.pid > 0) {
+      ++p.hangs;
+      ::kill(p.pid, SIGKILL);  // (a stopped one too; reaped and restarted by poll)
+      return true;
+    }
+  return false;
+}
+
 bool Supervisor::sourcesDone() const {
   bool any = false;
   for (const auto& p : procs_) {

@@ -31,6 +31,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "ld/hang_watch.hpp"
 #include "ld/image_t.hpp"
 #include "ld/lcm_url.hpp"
 #include "ld/landmark_list_t.hpp"
@@ -99,6 +100,10 @@ class BusMonitor {
   ///  "per_frame": [{"seq", "utime", "latency_ms"|null, "landmarks", "ids", "tracker_run"}]}
   /// tracker_run counts the tracker's runs from 1 (a track is its id and run).
   nlohmann::ordered_json summary() const;
+
+  /// One of the four channels' good messages so far and when the last came
+  /// (0 and 0 for a channel it does not follow).
+  HangWatch::Heard heard(const std::string& channel) const;
 
   int64_t trackedFrames() const { return tracked_frames_; }
   /// Lists and codes messages of a frame their channel had already carried

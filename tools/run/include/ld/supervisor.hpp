@@ -36,6 +36,9 @@ struct RestartPolicy {
   double initial_s = 0.2;
   double max_s = 5.0;
   double stable_after_s = 10.0;
+  /// A worker that publishes nothing for this long while its inputs keep
+  /// coming is hung, and killed to be restarted (ld-run; 0: never).
+  double hang_s = 10.0;
   /// A process that exits with status 2 (a usage error: a file or option it
   /// refuses) is not restarted, as it would fail the same way again; ld-run
   /// sets it (and ends the run).
@@ -66,6 +69,7 @@ struct ProcessState {
   bool failed_to_start = false;     ///< the last start failed (exec, pipe, fork)
   std::string last_exit;            ///< describeWaitStatus of the last end, "" if none
   bool failed = false;              ///< a Source that ended with a usage error (RestartPolicy)
+  int hangs = 0;                    ///< times killed as hung (killHung)
   SteadyClock::time_point started{};
   SteadyClock::time_point restart_at{};  ///< when pid == -1 and not done: next start
   int out_fd = -1;                  ///< read end of the child's stdout+stderr
@@ -105,6 +109,10 @@ class Supervisor {
   bool stopping() const { return stopping_; }
 
   const std::vector<ProcessState>& processes() const { return procs_; }
+  /// SIGKILLs the running process `name`, found hung (ld::HangWatch), so
+  /// that it is restarted as one that died; counted in its `hangs`. False
+  /// when none of that name runs.
+  bool killHung(const std::string& name);
   /// A Source exists and all sources are done.
   bool sourcesDone() const;
   /// A process that ended with a usage error and is not restarted, or nullptr.
