@@ -13,6 +13,7 @@
 #include "ld/image_convert.hpp"
 #include "ld/latest_message.hpp"
 #include "ld/message_decode.hpp"
+#include "ld_v1/qr_code_list_t.hpp"  // (tests/data/old_lcmtypes)
 
 namespace {
 
@@ -230,9 +231,12 @@ TEST(DecodeMessage, TruncatedTrailingAndForeignMessagesAreRefused) {
 // lcm-gen gave qr_code_list_t.lcm as it was) is said to be the earlier
 // version's, by the decoder (ld-view, the processes) and on its own (ld-dump).
 TEST(DecodeMessage, EarlierVersionOfATypeIsNamed) {
-  // utime, seq, ncodes 0: the whole of an empty codes message of then
-  Bytes old = {0x55, 0x3e, 0xb3, 0x87, 0xec, 0xca, 0x27, 0xc4};
-  old.resize(8 + 8 + 8 + 4, 0);
+  // an empty codes message of then, encoded by lcm-gen's code of then
+  ld_v1::qr_code_list_t then{};
+  then.utime = 1000;
+  then.seq = 7;
+  const Bytes old = lcmEncode(then);
+  ASSERT_EQ(old.size(), 8u + 8 + 8 + 4);
   ld::qr_code_list_t codes;
   std::string why;
   EXPECT_FALSE(ld::decodeMessage(old.data(), old.size(), codes, &why));

@@ -541,16 +541,26 @@ TEST(BusMonitor, KeepsTheTracksOfATrackerRunApartFromTheNext) {
   // the tracker restarts: its first tracks are 1 again, 0 frames old
   for (int i = 0; i < 5; ++i)
     m.trackedSeen(list(2000 + i, 100 + i, {trackedLandmark(1, true, "", i)}), 2000 + i);
+  // the codes of a frame of the first run come after the restart (late),
+  // then those of a frame of the second
   ld::qr_code_list_t codes{};
   ld::qr_code_t old_read{}, new_read{};
   old_read.track_id = 1;
   old_read.payload = "dock";
-  old_read.utime = 1015;  // a frame of the first run
+  old_read.utime = 1012;  // read in a frame of the first run
+  old_read.seq = 12;
+  codes.utime = 1015;
+  codes.seq = 15;
+  codes.codes = {old_read};
+  codes.ncodes = 1;
+  m.codesSeen(codes, 2008);
   new_read.track_id = 1;
   new_read.payload = "room-101";
   new_read.utime = 2003;
-  codes.codes = {old_read, new_read};
-  codes.ncodes = 2;
+  new_read.seq = 103;
+  codes.utime = 2004;
+  codes.seq = 104;
+  codes.codes = {new_read};
   m.codesSeen(codes, 2010);
 
   const auto s = m.summary();
@@ -597,7 +607,7 @@ TEST(BusMonitor, CodeOfAReplayedFrameGoesToTheRunThatTrackedIt) {
   ld::qr_code_t read{};
   read.track_id = 3;
   read.payload = "room-101";
-  read.utime = 1002;  // the second pass's frame 2
+  read.utime = 1002;  // read in the second pass's frame 2
   read.seq = 2;
   codes.codes = {read};
   codes.ncodes = 1;
@@ -913,51 +923,59 @@ TEST(RunConfig, PathWithoutExtensionFindsTheFile) {
 
 namespace {
 
-// A bus of named channels whose counts a test moves by hand.
+// A bus of named channels and workers' processes that a test moves by hand.
 struct FakeBus {
-  std::map<std::string, ld::HangWatch::Heard> channels;
-  std::map<std::string, int> starts;
-  void publish(const std::string& ch, int64_t now_us) {
-    ++channels[ch].messages;
-    channels[ch].last_us = now_us;
-  }
+  std::map<std::string, int64_t> channels;
+  std::map<std::string, ld::HangWatch::Process> procs;
   std::vector<ld::HangWatch::Event> check(ld::HangWatch& w, int64_t now_us) {
     return w.check(
         now_us, [&](const std::string& ch) { return channels[ch]; },
-        [&](const std::string& n) { return starts.count(n) ? starts[n] : -1; });
+        [&](const std::string& n) { return procs.count(n) ? procs[n] : ld::HangWatch::Process{}; });
   }
 };
 
 }  // namespace
 
 // A worker that publishes nothing for hang_s while each of its inputs keeps
-// coming is hung (said once, its state's end said once too); one whose
-// inputs stopped is not, nor is one that runs no more or was restarted.
-TEST(HangWatch, SaysAWorkerSilentWhileItsInputsComeOnce) {
+// coming, and reads none of it (its socket's queue never empties nor
+// shrinks) or is stopped, is hung: said once, its end said once too. One
+// that reads on and publishes nothing (a detector dropping damaged frames,
+// a tracker dropping repeats, a QR reader whose inputs never join) is not;
+// nor one whose input stopped, one not running, or one restarted, which
+// until it answers once is hung only stopped (a slow start).
+TEST(HangWatch, SaysAWorkerSilentAndNotReadingOnce) {
   ld::HangWatch w(2.0);
   w.add("detector", {"IMAGE"}, "LANDMARKS");
   w.add("qr-reader", {"IMAGE", "LANDMARKS_TRACKED"}, "LANDMARK_CODES");
   FakeBus bus;
-  bus.starts = {{"detector", 1}, {"qr-reader", 1}};
+  bus.procs["detector"] = {1, 0, false};
+  bus.procs["qr-reader"] = {1, 0, false};
   int64_t t = 1'000'000'000;
   std::vector<std::string> said;
-  const auto step = [&](bool detector_works, bool tracker_works, int frames, bool qr_works = true) {
+  // detector: "works" (answers), "reads" (drains its socket), else its
+  // backlog grows by an image a frame
+  const auto step = [&](bool works, bool reads, int frames, bool tracker_works = true, bool qr_works = true) {
     for (int i = 0; i < frames; ++i, t += 100'000) {  // 10 frames a second
-      bus.publish("IMAGE", t);
-      if (detector_works) bus.publish("LANDMARKS", t);
-      if (tracker_works) bus.publish("LANDMARKS_TRACKED", t);
-      if (qr_works) bus.publish("LANDMARK_CODES", t);
+      ++bus.channels["IMAGE"];
+      if (works) ++bus.channels["LANDMARKS"];
+      if (tracker_works) ++bus.channels["LANDMARKS_TRACKED"];
+      if (qr_works) ++bus.channels["LANDMARK_CODES"];
+      bus.procs["detector"].backlog = works || reads ? 0 : bus.procs["detector"].backlog + 460800;
       for (const auto& e : bus.check(w, t)) said.push_back(e.name + (e.hung ? " hung: " : " again: ") + e.text);
     }
   };
   step(true, true, 30);
   EXPECT_TRUE(said.empty());
-  step(false, true, 19);  // 1.9 s without LANDMARKS: not yet
+  step(false, true, 60);  // reads on, publishes nothing: no hang
   EXPECT_TRUE(said.empty());
-  step(false, true, 30);  // ... 2 s: once, however long it lasts
+  step(true, true, 1);
+  step(false, false, 19);  // 1.9 s unread: not yet
+  EXPECT_TRUE(said.empty());
+  step(false, false, 30);  // ... 2 s: once, however long it lasts
   ASSERT_EQ(said.size(), 1u);
   EXPECT_EQ(said[0].substr(0, said[0].find(" for ")), "detector hung: published nothing on LANDMARKS");
   EXPECT_NE(said[0].find("while its input came (2"), std::string::npos) << said[0];
+  EXPECT_NE(said[0].find(" bytes of it unread"), std::string::npos) << said[0];
   step(true, true, 1);
   ASSERT_EQ(said.size(), 2u);
   EXPECT_EQ(said[1].substr(0, said[1].find(", after")), "detector again: publishes on LANDMARKS again");
@@ -966,30 +984,45 @@ TEST(HangWatch, SaysAWorkerSilentWhileItsInputsComeOnce) {
   for (int i = 0; i < 50; ++i, t += 100'000)
     for (const auto& e : bus.check(w, t)) said.push_back(e.name);
   EXPECT_TRUE(said.empty());
-  // silent, but restarted (and not running for a while): begins again
-  step(false, true, 15);
-  bus.starts["detector"] = -1;
-  step(false, true, 10);
-  bus.starts["detector"] = 2;
-  step(false, true, 15);
+  // not running for a while, then restarted: until it answers, only a
+  // stopped process is hung (a start may take long)
+  step(false, false, 15);
+  bus.procs["detector"].starts = -1;
+  step(false, false, 10);
+  bus.procs["detector"] = {2, 0, false};
+  step(false, false, 40);
   EXPECT_TRUE(said.empty());
-  step(false, true, 10);
+  bus.procs["detector"].stopped = true;
+  step(false, false, 1);
+  ASSERT_EQ(said.size(), 1u);  // (the silence since the start is long enough)
+  // stopped after answering: hung after hang_s of silence
+  said.clear();
+  bus.procs["detector"] = {3, 0, false};
+  step(true, true, 5);
+  bus.procs["detector"].stopped = true;
+  step(false, true, 19);
+  EXPECT_TRUE(said.empty());
+  step(false, true, 2);
   ASSERT_EQ(said.size(), 1u);
   // the QR reader needs both its inputs: with the tracker silent (no lists
   // to answer) its silence is no hang; with lists coming, it is
   said.clear();
-  bus.starts["detector"] = 3;
-  step(true, false, 50, false);
+  bus.procs["detector"] = {4, 0, false};
+  bus.procs["qr-reader"].backlog = 0;
+  step(true, true, 10);
+  bus.procs["qr-reader"].stopped = true;
+  step(true, true, 50, false, false);
   EXPECT_TRUE(said.empty());
-  step(true, true, 25, false);
+  step(true, true, 25, true, false);
   ASSERT_EQ(said.size(), 1u);
   EXPECT_EQ(said[0].substr(0, said[0].find(" for ")), "qr-reader hung: published nothing on LANDMARK_CODES");
   EXPECT_NE(said[0].find(" on IMAGE, 2"), std::string::npos) << said[0];
   // 0: never
   ld::HangWatch never(0);
   never.add("detector", {"IMAGE"}, "LANDMARKS");
+  bus.procs["detector"] = {5, 1000, true};
   for (int i = 0; i < 100; ++i, t += 100'000) {
-    bus.publish("IMAGE", t);
+    ++bus.channels["IMAGE"];
     EXPECT_TRUE(bus.check(never, t).empty());
   }
 }

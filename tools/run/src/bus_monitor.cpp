@@ -67,13 +67,13 @@ void BusMonitor::subscribe(lcm::LCM& lcm) {
   lcm.subscribe("LCM_SELF_TEST", &BusMonitor::onSelfTest, this);
 }
 
-HangWatch::Heard BusMonitor::heard(const std::string& channel) const {
+int64_t BusMonitor::messages(const std::string& channel) const {
   for (const auto& [name, c] : {std::pair<const std::string&, const ChannelCount&>{ch_.image, images_},
                                 {ch_.landmarks, landmarks_},
                                 {ch_.tracked, tracked_},
                                 {ch_.codes, codes_}})
-    if (name == channel) return {c.total, c.last};
-  return {};
+    if (name == channel) return c.total;
+  return 0;
 }
 
 void BusMonitor::count(ChannelCount& c, Micros rx_us) {
@@ -228,21 +228,20 @@ void BusMonitor::codesSeen(const qr_code_list_t& codes, Micros rx_us) {
       qr_settled_ = k + 1;
       break;
     }
-  // a code names the frame it was read from: its track is of the tracker's
-  // run that frame belongs to (codes read before a restart come after it).
-  // The newest tracked frame of that utime and seq says which: a log
-  // replayed again repeats its frames' times, and by the time alone a code
-  // of the second pass went to the run that tracked the first (an
-  // operator's audit: two tracks that never were, the real one unread).
-  // A frame no longer among them: the run whose start came before its time.
-  for (const auto& c : codes.codes) {
-    int run = 0;
-    for (size_t k = frames_.size(), n = 0; k-- > 0 && n < 600 && run == 0; ++n)
-      if (frames_[k].utime == c.utime && frames_[k].seq == c.seq) run = frames_[k].run;
-    if (run == 0)
-      run = static_cast<int>(std::upper_bound(run_starts_.begin(), run_starts_.end(), c.utime) - run_starts_.begin());
-    setPayload(std::max(1, run), c.track_id, c.payload, c.seq);
-  }
+  // The codes' track ids are those of the message's own frame's list: the
+  // tracker run that tracked that frame (the newest tracked frame of its
+  // utime and seq: a log replayed again repeats its frames' times, and by
+  // time alone a code of the second pass went to the run that tracked the
+  // first, an operator's audit: two tracks that never were, the real one
+  // unread). A frame no longer among them (or whose list was lost): the run
+  // whose start came before its time. (Not the frame a code was read from:
+  // a payload read long ago is listed with that old frame.)
+  int run = 0;
+  for (size_t k = frames_.size(), n = 0; k-- > 0 && n < 600 && run == 0; ++n)
+    if (frames_[k].utime == codes.utime && frames_[k].seq == codes.seq) run = frames_[k].run;
+  if (run == 0)
+    run = static_cast<int>(std::upper_bound(run_starts_.begin(), run_starts_.end(), codes.utime) - run_starts_.begin());
+  for (const auto& c : codes.codes) setPayload(std::max(1, run), c.track_id, c.payload, c.seq);
 }
 
 std::string BusMonitor::statusLine(Micros now_us) {

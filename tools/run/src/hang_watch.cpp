@@ -1,5 +1,6 @@
 #include "ld/hang_watch.hpp"
 
+#include <algorithm>
 #include <cstdio>
 
 namespace ld {
@@ -10,73 +11,94 @@ void HangWatch::add(const std::string& name, std::vector<std::string> inputs, co
   w.output = output;
   w.inputs = std::move(inputs);
   w.inputs_seen.assign(w.inputs.size(), 0);
+  w.inputs_last.assign(w.inputs.size(), 0);
+  w.inputs_grew_us.assign(w.inputs.size(), 0);
   workers_.push_back(std::move(w));
 }
 
-std::vector<HangWatch::Event> HangWatch::check(int64_t now_us, const std::function<Heard(const std::string&)>& heard,
-                                               const std::function<int(const std::string&)>& starts) {
+namespace {
+std::string seconds(double s) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.1f s", s);
+  return buf;
+}
+}  // namespace
+
+std::vector<HangWatch::Event> HangWatch::check(int64_t now_us,
+                                               const std::function<int64_t(const std::string&)>& messages,
+                                               const std::function<Process(const std::string&)>& process) {
   std::vector<Event> events;
   if (hang_us_ <= 0) return events;
   for (Worker& w : workers_) {
-    const Heard out = heard(w.output);
-    const int started = starts(w.name);
-    // (re)started, or published: its watch begins again here
-    const auto restart = [&] {
+    const int64_t out = messages(w.output);
+    const Process p = process(w.name);
+    bool all_grew_recently = !w.inputs.empty();
+    for (size_t i = 0; i < w.inputs.size(); ++i) {
+      const int64_t n = messages(w.inputs[i]);
+      if (n > w.inputs_last[i]) w.inputs_grew_us[i] = now_us;
+      w.inputs_last[i] = n;
+      all_grew_recently = all_grew_recently && w.inputs_grew_us[i] > 0 && now_us - w.inputs_grew_us[i] <= kFlowingUs;
+    }
+    // its watch begins again here: (re)started, published, or an input
+    // that paused (a worker idle while its input paused, a camera
+    // unplugged, is not slow to answer)
+    const auto mark = [&] {
       w.since_us = now_us;
       w.inputs_from_us = 0;
-      w.output_seen = out.messages;
-      for (size_t i = 0; i < w.inputs.size(); ++i) w.inputs_seen[i] = heard(w.inputs[i]).messages;
+      w.output_seen = out;
+      w.inputs_seen = w.inputs_last;
     };
-    if (started < 0) {  // (not running: the supervisor's)
+    if (p.starts < 0) {  // (not running: the supervisor's)
       w.starts = -1;
       w.said = false;
       continue;
     }
-    if (started != w.starts) {
-      w.starts = started;
+    if (p.starts != w.starts) {
+      w.starts = p.starts;
       w.said = false;  // (a restart ends the hang: the supervisor says it)
-      restart();
+      w.answered = false;
+      mark();
       continue;
     }
-    if (out.messages > w.output_seen) {
-      if (w.said) {
-        Event e{w.name, false, static_cast<double>(now_us - w.since_us) * 1e-6, ""};
-        char buf[64];
-        std::snprintf(buf, sizeof buf, "%.1f s", e.silent_s);
-        e.text = "publishes on " + w.output + " again, after " + buf + " without";
-        events.push_back(std::move(e));
-        w.said = false;
-      }
-      restart();
+    if (out > w.output_seen) {
+      if (w.said)
+        events.push_back({w.name, false, static_cast<double>(now_us - w.since_us) * 1e-6,
+                          "publishes on " + w.output + " again, after " +
+                              seconds(static_cast<double>(now_us - w.since_us) * 1e-6) + " without"});
+      w.said = false;
+      w.answered = true;
+      mark();
       continue;
     }
-    if (w.said) continue;
-    // the inputs: each must have come since the mark and still come; the
-    // silence is counted from when they all came (a worker idle while its
-    // input paused, a camera unplugged, is not slow to answer)
-    bool flowing = !w.inputs.empty(), all_came = true;
+    if (!all_grew_recently) {
+      mark();
+      continue;
+    }
+    bool all_came = true;
     std::string came;
     for (size_t i = 0; i < w.inputs.size(); ++i) {
-      const Heard in = heard(w.inputs[i]);
-      const int64_t n = in.messages - w.inputs_seen[i];
-      all_came = all_came && n > 0;
-      flowing = flowing && n >= kMinInputs && now_us - in.last_us <= kFlowingUs;
+      const int64_t n = w.inputs_last[i] - w.inputs_seen[i];
+      all_came = all_came && n >= kMinInputs;
       came += (i ? ", " : "") + std::to_string(n) + " on " + w.inputs[i];
     }
-    if (w.inputs_from_us == 0 && all_came) w.inputs_from_us = now_us;
-    if (w.inputs_from_us > 0 && !all_came) w.inputs_from_us = 0;
-    bool stopped = false;  // (an input that stopped: marked again, as at a restart)
-    for (size_t i = 0; i < w.inputs.size(); ++i)
-      stopped = stopped || (heard(w.inputs[i]).last_us > 0 && now_us - heard(w.inputs[i]).last_us > kFlowingUs);
-    if (stopped) {
-      restart();
-      continue;
+    if (w.inputs_from_us == 0) {  // (the silence counts from when they came)
+      w.inputs_from_us = now_us;
+      w.read_us = now_us;
+      w.backlog = p.backlog;
     }
-    if (!flowing || w.inputs_from_us == 0 || now_us - w.inputs_from_us < hang_us_) continue;
-    Event e{w.name, true, static_cast<double>(now_us - w.inputs_from_us) * 1e-6, ""};
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "%.1f s", e.silent_s);
-    e.text = "published nothing on " + w.output + " for " + buf + " while its input came (" + came + ")";
+    // reading: its socket's queue empty, or smaller than at the last look
+    if (p.backlog < 0 || p.backlog == 0 || (w.backlog >= 0 && p.backlog < w.backlog)) w.read_us = now_us;
+    w.backlog = p.backlog;
+    if (w.said || !all_came) continue;
+    const int64_t silent = now_us - w.inputs_from_us;
+    // a stopped process at once; one that runs only once it has answered
+    // since its start (a start may be slow: a GPU's driver) and read none of
+    // its input all the silence
+    const bool unread = w.answered && p.backlog > 0 && now_us - w.read_us >= hang_us_;
+    if (silent < hang_us_ || !(p.stopped || unread)) continue;
+    Event e{w.name, true, static_cast<double>(silent) * 1e-6, ""};
+    e.text = "published nothing on " + w.output + " for " + seconds(e.silent_s) + " while its input came (" +
+             came + ")" + (p.backlog > 0 ? ", " + std::to_string(p.backlog) + " bytes of it unread" : "");
     events.push_back(std::move(e));
     w.said = true;
   }

@@ -1,11 +1,13 @@
 #include "ld/netns.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdlib>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <optional>
+#include <map>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -127,8 +129,30 @@ void enterPrivateNetns() {
   ::setenv("LD_IN_NETNS", "1", 1);
 }
 
+// Whether 224.0.0.0/4 is routed to `lo` in this namespace (/proc/net/route:
+// destination and mask in the kernel's byte order, hexadecimal).
+static bool multicastRoutedToLo() {
+  std::ifstream f("/proc/net/route");
+  std::string line;
+  std::getline(f, line);  // header
+  while (std::getline(f, line)) {
+    std::istringstream in(line);
+    std::string iface, dest, gateway, flags, refcnt, use, metric, mask;
+    if (!(in >> iface >> dest >> gateway >> flags >> refcnt >> use >> metric >> mask)) continue;
+    if (iface == "lo" && dest == "000000E0" && mask == "000000F0") return true;
+  }
+  return false;
+}
+
 bool useThisPrivateNetns() {
-  if (!inPrivateNetns()) return false;
+  // Loopback alone up, in a namespace known to be another than pid 1's (its
+  // route to lo added when missing), or, where that cannot be told (pid 1's
+  // hidden), one whose multicast the caller routed to lo already, as
+  // scripts/netns-run.sh and DESIGN.md do: nothing is added then to a
+  // namespace that may be a host's, offline with loopback alone up.
+  if (!onlyLoopbackUp()) return false;
+  const std::optional<bool> other = otherThanInitsNetns();
+  if (other.has_value() ? !*other : !multicastRoutedToLo()) return false;
   try {
     routeMulticastToLo();
   } catch (const std::exception&) {
@@ -160,8 +184,11 @@ int lcmUdpPort(const std::string& url) {
   }
 }
 
-bool hasUdpSocketOnPort(int pid, int port) {
-  std::set<unsigned long> inodes;
+namespace {
+// The UDP sockets bound to `port` in this namespace: inode -> bytes in the
+// receive queue (/proc/net/udp's "tx_queue:rx_queue", hexadecimal).
+std::map<unsigned long, int64_t> udpSocketsOnPort(int port) {
+  std::map<unsigned long, int64_t> sockets;
   for (const char* table : {"/proc/net/udp", "/proc/net/udp6"}) {
     std::ifstream f(table);
     std::string line;
@@ -172,16 +199,21 @@ bool hasUdpSocketOnPort(int pid, int port) {
       unsigned long uid = 0, timeout = 0, inode = 0;
       if (!(in >> sl >> local >> remote >> st >> queues >> tr >> retr >> uid >> timeout >> inode))
         continue;
-      const size_t colon = local.rfind(':');
-      if (colon == std::string::npos) continue;
-      if (std::stoi(local.substr(colon + 1), nullptr, 16) == port) inodes.insert(inode);
+      const size_t colon = local.rfind(':'), qcolon = queues.find(':');
+      if (colon == std::string::npos || qcolon == std::string::npos) continue;
+      if (std::stoi(local.substr(colon + 1), nullptr, 16) == port)
+        sockets[inode] = static_cast<int64_t>(std::stoull(queues.substr(qcolon + 1), nullptr, 16));
     }
   }
-  if (inodes.empty()) return false;
+  return sockets;
+}
+
+// The socket inodes among process `pid`'s open files.
+std::set<unsigned long> socketInodesOf(int pid) {
+  std::set<unsigned long> inodes;
   const std::string dir = "/proc/" + std::to_string(pid) + "/fd";
   DIR* d = ::opendir(dir.c_str());
-  if (!d) return false;
-  bool found = false;
+  if (!d) return inodes;
   while (const dirent* e = ::readdir(d)) {
     char target[64];
     const std::string link = dir + "/" + e->d_name;
@@ -189,13 +221,22 @@ bool hasUdpSocketOnPort(int pid, int port) {
     if (n <= 0) continue;
     target[n] = 0;
     unsigned long inode = 0;
-    if (std::sscanf(target, "socket:[%lu]", &inode) == 1 && inodes.count(inode)) {
-      found = true;
-      break;
-    }
+    if (std::sscanf(target, "socket:[%lu]", &inode) == 1) inodes.insert(inode);
   }
   ::closedir(d);
-  return found;
+  return inodes;
+}
+}  // namespace
+
+bool hasUdpSocketOnPort(int pid, int port) { return udpBacklogOnPort(pid, port) >= 0; }
+
+int64_t udpBacklogOnPort(int pid, int port) {
+  const auto sockets = udpSocketsOnPort(port);
+  if (sockets.empty()) return -1;
+  int64_t backlog = -1;
+  for (const unsigned long inode : socketInodesOf(pid))
+    if (const auto it = sockets.find(inode); it != sockets.end()) backlog = std::max<int64_t>(backlog, 0) + it->second;
+  return backlog;
 }
 
 }  // namespace ld

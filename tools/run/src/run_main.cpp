@@ -235,7 +235,7 @@ void printReport(const Json& s) {
                          f["tracker_skipped"].get<long long>();
   if (lost > 0)
     std::printf("; %lld more never tracked (no tracked list came for them: a process stopped, restarting or "
-                "left out, or lost on the bus)",
+                "left out, frames the detector could not decode, lost on the bus, or on their way at the end)",
                 lost);
   std::printf("\n");
   if (lpf["histogram"].empty()) {  // (no tracked frame: a histogram of nothing read "frames by count:" and no more)
@@ -668,12 +668,20 @@ int main(int argc, char** argv) {
     const auto now = Clock::now();
     sup.poll(now);
     if (now >= next_hang_check) {
+      const int port = ld::lcmUdpPort(cfg.lcm_url);
       const auto events = hangs.check(
-          wallMicros(), [&](const std::string& ch) { return monitor.heard(ch); },
+          std::chrono::duration_cast<std::chrono::microseconds>(now.time_since_epoch()).count(),
+          [&](const std::string& ch) { return monitor.messages(ch); },
           [&](const std::string& name) {
+            ld::HangWatch::Process hp;
             for (const auto& p : sup.processes())
-              if (p.spec.name == name) return p.pid > 0 ? p.starts : -1;
-            return -1;
+              if (p.spec.name == name && p.pid > 0) {
+                hp.starts = p.starts;
+                hp.backlog = port > 0 ? ld::udpBacklogOnPort(p.pid, port) : -1;
+                const std::string state = procState(p.pid);
+                hp.stopped = !state.empty() && (state[0] == 'T' || state[0] == 't');
+              }
+            return hp;
           });
       for (const auto& e : events) {
         if (!e.hung) {

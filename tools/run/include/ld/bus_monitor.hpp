@@ -31,7 +31,6 @@
 
 #include <nlohmann/json.hpp>
 
-#include "ld/hang_watch.hpp"
 #include "ld/image_t.hpp"
 #include "ld/lcm_url.hpp"
 #include "ld/landmark_list_t.hpp"
@@ -101,9 +100,9 @@ class BusMonitor {
   /// tracker_run counts the tracker's runs from 1 (a track is its id and run).
   nlohmann::ordered_json summary() const;
 
-  /// One of the four channels' good messages so far and when the last came
-  /// (0 and 0 for a channel it does not follow).
-  HangWatch::Heard heard(const std::string& channel) const;
+  /// One of the four channels' good messages so far (0 for a channel it
+  /// does not follow).
+  int64_t messages(const std::string& channel) const;
 
   int64_t trackedFrames() const { return tracked_frames_; }
   /// Lists and codes messages of a frame their channel had already carried

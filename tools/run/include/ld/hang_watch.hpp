@@ -1,11 +1,14 @@
 // Telling a worker that hangs (stopped, deadlocked, spinning) from the bus:
-// ld-run's processes each publish one message for each they take in (the
-// detector a list per image, the tracker a list per list, the QR reader a
-// codes message per image and tracked list of one frame), so one that
-// publishes nothing for a while as its inputs keep coming is not working.
-// A process that dies is the supervisor's; one that hangs was seen by no
-// one (an operator's audit: a detector stopped for minutes left the robot
-// blind, the state file saying it ran).
+// ld-run's detector, tracker and QR reader each answer what they take in,
+// and read their socket as it comes. One that publishes nothing while its
+// inputs keep coming, and has not read its socket all that time (the
+// kernel's receive queue never emptied nor shrank), or that is stopped
+// (SIGSTOP, a debugger), is not working. Silence alone is no hang: a
+// detector dropping damaged JPEG frames, a tracker dropping repeated lists,
+// a QR reader whose images and lists never join all read on and publish
+// nothing. A process that dies is the supervisor's; one that hung was seen
+// by no one (an operator's audit: a detector stopped for minutes left the
+// robot blind, the state file saying it ran).
 #pragma once
 
 #include <cstdint>
@@ -17,11 +20,11 @@ namespace ld {
 
 class HangWatch {
  public:
-  /// A channel's messages so far and when the last came (wall-clock
-  /// microseconds; 0: none yet).
-  struct Heard {
-    int64_t messages = 0;
-    int64_t last_us = 0;
+  /// A worker's process as it is now.
+  struct Process {
+    int starts = -1;        ///< times started (a restart begins its watch again); < 0: not running
+    int64_t backlog = -1;   ///< bytes waiting in its socket's receive queue; < 0: not known
+    bool stopped = false;   ///< stopped by a signal or a debugger (/proc state T or t)
   };
   /// What check() found about one worker.
   struct Event {
@@ -30,34 +33,38 @@ class HangWatch {
     double silent_s = 0;    ///< how long its output was silent
     std::string text;       ///< said as ld-run says it
   };
-  /// Inputs that came this recently count as still coming.
+  /// Inputs whose count grew this recently count as still coming.
   static constexpr int64_t kFlowingUs = 2'000'000;
   /// At least this many messages on each input during the silence.
   static constexpr int64_t kMinInputs = 3;
 
-  /// hang_s: the output's silence, while every input comes, that is a hang
-  /// (0: never one).
+  /// hang_s: the output's silence, while every input comes and the worker
+  /// reads none of it (or is stopped), that is a hang (0: never one).
   explicit HangWatch(double hang_s) : hang_us_(static_cast<int64_t>(hang_s * 1e6)) {}
 
   /// A worker `name` that publishes on `output` for what comes on `inputs`.
   void add(const std::string& name, std::vector<std::string> inputs, const std::string& output);
 
-  /// Looks at every worker at now_us: `heard` gives a channel's counts,
-  /// `starts` how often the process has been started (a restart begins its
-  /// watch again; < 0: it does not run now). A hang is said once, and its
-  /// end once.
-  std::vector<Event> check(int64_t now_us, const std::function<Heard(const std::string&)>& heard,
-                           const std::function<int(const std::string&)>& starts);
+  /// Looks at every worker at now_us (a steady clock, microseconds):
+  /// `messages` gives a channel's count so far, `process` the worker's
+  /// process. A hang is said once, and its end once.
+  std::vector<Event> check(int64_t now_us, const std::function<int64_t(const std::string&)>& messages,
+                           const std::function<Process(const std::string&)>& process);
 
  private:
   struct Worker {
     std::string name, output;
     std::vector<std::string> inputs;
     int starts = -1;
+    bool answered = false;                ///< it published since its start
     int64_t since_us = 0;                 ///< its start or its last output
     int64_t inputs_from_us = 0;           ///< when every input had come since (0: not yet)
-    int64_t output_seen = 0;              ///< the output's count then
-    std::vector<int64_t> inputs_seen;     ///< the inputs' counts then
+    int64_t read_us = 0;                  ///< when its backlog was last seen empty or shrinking
+    int64_t backlog = -1;                 ///< at the last check
+    int64_t output_seen = 0;              ///< the output's count at since_us
+    std::vector<int64_t> inputs_seen;     ///< the inputs' counts at since_us
+    std::vector<int64_t> inputs_last;     ///< the inputs' counts at the last check
+    std::vector<int64_t> inputs_grew_us;  ///< when each last grew
     bool said = false;                    ///< a hang said, not its end yet
   };
   int64_t hang_us_;

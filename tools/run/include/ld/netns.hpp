@@ -15,9 +15,10 @@ namespace ld {
 /// Throws std::runtime_error naming the step that failed.
 void enterPrivateNetns();
 
-/// True when the process is already in a private network namespace
-/// (inPrivateNetns: one its caller made, loopback alone up) and could route
-/// 224.0.0.0/4 to `lo` there: `ld-run --netns` then runs the set in it, so
+/// True when the process is already in a private network namespace (one its
+/// caller made: loopback alone up, and either another namespace than pid
+/// 1's, or, where pid 1's is hidden, one whose 224.0.0.0/4 the caller routed
+/// to `lo` already) and could route 224.0.0.0/4 to `lo` there: `ld-run --netns` then runs the set in it, so
 /// that the caller's own programs in that namespace hear the bus (a second
 /// namespace of ld-run's own hid the set from them). Sets LD_IN_NETNS=1 for
 /// the children then. False, and nothing changed, otherwise.
@@ -46,5 +47,10 @@ int lcmUdpPort(const std::string& url);
 /// True when process `pid` has a UDP socket bound to `port` in this network
 /// namespace (for LCM: it has subscribed and joined the group).
 bool hasUdpSocketOnPort(int pid, int port);
+
+/// The bytes waiting in the receive queues of process `pid`'s UDP sockets
+/// bound to `port` in this network namespace (what it has not read yet);
+/// -1 when it has none there or they cannot be told.
+int64_t udpBacklogOnPort(int pid, int port);
 
 }  // namespace ld
