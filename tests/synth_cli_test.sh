@@ -54,6 +54,21 @@ refused "--ecc: QR error correction must be auto, L, M, Q or H, not 'X'" scene -
 # a misspelt subcommand is named ("A subcommand is required")
 refused "'scenes' is no subcommand (scene, sequence)" scenes --out "$T/x"
 refused "--ecc: QR error correction" sequence --out "$T/x" --ecc 7
+# --write-camera: the camera the frames were rendered with, which gives
+# ld-detect the truth's pose (an integrator wrote one by hand); never over
+# an input or another output of the run
+"$BIN/ld-synth" scene --out "$T/cam" --count 1 --size 0.3 --distance 1 --frame-size 320x240 \
+  --write-camera "$T/cam.yaml" >"$T/out" || fail "--write-camera: exit $?"
+grep -q "^camera (320x240, f = 300 px) written to $T/cam.yaml$" "$T/out" || fail "--write-camera: $(cat "$T/out")"
+"$BIN/ld-detect" --camera "$T/cam.yaml" --size 0.3 "$T/cam/000000.png" >"$T/det.jsonl" || fail "ld-detect with the written camera"
+d=$(grep -o '"distance":[0-9.]*' "$T/det.jsonl" | cut -d: -f2)
+t=$(grep -o '"distance":[0-9.]*' "$T/cam/truth.jsonl" | cut -d: -f2)
+awk -v d="$d" -v t="$t" 'BEGIN { exit !(d > 0 && (d - t) / t < 0.02 && (t - d) / t < 0.02) }' ||
+  fail "pose from the written camera: $d m against the truth's $t m"
+refused "--write-camera $T/x/truth.jsonl is a file this run writes in --out $T/x" scene --out "$T/x" --write-camera "$T/x/truth.jsonl"
+refused "--write-camera $T/cam.yaml is the --camera file this run reads" scene --out "$T/x" --camera "$T/cam.yaml" --write-camera "$T/cam.yaml"
+refused "--write-camera $T/q.lcmlog is the --log file" sequence --out "$T/x" --log "$T/q.lcmlog" --write-camera "$T/q.lcmlog"
+
 # an option's value is not the next option, in a subcommand too
 refused "--seed needs a value, and the word after it is the option --out (to give --seed that word, write --seed=--out)" \
   sequence --seed --out "$T/x"

@@ -146,6 +146,31 @@ bool writtenInOut(const std::string& path, const std::string& out, int count, co
          std::stoi(name.substr(0, 6)) < count;
 }
 
+// --write-camera FILE: checked before anything is written. Not a file the
+// run writes in --out, nor its log, nor the --camera file it reads (the
+// calibration would be written over by its scaled copy).
+void checkCameraOut(const std::string& path, const std::string& out, int count, const std::string& extension,
+                    const std::string& log, const std::string& camera_in) {
+  if (path.empty()) return;
+  if (writtenInOut(path, out, count, extension))
+    throw UsageError("--write-camera " + path + " is a file this run writes in --out " + out);
+  if (!log.empty() && ld::sameFile(path, log)) throw UsageError("--write-camera " + path + " is the --log file");
+  if (!camera_in.empty() && ld::sameFile(path, camera_in))
+    throw UsageError("--write-camera " + path + " is the --camera file this run reads");
+  if (const std::string problem = ld::prepareOutputFile(path); !problem.empty())
+    throw std::runtime_error("--write-camera " + path + " " + problem);
+}
+
+// The camera the frames were rendered with, as OpenCV's calibration sample
+// writes one: what ld-detect, ld-detector and ld-eval take as --camera, to
+// give poses for the run's frames or log.
+void writeCamera(const ld::CameraModel& camera, const std::string& path) {
+  if (path.empty()) return;
+  camera.save(path);
+  std::cout << "camera (" << camera.size.width << "x" << camera.size.height << ", f = " << camera.K(0, 0)
+            << " px) written to " << path << "\n";
+}
+
 void makeFolder(const std::string& dir) {
   std::error_code ec;
   fs::create_directories(dir, ec);
@@ -157,7 +182,7 @@ void makeFolder(const std::string& dir) {
 // scene
 
 struct SceneArgs {
-  std::string out, camera, resolution, payload, background, lighting = "random", degrade = "mild";
+  std::string out, camera, resolution, payload, background, lighting = "random", degrade = "mild", write_camera;
   ld::artwork::QrEcc ecc = ld::artwork::QrEcc::Auto;
   int count = 1, landmarks = 1, cards = 0;
   std::optional<int> distractors;
@@ -250,6 +275,7 @@ int runScene(const SceneArgs& a) {
   if (writtenInOut(a.camera, a.out, a.count, a.jpg ? ".jpg" : ".png"))
     throw UsageError("--camera " + a.camera + " is a file this run writes in --out " + a.out +
                      ": it would be written over");
+  checkCameraOut(a.write_camera, a.out, a.count, a.jpg ? ".jpg" : ".png", "", a.camera);
   const Range size = parseRange("size", a.size), dist = parseRange("distance", a.distance),
               yaw = parseRange("yaw", a.yaw), pitch = parseRange("pitch", a.pitch),
               roll = parseRange("roll", a.roll), ny = parseRange("y", a.y);
@@ -384,6 +410,7 @@ int runScene(const SceneArgs& a) {
   if (truth.fail()) throw std::runtime_error("write to " + truth_path + " failed: " + std::strerror(errno ? errno : EIO));
   std::cout << "wrote " << a.count << (a.count == 1 ? " frame" : " frames") << " to " << a.out << " ("
             << in_view << " of " << total << " landmarks fully in view)\n";
+  writeCamera(camera, a.write_camera);
   noteLeftoverFrames(a.out, a.count, a.jpg ? ".jpg" : ".png");
   return 0;
 }
@@ -401,6 +428,8 @@ int main(int argc, char** argv) {
   scene->add_option("--count,--frames,-n", sa.count, "number of frames")->capture_default_str();
   scene->add_option("--seed", sa.seed, "random seed (same seed, same bytes)")->capture_default_str()->check(ld::cli::Seed);
   scene->add_option("--camera", sa.camera, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration; default: 640x480, f = 600 px)");
+  scene->add_option("--write-camera", sa.write_camera,
+                    "also write the camera the frames are rendered with to this file (OpenCV YAML: --camera of ld-detect, ld-detector, ld-eval)");
   scene->add_option("--resolution,--frame-size", sa.resolution, "image size WxH (scales the camera; f = 600 px per 640 without --camera)");
   scene->add_option("--size", sa.size, "landmark side S in metres, or a range a:b")->capture_default_str();
   scene->add_option("--distance", sa.distance, "distance to the sheet's centre, metres")->capture_default_str();
@@ -431,7 +460,7 @@ int main(int argc, char** argv) {
   scene->add_flag("--jpg", sa.jpg, "write frames as JPEG (quality 95) instead of PNG");
 
   SequenceOptions qo;
-  std::string q_camera, q_resolution;
+  std::string q_camera, q_resolution, q_write_camera;
   auto* sequence = app.add_subcommand("sequence", "a camera driving past a wall with landmarks: frames, truth.jsonl, LCM log");
   sequence->add_option("--out,-o", qo.out_dir, "output folder for frames and truth.jsonl");
   sequence->add_option("--frames,--count,-n", qo.frames, "number of frames")
@@ -460,6 +489,8 @@ int main(int argc, char** argv) {
       ->check(ld::cli::StartUtime);
   sequence->add_option("--camera", q_camera, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration; default: 640x480, f = 600 px)");
   sequence->add_option("--resolution,--frame-size", q_resolution, "image size WxH");
+  sequence->add_option("--write-camera", q_write_camera,
+                       "also write the camera the frames are rendered with to this file (OpenCV YAML: --camera of ld-detect, ld-detector, ld-eval)");
   bool no_png = false;
   sequence->add_flag("--no-png", no_png, "no PNG frames (truth.jsonl and the log only)");
 
@@ -505,6 +536,7 @@ int main(int argc, char** argv) {
     if (writtenInOut(q_camera, qo.out_dir, qo.frames, frames_as))
       throw UsageError("--camera " + q_camera + " is a file this run writes in --out " + qo.out_dir +
                        ": it would be written over");
+    checkCameraOut(q_write_camera, qo.out_dir, qo.frames, frames_as, qo.log_path, q_camera);
     if (!qo.log_path.empty()) {
       if (const std::string problem = ld::prepareLogOutputFile(qo.log_path); !problem.empty())
         throw std::runtime_error("--log " + qo.log_path + " " + problem);
@@ -525,6 +557,7 @@ int main(int argc, char** argv) {
     if (!qo.log_path.empty())
       std::cout << (qo.out_dir.empty() ? " to " : " and ") << qo.log_path << " (" << qo.pixel_format << ")";
     std::cout << "; a landmark fully in view in " << st.frames_with_landmark_in_view << " of them\n";
+    writeCamera(qo.camera, q_write_camera);
     if (!qo.out_dir.empty()) noteLeftoverFrames(qo.out_dir, st.frames, ".png", qo.write_png);
     return 0;
   } catch (const UsageError& e) {
