@@ -938,7 +938,7 @@ struct FakeBus {
 
 // A worker that publishes nothing for hang_s while each of its inputs keeps
 // coming, and reads none of it (its socket's queue never empties nor
-// shrinks) or is stopped, is hung: said once, its end said once too. One
+// shrinks), or whose main thread does not run, or is stopped, is hung: said once, its end said once too. One
 // that reads on and publishes nothing (a detector dropping damaged frames,
 // a tracker dropping repeats, a QR reader whose inputs never join) is not;
 // nor one whose input stopped, one not running, or one restarted, which
@@ -992,9 +992,22 @@ TEST(HangWatch, SaysAWorkerSilentAndNotReadingOnce) {
   bus.procs["detector"] = {2, 0, false};
   step(false, false, 40);
   EXPECT_TRUE(said.empty());
-  bus.procs["detector"].stopped = true;
-  step(false, false, 1);
-  ASSERT_EQ(said.size(), 1u);  // (the silence since the start is long enough)
+  bus.procs["detector"].stopped = true;  // (stopped at every look for hang_s)
+  step(false, false, 19);
+  EXPECT_TRUE(said.empty());
+  step(false, false, 2);
+  ASSERT_EQ(said.size(), 1u);
+  // stopped at some looks only (strace stops it at each call, for a
+  // moment), reading and running on: no hang
+  said.clear();
+  bus.procs["detector"] = {7, 0, false, 1000};
+  step(true, true, 5);
+  for (int i = 0; i < 60; ++i) {
+    bus.procs["detector"].stopped = i % 2 == 0;
+    bus.procs["detector"].runtime_ns += 5000;
+    step(false, true, 1);
+  }
+  EXPECT_TRUE(said.empty());
   // stopped after answering: hung after hang_s of silence
   said.clear();
   bus.procs["detector"] = {3, 0, false};
@@ -1004,6 +1017,22 @@ TEST(HangWatch, SaysAWorkerSilentAndNotReadingOnce) {
   EXPECT_TRUE(said.empty());
   step(false, true, 2);
   ASSERT_EQ(said.size(), 1u);
+  // its main thread blocked (a deadlock: LCM's own thread reads the socket
+  // on, the queue stays empty) after answering: hung after hang_s; one whose
+  // main thread runs on is not
+  said.clear();
+  bus.procs["detector"] = {6, 0, false, 1000};
+  step(true, true, 5);
+  for (int i = 0; i < 40; ++i) {
+    bus.procs["detector"].runtime_ns += 5000;
+    step(false, true, 1);
+  }
+  EXPECT_TRUE(said.empty());
+  step(false, true, 19);  // (runtime_ns as it was)
+  EXPECT_TRUE(said.empty());
+  step(false, true, 2);
+  ASSERT_EQ(said.size(), 1u);
+  EXPECT_NE(said[0].find(", its main thread not run since"), std::string::npos) << said[0];
   // the QR reader needs both its inputs: with the tracker silent (no lists
   // to answer) its silence is no hang; with lists coming, it is
   said.clear();

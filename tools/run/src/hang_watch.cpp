@@ -32,6 +32,9 @@ std::vector<HangWatch::Event> HangWatch::check(int64_t now_us,
   for (Worker& w : workers_) {
     const int64_t out = messages(w.output);
     const Process p = process(w.name);
+    if (!p.stopped) w.stopped_since_us = 0;
+    else if (w.stopped_since_us == 0) w.stopped_since_us = now_us;
+    const bool stopped = w.stopped_since_us > 0 && now_us - w.stopped_since_us >= hang_us_;
     bool all_grew_recently = !w.inputs.empty();
     for (size_t i = 0; i < w.inputs.size(); ++i) {
       const int64_t n = messages(w.inputs[i]);
@@ -83,22 +86,28 @@ std::vector<HangWatch::Event> HangWatch::check(int64_t now_us,
     }
     if (w.inputs_from_us == 0) {  // (the silence counts from when they came)
       w.inputs_from_us = now_us;
-      w.read_us = now_us;
+      w.read_us = w.ran_us = now_us;
       w.backlog = p.backlog;
+      w.runtime_ns = p.runtime_ns;
     }
-    // reading: its socket's queue empty, or smaller than at the last look
+    // reading: its socket's queue empty, or smaller than at the last look;
+    // running: its main thread's CPU time grown since the last look
     if (p.backlog < 0 || p.backlog == 0 || (w.backlog >= 0 && p.backlog < w.backlog)) w.read_us = now_us;
+    if (p.runtime_ns < 0 || w.runtime_ns < 0 || p.runtime_ns != w.runtime_ns) w.ran_us = now_us;
     w.backlog = p.backlog;
+    w.runtime_ns = p.runtime_ns;
     if (w.said || !all_came) continue;
     const int64_t silent = now_us - w.inputs_from_us;
     // a stopped process at once; one that runs only once it has answered
     // since its start (a start may be slow: a GPU's driver) and read none of
     // its input all the silence
     const bool unread = w.answered && p.backlog > 0 && now_us - w.read_us >= hang_us_;
-    if (silent < hang_us_ || !(p.stopped || unread)) continue;
+    const bool blocked = w.answered && now_us - w.ran_us >= hang_us_;
+    if (silent < hang_us_ || !(stopped || unread || blocked)) continue;
     Event e{w.name, true, static_cast<double>(silent) * 1e-6, ""};
     e.text = "published nothing on " + w.output + " for " + seconds(e.silent_s) + " while its input came (" +
-             came + ")" + (p.backlog > 0 ? ", " + std::to_string(p.backlog) + " bytes of it unread" : "");
+             came + ")" + (p.backlog > 0 ? ", " + std::to_string(p.backlog) + " bytes of it unread" : "") +
+             (blocked ? ", its main thread not run since" : "");
     events.push_back(std::move(e));
     w.said = true;
   }

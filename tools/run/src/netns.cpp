@@ -129,17 +129,25 @@ void enterPrivateNetns() {
   ::setenv("LD_IN_NETNS", "1", 1);
 }
 
-// Whether 224.0.0.0/4 is routed to `lo` in this namespace (/proc/net/route:
-// destination and mask in the kernel's byte order, hexadecimal).
+// Whether a route in this namespace's main table sends LCM's default group
+// out through `lo` (224.0.0.0/4 as DESIGN.md and scripts/netns-run.sh add
+// it, or a narrower one). /proc/net/route prints each destination and mask
+// as the bytes of the address read as a host integer, as s_addr holds them.
+// (A multicast-type route or one in another table is not listed there: the
+// caller's namespace is then not told from a host's, and ld-run makes one
+// of its own.)
 static bool multicastRoutedToLo() {
+  const uint32_t group = ipv4("239.255.76.67").sin_addr.s_addr;
   std::ifstream f("/proc/net/route");
   std::string line;
   std::getline(f, line);  // header
   while (std::getline(f, line)) {
     std::istringstream in(line);
     std::string iface, dest, gateway, flags, refcnt, use, metric, mask;
-    if (!(in >> iface >> dest >> gateway >> flags >> refcnt >> use >> metric >> mask)) continue;
-    if (iface == "lo" && dest == "000000E0" && mask == "000000F0") return true;
+    if (!(in >> iface >> dest >> gateway >> flags >> refcnt >> use >> metric >> mask) || iface != "lo") continue;
+    const auto d = static_cast<uint32_t>(std::strtoul(dest.c_str(), nullptr, 16));
+    const auto m = static_cast<uint32_t>(std::strtoul(mask.c_str(), nullptr, 16));
+    if (m != 0 && (group & m) == d) return true;
   }
   return false;
 }

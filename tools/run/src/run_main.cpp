@@ -178,6 +178,15 @@ std::string writeFileAtomically(const std::string& path, const std::string& text
   return "";
 }
 
+// The CPU time process `pid`'s main thread has had (/proc's schedstat, ns);
+// -1 when the kernel does not say.
+int64_t mainThreadRuntimeNs(pid_t pid) {
+  std::ifstream f("/proc/" + std::to_string(pid) + "/task/" + std::to_string(pid) + "/schedstat");
+  int64_t ns = -1;
+  if (!(f >> ns)) return -1;
+  return ns;
+}
+
 // A process's state as /proc says it ("T (stopped)", "R (running)", ...);
 // "" when it cannot be read.
 std::string procState(pid_t pid) {
@@ -678,6 +687,12 @@ int main(int argc, char** argv) {
               if (p.spec.name == name && p.pid > 0) {
                 hp.starts = p.starts;
                 hp.backlog = port > 0 ? ld::udpBacklogOnPort(p.pid, port) : -1;
+                // (the project's own programs take their messages in the main
+                // thread, which wakes every 200 ms at least; another program
+                // may not)
+                const std::string prog = std::filesystem::path(p.spec.argv.at(0)).filename().string();
+                if (prog == "ld-detector" || prog == "ld-tracker" || prog == "ld-qr-reader")
+                  hp.runtime_ns = mainThreadRuntimeNs(p.pid);
                 const std::string state = procState(p.pid);
                 hp.stopped = !state.empty() && (state[0] == 'T' || state[0] == 't');
               }

@@ -1,9 +1,11 @@
-// Telling a worker that hangs (stopped, deadlocked, spinning) from the bus:
-// ld-run's detector, tracker and QR reader each answer what they take in,
-// and read their socket as it comes. One that publishes nothing while its
-// inputs keep coming, and has not read its socket all that time (the
-// kernel's receive queue never emptied nor shrank), or that is stopped
-// (SIGSTOP, a debugger), is not working. Silence alone is no hang: a
+// Telling a worker that hangs (stopped, deadlocked) from the bus: ld-run's
+// detector, tracker and QR reader each answer what they take in, their main
+// thread taking each message from LCM, whose own thread reads the socket.
+// One that publishes nothing while its inputs keep coming, and all that
+// time is stopped (SIGSTOP, a debugger), or has not read its socket (the
+// kernel's receive queue never emptied nor shrank: every thread stuck), or
+// whose main thread has not run at all (blocked: a deadlock), is not
+// working. (One spinning in a loop is not told from one working.) Silence alone is no hang: a
 // detector dropping damaged JPEG frames, a tracker dropping repeated lists,
 // a QR reader whose images and lists never join all read on and publish
 // nothing. A process that dies is the supervisor's; one that hung was seen
@@ -24,7 +26,10 @@ class HangWatch {
   struct Process {
     int starts = -1;        ///< times started (a restart begins its watch again); < 0: not running
     int64_t backlog = -1;   ///< bytes waiting in its socket's receive queue; < 0: not known
-    bool stopped = false;   ///< stopped by a signal or a debugger (/proc state T or t)
+    bool stopped = false;   ///< stopped by a signal or a debugger (/proc state T or t); a hang
+                            ///< only when seen so at every look for hang_s (strace stops a
+                            ///< process at each call, for a moment)
+    int64_t runtime_ns = -1;  ///< CPU time its main thread has had, ns; < 0: not known
   };
   /// What check() found about one worker.
   struct Event {
@@ -61,6 +66,9 @@ class HangWatch {
     int64_t inputs_from_us = 0;           ///< when every input had come since (0: not yet)
     int64_t read_us = 0;                  ///< when its backlog was last seen empty or shrinking
     int64_t backlog = -1;                 ///< at the last check
+    int64_t ran_us = 0;                   ///< when its main thread was last seen to have run
+    int64_t stopped_since_us = 0;         ///< stopped at every look since (0: not stopped)
+    int64_t runtime_ns = -1;              ///< at the last check
     int64_t output_seen = 0;              ///< the output's count at since_us
     std::vector<int64_t> inputs_seen;     ///< the inputs' counts at since_us
     std::vector<int64_t> inputs_last;     ///< the inputs' counts at the last check
