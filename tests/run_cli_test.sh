@@ -113,7 +113,7 @@ rc=0
 timeout 30 "$BIN/ld-run" --netns --status-interval 0 --replay "$T/noimg.lcmlog" --exit-when-replay-done \
   >"$T/out" 2>&1 || rc=$?
 [ $rc -eq 1 ] || fail "a replay without images: ld-run exit $rc: $(cat "$T/out")"
-grep -q "replay done, but no image came on IMAGE (are the log's images on another channel?" "$T/out" ||
+grep -q "replay done, but no image came on IMAGE (the log has no message on IMAGE; its channels: OTHER (3): the config's channels.image names the image channel)" "$T/out" ||
   fail "a replay without images: $(cat "$T/out")"
 # A log whose messages on IMAGE are another project's type: said so, not
 # taken for images on another channel (a helper's foreign log).

@@ -461,6 +461,7 @@ int main(int argc, char** argv) {
   // sessions in one log (lcm-logger -a appends) replay with the time between
   // them, silent.
   int64_t log_images = -1;
+  std::map<std::string, int64_t> log_channels;  // (the replay's: messages a channel)
   std::string log_damage, log_gap;
   if (cfg.source == "replay") {
     ld::LcmLogReader reader(cfg.log);
@@ -468,6 +469,7 @@ int main(int argc, char** argv) {
     int64_t previous = 0, gap = 0, gap_after = 0;
     while (reader.next(false)) {  // (headers alone)
       log_images += reader.channel == cfg.channels.image;
+      ++log_channels[reader.channel];
       if (reader.messages() > 1 && reader.timestamp - previous > gap) {
         gap = reader.timestamp - previous;
         gap_after = reader.messages() - 1;
@@ -774,8 +776,16 @@ int main(int argc, char** argv) {
                         "lines say why)";
           exit_code = 1;
         } else if (monitor.imageFrames() == 0) {
+          // (the log's own channels named, where it has none of that name:
+          // they were read before the replay)
+          std::string channels;
+          for (const auto& [name, n] : log_channels)
+            channels += (channels.empty() ? "" : ", ") + name + " (" + std::to_string(n) + ")";
           end_reason += ", but no image came on " + cfg.channels.image +
-                        " (are the log's images on another channel? the config's channels.image names it)";
+                        (log_images == 0 && !channels.empty()
+                             ? " (the log has no message on " + cfg.channels.image + "; its channels: " + channels +
+                                   ": the config's channels.image names the image channel)"
+                             : " (are the log's images on another channel? the config's channels.image names it)");
           exit_code = 1;
         }
         break;
