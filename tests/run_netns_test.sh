@@ -28,10 +28,20 @@ timeout 120 unshare $flags env -u LD_IN_NETNS bash -c '
   wait $dump || true
   exit $rc' _ "$BIN" "$T" || rc=$?
 [ $rc -eq 0 ] || fail "ld-run in the caller's namespace: exit $rc: $(tail -5 "$T/run.out")"
-grep -q "(private network namespace)" "$T/run.out" || fail "no private namespace said: $(cat "$T/run.out")"
+grep -q "(private network namespace, the caller's)" "$T/run.out" || fail "the caller's namespace not said: $(cat "$T/run.out")"
 heard=$(grep -c '"type":"landmark_list_t"' "$T/heard.jsonl" || true)
 [ "$heard" -ge 25 ] || fail "the caller's ld-dump heard $heard of 30 tracked lists: $(head -c 300 "$T/heard.jsonl") $(cat "$T/dump.err")"
 echo "the caller's program heard $heard of 30 tracked lists"
+
+# without the caller's route to lo, where pid 1's namespace is hidden (a
+# user namespace of its own, or a container's pid 1), ld-run cannot tell the
+# caller's namespace from a host's, and makes its own, saying so
+if ! stat -L /proc/1/ns/net >/dev/null 2>&1; then
+  timeout 60 unshare $flags env -u LD_IN_NETNS bash -c 'ip link set lo up
+    "$1/ld-run" --netns --replay "$2/in.lcmlog" --exit-when-replay-done --status-interval 0 >"$2/own.out" 2>&1' _ "$BIN" "$T" ||
+    fail "ld-run without the caller's route: $(tail -3 "$T/own.out")"
+  grep -q "(private network namespace, ld-run's own)" "$T/own.out" || fail "its own namespace not said: $(cat "$T/own.out")"
+fi
 
 # ld-dump -c PATTERN LOG: the log is a log, not a second pattern
 "$BIN/ld-dump" -c IMAGE "$T/in.lcmlog" >"$T/dump.out" || fail "ld-dump -c IMAGE LOG: exit $?"

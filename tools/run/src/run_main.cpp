@@ -416,7 +416,10 @@ int main(int argc, char** argv) {
 
   // 1. The network namespace, before any thread exists: the caller's own
   // where it made one, else one of ld-run's.
-  if (netns && !ld::netnsVouchedFor() && !ld::useThisPrivateNetns()) {
+  std::string netns_whose = ld::netnsVouchedFor() ? "the caller's" : "";  // (said in the running line)
+  if (netns && netns_whose.empty() && ld::useThisPrivateNetns()) netns_whose = "the caller's";
+  if (netns && netns_whose.empty()) {
+    netns_whose = "ld-run's own";
     try {
       ld::enterPrivateNetns();
     } catch (const std::exception& e) {
@@ -646,7 +649,11 @@ int main(int argc, char** argv) {
   {
     std::string names;
     for (const auto& p : sup.processes()) names += " " + p.spec.name;
-    note("running" + names + " on " + cfg.lcm_url + (ld::inPrivateNetns() ? " (private network namespace)" : ""));
+    // (whose namespace: a program of the caller's hears the set only in the
+    // caller's own)
+    note("running" + names + " on " + cfg.lcm_url +
+         (ld::inPrivateNetns() ? " (private network namespace" + (netns_whose.empty() ? "" : ", " + netns_whose) + ")"
+                               : ""));
   }
 
   // 4. The loop: bus messages, child output and deaths, status, RSS.
