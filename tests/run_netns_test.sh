@@ -7,7 +7,7 @@
 # usage: run_netns_test.sh BIN_DIR
 set -euo pipefail
 BIN=$(cd "$1" && pwd)
-T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+source "$(dirname "$0")/ld_run_lib.sh"  # (T, removed at exit)
 fail() { echo "FAIL: $*" >&2; exit 1; }
 
 "$BIN/ld-synth" sequence --out "$T/seq" --frames 30 --fps 30 --landmarks 1 --seed 3 --size 0.3 \

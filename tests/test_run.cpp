@@ -997,16 +997,21 @@ TEST(HangWatch, SaysAWorkerSilentAndNotReadingOnce) {
   EXPECT_TRUE(said.empty());
   step(false, false, 2);
   ASSERT_EQ(said.size(), 1u);
+  // silent, its main thread running on (and stopped at every other look
+  // when `flickering`), after answering at a new start
+  const auto silentRunning = [&](int starts, int frames, bool flickering) {
+    bus.procs["detector"] = {starts, 0, false, 1000};
+    step(true, true, 5);
+    for (int i = 0; i < frames; ++i) {
+      bus.procs["detector"].stopped = flickering && i % 2 == 0;
+      bus.procs["detector"].runtime_ns += 5000;
+      step(false, true, 1);
+    }
+  };
   // stopped at some looks only (strace stops it at each call, for a
   // moment), reading and running on: no hang
   said.clear();
-  bus.procs["detector"] = {7, 0, false, 1000};
-  step(true, true, 5);
-  for (int i = 0; i < 60; ++i) {
-    bus.procs["detector"].stopped = i % 2 == 0;
-    bus.procs["detector"].runtime_ns += 5000;
-    step(false, true, 1);
-  }
+  silentRunning(7, 60, true);
   EXPECT_TRUE(said.empty());
   // stopped after answering: hung after hang_s of silence
   said.clear();
@@ -1021,12 +1026,7 @@ TEST(HangWatch, SaysAWorkerSilentAndNotReadingOnce) {
   // on, the queue stays empty) after answering: hung after hang_s; one whose
   // main thread runs on is not
   said.clear();
-  bus.procs["detector"] = {6, 0, false, 1000};
-  step(true, true, 5);
-  for (int i = 0; i < 40; ++i) {
-    bus.procs["detector"].runtime_ns += 5000;
-    step(false, true, 1);
-  }
+  silentRunning(6, 40, false);
   EXPECT_TRUE(said.empty());
   step(false, true, 19);  // (runtime_ns as it was)
   EXPECT_TRUE(said.empty());

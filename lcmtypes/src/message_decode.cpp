@@ -204,12 +204,16 @@ bool decodeMessage(const void* data, size_t size, landmark_list_t& out, std::str
   return true;
 }
 
-std::string earlierTypeVersion(const void* data, size_t size) {
-  if (size < 8) return "";
+int64_t fingerprintOf(const void* data, size_t size) {
+  if (size < 8) return 0;
   const auto* p = static_cast<const uint8_t*>(data);
   uint64_t h = 0;
   for (int i = 0; i < 8; ++i) h = (h << 8) | p[i];
-  return earlierVersionOf(static_cast<int64_t>(h));
+  return static_cast<int64_t>(h);
+}
+
+std::string earlierTypeVersion(const void* data, size_t size) {
+  return size < 8 ? "" : earlierVersionOf(fingerprintOf(data, size));
 }
 
 void takeCodes(const qr_code_list_t& codes, std::map<int64_t, std::string>& payloads) {

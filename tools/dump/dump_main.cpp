@@ -27,18 +27,11 @@ namespace {
 std::atomic<bool> g_stop{false};
 void onSignal(int) { g_stop = true; }
 
-int64_t fingerprint(const uint8_t* data, size_t size) {
-  if (size < 8) return 0;
-  uint64_t v = 0;
-  for (int i = 0; i < 8; ++i) v = (v << 8) | data[i];
-  return static_cast<int64_t>(v);
-}
-
 // Whether the bytes are a T; `why` says what was wrong with one that has T's
 // fingerprint and does not decode (a damaged message of the project's).
 template <typename T>
 bool decodeAs(const uint8_t* data, size_t size, T& msg, std::string& why) {
-  return fingerprint(data, size) == T::getHash() && ld::decodeMessage(data, size, msg, &why);
+  return ld::fingerprintOf(data, size) == T::getHash() && ld::decodeMessage(data, size, msg, &why);
 }
 
 nlohmann::ordered_json landmarkJson(const ld::landmark_t& m) {

@@ -29,6 +29,10 @@ bool decodeMessage(const void* data, size_t size, landmark_list_t& out,
 bool decodeMessage(const void* data, size_t size, qr_code_list_t& out,
                    std::string* error = nullptr);
 
+/// The LCM fingerprint the bytes start with (the first 8, big-endian); 0
+/// when there are fewer.
+int64_t fingerprintOf(const void* data, size_t size);
+
 /// When the bytes start with the fingerprint of an earlier version of one of
 /// the project's types, which no build since decodes, that version in words
 /// ("ld.qr_code_list_t before withheld_track_ids"); else "". A recording

@@ -218,29 +218,33 @@ void BusMonitor::codesSeen(const qr_code_list_t& codes, Micros rx_us) {
     return;
   }
   count(codes_, rx_us);
-  // The frame's list, among the last few. The reader answers lists in
-  // order, so the lists before it that it did not answer it skipped: they
-  // are settled (as they are read, not by the clock: a monitor behind on its
-  // own queue counted frames skipped whose answer it had not read yet).
-  for (size_t k = frames_.size(), n = 0; k-- > qr_settled_ && n < 300; ++n)
+  // The frame's list, the newest of its utime and seq among the last 600.
+  size_t found = frames_.size();
+  for (size_t k = frames_.size(), n = 0; k-- > 0 && n < 600; ++n)
     if (frames_[k].utime == codes.utime && frames_[k].seq == codes.seq) {
-      qr_skipped_ += static_cast<int64_t>(k - qr_settled_);
-      qr_settled_ = k + 1;
+      found = k;
       break;
     }
+  // The reader answers lists in order, so the lists before it that it did
+  // not answer it skipped: they are settled, for a list among the last 300
+  // not settled yet (as they are read, not by the clock: a monitor behind on
+  // its own queue counted frames skipped whose answer it had not read yet).
+  if (found < frames_.size() && found >= qr_settled_ && frames_.size() - found <= 300) {
+    qr_skipped_ += static_cast<int64_t>(found - qr_settled_);
+    qr_settled_ = found + 1;
+  }
   // The codes' track ids are those of the message's own frame's list: the
-  // tracker run that tracked that frame (the newest tracked frame of its
-  // utime and seq: a log replayed again repeats its frames' times, and by
-  // time alone a code of the second pass went to the run that tracked the
-  // first, an operator's audit: two tracks that never were, the real one
-  // unread). A frame no longer among them (or whose list was lost): the run
-  // whose start came before its time. (Not the frame a code was read from:
-  // a payload read long ago is listed with that old frame.)
-  int run = 0;
-  for (size_t k = frames_.size(), n = 0; k-- > 0 && n < 600 && run == 0; ++n)
-    if (frames_[k].utime == codes.utime && frames_[k].seq == codes.seq) run = frames_[k].run;
-  if (run == 0)
-    run = static_cast<int>(std::upper_bound(run_starts_.begin(), run_starts_.end(), codes.utime) - run_starts_.begin());
+  // tracker run that tracked that frame (a log replayed again repeats its
+  // frames' times, and by time alone a code of the second pass went to the
+  // run that tracked the first, an operator's audit: two tracks that never
+  // were, the real one unread). A frame no longer among them (or whose list
+  // was lost): the run whose start came before its time. (Not the frame a
+  // code was read from: a payload read long ago is listed with that old
+  // frame.)
+  const int run =
+      found < frames_.size()
+          ? frames_[found].run
+          : static_cast<int>(std::upper_bound(run_starts_.begin(), run_starts_.end(), codes.utime) - run_starts_.begin());
   for (const auto& c : codes.codes) setPayload(std::max(1, run), c.track_id, c.payload, c.seq);
 }
 

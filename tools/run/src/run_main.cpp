@@ -8,6 +8,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstring>
+#include <map>
 #include <set>
 #include <filesystem>
 #include <fstream>
@@ -79,8 +80,7 @@ class Console {
   void line(const std::string& name, const std::string& text) {
     if (name != "ld-run" && toFile(name, text)) return;
     if (quiet_ && name != "ld-run") return;
-    clearStatus();
-    std::fprintf(stderr, "[%s] %s\n", name.c_str(), text.c_str());
+    print(name, text);
   }
   /// ld-run's own note about a process (started, died, restarting,
   /// stopped): on stderr always, and in the process's file too with
@@ -88,8 +88,7 @@ class Console {
   /// process died, an operator's audit).
   void event(const std::string& name, const std::string& text) {
     toFile(name, "[ld-run] " + text);
-    clearStatus();
-    std::fprintf(stderr, "[%s] %s\n", name.c_str(), text.c_str());
+    print(name, text);
   }
   void status(const std::string& text) {
     if (tty_) {
@@ -112,6 +111,10 @@ class Console {
   }
 
  private:
+  void print(const std::string& name, const std::string& text) {
+    clearStatus();
+    std::fprintf(stderr, "[%s] %s\n", name.c_str(), text.c_str());
+  }
   /// With --log-dir, the line into the process's file; false when not
   /// written there (no --log-dir, or the file cannot be written: a full
   /// disk, said once, and the lines from then on go where they would
@@ -573,11 +576,18 @@ int main(int argc, char** argv) {
   // to be restarted (one that was never watched stayed so for ever)
   ld::HangWatch hangs(cfg.restart.hang_s);
   const ld::BusChannels& bch = cfg.channels;
+  // (the project's own programs take their messages in the main thread,
+  // which wakes every 200 ms at least: one that does not run is blocked;
+  // another program may not)
+  std::set<std::string> main_thread_judged;
   for (const auto& s : specs) {
     if (s.name == "detector") hangs.add(s.name, {bch.image}, bch.landmarks);
     if (s.name == "tracker") hangs.add(s.name, {bch.landmarks}, bch.tracked);
     if (s.name == "qr-reader") hangs.add(s.name, {bch.image, bch.tracked}, bch.codes);
+    const std::string prog = fs::path(s.argv.at(0)).filename().string();
+    if (prog == "ld-detector" || prog == "ld-tracker" || prog == "ld-qr-reader") main_thread_judged.insert(s.name);
   }
+  const int lcm_port = ld::lcmUdpPort(cfg.lcm_url);
   auto next_hang_check = Clock::now();
   std::vector<size_t> early, late;  // late: the image source, started once the rest listens
   for (auto& s : specs) {
@@ -686,7 +696,7 @@ int main(int argc, char** argv) {
     const auto now = Clock::now();
     sup.poll(now);
     if (now >= next_hang_check) {
-      const int port = ld::lcmUdpPort(cfg.lcm_url);
+      std::map<std::string, std::string> states;  // (each worker's /proc state at this look, said with a hang)
       const auto events = hangs.check(
           std::chrono::duration_cast<std::chrono::microseconds>(now.time_since_epoch()).count(),
           [&](const std::string& ch) { return monitor.messages(ch); },
@@ -695,14 +705,9 @@ int main(int argc, char** argv) {
             for (const auto& p : sup.processes())
               if (p.spec.name == name && p.pid > 0) {
                 hp.starts = p.starts;
-                hp.backlog = port > 0 ? ld::udpBacklogOnPort(p.pid, port) : -1;
-                // (the project's own programs take their messages in the main
-                // thread, which wakes every 200 ms at least; another program
-                // may not)
-                const std::string prog = std::filesystem::path(p.spec.argv.at(0)).filename().string();
-                if (prog == "ld-detector" || prog == "ld-tracker" || prog == "ld-qr-reader")
-                  hp.runtime_ns = mainThreadRuntimeNs(p.pid);
-                const std::string state = procState(p.pid);
+                hp.backlog = lcm_port > 0 ? ld::udpBacklogOnPort(p.pid, lcm_port) : -1;
+                if (main_thread_judged.count(name)) hp.runtime_ns = mainThreadRuntimeNs(p.pid);
+                const std::string& state = states[name] = procState(p.pid);
                 hp.stopped = !state.empty() && (state[0] == 'T' || state[0] == 't');
               }
             return hp;
@@ -712,10 +717,7 @@ int main(int argc, char** argv) {
           console.event(e.name, e.text);
           continue;
         }
-        pid_t pid = -1;
-        for (const auto& p : sup.processes())
-          if (p.spec.name == e.name) pid = p.pid;
-        const std::string state = pid > 0 ? procState(pid) : "";
+        const std::string& state = states[e.name];
         console.event(e.name, e.text + (state.empty() ? "" : "; it is " + state) + ": hung, killed to be restarted");
         sup.killHung(e.name);
       }

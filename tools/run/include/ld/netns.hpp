@@ -17,11 +17,12 @@ void enterPrivateNetns();
 
 /// True when the process is already in a private network namespace (one its
 /// caller made: loopback alone up, and either another namespace than pid
-/// 1's, or, where pid 1's is hidden, one whose 224.0.0.0/4 the caller routed
-/// to `lo` already) and could route 224.0.0.0/4 to `lo` there: `ld-run --netns` then runs the set in it, so
-/// that the caller's own programs in that namespace hear the bus (a second
-/// namespace of ld-run's own hid the set from them). Sets LD_IN_NETNS=1 for
-/// the children then. False, and nothing changed, otherwise.
+/// 1's, or, where pid 1's is hidden, one whose multicast the caller routed
+/// to `lo` already) and could route 224.0.0.0/4 to `lo` there: `ld-run
+/// --netns` then runs the set in it, so that the caller's own programs in
+/// that namespace hear the bus (a second namespace of ld-run's own hid the
+/// set from them). Sets LD_IN_NETNS=1 for the children then. False, and
+/// nothing changed, otherwise.
 bool useThisPrivateNetns();
 
 /// True when the process is in a network namespace other than pid 1's (or
