@@ -89,6 +89,12 @@ printf '{"source": {"type": "replay", "log": "%s", "log": "%s"}}\n' "$T/in.lcmlo
 refused ".*twice.json: key \"log\" is given twice" --config "$T/twice.json"
 printf 'source:\n  type: replay\n  type: play\n' >"$T/twice.yaml"
 refused ".*twice.yaml: line 3: key \"type\" is given twice" --config "$T/twice.yaml"
+# a process's args in the config repeating what ld-run passes: the file
+# named, as for its other errors; from --camera-arg: no file named
+printf '{"source": {"type": "replay", "log": "%s"}, "detector": {"args": ["--out", "X"]}}\n' "$T/in.lcmlog" >"$T/args.json"
+refused "$T/args.json: detector's args give --out, which ld-run passes itself from the config's channels" --config "$T/args.json"
+printf '{"source": {"type": "camera"}}\n' >"$T/cam.json"
+refused "camera's args give --lcm-url, which ld-run passes itself" --config "$T/cam.json" --camera-arg=--lcm-url=udpm://239.255.76.67:7667
 mkdir "$T/cfgdir.json"
 refused "config $T/cfgdir.json is a folder" --config "$T/cfgdir.json"
 refused "--fps: 'nan' is not a number" --play "$T/in.lcmlog" --fps nan

@@ -4,6 +4,7 @@
 #include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -17,6 +18,7 @@
 #include "ld/hang_watch.hpp"
 #include "ld/image_convert.hpp"
 #include "ld/netns.hpp"
+#include "ld/rss_series.hpp"
 #include "ld/run_config.hpp"
 #include "ld/supervisor.hpp"
 
@@ -645,6 +647,99 @@ TEST(BusMonitor, Percentiles) {
   EXPECT_DOUBLE_EQ(p.p99, 10);
   EXPECT_DOUBLE_EQ(p.mean, 5.5);
   EXPECT_EQ(ld::percentiles({}).count, 0u);
+}
+
+// The whole run's latencies in fixed memory: the same percentiles as
+// ld::percentiles of the values themselves, to the bit below 65.536 ms, to
+// the millisecond above; the largest and the mean exact.
+TEST(BusMonitor, LatencyHistogramGivesThePercentilesOfItsValues) {
+  std::mt19937 rng(7);
+  for (const int n : {1, 2, 10, 999, 20000}) {
+    ld::LatencyHistogram h;
+    std::vector<double> exact_ms, binned_ms;
+    for (int i = 0; i < n; ++i) {
+      // mostly 0.5-30 ms, a few over 65.536 ms (those bins are of 1 ms)
+      const int64_t us = i % 97 == 5 ? 65'536 + static_cast<int64_t>(rng() % 400'000)
+                                     : 500 + static_cast<int64_t>(rng() % 29'500);
+      h.add(us);
+      exact_ms.push_back(static_cast<double>(us) * 1e-3);
+      binned_ms.push_back(us < 65'536 ? static_cast<double>(us) * 1e-3 : static_cast<double>(us / 1000));
+    }
+    const auto want = ld::percentiles(binned_ms);
+    const auto got = h.percentiles();
+    EXPECT_EQ(got.count, static_cast<size_t>(n));
+    EXPECT_DOUBLE_EQ(got.p50, want.p50) << n;
+    EXPECT_DOUBLE_EQ(got.p90, want.p90) << n;
+    EXPECT_DOUBLE_EQ(got.p99, want.p99) << n;
+    EXPECT_DOUBLE_EQ(got.max, ld::percentiles(exact_ms).max) << n;
+    EXPECT_NEAR(got.mean, ld::percentiles(exact_ms).mean, 1e-9) << n;
+  }
+  // beyond the last bin (65.535 s): read as the largest
+  ld::LatencyHistogram far;
+  far.add(1'000);
+  far.add(90'000'000);
+  EXPECT_DOUBLE_EQ(far.percentiles().p99, 90'000.0);
+  EXPECT_DOUBLE_EQ(far.percentiles().p50, 1.0);
+  EXPECT_EQ(ld::LatencyHistogram().percentiles().count, 0u);
+}
+
+// A run of hours: the summary lists the last kFramesKept frames and counts
+// the earlier ones; every other figure counts every frame (a vector of every
+// frame grew without end: about 150 bytes a frame, 16 MB an hour at 30
+// frames/s, and several times that in the summary's JSON at the end).
+TEST(BusMonitor, LongRunListsTheLastFramesAndCountsThemAll) {
+  ld::BusMonitor m;
+  const size_t kept = ld::BusMonitor::kFramesKept, total = kept + 500;
+  std::vector<double> latencies;
+  for (size_t i = 0; i < total; ++i) {
+    const auto t = static_cast<int64_t>(i) * 33'333;
+    const int64_t latency_us = 1'000 + static_cast<int64_t>(i % 101) * 13;
+    m.imageSeen(t + 1, static_cast<int64_t>(i), t + 10'000'000);
+    m.trackedSeen(list(t + 1, static_cast<int64_t>(i), {trackedLandmark(1, true, "", 0)}),
+                  t + 10'000'000 + latency_us);
+    latencies.push_back(static_cast<double>(latency_us) * 1e-3);
+  }
+  // the QR reader answers the last frame only: every earlier one skipped,
+  // those no longer listed too
+  ld::qr_code_list_t codes{};
+  codes.utime = static_cast<int64_t>(total - 1) * 33'333 + 1;
+  codes.seq = static_cast<int64_t>(total - 1);
+  m.codesSeen(codes, static_cast<int64_t>(total) * 33'333 + 10'100'000);
+  const auto s = m.summary();
+  ASSERT_EQ(s["per_frame"].size(), kept);
+  EXPECT_EQ(s["per_frame_left_out"], 500);
+  EXPECT_EQ(s["per_frame"][0]["seq"], 500);
+  EXPECT_EQ(s["per_frame"][kept - 1]["seq"], static_cast<int64_t>(total - 1));
+  EXPECT_EQ(s["frames"]["tracked"], static_cast<int64_t>(total));
+  EXPECT_EQ(s["frames"]["qr_reader_skipped"], static_cast<int64_t>(total - 1));
+  const auto want = ld::percentiles(latencies);
+  EXPECT_EQ(s["latency_ms"]["count"], static_cast<int64_t>(total));
+  EXPECT_DOUBLE_EQ(s["latency_ms"]["p50"].get<double>(), std::round(want.p50 * 1000) / 1000);
+  EXPECT_DOUBLE_EQ(s["latency_ms"]["p99"].get<double>(), std::round(want.p99 * 1000) / 1000);
+  EXPECT_DOUBLE_EQ(s["latency_ms"]["max"].get<double>(), 2.3);
+  EXPECT_EQ(s["landmarks_per_frame"]["histogram"]["1"], static_cast<int64_t>(total));
+  EXPECT_EQ(m.latencyCount(), total);
+}
+
+// ld-run's memory samples over days: at most kRssSamplesKept, evenly spread
+// over the whole run, the largest and the last exact.
+TEST(RssSeries, KeepsTheWholeCourseInAFixedNumberOfSamples) {
+  ld::RssSeries r;
+  const int looks = 3 * 86400;  // three days of a look a second
+  for (int i = 0; i < looks; ++i) r.add(i, i == 1000 ? 900'000 : 50'000 + i / 1000);
+  EXPECT_LE(r.samples.size(), ld::RssSeries::kRssSamplesKept);
+  EXPECT_GE(r.samples.size(), ld::RssSeries::kRssSamplesKept / 2);
+  EXPECT_EQ(r.max_kb, 900'000);
+  EXPECT_EQ(r.last_kb, 50'000 + (looks - 1) / 1000);
+  EXPECT_DOUBLE_EQ(r.samples.front().first, 0);
+  EXPECT_GT(r.samples.back().first, looks - 300);  // (every 256th look by then)
+  const double step = r.samples[1].first - r.samples[0].first;
+  for (size_t i = 1; i < r.samples.size(); ++i)
+    ASSERT_DOUBLE_EQ(r.samples[i].first - r.samples[i - 1].first, step) << i;
+  // a short run keeps every look
+  ld::RssSeries brief;
+  for (int i = 0; i < 100; ++i) brief.add(i, 1);
+  EXPECT_EQ(brief.samples.size(), 100u);
 }
 
 TEST(RunConfig, ReadsJsonAndBuildsTheProcessTable) {

@@ -57,6 +57,41 @@ Percentiles percentiles(std::vector<double> v) {
   return p;
 }
 
+void LatencyHistogram::add(int64_t us) {
+  if (fine_.empty()) {
+    fine_.assign(kFine, 0);
+    coarse_.assign(kFine, 0);  // (ms 0-65 unused: those are fine_'s)
+  }
+  max_us_ = count_ == 0 ? us : std::max(max_us_, us);
+  ++count_;
+  sum_us_ += static_cast<double>(us);
+  const int64_t v = std::max<int64_t>(us, 0);
+  if (v < kFine) ++fine_[static_cast<size_t>(v)];
+  else ++coarse_[static_cast<size_t>(std::min(v / 1000, kFine - 1))];
+}
+
+Percentiles LatencyHistogram::percentiles() const {
+  Percentiles p;
+  p.count = count_;
+  if (count_ == 0) return p;
+  const auto rank = [&](double q) {
+    // (the value of rank ceil(q n), 1-based, as ld::percentiles takes it)
+    const auto k = std::max<size_t>(1, static_cast<size_t>(std::ceil(q * static_cast<double>(count_))));
+    size_t seen = 0;
+    for (size_t i = 0; i < fine_.size(); ++i)
+      if ((seen += fine_[i]) >= k) return std::min(static_cast<double>(i) * 1e-3, static_cast<double>(max_us_) * 1e-3);
+    for (size_t i = 0; i + 1 < coarse_.size(); ++i)
+      if ((seen += coarse_[i]) >= k) return static_cast<double>(i);
+    return static_cast<double>(max_us_) * 1e-3;
+  };
+  p.p50 = rank(0.50);
+  p.p90 = rank(0.90);
+  p.p99 = rank(0.99);
+  p.max = static_cast<double>(max_us_) * 1e-3;
+  p.mean = sum_us_ / static_cast<double>(count_) * 1e-3;
+  return p;
+}
+
 BusMonitor::BusMonitor(BusChannels channels) : ch_(std::move(channels)) {}
 
 void BusMonitor::subscribe(lcm::LCM& lcm) {
@@ -176,7 +211,9 @@ void BusMonitor::trackedSeen(const landmark_list_t& list, Micros rx_us) {
   if (it != pending_.end()) {
     f.latency_ms = static_cast<double>(rx_us - it->second.origin) * 1e-3;
     ++(it->second.origin == it->second.received ? from_arrival_ : from_capture_);
-    latencies_ms_.push_back(f.latency_ms);
+    latencies_.add(rx_us - it->second.origin);
+    if (window_ms_.size() >= kWindowMax) window_ms_.clear();
+    window_ms_.push_back(f.latency_ms);
     ++matched_;
     pending_.erase(it);
   }
@@ -196,11 +233,15 @@ void BusMonitor::trackedSeen(const landmark_list_t& list, Micros rx_us) {
   }
   ++histogram_[f.landmarks];
   frames_.push_back(std::move(f));
+  if (frames_.size() > kFramesKept) {
+    frames_.pop_front();
+    ++frames_left_out_;
+  }
 }
 
 int64_t BusMonitor::qrSkippedAll() const {
   // (at the end: the frames after the last answered were not answered either)
-  return qr_skipped_ + static_cast<int64_t>(frames_.size() - qr_settled_);
+  return qr_skipped_ + static_cast<int64_t>(frames_left_out_ + frames_.size() - qr_settled_);
 }
 
 void BusMonitor::setPayload(int run, int64_t id, const std::string& payload, int64_t seq) {
@@ -229,9 +270,11 @@ void BusMonitor::codesSeen(const qr_code_list_t& codes, Micros rx_us) {
   // not answer it skipped: they are settled, for a list among the last 300
   // not settled yet (as they are read, not by the clock: a monitor behind on
   // its own queue counted frames skipped whose answer it had not read yet).
-  if (found < frames_.size() && found >= qr_settled_ && frames_.size() - found <= 300) {
-    qr_skipped_ += static_cast<int64_t>(found - qr_settled_);
-    qr_settled_ = found + 1;
+  // (qr_settled_ counts from the first frame, frames_ from the first kept)
+  const size_t found_from_first = frames_left_out_ + found;
+  if (found < frames_.size() && found_from_first >= qr_settled_ && frames_.size() - found <= 300) {
+    qr_skipped_ += static_cast<int64_t>(found_from_first - qr_settled_);
+    qr_settled_ = found_from_first + 1;
   }
   // The codes' track ids are those of the message's own frame's list: the
   // tracker run that tracked that frame (a log replayed again repeats its
@@ -256,9 +299,8 @@ std::string BusMonitor::statusLine(Micros now_us) {
     return r;
   };
   const double hi = hz(images_), hl = hz(landmarks_), ht = hz(tracked_), hc = hz(codes_);
-  const Percentiles p = percentiles(std::vector<double>(
-      latencies_ms_.begin() + static_cast<std::ptrdiff_t>(window_start_), latencies_ms_.end()));
-  window_start_ = latencies_ms_.size();
+  const Percentiles p = percentiles(window_ms_);
+  window_ms_.clear();
   last_status_us_ = now_us;
   int read = 0;
   for (const auto& [id, t] : tracks_) read += !t.payloads.empty();
@@ -311,7 +353,7 @@ nlohmann::ordered_json BusMonitor::summary() const {
       {"mean", round3(tracked_frames_ > 0 ? sum / static_cast<double>(tracked_frames_) : 0)},
       {"max", maxn},
       {"histogram", hist}};
-  const Percentiles p = percentiles(latencies_ms_);
+  const Percentiles p = latencies_.percentiles();
   j["latency_ms"] = {{"count", p.count},   {"p50", round3(p.p50)}, {"p90", round3(p.p90)},
                      {"p99", round3(p.p99)}, {"max", round3(p.max)}, {"mean", round3(p.mean)},
                      {"from", p.count == 0          ? J(nullptr)
@@ -344,6 +386,7 @@ nlohmann::ordered_json BusMonitor::summary() const {
                    {"ids", f.ids},
                    {"tracker_run", f.run}});
   j["per_frame"] = per;
+  j["per_frame_left_out"] = frames_left_out_;
   return j;
 }
 

@@ -29,6 +29,7 @@
 #include "ld/lcm_log_reader.hpp"
 #include "ld/lcm_url.hpp"
 #include "ld/netns.hpp"
+#include "ld/rss_series.hpp"
 #include "ld/run_config.hpp"
 #include "ld/supervisor.hpp"
 
@@ -146,11 +147,6 @@ class Console {
   bool logsFailed() const { return !unwritable_.empty(); }
 };
 
-struct RssSeries {
-  int64_t max_kb = 0, last_kb = 0;
-  std::vector<std::pair<double, int64_t>> samples;  // (seconds since start, kB)
-};
-
 // Writes `text` to `path` through a temporary file renamed when whole: ""
 // when it did, else why (a full disk left a state or summary file empty or
 // cut, without a word). The file as it was stays then.
@@ -204,7 +200,7 @@ std::string procState(pid_t pid) {
   return std::string(1, c) + " (" + what + ")";
 }
 
-Json processesJson(const ld::Supervisor& sup, const std::map<std::string, RssSeries>* rss) {
+Json processesJson(const ld::Supervisor& sup, const std::map<std::string, ld::RssSeries>* rss) {
   Json arr = Json::array();
   for (const auto& p : sup.processes()) {
     Json j{{"name", p.spec.name},
@@ -436,7 +432,11 @@ int main(int argc, char** argv) {
   try {
     specs = ld::buildProcessSpecs(cfg, cfg.lcm_url, ld::selfDirectory());
   } catch (const std::exception& e) {
-    std::cerr << "ld-run: " << e.what() << "\n";
+    // (a process's args in the config: the file named, as its other errors
+    // name it; a camera's may be --camera-arg's)
+    const std::string what = e.what();
+    const bool cli_camera = !camera_args.empty() && what.rfind("camera's ", 0) == 0;
+    std::cerr << "ld-run: " << (cfg.file.empty() || cli_camera ? "" : cfg.file + ": ") << what << "\n";
     return 2;
   }
   // What lcm-logplayer, ld-play or lcm-logger would fail on at once, and
@@ -596,7 +596,7 @@ int main(int argc, char** argv) {
   }
   if (!cfg.record.empty()) std::remove(cfg.record.c_str());
   const auto t0 = Clock::now();
-  std::map<std::string, RssSeries> rss;
+  std::map<std::string, ld::RssSeries> rss;
   int64_t self_rss_max_kb = 0;  // ld-run's own (it receives every image too)
   bool ready = false;
   std::string end_reason = "stopped by signal";
@@ -735,10 +735,7 @@ int main(int argc, char** argv) {
         if (p.pid <= 0) continue;
         const int64_t kb = rssKb(p.pid);
         if (kb < 0) continue;
-        RssSeries& s = rss[p.spec.name];
-        s.samples.emplace_back(seconds(now - t0), kb);
-        s.last_kb = kb;
-        s.max_kb = std::max(s.max_kb, kb);
+        rss[p.spec.name].add(seconds(now - t0), kb);
       }
       self_rss_max_kb = std::max(self_rss_max_kb, rssKb(::getpid()));
       next_rss = now + std::chrono::seconds(1);

@@ -58,6 +58,28 @@ struct Percentiles {
 };
 Percentiles percentiles(std::vector<double> values);
 
+/// Latencies of a run of any length, counted in bins of whole microseconds:
+/// exact below 65.536 ms, to the millisecond (the bin's lower edge) from
+/// there to 65.535 s, and beyond that in one bin read as the largest; the
+/// count, the mean and the largest are exact. Its percentiles are those of
+/// ld::percentiles (nearest rank) over the same values in milliseconds,
+/// below 65.536 ms to the bit. Fixed memory (512 KiB once the first comes):
+/// a vector of every latency grew 8 bytes a frame, 20 MB a day at 30
+/// frames/s.
+class LatencyHistogram {
+ public:
+  void add(int64_t us);
+  Percentiles percentiles() const;
+  size_t count() const { return count_; }
+
+ private:
+  static constexpr int64_t kFine = 65536;  // 1-us bins below this, 1-ms bins above
+  std::vector<uint32_t> fine_, coarse_;
+  size_t count_ = 0;
+  double sum_us_ = 0;
+  int64_t max_us_ = 0;
+};
+
 class BusMonitor {
  public:
   using Micros = int64_t;  ///< wall-clock time, microseconds (LCM's recv_utime)
@@ -96,8 +118,11 @@ class BusMonitor {
   ///              frame it was listed in, or read in before any), "frames_visible",
   ///              "frames_coasting"}],
   ///  "payloads_decoded",
-  ///  "per_frame": [{"seq", "utime", "latency_ms"|null, "landmarks", "ids", "tracker_run"}]}
+  ///  "per_frame": [{"seq", "utime", "latency_ms"|null, "landmarks", "ids", "tracker_run"}],
+  ///  "per_frame_left_out"}
   /// tracker_run counts the tracker's runs from 1 (a track is its id and run).
+  /// per_frame holds the last kFramesKept tracked frames; per_frame_left_out
+  /// counts the earlier ones (every other figure counts every frame).
   nlohmann::ordered_json summary() const;
 
   /// One of the four channels' good messages so far (0 for a channel it
@@ -117,7 +142,10 @@ class BusMonitor {
   /// 100 ms until its own copy comes back) and when the last came.
   int64_t selfTests() const { return self_tests_; }
   Micros lastSelfTest() const { return last_self_test_us_; }
-  size_t latencyCount() const { return latencies_ms_.size(); }
+  size_t latencyCount() const { return latencies_.count(); }
+  /// The tracked frames kept for the summary's per_frame (the codes' joins
+  /// look among the last 600 of them): an hour at 30 frames/s, about 10 MB.
+  static constexpr size_t kFramesKept = 108000;
   /// An image's utime within this long before its arrival is its capture or
   /// publication time; older (a replayed log), it is not. (A log replayed
   /// within a second of its making would look live: see setUtimesLogged.)
@@ -207,21 +235,25 @@ class BusMonitor {
   int64_t from_capture_ = 0, from_arrival_ = 0;  // latencies timed from a utime, from an arrival
   int64_t self_tests_ = 0;
   Micros last_self_test_us_ = 0;
-  size_t qr_settled_ = 0;  // frames_ up to the last the QR reader answered
+  size_t qr_settled_ = 0;  // tracked frames (counted from the first) up to the last the QR reader answered
   int64_t qr_skipped_ = 0;
   int64_t tracked_frames_ = 0, matched_ = 0, unmatched_images_ = 0, bad_ = 0;
   int64_t bad_images_ = 0;  // of bad_: on the image channel (not counted as images)
   RecentFrames recent_images_, recent_landmarks_, recent_tracked_, recent_codes_;
   int64_t repeated_ = 0;  // messages of a frame already seen on their channel (not counted)
   SkipCounter det_skipped_, trk_skipped_;
-  std::vector<double> latencies_ms_;
-  size_t window_start_ = 0;  // first latency of the current status window
+  LatencyHistogram latencies_;
+  // the current status window's (at most kWindowMax: without status lines
+  // the window begins again after that many)
+  std::vector<double> window_ms_;
+  static constexpr size_t kWindowMax = 65536;
   std::map<std::pair<int, int64_t>, TrackInfo> tracks_;  // (tracker run, id)
   TrackRestartWatch restarts_;
   std::vector<int64_t> run_starts_{INT64_MIN};  // utime of each tracker run's first list (run r: [r - 1])
   std::vector<std::pair<int64_t, int32_t>> ages_;
   std::map<int, int64_t> histogram_;
-  std::vector<FrameRecord> frames_;
+  std::deque<FrameRecord> frames_;  // the last kFramesKept
+  size_t frames_left_out_ = 0;      // tracked frames before frames_.front()
   QueueFit queues_[4];  // image, landmarks, tracked, codes (ld::QueueFit)
   image_t image_buf_;  // (decoded and checked as the detector does, into kept buffers)
   landmark_list_t list_buf_;
