@@ -95,6 +95,17 @@ printf '{"source": {"type": "replay", "log": "%s"}, "detector": {"args": ["--out
 refused "$T/args.json: detector's args give --out, which ld-run passes itself from the config's channels" --config "$T/args.json"
 printf '{"source": {"type": "camera"}}\n' >"$T/cam.json"
 refused "camera's args give --lcm-url, which ld-run passes itself" --config "$T/cam.json" --camera-arg=--lcm-url=udpm://239.255.76.67:7667
+refused "detector's args give --lcm-url, which ld-run passes itself" --config "$T/cam.json" --detector-arg=--lcm-url=udpm://239.255.76.67:7667
+refused "--tracker-arg is for ld-tracker, which this run does not start" --replay "$T/in.lcmlog" --processes detector --tracker-arg=--max-lifetime=2
+refused "--qr-reader-arg needs a value, and the word after it is the option --speed" --replay "$T/in.lcmlog" --qr-reader-arg --speed=2
+# a worker's arguments on the command line, after the config's
+printf '{"source": {"type": "replay", "log": "%s"}, "tracker": {"args": ["--max-lifetime", "1"]}}\n' "$T/in.lcmlog" >"$T/wargs.json"
+timeout 60 "$BIN/ld-run" --netns --status-interval 0 --config "$T/wargs.json" --exit-when-replay-done \
+  --detector-arg=--adaptive --tracker-arg=--min-hits=1 --summary "$T/wargs_summary.json" >"$T/out" 2>&1 ||
+  fail "--detector-arg and --tracker-arg: $(cat "$T/out")"
+grep -q "ld-detector: adaptive lighting on" "$T/out" || fail "--detector-arg=--adaptive did not reach the detector: $(cat "$T/out")"
+[ "$(jq -c '.processes[] | select(.name == "tracker") | .argv[-3:]' "$T/wargs_summary.json")" = '["--max-lifetime","1","--min-hits=1"]' ] ||
+  fail "the tracker's argv: $(jq -c '.processes[] | select(.name == "tracker") | .argv' "$T/wargs_summary.json")"
 mkdir "$T/cfgdir.json"
 refused "config $T/cfgdir.json is a folder" --config "$T/cfgdir.json"
 refused "--fps: 'nan' is not a number" --play "$T/in.lcmlog" --fps nan

@@ -650,20 +650,25 @@ TEST(BusMonitor, Percentiles) {
 }
 
 // The whole run's latencies in fixed memory: the same percentiles as
-// ld::percentiles of the values themselves, to the bit below 65.536 ms, to
-// the millisecond above; the largest and the mean exact.
+// ld::percentiles of the values themselves, to the bit within +-65.536 ms
+// (a replay's latency can read negative), to the millisecond above; the
+// largest and the mean exact.
 TEST(BusMonitor, LatencyHistogramGivesThePercentilesOfItsValues) {
   std::mt19937 rng(7);
+  const auto binned = [](int64_t us) {  // what a 1-ms bin reads: its lower edge
+    return us < 65'536 ? static_cast<double>(us) * 1e-3 : 65.536 + static_cast<double>((us - 65'536) / 1000);
+  };
   for (const int n : {1, 2, 10, 999, 20000}) {
     ld::LatencyHistogram h;
     std::vector<double> exact_ms, binned_ms;
     for (int i = 0; i < n; ++i) {
-      // mostly 0.5-30 ms, a few over 65.536 ms (those bins are of 1 ms)
-      const int64_t us = i % 97 == 5 ? 65'536 + static_cast<int64_t>(rng() % 400'000)
-                                     : 500 + static_cast<int64_t>(rng() % 29'500);
+      // mostly 0.5-30 ms, a few over 65.536 ms, a few below 0
+      const int64_t us = i % 97 == 5   ? 65'536 + static_cast<int64_t>(rng() % 400'000)
+                         : i % 89 == 3 ? -static_cast<int64_t>(rng() % 5'000)
+                                       : 500 + static_cast<int64_t>(rng() % 29'500);
       h.add(us);
       exact_ms.push_back(static_cast<double>(us) * 1e-3);
-      binned_ms.push_back(us < 65'536 ? static_cast<double>(us) * 1e-3 : static_cast<double>(us / 1000));
+      binned_ms.push_back(binned(us));
     }
     const auto want = ld::percentiles(binned_ms);
     const auto got = h.percentiles();
@@ -674,18 +679,38 @@ TEST(BusMonitor, LatencyHistogramGivesThePercentilesOfItsValues) {
     EXPECT_DOUBLE_EQ(got.max, ld::percentiles(exact_ms).max) << n;
     EXPECT_NEAR(got.mean, ld::percentiles(exact_ms).mean, 1e-9) << n;
   }
-  // beyond the last bin (65.535 s): read as the largest
+  // on either side of the 1-ms bins' start, in order (a value just above
+  // 65.536 ms read below those just under it: p99 under p90)
+  ld::LatencyHistogram edge;
+  for (int i = 0; i < 90; ++i) edge.add(65'000 + i);
+  for (int i = 0; i < 10; ++i) edge.add(65'600);
+  const auto e = edge.percentiles();
+  EXPECT_LE(e.p50, e.p90);
+  EXPECT_LE(e.p90, e.p99);
+  EXPECT_DOUBLE_EQ(e.p99, 65.536);
+  EXPECT_DOUBLE_EQ(e.p90, 65.089);
+  // negative ones as they are
+  ld::LatencyHistogram negative;
+  for (const int64_t us : {-3'000, -2'000, -1'000, 5'000}) negative.add(us);
+  EXPECT_DOUBLE_EQ(negative.percentiles().p50, -2.0);
+  // beyond the ends: read as the largest, the smallest
   ld::LatencyHistogram far;
+  far.add(-90'000'000);
   far.add(1'000);
   far.add(90'000'000);
   EXPECT_DOUBLE_EQ(far.percentiles().p99, 90'000.0);
   EXPECT_DOUBLE_EQ(far.percentiles().p50, 1.0);
+  EXPECT_DOUBLE_EQ(ld::percentiles({-90'000.0, 1.0, 90'000.0}).p50, 1.0);
+  ld::LatencyHistogram low;
+  low.add(-90'000'000);
+  low.add(1'000);
+  EXPECT_DOUBLE_EQ(low.percentiles().p50, -90'000.0);
   EXPECT_EQ(ld::LatencyHistogram().percentiles().count, 0u);
 }
 
 // A run of hours: the summary lists the last kFramesKept frames and counts
 // the earlier ones; every other figure counts every frame (a vector of every
-// frame grew without end: about 150 bytes a frame, 16 MB an hour at 30
+// frame grew without end: about 130 bytes a frame, 16 MB an hour at 30
 // frames/s, and several times that in the summary's JSON at the end).
 TEST(BusMonitor, LongRunListsTheLastFramesAndCountsThemAll) {
   ld::BusMonitor m;
@@ -719,6 +744,22 @@ TEST(BusMonitor, LongRunListsTheLastFramesAndCountsThemAll) {
   EXPECT_DOUBLE_EQ(s["latency_ms"]["max"].get<double>(), 2.3);
   EXPECT_EQ(s["landmarks_per_frame"]["histogram"]["1"], static_cast<int64_t>(total));
   EXPECT_EQ(m.latencyCount(), total);
+
+  // A QR reader that answers every other frame all along: half skipped,
+  // past the cap too (the frames the reader settles are counted from the
+  // first, not from the first kept)
+  ld::BusMonitor every_other;
+  for (size_t i = 0; i < total; ++i) {
+    const auto t = static_cast<int64_t>(i) * 33'333 + 1;
+    every_other.trackedSeen(list(t, static_cast<int64_t>(i), {}), t + 10'000);
+    if (i % 2 == 1) {
+      ld::qr_code_list_t answer{};
+      answer.utime = t;
+      answer.seq = static_cast<int64_t>(i);
+      every_other.codesSeen(answer, t + 20'000);
+    }
+  }
+  EXPECT_EQ(every_other.summary()["frames"]["qr_reader_skipped"], static_cast<int64_t>(total / 2));
 }
 
 // ld-run's memory samples over days: at most kRssSamplesKept, evenly spread

@@ -59,15 +59,15 @@ Percentiles percentiles(std::vector<double> v) {
 
 void LatencyHistogram::add(int64_t us) {
   if (fine_.empty()) {
-    fine_.assign(kFine, 0);
-    coarse_.assign(kFine, 0);  // (ms 0-65 unused: those are fine_'s)
+    fine_.assign(2 * kFine, 0);
+    coarse_.assign(kFine, 0);
   }
+  min_us_ = count_ == 0 ? us : std::min(min_us_, us);
   max_us_ = count_ == 0 ? us : std::max(max_us_, us);
   ++count_;
   sum_us_ += static_cast<double>(us);
-  const int64_t v = std::max<int64_t>(us, 0);
-  if (v < kFine) ++fine_[static_cast<size_t>(v)];
-  else ++coarse_[static_cast<size_t>(std::min(v / 1000, kFine - 1))];
+  if (us < kFine) ++fine_[static_cast<size_t>(std::max(us, -kFine) + kFine)];
+  else ++coarse_[static_cast<size_t>(std::min((us - kFine) / 1000, kFine - 1))];
 }
 
 Percentiles LatencyHistogram::percentiles() const {
@@ -77,11 +77,12 @@ Percentiles LatencyHistogram::percentiles() const {
   const auto rank = [&](double q) {
     // (the value of rank ceil(q n), 1-based, as ld::percentiles takes it)
     const auto k = std::max<size_t>(1, static_cast<size_t>(std::ceil(q * static_cast<double>(count_))));
-    size_t seen = 0;
-    for (size_t i = 0; i < fine_.size(); ++i)
-      if ((seen += fine_[i]) >= k) return std::min(static_cast<double>(i) * 1e-3, static_cast<double>(max_us_) * 1e-3);
+    size_t seen = fine_[0];
+    if (seen >= k) return static_cast<double>(min_us_) * 1e-3;
+    for (size_t i = 1; i < fine_.size(); ++i)
+      if ((seen += fine_[i]) >= k) return static_cast<double>(static_cast<int64_t>(i) - kFine) * 1e-3;
     for (size_t i = 0; i + 1 < coarse_.size(); ++i)
-      if ((seen += coarse_[i]) >= k) return static_cast<double>(i);
+      if ((seen += coarse_[i]) >= k) return static_cast<double>(kFine + 1000 * static_cast<int64_t>(i)) * 1e-3;
     return static_cast<double>(max_us_) * 1e-3;
   };
   p.p50 = rank(0.50);

@@ -402,8 +402,9 @@ std::vector<ProcessSpec> buildProcessSpecs(const RunConfig& cfg, const std::stri
                                      ? "source (fps, format, duration_s)"
                                      : "channels";
         const std::string given = a.substr(0, a.find('='));
-        throw std::runtime_error(name + "'s args give " + given + (given == own ? "" : " (its " + own + ")") +
-                                 ", which ld-run passes itself from the config's " + from + ": set it there");
+        throw RepeatedOptionError(name + "'s args give " + given + (given == own ? "" : " (its " + own + ")") +
+                                      ", which ld-run passes itself from the config's " + from + ": set it there",
+                                  name, a);
       }
   };
   const auto add = [&](const std::string& name, ProcessRole role, std::vector<std::string> argv,

@@ -15,6 +15,7 @@
 #include <iostream>
 #include <string>
 #include <thread>
+#include <tuple>
 
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
@@ -302,7 +303,7 @@ int main(int argc, char** argv) {
       "ld-run: starts the process set (source, ld-detector, ld-tracker, ld-qr-reader), restarts\n"
       "what dies, prints a live status line and writes a JSON summary (see README)."};
   std::string config_file, url, replay, play, source, summary_file, state_file, log_dir, record;
-  std::vector<std::string> camera_args, processes;
+  std::vector<std::string> camera_args, detector_args, tracker_args, qr_reader_args, processes;
   double speed = 0, drain_s = 3, wait_ready_s = 10, status_interval = -1, grace_s = 3;
   double play_fps = 0, play_duration = 0;
   std::string play_format;
@@ -322,6 +323,14 @@ int main(int argc, char** argv) {
   app.add_option("--play-format", play_format, "--play: keep, bgr, rgb, rgba, bgra, gray, yuyv, uyvy or mjpeg")
       ->check(ld::cli::Parses("FORMAT", ld::checkPlayFormat));
   app.add_option("--camera-arg", camera_args, "an argument for ld-camera (repeatable)")
+      ->allow_extra_args(false);
+  // (after the config's args of the process; an option given in both is
+  // refused by the program, as any option given twice)
+  app.add_option("--detector-arg", detector_args, "an argument for ld-detector (repeatable), after the config's")
+      ->allow_extra_args(false);
+  app.add_option("--tracker-arg", tracker_args, "an argument for ld-tracker (repeatable), after the config's")
+      ->allow_extra_args(false);
+  app.add_option("--qr-reader-arg", qr_reader_args, "an argument for ld-qr-reader (repeatable), after the config's")
       ->allow_extra_args(false);
   app.add_option("--processes", processes,
                  "which of detector, tracker, qr-reader to run (default: the config's, all); "
@@ -383,7 +392,15 @@ int main(int argc, char** argv) {
   if (app.count("--fps")) cfg.play_fps = play_fps;
   if (app.count("--duration")) cfg.play_duration_s = play_duration;
   if (!play_format.empty()) cfg.play_format = play_format;
+  // (the processes' args from the config alone: an error in them names the file)
+  const std::map<std::string, std::vector<std::string>> config_args{{"camera", cfg.camera_args},
+                                                                    {"detector", cfg.detector.args},
+                                                                    {"tracker", cfg.tracker.args},
+                                                                    {"qr-reader", cfg.qr_reader.args}};
   cfg.camera_args.insert(cfg.camera_args.end(), camera_args.begin(), camera_args.end());
+  for (auto [given, worker] : {std::pair{&detector_args, &cfg.detector}, std::pair{&tracker_args, &cfg.tracker},
+                               std::pair{&qr_reader_args, &cfg.qr_reader}})
+    worker->args.insert(worker->args.end(), given->begin(), given->end());
   if (!record.empty()) cfg.record = record;
   if (!processes.empty()) {
     cfg.detector.enabled = cfg.tracker.enabled = cfg.qr_reader.enabled = false;
@@ -410,6 +427,12 @@ int main(int argc, char** argv) {
       stray = "--camera-arg is for the camera source";
     if (!stray.empty()) return ld::cli::usage(argv[0], stray + ", and this run's source is " + cfg.source);
   }
+  for (const auto& [option, given, worker] :
+       {std::tuple{"--detector-arg", &detector_args, &cfg.detector}, std::tuple{"--tracker-arg", &tracker_args, &cfg.tracker},
+        std::tuple{"--qr-reader-arg", &qr_reader_args, &cfg.qr_reader}})
+    if (!given->empty() && !worker->enabled)
+      return ld::cli::usage(argv[0], std::string(option) + " is for " + worker->program +
+                                         ", which this run does not start (--processes or the config)");
   if (exit_when_done && cfg.source != "replay" && cfg.source != "play")
     return ld::cli::usage(argv[0], "--exit-when-replay-done needs a replay or play source");
 
@@ -431,12 +454,16 @@ int main(int argc, char** argv) {
   std::vector<ld::ProcessSpec> specs;
   try {
     specs = ld::buildProcessSpecs(cfg, cfg.lcm_url, ld::selfDirectory());
+  } catch (const ld::RepeatedOptionError& e) {
+    // (one of the config's args: the file named, as its other errors name
+    // it; not one of --camera-arg's and the like)
+    const auto it = config_args.find(e.process);
+    const bool in_config = it != config_args.end() &&
+                           std::find(it->second.begin(), it->second.end(), e.given) != it->second.end();
+    std::cerr << "ld-run: " << (in_config && !cfg.file.empty() ? cfg.file + ": " : "") << e.what() << "\n";
+    return 2;
   } catch (const std::exception& e) {
-    // (a process's args in the config: the file named, as its other errors
-    // name it; a camera's may be --camera-arg's)
-    const std::string what = e.what();
-    const bool cli_camera = !camera_args.empty() && what.rfind("camera's ", 0) == 0;
-    std::cerr << "ld-run: " << (cfg.file.empty() || cli_camera ? "" : cfg.file + ": ") << what << "\n";
+    std::cerr << "ld-run: " << e.what() << "\n";
     return 2;
   }
   // What lcm-logplayer, ld-play or lcm-logger would fail on at once, and

@@ -59,13 +59,14 @@ struct Percentiles {
 Percentiles percentiles(std::vector<double> values);
 
 /// Latencies of a run of any length, counted in bins of whole microseconds:
-/// exact below 65.536 ms, to the millisecond (the bin's lower edge) from
-/// there to 65.535 s, and beyond that in one bin read as the largest; the
-/// count, the mean and the largest are exact. Its percentiles are those of
-/// ld::percentiles (nearest rank) over the same values in milliseconds,
-/// below 65.536 ms to the bit. Fixed memory (512 KiB once the first comes):
-/// a vector of every latency grew 8 bytes a frame, 20 MB a day at 30
-/// frames/s.
+/// exact from -65.536 to 65.536 ms (a replay's latency under load can read
+/// negative), then to the millisecond up to 65.6 s (each value read as its
+/// bin's lower edge), and beyond either end in one bin read as the smallest
+/// or the largest; the count, the mean and the largest are exact. Its
+/// percentiles are those of ld::percentiles (nearest rank) over the same
+/// values in milliseconds, to the bit within +-65.536 ms. Fixed memory (768
+/// KiB once the first comes): a vector of every latency grew 8 bytes a
+/// frame, 20 MB a day at 30 frames/s.
 class LatencyHistogram {
  public:
   void add(int64_t us);
@@ -73,11 +74,12 @@ class LatencyHistogram {
   size_t count() const { return count_; }
 
  private:
-  static constexpr int64_t kFine = 65536;  // 1-us bins below this, 1-ms bins above
-  std::vector<uint32_t> fine_, coarse_;
+  static constexpr int64_t kFine = 65536;  // 1-us bins within +-kFine, 1-ms bins above
+  std::vector<uint32_t> fine_;    // [us + kFine]; [0]: kFine us or more below 0
+  std::vector<uint32_t> coarse_;  // [(us - kFine) / 1000]; the last: all beyond
   size_t count_ = 0;
   double sum_us_ = 0;
-  int64_t max_us_ = 0;
+  int64_t min_us_ = 0, max_us_ = 0;
 };
 
 class BusMonitor {
@@ -243,8 +245,9 @@ class BusMonitor {
   int64_t repeated_ = 0;  // messages of a frame already seen on their channel (not counted)
   SkipCounter det_skipped_, trk_skipped_;
   LatencyHistogram latencies_;
-  // the current status window's (at most kWindowMax: without status lines
-  // the window begins again after that many)
+  // the current status window's (at most kWindowMax: a window of more
+  // frames, status lines off or an interval over half an hour at 30
+  // frames/s, covers its last ones)
   std::vector<double> window_ms_;
   static constexpr size_t kWindowMax = 65536;
   std::map<std::pair<int, int64_t>, TrackInfo> tracks_;  // (tracker run, id)

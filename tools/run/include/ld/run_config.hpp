@@ -66,9 +66,18 @@ struct RunConfig {
 /// takes: keep, or a pixel format it converts to (ld::pixelFormatFromName's).
 void checkPlayFormat(const std::string& format);
 
+/// A process's args giving an option that ld-run passes it itself.
+struct RepeatedOptionError : std::runtime_error {
+  RepeatedOptionError(const std::string& what, std::string process_, std::string given_)
+      : std::runtime_error(what), process(std::move(process_)), given(std::move(given_)) {}
+  std::string process;  ///< "detector", "camera", ...
+  std::string given;    ///< the argument as given ("--out=X", "--out")
+};
+
 /// The processes to start, in order: recorder, workers, then the source.
 /// `url` is the LCM URL every process gets; `self_dir` is where ld-run's
-/// sibling programs are looked for.
+/// sibling programs are looked for. Throws RepeatedOptionError for a
+/// process's args that give an option ld-run passes it.
 std::vector<ProcessSpec> buildProcessSpecs(const RunConfig& cfg, const std::string& url,
                                            const std::string& self_dir);
 
