@@ -220,8 +220,8 @@ void BusMonitor::trackedSeen(const landmark_list_t& list, Micros rx_us) {
   }
   for (const auto& lm : list.landmarks) {
     if (lm.track_id < 0) continue;
-    auto [t, is_new] = tracks_.try_emplace({run, lm.track_id});
-    TrackInfo& info = t->second;
+    bool is_new = false;
+    TrackInfo& info = track(run, lm.track_id, is_new);
     info.seenIn(list.seq, is_new);
     if (lm.visible) {
       ++info.frames_visible;
@@ -245,10 +245,35 @@ int64_t BusMonitor::qrSkippedAll() const {
   return qr_skipped_ + static_cast<int64_t>(frames_left_out_ + frames_.size() - qr_settled_);
 }
 
+BusMonitor::TrackInfo& BusMonitor::track(int run, int64_t id, bool& is_new) {
+  auto [it, made] = tracks_.try_emplace({run, id});
+  is_new = made;
+  it->second.last_list = tracked_frames_;
+  if (!made || tracks_.size() <= kTracksKept + kTracksKept / 10) return it->second;
+  // Over the bound by a tenth: the longest unseen go, down to kTracksKept
+  // (now and then, each time a tenth of the bound, not one at every new track).
+  std::vector<int64_t> lasts;
+  lasts.reserve(tracks_.size());
+  for (const auto& [key, t] : tracks_) lasts.push_back(t.last_list);
+  const size_t drop = tracks_.size() - kTracksKept;
+  std::nth_element(lasts.begin(), lasts.begin() + static_cast<std::ptrdiff_t>(drop - 1), lasts.end());
+  const int64_t cutoff = lasts[drop - 1];  // (the drop-th oldest; ties kept or dropped together)
+  const std::pair<int, int64_t> key{run, id};
+  for (auto t = tracks_.begin(); t != tracks_.end();)
+    if (t->second.last_list <= cutoff && t->first != key) {
+      t = tracks_.erase(t);
+      ++tracks_left_out_;
+    } else {
+      ++t;
+    }
+  return tracks_.at(key);
+}
+
 void BusMonitor::setPayload(int run, int64_t id, const std::string& payload, int64_t seq) {
-  auto [it, is_new] = tracks_.try_emplace({run, id});
-  TrackInfo& t = it->second;
+  bool is_new = false;
+  TrackInfo& t = track(run, id, is_new);
   if (is_new) t.seenIn(seq, true);  // (known through a code first: its list was lost, or comes later)
+  if (t.payloads.empty()) ++tracks_read_;
   // (one id, two landmarks: the tracker gave it to another, its payload
   // read as well; each in turn, with the frame it came from)
   if (t.payloads.empty() || t.payloads.back().first != payload) t.payloads.emplace_back(payload, seq);
@@ -303,8 +328,6 @@ std::string BusMonitor::statusLine(Micros now_us) {
   const Percentiles p = percentiles(window_ms_);
   window_ms_.clear();
   last_status_us_ = now_us;
-  int read = 0;
-  for (const auto& [id, t] : tracks_) read += !t.payloads.empty();
   // (no frame tracked in the window: nothing was timed, "-" as for a QR
   // reader not heard, not 0.00 ms)
   char e2e[64] = "e2e -";
@@ -312,12 +335,12 @@ std::string BusMonitor::statusLine(Micros now_us) {
   char buf[320];
   std::snprintf(buf, sizeof buf,
                 "%s %.1f/s  %s %.1f/s  %s %.1f/s  %s %.1f/s | %s | "
-                "skipped det %lld trk %lld qr %s | tracks %zu, %d read",
+                "skipped det %lld trk %lld qr %s | tracks %zu, %lld read",
                 ch_.image.c_str(), hi, ch_.landmarks.c_str(), hl, ch_.tracked.c_str(), ht,
                 ch_.codes.c_str(), hc, e2e, static_cast<long long>(det_skipped_.sum),
                 static_cast<long long>(trk_skipped_.sum),
-                codes_.total > 0 ? std::to_string(qr_skipped_).c_str() : "-", tracks_.size(),
-                read);
+                codes_.total > 0 ? std::to_string(qr_skipped_).c_str() : "-",
+                tracks_.size() + static_cast<size_t>(tracks_left_out_), static_cast<long long>(tracks_read_));
   return buf;
 }
 
@@ -362,9 +385,7 @@ nlohmann::ordered_json BusMonitor::summary() const {
                               : from_capture_ == 0 ? J("arrival")
                                                    : J("capture and arrival")}};
   J tracks = J::array();
-  int read = 0;
   for (const auto& [key, t] : tracks_) {
-    read += !t.payloads.empty();
     tracks.push_back({{"id", key.second},
                       {"tracker_run", key.first},
                       {"payload", t.payloads.empty() ? J(nullptr) : J(t.payloads.back().first)},
@@ -377,7 +398,8 @@ nlohmann::ordered_json BusMonitor::summary() const {
   }
   j["tracker_restarts"] = restarts_.restarts();
   j["tracks"] = tracks;
-  j["payloads_decoded"] = read;
+  j["tracks_left_out"] = tracks_left_out_;
+  j["payloads_decoded"] = tracks_read_;
   J per = J::array();
   for (const auto& f : frames_)
     per.push_back({{"seq", f.seq},

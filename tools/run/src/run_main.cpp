@@ -262,8 +262,11 @@ void printReport(const Json& s) {
                 lat["p99"].get<double>(), lat["max"].get<double>());
   else
     std::printf("end-to-end latency IMAGE -> LANDMARKS_TRACKED: none measured (no frame was tracked)\n");
-  std::printf("tracks (%zu, %d with a payload):\n", s["summary"]["tracks"].size(),
-              s["summary"]["payloads_decoded"].get<int>());
+  const long long tracks_left_out = s["summary"].value("tracks_left_out", 0LL);
+  std::printf("tracks (%lld, %lld with a payload)%s:\n",
+              static_cast<long long>(s["summary"]["tracks"].size()) + tracks_left_out,
+              s["summary"]["payloads_decoded"].get<long long>(),
+              tracks_left_out > 0 ? (", the " + std::to_string(s["summary"]["tracks"].size()) + " last seen").c_str() : "");
   // (a tracker that restarted numbered its tracks from 1 again: each run's apart)
   const long long tracker_restarts = s["summary"]["tracker_restarts"].get<long long>();
   if (tracker_restarts > 0)

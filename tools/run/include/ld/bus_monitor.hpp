@@ -119,12 +119,14 @@ class BusMonitor {
   ///              first listed or read in), "first_seq", "last_seq" (the lowest and highest
   ///              frame it was listed in, or read in before any), "frames_visible",
   ///              "frames_coasting"}],
-  ///  "payloads_decoded",
+  ///  "tracks_left_out", "payloads_decoded",
   ///  "per_frame": [{"seq", "utime", "latency_ms"|null, "landmarks", "ids", "tracker_run"}],
   ///  "per_frame_left_out"}
   /// tracker_run counts the tracker's runs from 1 (a track is its id and run).
   /// per_frame holds the last kFramesKept tracked frames; per_frame_left_out
-  /// counts the earlier ones (every other figure counts every frame).
+  /// counts the earlier ones; tracks holds the kTracksKept most recently
+  /// listed or read, tracks_left_out counts the others (payloads_decoded and
+  /// every other figure count them all).
   nlohmann::ordered_json summary() const;
 
   /// One of the four channels' good messages so far (0 for a channel it
@@ -146,8 +148,15 @@ class BusMonitor {
   Micros lastSelfTest() const { return last_self_test_us_; }
   size_t latencyCount() const { return latencies_.count(); }
   /// The tracked frames kept for the summary's per_frame (the codes' joins
-  /// look among the last 600 of them): an hour at 30 frames/s, about 10 MB.
-  static constexpr size_t kFramesKept = 108000;
+  /// look among the last 600 of them): 20 minutes at 30 frames/s, about 4 MB,
+  /// and about 55 MB more while the summary is written.
+  static constexpr size_t kFramesKept = 36000;
+  /// The tracks kept for the summary's tracks, the most recently seen (a
+  /// robot driving past landmarks makes tens of thousands a day): about 2 MB.
+  static constexpr size_t kTracksKept = 10000;
+  /// A track the tracker-restart watch has not seen for this many lists is
+  /// forgotten by it (as ld-qr-reader's).
+  static constexpr int64_t kRestartWatchLists = 3000;
   /// An image's utime within this long before its arrival is its capture or
   /// publication time; older (a replayed log), it is not. (A log replayed
   /// within a second of its making would look live: see setUtimesLogged.)
@@ -167,6 +176,7 @@ class BusMonitor {
       last_seq = first ? seq : std::max(last_seq, seq);
     }
     int64_t frames_visible = 0, frames_coasting = 0;
+    int64_t last_list = 0;  // the tracked list (counted from the first) it was last listed or read in
     // each payload in turn, from the frame it came from (the last is the
     // track's; one more than one: changes)
     std::vector<std::pair<std::string, int64_t>> payloads;
@@ -250,8 +260,12 @@ class BusMonitor {
   // frames/s, covers its last ones)
   std::vector<double> window_ms_;
   static constexpr size_t kWindowMax = 65536;
-  std::map<std::pair<int, int64_t>, TrackInfo> tracks_;  // (tracker run, id)
-  TrackRestartWatch restarts_;
+  std::map<std::pair<int, int64_t>, TrackInfo> tracks_;  // (tracker run, id); the last kTracksKept seen
+  int64_t tracks_left_out_ = 0;                           // tracks no longer in tracks_
+  int64_t tracks_read_ = 0;                               // tracks a payload came for, all
+  TrackRestartWatch restarts_{kRestartWatchLists};
+  // a track of (run, id), made when new, kept among the most recently seen
+  TrackInfo& track(int run, int64_t id, bool& is_new);
   std::vector<int64_t> run_starts_{INT64_MIN};  // utime of each tracker run's first list (run r: [r - 1])
   std::vector<std::pair<int64_t, int32_t>> ages_;
   std::map<int, int64_t> histogram_;
