@@ -157,11 +157,16 @@ int main(int argc, char** argv) {
                     << ") came after a newer one: not tracked " << ld::badSoFar(late, "late") << "\n";
         continue;
       }
+      // (thinned as bad input is: two publishers on the channel whose clocks
+      // differ restart the tracks again and again, 15 lines a second)
       if (tracker.stats().resets > resets) {
         resets = tracker.stats().resets;
-        std::cerr << "ld-tracker: utime " << in.utime
-                  << " is older than the previous frame's by more than 1 s, or the third frame in a row from "
-                     "behind (a log replayed again, or the clock stepped back): tracks restarted\n";
+        if (ld::printBadLine(resets))
+          std::cerr << "ld-tracker: utime " << in.utime
+                    << " is older than the previous frame's by more than 1 s, or the third frame in a row from "
+                       "behind (a log replayed again, the clock stepped back, or two publishers on "
+                    << in_channel << " with clocks apart): tracks restarted "
+                    << ld::badSoFar(resets, "restarts") << "\n";
       }
       last_utime = in.utime;  // (tracked: not late)
       last_seq = in.seq;
