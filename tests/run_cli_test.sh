@@ -106,6 +106,22 @@ timeout 60 "$BIN/ld-run" --netns --status-interval 0 --config "$T/wargs.json" --
 grep -q "ld-detector: adaptive lighting on" "$T/out" || fail "--detector-arg=--adaptive did not reach the detector: $(cat "$T/out")"
 [ "$(jq -c '.processes[] | select(.name == "tracker") | .argv[-3:]' "$T/wargs_summary.json")" = '["--max-lifetime","1","--min-hits=1"]' ] ||
   fail "the tracker's argv: $(jq -c '.processes[] | select(.name == "tracker") | .argv' "$T/wargs_summary.json")"
+# A recording split into files (record.split_mb, record.keep): FILE.0 the
+# newest; a second run keeps the first's, shifted (one file is written anew)
+printf '{"source": {"type": "play", "log": "%s", "fps": 60, "duration_s": 1.5}, "record": {"file": "%s", "split_mb": 0.03, "keep": 20}}\n' \
+  "$T/in.lcmlog" "$T/rec.lcmlog" >"$T/rec.json"
+for pass in 1 2; do
+  timeout 60 "$BIN/ld-run" --netns --status-interval 0 -q --config "$T/rec.json" --exit-when-replay-done >"$T/out" 2>&1 ||
+    fail "a split recording, pass $pass: $(cat "$T/out")"
+  n=$(ls "$T"/rec.lcmlog.* | wc -l)
+  [ "$pass" -eq 1 ] && first=$n
+  [ ! -e "$T/rec.lcmlog" ] || fail "a split recording wrote $T/rec.lcmlog itself"
+done
+echo "split recording: $first files after one run, $n after two"
+[ "$first" -ge 2 ] && [ "$n" -ge $((2 * first - 1)) ] || fail "split recording: $first files, then $n"
+# (every tracked list of both runs, 90 frames each, in the files together)
+lists=$("$BIN/ld-dump" -c LANDMARKS_TRACKED "$T"/rec.lcmlog.* | wc -l)
+[ "$lists" -eq 180 ] || fail "split recording: $lists tracked lists in the files, not 180"
 mkdir "$T/cfgdir.json"
 refused "config $T/cfgdir.json is a folder" --config "$T/cfgdir.json"
 refused "--fps: 'nan' is not a number" --play "$T/in.lcmlog" --fps nan

@@ -906,6 +906,23 @@ TEST(RunConfig, RejectsUnknownKeysAndBadValues) {
   EXPECT_EQ(error(R"j({"source": {"type": "replay", "log": "a.lcmlog", "channels": "IMAGE\\"}})j"),
             "source.channels: IMAGE\\ is no regular expression lcm-logplayer can read (\\ at end of pattern)");
   EXPECT_EQ(error(R"j({"channels": {"image": "CAM/front.left-1"}, "record": {"file": "r.lcmlog", "channels": "LANDMARK.*"}})j"), "");
+  // a recording split into files (lcm-logger's --split-mb and --rotate)
+  EXPECT_EQ(error(R"j({"record": {"file": "r.lcmlog", "split_mb": -1}})j"),
+            "record: split_mb must be 0 (one file) or 0.001 to 1000000 MB");
+  EXPECT_EQ(error(R"j({"record": {"file": "r.lcmlog", "split_mb": 10, "keep": 1}})j"), "record: keep must be 2 to 1000 files");
+  EXPECT_EQ(error(R"j({"record": {"file": "r.lcmlog", "keep": 5}})j"),
+            "record: keep is the number of files split_mb makes: give split_mb too");
+  const auto split = ld::RunConfig::fromJson(nlohmann::json::parse(
+      R"j({"source": {"type": "none"}, "record": {"file": "r.lcmlog", "split_mb": 50, "keep": 7}})j"));
+  const auto specs = ld::buildProcessSpecs(split, "udpm://239.255.76.67:7667?ttl=0", "");
+  const auto recorder = std::find_if(specs.begin(), specs.end(), [](const auto& p) { return p.name == "recorder"; });
+  ASSERT_NE(recorder, specs.end());
+  const std::vector<std::string> tail(recorder->argv.end() - 4, recorder->argv.end());
+  EXPECT_EQ(tail, (std::vector<std::string>{"--rotate=7", "--split-mb=50", "-q", "r.lcmlog"}));
+  const auto one = ld::buildProcessSpecs(
+      ld::RunConfig::fromJson(nlohmann::json::parse(R"j({"source": {"type": "none"}, "record": {"file": "r.lcmlog"}})j")),
+      "udpm://239.255.76.67:7667?ttl=0", "");
+  EXPECT_EQ(std::count(one.front().argv.begin(), one.front().argv.end(), "-a"), 1);
 }
 
 // --play-format and source.format take what ld-play's --format takes (keep,

@@ -253,10 +253,18 @@ RunConfig RunConfig::fromTree(const Json& j, bool yaml) {
   if (j.contains("qr_reader")) c.qr_reader = worker(j["qr_reader"], "qr_reader", c.qr_reader);
   if (j.contains("record")) {
     const Json& r = j["record"];
-    checkKeys(r, "record", {"file", "channels"});
+    checkKeys(r, "record", {"file", "channels", "split_mb", "keep"});
     get(r, "file", "record", c.record);
     get(r, "channels", "record", c.record_channels);
     requirePattern("record.channels", c.record_channels, "lcm-logger");
+    get(r, "split_mb", "record", c.record_split_mb);
+    get(r, "keep", "record", c.record_keep);
+    if (!(c.record_split_mb == 0 || (c.record_split_mb >= 0.001 && c.record_split_mb <= 1e6)))
+      throw std::runtime_error("record: split_mb must be 0 (one file) or 0.001 to 1000000 MB");
+    if (c.record_keep < 2 || c.record_keep > 1000)
+      throw std::runtime_error("record: keep must be 2 to 1000 files");
+    if (r.contains("keep") && c.record_split_mb == 0)
+      throw std::runtime_error("record: keep is the number of files split_mb makes: give split_mb too");
   }
   if (j.contains("restart")) {
     const Json& r = j["restart"];
@@ -418,9 +426,17 @@ std::vector<ProcessSpec> buildProcessSpecs(const RunConfig& cfg, const std::stri
         cfg.record_channels.empty()
             ? quoteRegex(ch.landmarks) + "|" + quoteRegex(ch.tracked) + "|" + quoteRegex(ch.codes)
             : cfg.record_channels;
-    // -a: a restarted recorder appends to what it wrote before (ld-run removes the old file first)
-    add("recorder", ProcessRole::Recorder,
-        {prog("lcm-logger"), "--lcm-url=" + url, "--channel=" + chans, "-a", "-q", asArgument(cfg.record)}, {});
+    // -a: a restarted recorder appends to what it wrote before (ld-run
+    // removes the old file first). Split: FILE.0, FILE.1, ..., a restarted
+    // recorder (and each run) starting a new FILE.0, the others shifted.
+    if (cfg.record_split_mb > 0)
+      add("recorder", ProcessRole::Recorder,
+          {prog("lcm-logger"), "--lcm-url=" + url, "--channel=" + chans, "--rotate=" + std::to_string(cfg.record_keep),
+           "--split-mb=" + number(cfg.record_split_mb), "-q", asArgument(cfg.record)},
+          {});
+    else
+      add("recorder", ProcessRole::Recorder,
+          {prog("lcm-logger"), "--lcm-url=" + url, "--channel=" + chans, "-a", "-q", asArgument(cfg.record)}, {});
   }
   if (cfg.detector.enabled)
     add("detector", ProcessRole::Worker,

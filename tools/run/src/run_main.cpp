@@ -549,8 +549,10 @@ int main(int argc, char** argv) {
   for (const auto& [what, path] : std::initializer_list<OutputFile>{
            {"recording", cfg.record}, {"summary", summary_file}, {"state file", state_file}}) {
     if (path.empty()) continue;
-    const std::string problem =
-        std::string(what) == "recording" ? ld::prepareLogOutputFile(path) : ld::prepareJsonOutputFile(path);
+    // (a split recording's newest file is FILE.0)
+    const std::string problem = std::string(what) != "recording" ? ld::prepareJsonOutputFile(path)
+                                : cfg.record_split_mb > 0        ? ld::prepareLogOutputFile(path + ".0")
+                                                                 : ld::prepareLogOutputFile(path);
     if (!problem.empty()) {
       std::cerr << "ld-run: " << what << " " << path << ": " << problem << "\n";
       return 2;
@@ -624,7 +626,9 @@ int main(int argc, char** argv) {
     const bool is_source = s.role == ld::ProcessRole::Source || s.name == "camera";
     (is_source ? late : early).push_back(sup.add(std::move(s)));
   }
-  if (!cfg.record.empty()) std::remove(cfg.record.c_str());
+  // (one file: written anew; split, lcm-logger shifts the last run's files
+  // to FILE.1, ... and keeps record.keep)
+  if (!cfg.record.empty() && cfg.record_split_mb == 0) std::remove(cfg.record.c_str());
   const auto t0 = Clock::now();
   std::map<std::string, ld::RssSeries> rss;
   int64_t self_rss_max_kb = 0;  // ld-run's own (it receives every image too)

@@ -42,6 +42,13 @@ struct RunConfig {
   std::string record;  ///< lcm-logger output file ("" none)
   std::string file;    ///< the file load() read ("" for a tree given otherwise)
   std::string record_channels;  ///< default: LANDMARKS, LANDMARKS_TRACKED and LANDMARK_CODES
+  /// > 0: the recording is split into files of about this many MB, FILE.0
+  /// the newest, FILE.1 the one before, ..., at most record_keep of them
+  /// (lcm-logger's --split-mb and --rotate): a robot's recording of days
+  /// in bounded disk, and a run's start keeps the last run's (shifted to
+  /// FILE.1, ...) where one file is written anew.
+  double record_split_mb = 0;
+  int record_keep = 10;
 
   RestartPolicy restart;
 
