@@ -324,6 +324,35 @@ TEST(Tracker, NoDetectionsAgesThePoolAndDropsAfterLifetime) {
   EXPECT_EQ(tr.stats().tracks_dropped, 2);
 }
 
+// A publisher whose utime stands still expires nothing by lifetime: each
+// landmark that came and went stayed in the pool, and the assignment over
+// thousands took seconds a frame. The pool holds at most kMaxPool, the
+// longest unseen going first; the one seen all along stays, with its id.
+TEST(Tracker, PoolHoldsAtMostItsBoundWhenTimeStandsStill) {
+  ld::Tracker tr;
+  const size_t n = ld::Tracker::kMaxPool + 500;
+  int64_t dock_id = -1;
+  for (size_t k = 0; k < n; ++k) {
+    // one landmark seen in every frame, and a new one elsewhere in each
+    const auto& out = tr.update({square(50, 50), square(200.0 + 1000.0 * static_cast<double>(k), 400)}, frameTime(0));
+    if (k == 0) dock_id = out.front().id;
+    ASSERT_LE(tr.poolSize(), ld::Tracker::kMaxPool + 2) << k;
+  }
+  const auto& out = tr.update({square(50, 50)}, frameTime(0));
+  EXPECT_EQ(tr.poolSize(), ld::Tracker::kMaxPool);
+  EXPECT_EQ(tr.stats().tracks_created, static_cast<int64_t>(n) + 1);
+  EXPECT_EQ(tr.stats().tracks_dropped, static_cast<int64_t>(n + 1 - ld::Tracker::kMaxPool));
+  const auto dock = std::find_if(out.begin(), out.end(), [](const auto& t) { return t.visible; });
+  ASSERT_NE(dock, out.end());
+  EXPECT_EQ(dock->id, dock_id);
+  EXPECT_EQ(dock->age, static_cast<int32_t>(n));
+  // the newest of the others are kept, the oldest went
+  EXPECT_EQ(std::count_if(out.begin(), out.end(), [&](const auto& t) { return t.id == dock_id + 2; }), 0);
+  EXPECT_EQ(std::count_if(out.begin(), out.end(), [&](const auto& t) { return t.id == static_cast<int64_t>(n) + 1; }), 1);
+  // the reported order is the pool's: by id
+  for (size_t i = 1; i < out.size(); ++i) ASSERT_LT(out[i - 1].id, out[i].id) << i;
+}
+
 TEST(Tracker, StaticLandmarksKeepTheirIdsInAnyDetectionOrder) {
   ld::Tracker tr;
   std::vector<ld::Landmark> dets{square(100, 100), square(200, 120), square(300, 140), square(400, 160)};

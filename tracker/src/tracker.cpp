@@ -133,6 +133,23 @@ const std::vector<Track>& Tracker::update(const std::vector<Landmark>& detection
   });
   stats_.tracks_dropped += pool_.end() - expired;
   pool_.erase(expired, pool_.end());
+  // ... and no more than kMaxPool, the longest unseen going first (then the
+  // oldest seen: a utime standing still makes every gap 0)
+  // (the pool's order, that of the tracks reported, kept)
+  if (pool_.size() > kMaxPool) {
+    std::vector<std::pair<int32_t, int64_t>> keys;  // (-frames unseen, id): the first ones go
+    keys.reserve(pool_.size());
+    for (const PoolEntry& e : pool_) keys.emplace_back(-e.frames_since_seen, e.id);
+    const size_t drop = pool_.size() - kMaxPool;
+    std::nth_element(keys.begin(), keys.begin() + static_cast<std::ptrdiff_t>(drop - 1), keys.end());
+    const auto last_dropped = keys[drop - 1];
+    pool_.erase(std::remove_if(pool_.begin(), pool_.end(),
+                               [&](const PoolEntry& e) {
+                                 return std::pair<int32_t, int64_t>(-e.frames_since_seen, e.id) <= last_dropped;
+                               }),
+                pool_.end());
+    stats_.tracks_dropped += static_cast<int64_t>(drop);
+  }
 
   // 2. PREDICT every pool landmark to this frame's time.
   predict(utime);

@@ -122,7 +122,7 @@ struct Track {
 struct TrackerStats {
   int64_t frames = 0;               ///< update() calls
   int64_t tracks_created = 0;
-  int64_t tracks_dropped = 0;       ///< expired after max_lifetime_s
+  int64_t tracks_dropped = 0;       ///< expired after max_lifetime_s, or the longest unseen beyond kMaxPool
   int64_t matches = 0;              ///< detections assigned to an existing track
   int64_t rejected_detections = 0;  ///< non-finite or degenerate detections, ignored
   int64_t resets = 0;               ///< pool cleared because time went backwards
@@ -170,6 +170,13 @@ class Tracker {
   /// not messages held up: the pool is cleared at the last of them, which is
   /// tracked (a clock set back 0.5 s gave half a second of nothing).
   static constexpr int kStepBackFrames = 3;
+  /// The most landmarks the pool holds: beyond them the longest unseen go
+  /// (counted in tracks_dropped). Lifetimes count the frames' utime, so a
+  /// publisher whose utime stands still expires nothing (ld-tracker says
+  /// so), and with --max-lifetime of days neither does one that stamps its
+  /// frames: each landmark that came and went stayed, and the assignment
+  /// over thousands took seconds a frame.
+  static constexpr size_t kMaxPool = 2000;
 
   /// The tracks reported by the last update().
   const std::vector<Track>& tracks() const { return out_; }
