@@ -203,6 +203,24 @@ TEST(QrTrackBook, DecodesOnceThenRechecksRarely) {
   EXPECT_EQ(book.payload(7)->payload, "dock");
 }
 
+// A publisher whose utime stands still: the book forgets by the frames'
+// utime, so it forgot nothing, every track ever made kept and walked at each
+// frame. Beyond kMaxTracks those named longest ago go; the one named all
+// along keeps its payload.
+TEST(QrTrackBook, HoldsAtMostItsBoundWhenTimeStandsStill) {
+  ld::QrTrackBook book;
+  book.schedule({1}, 5000);
+  book.record(1, 5000, 0, std::string("dock"));
+  const int64_t n = static_cast<int64_t>(ld::QrTrackBook::kMaxTracks) * 2;
+  for (int64_t k = 0; k < n; ++k) {
+    book.schedule({1, 100 + k}, 5000);  // the dock, and a new track in each frame
+    ASSERT_LE(book.size(), ld::QrTrackBook::kMaxTracks * 11 / 10 + 1) << k;
+  }
+  EXPECT_GE(book.size(), ld::QrTrackBook::kMaxTracks);
+  ASSERT_NE(book.payload(1), nullptr);
+  EXPECT_EQ(book.payload(1)->payload, "dock");
+}
+
 // A read track made due at once (readAgain: its look saw another code) is
 // re-read before the 5 s, its payload kept, but after every undecoded track
 // (its priority once came out below theirs and took the frame's decode).

@@ -142,9 +142,11 @@ std::vector<int64_t> QrTrackBook::schedule(const std::vector<int64_t>& track_ids
   // overflow made it every frame)
   const auto us = [](double s) { return s * 1e6 >= 9e18 ? INT64_MAX : static_cast<int64_t>(s * 1e6); };
   std::vector<std::pair<int64_t, int64_t>> due;  // (priority, id): lower first
+  ++frames_;
   for (int64_t id : track_ids) {
     Track& t = tracks_[id];
     t.last_seen = utime;
+    t.last_frame = frames_;
     const int64_t since = t.last_try == INT64_MIN ? INT64_MAX : utime - t.last_try;
     if (!t.known) {
       if (since >= us(params_.retry_interval_s)) due.emplace_back(t.last_try, id);
@@ -161,9 +163,20 @@ std::vector<int64_t> QrTrackBook::schedule(const std::vector<int64_t>& track_ids
     if (static_cast<int>(out.size()) >= params_.max_decodes_per_frame) break;
     out.push_back(d.second);
   }
-  // Forget tracks unseen for long.
+  // Forget tracks unseen for long, and beyond kMaxTracks those named
+  // longest ago (now and then, a tenth of the bound at a time), never one
+  // of this frame.
+  int64_t named_before = INT64_MIN;  // forgotten: named in this schedule call or before
+  if (tracks_.size() > kMaxTracks + kMaxTracks / 10) {
+    std::vector<int64_t> frames;
+    frames.reserve(tracks_.size());
+    for (const auto& [id, t] : tracks_) frames.push_back(t.last_frame);
+    const size_t drop = tracks_.size() - kMaxTracks;
+    std::nth_element(frames.begin(), frames.begin() + static_cast<std::ptrdiff_t>(drop - 1), frames.end());
+    named_before = std::min(frames[drop - 1], frames_ - 1);
+  }
   for (auto it = tracks_.begin(); it != tracks_.end();) {
-    if (utime - it->second.last_seen > us(params_.forget_after_s)) {
+    if (utime - it->second.last_seen > us(params_.forget_after_s) || it->second.last_frame <= named_before) {
       restarts_.forget(it->first);
       it = tracks_.erase(it);
     } else {

@@ -176,11 +176,18 @@ class QrTrackBook {
 
   size_t size() const { return tracks_.size(); }
 
+  /// The most tracks the book keeps: beyond them those scheduled longest ago
+  /// are forgotten. It forgets a track unseen for forget_after_s of the
+  /// frames' utime, so a publisher whose utime stands still made it forget
+  /// none, every track the tracker ever made kept and walked at each frame.
+  static constexpr size_t kMaxTracks = 4000;
+
  private:
   struct Track {
     std::optional<Known> known;
     int64_t last_try = INT64_MIN;
     int64_t last_seen = 0;
+    int64_t last_frame = 0;  // the schedule call (counted) it was last named in
     bool placed = false;  // where it was last detected (follow)
     bool coasted = false;  // seen coasting since
     double cx = 0, cy = 0, size = 0, vx = 0, vy = 0;  // (velocity in px per tracker frame)
@@ -191,6 +198,7 @@ class QrTrackBook {
   // leave the watch: coasting ones the schedule never sees included)
   TrackRestartWatch restarts_{3000};
   std::unordered_map<int64_t, Track> tracks_;
+  int64_t frames_ = 0;  // schedule calls
 };
 
 }  // namespace ld
