@@ -122,6 +122,19 @@ echo "split recording: $first files after one run, $n after two"
 # (every tracked list of both runs, 90 frames each, in the files together)
 lists=$("$BIN/ld-dump" -c LANDMARKS_TRACKED "$T"/rec.lcmlog.* | wc -l)
 [ "$lists" -eq 180 ] || fail "split recording: $lists tracked lists in the files, not 180"
+# SIGUSR1 opens the --log-dir files again (logrotate moves them, then
+# signals; SIGHUP stops the set): the lines after it go to a new file
+"$BIN/ld-run" --netns --status-interval 0 -q --play "$T/in.lcmlog" --fps 30 --duration 4 --exit-when-replay-done \
+  --log-dir "$T/logs" >"$T/out" 2>&1 &
+run=$!
+for _ in $(seq 1 100); do [ -e "$T/logs/detector.log" ] && break; sleep 0.1; done
+sleep 1
+mv "$T/logs/detector.log" "$T/logs/detector.log.1"
+[ "$run" -gt 1 ] && kill -USR1 "$run"
+rc=0; wait "$run" || rc=$?
+[ $rc -eq 0 ] || fail "SIGUSR1: ld-run exit $rc: $(cat "$T/out")"
+grep -q "^ld-detector: stopped after" "$T/logs/detector.log" || fail "SIGUSR1: no new detector.log: $(ls "$T/logs")"
+grep -q "^\[ld-run\] started" "$T/logs/detector.log.1" || fail "SIGUSR1: the moved file: $(cat "$T/logs/detector.log.1")"
 mkdir "$T/cfgdir.json"
 refused "config $T/cfgdir.json is a folder" --config "$T/cfgdir.json"
 refused "--fps: 'nan' is not a number" --play "$T/in.lcmlog" --fps nan

@@ -47,6 +47,10 @@ void onSignal(int s) {
   g_signal = s;
   g_stop = true;
 }
+// SIGUSR1: the --log-dir files are opened again (logrotate's rename, then
+// a signal: SIGHUP stops the set, as a terminal's hangup does)
+std::atomic<bool> g_reopen_logs{false};
+void onReopenSignal(int) { g_reopen_logs = true; }
 
 // A pause in a replayed log, at the replay's speed, that is said (microseconds).
 constexpr double kLongReplayGapUs = 10e6;
@@ -100,6 +104,13 @@ class Console {
       std::fprintf(stderr, "[status] %s\n", text.c_str());
     }
     std::fflush(stderr);
+  }
+  /// Closes the --log-dir files; each is opened again (created when it was
+  /// moved away) at its next line, and one that could not be written is
+  /// tried again.
+  void reopenLogs() {
+    files_.clear();
+    unwritable_.clear();
   }
   /// Where a process's own lines went, for a message that points to them.
   std::string whereLinesOf(const std::string& name) const {
@@ -302,6 +313,7 @@ void printReport(const Json& s) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  std::signal(SIGUSR1, onReopenSignal);  // (from the start: its default ends the process)
   CLI::App app{
       "ld-run: starts the process set (source, ld-detector, ld-tracker, ld-qr-reader), restarts\n"
       "what dies, prints a live status line and writes a JSON summary (see README)."};
@@ -711,6 +723,7 @@ int main(int argc, char** argv) {
   int exit_code = 0;
   std::vector<pollfd> fds;
   while (!g_stop) {
+    if (g_reopen_logs.exchange(false)) console.reopenLogs();
     fds.clear();
     fds.push_back({lcm.getFileno(), POLLIN, 0});
     sup.appendPollFds(fds);
