@@ -114,14 +114,23 @@ for pass in 1 2; do
   timeout 60 "$BIN/ld-run" --netns --status-interval 0 -q --config "$T/rec.json" --exit-when-replay-done >"$T/out" 2>&1 ||
     fail "a split recording, pass $pass: $(cat "$T/out")"
   n=$(ls "$T"/rec.lcmlog.* | wc -l)
-  [ "$pass" -eq 1 ] && first=$n
+  if [ "$pass" -eq 1 ]; then
+    first=$n
+    last1=$("$BIN/ld-dump" -c LANDMARKS_TRACKED "$T"/rec.lcmlog.* | jq -s 'map(.utime) | max')
+  fi
   [ ! -e "$T/rec.lcmlog" ] || fail "a split recording wrote $T/rec.lcmlog itself"
 done
 echo "split recording: $first files after one run, $n after two"
-[ "$first" -ge 2 ] && [ "$n" -ge $((2 * first - 1)) ] || fail "split recording: $first files, then $n"
-# (every tracked list of both runs, 90 frames each, in the files together)
+[ "$first" -ge 2 ] && [ "$n" -ge $((2 * first)) ] || fail "split recording: $first files, then $n"
+# (every tracked list of both runs, 90 frames each, in the files together;
+# the second run's FILE.0 its own alone: lcm-logger appended to the last
+# run's, which grew without end over short runs; no file much over 0.03 MB)
 lists=$("$BIN/ld-dump" -c LANDMARKS_TRACKED "$T"/rec.lcmlog.* | wc -l)
 [ "$lists" -eq 180 ] || fail "split recording: $lists tracked lists in the files, not 180"
+first0=$("$BIN/ld-dump" -c LANDMARKS_TRACKED "$T/rec.lcmlog.0" | jq -s 'map(.utime) | min')
+[ "$first0" -gt "$last1" ] || fail "split recording: FILE.0 holds the first run's lists ($first0 <= $last1)"
+for f in "$T"/rec.lcmlog.*; do [ "$(stat -c %s "$f")" -lt 40000 ] || fail "split recording: $f is $(stat -c %s "$f") bytes"; done
+refused "the summary $T/rec.lcmlog.3 is the recording: it would be written over" --config "$T/rec.json" --summary "$T/rec.lcmlog.3"
 # SIGUSR1 opens the --log-dir files again (logrotate moves them, then
 # signals; SIGHUP stops the set): the lines after it go to a new file
 "$BIN/ld-run" --netns --status-interval 0 -q --play "$T/in.lcmlog" --fps 30 --duration 4 --exit-when-replay-done \

@@ -798,6 +798,22 @@ TEST(BusMonitor, LongRunListsTheLastTracksAndCountsThemAll) {
       << line;
 }
 
+// A tracker restart long after the last run's track 1 was listed: told all
+// the same (a watch that forgot tracks after 3000 lists, as ld-qr-reader's,
+// missed it, and the old and the new track 1 merged into one with two
+// payloads).
+TEST(BusMonitor, TrackerRestartIsToldLongAfterItsIdsWereListed) {
+  ld::BusMonitor m;
+  int64_t seq = 0;
+  for (int i = 0; i < 20; ++i, ++seq) m.trackedSeen(list(1000 + seq, seq, {trackedLandmark(1, true, "dock", i)}), 5000 + seq);
+  for (int i = 0; i < 4000; ++i, ++seq) m.trackedSeen(list(1000 + seq, seq, {trackedLandmark(2, true, "", 20 + i)}), 5000 + seq);
+  m.trackedSeen(list(1000 + seq, seq, {trackedLandmark(1, true, "room-7", 0)}), 5000 + seq);
+  const auto s = m.summary();
+  EXPECT_EQ(s["tracker_restarts"], 1);
+  ASSERT_EQ(s["tracks"].size(), 3u) << s["tracks"].dump();
+  for (const auto& t : s["tracks"]) EXPECT_EQ(t["payload_changes"], 0) << t.dump();
+}
+
 // ld-run's memory samples over days: at most kRssSamplesKept, evenly spread
 // over the whole run, the largest and the last exact.
 TEST(RssSeries, KeepsTheWholeCourseInAFixedNumberOfSamples) {

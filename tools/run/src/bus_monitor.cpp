@@ -261,6 +261,7 @@ BusMonitor::TrackInfo& BusMonitor::track(int run, int64_t id, bool& is_new) {
   const std::pair<int, int64_t> key{run, id};
   for (auto t = tracks_.begin(); t != tracks_.end();)
     if (t->second.last_list <= cutoff && t->first != key) {
+      if (t->first.first == static_cast<int>(run_starts_.size())) restarts_.forget(t->first.second);
       t = tracks_.erase(t);
       ++tracks_left_out_;
     } else {

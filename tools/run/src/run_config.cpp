@@ -155,6 +155,13 @@ std::string number(double v) {
   return text;
 }
 
+// (six significant digits: 0.03, where %.17g wrote 0.029999999999999999)
+std::string shortNumber(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", v);
+  return text;
+}
+
 bool endsWith(const std::string& s, const std::string& tail) {
   return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
 }
@@ -382,6 +389,25 @@ RunConfig RunConfig::load(const std::string& given) {
   }
 }
 
+std::vector<std::string> recordSplitFiles(const std::string& file, int keep) {
+  std::vector<std::string> files;
+  for (int i = 0; i < keep; ++i) files.push_back(file + "." + std::to_string(i));
+  return files;
+}
+
+std::string recordSplitShift(const std::string& file, int keep) {
+  const std::vector<std::string> files = recordSplitFiles(file, keep);
+  std::error_code ec;
+  std::filesystem::remove(files.back(), ec);
+  if (ec) return "cannot remove " + files.back() + ": " + ec.message();
+  for (size_t i = files.size() - 1; i-- > 0;) {
+    if (!std::filesystem::exists(files[i], ec)) continue;
+    std::filesystem::rename(files[i], files[i + 1], ec);
+    if (ec) return "cannot rename " + files[i] + " to " + files[i + 1] + ": " + ec.message();
+  }
+  return "";
+}
+
 std::vector<ProcessSpec> buildProcessSpecs(const RunConfig& cfg, const std::string& url,
                                            const std::string& self_dir) {
   const BusChannels& ch = cfg.channels;
@@ -427,12 +453,13 @@ std::vector<ProcessSpec> buildProcessSpecs(const RunConfig& cfg, const std::stri
             ? quoteRegex(ch.landmarks) + "|" + quoteRegex(ch.tracked) + "|" + quoteRegex(ch.codes)
             : cfg.record_channels;
     // -a: a restarted recorder appends to what it wrote before (ld-run
-    // removes the old file first). Split: FILE.0, FILE.1, ..., a restarted
-    // recorder (and each run) starting a new FILE.0, the others shifted.
+    // removes the old file first). Split: FILE.0, FILE.1, ..., lcm-logger
+    // shifting them as it splits; a restarted recorder appends to FILE.0,
+    // and ld-run shifts the last run's along at its start.
     if (cfg.record_split_mb > 0)
       add("recorder", ProcessRole::Recorder,
           {prog("lcm-logger"), "--lcm-url=" + url, "--channel=" + chans, "--rotate=" + std::to_string(cfg.record_keep),
-           "--split-mb=" + number(cfg.record_split_mb), "-q", asArgument(cfg.record)},
+           "--split-mb=" + shortNumber(cfg.record_split_mb), "-q", asArgument(cfg.record)},
           {});
     else
       add("recorder", ProcessRole::Recorder,

@@ -144,6 +144,7 @@ class Console {
     std::fprintf(stderr, "[ld-run] cannot write %s: %s; %s's lines from here go where they would without --log-dir\n",
                  path.c_str(), std::strerror(errno ? errno : EIO), name.c_str());
     unwritable_.insert(name);
+    failed_ever_ = true;
     return false;
   }
 
@@ -152,11 +153,12 @@ class Console {
   bool status_shown_ = false;
   std::string log_dir_;
   std::map<std::string, std::ofstream> files_;
-  std::set<std::string> unwritable_;  // processes whose log file could not be written
+  std::set<std::string> unwritable_;  // processes whose log file could not be written (since SIGUSR1)
+  bool failed_ever_ = false;           // some log file could not be written, in the whole run
 
  public:
   /// Whether some process's log file could not be written.
-  bool logsFailed() const { return !unwritable_.empty(); }
+  bool logsFailed() const { return failed_ever_; }
 };
 
 // Writes `text` to `path` through a temporary file renamed when whole: ""
@@ -542,11 +544,13 @@ int main(int argc, char** argv) {
   // summary over it, or over the recording, or over the config replaced it).
   {
     const bool plays = cfg.source == "replay" || cfg.source == "play";
-    const std::vector<OutputFile> files{{"log", plays ? cfg.log : ""},
-                                        {"config", cfg.file},
-                                        {"recording", cfg.record},
-                                        {"summary", summary_file},
-                                        {"state file", state_file}};
+    std::vector<OutputFile> files{{"log", plays ? cfg.log : ""}, {"config", cfg.file}};
+    // (a split recording: each of its files, which rotation renames and removes)
+    if (cfg.record.empty() || cfg.record_split_mb == 0) files.emplace_back("recording", cfg.record);
+    else
+      for (const std::string& f : ld::recordSplitFiles(cfg.record, cfg.record_keep)) files.emplace_back("recording", f);
+    files.emplace_back("summary", summary_file);
+    files.emplace_back("state file", state_file);
     for (size_t i = 0; i < files.size(); ++i)
       for (size_t j = std::max<size_t>(i + 1, 2); j < files.size(); ++j)  // (the log and the config are read)
         if (!files[i].second.empty() && !files[j].second.empty() && ld::sameFile(files[i].second, files[j].second)) {
@@ -561,10 +565,12 @@ int main(int argc, char** argv) {
   for (const auto& [what, path] : std::initializer_list<OutputFile>{
            {"recording", cfg.record}, {"summary", summary_file}, {"state file", state_file}}) {
     if (path.empty()) continue;
-    // (a split recording's newest file is FILE.0)
-    const std::string problem = std::string(what) != "recording" ? ld::prepareJsonOutputFile(path)
-                                : cfg.record_split_mb > 0        ? ld::prepareLogOutputFile(path + ".0")
-                                                                 : ld::prepareLogOutputFile(path);
+    // (a split recording's files: FILE.0 to FILE.(keep - 1), the longest name the last)
+    std::string problem = std::string(what) != "recording" ? ld::prepareJsonOutputFile(path)
+                          : cfg.record_split_mb > 0        ? ld::prepareLogOutputFile(path + ".0")
+                                                           : ld::prepareLogOutputFile(path);
+    if (problem.empty() && std::string(what) == "recording" && cfg.record_split_mb > 0)
+      problem = ld::prepareLogOutputFile(ld::recordSplitFiles(path, cfg.record_keep).back());
     if (!problem.empty()) {
       std::cerr << "ld-run: " << what << " " << path << ": " << problem << "\n";
       return 2;
@@ -638,9 +644,15 @@ int main(int argc, char** argv) {
     const bool is_source = s.role == ld::ProcessRole::Source || s.name == "camera";
     (is_source ? late : early).push_back(sup.add(std::move(s)));
   }
-  // (one file: written anew; split, lcm-logger shifts the last run's files
-  // to FILE.1, ... and keeps record.keep)
+  // (one file: written anew; split, the last run's files shifted to FILE.1,
+  // ..., record.keep of them kept)
   if (!cfg.record.empty() && cfg.record_split_mb == 0) std::remove(cfg.record.c_str());
+  if (!cfg.record.empty() && cfg.record_split_mb > 0) {
+    if (const std::string why = ld::recordSplitShift(cfg.record, cfg.record_keep); !why.empty()) {
+      std::cerr << "ld-run: recording " << cfg.record << ": " << why << "\n";
+      return 2;
+    }
+  }
   const auto t0 = Clock::now();
   std::map<std::string, ld::RssSeries> rss;
   int64_t self_rss_max_kb = 0;  // ld-run's own (it receives every image too)
@@ -860,7 +872,8 @@ int main(int argc, char** argv) {
       // (a recorder that died lost what came while it was down, though its
       // restarts append to the log: a full disk killed it again and again,
       // and the run ended with 0)
-      note("warning: the recording " + cfg.record + " is incomplete: its recorder died and was restarted " +
+      note("warning: the recording " + cfg.record + (cfg.record_split_mb > 0 ? ".0, ..." : "") +
+           " is incomplete: its recorder died and was restarted " +
            std::to_string(p.runs - 1) + " time" + (p.runs == 2 ? "" : "s") +
            (p.last_exit.empty() ? "" : " (its last end: " + p.last_exit + ")") + "; what came meanwhile is not in it");
       exit_code = std::max(exit_code, 1);

@@ -154,9 +154,6 @@ class BusMonitor {
   /// The tracks kept for the summary's tracks, the most recently seen (a
   /// robot driving past landmarks makes tens of thousands a day): about 2 MB.
   static constexpr size_t kTracksKept = 10000;
-  /// A track the tracker-restart watch has not seen for this many lists is
-  /// forgotten by it (as ld-qr-reader's).
-  static constexpr int64_t kRestartWatchLists = 3000;
   /// An image's utime within this long before its arrival is its capture or
   /// publication time; older (a replayed log), it is not. (A log replayed
   /// within a second of its making would look live: see setUtimesLogged.)
@@ -263,7 +260,11 @@ class BusMonitor {
   std::map<std::pair<int, int64_t>, TrackInfo> tracks_;  // (tracker run, id); the last kTracksKept seen
   int64_t tracks_left_out_ = 0;                           // tracks no longer in tracks_
   int64_t tracks_read_ = 0;                               // tracks a payload came for, all
-  TrackRestartWatch restarts_{kRestartWatchLists};
+  // (it forgets a track when tracks_ leaves it out, not by a count of lists:
+  // a restarted tracker's id 1 is told from the last run's only while that
+  // is known, and tracks_ keeps the last run's id 1 far longer than 3000
+  // lists, ld-qr-reader's bound, where the two merged)
+  TrackRestartWatch restarts_;
   // a track of (run, id), made when new, kept among the most recently seen
   TrackInfo& track(int run, int64_t id, bool& is_new);
   std::vector<int64_t> run_starts_{INT64_MIN};  // utime of each tracker run's first list (run r: [r - 1])

@@ -45,8 +45,8 @@ struct RunConfig {
   /// > 0: the recording is split into files of about this many MB, FILE.0
   /// the newest, FILE.1 the one before, ..., at most record_keep of them
   /// (lcm-logger's --split-mb and --rotate): a robot's recording of days
-  /// in bounded disk, and a run's start keeps the last run's (shifted to
-  /// FILE.1, ...) where one file is written anew.
+  /// in bounded disk, and a run's start keeps the last run's (ld-run shifts
+  /// them to FILE.1, ...: recordSplitShift) where one file is written anew.
   double record_split_mb = 0;
   int record_keep = 10;
 
@@ -68,6 +68,15 @@ struct RunConfig {
 
  public:
 };
+
+/// The files of a split recording, FILE.0 to FILE.(keep - 1).
+std::vector<std::string> recordSplitFiles(const std::string& file, int keep);
+/// Shifts a split recording's files along, FILE.(keep - 2) to FILE.(keep - 1)
+/// (the last one removed), ..., FILE.0 to FILE.1, so that a new run starts
+/// FILE.0 afresh: lcm-logger 1.3.1 with --rotate appends to FILE.0 at its
+/// start and shifts only when it splits, so short runs grew FILE.0 without
+/// end. "" when done, else what failed.
+std::string recordSplitShift(const std::string& file, int keep);
 
 /// Throws std::runtime_error unless `format` is one ld-play's --format
 /// takes: keep, or a pixel format it converts to (ld::pixelFormatFromName's).
