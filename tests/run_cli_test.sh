@@ -121,7 +121,8 @@ for pass in 1 2; do
   [ ! -e "$T/rec.lcmlog" ] || fail "a split recording wrote $T/rec.lcmlog itself"
 done
 echo "split recording: $first files after one run, $n after two"
-[ "$first" -ge 2 ] && [ "$n" -ge $((2 * first)) ] || fail "split recording: $first files, then $n"
+# (the first run's files kept, the second's two or more: their counts vary with the codes read)
+[ "$first" -ge 2 ] && [ "$n" -ge $((first + 2)) ] || fail "split recording: $first files, then $n"
 # (every tracked list of both runs, 90 frames each, in the files together;
 # the second run's FILE.0 its own alone: lcm-logger appended to the last
 # run's, which grew without end over short runs; no file much over 0.03 MB)
