@@ -149,16 +149,10 @@ Json fromYaml(const YAML::Node& n, size_t& count) {
 
 // A number for another program's command line, as exact as the double
 // (std::to_string's six decimals made a speed of 1e-7 "0.000000").
-std::string number(double v) {
+// (six significant digits for a size: 0.03, where 17 wrote 0.029999999999999999)
+std::string number(double v, int digits = 17) {
   char text[32];
-  std::snprintf(text, sizeof text, "%.17g", v);
-  return text;
-}
-
-// (six significant digits: 0.03, where %.17g wrote 0.029999999999999999)
-std::string shortNumber(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", v);
+  std::snprintf(text, sizeof text, "%.*g", digits, v);
   return text;
 }
 
@@ -456,14 +450,13 @@ std::vector<ProcessSpec> buildProcessSpecs(const RunConfig& cfg, const std::stri
     // removes the old file first). Split: FILE.0, FILE.1, ..., lcm-logger
     // shifting them as it splits; a restarted recorder appends to FILE.0,
     // and ld-run shifts the last run's along at its start.
+    std::vector<std::string> argv{prog("lcm-logger"), "--lcm-url=" + url, "--channel=" + chans};
     if (cfg.record_split_mb > 0)
-      add("recorder", ProcessRole::Recorder,
-          {prog("lcm-logger"), "--lcm-url=" + url, "--channel=" + chans, "--rotate=" + std::to_string(cfg.record_keep),
-           "--split-mb=" + shortNumber(cfg.record_split_mb), "-q", asArgument(cfg.record)},
-          {});
+      argv.insert(argv.end(), {"--rotate=" + std::to_string(cfg.record_keep), "--split-mb=" + number(cfg.record_split_mb, 6)});
     else
-      add("recorder", ProcessRole::Recorder,
-          {prog("lcm-logger"), "--lcm-url=" + url, "--channel=" + chans, "-a", "-q", asArgument(cfg.record)}, {});
+      argv.emplace_back("-a");
+    argv.insert(argv.end(), {"-q", asArgument(cfg.record)});
+    add("recorder", ProcessRole::Recorder, std::move(argv), {});
   }
   if (cfg.detector.enabled)
     add("detector", ProcessRole::Worker,

@@ -415,8 +415,11 @@ int main(int argc, char** argv) {
                                                                     {"tracker", cfg.tracker.args},
                                                                     {"qr-reader", cfg.qr_reader.args}};
   cfg.camera_args.insert(cfg.camera_args.end(), camera_args.begin(), camera_args.end());
-  for (auto [given, worker] : {std::pair{&detector_args, &cfg.detector}, std::pair{&tracker_args, &cfg.tracker},
-                               std::pair{&qr_reader_args, &cfg.qr_reader}})
+  const std::tuple<const char*, const std::vector<std::string>*, ld::WorkerConfig*> worker_args[] = {
+      {"--detector-arg", &detector_args, &cfg.detector},
+      {"--tracker-arg", &tracker_args, &cfg.tracker},
+      {"--qr-reader-arg", &qr_reader_args, &cfg.qr_reader}};
+  for (const auto& [option, given, worker] : worker_args)
     worker->args.insert(worker->args.end(), given->begin(), given->end());
   if (!record.empty()) cfg.record = record;
   if (!processes.empty()) {
@@ -444,9 +447,7 @@ int main(int argc, char** argv) {
       stray = "--camera-arg is for the camera source";
     if (!stray.empty()) return ld::cli::usage(argv[0], stray + ", and this run's source is " + cfg.source);
   }
-  for (const auto& [option, given, worker] :
-       {std::tuple{"--detector-arg", &detector_args, &cfg.detector}, std::tuple{"--tracker-arg", &tracker_args, &cfg.tracker},
-        std::tuple{"--qr-reader-arg", &qr_reader_args, &cfg.qr_reader}})
+  for (const auto& [option, given, worker] : worker_args)
     if (!given->empty() && !worker->enabled)
       return ld::cli::usage(argv[0], std::string(option) + " is for " + worker->program +
                                          ", which this run does not start (--processes or the config)");
@@ -539,16 +540,19 @@ int main(int argc, char** argv) {
     }
   }
   using OutputFile = std::pair<const char*, std::string>;
+  // (the recording's files: one, or a split recording's FILE.0 to
+  // FILE.(keep - 1), which rotation renames and removes)
+  const std::vector<std::string> recording_files =
+      cfg.record.empty() ? std::vector<std::string>{}
+      : cfg.record_split_mb > 0 ? ld::recordSplitFiles(cfg.record, cfg.record_keep)
+                                : std::vector<std::string>{cfg.record};
   // No file ld-run writes is the log it plays or its config, nor another file
   // it writes (a recording over the log emptied it before it was played; a
   // summary over it, or over the recording, or over the config replaced it).
   {
     const bool plays = cfg.source == "replay" || cfg.source == "play";
     std::vector<OutputFile> files{{"log", plays ? cfg.log : ""}, {"config", cfg.file}};
-    // (a split recording: each of its files, which rotation renames and removes)
-    if (cfg.record.empty() || cfg.record_split_mb == 0) files.emplace_back("recording", cfg.record);
-    else
-      for (const std::string& f : ld::recordSplitFiles(cfg.record, cfg.record_keep)) files.emplace_back("recording", f);
+    for (const std::string& f : recording_files) files.emplace_back("recording", f);
     files.emplace_back("summary", summary_file);
     files.emplace_back("state file", state_file);
     for (size_t i = 0; i < files.size(); ++i)
@@ -562,15 +566,14 @@ int main(int argc, char** argv) {
   // (missing folders created; a recording is written over an LCM log alone,
   // the summary and the state file over JSON alone: not over an image or a
   // config named by mistake)
-  for (const auto& [what, path] : std::initializer_list<OutputFile>{
-           {"recording", cfg.record}, {"summary", summary_file}, {"state file", state_file}}) {
+  std::vector<OutputFile> outputs;
+  for (const std::string& f : recording_files) outputs.emplace_back("recording", f);
+  outputs.emplace_back("summary", summary_file);
+  outputs.emplace_back("state file", state_file);
+  for (const auto& [what, path] : outputs) {
     if (path.empty()) continue;
-    // (a split recording's files: FILE.0 to FILE.(keep - 1), the longest name the last)
-    std::string problem = std::string(what) != "recording" ? ld::prepareJsonOutputFile(path)
-                          : cfg.record_split_mb > 0        ? ld::prepareLogOutputFile(path + ".0")
-                                                           : ld::prepareLogOutputFile(path);
-    if (problem.empty() && std::string(what) == "recording" && cfg.record_split_mb > 0)
-      problem = ld::prepareLogOutputFile(ld::recordSplitFiles(path, cfg.record_keep).back());
+    const std::string problem =
+        std::string(what) == "recording" ? ld::prepareLogOutputFile(path) : ld::prepareJsonOutputFile(path);
     if (!problem.empty()) {
       std::cerr << "ld-run: " << what << " " << path << ": " << problem << "\n";
       return 2;
