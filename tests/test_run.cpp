@@ -97,6 +97,91 @@ TEST(Supervisor, CrashLoopBacksOff) {
   sup.stopAll(1.0);
 }
 
+// A long crash loop (a camera unplugged for a day) is told in full for its
+// first loop_shown failures, then only at every loop_every-th, each shown
+// start with its own output and how many were left out.
+TEST(Supervisor, LongCrashLoopIsToldOnlyNowAndThen) {
+  Lines lines;
+  ld::RestartPolicy policy{0.001, 0.001, 10};
+  policy.loop_shown = 3;
+  policy.loop_every = 5;
+  ld::Supervisor sup(policy, lines.sink());
+  const size_t i = sup.add({"crash", {"sh", "-c", "echo out of luck; exit 1"}, ld::ProcessRole::Worker});
+  ASSERT_TRUE(sup.start(i));
+  // (a death is reaped in one poll and restarted in a later one)
+  ASSERT_TRUE(pollUntil(
+      sup, [&] { return sup.processes()[i].pid < 0 && sup.processes()[i].consecutive_failures == 12; }, 10000ms));
+  EXPECT_EQ(sup.processes()[i].starts, 12);
+  EXPECT_EQ(sup.restarts(), 11);
+  // runs after 0, 1, 2, 5 and 10 failures are shown: their output and their deaths
+  auto count = [&](const std::string& text) {
+    int n = 0;
+    for (const auto& [name, l] : lines.all) n += name == "crash" && l.find(text) != std::string::npos;
+    return n;
+  };
+  EXPECT_EQ(count("out of luck"), 5);
+  EXPECT_EQ(count("died (exit 1)"), 5);
+  EXPECT_EQ(count("restarted, pid"), 4);
+  EXPECT_TRUE(lines.has("crash", "3 quick failures in a row: from now on only every 5th restart is shown, "
+                                 "with its output, until a run lasts 10 s"));
+  EXPECT_TRUE(lines.has("crash", "(5 quick failures in a row; the 2 restarts before this one not shown)"));
+  EXPECT_TRUE(lines.has("crash", "(6 quick failures in a row; the next restart shown is the one after failure 10)"));
+  EXPECT_TRUE(lines.has("crash", "(10 quick failures in a row; the 4 restarts before this one not shown)"));
+  EXPECT_TRUE(lines.has("crash", "(11 quick failures in a row; the next restart shown is the one after failure 15)"));
+  sup.stopAll(1.0);
+}
+
+// A run of the loop that lasts stable_after_s ends it: told, with the lines
+// it wrote while not shown; a run stopped while not shown shows its lines.
+TEST(Supervisor, CrashLoopThatEndsShowsTheLastingRunsOutput) {
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("ld_sup_loop_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string counter = (dir / "n").string();
+  // fails quickly 6 times (runs 0..5), then run 6 lasts
+  const std::string script = "n=$(cat " + counter + " 2>/dev/null || echo 0); echo $((n+1)) > " + counter +
+                             "; echo run $n; if [ $n -ge 6 ]; then echo lasting; exec sleep 30; fi; exit 1";
+  Lines lines;
+  ld::RestartPolicy policy{0.001, 0.001, 0.5};
+  policy.loop_shown = 3;
+  policy.loop_every = 5;
+  ld::Supervisor sup(policy, lines.sink());
+  const size_t i = sup.add({"cam", {"sh", "-c", script}, ld::ProcessRole::Worker});
+  ASSERT_TRUE(sup.start(i));
+  ASSERT_TRUE(pollUntil(sup, [&] { return lines.has("cam", "lasting"); }, 10000ms));
+  EXPECT_EQ(sup.processes()[i].starts, 7);
+  EXPECT_GT(sup.processes()[i].pid, 0);
+  // runs 3, 4 and 6 were quiet; 5 was shown; 6's lines came once it lasted
+  for (const char* shown : {"run 0", "run 1", "run 2", "run 5"}) EXPECT_TRUE(lines.has("cam", shown)) << shown;
+  for (const char* hidden : {"run 3", "run 4"}) EXPECT_FALSE(lines.has("cam", hidden)) << hidden;
+  size_t told = lines.all.size();
+  for (size_t k = 0; k < lines.all.size(); ++k)
+    if (lines.all[k].second.find("has run 0.5 s after 6 quick failures in a row: its restarts are shown again") !=
+        std::string::npos)
+      told = k;
+  ASSERT_LT(told + 2, lines.all.size());
+  EXPECT_EQ(lines.all[told + 1].second, "run 6");
+  EXPECT_EQ(lines.all[told + 2].second, "lasting");
+  sup.stopAll(1.0);
+
+  // the same loop stopped while its run 6 is quiet: the run's lines are shown
+  std::filesystem::remove(counter);
+  Lines stopped;
+  ld::RestartPolicy long_policy = policy;
+  long_policy.stable_after_s = 60;
+  ld::Supervisor sup2(long_policy, stopped.sink());
+  const size_t j = sup2.add({"cam", {"sh", "-c", script}, ld::ProcessRole::Worker});
+  ASSERT_TRUE(sup2.start(j));
+  ASSERT_TRUE(pollUntil(sup2, [&] { return sup2.processes()[j].starts == 7; }, 10000ms));
+  pollUntil(sup2, [] { return false; }, 200ms);  // (run 6 writes its lines, held)
+  EXPECT_FALSE(stopped.has("cam", "lasting"));
+  sup2.stopAll(1.0);
+  EXPECT_TRUE(stopped.has("cam", "its output since a start not shown (a crash loop's):"));
+  EXPECT_TRUE(stopped.has("cam", "run 6"));
+  EXPECT_TRUE(stopped.has("cam", "lasting"));
+  std::filesystem::remove_all(dir);
+}
+
 TEST(Supervisor, SourceThatFinishesIsDoneNotRestarted) {
   Lines lines;
   ld::Supervisor sup({0.05, 1, 10}, lines.sink());

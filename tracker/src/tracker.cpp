@@ -34,6 +34,13 @@ constexpr double kCalm = 0.5;
 // Weight of a frame in the running mean of a track's distance from its prediction.
 constexpr double kMissDistanceWeight = 0.3;
 
+// One frame more on a count (a track's age, hits, frames unseen), held at
+// the largest int32_t: a landmark in view for 2^31 frames (828 days at 30
+// frames/s) would otherwise wrap to a negative age.
+void countUp(int32_t& n) {
+  if (n < std::numeric_limits<int32_t>::max()) ++n;
+}
+
 // Microseconds from `then` to `now` (now >= then: update() restarts when time
 // goes back), saturated: any two utimes may arrive, and their difference can
 // exceed int64_t (found by tests/fuzz/fuzz_messages).
@@ -163,7 +170,7 @@ const std::vector<Track>& Tracker::update(const std::vector<Landmark>& detection
   const size_t n_old = pool_.size();
   for (size_t i = 0; i < n_old; ++i) {
     PoolEntry& e = pool_[i];
-    ++e.age;
+    countUp(e.age);
     e.restart_motion = false;
     if (e.detection >= 0) {
       const bool continuous = e.frames_since_seen == 0;
@@ -174,7 +181,7 @@ const std::vector<Track>& Tracker::update(const std::vector<Landmark>& detection
         common_vy_.push_back(e.velocity.y);
       }
     } else {
-      ++e.frames_since_seen;
+      countUp(e.frames_since_seen);
     }
   }
   // A tentative track (fewer than min_hits detections) ends at its first miss.
@@ -493,7 +500,7 @@ void Tracker::updateMatched(PoolEntry& e, const Landmark& det, int d, int64_t ut
   e.seen_gap_us = elapsedUs(utime, e.last_seen_utime);
   e.last_seen_utime = utime;
   e.frames_since_seen = 0;
-  ++e.hits;
+  countUp(e.hits);
 }
 
 void Tracker::report(int64_t utime) {

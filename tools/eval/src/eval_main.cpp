@@ -20,6 +20,7 @@
 #include "ld/eval.hpp"
 #include "ld/file_checks.hpp"
 #include "ld/markers.hpp"
+#include "ld/plot.hpp"
 
 namespace {
 
@@ -27,10 +28,7 @@ namespace {
 // user can print.
 const CLI::Validator kPrintableSide = ld::cli::Between(0.01, 2);
 
-struct Series {
-  std::string name;
-  std::vector<cv::Point2d> points;  // (x, rate 0..1)
-};
+using Series = ld::PlotSeries;
 
 // A result that could not be written all (a full disk): status 1, as ld-detect
 // and ld-dump say it, where a refused option or input is 2.
@@ -38,104 +36,10 @@ struct WriteError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// A line chart of rates (0..100 %) against x, one line per series.
+// A line chart of rates written as a PNG (ld/plot.hpp).
 void plot(const std::string& path, const std::string& title, const std::string& xlabel,
           const std::vector<Series>& series) {
-  const int W = 800, H = 500, L = 70, R = 20, T = 50, B = 60;
-  cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
-  double x0 = 1e18, x1 = -1e18;
-  for (const auto& s : series)
-    for (const auto& p : s.points) x0 = std::min(x0, p.x), x1 = std::max(x1, p.x);
-  if (!(x1 > x0)) x1 = x0 + 1;
-  const auto px = [&](double x, double y) {
-    return cv::Point(L + static_cast<int>(std::lround((x - x0) / (x1 - x0) * (W - L - R))),
-                     T + static_cast<int>(std::lround((1 - y) * (H - T - B))));
-  };
-  const auto text = [&](const std::string& s, cv::Point at, double scale = 0.5) {
-    cv::putText(img, s, at, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
-  };
-  for (int k = 0; k <= 10; ++k) {
-    const double y = k / 10.0;
-    cv::line(img, px(x0, y), px(x1, y), cv::Scalar(225, 225, 225));
-    text(std::to_string(k * 10), px(x0, y) + cv::Point(-35, 5));
-  }
-  // Ticks at the sweep's values when there are few, else 8 even steps.
-  std::vector<double> xs;
-  if (!series.empty() && series[0].points.size() <= 17)
-    for (const auto& p : series[0].points) xs.push_back(p.x);
-  else
-    for (int k = 0; k <= 8; ++k) xs.push_back(x0 + (x1 - x0) * k / 8);
-  int label_end = -1;  // where the last tick label drawn ends
-  for (double x : xs) {
-    cv::line(img, px(x, 0), px(x, 1), cv::Scalar(235, 235, 235));
-    std::ostringstream s;
-    s << std::round(x * 100) / 100;
-    // centred under its tick, kept inside the image, and left out where it
-    // would run into the one before (the grid line stays)
-    int baseline = 0;
-    const int w = cv::getTextSize(s.str(), cv::FONT_HERSHEY_SIMPLEX, 0.5, 1, &baseline).width;
-    const int left = std::clamp(px(x, 0).x - w / 2, 0, W - w - 2);
-    if (left <= label_end + 6) continue;
-    text(s.str(), {left, px(x, 0).y + 20});
-    label_end = left + w;
-  }
-  cv::rectangle(img, px(x0, 1), px(x1, 0), cv::Scalar(0, 0, 0));
-  text(title, {L, 30}, 0.6);
-  text(xlabel, {W / 2 - 60, H - 15});
-  text("%", {15, T + (H - T - B) / 2});
-  const cv::Scalar colours[] = {{200, 80, 0}, {0, 0, 220}, {0, 150, 0}, {150, 0, 150}, {0, 140, 220}, {80, 80, 80}};
-  // (the first series, ours, drawn last: on top where others have the same
-  // rates; each series beneath it drawn wider, so that one with the same
-  // rates shows on both sides of the line over it, where it was hidden: the
-  // QR plot's short payloads over 2 frames under those of single frames)
-  const auto width = [](size_t j) { return 2 + 2 * static_cast<int>(std::min<size_t>(j, 4)); };
-  for (size_t j = series.size(); j-- > 0;) {
-    const cv::Scalar c = colours[j % 6];
-    const auto& pts = series[j].points;
-    for (size_t k = 0; k < pts.size(); ++k) {
-      cv::circle(img, px(pts[k].x, pts[k].y), width(j) / 2 + 2, c, cv::FILLED, cv::LINE_AA);
-      if (k > 0) cv::line(img, px(pts[k - 1].x, pts[k - 1].y), px(pts[k].x, pts[k].y), c, width(j), cv::LINE_AA);
-    }
-  }
-  // the legend on a white box with a thin frame, in the corner (or the
-  // middle of the top or bottom) of the plot where it hides the fewest of
-  // the lines' points (it sat bottom left, over
-  // the low rates of small landmarks in the size plot)
-  int legend_w = 0;
-  for (const auto& sr : series) {
-    int baseline = 0;
-    legend_w = std::max(legend_w, cv::getTextSize(sr.name, cv::FONT_HERSHEY_SIMPLEX, 0.5, 1, &baseline).width);
-  }
-  if (!series.empty()) {
-    const cv::Size box_size(legend_w + 32 + 22, 22 * static_cast<int>(series.size()) + 6);
-    const int left = L + 8, right = W - R - 8 - box_size.width, bottom = H - B - 8 - box_size.height, top = T + 8;
-    cv::Rect box;
-    size_t hidden_least = SIZE_MAX;
-    const int middle = (left + right) / 2;
-    for (const cv::Point corner : {cv::Point(left, bottom), cv::Point(right, bottom), cv::Point(middle, bottom),
-                                   cv::Point(right, top), cv::Point(left, top), cv::Point(middle, top)}) {
-      const cv::Rect at(corner, box_size);
-      size_t hidden = 0;  // the points, and four between each two, under it
-      for (const auto& sr : series)
-        for (size_t k = 0; k < sr.points.size(); ++k)
-          for (int f = 0; f < (k > 0 ? 5 : 1); ++f) {
-            const double t = f / 5.0;
-            const auto& a = sr.points[k];
-            const auto& b = k > 0 ? sr.points[k - 1] : a;
-            hidden += at.contains(px(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t));
-          }
-      if (hidden < hidden_least) hidden_least = hidden, box = at;
-    }
-    cv::rectangle(img, box, cv::Scalar(255, 255, 255), cv::FILLED);
-    cv::rectangle(img, box, cv::Scalar(200, 200, 200), 1);
-    for (size_t i = 0; i < series.size(); ++i) {
-      const cv::Scalar c = colours[i % 6];
-      const cv::Point at(box.x + 7, box.y + 17 + 22 * static_cast<int>(i));
-      cv::line(img, at, at + cv::Point(25, 0), c, width(i), cv::LINE_AA);
-      text(series[i].name, at + cv::Point(32, 5));
-    }
-  }
-  if (!cv::imwrite(path, img)) throw WriteError("cannot write plot " + path);
+  if (!cv::imwrite(path, ld::drawRatePlot(title, xlabel, series))) throw WriteError("cannot write plot " + path);
 }
 
 // Points given on the command line, in rising order, each once (a plot's

@@ -103,6 +103,8 @@ size_t Supervisor::add(ProcessSpec spec) {
 bool Supervisor::start(size_t i) {
   ProcessState& p = procs_.at(i);
   const auto now = SteadyClock::now();
+  // In a long crash loop, most starts are not told (RestartPolicy::loop_shown).
+  const std::string note = startNote(p);
   // A start that failed: retried with the backoff of a process that died at
   // once, as an exec that fails is. (A pipe or fork that failed, out of
   // descriptors or processes, was said once and never retried: the run
@@ -116,8 +118,11 @@ bool Supervisor::start(size_t i) {
     const double d = restartDelay(policy_, p.consecutive_failures);
     p.restart_at = now + std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(d));
     p.last_exit = why;
-    event(p, "cannot start " + p.spec.argv.at(0) + ": " + why + "; retrying in " +
-                           std::to_string(d).substr(0, 4) + " s");
+    const bool was_quiet = p.quiet;
+    p.quiet = false;
+    if (!was_quiet)
+      event(p, "cannot start " + p.spec.argv.at(0) + ": " + why + "; retrying in " +
+                   std::to_string(d).substr(0, 4) + " s" + note + failureNote(p));
     return false;
   };
   int out[2], err[2];
@@ -183,7 +188,7 @@ bool Supervisor::start(size_t i) {
   p.failed_to_start = false;
   p.done = false;
   p.failed = false;
-  event(p, (p.starts > 1 ? "restarted, pid " : "started, pid ") + std::to_string(pid));
+  if (!p.quiet) event(p, (p.starts > 1 ? "restarted, pid " : "started, pid ") + std::to_string(pid) + note);
   return true;
 }
 
@@ -196,11 +201,11 @@ void Supervisor::drainOutput(ProcessState& p, bool eof) {
       p.partial.append(buf, static_cast<size_t>(n));
       size_t nl;
       while ((nl = p.partial.find('\n')) != std::string::npos) {
-        sink_(p.spec.name, p.partial.substr(0, nl));
+        childLine(p, p.partial.substr(0, nl));
         p.partial.erase(0, nl + 1);
       }
       if (p.partial.size() > 8192) {  // a very long line: pass it on in pieces
-        sink_(p.spec.name, p.partial);
+        childLine(p, p.partial);
         p.partial.clear();
       }
       continue;
@@ -208,7 +213,7 @@ void Supervisor::drainOutput(ProcessState& p, bool eof) {
     if (n < 0 && errno == EINTR) continue;
     if (n == 0 || eof) {  // EOF (every writer gone), or the child is gone: stop reading
       if (n == 0 || (n < 0 && errno != EAGAIN)) {
-        if (!p.partial.empty()) sink_(p.spec.name, p.partial);
+        if (!p.partial.empty()) childLine(p, p.partial);
         p.partial.clear();
         ::close(p.out_fd);
         p.out_fd = -1;
@@ -222,28 +227,112 @@ void Supervisor::onExit(ProcessState& p, int status, SteadyClock::time_point now
   drainOutput(p, true);
   p.pid = -1;
   p.last_exit = describeWaitStatus(status);
-  if (stopping_) return;
+  // A quiet run's lines are shown where it ends the loop: stopped, finished
+  // or refused for good.
+  const char* const held_why = "its output since a start not shown (a crash loop's):";
+  if (stopping_) {
+    endQuiet(p, held_why);
+    return;
+  }
   if (p.spec.role == ProcessRole::Source && WIFEXITED(status) && WEXITSTATUS(status) == 0) {
+    endQuiet(p, held_why);
     p.done = true;
     event(p, "finished (exit 0)");
     return;
   }
   if (WIFEXITED(status) && WEXITSTATUS(status) == 2 && policy_.usage_error_is_final) {
+    endQuiet(p, held_why);
     p.failed = true;
     event(p, "failed (exit 2); not restarted");
     return;
   }
+  const bool was_quiet = p.quiet;
+  p.quiet = false;
+  p.held.clear();
+  p.held_dropped = 0;
   const double ran = std::chrono::duration<double>(now - p.started).count();
   p.consecutive_failures = ran >= policy_.stable_after_s ? 1 : p.consecutive_failures + 1;
   const double d = restartDelay(policy_, p.consecutive_failures);
   p.restart_at = now + std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(d));
   char buf[96];
   std::snprintf(buf, sizeof buf, "; restarting in %.2f s", d);
-  event(p, "died (" + p.last_exit + ")" + buf);
+  if (!was_quiet) event(p, "died (" + p.last_exit + ")" + buf + failureNote(p));
+}
+
+namespace {
+// Whether the start after `failures` quick failures in a row is told.
+bool loopShows(const RestartPolicy& policy, int failures) {
+  return failures < policy.loop_shown || (policy.loop_every > 0 && failures % policy.loop_every == 0);
+}
+
+// "10", "0.5": a number of seconds as a line shows it.
+std::string seconds(double s) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", s);
+  return buf;
+}
+}  // namespace
+
+std::string Supervisor::startNote(ProcessState& p) {
+  const int k = p.consecutive_failures;
+  p.quiet = !loopShows(policy_, k);
+  if (p.quiet) {
+    ++p.not_shown;
+    return "";
+  }
+  if (p.not_shown == 0) return "";
+  const std::string note = " (" + std::to_string(k) + " quick failures in a row; the " +
+                           std::to_string(p.not_shown) + " restarts before this one not shown)";
+  p.not_shown = 0;
+  return note;
+}
+
+std::string Supervisor::failureNote(const ProcessState& p) const {
+  const int k = p.consecutive_failures;
+  if (loopShows(policy_, k)) return "";
+  const std::string stable = seconds(policy_.stable_after_s);
+  if (k == policy_.loop_shown)
+    return " (" + std::to_string(k) + " quick failures in a row: from now on only every " +
+           std::to_string(policy_.loop_every) + "th restart is shown, with its output, until a run lasts " +
+           stable + " s)";
+  if (policy_.loop_every <= 0) return "";
+  const int next = (k / policy_.loop_every + 1) * policy_.loop_every;
+  return " (" + std::to_string(k) + " quick failures in a row; the next restart shown is the one after failure " +
+         std::to_string(next) + ")";
+}
+
+void Supervisor::childLine(ProcessState& p, const std::string& line) {
+  if (!p.quiet) {
+    sink_(p.spec.name, line);
+  } else if (p.held.size() < kHeldLines) {
+    p.held.push_back(line);
+  } else {
+    ++p.held_dropped;
+  }
+}
+
+void Supervisor::endQuiet(ProcessState& p, const std::string& why) {
+  if (!p.quiet) return;
+  p.quiet = false;
+  p.not_shown = 0;
+  if (!why.empty() && (!p.held.empty() || p.held_dropped > 0)) event(p, why);
+  for (const auto& line : p.held) sink_(p.spec.name, line);
+  if (p.held_dropped > 0)
+    event(p, "(" + std::to_string(p.held_dropped) + " more lines of that run not kept)");
+  p.held.clear();
+  p.held_dropped = 0;
 }
 
 void Supervisor::poll(SteadyClock::time_point now) {
   for (auto& p : procs_) drainOutput(p, false);
+  // A quiet run that lasted ends the crash loop: shown again, held lines too.
+  for (auto& p : procs_)
+    if (p.quiet && p.pid > 0 && std::chrono::duration<double>(now - p.started).count() >= policy_.stable_after_s) {
+      event(p, "has run " + seconds(policy_.stable_after_s) + " s after " + std::to_string(p.consecutive_failures) +
+                   " quick failures in a row: its restarts are shown again" +
+                   (p.held.empty() ? "" : "; this run's output:"));
+      endQuiet(p, "");
+    }
   for (;;) {
     int status = 0;
     const pid_t pid = ::waitpid(-1, &status, WNOHANG);

@@ -43,6 +43,13 @@ struct RestartPolicy {
   /// refuses) is not restarted, as it would fail the same way again; ld-run
   /// sets it (and ends the run).
   bool usage_error_is_final = false;
+  /// A crash loop is told in full for its first `loop_shown` quick failures
+  /// (deaths within stable_after_s of the start, or starts that failed);
+  /// after that only every `loop_every`-th restart, with the output of that
+  /// run, until a run lasts stable_after_s (its held lines then follow). A
+  /// camera unplugged for a day printed about 17,000 restarts' lines.
+  int loop_shown = 10;
+  int loop_every = 100;
 };
 
 /// Delay before a restart after `consecutive_failures` (>= 1) quick deaths.
@@ -74,6 +81,10 @@ struct ProcessState {
   SteadyClock::time_point restart_at{};  ///< when pid == -1 and not done: next start
   int out_fd = -1;                  ///< read end of the child's stdout+stderr
   std::string partial;              ///< output not yet ended by a newline
+  bool quiet = false;               ///< this run is one of a crash loop's not shown (RestartPolicy)
+  int not_shown = 0;                ///< quiet starts since the last one shown
+  std::vector<std::string> held;    ///< a quiet run's lines, shown if it lasts
+  long long held_dropped = 0;       ///< of them, the ones past the hold's size
 };
 
 class Supervisor {
@@ -126,6 +137,17 @@ class Supervisor {
   bool stopGroup(ProcessRole role, double grace_s);
 
   void event(const ProcessState& p, const std::string& line) { (events_ ? events_ : sink_)(p.spec.name, line); }
+  /// A child's line: to the sink, or held while its run is quiet.
+  void childLine(ProcessState& p, const std::string& line);
+  /// Shows a quiet run's held lines, after `why` where there are any, and
+  /// ends its quiet (it lasted, or ended the loop otherwise).
+  void endQuiet(ProcessState& p, const std::string& why);
+  /// At a start: decides whether the run is quiet; for a run shown after
+  /// quiet ones, " (N quick failures in a row; the M restarts before ...)".
+  std::string startNote(ProcessState& p);
+  /// At a failure (its count updated): what the next starts will not show.
+  std::string failureNote(const ProcessState& p) const;
+  static constexpr size_t kHeldLines = 200;  ///< a quiet run's lines kept to show
 
   RestartPolicy policy_;
   LineSink sink_, events_;
