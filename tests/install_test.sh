@@ -73,6 +73,33 @@ awk -v a="$out" -v b="$want" 'BEGIN { split(a, x, " "); split(b, y, " ");
   exit !((x[2] - y[1])^2 + (x[3] - y[2])^2 < 0.01) }' || fail "consumer corner $out, ld-detect $want"
 echo "find_package(landmark): ok ($out)"
 
+# 4b. A node that only reads the messages asks for them alone, and needs
+#     neither OpenCV nor zbar nor EGL (OpenCV's package switched off here);
+#     a component the package has not is named.
+cmake -S "$src/tests/install_consumer_msgs" -B "$T/msgs_consumer" -DCMAKE_PREFIX_PATH="$P" \
+  -DCMAKE_DISABLE_FIND_PACKAGE_OpenCV=ON -DCMAKE_BUILD_TYPE=Release >"$T/msgs_consumer.log" 2>&1 ||
+  { cat "$T/msgs_consumer.log"; fail "messages-only consumer configure"; }
+cmake --build "$T/msgs_consumer" >>"$T/msgs_consumer.log" 2>&1 ||
+  { cat "$T/msgs_consumer.log"; fail "messages-only consumer build"; }
+out=$("$T/msgs_consumer/msgs_consumer")
+[ "$out" = "7 42 dock 10.5 20.25" ] || fail "messages-only consumer read: $out"
+mkdir -p "$T/bad_component"
+printf 'cmake_minimum_required(VERSION 3.18)\nproject(bad LANGUAGES CXX)\nfind_package(landmark REQUIRED CONFIG COMPONENTS tracker)\n' \
+  >"$T/bad_component/CMakeLists.txt"
+if cmake -S "$T/bad_component" -B "$T/bad_component/build" -DCMAKE_PREFIX_PATH="$P" >"$T/bad.log" 2>&1; then
+  fail "find_package(landmark COMPONENTS tracker) configured"
+fi
+# (cmake wraps its message's lines)
+tr -s ' \n' '  ' <"$T/bad.log" |
+  grep -q "landmark has no component 'tracker' (its components: core, detector, qr_reader, landmark_msg, msgs, lcmtypes)" ||
+  { cat "$T/bad.log"; fail "unknown component: not named"; }
+# (and without COMPONENTS, OpenCV is needed: the switch above does switch it off)
+if cmake -S "$src/tests/install_consumer" -B "$T/consumer_no_cv" -DCMAKE_PREFIX_PATH="$P" \
+     -DCMAKE_DISABLE_FIND_PACKAGE_OpenCV=ON >"$T/no_cv.log" 2>&1; then
+  fail "the full consumer configured with OpenCV switched off"
+fi
+echo "find_package(landmark COMPONENTS lcmtypes): ok ($out)"
+
 # 5. The Debian packages.
 (cd "$build" && cpack --config CPackConfig.cmake -B "$T/pkg" >"$T/cpack.log" 2>&1) \
   || { cat "$T/cpack.log"; fail "cpack"; }
