@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "ld/plot.hpp"
 
@@ -58,7 +59,17 @@ TEST(Plot, LegendGoesBelowWhereEveryPlaceInsideWouldHideAPoint) {
   EXPECT_EQ(img.cols, L::kWidth);
   EXPECT_GT(img.rows, L::kHeight);
   expectEveryPointShows(img, series, 0, 20);
-  // the legend's frame is below the plot, none inside it
+  // the legend's frame is below the plot, none inside it, as wide as its
+  // two columns of two (no empty third column)
+  int frame_left = img.cols, frame_right = -1;
+  for (int y = L::kHeight; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x)
+      if (img.at<cv::Vec3b>(y, x) == cv::Vec3b(200, 200, 200)) frame_left = std::min(frame_left, x), frame_right = x > frame_right ? x : frame_right;
+  const int names = [] {
+    int baseline = 0;
+    return cv::getTextSize("series 0", cv::FONT_HERSHEY_SIMPLEX, 0.5, 1, &baseline).width;
+  }();
+  EXPECT_LT(frame_right - frame_left, 2 * (names + 60));
   EXPECT_GT(framePixels(img, cv::Rect(0, L::kHeight, img.cols, img.rows - L::kHeight)), 100);
   EXPECT_EQ(framePixels(img, cv::Rect(L::kLeft, L::kTop, L::kWidth - L::kLeft - L::kRight,
                                       L::kHeight - L::kTop - L::kBottom)),

@@ -122,8 +122,8 @@ TEST(Supervisor, LongCrashLoopIsToldOnlyNowAndThen) {
   EXPECT_EQ(count("out of luck"), 5);
   EXPECT_EQ(count("died (exit 1)"), 5);
   EXPECT_EQ(count("restarted, pid"), 4);
-  EXPECT_TRUE(lines.has("crash", "3 quick failures in a row: from now on only every 5th restart is shown, "
-                                 "with its output, until a run lasts 10 s"));
+  EXPECT_TRUE(lines.has("crash", "(3 quick failures in a row; from now on only every 5th restart is shown, "
+                                 "with its output, until a run lasts 10 s or ends otherwise)"));
   EXPECT_TRUE(lines.has("crash", "(5 quick failures in a row; the 2 restarts before this one not shown)"));
   EXPECT_TRUE(lines.has("crash", "(6 quick failures in a row; the next restart shown is the one after failure 10)"));
   EXPECT_TRUE(lines.has("crash", "(10 quick failures in a row; the 4 restarts before this one not shown)"));
@@ -180,6 +180,130 @@ TEST(Supervisor, CrashLoopThatEndsShowsTheLastingRunsOutput) {
   EXPECT_TRUE(stopped.has("cam", "run 6"));
   EXPECT_TRUE(stopped.has("cam", "lasting"));
   std::filesystem::remove_all(dir);
+}
+
+// A shell script whose run n (counted in a file under `dir`) runs `body`
+// with $n set: each start of it a run of its own.
+std::vector<std::string> countingScript(const std::filesystem::path& dir, const std::string& body) {
+  std::filesystem::create_directories(dir);
+  const std::string counter = (dir / "n").string();
+  return {"sh", "-c",
+          "n=$(cat " + counter + " 2>/dev/null || echo 0); echo $((n+1)) > " + counter + "; " + body};
+}
+
+int countLines(const Lines& lines, const std::string& text) {
+  int n = 0;
+  for (const auto& [name, l] : lines.all) n += l.find(text) != std::string::npos;
+  return n;
+}
+
+std::filesystem::path scratchDir(const std::string& what) {
+  const auto dir = std::filesystem::temp_directory_path() / ("ld_sup_" + what + "_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  return dir;
+}
+
+// A loop that starts failing otherwise (a new error after the camera's
+// "not found") is told at once, with the lines of that run: they waited for
+// the 100th restart, minutes.
+TEST(Supervisor, CrashLoopThatFailsOtherwiseIsToldAtOnce) {
+  const auto dir = scratchDir("otherwise");
+  Lines lines;
+  ld::RestartPolicy policy{0.001, 0.001, 10};
+  policy.loop_shown = 3;
+  ld::Supervisor sup(policy, lines.sink());
+  const size_t i = sup.add({"cam", countingScript(dir, "if [ $n -lt 6 ]; then echo not found; exit 1; fi; "
+                                                       "echo new error $n; kill -SEGV $$"),
+                            ld::ProcessRole::Worker});
+  ASSERT_TRUE(sup.start(i));
+  ASSERT_TRUE(pollUntil(sup, [&] { return sup.processes()[i].pid < 0 && sup.processes()[i].starts == 9; }, 10000ms));
+  // runs 3-6 not shown; 6 failed otherwise: told with its lines; 7 and 8 shown
+  EXPECT_EQ(countLines(lines, "not found"), 3);
+  EXPECT_TRUE(lines.has("cam", "ended otherwise than the failures before it (its start not shown, nor the 3 before "
+                               "it); its output:"));
+  for (const char* shown : {"new error 6", "new error 7", "new error 8"}) EXPECT_TRUE(lines.has("cam", shown)) << shown;
+  EXPECT_EQ(countLines(lines, "died (signal 11"), 3);
+  sup.stopAll(1.0);
+  std::filesystem::remove_all(dir);
+}
+
+// A loop after a run that lasted counts its quick failures alone: told in
+// full for loop_shown of them (the run that lasted was counted as one).
+TEST(Supervisor, CrashLoopAfterALastingRunCountsItsQuickFailures) {
+  const auto dir = scratchDir("after_stable");
+  Lines lines;
+  ld::RestartPolicy policy{0.001, 0.001, 0.3};
+  policy.loop_shown = 3;
+  ld::Supervisor sup(policy, lines.sink());
+  const size_t i = sup.add(
+      {"cam", countingScript(dir, "echo run $n; if [ $n -eq 0 ]; then sleep 0.5; fi; exit 1"), ld::ProcessRole::Worker});
+  ASSERT_TRUE(sup.start(i));
+  ASSERT_TRUE(pollUntil(sup, [&] { return sup.processes()[i].pid < 0 && sup.processes()[i].starts == 5; }, 10000ms));
+  for (const char* shown : {"run 0", "run 1", "run 2", "run 3"}) EXPECT_TRUE(lines.has("cam", shown)) << shown;
+  EXPECT_FALSE(lines.has("cam", "run 4"));
+  EXPECT_TRUE(lines.has("cam", "(3 quick failures in a row; from now on only every 100th restart is shown"));
+  sup.stopAll(1.0);
+  std::filesystem::remove_all(dir);
+}
+
+// A run not shown keeps its first and its last lines (its error is most
+// often the last): shown when it is refused for good, and when it is killed
+// as hung.
+TEST(Supervisor, RunNotShownKeepsItsFirstAndLastLines) {
+  const auto dir = scratchDir("held");
+  Lines lines;
+  ld::RestartPolicy policy{0.001, 0.001, 10};
+  policy.loop_shown = 3;
+  policy.usage_error_is_final = true;
+  ld::Supervisor sup(policy, lines.sink());
+  const size_t i = sup.add({"play", countingScript(dir, "if [ $n -lt 4 ]; then exit 1; fi; "
+                                                        "k=1; while [ $k -le 250 ]; do echo line $k; k=$((k+1)); done; "
+                                                        "echo error: --foo refused; exit 2"),
+                            ld::ProcessRole::Source});
+  ASSERT_TRUE(sup.start(i));
+  ASSERT_TRUE(pollUntil(sup, [&] { return sup.failedProcess() != nullptr; }, 10000ms));
+  EXPECT_TRUE(lines.has("play", "its output since a start not shown (a crash loop's):"));
+  EXPECT_TRUE(lines.has("play", "line 100"));
+  EXPECT_FALSE(lines.has("play", "line 101"));
+  EXPECT_TRUE(lines.has("play", "(51 lines of that run not kept)"));
+  EXPECT_FALSE(lines.has("play", "line 151"));
+  EXPECT_TRUE(lines.has("play", "line 152"));
+  EXPECT_TRUE(lines.has("play", "error: --foo refused"));
+  EXPECT_TRUE(lines.has("play", "failed (exit 2); not restarted"));
+
+  Lines hung;
+  const auto dir2 = scratchDir("hung");
+  ld::Supervisor sup2(policy, hung.sink());
+  const size_t j = sup2.add(
+      {"tracker", countingScript(dir2, "if [ $n -lt 3 ]; then exit 1; fi; echo stuck on something; exec sleep 30"),
+       ld::ProcessRole::Worker});
+  ASSERT_TRUE(sup2.start(j));
+  ASSERT_TRUE(pollUntil(sup2, [&] { return sup2.processes()[j].starts == 4 && sup2.processes()[j].pid > 0; }, 10000ms));
+  pollUntil(sup2, [] { return false; }, 200ms);  // (its line written, held)
+  EXPECT_FALSE(hung.has("tracker", "stuck on something"));
+  ASSERT_TRUE(sup2.killHung("tracker"));
+  EXPECT_TRUE(hung.has("tracker", "its output since a start not shown (a crash loop's), killed as hung:"));
+  EXPECT_TRUE(hung.has("tracker", "stuck on something"));
+  sup2.stopAll(1.0);
+  std::filesystem::remove_all(dir);
+  std::filesystem::remove_all(dir2);
+}
+
+// Starts that fail (a program not there) loop as deaths do; a shown one says
+// in one note what was left out before it and which is shown next.
+TEST(Supervisor, FailedStartsLoopAsDeathsDo) {
+  Lines lines;
+  ld::RestartPolicy policy{0.001, 0.001, 10};
+  policy.loop_shown = 3;
+  policy.loop_every = 5;
+  ld::Supervisor sup(policy, lines.sink());
+  const size_t i = sup.add({"cam", {"/nonexistent/ld-camera"}, ld::ProcessRole::Worker});
+  sup.start(i);
+  ASSERT_TRUE(pollUntil(sup, [&] { return sup.processes()[i].starts >= 12; }, 10000ms));
+  EXPECT_EQ(countLines(lines, "cannot start /nonexistent/ld-camera"), 5);  // after 0, 1, 2, 5 and 10 failures
+  EXPECT_TRUE(lines.has("cam", "(6 quick failures in a row; the 2 restarts before this one not shown; the next "
+                               "restart shown is the one after failure 10)"));
+  sup.stopAll(1.0);
 }
 
 TEST(Supervisor, SourceThatFinishesIsDoneNotRestarted) {

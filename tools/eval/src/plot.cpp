@@ -111,6 +111,7 @@ cv::Mat drawRatePlot(const std::string& title, const std::string& xlabel, const 
       const int n = static_cast<int>(series.size());
       columns = std::clamp((W - L - R) / box_size.width, 1, std::min(3, n));
       const int rows = (n + columns - 1) / columns;
+      columns = (n + rows - 1) / rows;  // (4 in 3 columns fill two rows of 2: no empty third)
       const cv::Size below(box_size.width * columns, 22 * rows + 6);
       cv::copyMakeBorder(img, img, 0, below.height + 10, 0, 0, cv::BORDER_CONSTANT, cv::Scalar(255, 255, 255));
       box = cv::Rect(cv::Point(L, H + 2), below);

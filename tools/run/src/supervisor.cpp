@@ -104,7 +104,7 @@ bool Supervisor::start(size_t i) {
   ProcessState& p = procs_.at(i);
   const auto now = SteadyClock::now();
   // In a long crash loop, most starts are not told (RestartPolicy::loop_shown).
-  const std::string note = startNote(p);
+  const int hidden = beginRun(p);
   // A start that failed: retried with the backoff of a process that died at
   // once, as an exec that fails is. (A pipe or fork that failed, out of
   // descriptors or processes, was said once and never retried: the run
@@ -120,9 +120,12 @@ bool Supervisor::start(size_t i) {
     p.last_exit = why;
     const bool was_quiet = p.quiet;
     p.quiet = false;
-    if (!was_quiet)
+    // (told where shown, or where it failed otherwise than the loop before)
+    if (countFailure(p, why, true) || !was_quiet) {
       event(p, "cannot start " + p.spec.argv.at(0) + ": " + why + "; retrying in " +
-                   std::to_string(d).substr(0, 4) + " s" + note + failureNote(p));
+                   std::to_string(d).substr(0, 4) + " s" + loopNote(p, was_quiet ? p.not_shown - 1 : hidden));
+      p.not_shown = 0;
+    }
     return false;
   };
   int out[2], err[2];
@@ -188,7 +191,11 @@ bool Supervisor::start(size_t i) {
   p.failed_to_start = false;
   p.done = false;
   p.failed = false;
-  if (!p.quiet) event(p, (p.starts > 1 ? "restarted, pid " : "started, pid ") + std::to_string(pid) + note);
+  if (!p.quiet)
+    event(p, (p.starts > 1 ? "restarted, pid " : "started, pid ") + std::to_string(pid) +
+                 (hidden > 0 ? " (" + std::to_string(p.alike_failures) + " quick failures in a row; the " +
+                                   std::to_string(hidden) + " restarts before this one not shown)"
+                             : ""));
   return true;
 }
 
@@ -246,17 +253,26 @@ void Supervisor::onExit(ProcessState& p, int status, SteadyClock::time_point now
     event(p, "failed (exit 2); not restarted");
     return;
   }
+  const double ran = std::chrono::duration<double>(now - p.started).count();
+  const bool quick = ran < policy_.stable_after_s;
+  p.consecutive_failures = quick ? p.consecutive_failures + 1 : 1;
+  const int hidden = p.not_shown;
+  // (a run not shown that ended otherwise than the loop before it, a new
+  // error's, is told with its lines: it was held back for minutes)
+  if (countFailure(p, p.last_exit, quick) && p.quiet)
+    endQuiet(p, "ended otherwise than the failures before it (its start not shown, nor the " +
+                    std::to_string(hidden - 1) + " before it); its output:",
+             true);
   const bool was_quiet = p.quiet;
   p.quiet = false;
   p.held.clear();
+  p.held_tail.clear();
   p.held_dropped = 0;
-  const double ran = std::chrono::duration<double>(now - p.started).count();
-  p.consecutive_failures = ran >= policy_.stable_after_s ? 1 : p.consecutive_failures + 1;
   const double d = restartDelay(policy_, p.consecutive_failures);
   p.restart_at = now + std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(d));
   char buf[96];
   std::snprintf(buf, sizeof buf, "; restarting in %.2f s", d);
-  if (!was_quiet) event(p, "died (" + p.last_exit + ")" + buf + failureNote(p));
+  if (!was_quiet) event(p, "died (" + p.last_exit + ")" + buf + loopNote(p, 0));
 }
 
 namespace {
@@ -273,32 +289,50 @@ std::string seconds(double s) {
 }
 }  // namespace
 
-std::string Supervisor::startNote(ProcessState& p) {
-  const int k = p.consecutive_failures;
-  p.quiet = !loopShows(policy_, k);
+int Supervisor::beginRun(ProcessState& p) {
+  p.quiet = !loopShows(policy_, p.alike_failures);
   if (p.quiet) {
     ++p.not_shown;
-    return "";
+    return 0;
   }
-  if (p.not_shown == 0) return "";
-  const std::string note = " (" + std::to_string(k) + " quick failures in a row; the " +
-                           std::to_string(p.not_shown) + " restarts before this one not shown)";
+  const int hidden = p.not_shown;
   p.not_shown = 0;
-  return note;
+  return hidden;
 }
 
-std::string Supervisor::failureNote(const ProcessState& p) const {
-  const int k = p.consecutive_failures;
-  if (loopShows(policy_, k)) return "";
-  const std::string stable = seconds(policy_.stable_after_s);
-  if (k == policy_.loop_shown)
-    return " (" + std::to_string(k) + " quick failures in a row: from now on only every " +
-           std::to_string(policy_.loop_every) + "th restart is shown, with its output, until a run lasts " +
-           stable + " s)";
-  if (policy_.loop_every <= 0) return "";
-  const int next = (k / policy_.loop_every + 1) * policy_.loop_every;
-  return " (" + std::to_string(k) + " quick failures in a row; the next restart shown is the one after failure " +
-         std::to_string(next) + ")";
+bool Supervisor::countFailure(ProcessState& p, const std::string& kind, bool quick) {
+  if (!quick) {  // (a run that lasted ended any loop before it)
+    p.alike_failures = 0;
+    p.failure_kind.clear();
+    return false;
+  }
+  if (p.alike_failures > 0 && kind == p.failure_kind) {
+    ++p.alike_failures;
+    return false;
+  }
+  const bool otherwise = p.alike_failures > 0;
+  p.alike_failures = 1;
+  p.failure_kind = kind;
+  return otherwise;
+}
+
+std::string Supervisor::loopNote(const ProcessState& p, int hidden) const {
+  const int k = p.alike_failures;
+  std::string note;
+  if (hidden > 0) note = "; the " + std::to_string(hidden) + " restarts before this one not shown";
+  if (!loopShows(policy_, k)) {
+    if (k == policy_.loop_shown) {
+      note += "; from now on only every " + std::to_string(policy_.loop_every) +
+              "th restart is shown, with its output, until a run lasts " + seconds(policy_.stable_after_s) +
+              " s or ends otherwise";
+    } else if (policy_.loop_every > 0) {
+      note += "; the next restart shown is the one after failure " +
+              std::to_string((k / policy_.loop_every + 1) * policy_.loop_every);
+    }
+  }
+  if (note.empty()) return "";
+  if (k == 1) return " (otherwise than the failures before it" + note + ")";
+  return " (" + std::to_string(k) + " quick failures in a row" + note + ")";
 }
 
 void Supervisor::childLine(ProcessState& p, const std::string& line) {
@@ -306,20 +340,25 @@ void Supervisor::childLine(ProcessState& p, const std::string& line) {
     sink_(p.spec.name, line);
   } else if (p.held.size() < kHeldLines) {
     p.held.push_back(line);
-  } else {
-    ++p.held_dropped;
+  } else {  // (the last lines too: an error is most often the last)
+    p.held_tail.push_back(line);
+    if (p.held_tail.size() > kHeldLines) {
+      p.held_tail.pop_front();
+      ++p.held_dropped;
+    }
   }
 }
 
-void Supervisor::endQuiet(ProcessState& p, const std::string& why) {
+void Supervisor::endQuiet(ProcessState& p, const std::string& why, bool tell) {
   if (!p.quiet) return;
   p.quiet = false;
   p.not_shown = 0;
-  if (!why.empty() && (!p.held.empty() || p.held_dropped > 0)) event(p, why);
+  if (!why.empty() && (tell || !p.held.empty())) event(p, why);
   for (const auto& line : p.held) sink_(p.spec.name, line);
-  if (p.held_dropped > 0)
-    event(p, "(" + std::to_string(p.held_dropped) + " more lines of that run not kept)");
+  if (p.held_dropped > 0) event(p, "(" + std::to_string(p.held_dropped) + " lines of that run not kept)");
+  for (const auto& line : p.held_tail) sink_(p.spec.name, line);
   p.held.clear();
+  p.held_tail.clear();
   p.held_dropped = 0;
 }
 
@@ -328,7 +367,7 @@ void Supervisor::poll(SteadyClock::time_point now) {
   // A quiet run that lasted ends the crash loop: shown again, held lines too.
   for (auto& p : procs_)
     if (p.quiet && p.pid > 0 && std::chrono::duration<double>(now - p.started).count() >= policy_.stable_after_s) {
-      event(p, "has run " + seconds(policy_.stable_after_s) + " s after " + std::to_string(p.consecutive_failures) +
+      event(p, "has run " + seconds(policy_.stable_after_s) + " s after " + std::to_string(p.alike_failures) +
                    " quick failures in a row: its restarts are shown again" +
                    (p.held.empty() ? "" : "; this run's output:"));
       endQuiet(p, "");
@@ -406,6 +445,7 @@ bool Supervisor::killHung(const std::string& name) {
   for (auto& p : procs_)
     if (p.spec.name == name && p.pid > 0) {
       ++p.hangs;
+      endQuiet(p, "its output since a start not shown (a crash loop's), killed as hung:");
       ::kill(p.pid, SIGKILL);  // (a stopped one too; reaped and restarted by poll)
       return true;
     }

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <chrono>
+#include <deque>
 #include <functional>
 #include <string>
 #include <vector>
@@ -81,10 +82,15 @@ struct ProcessState {
   SteadyClock::time_point restart_at{};  ///< when pid == -1 and not done: next start
   int out_fd = -1;                  ///< read end of the child's stdout+stderr
   std::string partial;              ///< output not yet ended by a newline
-  bool quiet = false;               ///< this run is one of a crash loop's not shown (RestartPolicy)
+  // A crash loop's telling (RestartPolicy::loop_shown): quick failures in a
+  // row that ended alike (the same exit, or the same reason a start failed).
+  int alike_failures = 0;
+  std::string failure_kind;         ///< how the last of them ended
+  bool quiet = false;               ///< this run is one of a crash loop's not shown
   int not_shown = 0;                ///< quiet starts since the last one shown
-  std::vector<std::string> held;    ///< a quiet run's lines, shown if it lasts
-  long long held_dropped = 0;       ///< of them, the ones past the hold's size
+  std::vector<std::string> held;    ///< a quiet run's first lines, shown if it lasts
+  std::deque<std::string> held_tail;  ///< and its last ones
+  long long held_dropped = 0;       ///< lines between the two not kept
 };
 
 class Supervisor {
@@ -139,15 +145,20 @@ class Supervisor {
   void event(const ProcessState& p, const std::string& line) { (events_ ? events_ : sink_)(p.spec.name, line); }
   /// A child's line: to the sink, or held while its run is quiet.
   void childLine(ProcessState& p, const std::string& line);
-  /// Shows a quiet run's held lines, after `why` where there are any, and
-  /// ends its quiet (it lasted, or ended the loop otherwise).
-  void endQuiet(ProcessState& p, const std::string& why);
+  /// Shows a quiet run's held lines, after `why` where there are any (or
+  /// always with `tell`), and ends its quiet (it lasted, or ended the loop
+  /// otherwise).
+  void endQuiet(ProcessState& p, const std::string& why, bool tell = false);
   /// At a start: decides whether the run is quiet; for a run shown after
-  /// quiet ones, " (N quick failures in a row; the M restarts before ...)".
-  std::string startNote(ProcessState& p);
-  /// At a failure (its count updated): what the next starts will not show.
-  std::string failureNote(const ProcessState& p) const;
-  static constexpr size_t kHeldLines = 200;  ///< a quiet run's lines kept to show
+  /// quiet ones, the number of them (and the count starts again), else 0.
+  int beginRun(ProcessState& p);
+  /// Counts a failure that ended as `kind`, quick or not; true where it
+  /// ended otherwise than the loop of quick failures before it.
+  bool countFailure(ProcessState& p, const std::string& kind, bool quick);
+  /// " (N quick failures in a row; ...)": the restarts not shown before this
+  /// one (`hidden`), and which the next one shown is; "" where nothing is.
+  std::string loopNote(const ProcessState& p, int hidden) const;
+  static constexpr size_t kHeldLines = 100;  ///< a quiet run's first lines kept to show, and as many last ones
 
   RestartPolicy policy_;
   LineSink sink_, events_;
