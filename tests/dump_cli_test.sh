@@ -50,6 +50,7 @@ cut_at $((size - 100)) 2 "the log ends mid-event after 2 messages ([0-9]* of the
 cut_at $((starts[2] + 2)) 2 "the log ends mid-event after 2 messages (2 bytes of an event header)$"
 cut_at $((starts[1] + 20)) 1 "the log ends mid-event after 1 message (20 bytes of an event header)$"
 cut_at 10 0 "the log ends mid-event after 0 messages (10 bytes of an event header)$"
+cut_at 3 0 "the log ends mid-event after 0 messages (3 bytes of an event header)$"  # (within the magic: a cut log, not another file)
 
 { cat "$T/in.lcmlog"; printf 'trailing junk'; } >"$T/junk.lcmlog"
 dump "$T/junk.lcmlog"

@@ -85,6 +85,19 @@ env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --vi
   fail "video in a new folder: $(cat "$T/err")"
 [ "$(stat -c %s "$T/new/v.avi")" -gt 1000 ] || fail "no video"
 [ "$(cat "$T/err")" = "ld-view: 3 images, 0 tracked lists, 3 frames written" ] || fail "video: $(cat "$T/err")"
+# written again over an earlier video; never over one of its logs (a
+# recording named .avi was replaced by a one-frame video, status 0), nor
+# over a file that is not a video
+env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --video "$T/new/v.avi" 2>"$T/err" ||
+  fail "video written again: $(cat "$T/err")"
+cp "$T/in.lcmlog" "$T/rec.avi"
+refused "--video $T/rec.avi is the --log file: it would be written over" \
+  env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/rec.avi" --all --video "$T/rec.avi"
+cmp -s "$T/in.lcmlog" "$T/rec.avi" || fail "the log named as the video was changed"
+echo "robot notes" >"$T/notes.avi"
+refused "--video $T/notes.avi: is not an AVI video (it starts with 72 6f 62 6f, ...): not written over" \
+  env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --video "$T/notes.avi"
+[ "$(cat "$T/notes.avi")" = "robot notes" ] || fail "the notes were written over"
 # a log cut off mid-event: what it holds is drawn, with one warning line
 head -c $(( $(stat -c %s "$T/in.lcmlog") - 100 )) "$T/in.lcmlog" >"$T/cut.lcmlog"
 env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/cut.lcmlog" --all --out "$T/cutframes" 2>"$T/err" ||

@@ -579,7 +579,13 @@ int main(int argc, char** argv) {
     }
   }
   if (!o.video.empty()) {
-    const std::string problem = ld::prepareOutputFile(o.video);  // creates missing folders, as --out does
+    // (not over one of its inputs: `--log run.avi --video run.avi` replaced
+    // the recording with a one-frame video; nor over anything not a video)
+    std::vector<ld::NamedFile> inputs{{"--camera", camera_file}};
+    for (const auto& path : logs) inputs.push_back({"--log", path});
+    if (const std::string clash = ld::outputsClash({{"--video", o.video}}, inputs); !clash.empty())
+      return ld::cli::usage(argv[0], clash);
+    const std::string problem = ld::prepareVideoOutputFile(o.video);  // creates missing folders, as --out does
     if (!problem.empty()) {
       std::cerr << "ld-view: --video " << o.video << ": " << problem << "\n";
       return 2;

@@ -22,6 +22,19 @@
 
 namespace ld {
 
+namespace {
+// "ed a1 da 01": a file's first bytes (at most 4) as a message shows them.
+std::string hexStart(const unsigned char* bytes, size_t n) {
+  std::string start;
+  char hex[4];
+  for (size_t i = 0; i < 4 && i < n; ++i) {
+    std::snprintf(hex, sizeof hex, "%02x", bytes[i]);
+    start += (i ? " " : "") + std::string(hex);
+  }
+  return start;
+}
+}  // namespace
+
 LcmLogCheck checkLcmLogStart(const std::string& path) {
   namespace fs = std::filesystem;
   std::error_code ec;
@@ -44,18 +57,14 @@ LcmLogCheck checkLcmLogStart(const std::string& path) {
     if (f.bad()) return unreadable(std::strerror(errno));
     return {LcmLogStart::Empty, "is empty", ""};
   }
-  uint32_t magic = 0;
-  for (size_t i = 0; i < 4 && i < got; ++i) magic = (magic << 8) | head[i];
-  if (got < 4 || magic != kLcmLogMagic) {
-    std::string start;
-    char hex[4];
-    for (size_t i = 0; i < 4 && i < got; ++i) {
-      std::snprintf(hex, sizeof hex, "%02x", head[i]);
-      start += (i ? " " : "") + std::string(hex);
-    }
+  // (a log cut within its magic, 1 to 3 bytes of it, is a log cut short,
+  // not another file)
+  bool magic_so_far = true;
+  for (size_t i = 0; i < 4 && i < got; ++i)
+    magic_so_far = magic_so_far && head[i] == ((kLcmLogMagic >> (8 * (3 - i))) & 0xffu);
+  if (!magic_so_far)
     return {LcmLogStart::NotALog,
-            "is not an LCM log (it starts with " + start + ", not LCM's event magic ed a1 da 01)", ""};
-  }
+            "is not an LCM log (it starts with " + hexStart(head, got) + ", not LCM's event magic ed a1 da 01)", ""};
   if (got < kLcmLogHeaderBytes)
     return {LcmLogStart::CutInHeader, "ends inside its first event header (" + std::to_string(got) + " of " +
                                           std::to_string(kLcmLogHeaderBytes) + " bytes)", ""};
@@ -296,6 +305,20 @@ std::string prepareLogOutputFile(const std::string& path) {
   if (check.start == LcmLogStart::NotALog) return check.problem + ": not written over";
   if (check.start == LcmLogStart::Unreadable) return check.problem;
   return "";
+}
+
+std::string prepareVideoOutputFile(const std::string& path) {
+  if (std::string problem = prepareOutputFile(path); !problem.empty()) return problem;
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return "";
+  if (!std::filesystem::is_regular_file(path, ec)) return "is not a file (a device, a pipe?): not written over";
+  std::ifstream f(path, std::ios::binary);
+  unsigned char head[12] = {0};
+  f.read(reinterpret_cast<char*>(head), sizeof head);
+  const size_t n = static_cast<size_t>(f.gcount());
+  if (n == 0 || (n == sizeof head && std::memcmp(head, "RIFF", 4) == 0 && std::memcmp(head + 8, "AVI ", 4) == 0))
+    return "";
+  return "is not an AVI video (it starts with " + hexStart(head, n) + (n > 4 ? ", ..." : "") + "): not written over";
 }
 
 std::string prepareJsonOutputFile(const std::string& path) {

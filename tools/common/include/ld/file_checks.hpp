@@ -115,6 +115,13 @@ std::string readImageFile(const std::string& path, cv::Mat& out);
 /// 89 50 4e 47, ...): not written over").
 std::string prepareLogOutputFile(const std::string& path);
 
+/// prepareOutputFile for an AVI video about to be written: besides, a file
+/// already at `path` must be an AVI (an earlier video) or empty, so that a
+/// video is never written over a log, an image or notes. Empty when it can;
+/// otherwise why ("is not an AVI video (it starts with ed a1 da 01, ...):
+/// not written over").
+std::string prepareVideoOutputFile(const std::string& path);
+
 /// prepareOutputFile for a JSON file about to be written (a summary, a state
 /// file): besides, a file already at `path` must be JSON (its first
 /// character other than white space '{' or '['), or empty. Empty when it
