@@ -162,14 +162,17 @@ timeout 20 "$BIN/ld-run" --netns --status-interval 0 --play "$T/noimg.lcmlog" --
   >"$T/out" 2>&1 || rc=$?
 [ $rc -eq 2 ] || fail "a source failing with exit 2: ld-run exit $rc: $(cat "$T/out")"
 grep -q "the source play failed (exit 2; its error is above); stopping" "$T/out" || fail "source failure: $(cat "$T/out")"
-grep -q "ld-play: no IMAGE images in" "$T/out" || fail "the source's own error: $(cat "$T/out")"
-# A replay whose log has its images on another channel feeds the set
-# nothing: it ends with status 1 and says so (it ended with status 0).
+grep -q "ld-play: no IMAGE images in $T/noimg.lcmlog (its channels: OTHER (3))$" "$T/out" ||
+  fail "the source's own error: $(cat "$T/out")"
+# A replay whose log has no images on the image channel (its images on
+# another, or ld-run's own recording of the outputs) feeds the set nothing:
+# refused at once, naming the log's channels (it ended with status 0, then
+# said so with status 1 once the whole log had been replayed).
 rc=0
 timeout 30 "$BIN/ld-run" --netns --status-interval 0 --replay "$T/noimg.lcmlog" --exit-when-replay-done \
   >"$T/out" 2>&1 || rc=$?
-[ $rc -eq 1 ] || fail "a replay without images: ld-run exit $rc: $(cat "$T/out")"
-grep -q "replay done, but no image came on IMAGE (the log has no message on IMAGE; its channels: OTHER (3): the config's channels.image names the image channel)" "$T/out" ||
+[ $rc -eq 2 ] || fail "a replay without images: ld-run exit $rc: $(cat "$T/out")"
+[ "$(cat "$T/out")" = "ld-run: replay log $T/noimg.lcmlog holds no message on IMAGE (its channels: OTHER (3)): nothing for the set to work on; replay the log the images are in (a recording of the set's outputs holds none unless record.channels takes them), or name their channel with the config's channels.image" ] ||
   fail "a replay without images: $(cat "$T/out")"
 # A log whose messages on IMAGE are another project's type: said so, not
 # taken for images on another channel (a helper's foreign log).
@@ -248,7 +251,9 @@ timeout 30 "$BIN/ld-run" --netns --status-interval 0 -q --config "$T/badworker.j
 timeout 60 "$BIN/ld-run" --netns --replay "$T/latin.lcmlog" --exit-when-replay-done --summary "$T/latin.json" \
   --report -q --status-interval 0 >"$T/out" 2>&1 || fail "a payload that is not UTF-8: $(tail -3 "$T/out")"
 jq -e '[.summary.tracks[].payload] | index("caf\ufffd")' "$T/latin.json" >/dev/null || fail "latin payload: $(cat "$T/latin.json")"
-grep -q "^frames: 20 images, 20 tracked (skipped: 0 by the detector, 0 by the tracker, 0 by the QR reader)$" "$T/out" ||
+# (the QR reader, the slowest, may skip a frame on a loaded machine: seen
+# once with other tests beside it)
+grep -q "^frames: 20 images, 20 tracked (skipped: 0 by the detector, 0 by the tracker, [01] by the QR reader)$" "$T/out" ||
   fail "report, every frame tracked: $(grep '^frames' "$T/out")"
 # the images no tracked list came for are said in the report (here: no tracker)
 timeout 60 "$BIN/ld-run" --netns --replay "$T/latin.lcmlog" --exit-when-replay-done --processes detector \

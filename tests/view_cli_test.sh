@@ -108,11 +108,11 @@ grep -q "^ld-view: 2 images, 0 tracked lists, 2 frames written" "$T/err" || fail
 refused "--fps: must be in \[0.1, 1000\], not 0" env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --video "$T/v0.avi" --fps 0
 refused "--axis-length: must be > 0, not -1" env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --axis-length -1 --out "$T/f"
 rc=0; env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --out "$T/none" 2>"$T/err" || rc=$?
-[ $rc -eq 1 ] && grep -q "^ld-view: no tracked lists on LANDMARKS_TRACKED; --all draws every image$" "$T/err" ||
+[ $rc -eq 1 ] && grep -q "^ld-view: no tracked lists on LANDMARKS_TRACKED (the logs' channels: IMAGE (3)); --all draws every image$" "$T/err" ||
   fail "nothing to draw: exit $rc, $(cat "$T/err")"
 # logs without images (the run's log alone): said so
 rc=0; env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --image CAMERA --all --out "$T/none2" 2>"$T/err" || rc=$?
-[ $rc -eq 1 ] && grep -q "^ld-view: no images on CAMERA in the logs: frames are drawn on their images" "$T/err" ||
+[ $rc -eq 1 ] && grep -q "^ld-view: no images on CAMERA in the logs (their channels: IMAGE (3)): frames are drawn on their images" "$T/err" ||
   fail "no images: exit $rc, $(cat "$T/err")"
 # two logs whose seqs overlap, of two sizes: no PNG written over another
 # (the second gets -2), and the video takes every frame, scaled to its size

@@ -75,6 +75,18 @@ done
 ! grep -q note "$T/err" || { echo "calibrations that fit: $(cat "$T/err")"; exit 1; }
 [ "$(grep -c 'note: no pose axes: the camera calibration is for 1280x720 images and this frame is 640x480' "$T/err720")" -eq 1 ] ||
   { echo "another aspect ratio: $(cat "$T/err720")"; exit 1; }
+# two runs' lists for the same frames (the recording given twice): drawn
+# with the last, said in a note; lists whose image no log holds (an image
+# log cut short) said too
+"$BIN/ld-view" --log "$T/in.lcmlog" --log "$T/run.lcmlog" --log "$T/run.lcmlog" --out "$T/twice" 2>"$T/err"
+[ "$(ls "$T/twice" | wc -l)" -eq $FRAMES ]
+grep -q "^ld-view: note: $FRAMES tracked lists came again for frames already listed (two runs' logs, or a recording that also holds a replayed run's?): each frame is drawn with the last one$" "$T/err" ||
+  { echo "lists twice: $(cat "$T/err")"; exit 1; }
+head -c $(( $(stat -c %s "$T/in.lcmlog") / 2 )) "$T/in.lcmlog" >"$T/half.lcmlog"
+"$BIN/ld-view" --log "$T/half.lcmlog" --log "$T/run.lcmlog" --out "$T/half" 2>"$T/err" || true
+drawn=$(ls "$T/half" | wc -l)
+grep -q "^ld-view: note: $((FRAMES - drawn)) of the $FRAMES tracked lists have no image in the logs: not drawn$" "$T/err" ||
+  { echo "image log cut: $drawn drawn; $(cat "$T/err")"; exit 1; }
 # no display, no output: a clear error
 rc=0; env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" 2> "$T/err" || rc=$?
 [ "$rc" -eq 2 ]

@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <iostream>
 #include <map>
+#include <set>
 #include <optional>
 #include <regex>
 
@@ -201,8 +202,8 @@ void annotate(cv::Mat& bgr, const ld::landmark_list_t& list, const std::map<int6
       std::vector<cv::Point> quad;
       for (const auto& c : lm.corners) quad.emplace_back(cvRound(c.x), cvRound(c.y));
       cv::polylines(bgr, quad, true, cv::Scalar(160, 160, 160), 1, cv::LINE_AA);
-      cv::putText(bgr, *lm.payload + " (coasting)", lm.corners[0] + cv::Point2f(0, -6.0f * thick),
-                  cv::FONT_HERSHEY_SIMPLEX, 0.45 * thick, cv::Scalar(160, 160, 160), thick, cv::LINE_AA);
+      ld::drawLabel(bgr, *lm.payload + " (coasting)", lm.corners[0] + cv::Point2f(0, -6.0f * thick),
+                    cv::Scalar(160, 160, 160), thick);
     } else {
       visible.push_back(lm);
     }
@@ -230,6 +231,8 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
   std::map<Key, ld::qr_code_list_t> codes;
   Dropped dropped;
   std::string why;
+  int64_t lists_again = 0;  // (lists for a frame already listed: two runs' logs)
+  ld::ChannelCounts log_channels;  // (named where a channel asked for has nothing)
   for (const auto& path : logs) {
     ld::LcmLogReader log(path);
     if (!log.good()) {
@@ -237,10 +240,16 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
       return 2;
     }
     while (log.next()) {
+      ++log_channels[log.channel];
       if (log.channel == tracked_ch) {
         ld::landmark_list_t l;
-        if (ld::decodeMessage(log.data.data(), log.data.size(), l, &why)) lists[{l.utime, l.seq}] = std::move(l);
-        else dropped(path + ": dropped message on " + log.channel, why);
+        if (ld::decodeMessage(log.data.data(), log.data.size(), l, &why)) {
+          auto [it, added] = lists.try_emplace(Key{l.utime, l.seq});
+          lists_again += !added;
+          it->second = std::move(l);
+        } else {
+          dropped(path + ": dropped message on " + log.channel, why);
+        }
       } else if (log.channel == codes_ch) {
         ld::qr_code_list_t c;
         if (ld::decodeMessage(log.data.data(), log.data.size(), c, &why)) codes[{c.utime, c.seq}] = std::move(c);
@@ -255,6 +264,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
   ld::image_t img;
   cv::Mat bgr;
   int64_t images = 0, matched = 0, events = 0;
+  std::set<Key> imaged;  // (the listed frames whose image came)
   for (const auto& path : logs) {
     ld::LcmLogReader log(path);
     while (!g_stop && log.next()) {
@@ -275,6 +285,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
       const auto l = lists.find(key);
       if (l == lists.end() && !all_frames) continue;
       matched += l != lists.end();
+      if (l != lists.end()) imaged.insert(key);
       const auto c = codes.find(key);
       if (c != codes.end()) ld::takeCodes(c->second, payloads);
       try {
@@ -295,14 +306,26 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
                static_cast<long long>(images), lists.size(), static_cast<long long>(sink.count()),
                video_whole ? "written" : "drawn (the video holds fewer: above)",
                dropped.count ? (", " + std::to_string(dropped.count) + " bad").c_str() : "");
+  // (two runs' lists for the same frames: only the last log's were drawn,
+  // without a word; and lists whose image no log holds, a cut image log's)
+  if (lists_again > 0)
+    std::fprintf(stderr,
+                 "ld-view: note: %lld tracked lists came again for frames already listed (two runs' logs, or a "
+                 "recording that also holds a replayed run's?): each frame is drawn with the last one\n",
+                 static_cast<long long>(lists_again));
+  if (!g_stop && images > 0 && imaged.size() < lists.size())
+    std::fprintf(stderr, "ld-view: note: %zu of the %zu tracked lists have no image in the logs: not drawn\n",
+                 lists.size() - imaged.size(), lists.size());
   if (events == 0) std::fprintf(stderr, "ld-view: the logs hold no message: nothing to draw\n");
   else if (images == 0 && !g_stop)
-    std::fprintf(stderr, "ld-view: no images on %s in the logs: frames are drawn on their images (give the "
-                         "image log too: --log images.lcmlog --log run.lcmlog, or --image CHANNEL)\n",
-                 image_ch.c_str());
+    std::fprintf(stderr, "ld-view: no images on %s in the logs (their channels: %s): frames are drawn on their "
+                         "images (give the image log too: --log images.lcmlog --log run.lcmlog, or --image CHANNEL)\n",
+                 image_ch.c_str(), ld::describeChannels(log_channels).c_str());
   if (sink.count() == 0 && images > 0 && matched == 0 && !all_frames)
     std::fprintf(stderr, "ld-view: %s; --all draws every image\n",
-                 lists.empty() ? ("no tracked lists on " + tracked_ch).c_str()
+                 lists.empty() ? ("no tracked lists on " + tracked_ch + " (the logs' channels: " +
+                                  ld::describeChannels(log_channels) + ")")
+                                     .c_str()
                                : "no tracked list has an image's utime and seq (logs of different runs?)");
   return sink.count() > 0 && video_whole ? 0 : 1;
 }

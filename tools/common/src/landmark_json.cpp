@@ -1,5 +1,6 @@
 #include "ld/landmark_json.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -50,11 +51,21 @@ void drawLandmarks(cv::Mat& bgr, const std::vector<Landmark>& landmarks) {
       std::snprintf(buf, sizeof buf, "%s%.2f m", label.empty() ? "" : " ", lm.pose->distance);
       label += buf;
     }
-    if (!label.empty())
-      cv::putText(bgr, label, lm.corners[0] + cv::Point2f(0, -6.0f * thick),
-                  cv::FONT_HERSHEY_SIMPLEX, 0.45 * thick, cv::Scalar(0, 255, 0), thick,
-                  cv::LINE_AA);
+    if (!label.empty()) drawLabel(bgr, label, lm.corners[0] + cv::Point2f(0, -6.0f * thick), cv::Scalar(0, 255, 0), thick);
   }
+}
+
+void drawLabel(cv::Mat& bgr, const std::string& text, cv::Point2f at, const cv::Scalar& colour, int thick) {
+  const double scale = 0.45 * thick;
+  int baseline = 0;
+  const cv::Size size = cv::getTextSize(text, cv::FONT_HERSHEY_SIMPLEX, scale, thick, &baseline);
+  const int margin = 2 * thick;
+  // (inside the image where it fits: a label by a corner near the right
+  // edge ran off it)
+  const int x = std::clamp(cvRound(at.x), margin, std::max(margin, bgr.cols - size.width - margin));
+  const int y = std::clamp(cvRound(at.y), size.height + margin, std::max(size.height + margin, bgr.rows - margin));
+  cv::putText(bgr, text, {x, y}, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(0, 0, 0), 3 * thick, cv::LINE_AA);
+  cv::putText(bgr, text, {x, y}, cv::FONT_HERSHEY_SIMPLEX, scale, colour, thick, cv::LINE_AA);
 }
 
 }  // namespace ld

@@ -111,4 +111,10 @@ bool LcmLogReader::fail(const std::string& what, const std::string& detail) {
   return false;
 }
 
+std::string describeChannels(const ChannelCounts& counts) {
+  std::string out;
+  for (const auto& [name, n] : counts) out += (out.empty() ? "" : ", ") + name + " (" + std::to_string(n) + ")";
+  return out;
+}
+
 }  // namespace ld

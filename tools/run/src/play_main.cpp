@@ -104,6 +104,7 @@ int main(int argc, char** argv) {
   std::vector<ld::image_t> images;
   size_t preloaded_bytes = 0;
   bool cut = false, crop_said = false;
+  ld::ChannelCounts log_channels;  // (named where none is on the channel)
   {
     const ld::LcmLogCheck start = ld::checkLcmLogStart(log_path);
     if (start.start != ld::LcmLogStart::Events) {
@@ -116,6 +117,7 @@ int main(int argc, char** argv) {
       return 2;
     }
     while ((frames == 0 || static_cast<int64_t>(images.size()) < frames) && log.next()) {
+      ++log_channels[log.channel];
       if (log.channel != channel) continue;
       if (preloaded_bytes >= kMaxPreloadBytes) {
         cut = true;
@@ -161,7 +163,8 @@ int main(int argc, char** argv) {
       std::cerr << "ld-play: warning: " << log_path << ": " << log.problem() << "\n";
   }
   if (images.empty()) {
-    std::cerr << "ld-play: no " << channel << " images in " << log_path << "\n";
+    std::cerr << "ld-play: no " << channel << " images in " << log_path
+              << (log_channels.empty() ? "" : " (its channels: " + ld::describeChannels(log_channels) + ")") << "\n";
     return 2;
   }
   if (frames == 0) frames = static_cast<int64_t>(images.size());

@@ -512,7 +512,7 @@ int main(int argc, char** argv) {
   // sessions in one log (lcm-logger -a appends) replay with the time between
   // them, silent.
   int64_t log_images = -1;
-  std::map<std::string, int64_t> log_channels;  // (the replay's: messages a channel)
+  ld::ChannelCounts log_channels;  // (the replay's)
   std::string log_damage, log_gap;
   if (cfg.source == "replay") {
     ld::LcmLogReader reader(cfg.log);
@@ -528,6 +528,18 @@ int main(int argc, char** argv) {
       previous = reader.timestamp;
     }
     log_damage = reader.problem();
+    // (a log without images, ld-run's own recording of the outputs, say,
+    // replayed for the whole of its length before the run said so)
+    if (log_images == 0) {
+      const std::string channels = ld::describeChannels(log_channels);
+      std::cerr << "ld-run: replay log " << cfg.log << " holds no message on " << cfg.channels.image
+                << (channels.empty() ? "" : " (its channels: " + channels + ")")
+                << (log_damage.empty() ? "" : " before its damage (" + log_damage + ")")
+                << ": nothing for the set to work on; replay the log the images are in (a recording of the "
+                   "set's outputs holds none unless record.channels takes them), or name their channel with the "
+                   "config's channels.image\n";
+      return 2;
+    }
     if (gap / cfg.speed > kLongReplayGapUs) {
       char buf[256];
       std::snprintf(buf, sizeof buf,
@@ -844,16 +856,9 @@ int main(int argc, char** argv) {
                         "lines say why)";
           exit_code = 1;
         } else if (monitor.imageFrames() == 0) {
-          // (the log's own channels named, where it has none of that name:
-          // they were read before the replay)
-          std::string channels;
-          for (const auto& [name, n] : log_channels)
-            channels += (channels.empty() ? "" : ", ") + name + " (" + std::to_string(n) + ")";
+          // (a replayed log without images is refused at the start)
           end_reason += ", but no image came on " + cfg.channels.image +
-                        (log_images == 0 && !channels.empty()
-                             ? " (the log has no message on " + cfg.channels.image + "; its channels: " + channels +
-                                   ": the config's channels.image names the image channel)"
-                             : " (are the log's images on another channel? the config's channels.image names it)");
+                        " (are the source's images on another channel? the config's channels.image names it)";
           exit_code = 1;
         }
         break;

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <fstream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -38,5 +39,11 @@ class LcmLogReader {
   int64_t size_ = 0, offset_ = 0, messages_ = 0, skipped_bytes_ = 0, skips_ = 0, first_skip_ = 0;
   std::string end_problem_;
 };
+
+/// Messages a channel, as a log's readers count them to name its channels.
+using ChannelCounts = std::map<std::string, int64_t>;
+/// "IMAGE (450), LANDMARKS (450)": a log's channels as a message names
+/// them (where a channel asked for has nothing).
+std::string describeChannels(const ChannelCounts& counts);
 
 }  // namespace ld
