@@ -31,6 +31,24 @@ mapfile -t starts < <(LC_ALL=C grep -obUaP '\xed\xa1\xda\x01' "$T/in.lcmlog" | c
 [ "${#starts[@]}" -eq 3 ] || fail "cannot find the events in the log"
 [ "${starts[0]}" -eq 0 ] || fail "the log does not start with an event"
 
+# --from / --to: the messages logged that many seconds after the log's
+# first (3 frames at 10 frames/s: 0, 0.1 and 0.2 s), ends included
+dump "$T/in.lcmlog" --from 0.05 --to 0.1
+[ $rc -eq 0 ] && [ "$out" -eq 1 ] && [ "$(jq -r .seq "$T/out")" = 1 ] && [ -z "$err" ] ||
+  fail "--from 0.05 --to 0.1: exit $rc, $out lines, $err"
+dump "$T/in.lcmlog" --from 0.1
+[ $rc -eq 0 ] && [ "$(jq -r .seq "$T/out" | tr '\n' ' ')" = "1 2 " ] || fail "--from 0.1: exit $rc, $(cat "$T/out")"
+dump "$T/in.lcmlog" --from 5
+[ $rc -eq 0 ] && [ "$out" -eq 0 ] &&
+  [ "$err" = "ld-dump: note: no message from 5 s on after a log's first (the longest log spans 0.2 s)" ] ||
+  fail "--from past the end: exit $rc, $err"
+for bad in "--from 0.3 --to 0.1|--to 0.1 is before --from 0.3" "--to -1|--to: must be >= 0, not -1" \
+           "--live --from 1|--from and --to are for logs (seconds after a log's first message)"; do
+  read -ra args <<<"${bad%%|*}"
+  [ "${args[0]}" = --live ] && dump "${args[@]}" || dump "$T/in.lcmlog" "${args[@]}"
+  [ $rc -eq 2 ] && [ "$err" = "ld-dump: ${bad#*|} (--help lists the options)" ] || fail "${bad%%|*}: exit $rc, $err"
+done
+
 printf '\x89PNG\r\n\x1a\n an image, not a log' >"$T/lm.png"
 dump "$T/lm.png"
 [ $rc -eq 2 ] && [ "$out" -eq 0 ] || fail "not a log: exit $rc, $out lines"

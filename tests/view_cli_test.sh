@@ -98,6 +98,19 @@ echo "robot notes" >"$T/notes.avi"
 refused "--video $T/notes.avi: is not an AVI video (it starts with 72 6f 62 6f, ...): not written over" \
   env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --video "$T/notes.avi"
 [ "$(cat "$T/notes.avi")" = "robot notes" ] || fail "the notes were written over"
+# --from / --to: the images logged that many seconds after their log's first
+# (0, 0.1 and 0.2 s here): with --all, the raw frames about a moment, for
+# ld-detect --explain
+env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --from 0.05 --to 0.15 --out "$T/span" 2>"$T/err" ||
+  fail "--from/--to: $(cat "$T/err")"
+[ "$(ls "$T/span")" = 000001.png ] && [ "$(cat "$T/err")" = "ld-view: 1 images, 0 tracked lists, 1 frames written" ] ||
+  fail "--from 0.05 --to 0.15: $(ls "$T/span"); $(cat "$T/err")"
+rc=0; env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --from 3 --out "$T/span2" 2>"$T/err" || rc=$?
+[ $rc -eq 1 ] && grep -q "^ld-view: no image from 3 s on after its log's first message (the images span 0.200 s)$" "$T/err" ||
+  fail "--from past the end: exit $rc, $(cat "$T/err")"
+refused "--to 0.1 is before --from 0.2" \
+  env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --from 0.2 --to 0.1 --out "$T/span3"
+refused "--from and --to are for --log" env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --from 1 --out "$T/span4"
 # a log cut off mid-event: what it holds is drawn, with one warning line
 head -c $(( $(stat -c %s "$T/in.lcmlog") - 100 )) "$T/in.lcmlog" >"$T/cut.lcmlog"
 env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/cut.lcmlog" --all --out "$T/cutframes" 2>"$T/err" ||

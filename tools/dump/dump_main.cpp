@@ -3,6 +3,7 @@
 #include <atomic>
 #include <csignal>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <iostream>
 #include <regex>
@@ -137,6 +138,11 @@ int main(int argc, char** argv) {
   app.add_option("-c,--channel", channels, "only channels matching this regex (repeatable)")->allow_extra_args(false);
   app.add_flag("--live", live, "read the live bus instead of files (Ctrl-C to stop)");
   app.add_option("--lcm-url", url, "LCM URL for --live")->capture_default_str();
+  ld::LogSpan span;
+  app.add_option("--from", span.from_s, "only messages logged this many seconds or more after each log's first")
+      ->check(ld::cli::NonNegative);
+  app.add_option("--to", span.to_s, "only messages logged at most this many seconds after each log's first")
+      ->check(ld::cli::NonNegative);
   LD_CLI_PARSE(app, argc, argv);
 
   Printer printer;
@@ -149,6 +155,15 @@ int main(int argc, char** argv) {
   if (!live && logs.empty()) return ld::cli::usage(argv[0], "give log files or --live");
   if (!live && app.count("--lcm-url"))
     return ld::cli::usage(argv[0], "--lcm-url is for --live (logs are read from their files)");
+  if (live && span.limited())
+    return ld::cli::usage(argv[0], "--from and --to are for logs (seconds after a log's first message)");
+  const auto seconds = [](double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%g", v);
+    return std::string(b);
+  };
+  if (span.to_s < span.from_s)
+    return ld::cli::usage(argv[0], "--to " + seconds(span.to_s) + " is before --from " + seconds(span.from_s));
   if (live) {
     if (!ld::lcmUrlUsable(url, "ld-dump")) return 2;
     lcm::LCM lcm(url);
@@ -173,6 +188,7 @@ int main(int argc, char** argv) {
   int status = 0;
   int64_t printed = 0;
   std::set<std::string> seen_channels;
+  double longest_s = 0;  // (the longest log's span, said where --from/--to took nothing)
   for (const auto& path : logs) {
     const ld::LcmLogCheck start = ld::checkLcmLogStart(path);
     if (start.start == ld::LcmLogStart::NotALog) {
@@ -190,8 +206,12 @@ int main(int argc, char** argv) {
       status = 2;
       continue;
     }
+    int64_t first = -1;
     while (log->next()) {
       seen_channels.insert(log->channel);
+      if (first < 0) first = log->timestamp;
+      longest_s = std::max(longest_s, static_cast<double>(log->timestamp - first) / 1e6);
+      if (!span.holds(first, log->timestamp)) continue;
       if (!printer.wanted(log->channel)) continue;
       ++printed;
       std::cout << toJson(log->channel, log->timestamp, log->data.data(), log->data.size())
@@ -204,7 +224,13 @@ int main(int argc, char** argv) {
       status = std::max(status, 1);
     }
   }
-  if (!channels.empty() && printed == 0 && !seen_channels.empty()) {
+  if (span.limited() && printed == 0 && !seen_channels.empty()) {
+    std::cerr << "ld-dump: note: no message" << (channels.empty() ? "" : " of the channels asked for")
+              << " from " << seconds(span.from_s)
+              << (std::isfinite(span.to_s) ? " to " + seconds(span.to_s) + " s" : " s on")
+              << " after a log's first (the longest log spans " << seconds(std::round(longest_s * 1000) / 1000)
+              << " s)\n";
+  } else if (!channels.empty() && printed == 0 && !seen_channels.empty()) {
     std::string names;
     for (const auto& c : seen_channels) names += (names.empty() ? "" : ", ") + c;
     std::cerr << "ld-dump: note: no channel of the logs matches -c (a pattern matches the whole name, "

@@ -226,7 +226,7 @@ void annotate(cv::Mat& bgr, const ld::landmark_list_t& list, const std::map<int6
 
 // --- logs: tracked lists and codes first, then every image in log order ---
 int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, const std::string& tracked_ch,
-             const std::string& codes_ch, bool all_frames, const Options& o) {
+             const std::string& codes_ch, bool all_frames, const ld::LogSpan& span, const Options& o) {
   std::map<Key, ld::landmark_list_t> lists;
   std::map<Key, ld::qr_code_list_t> codes;
   Dropped dropped;
@@ -265,11 +265,20 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
   cv::Mat bgr;
   int64_t images = 0, matched = 0, events = 0;
   std::set<Key> imaged;  // (the listed frames whose image came)
+  int64_t outside = 0;  // images outside --from/--to
+  double longest_s = 0;
   for (const auto& path : logs) {
     ld::LcmLogReader log(path);
+    int64_t first = -1;
     while (!g_stop && log.next()) {
       ++events;
+      if (first < 0) first = log.timestamp;
       if (log.channel != image_ch) continue;
+      longest_s = std::max(longest_s, static_cast<double>(log.timestamp - first) / 1e6);
+      if (!span.holds(first, log.timestamp)) {
+        ++outside;
+        continue;
+      }
       if (!ld::decodeMessage(log.data.data(), log.data.size(), img, &why)) {
         dropped(path + ": dropped message on " + log.channel, why);
         continue;
@@ -313,10 +322,16 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
                  "ld-view: note: %lld tracked lists came again for frames already listed (two runs' logs, or a "
                  "recording that also holds a replayed run's?): each frame is drawn with the last one\n",
                  static_cast<long long>(lists_again));
-  if (!g_stop && images > 0 && imaged.size() < lists.size())
+  if (!g_stop && images > 0 && imaged.size() < lists.size() && !span.limited())
     std::fprintf(stderr, "ld-view: note: %zu of the %zu tracked lists have no image in the logs: not drawn\n",
                  lists.size() - imaged.size(), lists.size());
   if (events == 0) std::fprintf(stderr, "ld-view: the logs hold no message: nothing to draw\n");
+  else if (images == 0 && outside > 0 && !g_stop)
+    std::fprintf(stderr, "ld-view: no image from %s after its log's first message (the images span %.3f s)\n",
+                 (std::isfinite(span.to_s) ? cv::format("%g to %g s", span.from_s, span.to_s)
+                                           : cv::format("%g s on", span.from_s))
+                     .c_str(),
+                 longest_s);
   else if (images == 0 && !g_stop)
     std::fprintf(stderr, "ld-view: no images on %s in the logs (their channels: %s): frames are drawn on their "
                          "images (give the image log too: --log images.lcmlog --log run.lcmlog, or --image CHANNEL)\n",
@@ -514,6 +529,11 @@ int main(int argc, char** argv) {
   app.add_option("--camera", camera_file, "camera calibration (OpenCV YAML/XML, ROS camera_info, opencv_interactive-calibration): draws pose axes");
   app.add_option("--axis-length", o.axis_m, "pose axis length, metres")->check(ld::cli::Positive)->capture_default_str();
   app.add_flag("--all", all_frames, "logs: also frames without tracked landmarks");
+  ld::LogSpan span;
+  app.add_option("--from", span.from_s, "logs: only images logged this many seconds or more after their log's first message")
+      ->check(ld::cli::NonNegative);
+  app.add_option("--to", span.to_s, "logs: only images logged at most this many seconds after their log's first message")
+      ->check(ld::cli::NonNegative);
   app.add_option("--lcm-url", url, "LCM URL (live)")->capture_default_str();
   app.add_option("--image", image_ch, "image channel")->capture_default_str();
   app.add_option("--tracks", tracked_ch, "tracked landmarks channel")->capture_default_str();
@@ -540,6 +560,13 @@ int main(int argc, char** argv) {
   }
   if (all_frames && logs.empty())
     return ld::cli::usage(argv[0], "--all is for --log (live, every frame with a tracked list is drawn)");
+  if (logs.empty() && span.limited())
+    return ld::cli::usage(argv[0], "--from and --to are for --log (seconds after a log's first message)");
+  if (span.to_s < span.from_s) {
+    char b[96];
+    std::snprintf(b, sizeof b, "--to %g is before --from %g", span.to_s, span.from_s);
+    return ld::cli::usage(argv[0], b);
+  }
   if (!logs.empty() && app.count("--lcm-url"))
     return ld::cli::usage(argv[0], "--lcm-url is for live viewing (--log reads its files)");
   if (!o.video.empty() && !ld::hasExtension(o.video, ".avi"))
@@ -616,7 +643,7 @@ int main(int argc, char** argv) {
   }
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
-  if (!logs.empty()) return viewLogs(logs, image_ch, tracked_ch, codes_ch, all_frames, o);
+  if (!logs.empty()) return viewLogs(logs, image_ch, tracked_ch, codes_ch, all_frames, span, o);
 
   if (!ld::lcmUrlUsable(url, "ld-view")) return 2;
   lcm::LCM lcm(url);

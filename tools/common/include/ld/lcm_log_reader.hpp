@@ -5,8 +5,10 @@
 // skips to the next event magic and goes on, as LCM's reader does.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <string>
 #include <vector>
@@ -38,6 +40,19 @@ class LcmLogReader {
   std::ifstream f_;
   int64_t size_ = 0, offset_ = 0, messages_ = 0, skipped_bytes_ = 0, skips_ = 0, first_skip_ = 0;
   std::string end_problem_;
+};
+
+/// A span of a log in seconds from its first message, as ld-dump's and
+/// ld-view's --from and --to give it (the frames about second 12 of a run).
+struct LogSpan {
+  double from_s = 0, to_s = std::numeric_limits<double>::infinity();
+  bool limited() const { return from_s > 0 || std::isfinite(to_s); }
+  /// Whether a message logged at `timestamp` (us) lies in the span of a log
+  /// whose first message was logged at `first`.
+  bool holds(int64_t first, int64_t timestamp) const {
+    const double s = static_cast<double>(timestamp - first) / 1e6;
+    return s >= from_s && s <= to_s;
+  }
 };
 
 /// Messages a channel, as a log's readers count them to name its channels.
