@@ -42,6 +42,17 @@ dump "$T/in.lcmlog" --from 5
 [ $rc -eq 0 ] && [ "$out" -eq 0 ] &&
   [ "$err" = "ld-dump: note: no message from 5 s on after a log's first (the longest log spans 0.2 s)" ] ||
   fail "--from past the end: exit $rc, $err"
+# a log whose clock goes back (two sessions appended): every message without
+# a span (those before the first were dropped); with one, those logged
+# before the first are outside it
+cat "$T/in.lcmlog" "$T/in.lcmlog" >"$T/appended.lcmlog"
+dump "$T/appended.lcmlog"
+[ $rc -eq 0 ] && [ "$out" -eq 6 ] || fail "appended log: exit $rc, $out lines, $err"
+dump "$T/appended.lcmlog" --to 0.1
+[ $rc -eq 0 ] && [ "$(jq -r .seq "$T/out" | tr '\n' ' ')" = "0 1 0 1 " ] || fail "appended --to 0.1: $(cat "$T/out")"
+# a misspelt channel with a span: the channel is said, not the span
+dump "$T/in.lcmlog" -c IMAGX --from 0.1
+[ $rc -eq 0 ] && grep -q "^ld-dump: note: no channel of the logs matches -c" "$T/err" || fail "-c IMAGX --from: $err"
 for bad in "--from 0.3 --to 0.1|--to 0.1 is before --from 0.3" "--to -1|--to: must be >= 0, not -1" \
            "--live --from 1|--from and --to are for logs (seconds after a log's first message)"; do
   read -ra args <<<"${bad%%|*}"

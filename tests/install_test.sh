@@ -93,6 +93,17 @@ fi
 tr -s ' \n' '  ' <"$T/bad.log" |
   grep -q "landmark has no component 'tracker' (its components: core, detector, qr_reader, landmark_msg, msgs, lcmtypes)" ||
   { cat "$T/bad.log"; fail "unknown component: not named"; }
+# a project of an old CMake (a catkin package's 3.0.2: this file runs under
+# its policies) that asks for an optional component the package has not:
+# found, that one not
+mkdir -p "$T/old_cmake"
+printf '%s\n' 'cmake_minimum_required(VERSION 3.0.2)' 'project(old CXX)' \
+  'find_package(landmark REQUIRED CONFIG COMPONENTS lcmtypes OPTIONAL_COMPONENTS extra)' \
+  'if(landmark_extra_FOUND OR NOT landmark_lcmtypes_FOUND OR NOT TARGET landmark::lcmtypes)' \
+  '  message(FATAL_ERROR "components: extra ${landmark_extra_FOUND} lcmtypes ${landmark_lcmtypes_FOUND}")' 'endif()' \
+  >"$T/old_cmake/CMakeLists.txt"
+cmake -S "$T/old_cmake" -B "$T/old_cmake/build" -DCMAKE_PREFIX_PATH="$P" -DCMAKE_DISABLE_FIND_PACKAGE_OpenCV=ON \
+  >"$T/old.log" 2>&1 || { cat "$T/old.log"; fail "an old CMake's project with an optional unknown component"; }
 # (and without COMPONENTS, OpenCV is needed: the switch above does switch it off)
 if cmake -S "$src/tests/install_consumer" -B "$T/consumer_no_cv" -DCMAKE_PREFIX_PATH="$P" \
      -DCMAKE_DISABLE_FIND_PACKAGE_OpenCV=ON >"$T/no_cv.log" 2>&1; then

@@ -174,6 +174,19 @@ timeout 30 "$BIN/ld-run" --netns --status-interval 0 --replay "$T/noimg.lcmlog" 
 [ $rc -eq 2 ] || fail "a replay without images: ld-run exit $rc: $(cat "$T/out")"
 [ "$(cat "$T/out")" = "ld-run: replay log $T/noimg.lcmlog holds no message on IMAGE (its channels: OTHER (3)): nothing for the set to work on; replay the log the images are in (a recording of the set's outputs holds none unless record.channels takes them), or name their channel with the config's channels.image" ] ||
   fail "a replay without images: $(cat "$T/out")"
+# ... checked against the config's source.channels where it gives one (a
+# replay of other channels, the lists to the tracker alone, runs)
+printf '{"source": {"channels": "LANDMARKS"}}\n' >"$T/replay_lm.json"
+rc=0
+timeout 30 "$BIN/ld-run" --netns --status-interval 0 --config "$T/replay_lm.json" --processes tracker \
+  --replay "$T/noimg.lcmlog" --exit-when-replay-done >"$T/out" 2>&1 || rc=$?
+[ $rc -eq 2 ] && [ "$(cat "$T/out")" = "ld-run: replay log $T/noimg.lcmlog holds no message on a channel source.channels LANDMARKS plays (its channels: OTHER (3)): nothing to replay" ] ||
+  fail "a replay of a pattern that plays nothing: exit $rc, $(cat "$T/out")"
+printf '{"source": {"channels": "OTH.*"}}\n' >"$T/replay_other.json"
+timeout 30 "$BIN/ld-run" --netns --status-interval 0 --config "$T/replay_other.json" --processes none \
+  --replay "$T/noimg.lcmlog" --exit-when-replay-done >"$T/out" 2>&1 || true
+! grep -q "holds no message" "$T/out" && grep -q "replay done" "$T/out" ||
+  fail "a replay of a pattern that plays the log's channel: $(cat "$T/out")"
 # A log whose messages on IMAGE are another project's type: said so, not
 # taken for images on another channel (a helper's foreign log).
 python3 - "$T/foreign.lcmlog" <<'PY'

@@ -22,6 +22,7 @@
 
 #include "ld/file_checks.hpp"
 #include "ld/image_convert.hpp"
+#include "ld/landmark_json.hpp"
 
 namespace {
 
@@ -298,3 +299,26 @@ TEST(AviVideoFrames, CountsEverySectionAndStopsAtACut) {
 }
 
 }  // namespace
+
+// A label by a corner near an edge of the frame is kept inside it, its dark
+// outline and the letters below the line too (ld-view's "#3 room-103 1.84 m"
+// ran off the right edge, and one by a low corner off the bottom).
+TEST(DrawLabel, StaysInsideTheFrame) {
+  for (const int width : {640, 1280, 1920}) {
+    const int height = width * 3 / 4, thick = std::max(1, width / 640);
+    for (const cv::Point2f at : {cv::Point2f(width - 5.0f, height - 1.0f), cv::Point2f(-40.0f, -3.0f),
+                                 cv::Point2f(width * 2.0f, 10.0f), cv::Point2f(5.0f, height + 50.0f)}) {
+      cv::Mat img(height, width, CV_8UC3, cv::Scalar(255, 255, 255));
+      ld::drawLabel(img, "#3 room-103 (coasting) yg", at, cv::Scalar(0, 255, 0), thick);
+      cv::Mat ink;
+      cv::inRange(img, cv::Scalar(0, 0, 0), cv::Scalar(254, 254, 254), ink);
+      const cv::Rect drawn = cv::boundingRect(ink);
+      ASSERT_GT(drawn.area(), 0) << width << " at " << at;
+      // nothing on the frame's outermost rows and columns: the label was not cut
+      EXPECT_GT(drawn.x, 0) << width << " at " << at;
+      EXPECT_GT(drawn.y, 0) << width << " at " << at;
+      EXPECT_LT(drawn.x + drawn.width, width) << width << " at " << at;
+      EXPECT_LT(drawn.y + drawn.height, height) << width << " at " << at;
+    }
+  }
+}

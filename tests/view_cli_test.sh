@@ -106,7 +106,7 @@ env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --fr
 [ "$(ls "$T/span")" = 000001.png ] && [ "$(cat "$T/err")" = "ld-view: 1 images, 0 tracked lists, 1 frames written" ] ||
   fail "--from 0.05 --to 0.15: $(ls "$T/span"); $(cat "$T/err")"
 rc=0; env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --from 3 --out "$T/span2" 2>"$T/err" || rc=$?
-[ $rc -eq 1 ] && grep -q "^ld-view: no image from 3 s on after its log's first message (the images span 0.200 s)$" "$T/err" ||
+[ $rc -eq 1 ] && grep -q "^ld-view: no image from 3 s on after its log's first message (the images lie 0.000 to 0.200 s after their log's first)$" "$T/err" ||
   fail "--from past the end: exit $rc, $(cat "$T/err")"
 refused "--to 0.1 is before --from 0.2" \
   env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --from 0.2 --to 0.1 --out "$T/span3"

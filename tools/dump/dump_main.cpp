@@ -2,6 +2,7 @@
 // Lines, one object per message. Image payloads are summarised.
 #include <atomic>
 #include <csignal>
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -224,13 +225,17 @@ int main(int argc, char** argv) {
       status = std::max(status, 1);
     }
   }
-  if (span.limited() && printed == 0 && !seen_channels.empty()) {
+  // (a -c that matches no channel is said as such, span or not: a
+  // misspelt channel was blamed on the span)
+  const bool some_channel_wanted =
+      std::any_of(seen_channels.begin(), seen_channels.end(), [&](const std::string& c) { return printer.wanted(c); });
+  if (span.limited() && printed == 0 && some_channel_wanted) {
     std::cerr << "ld-dump: note: no message" << (channels.empty() ? "" : " of the channels asked for")
               << " from " << seconds(span.from_s)
               << (std::isfinite(span.to_s) ? " to " + seconds(span.to_s) + " s" : " s on")
               << " after a log's first (the longest log spans " << seconds(std::round(longest_s * 1000) / 1000)
               << " s)\n";
-  } else if (!channels.empty() && printed == 0 && !seen_channels.empty()) {
+  } else if (!channels.empty() && printed == 0 && !seen_channels.empty() && !some_channel_wanted) {
     std::string names;
     for (const auto& c : seen_channels) names += (names.empty() ? "" : ", ") + c;
     std::cerr << "ld-dump: note: no channel of the logs matches -c (a pattern matches the whole name, "

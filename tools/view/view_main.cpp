@@ -11,6 +11,7 @@
 #include <deque>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <set>
 #include <optional>
@@ -266,7 +267,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
   int64_t images = 0, matched = 0, events = 0;
   std::set<Key> imaged;  // (the listed frames whose image came)
   int64_t outside = 0;  // images outside --from/--to
-  double longest_s = 0;
+  double images_from_s = std::numeric_limits<double>::infinity(), images_to_s = -images_from_s;
   for (const auto& path : logs) {
     ld::LcmLogReader log(path);
     int64_t first = -1;
@@ -274,7 +275,9 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
       ++events;
       if (first < 0) first = log.timestamp;
       if (log.channel != image_ch) continue;
-      longest_s = std::max(longest_s, static_cast<double>(log.timestamp - first) / 1e6);
+      const double at_s = static_cast<double>(log.timestamp - first) / 1e6;
+      images_from_s = std::min(images_from_s, at_s);
+      images_to_s = std::max(images_to_s, at_s);
       if (!span.holds(first, log.timestamp)) {
         ++outside;
         continue;
@@ -327,11 +330,13 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
                  lists.size() - imaged.size(), lists.size());
   if (events == 0) std::fprintf(stderr, "ld-view: the logs hold no message: nothing to draw\n");
   else if (images == 0 && outside > 0 && !g_stop)
-    std::fprintf(stderr, "ld-view: no image from %s after its log's first message (the images span %.3f s)\n",
+    std::fprintf(stderr,
+                 "ld-view: no image from %s after its log's first message (the images lie %.3f to %.3f s after "
+                 "their log's first)\n",
                  (std::isfinite(span.to_s) ? cv::format("%g to %g s", span.from_s, span.to_s)
                                            : cv::format("%g s on", span.from_s))
                      .c_str(),
-                 longest_s);
+                 images_from_s, images_to_s);
   else if (images == 0 && !g_stop)
     std::fprintf(stderr, "ld-view: no images on %s in the logs (their channels: %s): frames are drawn on their "
                          "images (give the image log too: --log images.lcmlog --log run.lcmlog, or --image CHANNEL)\n",

@@ -59,11 +59,16 @@ void drawLabel(cv::Mat& bgr, const std::string& text, cv::Point2f at, const cv::
   const double scale = 0.45 * thick;
   int baseline = 0;
   const cv::Size size = cv::getTextSize(text, cv::FONT_HERSHEY_SIMPLEX, scale, thick, &baseline);
-  const int margin = 2 * thick;
-  // (inside the image where it fits: a label by a corner near the right
-  // edge ran off it)
-  const int x = std::clamp(cvRound(at.x), margin, std::max(margin, bgr.cols - size.width - margin));
-  const int y = std::clamp(cvRound(at.y), size.height + margin, std::max(size.height + margin, bgr.rows - margin));
+  // (inside the image where it fits, its outline and the letters below the
+  // line included: a label by a corner near the right edge ran off it)
+  const int margin = 3 * thick + 1;  // (the outline is drawn 3 * thick wide)
+  const auto place = [](double v, int lo, int hi) {
+    if (!std::isfinite(v)) return lo;
+    return static_cast<int>(std::clamp(std::round(v), static_cast<double>(lo), static_cast<double>(std::max(lo, hi))));
+  };
+  const int x = place(at.x, margin, bgr.cols - size.width - margin);
+  // (brackets rise above the height getTextSize gives: a quarter more)
+  const int y = place(at.y, size.height + size.height / 4 + margin, bgr.rows - baseline - margin);
   cv::putText(bgr, text, {x, y}, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(0, 0, 0), 3 * thick, cv::LINE_AA);
   cv::putText(bgr, text, {x, y}, cv::FONT_HERSHEY_SIMPLEX, scale, colour, thick, cv::LINE_AA);
 }

@@ -528,16 +528,28 @@ int main(int argc, char** argv) {
       previous = reader.timestamp;
     }
     log_damage = reader.problem();
-    // (a log without images, ld-run's own recording of the outputs, say,
-    // replayed for the whole of its length before the run said so)
-    if (log_images == 0) {
+    // Nothing the replay plays (by default the image channel alone): a log
+    // without images, ld-run's own recording of the outputs, say, was
+    // replayed for the whole of its length before the run said so. (The
+    // config's source.channels plays other channels too, its lists to the
+    // tracker alone, say: checked against that, as lcm-logplayer reads it.)
+    int64_t played = log_images;
+    if (!cfg.replay_channels.empty()) {
+      played = 0;
+      for (const auto& [name, n] : log_channels) played += ld::channelPatternTakes(cfg.replay_channels, name) ? n : 0;
+    }
+    if (played == 0) {
       const std::string channels = ld::describeChannels(log_channels);
-      std::cerr << "ld-run: replay log " << cfg.log << " holds no message on " << cfg.channels.image
+      std::cerr << "ld-run: replay log " << cfg.log << " holds no message "
+                << (cfg.replay_channels.empty() ? "on " + cfg.channels.image
+                                                : "on a channel source.channels " + cfg.replay_channels + " plays")
                 << (channels.empty() ? "" : " (its channels: " + channels + ")")
-                << (log_damage.empty() ? "" : " before its damage (" + log_damage + ")")
-                << ": nothing for the set to work on; replay the log the images are in (a recording of the "
-                   "set's outputs holds none unless record.channels takes them), or name their channel with the "
-                   "config's channels.image\n";
+                << (log_damage.empty() ? "" : "; " + log_damage)
+                << (cfg.replay_channels.empty()
+                        ? ": nothing for the set to work on; replay the log the images are in (a recording of the "
+                          "set's outputs holds none unless record.channels takes them), or name their channel "
+                          "with the config's channels.image\n"
+                        : ": nothing to replay\n");
       return 2;
     }
     if (gap / cfg.speed > kLongReplayGapUs) {

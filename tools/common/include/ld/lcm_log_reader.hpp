@@ -48,8 +48,11 @@ struct LogSpan {
   double from_s = 0, to_s = std::numeric_limits<double>::infinity();
   bool limited() const { return from_s > 0 || std::isfinite(to_s); }
   /// Whether a message logged at `timestamp` (us) lies in the span of a log
-  /// whose first message was logged at `first`.
+  /// whose first message was logged at `first`: any, where no span is given
+  /// (one logged before the first, a clock set back or two logs appended,
+  /// was dropped); with a span, one logged before the first is outside it.
   bool holds(int64_t first, int64_t timestamp) const {
+    if (!limited()) return true;
     const double s = static_cast<double>(timestamp - first) / 1e6;
     return s >= from_s && s <= to_s;
   }
