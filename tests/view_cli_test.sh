@@ -108,6 +108,7 @@ env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --fr
 rc=0; env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --from 3 --out "$T/span2" 2>"$T/err" || rc=$?
 [ $rc -eq 1 ] && grep -q "^ld-view: no image from 3 s on after its log's first message (the images lie 0.000 to 0.200 s after their log's first)$" "$T/err" ||
   fail "--from past the end: exit $rc, $(cat "$T/err")"
+[ ! -e "$T/span2" ] || fail "a run that drew nothing left its --out folder behind"
 refused "--to 0.1 is before --from 0.2" \
   env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --log "$T/in.lcmlog" --all --from 0.2 --to 0.1 --out "$T/span3"
 refused "--from and --to are for --log" env -u DISPLAY -u WAYLAND_DISPLAY "$BIN/ld-view" --from 1 --out "$T/span4"

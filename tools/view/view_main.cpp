@@ -524,6 +524,7 @@ int main(int argc, char** argv) {
   std::string url = ld::defaultLcmUrl(), image_ch = "IMAGE", tracked_ch = "LANDMARKS_TRACKED",
               codes_ch = "LANDMARK_CODES", camera_file;
   bool all_frames = false, force_window = false;
+  bool out_made = false;  // (--out's folder made by this run)
   Options o;
   app.add_option("--log", logs, "read these LCM logs instead of the bus (images, tracks and codes "
                                 "may be in different logs; repeatable)");
@@ -627,6 +628,8 @@ int main(int argc, char** argv) {
                 << "): they would be written over; give an empty or new folder\n";
       return 2;
     }
+    std::error_code exists_ec;
+    out_made = !std::filesystem::exists(o.out_dir, exists_ec);
     const std::string problem = ld::prepareOutputFolder(o.out_dir);
     if (!problem.empty()) {
       std::cerr << "ld-view: --out " << o.out_dir << ": " << problem << "\n";
@@ -648,7 +651,14 @@ int main(int argc, char** argv) {
   }
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
-  if (!logs.empty()) return viewLogs(logs, image_ch, tracked_ch, codes_ch, all_frames, span, o);
+  // (a folder it made and wrote nothing in is removed: a run that drew
+  // nothing left an empty folder behind)
+  const auto tidy = [&](int status) {
+    std::error_code ec;
+    if (out_made && std::filesystem::is_empty(o.out_dir, ec) && !ec) std::filesystem::remove(o.out_dir, ec);
+    return status;
+  };
+  if (!logs.empty()) return tidy(viewLogs(logs, image_ch, tracked_ch, codes_ch, all_frames, span, o));
 
   if (!ld::lcmUrlUsable(url, "ld-view")) return 2;
   lcm::LCM lcm(url);
@@ -658,7 +668,7 @@ int main(int argc, char** argv) {
   live.queues[1] = ld::QueueFit(lcm.subscribe(tracked_ch, &Live::onTracked, &live));
   live.queues[2] = ld::QueueFit(lcm.subscribe(codes_ch, &Live::onCodes, &live));
   while (!g_stop) {
-    if (!ld::pumpLcm(lcm, 200, g_stop, "ld-view")) return 1;
+    if (!ld::pumpLcm(lcm, 200, g_stop, "ld-view")) return tidy(1);
     live.drawPending();
   }
   live.finish();
@@ -666,5 +676,5 @@ int main(int argc, char** argv) {
   if (live.skipped() > 0) more += ", " + std::to_string(live.skipped()) + " skipped (drawing was slower than the camera)";
   if (live.bad() > 0) more += ", " + std::to_string(live.bad()) + " bad";
   std::fprintf(stderr, "ld-view: %lld frames drawn%s\n", static_cast<long long>(live.frames()), more.c_str());
-  return live.failed() ? 1 : 0;
+  return tidy(live.failed() ? 1 : 0);
 }
