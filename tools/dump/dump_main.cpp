@@ -158,13 +158,7 @@ int main(int argc, char** argv) {
     return ld::cli::usage(argv[0], "--lcm-url is for --live (logs are read from their files)");
   if (live && span.limited())
     return ld::cli::usage(argv[0], "--from and --to are for logs (seconds after a log's first message)");
-  const auto seconds = [](double v) {
-    char b[32];
-    std::snprintf(b, sizeof b, "%g", v);
-    return std::string(b);
-  };
-  if (span.to_s < span.from_s)
-    return ld::cli::usage(argv[0], "--to " + seconds(span.to_s) + " is before --from " + seconds(span.from_s));
+  if (const std::string problem = span.problem(); !problem.empty()) return ld::cli::usage(argv[0], problem);
   if (live) {
     if (!ld::lcmUrlUsable(url, "ld-dump")) return 2;
     lcm::LCM lcm(url);
@@ -230,11 +224,10 @@ int main(int argc, char** argv) {
   const bool some_channel_wanted =
       std::any_of(seen_channels.begin(), seen_channels.end(), [&](const std::string& c) { return printer.wanted(c); });
   if (span.limited() && printed == 0 && some_channel_wanted) {
-    std::cerr << "ld-dump: note: no message" << (channels.empty() ? "" : " of the channels asked for")
-              << " from " << seconds(span.from_s)
-              << (std::isfinite(span.to_s) ? " to " + seconds(span.to_s) + " s" : " s on")
-              << " after a log's first (the longest log spans " << seconds(std::round(longest_s * 1000) / 1000)
-              << " s)\n";
+    char longest[32];
+    std::snprintf(longest, sizeof longest, "%g", std::round(longest_s * 1000) / 1000);
+    std::cerr << "ld-dump: note: no message" << (channels.empty() ? "" : " of the channels asked for") << " "
+              << span.text() << " after a log's first (the longest log spans " << longest << " s)\n";
   } else if (!channels.empty() && printed == 0 && !seen_channels.empty() && !some_channel_wanted) {
     std::string names;
     for (const auto& c : seen_channels) names += (names.empty() ? "" : ", ") + c;

@@ -264,7 +264,7 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
   std::map<int64_t, std::string> payloads;  // what was known up to the frame drawn
   ld::image_t img;
   cv::Mat bgr;
-  int64_t images = 0, matched = 0, events = 0;
+  int64_t images = 0, events = 0;
   std::set<Key> imaged;  // (the listed frames whose image came)
   int64_t outside = 0;  // images outside --from/--to
   double images_from_s = std::numeric_limits<double>::infinity(), images_to_s = -images_from_s;
@@ -296,7 +296,6 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
       const Key key{img.utime, ld::imageSeq(img).value_or(-1)};
       const auto l = lists.find(key);
       if (l == lists.end() && !all_frames) continue;
-      matched += l != lists.end();
       if (l != lists.end()) imaged.insert(key);
       const auto c = codes.find(key);
       if (c != codes.end()) ld::takeCodes(c->second, payloads);
@@ -331,17 +330,14 @@ int viewLogs(const std::vector<std::string>& logs, const std::string& image_ch, 
   if (events == 0) std::fprintf(stderr, "ld-view: the logs hold no message: nothing to draw\n");
   else if (images == 0 && outside > 0 && !g_stop)
     std::fprintf(stderr,
-                 "ld-view: no image from %s after its log's first message (the images lie %.3f to %.3f s after "
+                 "ld-view: no image %s after its log's first message (the images lie %.3f to %.3f s after "
                  "their log's first)\n",
-                 (std::isfinite(span.to_s) ? cv::format("%g to %g s", span.from_s, span.to_s)
-                                           : cv::format("%g s on", span.from_s))
-                     .c_str(),
-                 images_from_s, images_to_s);
+                 span.text().c_str(), images_from_s, images_to_s);
   else if (images == 0 && !g_stop)
     std::fprintf(stderr, "ld-view: no images on %s in the logs (their channels: %s): frames are drawn on their "
                          "images (give the image log too: --log images.lcmlog --log run.lcmlog, or --image CHANNEL)\n",
                  image_ch.c_str(), ld::describeChannels(log_channels).c_str());
-  if (sink.count() == 0 && images > 0 && matched == 0 && !all_frames)
+  if (sink.count() == 0 && images > 0 && imaged.empty() && !all_frames)
     std::fprintf(stderr, "ld-view: %s; --all draws every image\n",
                  lists.empty() ? ("no tracked lists on " + tracked_ch + " (the logs' channels: " +
                                   ld::describeChannels(log_channels) + ")")
@@ -568,11 +564,7 @@ int main(int argc, char** argv) {
     return ld::cli::usage(argv[0], "--all is for --log (live, every frame with a tracked list is drawn)");
   if (logs.empty() && span.limited())
     return ld::cli::usage(argv[0], "--from and --to are for --log (seconds after a log's first message)");
-  if (span.to_s < span.from_s) {
-    char b[96];
-    std::snprintf(b, sizeof b, "--to %g is before --from %g", span.to_s, span.from_s);
-    return ld::cli::usage(argv[0], b);
-  }
+  if (const std::string problem = span.problem(); !problem.empty()) return ld::cli::usage(argv[0], problem);
   if (!logs.empty() && app.count("--lcm-url"))
     return ld::cli::usage(argv[0], "--lcm-url is for live viewing (--log reads its files)");
   if (!o.video.empty() && !ld::hasExtension(o.video, ".avi"))

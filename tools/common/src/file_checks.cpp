@@ -296,11 +296,24 @@ std::string readImageFile(const std::string& path, cv::Mat& out) {
   return said.empty() ? "cannot read as an image" : "cannot read as an image (" + said + ")";
 }
 
-std::string prepareLogOutputFile(const std::string& path) {
+namespace {
+// prepareOutputFile for a file of one kind: why it cannot be written, or ""
+// with `existing` set where a file is already there whose kind the caller
+// checks before writing over it.
+std::string prepareKindOutputFile(const std::string& path, bool& existing) {
+  existing = false;
   if (std::string problem = prepareOutputFile(path); !problem.empty()) return problem;
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) return "";
   if (!std::filesystem::is_regular_file(path, ec)) return "is not a file (a device, a pipe?): not written over";
+  existing = true;
+  return "";
+}
+}  // namespace
+
+std::string prepareLogOutputFile(const std::string& path) {
+  bool existing = false;
+  if (std::string problem = prepareKindOutputFile(path, existing); !problem.empty() || !existing) return problem;
   const LcmLogCheck check = checkLcmLogStart(path);
   if (check.start == LcmLogStart::NotALog) return check.problem + ": not written over";
   if (check.start == LcmLogStart::Unreadable) return check.problem;
@@ -308,10 +321,8 @@ std::string prepareLogOutputFile(const std::string& path) {
 }
 
 std::string prepareVideoOutputFile(const std::string& path) {
-  if (std::string problem = prepareOutputFile(path); !problem.empty()) return problem;
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) return "";
-  if (!std::filesystem::is_regular_file(path, ec)) return "is not a file (a device, a pipe?): not written over";
+  bool existing = false;
+  if (std::string problem = prepareKindOutputFile(path, existing); !problem.empty() || !existing) return problem;
   std::ifstream f(path, std::ios::binary);
   unsigned char head[12] = {0};
   f.read(reinterpret_cast<char*>(head), sizeof head);
@@ -322,10 +333,8 @@ std::string prepareVideoOutputFile(const std::string& path) {
 }
 
 std::string prepareJsonOutputFile(const std::string& path) {
-  if (std::string problem = prepareOutputFile(path); !problem.empty()) return problem;
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) return "";
-  if (!std::filesystem::is_regular_file(path, ec)) return "is not a file (a device, a pipe?): not written over";
+  bool existing = false;
+  if (std::string problem = prepareKindOutputFile(path, existing); !problem.empty() || !existing) return problem;
   std::ifstream f(path, std::ios::binary);
   char head[256] = {0};
   f.read(head, sizeof head);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 
 #include "ld/file_checks.hpp"
@@ -109,6 +110,22 @@ bool LcmLogReader::fail(const std::string& what, const std::string& detail) {
   end_problem_ = what + " after " + std::to_string(messages_) + (messages_ == 1 ? " message" : " messages") + " (" +
                  detail + ")";
   return false;
+}
+
+namespace {
+std::string shortNumber(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
+}
+}  // namespace
+
+std::string LogSpan::problem() const {
+  return to_s < from_s ? "--to " + shortNumber(to_s) + " is before --from " + shortNumber(from_s) : "";
+}
+
+std::string LogSpan::text() const {
+  return "from " + shortNumber(from_s) + (std::isfinite(to_s) ? " to " + shortNumber(to_s) + " s" : " s on");
 }
 
 std::string describeChannels(const ChannelCounts& counts) {

@@ -56,6 +56,11 @@ struct LogSpan {
     const double s = static_cast<double>(timestamp - first) / 1e6;
     return s >= from_s && s <= to_s;
   }
+  /// "--to 0.1 is before --from 0.3" for a span that ends before it starts;
+  /// "" otherwise.
+  std::string problem() const;
+  /// "from 12 to 12.5 s", or "from 3 s on" without an end: for a note.
+  std::string text() const;
 };
 
 /// Messages a channel, as a log's readers count them to name its channels.
