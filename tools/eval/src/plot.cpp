@@ -106,11 +106,11 @@ cv::Mat drawRatePlot(const std::string& title, const std::string& xlabel, const 
       if (hidden < hidden_least) hidden_least = hidden, box = at;
     }
     // (below, in as many columns as fit side by side, up to three)
-    int columns = 1;
+    const int n = static_cast<int>(series.size());
+    int columns = 1, rows = n;
     if (hidden_least > 0) {
-      const int n = static_cast<int>(series.size());
       columns = std::clamp((W - L - R) / box_size.width, 1, std::min(3, n));
-      const int rows = (n + columns - 1) / columns;
+      rows = (n + columns - 1) / columns;
       columns = (n + rows - 1) / rows;  // (4 in 3 columns fill two rows of 2: no empty third)
       const cv::Size below(box_size.width * columns, 22 * rows + 6);
       cv::copyMakeBorder(img, img, 0, below.height + 10, 0, 0, cv::BORDER_CONSTANT, cv::Scalar(255, 255, 255));
@@ -118,7 +118,6 @@ cv::Mat drawRatePlot(const std::string& title, const std::string& xlabel, const 
     }
     cv::rectangle(img, box, cv::Scalar(255, 255, 255), cv::FILLED);
     cv::rectangle(img, box, cv::Scalar(200, 200, 200), 1);
-    const int rows = (static_cast<int>(series.size()) + columns - 1) / columns;
     for (size_t i = 0; i < series.size(); ++i) {
       const cv::Scalar c = colours[i % 6];
       const int row = static_cast<int>(i) % rows, column = static_cast<int>(i) / rows;
