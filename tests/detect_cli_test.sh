@@ -66,6 +66,41 @@ printf '%%YAML:1.0\n---\nimage_width: 1280\nimage_height: 720\ncamera_matrix: !!
 [ "$(grep -c '"landmarks":\[{' "$T/out")" -eq 2 ] && ! grep -q '"pose"' "$T/out" || fail "wide calibration, output: $(cat "$T/out")"
 [ "$(grep -c 'calibration is for 1280x720 images and this frame is 640x480' "$T/err")" -eq 1 ] ||
   fail "wide calibration, stderr: $(cat "$T/err")"
+# A phone's portrait photo: stored landscape as the sensor took it, with an
+# Exif orientation (6: turn a quarter clockwise). ld-detect reads it turned
+# (as OpenCV does) and turns the sensor's landscape calibration with it: the
+# pose is the stored frame's, turned (x' = -y, y' = x). It was refused as a
+# calibration of another aspect ratio.
+"$BIN/ld-synth" scene --out "$T/phone" --seed 4 --count 1 --resolution 1280x720 --distance 0.9 --x 0.1 --y -0.05 \
+  --yaw 20 --lighting normal --degrade none --jpg --write-camera "$T/phone.yaml" >/dev/null
+python3 - "$T/phone/000000.jpg" "$T/phone/turned.jpg" <<'PY'
+import struct, sys
+jpeg = open(sys.argv[1], 'rb').read()
+assert jpeg[:2] == b'\xff\xd8'
+ifd = b'II*\x00' + struct.pack('<IH', 8, 1) + struct.pack('<HHIHH', 0x0112, 3, 1, 6, 0) + struct.pack('<I', 0)
+app1 = b'Exif\x00\x00' + ifd
+open(sys.argv[2], 'wb').write(jpeg[:2] + b'\xff\xe1' + struct.pack('>H', len(app1) + 2) + app1 + jpeg[2:])
+PY
+"$BIN/ld-detect" --camera "$T/phone.yaml" --size 0.15 "$T/phone/000000.jpg" "$T/phone/turned.jpg" >"$T/out" 2>"$T/err" ||
+  fail "Exif-turned photo: exit $?: $(cat "$T/err")"
+[ ! -s "$T/err" ] || fail "Exif-turned photo, stderr: $(cat "$T/err")"
+python3 - "$T/out" <<'PY' || fail "Exif-turned photo: $(cat "$T/out")"
+import json, sys
+stored, turned = [json.loads(l) for l in open(sys.argv[1])]
+assert (stored['width'], stored['height']) == (1280, 720) and (turned['width'], turned['height']) == (720, 1280), (stored, turned)
+a, b = stored['landmarks'][0]['pose']['t'], turned['landmarks'][0]['pose']['t']
+want = [-a[1], a[0], a[2]]
+assert all(abs(x - y) < 0.005 for x, y in zip(b, want)), (a, b)
+assert abs(a[2] - 0.9) < 0.05, a
+PY
+# Grey images (a monochrome camera's): no landmark can be in them, and that
+# is said for the first and counted at the end (nothing was said, even by
+# --explain). A colour frame beside them says nothing.
+mkdir "$T/grey"
+for n in 1 2; do { printf 'P5\n64 48\n255\n'; head -c 3072 /dev/urandom; } >"$T/grey/g$n.pgm"; done
+"$BIN/ld-detect" "$T/grey" "$T/s/000000.png" >"$T/out" 2>"$T/err" || fail "grey images: exit $?: $(cat "$T/err")"
+[ "$(cat "$T/err")" = "ld-detect: $T/grey/g1.pgm: a grey image (no colour in it): landmarks are found by their blue and red squares, so none can be found in it
+ld-detect: 2 grey images in all: no landmark can be found in them" ] || fail "grey images, stderr: $(cat "$T/err")"
 # Bytes that are not UTF-8, in a file's name or in a QR's payload, come out
 # as U+FFFD in the JSON; the run goes on.
 set +e; "$BIN/ld-detect" "$T/s/000000.png" "$T/s/nope"$'\xe9'".png" "$T/s/000001.png" >"$T/out" 2>"$T/err"; rc=$?; set -e

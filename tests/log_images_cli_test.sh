@@ -39,6 +39,31 @@ grep -q "note: $T/cut.avi says it holds 10 frames and [1-9] could be read (a fil
   fail "cut video, no note: $(cat "$T/err")"
 "$BIN/ld-log-images" "$T/t.avi" "$T/whole.lcmlog" >"$T/out" 2>"$T/err" || fail "whole video"
 grep -q "wrote 10 frames" "$T/out" && ! grep -q "note:" "$T/err" || fail "whole video: $(cat "$T/out") $(cat "$T/err")"
+# A video is stamped by its own clock (a 10 frames/s video was stamped at
+# 30): frames 100 ms apart; --fps overrides it.
+"$BIN/ld-view" --log "$T/t.lcmlog" --all --video "$T/t10.avi" --fps 10 >/dev/null 2>&1 || fail "ld-view --video --fps 10"
+"$BIN/ld-log-images" "$T/t10.avi" "$T/t10.lcmlog" --start-utime 1000000 >"$T/out" 2>"$T/err" || fail "10 fps video"
+grep -q "wrote 10 frames to $T/t10.lcmlog (mjpeg, the video's own timestamps, 10 fps)" "$T/out" ||
+  fail "10 fps video: $(cat "$T/out") $(cat "$T/err")"
+[ "$("$BIN/ld-dump" "$T/t10.lcmlog" -c IMAGE | grep -o '"utime":[0-9]*' | tr '\n' ' ')" = \
+  '"utime":1000000 "utime":1100000 "utime":1200000 "utime":1300000 "utime":1400000 "utime":1500000 "utime":1600000 "utime":1700000 "utime":1800000 "utime":1900000 ' ] ||
+  fail "10 fps video, utimes: $("$BIN/ld-dump" "$T/t10.lcmlog" -c IMAGE | grep -o '"utime":[0-9]*' | tr '\n' ' ')"
+"$BIN/ld-log-images" "$T/t10.avi" "$T/t25.lcmlog" --start-utime 1000000 --fps 25 >"$T/out" || fail "--fps 25"
+grep -q "(mjpeg, 25 fps)" "$T/out" && "$BIN/ld-dump" "$T/t25.lcmlog" -c IMAGE | grep -q '"utime":1040000' ||
+  fail "--fps 25: $(cat "$T/out")"
+# Files of image kinds OpenCV does not read (a phone's HEIC) are named in a
+# note (they were passed over without a word); a HEIC given alone is named.
+mkdir "$T/phone"; cp "$T/f/000000.png" "$T/phone/IMG_0002.png"
+printf '\0\0\0\030ftypheic\0\0\0\0mif1heic' >"$T/phone/IMG_0001.HEIC"
+"$BIN/ld-log-images" "$T/phone" "$T/phone.lcmlog" >"$T/out" 2>"$T/err" || fail "HEIC beside a PNG: $(cat "$T/err")"
+grep -q "wrote 1 frame" "$T/out" && grep -q "note: $T/phone: 1 file of image kinds OpenCV does not read (HEIC/HEIF, AVIF, GIF, camera raw) left out (IMG_0001.HEIC): convert them to JPEG or PNG" "$T/err" ||
+  fail "HEIC beside a PNG: $(cat "$T/out" "$T/err")"
+set +e; "$BIN/ld-detect" "$T/phone/IMG_0001.HEIC" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 1 ] && grep -q "IMG_0001.HEIC: cannot read as an image: it is a HEIF/HEIC image (a phone's), which OpenCV does not read: convert it to JPEG or PNG" "$T/err" ||
+  fail "HEIC alone: exit $rc, $(cat "$T/err")"
+: >"$T/phone/empty.png"
+set +e; "$BIN/ld-detect" "$T/phone/empty.png" >/dev/null 2>"$T/err"; rc=$?; set -e
+[ $rc -eq 1 ] && grep -q "empty.png: is empty (0 bytes: a copy or a download that failed?)" "$T/err" || fail "empty file: $(cat "$T/err")"
 # An odd width in YUYV (pixels in pairs): cropped by one column, said once.
 "$BIN/ld-synth" scene --out "$T/odd" --count 2 --resolution 59x45 >/dev/null
 "$BIN/ld-log-images" "$T/odd" "$T/odd.lcmlog" --format yuyv >/dev/null 2>"$T/err" || fail "odd width: $(cat "$T/err")"

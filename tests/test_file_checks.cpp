@@ -114,6 +114,71 @@ TEST(ReadImageFile, JpegIsOpenCvsImageDecodedOnceOrTwice) {
   expectOpenCvImage("misnamed.jpg", misnamed, {frame.rows, frame.cols});
 }
 
+// How the Exif orientation turned the image, from the stored pixels: ld-detect
+// turns a calibration of the photos as stored with it (a phone's portrait
+// photo). Orientations 2-8: mirrored, 180, mirrored upside down, transposed,
+// a quarter clockwise, transverse, a quarter anticlockwise.
+TEST(ReadImageFile, SaysHowTheExifOrientationTurnedTheImage) {
+  const cv::Mat frame = testFrame();
+  const std::vector<uint8_t> plain = encode(frame, {cv::IMWRITE_JPEG_QUALITY, 85});
+  const struct {
+    int quarter_turns_cw;
+    bool mirrored;
+  } want[9] = {{}, {0, false}, {0, true}, {2, false}, {2, true}, {3, true}, {1, false}, {1, true}, {3, false}};
+  for (uint16_t o = 1; o <= 8; ++o) {
+    SCOPED_TRACE("orientation " + std::to_string(o));
+    cv::Mat read;
+    ld::ImageTurn turn;
+    turn.quarter_turns_cw = 7;
+    ASSERT_EQ(ld::readImageFile(writeFile("o" + std::to_string(o) + ".jpg", withExifOrientation(plain, o)), read, turn),
+              "");
+    EXPECT_EQ(turn.quarter_turns_cw, want[o].quarter_turns_cw);
+    EXPECT_EQ(turn.mirrored, want[o].mirrored);
+    EXPECT_EQ(turn.any(), o != 1);
+    EXPECT_EQ(turn.stored, frame.size());
+    EXPECT_EQ(read.size(), want[o].quarter_turns_cw % 2 ? cv::Size(frame.rows, frame.cols) : frame.size());
+  }
+  // not turned: a JPEG without Exif, a PNG
+  cv::Mat read;
+  ld::ImageTurn turn;
+  ASSERT_EQ(ld::readImageFile(writeFile("plain.jpg", plain), read, turn), "");
+  EXPECT_FALSE(turn.any());
+  EXPECT_EQ(turn.stored, frame.size());
+  std::vector<uint8_t> png;
+  ASSERT_TRUE(cv::imencode(".png", frame, png));
+  ASSERT_EQ(ld::readImageFile(writeFile("plain.png", png), read, turn), "");
+  EXPECT_FALSE(turn.any());
+  EXPECT_EQ(turn.stored, frame.size());
+}
+
+// A folder's images, in name order, by their names' extensions in any case;
+// files of image kinds OpenCV does not read (a phone's HEIC) named apart, so
+// that they are said; other files and folders passed over; a folder that
+// cannot be listed says why (ld-log-images said "no image files in" it).
+TEST(ListImageFolder, ImagesInOrderAndUnreadKindsApart) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::path(testing::TempDir()) / "list_image_folder";
+  fs::remove_all(dir);
+  fs::create_directories(dir / "sub.png");
+  for (const char* name : {"b.PNG", "a.jpg", "c.JFIF", "d.pnm", "IMG_0001.HEIC", "e.gif", "truth.jsonl", "f.dng"})
+    std::ofstream(dir / name) << "x";
+  std::vector<std::string> files, unread;
+  ASSERT_EQ(ld::listImageFolder(dir.string(), files, unread), "");
+  EXPECT_EQ(files, (std::vector<std::string>{(dir / "a.jpg").string(), (dir / "b.PNG").string(),
+                                             (dir / "c.JFIF").string(), (dir / "d.pnm").string()}));
+  EXPECT_EQ(unread, (std::vector<std::string>{"IMG_0001.HEIC", "e.gif", "f.dng"}));
+  EXPECT_EQ(ld::describeUnreadImages(unread),
+            "3 files of image kinds OpenCV does not read (HEIC/HEIF, AVIF, GIF, camera raw) left out (IMG_0001.HEIC, "
+            "e.gif, f.dng): convert them to JPEG or PNG");
+  EXPECT_EQ(ld::describeUnreadImages({}), "");
+  EXPECT_NE(ld::listImageFolder((dir / "a.jpg").string(), files, unread), "");  // (not a folder)
+  EXPECT_NE(ld::listImageFolder((dir / "none").string(), files, unread).find("No such file"), std::string::npos);
+  EXPECT_TRUE(ld::isImageFileName("x/Y.TIFF"));
+  EXPECT_FALSE(ld::isImageFileName("x/y.heic"));
+  EXPECT_EQ(ld::imageFileExtensions().rfind(".png, .jpg, .jpeg", 0), 0u);
+  fs::remove_all(dir);
+}
+
 TEST(ReadImageFile, JpegHeadersThatAreNotOneGoToOpenCv) {
   // no scan, or bytes that are no JPEG: not taken as read
   const std::vector<uint8_t> plain = encode(testFrame());

@@ -363,14 +363,14 @@ TEST(GlesAuto, TimesBothThenKeepsTheFasterWithTheSameLandmarks) {
     if (k.blur) p.blur_kernel = k.blur;
     ld::Detector cpu(p);
     p.backend = "auto";
+    const bool unknown_force = *k.force && !forced;
+    if (unknown_force) testing::internal::CaptureStderr();  // (said as the detector is made)
     ld::Detector a(p);
     const std::string name = std::string(k.fe) + (k.blur ? " blur" : "") + (*k.force ? " forced " : "") + k.force;
     ASSERT_STREQ(a.backend(), "gles") << a.backendInfo();
     EXPECT_TRUE(a.choosingBackend()) << name;
     EXPECT_NE(a.backendInfo().find("timing it against the CPU"), std::string::npos) << a.backendInfo();
     std::map<std::string, int> ran_during, ran_after;
-    const bool unknown_force = *k.force && !forced;
-    if (unknown_force) testing::internal::CaptureStderr();
     const int n = 50;  // the paper front end: 10 frames for its shader path, then 24 for the choice
     for (int i = 0; i < n; ++i) {
       const auto& f = frames[static_cast<size_t>(i) % frames.size()];
@@ -410,6 +410,28 @@ TEST(GlesAuto, TimesBothThenKeepsTheFasterWithTheSameLandmarks) {
       const double gpu_ms = std::stod(info.substr(took + 5)), cpu_ms = std::stod(info.substr(against + 8));
       EXPECT_EQ(chosen, cpu_ms <= gpu_ms ? "cpu" : "gles") << info;
     }
+  }
+}
+
+// LD_GLES_AUTO_FORCE=gles where "auto" finds no GPU (here the software
+// renderer alone, which auto does not take): the CPU runs, and the one
+// warning says the variable is ignored (it was dropped without a word). (A
+// value it does not take is said as the detector is made, GPU or none:
+// GlesAuto.TimesBothThenKeepsTheFasterWithTheSameLandmarks.)
+TEST(GlesAuto, ForceWithoutAGpuIsSaidToBeIgnored) {
+  ld::DetectorParams p;
+  p.backend = "auto";
+  {
+    ScopedEnv force("LD_GLES_AUTO_FORCE", "gles");
+    ld::detail::resetBackendWarning();
+    testing::internal::CaptureStderr();
+    ld::Detector a(p);
+    const std::string said = testing::internal::GetCapturedStderr();
+    if (std::string(a.backend()) == "gles") GTEST_SKIP() << "a GPU here: " << a.backendInfo();
+    EXPECT_NE(said.find("running the CPU backend; LD_GLES_AUTO_FORCE=gles is ignored: auto has no GPU to keep"),
+              std::string::npos)
+        << said;
+    EXPECT_EQ(std::count(said.begin(), said.end(), '\n'), 1) << said;
   }
 }
 

@@ -686,6 +686,36 @@ TEST(QrTrackReader, ReadTrackShowingAnotherCodeIsReadAgain) {
   }
 }
 
+// The tracker moved a read track's id to a neighbour less than a size away
+// (every landmark shifted at once between two frames, as in a turn with
+// frames dropped): short of a jump, the payload stayed on the neighbour
+// until the next look, and two tracks published the same payload (a user
+// audit: 2 frames; up to the look interval). A track detected more than half
+// a jump off its path is looked at in that frame: the other code is seen and
+// read at once. Half a jump or less, it waits for its look's time.
+TEST(QrTrackReader, ReadTrackOffItsPathIsLookedAtAtOnce) {
+  const std::array<cv::Point2f, 4> here{{{40, 90}, {340, 90}, {340, 390}, {40, 390}}};
+  for (const float shift : {210.0f, 120.0f}) {  // 0.7 and 0.4 of the sheet's 300 px
+    std::array<cv::Point2f, 4> there = here;
+    for (auto& c : there) c.x += shift;
+    const Scene one = warped(ld::artwork::renderLandmark("room-214/door", 900), here);
+    const Scene two = warped(ld::artwork::renderLandmark("room-215/door", 900), there);
+    const ld::image_t before = ld::matToImage(one.image, ld::image_t::PIXEL_FORMAT_BGR, 0);
+    const ld::image_t after = ld::matToImage(two.image, ld::image_t::PIXEL_FORMAT_BGR, 0);
+    std::ostringstream log;
+    ld::QrTrackReader reader({}, log, true);
+    ld::qr_code_list_t out;
+    int64_t t = 1'000'000;
+    for (int f = 0; f < 3; ++f, t += 33'000)
+      reader.process(before, trackedList(t, f, {tracked(2, f + 1, one.corners)}), out);
+    ASSERT_EQ(codeOf(out, 2), std::optional<std::string>("room-214/door"));
+    reader.process(after, trackedList(t, 3, {tracked(2, 4, two.corners)}), out);
+    EXPECT_EQ(codeOf(out, 2), std::optional<std::string>(shift > 150 ? "room-215/door" : "room-214/door"))
+        << shift << "\n" << log.str();
+    EXPECT_EQ(log.str().find("jumped"), std::string::npos) << log.str();  // (short of a jump)
+  }
+}
+
 // A track read from a far frame (1.3 px a module) has no look; once a frame
 // shows its modules sharply (the robot came closer), it is read again at
 // once and the read takes the look, which then sees a cut at the next look.

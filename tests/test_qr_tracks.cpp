@@ -275,8 +275,11 @@ TEST(QrTrackBook, ReadTrackThatJumpsIsReadAgain) {
   book.record(2, 0, 0, std::string("room-102"));
   EXPECT_EQ(book.follow(1, 10, true, 100, 100, 40), std::nullopt);  // placed
   EXPECT_EQ(book.follow(2, 10, true, 400, 100, 40), std::nullopt);
+  EXPECT_FALSE(book.strayed(1));
   EXPECT_EQ(book.follow(1, 11, true, 130, 100, 40), std::nullopt);  // 30 px in a frame: moving
+  EXPECT_TRUE(book.strayed(1));  // (30 px from where it stood: more than half a jump, looked at)
   EXPECT_EQ(book.follow(1, 14, true, 230, 100, 40), std::nullopt);  // 100 px over 3 frames
+  EXPECT_FALSE(book.strayed(1));  // (10 px from where its motion led)
   EXPECT_EQ(book.follow(1, 13, true, 600, 100, 40), std::nullopt);  // an older frame: no news
   ASSERT_NE(book.payload(1), nullptr);
   EXPECT_EQ(book.payload(1)->payload, "room-101");

@@ -5,8 +5,9 @@
 #include <cstdint>
 #include <cstdio>
 #include <limits>
-#include <vector>
 #include <stdexcept>
+#include <tuple>
+#include <vector>
 
 #include <opencv2/calib3d.hpp>
 
@@ -299,6 +300,40 @@ std::string CameraModel::misfit(cv::Size frame) const {
          " images and this frame is " + std::to_string(frame.width) + "x" + std::to_string(frame.height) +
          ", another aspect ratio (another crop of the sensor, whose intrinsics do not scale): no pose; "
          "calibrate the camera at this resolution";
+}
+
+std::string CameraModel::turned(int quarter_turns_cw, bool mirrored, CameraModel& out) const {
+  // OpenCV's coefficients: k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4 [tx ty]]]]
+  std::vector<double> d;
+  if (!dist.empty()) dist.reshape(1, 1).convertTo(d, CV_64F);
+  if (d.size() > 12 && (d[12] != 0 || d[13] != 0))
+    return "its distortion has a tilted sensor's terms, which do not turn with the image";
+  const int k = ((quarter_turns_cw % 4) + 4) % 4;
+  if (k % 2 && K(0, 1) != 0) return "its camera matrix has skew, which does not turn a quarter with the image";
+  CameraModel c = *this;
+  const auto at = [&](size_t i) -> double& { return d[i]; };
+  // mirrored, u' = W-1-u: x' = -x, y' = y
+  if (mirrored) {
+    c.K(0, 2) = size.width - 1 - c.K(0, 2);
+    c.K(0, 1) = -c.K(0, 1);
+    if (d.size() >= 4) at(3) = -at(3);                  // p2
+    if (d.size() >= 12) at(8) = -at(8), at(9) = -at(9);  // s1, s2
+  }
+  // a quarter clockwise, u' = H-1-v, v' = u: x' = -y, y' = x
+  for (int i = 0; i < k; ++i) {
+    const double fx = c.K(0, 0), fy = c.K(1, 1), cx = c.K(0, 2), cy = c.K(1, 2);
+    c.K(0, 0) = fy;
+    c.K(1, 1) = fx;
+    c.K(0, 2) = c.size.height - 1 - cy;
+    c.K(1, 2) = cx;
+    c.size = cv::Size(c.size.height, c.size.width);
+    if (d.size() >= 4) std::tie(at(2), at(3)) = std::make_tuple(at(3), -at(2));  // p1' = p2, p2' = -p1
+    if (d.size() >= 12)
+      std::tie(at(8), at(9), at(10), at(11)) = std::make_tuple(-at(10), -at(11), at(8), at(9));
+  }
+  if (!dist.empty()) c.dist = cv::Mat(d, true).reshape(1, dist.rows == 1 ? 1 : static_cast<int>(d.size()));
+  out = c;
+  return "";
 }
 
 bool CameraModel::hasDistortion() const {

@@ -562,6 +562,22 @@ void warnBackend(const std::string& what) {
 
 void detail::resetBackendWarning() { g_backend_warned = false; }
 
+namespace {
+// LD_GLES_AUTO_FORCE: "gles", "cpu", or nullptr (unset, empty, or another
+// value, which is said once a process: it was ignored without a word).
+const char* autoForce() {
+  const char* env = std::getenv("LD_GLES_AUTO_FORCE");  // (tests: both outcomes on any machine)
+  if (!env || !*env) return nullptr;
+  if (std::strcmp(env, "cpu") == 0) return "cpu";
+  if (std::strcmp(env, "gles") == 0) return "gles";
+  static std::atomic<bool> said{false};
+  if (!said.exchange(true))
+    std::cerr << program_invocation_short_name << ": warning: LD_GLES_AUTO_FORCE=" << env
+              << " is neither gles nor cpu: ignored (the medians choose)\n";
+  return nullptr;
+}
+}  // namespace
+
 struct Detector::Impl {
   DetectorParams params;
   bool paper = false;
@@ -579,6 +595,7 @@ struct Detector::Impl {
   static constexpr int kChoiceBlock = 4, kChoiceBlocks = 3;
   static constexpr int kChoiceFrames = 2 * kChoiceBlock * kChoiceBlocks;
   std::unique_ptr<detail::Filters> rival;
+  const char* force = nullptr;  // LD_GLES_AUTO_FORCE's choice for "auto" (autoForce)
   cv::Mat rival_labels, rival_edges;  // the CPU's outputs while it is the rival
   int trial = 0;
   std::vector<double> gpu_ms, cpu_ms;
@@ -681,6 +698,7 @@ struct Detector::Impl {
     params.validate();
     paper = params.front_end == "paper";
     filter_settings = detail::FilterSettings::from(params);
+    if (params.backend == "auto") force = autoForce();  // (read as the detector is made)
     if (params.backend != "cpu") {
       std::string why;
       // "auto" takes a GPU, not a software renderer emulating one on the CPU
@@ -691,7 +709,11 @@ struct Detector::Impl {
         if (params.backend == "gles")
           throw BackendUnavailable("GLES backend unavailable: " + why + " (backend \"auto\" falls back to the CPU)");
         fallback_why = why;
-        warnBackend("GLES backend unavailable (" + why + "); running the CPU backend");
+        // (a GPU forced where auto found none was dropped without a word)
+        warnBackend("GLES backend unavailable (" + why + "); running the CPU backend" +
+                    (force && std::strcmp(force, "gles") == 0
+                         ? "; LD_GLES_AUTO_FORCE=gles is ignored: auto has no GPU to keep"
+                         : ""));
       } else if (params.backend == "auto") {
         rival = detail::makeCpuFilters();
       }
@@ -722,16 +744,6 @@ struct Detector::Impl {
       return v[v.size() / 2];
     };
     const double gpu = median(gpu_ms), cpu = median(cpu_ms);
-    const char* env = std::getenv("LD_GLES_AUTO_FORCE");  // (tests: both outcomes on any machine)
-    const bool forced = env && (std::strcmp(env, "cpu") == 0 || std::strcmp(env, "gles") == 0);
-    if (env && *env && !forced) {  // (any other value kept the GPU without a word)
-      static bool said = false;  // (once a process)
-      if (!said)
-        std::cerr << program_invocation_short_name << ": warning: LD_GLES_AUTO_FORCE=" << env
-                  << " is neither gles nor cpu: ignored (the medians choose)\n";
-      said = true;
-    }
-    const char* force = forced ? env : nullptr;
     const bool keep_cpu = force ? std::strcmp(force, "cpu") == 0 : cpu <= gpu;
     char buf[256];
     std::snprintf(buf, sizeof buf,

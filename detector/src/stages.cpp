@@ -858,6 +858,14 @@ constexpr double kShadedPaperOverInk = 1.3;
 // (the adaptive gains lift lit paper and ink alike): there, brighter at all.
 constexpr double kClippedValue = 250;
 
+// The paper's value under `over` times the ink's: a sheet too dark for its
+// squares. Not where both are at the clip, where the sensor tells neither
+// brighter (the artwork's pure blue, #0000FF, on a screen, a scan or its
+// own PNG is as bright as the paper: a sample of 254 against 255 was dark).
+bool darkerThanInk(double paper, double over, double ink) {
+  return paper < over * ink && !(paper >= kClippedValue && ink >= kClippedValue);
+}
+
 // A light that falls off across the sheet (a lamp beside a pillar the
 // landmark is wrapped round, or close to the wall): the samples' brightness
 // `v` at image positions `at` lies on a plane over the image, every sample
@@ -958,7 +966,7 @@ Check sheetLit(const std::array<double, 12>& means, const std::array<double, 12>
   if (!sheetLight(means, p.sheet_uniformity, run_of, runs)) return Check::kSheetUneven;
   if (runs == 0) {
     for (double v : values)
-      if (v < p.sheet_min_value * fip_value) return Check::kSheetDark;
+      if (darkerThanInk(v, p.sheet_min_value, fip_value)) return Check::kSheetDark;
     return Check::kCount;
   }
   bool fip_in_shadow = false;
@@ -970,7 +978,7 @@ Check sheetLit(const std::array<double, 12>& means, const std::array<double, 12>
     fip_in_shadow |= run_of[a] && run_of[b];
     const double paper = (run_of[a] != 0) == (run_of[b] != 0) ? std::min(values[a], values[b]) : std::max(values[a], values[b]);
     const double over = paper >= kClippedValue ? p.sheet_min_value : std::max(p.sheet_min_value, kShadedPaperOverInk);
-    if (paper < over * square_value[i]) return Check::kSheetDark;
+    if (darkerThanInk(paper, over, square_value[i])) return Check::kSheetDark;
   }
   // A shadow over a FIP; with two runs, each over a square (a band across
   // two opposite corners).

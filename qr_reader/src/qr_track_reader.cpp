@@ -123,6 +123,10 @@ void QrTrackReader::process(const image_t& image, const landmark_list_t& list, q
     if (forgotten && verbose_)
       log_ << "ld-qr-reader: track " << lm.track_id << " jumped by more than its landmark's size: \"" << *forgotten
            << "\" is forgotten and the track read again (ids moved?)\n";
+    // (off its path by more than half that: looked at in this frame, not at
+    // the next look's time, in case a neighbour within its size has the id)
+    if (book_.strayed(lm.track_id))
+      if (const auto look = looks_.find(lm.track_id); look != looks_.end()) look->second.checked = INT64_MIN;
   }
   // (a read track whose landmark shows another code is another landmark
   // within the tracker's gate: forgotten and read again, as a jump)

@@ -201,9 +201,12 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
   const double px = t.cx + t.vx * frames, py = t.cy + t.vy * frames;  // where its motion leads
   const double mean_size = 0.5 * (size + t.size);
   bool jumped = false;
+  t.strayed = false;
   if (t.placed && t.known) {
     if (!t.coasted) {
-      jumped = std::hypot(cx - px, cy - py) > frames * mean_size;
+      const double off = std::hypot(cx - px, cy - py), jump = frames * mean_size;
+      jumped = off > jump;
+      t.strayed = !jumped && off > 0.5 * jump;
     } else {
       // Seen coasting, it was found again by the tracker's gate, which a
       // neighbour may be in: it must be within 1.5 sizes of its path from
@@ -212,7 +215,9 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
       // velocity's error over many frames coasted reads as a jump.)
       const double dx = px - t.cx, dy = py - t.cy, len2 = dx * dx + dy * dy;
       const double u = len2 > 0 ? std::clamp(((cx - t.cx) * dx + (cy - t.cy) * dy) / len2, 0.0, 1.0) : 0.0;
-      jumped = std::hypot(cx - (t.cx + u * dx), cy - (t.cy + u * dy)) > 1.5 * mean_size;
+      const double off = std::hypot(cx - (t.cx + u * dx), cy - (t.cy + u * dy)), jump = 1.5 * mean_size;
+      jumped = off > jump;
+      t.strayed = !jumped && off > 0.5 * jump;
     }
   }
   t.coasted = false;
@@ -229,6 +234,11 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
   t.age = age;
   if (!jumped) return std::nullopt;
   return forget(track_id);
+}
+
+bool QrTrackBook::strayed(int64_t track_id) const {
+  const auto it = tracks_.find(track_id);
+  return it != tracks_.end() && it->second.strayed;
 }
 
 void QrTrackBook::readAgain(int64_t track_id) {

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <fstream>
 #include <iostream>
 #include <set>
@@ -32,39 +33,37 @@ namespace {
 // U+FFFD rather than ending the run.
 constexpr auto kReplace = nlohmann::ordered_json::error_handler_t::replace;
 
-// The extensions a folder is searched for, in any case.
-constexpr const char* kImageExtensions[] = {".png", ".jpg", ".jpeg", ".bmp", ".ppm",
-                                            ".pgm", ".pnm", ".tif", ".tiff", ".webp"};
-
-bool isImageFile(const fs::path& p) {
-  std::string ext = p.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  for (const char* e : kImageExtensions)
-    if (ext == e) return true;
-  return false;
+// Whether an 8-bit image has no colour: one channel, or its first three
+// alike in every pixel (a grey JPEG or PNG read as colour).
+bool noColour(const cv::Mat& img) {
+  if (img.channels() == 1) return true;
+  if (img.channels() < 3 || img.depth() != CV_8U) return false;
+  const int n = img.channels();
+  for (int y = 0; y < img.rows; ++y) {
+    const uint8_t* p = img.ptr<uint8_t>(y);
+    for (int x = 0; x < img.cols; ++x, p += n)
+      if (p[0] != p[1] || p[1] != p[2]) return false;
+  }
+  return true;
 }
 
-// Files as given; folders expanded to their image files in name order. The
-// folders that gave none go into `empty`, those that could not be listed
-// into `unlisted` (with why).
+// Files as given; folders expanded to their image files in name order
+// (ld::listImageFolder). The folders that gave none go into `empty`, those
+// that could not be listed into `unlisted` (with why); files of image kinds
+// OpenCV does not read, left out, are said on stderr (HEIC photos were
+// passed over without a word).
 std::vector<std::string> expandInputs(const std::vector<std::string>& inputs, std::vector<std::string>& empty,
                                       std::vector<std::string>& unlisted) {
-  std::vector<std::string> files;
+  std::vector<std::string> files, dir, unread;
   for (const auto& in : inputs) {
     std::error_code ec;
     if (fs::is_directory(in, ec)) {
-      std::vector<std::string> dir;
-      fs::directory_iterator it(in, ec);
-      if (ec) {
-        unlisted.push_back(in + ": " + ec.message());
+      if (const std::string why = ld::listImageFolder(in, dir, unread); !why.empty()) {
+        unlisted.push_back(in + ": " + why);
         continue;
       }
-      for (const auto& e : it)
-        // (a link whose file is gone, or a loop of links, is listed too:
-        // reading it says so; a pipe would block the run, and is said too)
-        if (isImageFile(e.path()) && !e.is_directory(ec)) dir.push_back(e.path().string());
+      if (!unread.empty()) std::cerr << "ld-detect: note: " << in << ": " << ld::describeUnreadImages(unread) << "\n";
       if (dir.empty()) empty.push_back(in);
-      std::sort(dir.begin(), dir.end());
       files.insert(files.end(), dir.begin(), dir.end());
     } else {
       files.push_back(in);
@@ -100,6 +99,10 @@ int main(int argc, char** argv) {
     std::cerr << "ld-detect: " << e.what() << "\n";
     return 2;
   }
+  // (the calibration as given: a photo its Exif orientation turned upright
+  // gets it turned with it where it fits the photo as stored)
+  std::optional<ld::CameraModel> camera;
+  if (!detector_options.camera_file.empty()) camera = ld::CameraModel::load(detector_options.camera_file);
   if ((app.count("--draw") && draw_dir.empty()) || (app.count("--output") && out_file.empty()))
     return ld::cli::usage(argv[0], std::string(draw_dir.empty() && app.count("--draw") ? "--draw" : "--output") +
                                        " needs a path, not \"\"");
@@ -111,10 +114,10 @@ int main(int argc, char** argv) {
     return 2;
   }
   if (files.empty() || !empty_folders.empty()) {  // (a folder without images, even beside others: named)
-    std::string named, extensions;
+    std::string named;
     for (const auto& in : files.empty() ? inputs : empty_folders) named += (named.empty() ? "" : ", ") + in;
-    for (const char* e : kImageExtensions) extensions += (extensions.empty() ? "" : ", ") + std::string(e);
-    std::cerr << "ld-detect: no image files in " << named << " (folders are searched for " << extensions << ")\n";
+    std::cerr << "ld-detect: no image files in " << named << " (folders are searched for "
+              << ld::imageFileExtensions() << ")\n";
     return 2;
   }
   // What it writes must not be what it reads: -o naming an input would
@@ -194,10 +197,12 @@ int main(int argc, char** argv) {
 
   ld::QrReader qr;
   std::vector<ld::Landmark> found;
-  int failed = 0, with_landmarks = 0, total_landmarks = 0, draw_failed = 0;
+  int failed = 0, with_landmarks = 0, total_landmarks = 0, draw_failed = 0, grey = 0;
   bool draw_full = false;  // (an overlay met a full disk)
   std::vector<double> times;
   std::string pose_error;       // the last frame's Detection::pose_error
+  ld::ImageTurn camera_turn;    // how the detector's calibration is turned now
+  std::string turn_refused;     // why the calibration could not turn, said once
   // (one line for a file that failed, and the run goes on)
   const auto fileFailed = [&](const std::string& path, const std::string& why) {
     std::cerr << "ld-detect: " << path << ": " << why << "\n";
@@ -212,14 +217,38 @@ int main(int argc, char** argv) {
       return "out of memory " + doing + " (" + what + ")";
     };
     std::string read_why;
+    ld::ImageTurn turn;
     try {
-      read_why = ld::readImageFile(path, img);
+      read_why = ld::readImageFile(path, img, turn);
     } catch (const std::bad_alloc& e) {
       read_why = outOfMemory("reading it", e.what());
     }
     if (!read_why.empty()) {
       fileFailed(path, read_why);
       continue;
+    }
+    // A phone's portrait photo, stored landscape as the sensor took it and
+    // turned upright by its Exif orientation: the camera's calibration (of
+    // the photos as stored) turned with it, where it fits the photo as
+    // stored and not as turned (pose was refused as another aspect ratio).
+    if (camera) {
+      ld::ImageTurn want;
+      if (turn.any() && !camera->fits(img.size()) && camera->fits(turn.stored)) want = turn;
+      if (want.quarter_turns_cw != camera_turn.quarter_turns_cw || want.mirrored != camera_turn.mirrored) {
+        ld::CameraModel turned = *camera;
+        if (want.any()) {
+          if (const std::string why_not = camera->turned(want.quarter_turns_cw, want.mirrored, turned);
+              !why_not.empty()) {
+            if (why_not != turn_refused)
+              std::cerr << "ld-detect: " << path << ": its Exif orientation turns it, and the camera calibration "
+                        << "cannot be turned with it: " << why_not << "\n";
+            turn_refused = why_not;
+            turned = *camera;
+          }
+        }
+        detector.detector().setCamera(turned, detector_options.side_m);
+        camera_turn = want;
+      }
     }
     ld::Explanation why;
     const auto t0 = std::chrono::steady_clock::now();
@@ -251,6 +280,12 @@ int main(int argc, char** argv) {
       if (!pose_error.empty()) std::cerr << "ld-detect: " << path << ": " << pose_error << "\n";
     }
     found.assign(det.landmarks.begin(), det.landmarks.end());
+    // A grey image (a monochrome camera's, a photo in black and white):
+    // nothing found, and nothing said, even by --explain. Said for the
+    // first, counted at the end.
+    if (found.empty() && noColour(img) && ++grey == 1)
+      std::cerr << "ld-detect: " << path << ": a grey image (no colour in it): landmarks are found by their blue "
+                << "and red squares, so none can be found in it\n";
     if (decode && !step("reading its codes", "cannot read its codes", [&] {
           for (auto& lm : found)
             if (const auto r = qr.decode(img, lm.corners)) lm.payload = r->payload;
@@ -300,6 +335,7 @@ int main(int argc, char** argv) {
       }
     }
   }
+  if (grey > 1) std::cerr << "ld-detect: " << grey << " grey images in all: no landmark can be found in them\n";
   out.flush();
   if (!out) {  // (a full disk: the results are not all there)
     std::cerr << "ld-detect: write to " << (out_file.empty() ? std::string("stdout") : out_file)

@@ -2,6 +2,7 @@
 // on IMAGE, with timestamps at a chosen frame rate, for lcm-logplayer.
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -19,18 +20,6 @@
 
 namespace fs = std::filesystem;
 
-namespace {
-
-bool isImageFile(const fs::path& p) {
-  std::string ext = p.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  for (const char* e : {".png", ".jpg", ".jpeg", ".bmp", ".ppm", ".pgm", ".tif", ".tiff", ".webp"})
-    if (ext == e) return true;
-  return false;
-}
-
-}  // namespace
-
 int main(int argc, char** argv) {
   CLI::App app{"ld-log-images: images or a video as an LCM log of IMAGE messages."};
   std::string input, output, channel = "IMAGE", format = "mjpeg";
@@ -39,8 +28,9 @@ int main(int argc, char** argv) {
   int quality = 90;
   app.add_option("input", input, "image folder (name order), one image, or a video file")->required();
   app.add_option("output", output, "LCM log to write")->required();
-  app.add_option("--fps", fps, "frame rate of the timestamps")->check(ld::cli::Between(0.1, 1000.0))
-      ->capture_default_str();
+  auto* fps_opt = app.add_option("--fps", fps,
+                                 "frame rate of the timestamps (default: a video's own timestamps, images 30)")
+                       ->check(ld::cli::Between(0.1, 1000.0));
   auto* start_opt = app.add_option("--start-utime", start_utime,
                                    "utime of the first frame, whole microseconds since 1970, 0 to 2^62 (default: now)")
       ->check(ld::cli::StartUtime);
@@ -62,14 +52,18 @@ int main(int argc, char** argv) {
   cv::VideoCapture video;
   std::error_code ec;
   if (fs::is_directory(input, ec)) {
-    for (const auto& e : fs::directory_iterator(input, ec))
-      // (a link whose file is gone, a loop of links or a pipe with an
-      // image's name is listed too, and reading it says so: they were
-      // passed over without a word)
-      if (isImageFile(e.path()) && !e.is_directory(ec)) files.push_back(e.path().string());
-    std::sort(files.begin(), files.end());
+    // (a link whose file is gone, a loop of links or a pipe with an image's
+    // name is listed too, and reading it says so: they were passed over
+    // without a word; so are HEIC photos and other kinds OpenCV does not read)
+    std::vector<std::string> unread;
+    if (const std::string why = ld::listImageFolder(input, files, unread); !why.empty()) {
+      std::cerr << "ld-log-images: cannot list the folder " << input << ": " << why << "\n";  // (not "no images")
+      return 2;
+    }
+    if (!unread.empty()) std::cerr << "ld-log-images: note: " << input << ": " << ld::describeUnreadImages(unread) << "\n";
     if (files.empty()) {
-      std::cerr << "ld-log-images: no image files in " << input << "\n";
+      std::cerr << "ld-log-images: no image files in " << input << " (folders are searched for "
+                << ld::imageFileExtensions() << ")\n";
       return 2;
     }
   } else if (!fs::exists(input, ec)) {
@@ -81,7 +75,7 @@ int main(int argc, char** argv) {
     std::cerr << "ld-log-images: " << input << " is an LCM log already (ld-play or lcm-logplayer replays it; "
               << "ld-log-images makes logs of images and videos)\n";
     return 2;
-  } else if (isImageFile(input)) {  // one image: a log of one frame
+  } else if (ld::isImageFileName(input)) {  // one image: a log of one frame
     cv::Mat probe;
     if (const std::string why = ld::readImageFile(input, probe); !why.empty()) {
       std::cerr << "ld-log-images: " << input << ": " << why << "\n";
@@ -108,9 +102,20 @@ int main(int argc, char** argv) {
     std::cerr << "ld-log-images: cannot write " << output << ": " << std::strerror(errno) << "\n";
     return 2;
   }
+  // A video's frames are stamped by its own clock (a 10 frames/s or a
+  // phone's variable-rate video was replayed at 30 frames/s): each frame's
+  // time in it from the first's, where the container gives times that go
+  // forward; else its frame rate; --fps overrides both.
+  bool own_clock = false;
+  if (video.isOpened() && !fps_opt->count()) {
+    own_clock = true;
+    if (const double rate = video.get(cv::CAP_PROP_FPS); rate >= 0.1 && rate <= 1000) fps = rate;
+  }
+  double first_ms = -1, last_ms = -1;  // the video's times of its first and last frames
+  int64_t last_utime = 0;
   std::vector<uint8_t> buf;
   int64_t seq = 0, skipped = 0, unlogged = 0;
-  bool crop_said = false;
+  bool crop_said = false, big_said = false;
   for (size_t i = 0;; ++i) {
     cv::Mat frame;
     if (!files.empty()) {
@@ -144,7 +149,21 @@ int main(int argc, char** argv) {
       crop_said = true;
       frame = frame.colRange(0, frame.cols - 1).clone();
     }
-    const int64_t utime = start_utime + static_cast<int64_t>(std::llround(seq * 1e6 / fps));
+    int64_t utime = start_utime + static_cast<int64_t>(std::llround(seq * 1e6 / fps));
+    if (own_clock) {
+      const double ms = video.get(cv::CAP_PROP_POS_MSEC);
+      if (std::isfinite(ms) && ms >= 0 && (first_ms < 0 || ms > last_ms)) {
+        if (first_ms < 0) first_ms = ms;
+        last_ms = ms;
+        utime = start_utime + static_cast<int64_t>(std::llround((ms - first_ms) * 1e3));
+      } else if (seq > 0) {
+        own_clock = false;  // (no times, or times that do not go forward: its frame rate from here)
+        std::cerr << "ld-log-images: note: " << input << " gives no time that goes forward for frame " << i
+                  << ": stamped at " << fps << " frames/s from there\n";
+      }
+    }
+    if (seq > 0 && utime <= last_utime) utime = last_utime + 1;
+    last_utime = utime;
     ld::image_t msg;
     try {
       msg = ld::matToImage(frame, pixelformat, utime, seq, quality);
@@ -153,6 +172,15 @@ int main(int argc, char** argv) {
       if (why.rfind("matToImage: ", 0) == 0) why.erase(0, 12);
       unloggable(why);
       continue;
+    }
+    // (a raw frame larger than the set's LCM receive buffer, 8 MiB, may be
+    // lost whole on the bus, each time, with nothing said where it is sent)
+    if (!big_said && msg.pixelformat != ld::image_t::PIXEL_FORMAT_MJPEG && msg.size > (8 << 20)) {
+      std::cerr << "ld-log-images: note: " << frame.cols << "x" << frame.rows << " frames are "
+                << (msg.size + (1 << 19)) / (1 << 20) << " MiB each as " << format
+                << ", more than the set's LCM receive buffer (8 MiB): a replay over LCM may lose them "
+                   "(--format mjpeg makes them about a tenth)\n";
+      big_said = true;
     }
     buf.resize(static_cast<size_t>(msg.getEncodedSize()));
     msg.encode(buf.data(), 0, static_cast<int>(buf.size()));
@@ -191,8 +219,10 @@ int main(int argc, char** argv) {
       std::cerr << "ld-log-images: note: " << input << " says it holds " << static_cast<long long>(said)
                 << " frames and " << seq << " could be read (a file cut short or damaged?)\n";
   }
-  std::cout << "wrote " << seq << (seq == 1 ? " frame" : " frames") << " to " << output << " (" << format << ", " << fps
-            << " fps)" << (skipped ? ", " + std::to_string(skipped) + " unreadable skipped" : "")
+  std::cout << "wrote " << seq << (seq == 1 ? " frame" : " frames") << " to " << output << " (" << format << ", "
+            << (own_clock ? "the video's own timestamps, " + cv::format("%.3g", fps) + " fps"
+                          : cv::format("%g", fps) + " fps")
+            << ")" << (skipped ? ", " + std::to_string(skipped) + " unreadable skipped" : "")
             << (unlogged ? ", " + std::to_string(unlogged) + " that could not be logged skipped" : "") << "\n";
   return 0;
 }

@@ -38,6 +38,16 @@ struct CameraModel {
   /// Why frames of `frame` size cannot use it, for people ("" when fits()).
   std::string misfit(cv::Size frame) const;
 
+  /// The same camera for its images turned: mirrored left to right first
+  /// where `mirrored` (u' = width - 1 - u), then turned `quarter_turns_cw`
+  /// quarter turns clockwise, as a JPEG's Exif orientation turns a photo
+  /// upright (a phone's portrait photo is stored as the sensor took it,
+  /// landscape, and turned for people: ld-detect reads it turned, as OpenCV
+  /// does). K, the distortion's tangential and thin-prism terms and the size
+  /// turn with the image. Sets `out` and returns "", or why it cannot
+  /// (a tilted-sensor model, or skew under a quarter turn).
+  std::string turned(int quarter_turns_cw, bool mirrored, CameraModel& out) const;
+
   bool hasDistortion() const;
   /// Why the distortion coefficients cannot be this camera's: a point of the
   /// image taken back to ideal coordinates and distorted again does not come

@@ -156,6 +156,13 @@ class QrTrackBook {
   std::optional<std::string> follow(int64_t track_id, int32_t age, bool visible, double cx, double cy,
                                     double size);
 
+  /// Whether the last follow found the track's known landmark detected more
+  /// than half as far from where its motion led as a jump would be: still
+  /// the same landmark by the rule above, but a neighbour within its size
+  /// may have taken the id (all of them shifted at once, as between frames
+  /// of a turn with frames dropped): its code is looked at again at once.
+  bool strayed(int64_t track_id) const;
+
   /// Makes a read track due for a re-read at once (its payload kept).
   void readAgain(int64_t track_id);
 
@@ -190,6 +197,7 @@ class QrTrackBook {
     int64_t last_frame = 0;  // the schedule call (counted) it was last named in
     bool placed = false;  // where it was last detected (follow)
     bool coasted = false;  // seen coasting since
+    bool strayed = false;  // the last follow: off its path, short of a jump
     double cx = 0, cy = 0, size = 0, vx = 0, vy = 0;  // (velocity in px per tracker frame)
     int32_t age = 0;
   };

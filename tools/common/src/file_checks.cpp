@@ -225,7 +225,100 @@ int64_t aviVideoFrames(const std::string& path) {
   return avi ? frames : -1;
 }
 
+namespace {
+constexpr const char* kImageExtensions[] = {".png", ".jpg", ".jpeg", ".jpe",  ".jfif", ".bmp", ".ppm",
+                                            ".pgm", ".pbm", ".pnm",  ".tif",  ".tiff", ".webp", ".jp2",
+                                            ".hdr", ".pic", ".sr",   ".ras",  ".exr",  ".pfm"};
+// Image kinds OpenCV does not read (Debian's 4.6): said when a folder holds them.
+constexpr const char* kUnreadExtensions[] = {".heic", ".heif", ".hif", ".avif", ".gif", ".dng", ".cr2",
+                                             ".cr3",  ".nef",  ".arw", ".orf",  ".rw2", ".raf"};
+
+std::string lowerExtension(const std::filesystem::path& p) {
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext;
+}
+}  // namespace
+
+bool isImageFileName(const std::filesystem::path& path) {
+  const std::string ext = lowerExtension(path);
+  return std::any_of(std::begin(kImageExtensions), std::end(kImageExtensions), [&](const char* e) { return ext == e; });
+}
+
+std::string imageFileExtensions() {
+  std::string out;
+  for (const char* e : kImageExtensions) out += (out.empty() ? "" : ", ") + std::string(e);
+  return out;
+}
+
+std::string listImageFolder(const std::string& dir, std::vector<std::string>& files, std::vector<std::string>& unread) {
+  files.clear();
+  unread.clear();
+  std::error_code ec;
+  std::filesystem::directory_iterator it(dir, ec);
+  if (ec) return ec.message();
+  for (; it != std::filesystem::directory_iterator(); it.increment(ec)) {
+    if (ec) return ec.message();
+    const std::filesystem::path& p = it->path();
+    std::error_code is_dir_ec;
+    if (it->is_directory(is_dir_ec)) continue;
+    if (isImageFileName(p)) {
+      files.push_back(p.string());
+    } else {
+      const std::string ext = lowerExtension(p);
+      if (std::any_of(std::begin(kUnreadExtensions), std::end(kUnreadExtensions),
+                      [&](const char* e) { return ext == e; }))
+        unread.push_back(p.filename().string());
+    }
+  }
+  if (ec) return ec.message();
+  std::sort(files.begin(), files.end());
+  std::sort(unread.begin(), unread.end());
+  return "";
+}
+
+std::string describeUnreadImages(const std::vector<std::string>& unread) {
+  if (unread.empty()) return "";
+  std::string names;
+  for (size_t i = 0; i < unread.size() && i < 3; ++i) names += (i ? ", " : "") + unread[i];
+  if (unread.size() > 3) names += ", ...";
+  return std::to_string(unread.size()) + (unread.size() == 1 ? " file" : " files") +
+         " of image kinds OpenCV does not read (HEIC/HEIF, AVIF, GIF, camera raw) left out (" + names +
+         "): convert them to JPEG or PNG";
+}
+
 std::string readImageFile(const std::string& path, cv::Mat& out) {
+  ImageTurn turn;
+  return readImageFile(path, out, turn);
+}
+
+namespace {
+// The turn that makes `stored` into `shown` exactly (ImageTurn), if any.
+bool findTurn(const cv::Mat& stored, const cv::Mat& shown, ImageTurn& turn) {
+  cv::Mat candidate;
+  for (bool mirrored : {false, true})
+    for (int k = 0; k < 4; ++k) {
+      const cv::Size size = k % 2 ? cv::Size(stored.rows, stored.cols) : stored.size();
+      if (size != shown.size() || stored.type() != shown.type()) continue;
+      if (mirrored) cv::flip(stored, candidate, 1);
+      else candidate = stored.clone();
+      if (k == 1) cv::rotate(candidate, candidate, cv::ROTATE_90_CLOCKWISE);
+      if (k == 2) cv::rotate(candidate, candidate, cv::ROTATE_180);
+      if (k == 3) cv::rotate(candidate, candidate, cv::ROTATE_90_COUNTERCLOCKWISE);
+      cv::Mat diff;
+      cv::compare(candidate, shown, diff, cv::CMP_NE);
+      if (cv::countNonZero(diff.reshape(1)) == 0) {
+        turn.quarter_turns_cw = k;
+        turn.mirrored = mirrored;
+        return true;
+      }
+    }
+  return false;
+}
+}  // namespace
+
+std::string readImageFile(const std::string& path, cv::Mat& out, ImageTurn& turn) {
+  turn = ImageTurn{};
   out.release();
   constexpr off_t kMaxImageFile = off_t{512} << 20;
   struct stat st {};
@@ -234,12 +327,14 @@ std::string readImageFile(const std::string& path, cv::Mat& out) {
            : errno == ELOOP ? "is a loop of symbolic links"
                             : std::string("cannot read: ") + std::strerror(errno);
   if (!S_ISREG(st.st_mode)) return "is not a file (a pipe, a device?)";
+  if (st.st_size == 0) return "is empty (0 bytes: a copy or a download that failed?)";
   if (st.st_size > kMaxImageFile)
     return "is " + std::to_string(st.st_size >> 20) + " MiB: more than an image file has (512 MiB at most)";
   std::ifstream f(path, std::ios::binary);
   std::vector<uint8_t> bytes(static_cast<size_t>(st.st_size));
   if (!f || !f.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size())))
     return std::string("cannot read: ") + std::strerror(errno ? errno : EIO);
+  cv::Mat stored;  // (a JPEG's pixels as stored, where OpenCV may turn them)
   if (bytes.size() >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF) {
     if (!jpegComplete(bytes.data(), bytes.size()))
       return "cannot read as an image: it is a JPEG cut short (no end-of-image marker)";
@@ -257,7 +352,11 @@ std::string readImageFile(const std::string& path, cv::Mat& out) {
     }
     // (OpenCV's image, decoded once: the decode below is for a JPEG that
     // OpenCV turns as its Exif orientation says, or a CMYK one)
-    if (jpegReadsAsDecoded(bytes.data(), bytes.size())) return "";
+    if (jpegReadsAsDecoded(bytes.data(), bytes.size())) {
+      turn.stored = out.size();
+      return "";
+    }
+    stored = std::move(out);
     out.release();
   }
   // A floating-point image (PFM, OpenEXR; a TIFF of floats) came out black
@@ -292,7 +391,25 @@ std::string readImageFile(const std::string& path, cv::Mat& out) {
     out.release();
   }
   const std::string said = decoder_said.end();
-  if (!out.empty()) return "";
+  if (out.empty()) {  // (a kind OpenCV does not read, named by its first bytes)
+    const bool ftyp = bytes.size() >= 12 && std::memcmp(bytes.data() + 4, "ftyp", 4) == 0;
+    const std::string brand = ftyp ? std::string(reinterpret_cast<const char*>(bytes.data()) + 8, 4) : "";
+    std::string kind;
+    if (brand == "heic" || brand == "heix" || brand == "heim" || brand == "heis" || brand == "mif1" || brand == "msf1" ||
+        brand == "hevc" || brand == "hevx")
+      kind = "a HEIF/HEIC image (a phone's)";
+    else if (brand == "avif" || brand == "avis")
+      kind = "an AVIF image";
+    else if (starts("GIF87a", 6) || starts("GIF89a", 6))
+      kind = "a GIF image";
+    if (!kind.empty()) return "cannot read as an image: it is " + kind + ", which OpenCV does not read: convert it to JPEG or PNG";
+  }
+  if (!out.empty()) {
+    // (CMYK, converted otherwise, is not matched exactly: taken as not turned)
+    if (!stored.empty() && findTurn(stored, out, turn)) turn.stored = stored.size();
+    else turn.stored = out.size();
+    return "";
+  }
   return said.empty() ? "cannot read as an image" : "cannot read as an image (" + said + ")";
 }
 

@@ -108,6 +108,41 @@ int64_t aviVideoFrames(const std::string& path);
 /// "cannot read as an image".
 std::string readImageFile(const std::string& path, cv::Mat& out);
 
+/// Whether a file's name has the extension of an image kind the readers
+/// take (any case): .png, .jpg, .jpeg, .jpe, .jfif, .bmp, .ppm, .pgm, .pbm,
+/// .pnm, .tif, .tiff, .webp, .jp2, .hdr, .pic, .sr, .ras, and the
+/// floating-point .exr and .pfm (named and refused when read).
+bool isImageFileName(const std::filesystem::path& path);
+/// Those extensions, for people: ".png, .jpg, ...".
+std::string imageFileExtensions();
+
+/// A folder's image files (isImageFileName; links whose file is gone and
+/// pipes with an image's name too: reading them says so), in name order.
+/// `unread` gets the names (not paths) of its files of image kinds OpenCV
+/// does not read: HEIC/HEIF (a phone's), AVIF, GIF and camera raw
+/// (.dng, .cr2, .cr3, .nef, .arw, .orf, .rw2, .raf), passed over otherwise
+/// without a word. Returns "" or why the folder could not be listed
+/// ("Permission denied").
+std::string listImageFolder(const std::string& dir, std::vector<std::string>& files, std::vector<std::string>& unread);
+/// For `unread`'s names: "2 files of image kinds OpenCV does not read left
+/// out (IMG_0001.HEIC, a.gif): convert them to JPEG or PNG".
+std::string describeUnreadImages(const std::vector<std::string>& unread);
+
+/// How an image file's stored pixels were turned into the image read: a
+/// JPEG's Exif orientation (a phone stores a portrait photo as its sensor
+/// took it, landscape, and says how to turn it upright; OpenCV turns it):
+/// mirrored left to right first where `mirrored`, then turned
+/// `quarter_turns_cw` quarter turns clockwise. `stored` is the stored
+/// image's size.
+struct ImageTurn {
+  int quarter_turns_cw = 0;
+  bool mirrored = false;
+  cv::Size stored;
+  bool any() const { return quarter_turns_cw != 0 || mirrored; }
+};
+/// readImageFile, and how the image was turned from the file's pixels.
+std::string readImageFile(const std::string& path, cv::Mat& out, ImageTurn& turn);
+
 /// prepareOutputFile for an LCM log about to be written: besides, a file
 /// already at `path` must be an LCM log (or empty), so that a log is never
 /// written over an image, a video or anything else a user meant as input.
