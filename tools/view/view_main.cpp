@@ -194,6 +194,7 @@ void annotate(cv::Mat& bgr, const ld::landmark_list_t& list, const std::map<int6
               const Options& o) {
   const int thick = std::max(1, bgr.cols / 640);
   std::vector<ld::Landmark> visible;
+  size_t out_of_view = 0;  // coasting tracks predicted past the frame's edges
   for (const auto& m : list.landmarks) {
     ld::Landmark lm = ld::fromMessage(m);
     // The label drawLandmarks writes by the TL corner: "#id payload".
@@ -202,6 +203,12 @@ void annotate(cv::Mat& bgr, const ld::landmark_list_t& list, const std::map<int6
     if (!m.visible) {
       std::vector<cv::Point> quad;
       for (const auto& c : lm.corners) quad.emplace_back(cvRound(c.x), cvRound(c.y));
+      // (one predicted past the edges is counted in the header: its label,
+      // kept inside the frame, was drawn over the header's corner)
+      if ((cv::boundingRect(quad) & cv::Rect(0, 0, bgr.cols, bgr.rows)).empty()) {
+        ++out_of_view;
+        continue;
+      }
       cv::polylines(bgr, quad, true, cv::Scalar(160, 160, 160), 1, cv::LINE_AA);
       ld::drawLabel(bgr, *lm.payload + " (coasting)", lm.corners[0] + cv::Point2f(0, -6.0f * thick),
                     cv::Scalar(160, 160, 160), thick);
@@ -217,8 +224,9 @@ void annotate(cv::Mat& bgr, const ld::landmark_list_t& list, const std::map<int6
   }
   ld::drawLandmarks(bgr, visible);
   char head[160];
-  std::snprintf(head, sizeof head, "seq %lld  %zu tracked, %zu visible", static_cast<long long>(list.seq),
-                list.landmarks.size(), visible.size());
+  std::snprintf(head, sizeof head, "seq %lld  %zu tracked, %zu visible%s", static_cast<long long>(list.seq),
+                list.landmarks.size(), visible.size(),
+                out_of_view ? cv::format(", %zu coasting out of view", out_of_view).c_str() : "");
   cv::putText(bgr, head, cv::Point(8, 20 * thick), cv::FONT_HERSHEY_SIMPLEX, 0.55 * thick,
               cv::Scalar(0, 0, 0), 3 * thick, cv::LINE_AA);
   cv::putText(bgr, head, cv::Point(8, 20 * thick), cv::FONT_HERSHEY_SIMPLEX, 0.55 * thick,
