@@ -21,6 +21,15 @@ grep -q "^  landmark 30 cm detected, 1.00 m, yaw within +-30: detected [0-9]*/8$
 # ... and says what code it measured: 20 bytes, version 2 at Q, 4.94 mm modules on 30 cm
 grep -q "^its QR: 20 bytes, version 2 (25 modules), error correction Q, modules of 4.94 mm on a 30 cm landmark" \
   "$T/size.md" || fail "size, the code: $(cat "$T/size.md")"
+# The backend that ran is said where it is not the CPU (the tables are the
+# same whatever ran them: a helper's audit could not tell what --backend
+# auto measured); the CPU, the default, says nothing.
+LD_GLES_AUTO_SOFTWARE=1 "$BIN/ld-eval" yaw --backend auto --trials 1 --step 160 >/dev/null 2>"$T/auto.err" ||
+  fail "yaw --backend auto: exit $?, $(cat "$T/auto.err")"
+[ "$(grep -c "^ld-eval: our detector on the auto backend: gles: .*auto: timing it against the CPU on the first frames (each sweep point's detector chooses on its first frames)$" "$T/auto.err")" -eq 1 ] ||
+  fail "yaw --backend auto: $(cat "$T/auto.err")"
+"$BIN/ld-eval" yaw --trials 1 --step 160 >/dev/null 2>"$T/cpu.err" || fail "yaw: exit $?"
+! grep -q "backend" "$T/cpu.err" || fail "yaw on the CPU: $(cat "$T/cpu.err")"
 # No 5 cm landmark reads 100 bytes at 3 m: exit 3, and it says so. (Given
 # by the names the other programs use: --size for --side, ld-qr-reader's
 # --stack-frames for --stack.)

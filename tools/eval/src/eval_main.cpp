@@ -109,10 +109,20 @@ struct Common {
     o.trials = trials;
     o.seed = seed;
     o.misses_dir = misses;
+    if (o.params.backend != "cpu" && !backend_said) {  // (the tables are the same whatever ran them)
+      backend_said = true;
+      const std::string info = ld::Detector(o.params).backendInfo();  // (throws where gles cannot be had)
+      std::cerr << "ld-eval: our detector on the " << o.params.backend << " backend: " << info
+                << (info.find("timing it") != std::string::npos
+                        ? " (each sweep point's detector chooses on its first frames)"
+                        : "")
+                << "\n";
+    }
     if (!misses.empty() && !misses_started) ld::eval::startMisses(misses), misses_started = true;
     return o;
   }
   mutable bool misses_started = false;
+  mutable bool backend_said = false;
 };
 
 void addCommon(CLI::App* app, Common& c, bool png = true) {
