@@ -106,6 +106,7 @@ int main(int argc, char** argv) {
     return std::chrono::seconds(t.tv_sec) + std::chrono::nanoseconds(t.tv_nsec);
   };
   std::chrono::nanoseconds busy{0};
+  bool grey_said = false;  // (GRAY frames: said once)
   while (!g_stop) {
     // waits, then drains the queue: only the newest message is processed
     if (!ld::pumpLcm(lcm, 200, g_stop, "ld-detector")) return 1;
@@ -119,6 +120,14 @@ int main(int argc, char** argv) {
     if (const ld::image_t* newest = latest.take()) {
       const ld::image_t& image = *newest;  // (handlers run in pumpLcm alone: it stays while processed)
       try {
+        // (a camera set to a grey format, a monochrome one: nothing found,
+        // and nothing said)
+        if (image.pixelformat == ld::image_t::PIXEL_FORMAT_GRAY && !grey_said) {
+          std::fprintf(stderr,
+                       "ld-detector: GRAY frames have no colour: landmarks are found by their blue and red squares, so "
+                       "none can be found in them (is the camera set to a grey format?)\n");
+          grey_said = true;
+        }
         ld::imageToBgr(image, bgr);
         // Now and then, on --explain, the frame's explanation (it costs about
         // two detections more, and is not counted in the published timings).
