@@ -67,31 +67,37 @@ printf '%%YAML:1.0\n---\nimage_width: 1280\nimage_height: 720\ncamera_matrix: !!
 [ "$(grep -c 'calibration is for 1280x720 images and this frame is 640x480' "$T/err")" -eq 1 ] ||
   fail "wide calibration, stderr: $(cat "$T/err")"
 # A phone's portrait photo: stored landscape as the sensor took it, with an
-# Exif orientation (6: turn a quarter clockwise). ld-detect reads it turned
-# (as OpenCV does) and turns the sensor's landscape calibration with it: the
-# pose is the stored frame's, turned (x' = -y, y' = x). It was refused as a
-# calibration of another aspect ratio.
+# Exif orientation (6: turn a quarter clockwise; 3: upside down). ld-detect
+# reads it turned (as OpenCV does) and turns the sensor's calibration with it
+# (here one whose principal point is off the middle, as a real lens's): the
+# pose is the stored frame's, turned (a quarter: x' = -y, y' = x; half:
+# x' = -x, y' = -y). The portrait one was refused as a calibration of
+# another aspect ratio, and the upside-down one's pose was off by the
+# principal point's offset, reflected.
 "$BIN/ld-synth" scene --out "$T/phone" --seed 4 --count 1 --resolution 1280x720 --distance 0.9 --x 0.1 --y -0.05 \
-  --yaw 20 --lighting normal --degrade none --jpg --write-camera "$T/phone.yaml" >/dev/null
-python3 - "$T/phone/000000.jpg" "$T/phone/turned.jpg" <<'PY'
+  --yaw 20 --lighting normal --degrade none --jpg >/dev/null
+printf '%%YAML:1.0\n---\nimage_width: 1280\nimage_height: 720\ncamera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n  data: [1200, 0, 679.5, 0, 1200, 339.5, 0, 0, 1]\ndistortion_coefficients: !!opencv-matrix\n  rows: 1\n  cols: 5\n  dt: d\n  data: [0, 0, 0, 0, 0]\n' >"$T/phone.yaml"
+python3 - "$T/phone/000000.jpg" "$T/phone" <<'PY'
 import struct, sys
 jpeg = open(sys.argv[1], 'rb').read()
 assert jpeg[:2] == b'\xff\xd8'
-ifd = b'II*\x00' + struct.pack('<IH', 8, 1) + struct.pack('<HHIHH', 0x0112, 3, 1, 6, 0) + struct.pack('<I', 0)
-app1 = b'Exif\x00\x00' + ifd
-open(sys.argv[2], 'wb').write(jpeg[:2] + b'\xff\xe1' + struct.pack('>H', len(app1) + 2) + app1 + jpeg[2:])
+for o in (6, 3):
+    ifd = b'II*\x00' + struct.pack('<IH', 8, 1) + struct.pack('<HHIHH', 0x0112, 3, 1, o, 0) + struct.pack('<I', 0)
+    app1 = b'Exif\x00\x00' + ifd
+    open('%s/turned%d.jpg' % (sys.argv[2], o), 'wb').write(jpeg[:2] + b'\xff\xe1' + struct.pack('>H', len(app1) + 2) + app1 + jpeg[2:])
 PY
-"$BIN/ld-detect" --camera "$T/phone.yaml" --size 0.15 "$T/phone/000000.jpg" "$T/phone/turned.jpg" >"$T/out" 2>"$T/err" ||
-  fail "Exif-turned photo: exit $?: $(cat "$T/err")"
+"$BIN/ld-detect" --camera "$T/phone.yaml" --size 0.15 "$T/phone/000000.jpg" "$T/phone/turned6.jpg" "$T/phone/turned3.jpg" \
+  >"$T/out" 2>"$T/err" || fail "Exif-turned photo: exit $?: $(cat "$T/err")"
 [ ! -s "$T/err" ] || fail "Exif-turned photo, stderr: $(cat "$T/err")"
 python3 - "$T/out" <<'PY' || fail "Exif-turned photo: $(cat "$T/out")"
 import json, sys
-stored, turned = [json.loads(l) for l in open(sys.argv[1])]
-assert (stored['width'], stored['height']) == (1280, 720) and (turned['width'], turned['height']) == (720, 1280), (stored, turned)
-a, b = stored['landmarks'][0]['pose']['t'], turned['landmarks'][0]['pose']['t']
-want = [-a[1], a[0], a[2]]
-assert all(abs(x - y) < 0.005 for x, y in zip(b, want)), (a, b)
-assert abs(a[2] - 0.9) < 0.05, a
+stored, quarter, half = [json.loads(l) for l in open(sys.argv[1])]
+assert (stored['width'], stored['height']) == (1280, 720) and (quarter['width'], quarter['height']) == (720, 1280), (stored, quarter)
+a = stored['landmarks'][0]['pose']['t']
+for got, want in ((quarter, [-a[1], a[0], a[2]]), (half, [-a[0], -a[1], a[2]])):
+    b = got['landmarks'][0]['pose']['t']
+    assert all(abs(x - y) < 0.005 for x, y in zip(b, want)), (a, b, want)
+assert abs(a[2] - 0.9) < 0.1, a
 PY
 # Grey images (a monochrome camera's): no landmark can be in them, and that
 # is said for the first and counted at the end (nothing was said, even by

@@ -2293,6 +2293,9 @@ TEST(Pose, CalibrationTurnsWithTheImage) {
   tilted.dist = cv::Mat::zeros(1, 14, CV_64F);
   tilted.dist.at<double>(12) = 0.01;
   EXPECT_NE(tilted.turned(1, false, out).find("tilted"), std::string::npos);
+  ld::CameraModel sizeless = cam;  // (its principal point turns about the image's middle)
+  sizeless.size = {};
+  EXPECT_NE(sizeless.turned(2, false, out).find("size is not known"), std::string::npos);
 }
 
 TEST(Pose, TurnedSheet) {

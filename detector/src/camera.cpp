@@ -308,6 +308,7 @@ std::string CameraModel::turned(int quarter_turns_cw, bool mirrored, CameraModel
   if (!dist.empty()) dist.reshape(1, 1).convertTo(d, CV_64F);
   if (d.size() > 12 && (d[12] != 0 || d[13] != 0))
     return "its distortion has a tilted sensor's terms, which do not turn with the image";
+  if (size.width <= 0 || size.height <= 0) return "its image size is not known, and the principal point turns about it";
   const int k = ((quarter_turns_cw % 4) + 4) % 4;
   if (k % 2 && K(0, 1) != 0) return "its camera matrix has skew, which does not turn a quarter with the image";
   CameraModel c = *this;

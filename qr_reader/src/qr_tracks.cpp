@@ -191,6 +191,7 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
   const auto it = tracks_.find(track_id);
   if (it == tracks_.end()) return std::nullopt;
   Track& t = it->second;
+  t.strayed = false;  // (this frame's alone)
   if (!visible) {  // (its place is the tracker's guess; that it coasts is news)
     if (t.placed && age > t.age) t.coasted = true;
     return std::nullopt;
@@ -201,7 +202,6 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
   const double px = t.cx + t.vx * frames, py = t.cy + t.vy * frames;  // where its motion leads
   const double mean_size = 0.5 * (size + t.size);
   bool jumped = false;
-  t.strayed = false;
   if (t.placed && t.known) {
     if (!t.coasted) {
       const double off = std::hypot(cx - px, cy - py), jump = frames * mean_size;

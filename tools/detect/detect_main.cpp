@@ -228,12 +228,14 @@ int main(int argc, char** argv) {
       continue;
     }
     // A phone's portrait photo, stored landscape as the sensor took it and
-    // turned upright by its Exif orientation: the camera's calibration (of
-    // the photos as stored) turned with it, where it fits the photo as
-    // stored and not as turned (pose was refused as another aspect ratio).
+    // turned upright by its Exif orientation (or upside down, or mirrored):
+    // the camera's calibration, of the sensor's images as stored, turned with
+    // it where it fits the photo as stored (a portrait photo's pose was
+    // refused as another aspect ratio; an upside-down one's was off by the
+    // principal point's offset, reflected, 6 cm at 0.9 m in a review's).
     if (camera) {
       ld::ImageTurn want;
-      if (turn.any() && !camera->fits(img.size()) && camera->fits(turn.stored)) want = turn;
+      if (turn.any() && camera->fits(turn.stored)) want = turn;
       if (want.quarter_turns_cw != camera_turn.quarter_turns_cw || want.mirrored != camera_turn.mirrored) {
         ld::CameraModel turned = *camera;
         if (want.any()) {

@@ -112,7 +112,7 @@ int main(int argc, char** argv) {
     if (const double rate = video.get(cv::CAP_PROP_FPS); rate >= 0.1 && rate <= 1000) fps = rate;
   }
   double first_ms = -1, last_ms = -1;  // the video's times of its first and last frames
-  int64_t last_utime = 0;
+  int64_t last_utime = 0, untimed = 0;  // (untimed: frames of a video without a time of their own)
   std::vector<uint8_t> buf;
   int64_t seq = 0, skipped = 0, unlogged = 0;
   bool crop_said = false, big_said = false;
@@ -151,15 +151,18 @@ int main(int argc, char** argv) {
     }
     int64_t utime = start_utime + static_cast<int64_t>(std::llround(seq * 1e6 / fps));
     if (own_clock) {
+      // (a frame without a time that goes forward, as the last frames of an
+      // H.264 video with B-frames, which FFmpeg gives at 0 as it drains its
+      // decoder: a frame interval after the last, counted)
       const double ms = video.get(cv::CAP_PROP_POS_MSEC);
       if (std::isfinite(ms) && ms >= 0 && (first_ms < 0 || ms > last_ms)) {
         if (first_ms < 0) first_ms = ms;
         last_ms = ms;
         utime = start_utime + static_cast<int64_t>(std::llround((ms - first_ms) * 1e3));
       } else if (seq > 0) {
-        own_clock = false;  // (no times, or times that do not go forward: its frame rate from here)
-        std::cerr << "ld-log-images: note: " << input << " gives no time that goes forward for frame " << i
-                  << ": stamped at " << fps << " frames/s from there\n";
+        utime = last_utime + static_cast<int64_t>(std::llround(1e6 / fps));
+        last_ms += 1e3 / fps;
+        ++untimed;
       }
     }
     if (seq > 0 && utime <= last_utime) utime = last_utime + 1;
@@ -220,7 +223,10 @@ int main(int argc, char** argv) {
                 << " frames and " << seq << " could be read (a file cut short or damaged?)\n";
   }
   std::cout << "wrote " << seq << (seq == 1 ? " frame" : " frames") << " to " << output << " (" << format << ", "
-            << (own_clock ? "the video's own timestamps, " + cv::format("%.3g", fps) + " fps"
+            << (own_clock ? "the video's own timestamps, " + cv::format("%.3g", fps) + " fps" +
+                                (untimed ? cv::format("; %lld frames without a time of their own stamped a frame apart",
+                                                      static_cast<long long>(untimed))
+                                         : std::string())
                           : cv::format("%g", fps) + " fps")
             << ")" << (skipped ? ", " + std::to_string(skipped) + " unreadable skipped" : "")
             << (unlogged ? ", " + std::to_string(unlogged) + " that could not be logged skipped" : "") << "\n";
