@@ -7,8 +7,8 @@
 #   lib/                         the libraries (static), and
 #   lib/cmake/landmark/          their CMake package: find_package(landmark)
 #                                gives landmark::detector, landmark::qr_reader,
-#                                landmark::landmark_msg, landmark::msgs,
-#                                landmark::lcmtypes, landmark::core
+#                                landmark::tracker, landmark::landmark_msg,
+#                                landmark::msgs, landmark::lcmtypes, landmark::core
 #   lib/systemd/system/          the units of tools/systemd
 #   lib/sysctl.d/                the socket receive buffer setting
 #   share/landmark/              the message definitions (lcmtypes/*.lcm), the
@@ -30,22 +30,29 @@ set(LD_INSTALL_PROGRAMS
 install(TARGETS ${LD_INSTALL_PROGRAMS} RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT runtime)
 install(PROGRAMS ${CMAKE_BINARY_DIR}/bin/ld-spy ${CMAKE_BINARY_DIR}/bin/ld-bench-e2e
         DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT runtime)
+# A command in a private network namespace with multicast on loopback, for a
+# program of one's own beside `ld-run --netns` (the README's
+# scripts/netns-run.sh, which an installed user did not have: an API audit).
+install(PROGRAMS scripts/netns-run.sh DESTINATION ${CMAKE_INSTALL_BINDIR} RENAME ld-netns-run COMPONENT runtime)
 
 # Libraries, with the names they have in the package.
 set_target_properties(ld_core PROPERTIES EXPORT_NAME core)
 set_target_properties(ld_detector PROPERTIES EXPORT_NAME detector)
 set_target_properties(ld_qr_reader PROPERTIES EXPORT_NAME qr_reader)
+set_target_properties(ld_tracker PROPERTIES EXPORT_NAME tracker)
 set_target_properties(ld_landmark_msg PROPERTIES EXPORT_NAME landmark_msg)
 set_target_properties(ld_msgs PROPERTIES EXPORT_NAME msgs)
 set_target_properties(ld_lcmtypes PROPERTIES EXPORT_NAME lcmtypes)
-install(TARGETS ld_core ld_detector ld_qr_reader ld_landmark_msg ld_msgs ld_lcmtypes
+install(TARGETS ld_core ld_detector ld_qr_reader ld_tracker ld_landmark_msg ld_msgs ld_lcmtypes
         EXPORT landmarkTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT dev
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
-# The command-line options header needs CLI11 and is the programs' own.
-install(DIRECTORY detector/include/ld qr_reader/include/ld lcmtypes/include/ld
+# The command-line options header needs CLI11 and is the programs' own, as
+# is the tracker's benchmark. (The tracker was not installed, though the
+# README shows ld::Tracker to robot code: an API audit.)
+install(DIRECTORY detector/include/ld qr_reader/include/ld tracker/include/ld lcmtypes/include/ld
         DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} COMPONENT dev
-        FILES_MATCHING PATTERN "*.hpp" PATTERN "detector_options.hpp" EXCLUDE)
+        FILES_MATCHING PATTERN "*.hpp" PATTERN "detector_options.hpp" EXCLUDE PATTERN "tracker_bench.hpp" EXCLUDE)
 # lcm-gen's headers (lcmtypes/CMakeLists.txt writes them to cpp/ld/).
 install(DIRECTORY ${CMAKE_BINARY_DIR}/lcmtypes/cpp/ld DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} COMPONENT dev
         FILES_MATCHING PATTERN "*.hpp")

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Runs a command in a private network namespace whose loopback carries LCM's
 # multicast, so nothing it sends can leave this machine:
-#   scripts/netns-run.sh CMD [ARGS...]
+#   scripts/netns-run.sh CMD [ARGS...]    (installed as ld-netns-run)
 # Root uses `unshare -n`; other users get a user namespace too (`unshare -rn`).
 set -euo pipefail
 if [ "${LD_IN_NETNS:-}" = 1 ]; then

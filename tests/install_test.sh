@@ -59,6 +59,10 @@ jar=$("$T/ld-spy-link" --types-jar)
 bash "$src/tests/spy_types_test.sh" "$P/bin/ld-spy" "$P/share/landmark/lcmtypes" >/dev/null \
   || fail "lcm-spy's discovery misses a type in the installed jar"
 echo "ld-spy: ok ($jar)"
+# ld-netns-run (scripts/netns-run.sh): a command in a private namespace whose
+# loopback carries multicast, for a program of one's own beside ld-run --netns
+"$P/bin/ld-netns-run" ip route show 224.0.0.0/4 >"$T/netns.out" 2>&1 && grep -q "dev lo" "$T/netns.out" ||
+  fail "ld-netns-run: $(cat "$T/netns.out")"
 
 # 4. A project of the user's own against the installed package (moved prefix:
 #    the package's paths are relative to where it lies).
@@ -68,6 +72,7 @@ cmake --build "$T/consumer" >>"$T/consumer.log" 2>&1 || { cat "$T/consumer.log";
 out=$("$T/consumer/consumer" "$T/scene/000000.png")
 [ "$(wc -l <<<"$out")" -eq 1 ] || fail "consumer found not one landmark: $out"
 [ "$(cut -d' ' -f1 <<<"$out")" = installed-ok ] || fail "consumer read: $out"
+[ "$(cut -d' ' -f4 <<<"$out")" = 1 ] || fail "consumer's track id: $out"
 want=$(jq -r '.landmarks[0].corners[0] | "\(.[0]) \(.[1])"' "$T/detect.jsonl")
 awk -v a="$out" -v b="$want" 'BEGIN { split(a, x, " "); split(b, y, " ");
   exit !((x[2] - y[1])^2 + (x[3] - y[2])^2 < 0.01) }' || fail "consumer corner $out, ld-detect $want"
@@ -84,14 +89,14 @@ cmake --build "$T/msgs_consumer" >>"$T/msgs_consumer.log" 2>&1 ||
 out=$("$T/msgs_consumer/msgs_consumer")
 [ "$out" = "7 42 dock 10.5 20.25" ] || fail "messages-only consumer read: $out"
 mkdir -p "$T/bad_component"
-printf 'cmake_minimum_required(VERSION 3.18)\nproject(bad LANGUAGES CXX)\nfind_package(landmark REQUIRED CONFIG COMPONENTS tracker)\n' \
+printf 'cmake_minimum_required(VERSION 3.18)\nproject(bad LANGUAGES CXX)\nfind_package(landmark REQUIRED CONFIG COMPONENTS viewer)\n' \
   >"$T/bad_component/CMakeLists.txt"
 if cmake -S "$T/bad_component" -B "$T/bad_component/build" -DCMAKE_PREFIX_PATH="$P" >"$T/bad.log" 2>&1; then
-  fail "find_package(landmark COMPONENTS tracker) configured"
+  fail "find_package(landmark COMPONENTS viewer) configured"
 fi
 # (cmake wraps its message's lines)
 tr -s ' \n' '  ' <"$T/bad.log" |
-  grep -q "landmark has no component 'tracker' (its components: core, detector, qr_reader, landmark_msg, msgs, lcmtypes)" ||
+  grep -q "landmark has no component 'viewer' (its components: core, detector, qr_reader, tracker, landmark_msg, msgs, lcmtypes)" ||
   { cat "$T/bad.log"; fail "unknown component: not named"; }
 # a project of an old CMake (a catkin package's 3.0.2: this file runs under
 # its policies) that asks for an optional component the package has not:

@@ -3,6 +3,8 @@
 // without more false landmarks.
 #include <gtest/gtest.h>
 
+#include <type_traits>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -30,6 +32,19 @@ TEST(LightingAdapter, NeutralWellLitFrameIsLeftAlone) {
   const cv::Mat& out = a.correct(frame);
   EXPECT_EQ(out.data, frame.data);  // no copy, no change
   EXPECT_EQ(a.gains(), cv::Vec3d(1, 1, 1));
+}
+
+// Movable, not copyable: a copy shared the adapter's buffers, one's
+// corrections written into the frames the other returned (an API audit).
+// correct() returns the frame itself where nothing is corrected.
+static_assert(!std::is_copy_constructible_v<ld::LightingAdapter> && !std::is_copy_assignable_v<ld::LightingAdapter>);
+static_assert(std::is_move_constructible_v<ld::LightingAdapter> && std::is_move_assignable_v<ld::LightingAdapter>);
+TEST(LightingAdapter, MovesWithItsStateAndGivesTheFrameItselfWhereNothingIsCorrected) {
+  ld::LightingAdapter a;
+  const cv::Mat gray(48, 64, CV_8UC1, cv::Scalar(90));
+  EXPECT_EQ(&a.correct(gray), &gray);
+  ld::LightingAdapter b = std::move(a);
+  EXPECT_EQ(&b.correct(gray), &gray);
 }
 
 TEST(LightingAdapter, WarmAndDimWhiteBecomesNeutralAndBright) {

@@ -1754,6 +1754,16 @@ TEST(Detector, GrayAndDegenerateImagesGiveNothing) {
     ld::Explanation why;
     EXPECT_THROW(det.detect(odd, why), std::invalid_argument);
   }
+  // ... and a matrix of 3 dimensions (it gave no landmarks without a word)
+  const int dims[] = {4, 48, 64};
+  const cv::Mat cube(3, dims, CV_8UC3, cv::Scalar(1, 0, 0));
+  try {
+    det.detect(cube);
+    ADD_FAILURE() << "a 3-dimensional matrix was taken";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "Detector::detect: a matrix of 3 dimensions: it reads 2-dimensional 8-bit BGR, BGRA or gray images");
+  }
   // A frame with a landmark, in gray: no colour, no landmark.
   cv::Mat img = background(kCam.size, 9);
   drawSheet(img, kCam, place(1.0, 0, 0));

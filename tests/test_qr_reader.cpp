@@ -2,6 +2,8 @@
 // with zbar; damaged, missing or degenerate input gives no payload.
 #include <gtest/gtest.h>
 
+#include <type_traits>
+
 #include <climits>
 #include <cmath>
 #include <cstdio>
@@ -306,6 +308,23 @@ TEST(QrPixelModel, MovesAGridAThirdOfAPixelOffOntoThePixels) {
 // swapped two tracks' ids), a pattern side or more away from where the track
 // was in the last frame seen, restart it, so the mean is never a blend of two
 // codes; the same landmark moving between frames stays in it.
+// Movable, not copyable: a copy shared the stack's buffers, the frames added
+// to one changing the other's mean (an API audit); a stack of no frames is
+// refused (0 and -3 were taken).
+static_assert(!std::is_copy_constructible_v<ld::QrStack> && !std::is_copy_assignable_v<ld::QrStack>);
+static_assert(std::is_move_constructible_v<ld::QrStack> && std::is_move_assignable_v<ld::QrStack>);
+TEST(QrStack, RefusesNoFrames) {
+  for (int n : {0, -3}) {
+    try {
+      ld::QrStack s(n);
+      ADD_FAILURE() << n << " frames taken";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_EQ(std::string(e.what()), "QrStack: max_frames must be 1 or more, not " + std::to_string(n));
+    }
+  }
+  EXPECT_NO_THROW(ld::QrStack(1));
+}
+
 TEST(QrStack, AnotherLandmarkRestartsTheStack) {
   const cv::Mat a = ld::artwork::renderLandmark("room-101/door", 450);
   const cv::Mat b = ld::artwork::renderLandmark("lift-B/floor-2", 450);

@@ -620,6 +620,11 @@ int stackSide(double qr_px) {
 
 }  // namespace
 
+QrStack::QrStack(int max_frames) : max_frames_(max_frames) {
+  if (max_frames < 1)
+    throw std::invalid_argument("QrStack: max_frames must be 1 or more, not " + std::to_string(max_frames));
+}
+
 bool QrStack::add(const cv::Mat& image, const std::array<cv::Point2f, 4>& corners) {
   requireReadableImage(image, "QrStack::add");
   const auto qr_px = readableQrSide(image, corners);

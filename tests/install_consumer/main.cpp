@@ -1,8 +1,9 @@
 // Detects the landmarks of one image with the installed library, reads their
-// QR codes, and publishes the list over LCM (memq://, in this process) with
-// ld::MessagePublisher and reads it back, as a robot program linking the
-// libraries would. Prints one line per landmark:
-//   <payload> <TL corner x> <TL corner y>
+// QR codes, tracks them over two frames of it, and publishes the tracked list
+// over LCM (memq://, in this process) with ld::MessagePublisher and reads it
+// back, as a robot program linking the libraries would. Prints one line per
+// landmark:
+//   <payload> <TL corner x> <TL corner y> <track id>
 #include <cstdio>
 #include <vector>
 
@@ -14,6 +15,8 @@
 #include "ld/landmark_msg.hpp"
 #include "ld/message_publisher.hpp"
 #include "ld/qr_reader.hpp"
+#include "ld/tracker.hpp"
+#include "ld/tracker_msg.hpp"
 
 namespace {
 struct Receiver {
@@ -42,8 +45,12 @@ int main(int argc, char** argv) {
   for (ld::Landmark& lm : det.landmarks)
     if (auto code = reader.decode(image, lm.corners)) lm.payload = code->payload;
 
-  ld::landmark_list_t msg;
-  ld::toListMessage(det, 1, 1, image.cols, image.rows, "cpu", 0, msg);
+  ld::landmark_list_t detected, msg;
+  ld::toListMessage(det, 1'033'000, 2, image.cols, image.rows, "cpu", 0, detected);
+  ld::Tracker tracker;
+  tracker.update(det.landmarks, 1'000'000, image.size());
+  const std::vector<ld::Track>& tracks = tracker.update(det.landmarks, 1'033'000, image.size());
+  ld::toTrackedListMessage(tracks, detected, 0.0, 0, msg);
   // (through LCM in this process, as a robot node publishes it)
   lcm::LCM lcm("memq://");
   if (!lcm.good()) return 1;
@@ -53,7 +60,8 @@ int main(int argc, char** argv) {
   if (publisher.publish("LANDMARKS", msg) != 0 || lcm.handleTimeout(1000) <= 0 || back.got != 1) return 1;
   for (const ld::landmark_t& m : back.list.landmarks) {
     const ld::Landmark lm = ld::fromMessage(m);
-    std::printf("%s %.1f %.1f\n", lm.payload ? lm.payload->c_str() : "-", lm.corners[0].x, lm.corners[0].y);
+    std::printf("%s %.1f %.1f %lld\n", lm.payload ? lm.payload->c_str() : "-", lm.corners[0].x, lm.corners[0].y,
+                static_cast<long long>(m.track_id));
   }
   return 0;
 }

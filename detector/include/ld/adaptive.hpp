@@ -73,11 +73,20 @@ class LightingAdapter {
   /// (target_white 1-255, max_gain 1-64, bright_fraction and smoothing up
   /// to 1, glare_window 1-4096 px, ...; NaN nowhere).
   explicit LightingAdapter(const AdaptiveParams& params = {});
+  /// Movable, not copyable: its buffers (cv::Mat) would be shared by a copy,
+  /// each one's corrections written into the other's frames (an API audit).
+  LightingAdapter(const LightingAdapter&) = delete;
+  LightingAdapter& operator=(const LightingAdapter&) = delete;
+  LightingAdapter(LightingAdapter&&) = default;
+  LightingAdapter& operator=(LightingAdapter&&) = default;
 
   /// The frame to detect on: `bgr` corrected for the current estimate (or
-  /// `bgr` itself when no correction is needed). Updates the estimate from
-  /// the frame first when no landmark was confirmed recently. The returned
-  /// reference stays valid until the next call.
+  /// `bgr` itself when no correction is needed, and for a frame that is not
+  /// BGR: gray, empty). Updates the estimate from the frame first when no
+  /// landmark was confirmed recently. The returned reference is to the
+  /// adapter's own buffer, valid until the next call while the adapter
+  /// lives, or to `bgr` itself, valid while `bgr` is: a temporary given
+  /// (`correct(cv::imread(...))`) dangles at the end of the statement.
   const cv::Mat& correct(const cv::Mat& bgr);
 
   /// Feeds back the detections made on the corrected frame of the last

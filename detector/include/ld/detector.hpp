@@ -484,6 +484,8 @@ class Detector {
   /// when backend "gles" was asked for and no EGL context can be made.
   explicit Detector(const DetectorParams& params = {});
   ~Detector();
+  /// Movable, not copyable; a detector moved from may only be assigned to
+  /// or destroyed (its state went with the move).
   Detector(Detector&&) noexcept;
   Detector& operator=(Detector&&) noexcept;
 
@@ -507,8 +509,12 @@ class Detector {
 
   /// Detects landmarks in an 8-bit BGR or BGRA (or gray: no landmarks)
   /// image; an empty one has none. Throws std::invalid_argument, naming the
-  /// type, for any other (16-bit, float, two channels). The returned
-  /// reference stays valid until the next call.
+  /// type, for any other (16-bit, float, two channels, 3 or more
+  /// dimensions). The returned reference is to the detector's own result:
+  /// valid until the next detect() on this detector, and while the detector
+  /// lives (`const auto& lms = ld::Detector().detect(img).landmarks;`
+  /// dangles; two results kept at once need a copy: `ld::Detection d =
+  /// det.detect(img);`).
   const Detection& detect(const cv::Mat& bgr);
   /// detect(), then the first pass again, counted and with each refused
   /// group's check, into `why`, and the looks as a run of their own records

@@ -17,9 +17,14 @@ namespace ld {
 /// BGRA or gray (...)") for an image that is neither empty nor 8-bit with 1,
 /// 3 or 4 channels (a 16-bit PNG read with IMREAD_UNCHANGED found nothing).
 inline void requireReadableImage(const cv::Mat& image, const char* who) {
-  if (image.empty() || (image.depth() == CV_8U && (image.channels() == 1 || image.channels() == 3 ||
-                                                    image.channels() == 4)))
+  if (image.empty() || (image.dims == 2 && image.depth() == CV_8U &&
+                        (image.channels() == 1 || image.channels() == 3 || image.channels() == 4)))
     return;
+  // (a matrix of 3 or more dimensions has no rows and columns to read: it
+  // gave no landmarks without a word)
+  if (image.dims != 2)
+    throw std::invalid_argument(std::string(who) + ": a matrix of " + std::to_string(image.dims) +
+                                " dimensions: it reads 2-dimensional 8-bit BGR, BGRA or gray images");
   throw std::invalid_argument(std::string(who) + ": a " + cv::typeToString(image.type()) +
                               " image: it reads 8-bit BGR, BGRA or gray (CV_8UC3, CV_8UC4, CV_8UC1)");
 }

@@ -150,7 +150,14 @@ class QrStack {
  public:
   /// The first `max_frames` frames weigh the same; each later one weighs
   /// 1 / max_frames (an exponential mean: older frames fade out).
-  explicit QrStack(int max_frames = 8) : max_frames_(max_frames) {}
+  /// Throws std::invalid_argument for max_frames under 1 (0 and -3 were taken).
+  explicit QrStack(int max_frames = 8);
+  /// Movable, not copyable: its buffers (cv::Mat) would be shared by a copy,
+  /// the frames added to one changing the other's mean (an API audit).
+  QrStack(const QrStack&) = delete;
+  QrStack& operator=(const QrStack&) = delete;
+  QrStack(QrStack&&) = default;
+  QrStack& operator=(QrStack&&) = default;
 
   /// Adds one frame (8-bit BGR, BGRA or gray; another type throws
   /// std::invalid_argument, as QrReader::decode) with the landmark's pattern
