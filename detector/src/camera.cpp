@@ -312,13 +312,12 @@ std::string CameraModel::turned(int quarter_turns_cw, bool mirrored, CameraModel
   const int k = ((quarter_turns_cw % 4) + 4) % 4;
   if (k % 2 && K(0, 1) != 0) return "its camera matrix has skew, which does not turn a quarter with the image";
   CameraModel c = *this;
-  const auto at = [&](size_t i) -> double& { return d[i]; };
   // mirrored, u' = W-1-u: x' = -x, y' = y
   if (mirrored) {
     c.K(0, 2) = size.width - 1 - c.K(0, 2);
     c.K(0, 1) = -c.K(0, 1);
-    if (d.size() >= 4) at(3) = -at(3);                  // p2
-    if (d.size() >= 12) at(8) = -at(8), at(9) = -at(9);  // s1, s2
+    if (d.size() >= 4) d[3] = -d[3];                     // p2
+    if (d.size() >= 12) d[8] = -d[8], d[9] = -d[9];  // s1, s2
   }
   // a quarter clockwise, u' = H-1-v, v' = u: x' = -y, y' = x
   for (int i = 0; i < k; ++i) {
@@ -328,9 +327,9 @@ std::string CameraModel::turned(int quarter_turns_cw, bool mirrored, CameraModel
     c.K(0, 2) = c.size.height - 1 - cy;
     c.K(1, 2) = cx;
     c.size = cv::Size(c.size.height, c.size.width);
-    if (d.size() >= 4) std::tie(at(2), at(3)) = std::make_tuple(at(3), -at(2));  // p1' = p2, p2' = -p1
+    if (d.size() >= 4) std::tie(d[2], d[3]) = std::make_tuple(d[3], -d[2]);  // p1' = p2, p2' = -p1
     if (d.size() >= 12)
-      std::tie(at(8), at(9), at(10), at(11)) = std::make_tuple(-at(10), -at(11), at(8), at(9));
+      std::tie(d[8], d[9], d[10], d[11]) = std::make_tuple(-d[10], -d[11], d[8], d[9]);
   }
   if (!dist.empty()) c.dist = cv::Mat(d, true).reshape(1, dist.rows == 1 ? 1 : static_cast<int>(d.size()));
   out = c;

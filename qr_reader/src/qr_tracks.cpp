@@ -203,10 +203,10 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
   const double mean_size = 0.5 * (size + t.size);
   bool jumped = false;
   if (t.placed && t.known) {
+    double off = 0, jump = 0;  // (how far from its path, and how far is a jump)
     if (!t.coasted) {
-      const double off = std::hypot(cx - px, cy - py), jump = frames * mean_size;
-      jumped = off > jump;
-      t.strayed = !jumped && off > 0.5 * jump;
+      off = std::hypot(cx - px, cy - py);
+      jump = frames * mean_size;
     } else {
       // Seen coasting, it was found again by the tracker's gate, which a
       // neighbour may be in: it must be within 1.5 sizes of its path from
@@ -215,10 +215,11 @@ std::optional<std::string> QrTrackBook::follow(int64_t track_id, int32_t age, bo
       // velocity's error over many frames coasted reads as a jump.)
       const double dx = px - t.cx, dy = py - t.cy, len2 = dx * dx + dy * dy;
       const double u = len2 > 0 ? std::clamp(((cx - t.cx) * dx + (cy - t.cy) * dy) / len2, 0.0, 1.0) : 0.0;
-      const double off = std::hypot(cx - (t.cx + u * dx), cy - (t.cy + u * dy)), jump = 1.5 * mean_size;
-      jumped = off > jump;
-      t.strayed = !jumped && off > 0.5 * jump;
+      off = std::hypot(cx - (t.cx + u * dx), cy - (t.cy + u * dy));
+      jump = 1.5 * mean_size;
     }
+    jumped = off > jump;
+    t.strayed = !jumped && off > 0.5 * jump;
   }
   t.coasted = false;
   if (t.placed && !jumped) {

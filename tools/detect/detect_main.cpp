@@ -6,9 +6,9 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
-#include <optional>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <set>
 
 #include <sys/stat.h>
@@ -244,8 +244,7 @@ int main(int argc, char** argv) {
             if (why_not != turn_refused)
               std::cerr << "ld-detect: " << path << ": its Exif orientation turns it, and the camera calibration "
                         << "cannot be turned with it: " << why_not << "\n";
-            turn_refused = why_not;
-            turned = *camera;
+            turn_refused = why_not;  // (`turned` is left as the calibration given)
           }
         }
         detector.detector().setCamera(turned, detector_options.side_m);

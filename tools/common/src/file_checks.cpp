@@ -233,17 +233,16 @@ constexpr const char* kImageExtensions[] = {".png", ".jpg", ".jpeg", ".jpe",  ".
 constexpr const char* kUnreadExtensions[] = {".heic", ".heif", ".hif", ".avif", ".gif", ".dng", ".cr2",
                                              ".cr3",  ".nef",  ".arw", ".orf",  ".rw2", ".raf"};
 
-std::string lowerExtension(const std::filesystem::path& p) {
+// Whether the path's extension, in any case, is one of `extensions`.
+template <size_t N>
+bool hasExtension(const std::filesystem::path& p, const char* const (&extensions)[N]) {
   std::string ext = p.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  return ext;
+  return std::any_of(std::begin(extensions), std::end(extensions), [&](const char* e) { return ext == e; });
 }
 }  // namespace
 
-bool isImageFileName(const std::filesystem::path& path) {
-  const std::string ext = lowerExtension(path);
-  return std::any_of(std::begin(kImageExtensions), std::end(kImageExtensions), [&](const char* e) { return ext == e; });
-}
+bool isImageFileName(const std::filesystem::path& path) { return hasExtension(path, kImageExtensions); }
 
 std::string imageFileExtensions() {
   std::string out;
@@ -262,14 +261,8 @@ std::string listImageFolder(const std::string& dir, std::vector<std::string>& fi
     const std::filesystem::path& p = it->path();
     std::error_code is_dir_ec;
     if (it->is_directory(is_dir_ec)) continue;
-    if (isImageFileName(p)) {
-      files.push_back(p.string());
-    } else {
-      const std::string ext = lowerExtension(p);
-      if (std::any_of(std::begin(kUnreadExtensions), std::end(kUnreadExtensions),
-                      [&](const char* e) { return ext == e; }))
-        unread.push_back(p.filename().string());
-    }
+    if (isImageFileName(p)) files.push_back(p.string());
+    else if (hasExtension(p, kUnreadExtensions)) unread.push_back(p.filename().string());
   }
   if (ec) return ec.message();
   std::sort(files.begin(), files.end());
@@ -321,14 +314,7 @@ bool findTurn(const cv::Mat& stored, const cv::Mat& shown, ImageTurn& turn) {
   return false;
 }
 
-std::string readImage(const std::string& path, cv::Mat& out, ImageTurn* turn);
-}  // namespace
-
-std::string readImageFile(const std::string& path, cv::Mat& out) { return readImage(path, out, nullptr); }
-
-std::string readImageFile(const std::string& path, cv::Mat& out, ImageTurn& turn) { return readImage(path, out, &turn); }
-
-namespace {
+// readImageFile, and the turn where `turn` is given.
 std::string readImage(const std::string& path, cv::Mat& out, ImageTurn* turn) {
   if (turn) *turn = ImageTurn{};
   out.release();
@@ -425,6 +411,10 @@ std::string readImage(const std::string& path, cv::Mat& out, ImageTurn* turn) {
   return said.empty() ? "cannot read as an image" : "cannot read as an image (" + said + ")";
 }
 }  // namespace
+
+std::string readImageFile(const std::string& path, cv::Mat& out) { return readImage(path, out, nullptr); }
+
+std::string readImageFile(const std::string& path, cv::Mat& out, ImageTurn& turn) { return readImage(path, out, &turn); }
 
 namespace {
 // prepareOutputFile for a file of one kind: why it cannot be written, or ""
