@@ -113,11 +113,11 @@ set(CPACK_COMPONENT_RUNTIME_DESCRIPTION
     "Colour landmark detection, tracking and QR reading for mobile robots over LCM: the processes and tools")
 set(CPACK_DEBIAN_RUNTIME_PACKAGE_SECTION science)
 set(CPACK_DEBIAN_RUNTIME_PACKAGE_SHLIBDEPS ON)
-# ld-spy runs lcm-spy's Java classes; ld-bench-e2e uses jq. The GLES backend
+# ld-spy runs lcm-spy's Java classes; ld-bench-e2e uses jq; ld-netns-run, ip. The GLES backend
 # needs an EGL driver (Mesa's, or a GPU vendor's). ld-generate's PNG labels
 # want DejaVu Sans (without it, ASCII alone).
 set(CPACK_DEBIAN_RUNTIME_PACKAGE_DEPENDS
-    "default-jre-headless | java-runtime-headless, liblcm-java, libjchart2d-java, jq")
+    "default-jre-headless | java-runtime-headless, liblcm-java, libjchart2d-java, jq, iproute2")
 set(CPACK_DEBIAN_RUNTIME_PACKAGE_RECOMMENDS "libegl-mesa0, libgl1-mesa-dri, liblcm-bin, fonts-dejavu-core")
 set(CPACK_DEBIAN_DEV_PACKAGE_NAME landmark-dev)
 set(CPACK_DEBIAN_DEV_PACKAGE_SECTION libdevel)

@@ -138,6 +138,22 @@ TEST(ReadImageFile, SaysHowTheExifOrientationTurnedTheImage) {
     EXPECT_EQ(turn.stored, frame.size());
     EXPECT_EQ(read.size(), want[o].quarter_turns_cw % 2 ? cv::Size(frame.rows, frame.cols) : frame.size());
   }
+  // A flat picture whose one mark lies between the grid's points: the grid
+  // alone took a transposed one for one not turned (a review); the turn is
+  // confirmed on every pixel.
+  cv::Mat flat(480, 480, CV_8UC3, cv::Scalar(128, 128, 128));
+  cv::rectangle(flat, cv::Rect(32, 42, 6, 6), cv::Scalar(255, 0, 0), cv::FILLED);
+  const std::vector<uint8_t> flat_jpeg = encode(flat, {cv::IMWRITE_JPEG_QUALITY, 95});
+  for (uint16_t o : {5, 7}) {
+    SCOPED_TRACE("flat, orientation " + std::to_string(o));
+    cv::Mat read;
+    ld::ImageTurn turn;
+    ASSERT_EQ(ld::readImageFile(writeFile("flat" + std::to_string(o) + ".jpg", withExifOrientation(flat_jpeg, o)),
+                                read, turn),
+              "");
+    EXPECT_EQ(turn.quarter_turns_cw, want[o].quarter_turns_cw);
+    EXPECT_EQ(turn.mirrored, want[o].mirrored);
+  }
   // not turned: a JPEG without Exif, a PNG
   cv::Mat read;
   ld::ImageTurn turn;

@@ -305,6 +305,16 @@ bool findTurn(const cv::Mat& stored, const cv::Mat& shown, ImageTurn& turn) {
           if (mirrored) x = w - 1 - x;
           same = stored.at<cv::Vec3b>(y, x) == shown.at<cv::Vec3b>(v, u);
         }
+      // (a grid can miss what tells two turns apart in a flat picture: the
+      // candidate is confirmed on every pixel, one turn of the image)
+      if (same) {
+        cv::Mat flipped, turned;
+        if (mirrored) cv::flip(stored, flipped, 1);
+        const cv::Mat& from = mirrored ? flipped : stored;
+        if (k) cv::rotate(from, turned, k == 1 ? cv::ROTATE_90_CLOCKWISE : k == 2 ? cv::ROTATE_180
+                                                                                 : cv::ROTATE_90_COUNTERCLOCKWISE);
+        same = cv::norm(k ? turned : from, shown, cv::NORM_INF) == 0;
+      }
       if (same) {
         turn.quarter_turns_cw = k;
         turn.mirrored = mirrored;
